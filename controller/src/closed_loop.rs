@@ -1,0 +1,113 @@
+//! The closed loop in one place: controller, reference and plant (used by the simulator and
+//! the firmware, and the sequence the process pair reproduces across processes).
+//!
+//! One control cycle at `t_k`: measure `(Q, V)` → law with the reference at `t_k` →
+//! saturate → hold `τ_k` (plus any disturbance) over `[t_k, t_{k+1})` while the plant is
+//! integrated → advance the reference to `t_{k+1}`.
+
+use crate::error::{Error, Quantity};
+use crate::group::MatrixLieGroup;
+use crate::integrator::RigidBody;
+use crate::law::{Controller, Desired, LawOutput};
+use crate::reference::Reference;
+use crate::tracking::{error_norms, ErrorNorms};
+use crate::validate::finite;
+use crate::Real;
+use nalgebra::{SMatrix, SVector};
+
+/// What one cycle of the loop saw and did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample<T: Real, const N: usize, const M: usize> {
+    /// `t_k`.
+    pub t: T,
+    /// The plant's configuration at `t_k`.
+    pub q: SMatrix<T, N, N>,
+    /// The plant's body velocity at `t_k`.
+    pub v: SVector<T, M>,
+    /// The desired state at `t_k`.
+    pub desired: Desired<T, N, M>,
+    /// The law's output (torque after saturation, Lyapunov function, tracking error).
+    pub output: LawOutput<T, N, M>,
+}
+
+impl<T: Real, const N: usize, const M: usize> Sample<T, N, M> {
+    /// The error norms of this sample.
+    pub fn norms<G: MatrixLieGroup<N, M>>(&self) -> ErrorNorms<T> {
+        error_norms::<G, T, N, M>(
+            &self.q,
+            &self.desired.q,
+            &self.output.error,
+            &self.output.velocity_error,
+        )
+    }
+}
+
+/// Controller, reference and plant stepping together.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClosedLoop<T: Real, G, const N: usize, const M: usize> {
+    /// The controller.
+    pub controller: Controller<T, G, N, M>,
+    /// The desired trajectory (its period is the control period).
+    pub reference: Reference<T, G, N, M>,
+    /// The plant.
+    pub plant: RigidBody<T, G, N, M>,
+    disturbance: SVector<T, M>,
+    plant_substeps: usize,
+}
+
+impl<T, G, const N: usize, const M: usize> ClosedLoop<T, G, N, M>
+where
+    T: Real,
+    G: MatrixLieGroup<N, M>,
+{
+    /// Assembles a loop; the control period is the reference's.
+    pub fn new(
+        controller: Controller<T, G, N, M>,
+        reference: Reference<T, G, N, M>,
+        plant: RigidBody<T, G, N, M>,
+        plant_substeps: usize,
+    ) -> Result<Self, Error> {
+        if plant_substeps == 0 {
+            return Err(Error::NotPositive(Quantity::Substeps));
+        }
+        Ok(ClosedLoop {
+            controller,
+            reference,
+            plant,
+            disturbance: SVector::zeros(),
+            plant_substeps,
+        })
+    }
+
+    /// Adds a constant body-frame disturbance torque to what the plant receives.
+    pub fn with_disturbance(mut self, disturbance: SVector<T, M>) -> Result<Self, Error> {
+        finite(Quantity::Disturbance, &disturbance)?;
+        self.disturbance = disturbance;
+        Ok(self)
+    }
+
+    /// The current time `t_k`.
+    pub fn time(&self) -> T {
+        self.reference.time()
+    }
+
+    /// One control cycle; returns what it saw at `t_k` and the torque it held.
+    pub fn step(&mut self) -> Result<Sample<T, N, M>, Error> {
+        let t = self.reference.time();
+        let q = *self.plant.configuration();
+        let v = self.plant.velocity();
+        let desired = self.reference.desired();
+        let output = self.controller.compute(&q, &v, &desired)?;
+        let applied = output.torque + self.disturbance;
+        self.plant
+            .advance(&applied, self.reference.period(), self.plant_substeps);
+        self.reference.advance();
+        Ok(Sample {
+            t,
+            q,
+            v,
+            desired,
+            output,
+        })
+    }
+}

@@ -1,0 +1,122 @@
+//! Typed errors: no panics, no NaN torques.
+
+use crate::group::GroupKind;
+use crate::law::Law;
+use core::fmt;
+
+/// The quantity an [`Error`] is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Quantity {
+    /// The model inertia `I` (m×m).
+    Inertia,
+    /// The potential weight `K` (n×n).
+    PotentialGain,
+    /// The damping gain `K_d` (m×m).
+    DampingGain,
+    /// The per-axis torque limit.
+    TorqueLimit,
+    /// The measured state `(Q, V)`.
+    State,
+    /// The desired trajectory `(Q_d, p_d)` or its initial value.
+    Reference,
+    /// The feedforward torque description.
+    Feedforward,
+    /// The torque computed by the law.
+    Torque,
+    /// A disturbance torque.
+    Disturbance,
+    /// The control period or a step length.
+    Period,
+    /// A number of integration substeps.
+    Substeps,
+}
+
+impl Quantity {
+    /// A short human-readable name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Quantity::Inertia => "inertia",
+            Quantity::PotentialGain => "potential gain K",
+            Quantity::DampingGain => "damping gain K_d",
+            Quantity::TorqueLimit => "torque limit",
+            Quantity::State => "state",
+            Quantity::Reference => "reference",
+            Quantity::Feedforward => "feedforward torque",
+            Quantity::Torque => "torque",
+            Quantity::Disturbance => "disturbance",
+            Quantity::Period => "period",
+            Quantity::Substeps => "substeps",
+        }
+    }
+}
+
+/// Everything that can go wrong in the controller crate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Error {
+    /// A number is NaN or infinite.
+    NonFinite(Quantity),
+    /// A matrix that must be symmetric is not.
+    NotSymmetric(Quantity),
+    /// A matrix that must be positive definite is not.
+    NotPositiveDefinite(Quantity),
+    /// A number that must be strictly positive is not (limit, period, substeps).
+    NotPositive(Quantity),
+    /// A slice had the wrong number of entries.
+    WrongShape {
+        /// What was being read.
+        quantity: Quantity,
+        /// The number of entries accepted (for gains: 1 or this).
+        expected: usize,
+        /// The number of entries given.
+        found: usize,
+    },
+    /// The law is not defined on the group (GT, nog, asym exist for SO(3) only).
+    LawNotDefined {
+        /// The law asked for.
+        law: Law,
+        /// The group it was asked of.
+        group: GroupKind,
+    },
+    /// A feedforward axis holds more cosine terms than the fixed capacity.
+    TooManyTerms {
+        /// The axis index.
+        axis: usize,
+        /// The capacity per axis.
+        capacity: usize,
+    },
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::NonFinite(q) => write!(f, "{} contains a non-finite number", q.name()),
+            Error::NotSymmetric(q) => write!(f, "{} is not symmetric", q.name()),
+            Error::NotPositiveDefinite(q) => write!(f, "{} is not positive definite", q.name()),
+            Error::NotPositive(q) => write!(f, "{} must be strictly positive", q.name()),
+            Error::WrongShape {
+                quantity,
+                expected,
+                found,
+            } => write!(
+                f,
+                "{} has {} entries, expected {}",
+                quantity.name(),
+                found,
+                expected
+            ),
+            Error::LawNotDefined { law, group } => write!(
+                f,
+                "law {} is not defined for group {} (only eqt is defined on every group)",
+                law.name(),
+                group.name()
+            ),
+            Error::TooManyTerms { axis, capacity } => write!(
+                f,
+                "feedforward axis {} has more than {} cosine terms",
+                axis, capacity
+            ),
+        }
+    }
+}
+
+impl core::error::Error for Error {}

@@ -1,0 +1,112 @@
+//! Matrix Lie groups: one uniform set of operations on every group (MATH.md, "Conventions").
+//!
+//! A group element is its n×n matrix `Q`; an algebra element is its coordinate vector
+//! `v ∈ ℝᵐ` in the basis `E_1..E_m` (`hat(v) = Σ vᵢ Eᵢ`). Momenta are coordinate vectors dual
+//! to that basis, so `Ad*_X ≅ Ad_Xᵀ` and `ad*_v ≅ ad_vᵀ`.
+
+mod se3;
+mod so3;
+
+pub use se3::Se3;
+pub use so3::So3;
+
+use crate::Real;
+use nalgebra::{SMatrix, SVector};
+
+/// Which group a type implements (for messages, configuration and dispatch).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum GroupKind {
+    /// The rotation group SO(3): n = m = 3.
+    So3,
+    /// The rigid-body group SE(3): n = 4, m = 6, twists ordered (ω, v).
+    Se3,
+}
+
+impl GroupKind {
+    /// The lower-case name used in files and messages (`"so3"`, `"se3"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            GroupKind::So3 => "so3",
+            GroupKind::Se3 => "se3",
+        }
+    }
+}
+
+/// A matrix Lie group of n×n matrices with an m-dimensional algebra.
+///
+/// Implementations are zero-sized markers; every operation is an associated function generic
+/// over the scalar. The defaults are the generic matrix definitions; groups override them with
+/// closed forms where they exist.
+pub trait MatrixLieGroup<const N: usize, const M: usize>:
+    Copy + Clone + core::fmt::Debug + Default + Send + Sync + 'static
+{
+    /// Which group this is.
+    const KIND: GroupKind;
+
+    /// `hat : ℝᵐ → g`, `hat(v) = Σ vᵢ Eᵢ`.
+    fn hat<T: Real>(v: &SVector<T, M>) -> SMatrix<T, N, N>;
+
+    /// `vee : g → ℝᵐ`, the inverse of [`hat`](Self::hat) on the algebra.
+    fn vee<T: Real>(x: &SMatrix<T, N, N>) -> SVector<T, M>;
+
+    /// The exponential map in closed form.
+    fn exp<T: Real>(v: &SVector<T, M>) -> SMatrix<T, N, N>;
+
+    /// The logarithm (principal branch), stable near the identity and near angle π.
+    fn log<T: Real>(q: &SMatrix<T, N, N>) -> SVector<T, M>;
+
+    /// The group inverse in closed form.
+    fn inverse<T: Real>(q: &SMatrix<T, N, N>) -> SMatrix<T, N, N>;
+
+    /// `Ad_Q` as the m×m matrix of `V ↦ Q V Q⁻¹`.
+    fn adjoint<T: Real>(q: &SMatrix<T, N, N>) -> SMatrix<T, M, M>;
+
+    /// `ad_v` as the m×m matrix of `W ↦ [hat(v), hat(W)]`.
+    fn ad<T: Real>(v: &SVector<T, M>) -> SMatrix<T, M, M>;
+
+    /// The attitude part `R` of `Q` (SO(3): `Q` itself; SE(3): its rotation block).
+    fn rotation<T: Real>(q: &SMatrix<T, N, N>) -> nalgebra::Matrix3<T>;
+
+    /// The basis element `E_i` (`i < m`; any other index gives the zero matrix).
+    fn basis<T: Real>(i: usize) -> SMatrix<T, N, N> {
+        let mut v = SVector::<T, M>::zeros();
+        if i < M {
+            v[i] = T::one();
+        }
+        Self::hat(&v)
+    }
+
+    /// The identity element.
+    fn identity<T: Real>() -> SMatrix<T, N, N> {
+        SMatrix::identity()
+    }
+
+    /// The group product `a·b`.
+    fn compose<T: Real>(a: &SMatrix<T, N, N>, b: &SMatrix<T, N, N>) -> SMatrix<T, N, N> {
+        a * b
+    }
+
+    /// The comparison laws that exist only in closed form on this group (GT, nog, asym, and the
+    /// closed-form EqT on SO(3)); `None` where the law is not defined on the group.
+    #[allow(clippy::too_many_arguments)]
+    fn comparison_law<T: Real>(
+        law: crate::Law,
+        q: &SMatrix<T, N, N>,
+        v: &SVector<T, M>,
+        desired: &crate::law::Desired<T, N, M>,
+        inertia: &SMatrix<T, M, M>,
+        k: &SMatrix<T, N, N>,
+        kd: &SMatrix<T, M, M>,
+    ) -> Option<SVector<T, M>> {
+        let _ = (law, q, v, desired, inertia, k, kd);
+        None
+    }
+
+    /// The coordinates of the Frobenius pairing with the basis, `(⟨X, E_i⟩_F)_i`.
+    ///
+    /// This is how the left-trivialised gradient of MATH.md ("The EqT law",
+    /// `grad_i = ⟨Q_Eᵀ(Q_E − I)K, E_i⟩_F`) is read off a matrix.
+    fn frobenius_coordinates<T: Real>(x: &SMatrix<T, N, N>) -> SVector<T, M> {
+        SVector::<T, M>::from_fn(|i, _| x.dot(&Self::basis::<T>(i)))
+    }
+}

@@ -1,0 +1,150 @@
+//! SE(3): n = 4, m = 6, twists ordered **(ω, v)** (angular first), wrenches (torque, force).
+//! `Ad_(R,x) = [[R, 0], [x×R, R]]`, `ad_(ω,v) = [[ω×, 0], [v×, ω×]]` (MATH.md, "Conventions").
+
+use super::so3::{exp_so3, log_so3, skew};
+use super::{GroupKind, MatrixLieGroup};
+use crate::{real, Real};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+
+/// The rigid-body group SE(3).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Se3;
+
+/// The rotation block `R` of an SE(3) matrix.
+#[inline]
+pub fn rotation<T: Real>(q: &SMatrix<T, 4, 4>) -> Matrix3<T> {
+    q.fixed_view::<3, 3>(0, 0).into_owned()
+}
+
+/// The translation `x` of an SE(3) matrix.
+#[inline]
+pub fn translation<T: Real>(q: &SMatrix<T, 4, 4>) -> Vector3<T> {
+    q.fixed_view::<3, 1>(0, 3).into_owned()
+}
+
+/// Builds `[[R, x], [0, 1]]`.
+#[inline]
+pub fn from_parts<T: Real>(r: &Matrix3<T>, x: &Vector3<T>) -> SMatrix<T, 4, 4> {
+    let mut q = SMatrix::<T, 4, 4>::identity();
+    q.fixed_view_mut::<3, 3>(0, 0).copy_from(r);
+    q.fixed_view_mut::<3, 1>(0, 3).copy_from(x);
+    q
+}
+
+fn split<T: Real>(v: &SVector<T, 6>) -> (Vector3<T>, Vector3<T>) {
+    (
+        Vector3::new(v[0], v[1], v[2]),
+        Vector3::new(v[3], v[4], v[5]),
+    )
+}
+
+fn join<T: Real>(w: &Vector3<T>, v: &Vector3<T>) -> SVector<T, 6> {
+    SVector::<T, 6>::new(w[0], w[1], w[2], v[0], v[1], v[2])
+}
+
+fn blocks<T: Real>(a: &Matrix3<T>, b: &Matrix3<T>, c: &Matrix3<T>) -> SMatrix<T, 6, 6> {
+    // [[a, 0], [b, c]]
+    let mut m = SMatrix::<T, 6, 6>::zeros();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(a);
+    m.fixed_view_mut::<3, 3>(3, 0).copy_from(b);
+    m.fixed_view_mut::<3, 3>(3, 3).copy_from(c);
+    m
+}
+
+impl MatrixLieGroup<4, 6> for Se3 {
+    const KIND: GroupKind = GroupKind::Se3;
+
+    fn hat<T: Real>(v: &SVector<T, 6>) -> SMatrix<T, 4, 4> {
+        let (w, u) = split(v);
+        let mut x = SMatrix::<T, 4, 4>::zeros();
+        x.fixed_view_mut::<3, 3>(0, 0).copy_from(&skew(&w));
+        x.fixed_view_mut::<3, 1>(0, 3).copy_from(&u);
+        x
+    }
+
+    fn vee<T: Real>(x: &SMatrix<T, 4, 4>) -> SVector<T, 6> {
+        SVector::<T, 6>::new(
+            x[(2, 1)],
+            x[(0, 2)],
+            x[(1, 0)],
+            x[(0, 3)],
+            x[(1, 3)],
+            x[(2, 3)],
+        )
+    }
+
+    /// `exp(ω, v) = (exp(ω×), J(ω)v)` with `J = I + B ω× + C ω×²`,
+    /// `B = (1 − cosθ)/θ²`, `C = (θ − sinθ)/θ³` (series near θ = 0).
+    fn exp<T: Real>(v: &SVector<T, 6>) -> SMatrix<T, 4, 4> {
+        let (w, u) = split(v);
+        let theta2 = w.norm_squared();
+        let wx = skew(&w);
+        let (b, c) = if theta2 < real(1e-2) {
+            (
+                real::<T>(0.5) - theta2 / real(24.0) + theta2 * theta2 / real(720.0)
+                    - theta2 * theta2 * theta2 / real(40320.0),
+                real::<T>(1.0 / 6.0) - theta2 / real(120.0) + theta2 * theta2 / real(5040.0)
+                    - theta2 * theta2 * theta2 / real(362880.0),
+            )
+        } else {
+            let theta = theta2.sqrt();
+            let half = theta * real(0.5);
+            let s = half.sin() / half;
+            (s * s * real(0.5), (theta - theta.sin()) / (theta2 * theta))
+        };
+        let j = Matrix3::identity() + wx * b + wx * wx * c;
+        from_parts(&exp_so3(&w), &(j * u))
+    }
+
+    /// `log(R, x) = (ω, J(ω)⁻¹x)` with `J⁻¹ = I − ½ω× + D ω×²`,
+    /// `D = (1 − (θ/2)cot(θ/2))/θ²` (series near θ = 0).
+    fn log<T: Real>(q: &SMatrix<T, 4, 4>) -> SVector<T, 6> {
+        let w = log_so3(&rotation(q));
+        let x = translation(q);
+        let theta2 = w.norm_squared();
+        let wx = skew(&w);
+        let d = if theta2 < real(1e-2) {
+            real::<T>(1.0 / 12.0)
+                + theta2 / real(720.0)
+                + theta2 * theta2 / real(30240.0)
+                + theta2 * theta2 * theta2 / real(1209600.0)
+        } else {
+            let theta = theta2.sqrt();
+            let half = theta * real(0.5);
+            (T::one() - half * half.cos() / half.sin()) / theta2
+        };
+        let j_inv = Matrix3::<T>::identity() - wx * real::<T>(0.5) + wx * wx * d;
+        join(&w, &(j_inv * x))
+    }
+
+    fn inverse<T: Real>(q: &SMatrix<T, 4, 4>) -> SMatrix<T, 4, 4> {
+        let rt = rotation(q).transpose();
+        from_parts(&rt, &(-(rt * translation(q))))
+    }
+
+    fn rotation<T: Real>(q: &SMatrix<T, 4, 4>) -> Matrix3<T> {
+        rotation(q)
+    }
+
+    fn adjoint<T: Real>(q: &SMatrix<T, 4, 4>) -> SMatrix<T, 6, 6> {
+        let r = rotation(q);
+        blocks(&r, &(skew(&translation(q)) * r), &r)
+    }
+
+    fn ad<T: Real>(v: &SVector<T, 6>) -> SMatrix<T, 6, 6> {
+        let (w, u) = split(v);
+        let wx = skew(&w);
+        blocks(&wx, &skew(&u), &wx)
+    }
+
+    fn frobenius_coordinates<T: Real>(x: &SMatrix<T, 4, 4>) -> SVector<T, 6> {
+        SVector::<T, 6>::new(
+            x[(2, 1)] - x[(1, 2)],
+            x[(0, 2)] - x[(2, 0)],
+            x[(1, 0)] - x[(0, 1)],
+            x[(0, 3)],
+            x[(1, 3)],
+            x[(2, 3)],
+        )
+    }
+}

@@ -1,0 +1,162 @@
+//! SO(3): n = m = 3, `hat(v)` the cross-product matrix, `Ad_R = R`, `ad_v = v×`.
+
+use super::{GroupKind, MatrixLieGroup};
+use crate::{real, Real};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+
+/// The rotation group SO(3).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct So3;
+
+/// The cross-product matrix `v×` (MATH.md: `hat(v) = [[0,-v3,v2],[v3,0,-v1],[-v2,v1,0]]`;
+/// the seed paper's displayed map has a typo, `v_2` where `v_3` belongs).
+#[inline]
+pub fn skew<T: Real>(v: &Vector3<T>) -> Matrix3<T> {
+    let z = T::zero();
+    Matrix3::new(z, -v[2], v[1], v[2], z, -v[0], -v[1], v[0], z)
+}
+
+/// `(X)^∨` of a (not necessarily skew) 3×3 matrix: the vector of its skew part's entries,
+/// `((X₃₂ − X₂₃)/2, (X₁₃ − X₃₁)/2, (X₂₁ − X₁₂)/2)`.
+#[inline]
+pub fn vee_skew<T: Real>(x: &Matrix3<T>) -> Vector3<T> {
+    let h: T = real(0.5);
+    Vector3::new(
+        (x[(2, 1)] - x[(1, 2)]) * h,
+        (x[(0, 2)] - x[(2, 0)]) * h,
+        (x[(1, 0)] - x[(0, 1)]) * h,
+    )
+}
+
+/// Rodrigues' formula `exp(hat(w)) = I + A·W + B·W²`, `A = sinθ/θ`, `B = (1 − cosθ)/θ²`,
+/// with series near θ = 0 and the half-angle form of B (no cancellation).
+pub fn exp_so3<T: Real>(w: &Vector3<T>) -> Matrix3<T> {
+    let theta2 = w.norm_squared();
+    let wx = skew(w);
+    let (a, b) = if theta2 < real(1e-4) {
+        (
+            T::one() - theta2 / real(6.0) + theta2 * theta2 / real(120.0),
+            real::<T>(0.5) - theta2 / real(24.0) + theta2 * theta2 / real(720.0),
+        )
+    } else {
+        let theta = theta2.sqrt();
+        let half = theta * real(0.5);
+        let s = half.sin() / half;
+        (theta.sin() / theta, s * s * real(0.5))
+    };
+    Matrix3::identity() + wx * a + wx * wx * b
+}
+
+/// The principal logarithm of a rotation, accurate near θ = 0 and near θ = π.
+///
+/// θ comes from `atan2(|sinθ·k|, cosθ)`; for θ < 2π/3 the axis comes from the skew part,
+/// beyond it from the symmetric part `(R + Rᵀ)/2 − cosθ·I = (1 − cosθ) k kᵀ`, with the sign
+/// fixed by the skew part.
+pub fn log_so3<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
+    let c = (r.trace() - T::one()) * real(0.5);
+    let c = c.clamp(-T::one(), T::one());
+    let w = vee_skew(r); // sinθ·k
+    let s = w.norm();
+    let theta = s.atan2(c);
+    if c > real(-0.5) {
+        let theta2 = theta * theta;
+        let factor = if theta2 < real(1e-4) {
+            T::one() + theta2 / real(6.0) + theta2 * theta2 * real(7.0 / 360.0)
+        } else {
+            theta / s
+        };
+        w * factor
+    } else {
+        let one_minus_c = T::one() - c;
+        let b = (r + r.transpose()) * real::<T>(0.5) - Matrix3::<T>::identity() * c;
+        let mut i = 0;
+        for j in 1..3 {
+            if b[(j, j)] > b[(i, i)] {
+                i = j;
+            }
+        }
+        let denom = (b[(i, i)] * one_minus_c).sqrt();
+        let mut k: Vector3<T> = b.column(i).into_owned() / denom;
+        // Normalise away rounding, then fix the sign from sinθ·k (sinθ ≥ 0).
+        let kn = k.norm();
+        if kn > T::zero() {
+            k /= kn;
+        }
+        if k.dot(&w) < T::zero() {
+            k = -k;
+        }
+        k * theta
+    }
+}
+
+impl MatrixLieGroup<3, 3> for So3 {
+    const KIND: GroupKind = GroupKind::So3;
+
+    fn hat<T: Real>(v: &SVector<T, 3>) -> SMatrix<T, 3, 3> {
+        skew(v)
+    }
+
+    fn vee<T: Real>(x: &SMatrix<T, 3, 3>) -> SVector<T, 3> {
+        Vector3::new(x[(2, 1)], x[(0, 2)], x[(1, 0)])
+    }
+
+    fn exp<T: Real>(v: &SVector<T, 3>) -> SMatrix<T, 3, 3> {
+        exp_so3(v)
+    }
+
+    fn log<T: Real>(q: &SMatrix<T, 3, 3>) -> SVector<T, 3> {
+        log_so3(q)
+    }
+
+    fn inverse<T: Real>(q: &SMatrix<T, 3, 3>) -> SMatrix<T, 3, 3> {
+        q.transpose()
+    }
+
+    fn rotation<T: Real>(q: &SMatrix<T, 3, 3>) -> Matrix3<T> {
+        *q
+    }
+
+    fn adjoint<T: Real>(q: &SMatrix<T, 3, 3>) -> SMatrix<T, 3, 3> {
+        *q
+    }
+
+    fn ad<T: Real>(v: &SVector<T, 3>) -> SMatrix<T, 3, 3> {
+        skew(v)
+    }
+
+    fn comparison_law<T: Real>(
+        law: crate::Law,
+        q: &SMatrix<T, 3, 3>,
+        v: &SVector<T, 3>,
+        desired: &crate::law::Desired<T, 3, 3>,
+        inertia: &SMatrix<T, 3, 3>,
+        k: &SMatrix<T, 3, 3>,
+        kd: &SMatrix<T, 3, 3>,
+    ) -> Option<SVector<T, 3>> {
+        use crate::law::so3;
+        let x = so3::So3LawInput {
+            r: *q,
+            omega: *v,
+            r_d: desired.q,
+            omega_d: desired.v,
+            tau_d: desired.tau,
+            inertia: *inertia,
+            k: *k,
+            kd: *kd,
+        };
+        Some(match law {
+            crate::Law::Eqt => so3::eqt(&x),
+            crate::Law::Gt => so3::gt(&x),
+            crate::Law::Nog => so3::nog(&x),
+            crate::Law::Asym => so3::asym(&x),
+        })
+    }
+
+    fn frobenius_coordinates<T: Real>(x: &SMatrix<T, 3, 3>) -> SVector<T, 3> {
+        Vector3::new(
+            x[(2, 1)] - x[(1, 2)],
+            x[(0, 2)] - x[(2, 0)],
+            x[(1, 0)] - x[(0, 1)],
+        )
+    }
+}

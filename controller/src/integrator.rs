@@ -1,0 +1,150 @@
+//! RKMK4 on the group and the physical rigid body (MATH.md, "Integrating on the group").
+
+use crate::error::{Error, Quantity};
+use crate::group::MatrixLieGroup;
+use crate::semidirect::Phase;
+use crate::validate::{finite, spd_inverse};
+use crate::{real, Real};
+use nalgebra::{SMatrix, SVector};
+
+/// `dexp⁻¹_{−u}(V) = V + ½[u,V] + (1/12)[u,[u,V]]`, truncated after the terms RKMK4 needs.
+///
+/// This is the algebra equation for the body-velocity form `Q̇ = Q·hat(V)` (velocity on the
+/// right). The `−½` variant belongs to `Q̇ = hat(V)·Q` and would cost two orders.
+pub fn dexp_inv_neg<G, T, const N: usize, const M: usize>(
+    u: &SVector<T, M>,
+    v: &SVector<T, M>,
+) -> SVector<T, M>
+where
+    G: MatrixLieGroup<N, M>,
+    T: Real,
+{
+    let ad = G::ad(u);
+    let uv = ad * v;
+    v + uv * real::<T>(0.5) + ad * uv * real::<T>(1.0 / 12.0)
+}
+
+/// One RKMK4 step of length `h` from time `t` for the system
+/// `Q̇ = Q·hat(V)`, `ṗ = P(t, Q, p)` with `(V, P) = field(t, Q, p)`.
+///
+/// `Q(t+h) = Q(t)·exp(hat(u))`, with `u` integrated by classical RK4 in the algebra through
+/// [`dexp_inv_neg`]; `p` by classical RK4.
+pub fn rkmk4_step<G, T, F, const N: usize, const M: usize>(
+    x: &Phase<T, N, M>,
+    t: T,
+    h: T,
+    mut field: F,
+) -> Phase<T, N, M>
+where
+    G: MatrixLieGroup<N, M>,
+    T: Real,
+    F: FnMut(T, &SMatrix<T, N, N>, &SVector<T, M>) -> (SVector<T, M>, SVector<T, M>),
+{
+    let half = h * real(0.5);
+    let (v1, pd1) = field(t, &x.q, &x.p);
+    let k1 = v1;
+
+    let u2 = k1 * half;
+    let (v2, pd2) = field(t + half, &(x.q * G::exp(&u2)), &(x.p + pd1 * half));
+    let k2 = dexp_inv_neg::<G, T, N, M>(&u2, &v2);
+
+    let u3 = k2 * half;
+    let (v3, pd3) = field(t + half, &(x.q * G::exp(&u3)), &(x.p + pd2 * half));
+    let k3 = dexp_inv_neg::<G, T, N, M>(&u3, &v3);
+
+    let u4 = k3 * h;
+    let (v4, pd4) = field(t + h, &(x.q * G::exp(&u4)), &(x.p + pd3 * h));
+    let k4 = dexp_inv_neg::<G, T, N, M>(&u4, &v4);
+
+    let sixth = h / real(6.0);
+    let two: T = real(2.0);
+    let u = (k1 + k2 * two + k3 * two + k4) * sixth;
+    Phase {
+        q: x.q * G::exp(&u),
+        p: x.p + (pd1 + pd2 * two + pd3 * two + pd4) * sixth,
+    }
+}
+
+/// One RKMK4 step of the physical system `Q̇ = Q·hat(V)`, `ṗ = ad_Vᵀp + τ(t)`, `V = I⁻¹p`
+/// (MATH.md, "The objects"), for a torque given as a function of time (use a constant
+/// closure for zero-order hold).
+pub fn physical_step<G, T, F, const N: usize, const M: usize>(
+    x: &Phase<T, N, M>,
+    t: T,
+    h: T,
+    inertia_inv: &SMatrix<T, M, M>,
+    torque: F,
+) -> Phase<T, N, M>
+where
+    G: MatrixLieGroup<N, M>,
+    T: Real,
+    F: Fn(T) -> SVector<T, M>,
+{
+    rkmk4_step::<G, T, _, N, M>(x, t, h, |s, _q, p| {
+        let v = inertia_inv * p;
+        (v, G::ad(&v).tr_mul(p) + torque(s))
+    })
+}
+
+/// A rigid body on the group: the plant. Holds `(Q, p)` and its (true) inertia.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigidBody<T: Real, G, const N: usize, const M: usize> {
+    state: Phase<T, N, M>,
+    inertia: SMatrix<T, M, M>,
+    inertia_inv: SMatrix<T, M, M>,
+    _group: core::marker::PhantomData<G>,
+}
+
+impl<T, G, const N: usize, const M: usize> RigidBody<T, G, N, M>
+where
+    T: Real,
+    G: MatrixLieGroup<N, M>,
+{
+    /// A body with inertia `inertia` (SPD) at configuration `q` with body velocity `v`.
+    pub fn new(
+        inertia: SMatrix<T, M, M>,
+        q: SMatrix<T, N, N>,
+        v: SVector<T, M>,
+    ) -> Result<Self, Error> {
+        let inertia_inv = spd_inverse(Quantity::Inertia, &inertia)?;
+        finite(Quantity::State, &q)?;
+        finite(Quantity::State, &v)?;
+        Ok(RigidBody {
+            state: Phase { q, p: inertia * v },
+            inertia,
+            inertia_inv,
+            _group: core::marker::PhantomData,
+        })
+    }
+
+    /// The configuration `Q`.
+    pub fn configuration(&self) -> &SMatrix<T, N, N> {
+        &self.state.q
+    }
+
+    /// The body velocity `V = I⁻¹p` (what a gyro measures).
+    pub fn velocity(&self) -> SVector<T, M> {
+        self.inertia_inv * self.state.p
+    }
+
+    /// The state `(Q, p)`.
+    pub fn state(&self) -> &Phase<T, N, M> {
+        &self.state
+    }
+
+    /// The body's inertia.
+    pub fn inertia(&self) -> &SMatrix<T, M, M> {
+        &self.inertia
+    }
+
+    /// Advances by `period` with the torque held constant (zero-order hold), in `substeps`
+    /// RKMK4 steps.
+    pub fn advance(&mut self, torque: &SVector<T, M>, period: T, substeps: usize) {
+        let h = period / real(substeps as f64);
+        let tau = *torque;
+        for _ in 0..substeps {
+            self.state =
+                physical_step::<G, T, _, N, M>(&self.state, T::zero(), h, &self.inertia_inv, |_| tau);
+        }
+    }
+}

@@ -1,0 +1,332 @@
+//! The control laws and the run-time [`Controller`] (MATH.md, "The EqT law" and "The four SO(3)
+//! laws of the extended paper").
+
+use crate::error::{Error, Quantity};
+use crate::group::{GroupKind, MatrixLieGroup};
+use crate::semidirect::Phase;
+use crate::tracking::{lyapunov, potential_gradient, tracking_error, Lyapunov};
+use crate::validate::{finite, spd_inverse};
+use crate::Real;
+use core::marker::PhantomData;
+use nalgebra::{SMatrix, SVector};
+
+/// The control law, chosen at run time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Law {
+    /// The equivariant tracking law (any group).
+    Eqt,
+    /// Geometric tracking (Bullo & Lewis 2005), SO(3) only.
+    Gt,
+    /// EqT without the gyroscopic term `ω̃×Iω_d`, SO(3) only.
+    Nog,
+    /// The asymmetric variant of the extended paper, SO(3) only.
+    Asym,
+}
+
+impl Law {
+    /// All laws, in the order of the extended paper.
+    pub const ALL: [Law; 4] = [Law::Eqt, Law::Gt, Law::Nog, Law::Asym];
+
+    /// The lower-case name (`"eqt"`, `"gt"`, `"nog"`, `"asym"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Law::Eqt => "eqt",
+            Law::Gt => "gt",
+            Law::Nog => "nog",
+            Law::Asym => "asym",
+        }
+    }
+
+    /// Parses a lower-case name.
+    pub fn from_name(name: &str) -> Option<Law> {
+        Law::ALL.iter().copied().find(|l| l.name() == name)
+    }
+
+    /// Whether the law exists on the group.
+    pub fn defined_for(self, group: GroupKind) -> bool {
+        self == Law::Eqt || group == GroupKind::So3
+    }
+}
+
+/// The desired state at the current time, as the law needs it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Desired<T: Real, const N: usize, const M: usize> {
+    /// `Q_d`.
+    pub q: SMatrix<T, N, N>,
+    /// `p_d = I V_d` (model inertia).
+    pub p: SVector<T, M>,
+    /// `V_d`.
+    pub v: SVector<T, M>,
+    /// The feedforward torque `τ_d(t)`.
+    pub tau: SVector<T, M>,
+}
+
+/// The EqT law on any group (MATH.md, "The EqT law"):
+///
+/// ```text
+/// τ_E = −ad_{A V_d}ᵀ p_E − K_d V_E − grad,   grad_i = ⟨Q_Eᵀ(Q_E − I)K, E_i⟩_F
+/// τ   = τ_d + Aᵀ (τ_E − ad_{V_E}ᵀ A⁻ᵀ p_d)
+/// ```
+///
+/// `p` is the momentum formed with the model inertia. Returns `τ` and the tracking error.
+#[allow(clippy::too_many_arguments)]
+pub fn eqt<G, T, const N: usize, const M: usize>(
+    q: &SMatrix<T, N, N>,
+    v: &SVector<T, M>,
+    p: &SVector<T, M>,
+    desired: &Desired<T, N, M>,
+    k: &SMatrix<T, N, N>,
+    kd: &SMatrix<T, M, M>,
+) -> (SVector<T, M>, Phase<T, N, M>)
+where
+    G: MatrixLieGroup<N, M>,
+    T: Real,
+{
+    let d = Phase {
+        q: desired.q,
+        p: desired.p,
+    };
+    let e = tracking_error::<G, T, N, M>(&Phase { q: *q, p: *p }, &d);
+    let a = G::adjoint(&desired.q);
+    let a_inv = G::adjoint(&G::inverse(&desired.q));
+    let v_e = a * (v - desired.v);
+    let grad = potential_gradient::<G, T, N, M>(&e.q, k);
+    let tau_e = -G::ad(&(a * desired.v)).tr_mul(&e.p) - kd * v_e - grad;
+    let tau = desired.tau + a.tr_mul(&(tau_e - G::ad(&v_e).tr_mul(&a_inv.tr_mul(&desired.p))));
+    (tau, e)
+}
+
+/// The SO(3) closed forms of the extended paper.
+///
+/// With `ω̃ = ω − ω_d`, `R_E = R R_dᵀ`, `prop = R_dᵀ (K R_E − R_Eᵀ K)^∨`.
+pub mod so3 {
+    use crate::{real, Real};
+    use nalgebra::{Matrix3, Vector3};
+
+    /// Everything an SO(3) closed-form law reads.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub struct So3LawInput<T: Real> {
+        /// Attitude `R`.
+        pub r: Matrix3<T>,
+        /// Body angular velocity `ω`.
+        pub omega: Vector3<T>,
+        /// Desired attitude `R_d`.
+        pub r_d: Matrix3<T>,
+        /// Desired body angular velocity `ω_d`.
+        pub omega_d: Vector3<T>,
+        /// Feedforward torque `τ_d`.
+        pub tau_d: Vector3<T>,
+        /// Model inertia `I`.
+        pub inertia: Matrix3<T>,
+        /// Potential weight `K`.
+        pub k: Matrix3<T>,
+        /// Damping `K_d`.
+        pub kd: Matrix3<T>,
+    }
+
+    /// `prop = R_dᵀ (K R_E − R_Eᵀ K)^∨`.
+    pub fn proportional<T: Real>(x: &So3LawInput<T>) -> Vector3<T> {
+        let r_e = x.r * x.r_d.transpose();
+        let m = x.k * r_e - r_e.transpose() * x.k;
+        x.r_d.tr_mul(&Vector3::new(m[(2, 1)], m[(0, 2)], m[(1, 0)]))
+    }
+
+    /// `R_dᵀ K_d R_d ω̃`.
+    fn damping<T: Real>(x: &So3LawInput<T>, w_err: &Vector3<T>) -> Vector3<T> {
+        x.r_d.tr_mul(&(x.kd * (x.r_d * w_err)))
+    }
+
+    /// EqT: `τ = τ_d + ω̃×Iω_d + ω_d×Iω̃ − R_dᵀK_dR_d ω̃ − prop`.
+    pub fn eqt<T: Real>(x: &So3LawInput<T>) -> Vector3<T> {
+        let we = x.omega - x.omega_d;
+        x.tau_d + we.cross(&(x.inertia * x.omega_d)) + x.omega_d.cross(&(x.inertia * we))
+            - damping(x, &we)
+            - proportional(x)
+    }
+
+    /// GT: `τ = τ_d + ½I(ω×ω_d) + ½ω×Iω_d + ½ω_d×Iω − ω_d×Iω_d − K_d ω̃ − prop`.
+    pub fn gt<T: Real>(x: &So3LawInput<T>) -> Vector3<T> {
+        let h: T = real(0.5);
+        let we = x.omega - x.omega_d;
+        let iwd = x.inertia * x.omega_d;
+        x.tau_d + x.inertia * x.omega.cross(&x.omega_d) * h
+            + x.omega.cross(&iwd) * h
+            + x.omega_d.cross(&(x.inertia * x.omega)) * h
+            - x.omega_d.cross(&iwd)
+            - x.kd * we
+            - proportional(x)
+    }
+
+    /// nog: `τ = τ_d + ω_d×Iω̃ − R_dᵀK_dR_d ω̃ − prop`.
+    pub fn nog<T: Real>(x: &So3LawInput<T>) -> Vector3<T> {
+        let we = x.omega - x.omega_d;
+        x.tau_d + x.omega_d.cross(&(x.inertia * we)) - damping(x, &we) - proportional(x)
+    }
+
+    /// asym: `τ = τ_d + ω̃×Iω_d + ½ω_d×Iω̃ + ½I(ω×ω_d) − R_dᵀK_dR_d ω̃ − prop`.
+    pub fn asym<T: Real>(x: &So3LawInput<T>) -> Vector3<T> {
+        let h: T = real(0.5);
+        let we = x.omega - x.omega_d;
+        x.tau_d + we.cross(&(x.inertia * x.omega_d)) + x.omega_d.cross(&(x.inertia * we)) * h
+            + x.inertia * x.omega.cross(&x.omega_d) * h
+            - damping(x, &we)
+            - proportional(x)
+    }
+
+    /// The seed paper's SO(3) formula with scalar gains:
+    /// `τ̃ = −k_v Ω̃ + (R_dΩ_d)×p_E − (k_p/2)(R_E − R_Eᵀ)^∨`, `τ = τ_d + R_dᵀτ̃ + (Ω − Ω_d)×p_d`.
+    pub fn seed<T: Real>(x: &So3LawInput<T>, k_p: T, k_v: T) -> Vector3<T> {
+        let r_e = x.r * x.r_d.transpose();
+        let w_tilde = x.r_d * (x.omega - x.omega_d);
+        let p = x.inertia * x.omega;
+        let p_d = x.inertia * x.omega_d;
+        let p_e = x.r_d * (p - p_d);
+        let m = r_e - r_e.transpose();
+        let tau_tilde = -w_tilde * k_v + (x.r_d * x.omega_d).cross(&p_e)
+            - Vector3::new(m[(2, 1)], m[(0, 2)], m[(1, 0)]) * (k_p * real(0.5));
+        x.tau_d + x.r_d.tr_mul(&tau_tilde) + (x.omega - x.omega_d).cross(&p_d)
+    }
+}
+
+/// The configuration of a [`Controller`]: law, model inertia, gains, optional saturation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControllerConfig<T: Real, const N: usize, const M: usize> {
+    /// The law.
+    pub law: Law,
+    /// The model inertia `I` (m×m, symmetric positive definite).
+    pub inertia: SMatrix<T, M, M>,
+    /// The potential weight `K` (n×n, symmetric positive definite).
+    pub k: SMatrix<T, N, N>,
+    /// The damping `K_d` (m×m, symmetric positive definite).
+    pub kd: SMatrix<T, M, M>,
+    /// Optional per-axis torque limit (each entry > 0): `τ_i` is clamped to `[−l_i, l_i]`.
+    pub torque_limit: Option<SVector<T, M>>,
+}
+
+/// What one evaluation of the controller returns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LawOutput<T: Real, const N: usize, const M: usize> {
+    /// The torque to apply (after saturation), never non-finite.
+    pub torque: SVector<T, M>,
+    /// Whether any axis was clamped.
+    pub saturated: bool,
+    /// The Lyapunov function at this state (model inertia).
+    pub lyapunov: Lyapunov<T>,
+    /// The tracking error `(Q_E, p_E)`.
+    pub error: Phase<T, N, M>,
+    /// `V − V_d`.
+    pub velocity_error: SVector<T, M>,
+}
+
+/// A validated controller: gains and inertia are checked once, here; the per-cycle path
+/// checks only that the state is finite.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Controller<T: Real, G, const N: usize, const M: usize> {
+    config: ControllerConfig<T, N, M>,
+    inertia_inv: SMatrix<T, M, M>,
+    _group: PhantomData<G>,
+}
+
+impl<T, G, const N: usize, const M: usize> Controller<T, G, N, M>
+where
+    T: Real,
+    G: MatrixLieGroup<N, M>,
+{
+    /// Validates the configuration (SPD inertia and gains, positive finite limits, law defined
+    /// on the group) and builds the controller.
+    pub fn new(config: ControllerConfig<T, N, M>) -> Result<Self, Error> {
+        if !config.law.defined_for(G::KIND) {
+            return Err(Error::LawNotDefined {
+                law: config.law,
+                group: G::KIND,
+            });
+        }
+        let inertia_inv = spd_inverse(Quantity::Inertia, &config.inertia)?;
+        spd_inverse(Quantity::PotentialGain, &config.k)?;
+        spd_inverse(Quantity::DampingGain, &config.kd)?;
+        if let Some(l) = &config.torque_limit {
+            finite(Quantity::TorqueLimit, l)?;
+            if l.iter().any(|x| *x <= T::zero()) {
+                return Err(Error::NotPositive(Quantity::TorqueLimit));
+            }
+        }
+        Ok(Controller {
+            config,
+            inertia_inv,
+            _group: PhantomData,
+        })
+    }
+
+    /// The validated configuration.
+    pub fn config(&self) -> &ControllerConfig<T, N, M> {
+        &self.config
+    }
+
+    /// `I⁻¹` of the model inertia.
+    pub fn inertia_inverse(&self) -> &SMatrix<T, M, M> {
+        &self.inertia_inv
+    }
+
+    /// The torque before saturation, and the tracking error, for the measured configuration
+    /// `q` and body velocity `v` (no checks; see [`Controller::compute`]).
+    pub fn raw_torque(
+        &self,
+        q: &SMatrix<T, N, N>,
+        v: &SVector<T, M>,
+        desired: &Desired<T, N, M>,
+    ) -> (SVector<T, M>, Phase<T, N, M>) {
+        let c = &self.config;
+        let p = c.inertia * v;
+        match c.law {
+            Law::Eqt => eqt::<G, T, N, M>(q, v, &p, desired, &c.k, &c.kd),
+            law => {
+                let e = tracking_error::<G, T, N, M>(
+                    &Phase { q: *q, p },
+                    &Phase {
+                        q: desired.q,
+                        p: desired.p,
+                    },
+                );
+                // `new` admits the comparison laws only on SO(3); the group supplies them.
+                let tau = G::comparison_law(law, q, v, desired, &c.inertia, &c.k, &c.kd)
+                    .unwrap_or_else(SVector::zeros);
+                (tau, e)
+            }
+        }
+    }
+
+    /// One evaluation of the law: checks the state is finite, computes the torque, saturates
+    /// it, and evaluates the Lyapunov function. Never returns a non-finite torque.
+    pub fn compute(
+        &self,
+        q: &SMatrix<T, N, N>,
+        v: &SVector<T, M>,
+        desired: &Desired<T, N, M>,
+    ) -> Result<LawOutput<T, N, M>, Error> {
+        finite(Quantity::State, q)?;
+        finite(Quantity::State, v)?;
+        finite(Quantity::Reference, &desired.q)?;
+        finite(Quantity::Reference, &desired.p)?;
+        finite(Quantity::Reference, &desired.v)?;
+        finite(Quantity::Reference, &desired.tau)?;
+        let (mut tau, error) = self.raw_torque(q, v, desired);
+        finite(Quantity::Torque, &tau)?;
+        let mut saturated = false;
+        if let Some(l) = &self.config.torque_limit {
+            for i in 0..M {
+                let c = tau[i].clamp(-l[i], l[i]);
+                saturated |= c != tau[i];
+                tau[i] = c;
+            }
+        }
+        let velocity_error = v - desired.v;
+        let lyapunov = lyapunov(&error.q, &velocity_error, &self.config.inertia, &self.config.k);
+        Ok(LawOutput {
+            torque: tau,
+            saturated,
+            lyapunov,
+            error,
+            velocity_error,
+        })
+    }
+}
