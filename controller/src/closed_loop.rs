@@ -5,14 +5,14 @@
 //! saturate → hold `τ_k` (plus any disturbance) over `[t_k, t_{k+1})` while the plant is
 //! integrated → advance the reference to `t_{k+1}`.
 
+use crate::Real;
 use crate::error::{Error, Quantity};
 use crate::group::MatrixLieGroup;
 use crate::integrator::RigidBody;
 use crate::law::{Controller, Desired, LawOutput};
 use crate::reference::Reference;
-use crate::tracking::{error_norms, ErrorNorms};
+use crate::tracking::{ErrorNorms, error_norms};
 use crate::validate::finite;
-use crate::Real;
 use nalgebra::{SMatrix, SVector};
 
 /// What one cycle of the loop saw and did.

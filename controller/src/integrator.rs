@@ -4,7 +4,7 @@ use crate::error::{Error, Quantity};
 use crate::group::MatrixLieGroup;
 use crate::semidirect::Phase;
 use crate::validate::{finite, spd_inverse};
-use crate::{real, Real};
+use crate::{Real, real};
 use nalgebra::{SMatrix, SVector};
 
 /// `dexp⁻¹_{−u}(V) = V + ½[u,V] + (1/12)[u,[u,V]]`, truncated after the terms RKMK4 needs.
@@ -143,8 +143,13 @@ where
         let h = period / real(substeps as f64);
         let tau = *torque;
         for _ in 0..substeps {
-            self.state =
-                physical_step::<G, T, _, N, M>(&self.state, T::zero(), h, &self.inertia_inv, |_| tau);
+            self.state = physical_step::<G, T, _, N, M>(
+                &self.state,
+                T::zero(),
+                h,
+                &self.inertia_inv,
+                |_| tau,
+            );
         }
     }
 }

@@ -1,12 +1,12 @@
 //! The control laws and the run-time [`Controller`] (MATH.md, "The EqT law" and "The four SO(3)
 //! laws of the extended paper").
 
+use crate::Real;
 use crate::error::{Error, Quantity};
 use crate::group::{GroupKind, MatrixLieGroup};
 use crate::semidirect::Phase;
-use crate::tracking::{lyapunov, potential_gradient, tracking_error, Lyapunov};
+use crate::tracking::{Lyapunov, lyapunov, potential_gradient, tracking_error};
 use crate::validate::{finite, spd_inverse};
-use crate::Real;
 use core::marker::PhantomData;
 use nalgebra::{SMatrix, SVector};
 
@@ -100,7 +100,7 @@ where
 ///
 /// With `ω̃ = ω − ω_d`, `R_E = R R_dᵀ`, `prop = R_dᵀ (K R_E − R_Eᵀ K)^∨`.
 pub mod so3 {
-    use crate::{real, Real};
+    use crate::{Real, real};
     use nalgebra::{Matrix3, Vector3};
 
     /// Everything an SO(3) closed-form law reads.
@@ -149,7 +149,8 @@ pub mod so3 {
         let h: T = real(0.5);
         let we = x.omega - x.omega_d;
         let iwd = x.inertia * x.omega_d;
-        x.tau_d + x.inertia * x.omega.cross(&x.omega_d) * h
+        x.tau_d
+            + x.inertia * x.omega.cross(&x.omega_d) * h
             + x.omega.cross(&iwd) * h
             + x.omega_d.cross(&(x.inertia * x.omega)) * h
             - x.omega_d.cross(&iwd)
@@ -167,7 +168,9 @@ pub mod so3 {
     pub fn asym<T: Real>(x: &So3LawInput<T>) -> Vector3<T> {
         let h: T = real(0.5);
         let we = x.omega - x.omega_d;
-        x.tau_d + we.cross(&(x.inertia * x.omega_d)) + x.omega_d.cross(&(x.inertia * we)) * h
+        x.tau_d
+            + we.cross(&(x.inertia * x.omega_d))
+            + x.omega_d.cross(&(x.inertia * we)) * h
             + x.inertia * x.omega.cross(&x.omega_d) * h
             - damping(x, &we)
             - proportional(x)
@@ -320,7 +323,12 @@ where
             }
         }
         let velocity_error = v - desired.v;
-        let lyapunov = lyapunov(&error.q, &velocity_error, &self.config.inertia, &self.config.k);
+        let lyapunov = lyapunov(
+            &error.q,
+            &velocity_error,
+            &self.config.inertia,
+            &self.config.k,
+        );
         Ok(LawOutput {
             torque: tau,
             saturated,

@@ -16,37 +16,12 @@
 //! | [`semidirect`] | the phase-space group `G ⋉ g*`, the actions φ and ψ, the vector field f |
 //! | [`tracking`] | tracking error, error inputs, error inertia, Lyapunov function |
 //! | [`law`] | the EqT law (any group), the SO(3) closed forms EqT, GT, nog, asym, the [`Controller`] |
-//! | [`reference`] | the desired-trajectory generator with cosine-series feedforward |
+//! | [`reference`](mod@reference) | the desired-trajectory generator with cosine-series feedforward |
 //! | [`integrator`] | RKMK4 on the group, the rigid body |
 //! | [`closed_loop`] | controller + reference + plant in one loop (simulation, firmware) |
 //!
-//! Quick start (the seed paper's closed loop on SO(3), 1 s of it):
-//!
-//! ```
-//! use controller::{closed_loop::ClosedLoop, so3_seed_feedforward, Law, ControllerConfig,
-//!                  So3, group::MatrixLieGroup};
-//! use nalgebra::{Matrix3, Vector3};
-//!
-//! let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759);
-//! let config = ControllerConfig {
-//!     law: Law::Eqt,
-//!     inertia,
-//!     k: Matrix3::identity() * 0.5,
-//!     kd: Matrix3::identity() * 0.5,
-//!     torque_limit: None,
-//! };
-//! let r0 = So3::exp(&(Vector3::new(0.8, 0.6, 0.0) * (core::f64::consts::PI - 0.1)));
-//! let mut sim = ClosedLoop::<f64, So3, 3, 3>::new(
-//!     config, inertia, r0, Vector3::new(4.0, -3.0, 2.0),
-//!     Matrix3::identity(), Vector3::zeros(), so3_seed_feedforward(),
-//!     0.01, 10, 10,
-//! ).unwrap();
-//! let first = sim.step().unwrap();
-//! for _ in 0..99 { sim.step().unwrap(); }
-//! let later = sim.step().unwrap();
-//! assert!(later.lyapunov < first.lyapunov);
-//! assert!(later.torque.iter().all(|t| t.is_finite()));
-//! ```
+//! The README's example (doc-tested) shows the whole loop; [`closed_loop::ClosedLoop`] is the
+//! place to start reading.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -64,7 +39,7 @@ pub mod validate;
 pub use error::{Error, Quantity};
 pub use group::{GroupKind, MatrixLieGroup, Se3, So3};
 pub use law::{Controller, ControllerConfig, Law, LawOutput};
-pub use reference::{so3_seed_feedforward, AxisTorque, CosTerm, Feedforward, Reference};
+pub use reference::{AxisTorque, CosTerm, Feedforward, Reference, so3_seed_feedforward};
 
 /// The scalar type: a real field that is `Copy` (`f32`, `f64`).
 ///
@@ -78,3 +53,8 @@ impl<T: nalgebra::RealField + Copy> Real for T {}
 pub fn real<T: Real>(x: f64) -> T {
     nalgebra::convert(x)
 }
+
+/// The README's code blocks, compiled and run as doc tests.
+#[cfg(doctest)]
+#[doc = include_str!("../../README.md")]
+pub struct ReadmeDoctests;

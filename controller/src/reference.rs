@@ -7,7 +7,7 @@ use crate::integrator::physical_step;
 use crate::law::Desired;
 use crate::semidirect::Phase;
 use crate::validate::{finite, spd_inverse};
-use crate::{real, Real};
+use crate::{Real, real};
 use nalgebra::{SMatrix, SVector};
 
 /// The number of cosine terms each feedforward axis can hold.
@@ -206,7 +206,9 @@ where
             let t = t0 + real::<T>(j as f64) * h;
             let ff = &self.feedforward;
             self.state =
-                physical_step::<G, T, _, N, M>(&self.state, t, h, &self.inertia_inv, |s| ff.eval(s));
+                physical_step::<G, T, _, N, M>(&self.state, t, h, &self.inertia_inv, |s| {
+                    ff.eval(s)
+                });
         }
         self.step += 1;
     }

@@ -1,8 +1,8 @@
 //! The phase-space group `G ⋉ g*`, its actions and the extended Euler–Poincaré vector field
 //! (MATH.md, "The objects").
 
-use crate::group::MatrixLieGroup;
 use crate::Real;
+use crate::group::MatrixLieGroup;
 use nalgebra::{SMatrix, SVector};
 
 /// A point `(Q, p)` of `G × g*`, and equally an element of the group `G ⋉ g*`.

@@ -3,9 +3,9 @@
 //!
 //! Throughout, `A = Ad_{Q_d}` and `A⁻¹ = Ad_{Q_d⁻¹}` (no matrix is inverted numerically).
 
+use crate::Real;
 use crate::group::MatrixLieGroup;
 use crate::semidirect::{Input, Phase};
-use crate::Real;
 use nalgebra::{SMatrix, SVector};
 
 /// The tracking error `(Q_E, p_E) = (Q Q_d⁻¹, A⁻ᵀ(p − p_d))`, which is the state action

@@ -2,7 +2,7 @@
 //! matrices, slices of the right length.
 
 use crate::error::{Error, Quantity};
-use crate::{real, Real};
+use crate::{Real, real};
 use nalgebra::{SMatrix, SVector};
 
 /// `Ok` when every entry is finite, `Err(NonFinite(quantity))` otherwise.

@@ -21,34 +21,47 @@ fn se3_loop(period: f64, substeps: usize, feedforward: bool) -> ClosedLoop<f64, 
     inertia
         .fixed_view_mut::<3, 3>(0, 0)
         .copy_from(&Matrix3::from_diagonal(&Vector3::new(0.8, 1.0, 1.2)));
-    inertia.fixed_view_mut::<3, 3>(3, 3).copy_from(&(Matrix3::identity() * 2.0));
+    inertia
+        .fixed_view_mut::<3, 3>(3, 3)
+        .copy_from(&(Matrix3::identity() * 2.0));
     let k = SMatrix::<f64, 4, 4>::from_diagonal(&nalgebra::Vector4::new(1.6, 1.2, 1.4, 2.0));
     let mut kd = SMatrix::<f64, 6, 6>::identity() * 1.5;
     kd[(0, 1)] = 0.1;
     kd[(1, 0)] = 0.1;
-    let config = ControllerConfig { law: Law::Eqt, inertia, k, kd, torque_limit: None };
-    let term = |a: f64, w: f64, p: f64| CosTerm { amplitude: a, frequency: w, phase: p };
+    let config = ControllerConfig {
+        law: Law::Eqt,
+        inertia,
+        k,
+        kd,
+        torque_limit: None,
+    };
+    let term = |a: f64, w: f64, p: f64| CosTerm {
+        amplitude: a,
+        frequency: w,
+        phase: p,
+    };
     let ff = if !feedforward {
         let mut circle = Feedforward::zero();
         circle.axes[4] = AxisTorque::constant(0.32);
         circle
     } else {
         Feedforward {
-        axes: [
-            AxisTorque::new(0, 0.0, &[term(0.3, 1.0, 0.0)]).unwrap(),
-            AxisTorque::new(1, 0.0, &[term(0.2, 0.5, 1.0)]).unwrap(),
-            AxisTorque::constant(0.0),
-            AxisTorque::new(3, 0.0, &[term(0.5, 0.7, 0.0)]).unwrap(),
-            AxisTorque::constant(0.0),
-            AxisTorque::new(5, 0.0, &[term(0.4, 1.1, 0.3)]).unwrap(),
-        ],
+            axes: [
+                AxisTorque::new(0, 0.0, &[term(0.3, 1.0, 0.0)]).unwrap(),
+                AxisTorque::new(1, 0.0, &[term(0.2, 0.5, 1.0)]).unwrap(),
+                AxisTorque::constant(0.0),
+                AxisTorque::new(3, 0.0, &[term(0.5, 0.7, 0.0)]).unwrap(),
+                AxisTorque::constant(0.0),
+                AxisTorque::new(5, 0.0, &[term(0.4, 1.1, 0.3)]).unwrap(),
+            ],
         }
     };
     // On SE(3) V_E = Ad_{Q_d}(V − V_d) carries the x_d×R block, so the law's effective damping
     // grows like |x_d|² and a fixed K_d under 10 ms zero-order hold goes unstable once the
     // reference is ~15 m from the origin: the converging test keeps it on a circle.
     let vd0 = SVector::<f64, 6>::new(0.0, 0.0, 0.4, 0.4, 0.0, 0.0);
-    let reference = Reference::new(SMatrix::identity(), vd0, inertia, ff, period, substeps).unwrap();
+    let reference =
+        Reference::new(SMatrix::identity(), vd0, inertia, ff, period, substeps).unwrap();
     let q0 = Se3::exp(&SVector::<f64, 6>::new(1.5, -1.0, 0.8, 2.0, -1.0, 1.5));
     let v0 = SVector::<f64, 6>::new(1.0, -0.5, 0.3, 0.0, 0.5, -1.0);
     let plant = RigidBody::new(inertia, q0, v0).unwrap();
@@ -78,7 +91,10 @@ fn check_lyapunov<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let h = sim.reference.period();
     let samples: Vec<_> = (0..=steps).map(|_| sim.step().unwrap()).collect();
     let l: Vec<f64> = samples.iter().map(|s| s.output.lyapunov.total).collect();
-    let scale = samples.iter().map(|s| dissipation::<G, N, M>(s, &kd)).fold(0.0, f64::max);
+    let scale = samples
+        .iter()
+        .map(|s| dissipation::<G, N, M>(s, &kd))
+        .fold(0.0, f64::max);
     let mut worst_rise = 0.0f64;
     let mut worst_rate = 0.0f64;
     for k in 1..steps {
@@ -87,9 +103,15 @@ fn check_lyapunov<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         let expect = -dissipation::<G, N, M>(&samples[k], &kd);
         worst_rate = worst_rate.max((fd - expect).abs() / scale);
     }
-    eprintln!("{:?}: worst rise {worst_rise:.3e}, worst rate error {worst_rate:.3e} (scale {scale:.3e})", G::KIND);
+    eprintln!(
+        "{:?}: worst rise {worst_rise:.3e}, worst rate error {worst_rate:.3e} (scale {scale:.3e})",
+        G::KIND
+    );
     assert!(worst_rise <= rise_tol, "L rose by {worst_rise:e}");
-    assert!(worst_rate <= rate_tol, "dL/dt off by {worst_rate:e} of the scale");
+    assert!(
+        worst_rate <= rate_tol,
+        "dL/dt off by {worst_rate:e} of the scale"
+    );
     (l[0], l[steps])
 }
 
@@ -124,22 +146,35 @@ fn se3_converges() {
     }
     let s = last.unwrap();
     let n = s.norms::<Se3>();
-    eprintln!("SE(3) after 60 s: config error {:.3e}, |x_d| ≤ {reach:.2}", n.config_error);
+    eprintln!(
+        "SE(3) after 60 s: config error {:.3e}, |x_d| ≤ {reach:.2}",
+        n.config_error
+    );
     assert!(reach < 2.01, "the reference left its circle: {reach}");
     assert!(n.config_error < 1e-3, "config error {}", n.config_error);
     assert!(n.velocity_error < 1e-3);
 }
 
-fn random_spd_with_eigenvectors(lambdas: [f64; 3], axis: Vector3<f64>) -> (Matrix3<f64>, Matrix3<f64>) {
+fn random_spd_with_eigenvectors(
+    lambdas: [f64; 3],
+    axis: Vector3<f64>,
+) -> (Matrix3<f64>, Matrix3<f64>) {
     let u = So3::exp(&axis);
-    (u * Matrix3::from_diagonal(&Vector3::from(lambdas)) * u.transpose(), u)
+    (
+        u * Matrix3::from_diagonal(&Vector3::from(lambdas)) * u.transpose(),
+        u,
+    )
 }
 
 #[test]
 fn isotropic_k_every_pi_rotation_is_a_critical_point_and_unstable() {
     let k = Matrix3::identity() * 0.7;
     for i in 0..50 {
-        let a = Vector3::new((i as f64 * 0.37).sin(), (i as f64 * 1.3).cos(), 0.3 + (i as f64).sin());
+        let a = Vector3::new(
+            (i as f64 * 0.37).sin(),
+            (i as f64 * 1.3).cos(),
+            0.3 + (i as f64).sin(),
+        );
         let axis = a.normalize();
         let re = So3::exp(&(axis * core::f64::consts::PI));
         assert!((re.trace() + 1.0).abs() < 1e-12);
@@ -168,18 +203,35 @@ fn anisotropic_k_critical_points_are_the_pi_rotations_about_eigenvectors() {
         let g = potential_gradient::<So3, f64, 3, 3>(&re, &k);
         assert!(g.amax() < 1e-12, "eigenvector {i}: gradient {g:?}");
         let l = potential(&re, &k);
-        let lowest = [Vector3::x(), Vector3::y(), Vector3::z(), u.column(0).into_owned(), u.column(1).into_owned(), u.column(2).into_owned()]
-            .iter()
-            .flat_map(|w| [*w, -*w])
-            .map(|w| potential(&(re * So3::exp(&(w * 1e-3))), &k))
-            .fold(f64::INFINITY, f64::min);
-        assert!(lowest < l, "no descent direction at the π-rotation about eigenvector {i}");
+        let lowest = [
+            Vector3::x(),
+            Vector3::y(),
+            Vector3::z(),
+            u.column(0).into_owned(),
+            u.column(1).into_owned(),
+            u.column(2).into_owned(),
+        ]
+        .iter()
+        .flat_map(|w| [*w, -*w])
+        .map(|w| potential(&(re * So3::exp(&(w * 1e-3))), &k))
+        .fold(f64::INFINITY, f64::min);
+        assert!(
+            lowest < l,
+            "no descent direction at the π-rotation about eigenvector {i}"
+        );
     }
     // other π-rotations are not critical points
-    for a in [Vector3::new(1.0, 1.0, 0.0), Vector3::new(0.2, -0.5, 0.9), Vector3::new(-1.0, 0.3, 0.3)] {
+    for a in [
+        Vector3::new(1.0, 1.0, 0.0),
+        Vector3::new(0.2, -0.5, 0.9),
+        Vector3::new(-1.0, 0.3, 0.3),
+    ] {
         let re = So3::exp(&(a.normalize() * core::f64::consts::PI));
         let g = potential_gradient::<So3, f64, 3, 3>(&re, &k);
-        assert!(g.amax() > 1e-3, "gradient vanishes at a non-eigen π-rotation: {g:?}");
+        assert!(
+            g.amax() > 1e-3,
+            "gradient vanishes at a non-eigen π-rotation: {g:?}"
+        );
     }
 }
 
@@ -190,7 +242,11 @@ fn identity_is_a_strict_minimum() {
     assert_eq!(potential(&id, &k), 0.0);
     assert!(potential_gradient::<So3, f64, 3, 3>(&id, &k).amax() == 0.0);
     for i in 0..100 {
-        let w = Vector3::new((i as f64).sin(), (i as f64 * 2.1).cos(), (i as f64 * 0.7).sin()) * 1e-3;
+        let w = Vector3::new(
+            (i as f64).sin(),
+            (i as f64 * 2.1).cos(),
+            (i as f64 * 0.7).sin(),
+        ) * 1e-3;
         assert!(potential(&So3::exp(&w), &k) > 0.0);
     }
 }

@@ -4,7 +4,7 @@
 use controller::closed_loop::ClosedLoop;
 use controller::group::{MatrixLieGroup, So3};
 use controller::integrator::RigidBody;
-use controller::{so3_seed_feedforward, Controller, ControllerConfig, Law, Real, Reference};
+use controller::{Controller, ControllerConfig, Law, Real, Reference, so3_seed_feedforward};
 use nalgebra::{Matrix3, Vector3};
 
 /// The extended paper's fixed-wing inertia (the project's default).

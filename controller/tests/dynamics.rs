@@ -4,7 +4,7 @@
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::rkmk4_step;
 use controller::semidirect::{
-    input_action, state_action, state_action_differential, vector_field, Input, Phase,
+    Input, Phase, input_action, state_action, state_action_differential, vector_field,
 };
 use controller::tracking::{
     error_inertia, error_inertia_inverse, error_inertia_inverse_rate, error_input,
@@ -40,9 +40,14 @@ fn semidirect_axioms<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     b: &[f64],
     c: &[f64],
 ) {
-    let (x, y, z) = (phase::<G, N, M>(a), phase::<G, N, M>(b), phase::<G, N, M>(c));
+    let (x, y, z) = (
+        phase::<G, N, M>(a),
+        phase::<G, N, M>(b),
+        phase::<G, N, M>(c),
+    );
     let id = Phase::<f64, N, M>::identity();
-    let close = |l: &Phase<f64, N, M>, r: &Phase<f64, N, M>| d(&l.q, &r.q) < 1e-12 && d(&l.p, &r.p) < 1e-11;
+    let close =
+        |l: &Phase<f64, N, M>, r: &Phase<f64, N, M>| d(&l.q, &r.q) < 1e-12 && d(&l.p, &r.p) < 1e-11;
     assert!(close(&id.compose::<G>(&x), &x));
     assert!(close(&x.compose::<G>(&id), &x));
     assert!(close(&x.compose::<G>(&x.inverse::<G>()), &id));
@@ -80,8 +85,16 @@ fn equivariance<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(a: &[f6
         &input_action::<G, f64, N, M>(&x, &u),
     );
     let scale = 1.0 + rhs.q_dot.amax() + rhs.p_dot.amax();
-    assert!(d(&fd_q, &rhs.q_dot) < 1e-7 * scale, "Q part {}", d(&fd_q, &rhs.q_dot));
-    assert!(d(&fd_p, &rhs.p_dot) < 1e-7 * scale, "p part {}", d(&fd_p, &rhs.p_dot));
+    assert!(
+        d(&fd_q, &rhs.q_dot) < 1e-7 * scale,
+        "Q part {}",
+        d(&fd_q, &rhs.q_dot)
+    );
+    assert!(
+        d(&fd_p, &rhs.p_dot) < 1e-7 * scale,
+        "p part {}",
+        d(&fd_p, &rhs.p_dot)
+    );
     // the analytic differential agrees too
     let an = state_action_differential::<G, f64, N, M>(&x, &f);
     assert!(d(&an.q_dot, &rhs.q_dot) < 1e-10 * scale);
@@ -131,8 +144,16 @@ fn error_dynamics<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(a: &[
         let fd_q = (e_next.q - e_prev.q) / (2.0 * h);
         let fd_p = (e_next.p - e_prev.p) / (2.0 * h);
         let scale = 1.0 + rhs.q_dot.amax() + rhs.p_dot.amax();
-        assert!(d(&fd_q, &rhs.q_dot) < 1e-5 * scale, "Q_E: {}", d(&fd_q, &rhs.q_dot));
-        assert!(d(&fd_p, &rhs.p_dot) < 1e-5 * scale, "p_E: {}", d(&fd_p, &rhs.p_dot));
+        assert!(
+            d(&fd_q, &rhs.q_dot) < 1e-5 * scale,
+            "Q_E: {}",
+            d(&fd_q, &rhs.q_dot)
+        );
+        assert!(
+            d(&fd_p, &rhs.p_dot) < 1e-5 * scale,
+            "p_E: {}",
+            d(&fd_p, &rhs.p_dot)
+        );
         // (V_E, τ_E) is ψ((Q_d,p_d)⁻¹, (V − V_d, τ − τ_d)), and τ is recovered from τ_E.
         let diff = Input {
             v: u.v - ud.v,
@@ -170,7 +191,11 @@ fn inertia_rate<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(a: &[f6
             let fd = (error_inertia_inverse::<G, f64, N, M>(&next.q, &inertia_inv)
                 - error_inertia_inverse::<G, f64, N, M>(&prev.q, &inertia_inv))
                 / (2.0 * h);
-            let an = error_inertia_inverse_rate::<G, f64, N, M>(&xd.q, &(inertia_inv * xd.p), &inertia_inv);
+            let an = error_inertia_inverse_rate::<G, f64, N, M>(
+                &xd.q,
+                &(inertia_inv * xd.p),
+                &inertia_inv,
+            );
             assert!(d(&fd, &an) < 1e-6 * (1.0 + an.amax()), "{}", d(&fd, &an));
             // Ī Ī⁻¹ = 1 and p_E = Ī V_E
             let ib = error_inertia::<G, f64, N, M>(&xd.q, &inertia);

@@ -1,7 +1,7 @@
 //! The same property suite on every group and in both scalars (manif / Sophus style).
 
 use controller::group::{MatrixLieGroup, Se3, So3};
-use controller::{real, Real};
+use controller::{Real, real};
 use nalgebra::{SMatrix, SVector};
 use proptest::prelude::*;
 
@@ -82,7 +82,10 @@ where
     let back = G::log(&G::exp(&v));
     let e = err(&back, &v);
     let scale = 1.0 + nalgebra::try_convert::<T, f64>(v.amax()).unwrap();
-    assert!(e <= tol * scale, "log(exp(v)) − v = {e:e} at angle {angle:.17}");
+    assert!(
+        e <= tol * scale,
+        "log(exp(v)) − v = {e:e} at angle {angle:.17}"
+    );
 }
 
 fn axis() -> impl Strategy<Value = Vec<f64>> {
@@ -164,5 +167,10 @@ fn se3_adjoint_has_the_documented_blocks() {
     let x = q.fixed_view::<3, 1>(0, 3).into_owned();
     assert!(err(&ad.fixed_view::<3, 3>(0, 0).into_owned(), &r) < 1e-15);
     assert!(ad.fixed_view::<3, 3>(0, 3).amax() == 0.0);
-    assert!(err(&ad.fixed_view::<3, 3>(3, 0).into_owned(), &(x.cross_matrix() * r)) < 1e-15);
+    assert!(
+        err(
+            &ad.fixed_view::<3, 3>(3, 0).into_owned(),
+            &(x.cross_matrix() * r)
+        ) < 1e-15
+    );
 }

@@ -4,7 +4,7 @@ mod common;
 
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::law::so3::{self, So3LawInput};
-use controller::law::{eqt, Desired};
+use controller::law::{Desired, eqt};
 use controller::validate::gain_from_slice;
 use controller::{Controller, ControllerConfig, Error, GroupKind, Law, Quantity};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
@@ -36,7 +36,15 @@ fn generic_eqt(x: &So3LawInput<f64>) -> Vector3<f64> {
         v: x.omega_d,
         tau: x.tau_d,
     };
-    eqt::<So3, f64, 3, 3>(&x.r, &x.omega, &(x.inertia * x.omega), &desired, &x.k, &x.kd).0
+    eqt::<So3, f64, 3, 3>(
+        &x.r,
+        &x.omega,
+        &(x.inertia * x.omega),
+        &desired,
+        &x.k,
+        &x.kd,
+    )
+    .0
 }
 
 proptest! {
@@ -120,7 +128,13 @@ fn desired3() -> Desired<f64, 3, 3> {
 fn comparison_laws_on_se3_are_a_typed_error() {
     for law in [Law::Gt, Law::Nog, Law::Asym] {
         let e = Controller::<f64, Se3, 4, 6>::new(config6(law)).unwrap_err();
-        assert_eq!(e, Error::LawNotDefined { law, group: GroupKind::Se3 });
+        assert_eq!(
+            e,
+            Error::LawNotDefined {
+                law,
+                group: GroupKind::Se3
+            }
+        );
         assert!(e.to_string().contains("not defined for group se3"));
     }
     assert!(Controller::<f64, Se3, 4, 6>::new(config6(Law::Eqt)).is_ok());
@@ -163,26 +177,45 @@ fn the_controller_dispatches_the_closed_forms_on_so3() {
 fn invalid_gains_and_inertia_are_typed_errors() {
     let mut c = config3(Law::Eqt);
     c.inertia[(0, 1)] = 0.5; // not symmetric
-    assert_eq!(Controller::<f64, So3, 3, 3>::new(c).unwrap_err(), Error::NotSymmetric(Quantity::Inertia));
+    assert_eq!(
+        Controller::<f64, So3, 3, 3>::new(c).unwrap_err(),
+        Error::NotSymmetric(Quantity::Inertia)
+    );
     let mut c = config3(Law::Eqt);
     c.k = Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, 1.0));
-    assert_eq!(Controller::<f64, So3, 3, 3>::new(c).unwrap_err(), Error::NotPositiveDefinite(Quantity::PotentialGain));
+    assert_eq!(
+        Controller::<f64, So3, 3, 3>::new(c).unwrap_err(),
+        Error::NotPositiveDefinite(Quantity::PotentialGain)
+    );
     let mut c = config3(Law::Eqt);
     c.kd[(2, 2)] = f64::NAN;
-    assert_eq!(Controller::<f64, So3, 3, 3>::new(c).unwrap_err(), Error::NonFinite(Quantity::DampingGain));
+    assert_eq!(
+        Controller::<f64, So3, 3, 3>::new(c).unwrap_err(),
+        Error::NonFinite(Quantity::DampingGain)
+    );
     let mut c = config3(Law::Eqt);
     c.torque_limit = Some(Vector3::new(1.0, 0.0, 1.0));
-    assert_eq!(Controller::<f64, So3, 3, 3>::new(c).unwrap_err(), Error::NotPositive(Quantity::TorqueLimit));
+    assert_eq!(
+        Controller::<f64, So3, 3, 3>::new(c).unwrap_err(),
+        Error::NotPositive(Quantity::TorqueLimit)
+    );
     let mut c = config3(Law::Eqt);
     c.inertia = Matrix3::zeros();
-    assert_eq!(Controller::<f64, So3, 3, 3>::new(c).unwrap_err(), Error::NotPositiveDefinite(Quantity::Inertia));
+    assert_eq!(
+        Controller::<f64, So3, 3, 3>::new(c).unwrap_err(),
+        Error::NotPositiveDefinite(Quantity::Inertia)
+    );
 }
 
 #[test]
 fn wrongly_shaped_gains_are_typed_errors() {
     assert_eq!(
         gain_from_slice::<f64, 3>(Quantity::PotentialGain, &[1.0, 2.0]).unwrap_err(),
-        Error::WrongShape { quantity: Quantity::PotentialGain, expected: 9, found: 2 }
+        Error::WrongShape {
+            quantity: Quantity::PotentialGain,
+            expected: 9,
+            found: 2
+        }
     );
     let k = gain_from_slice::<f64, 4>(Quantity::PotentialGain, &[2.0]).unwrap();
     assert_eq!(k, SMatrix::<f64, 4, 4>::identity() * 2.0);
@@ -197,16 +230,30 @@ fn non_finite_state_gives_an_error_never_a_nan_torque() {
     let c = Controller::<f64, So3, 3, 3>::new(config3(Law::Eqt)).unwrap();
     let r = Matrix3::identity();
     let bad = Vector3::new(0.0, f64::NAN, 0.0);
-    assert_eq!(c.compute(&r, &bad, &desired3()).unwrap_err(), Error::NonFinite(Quantity::State));
+    assert_eq!(
+        c.compute(&r, &bad, &desired3()).unwrap_err(),
+        Error::NonFinite(Quantity::State)
+    );
     let mut rq = r;
     rq[(1, 1)] = f64::INFINITY;
-    assert_eq!(c.compute(&rq, &Vector3::zeros(), &desired3()).unwrap_err(), Error::NonFinite(Quantity::State));
+    assert_eq!(
+        c.compute(&rq, &Vector3::zeros(), &desired3()).unwrap_err(),
+        Error::NonFinite(Quantity::State)
+    );
     let mut d = desired3();
     d.tau[0] = f64::NAN;
-    assert_eq!(c.compute(&r, &Vector3::zeros(), &d).unwrap_err(), Error::NonFinite(Quantity::Reference));
-    // finite but overflowing inputs: the torque would be infinite, so it is refused
-    let huge = Vector3::new(1e300, -1e300, 1e300);
-    assert_eq!(c.compute(&r, &huge, &desired3()).unwrap_err(), Error::NonFinite(Quantity::Torque));
+    assert_eq!(
+        c.compute(&r, &Vector3::zeros(), &d).unwrap_err(),
+        Error::NonFinite(Quantity::Reference)
+    );
+    // finite but absurd inputs (not a rotation, entries 1e200): the potential's gradient
+    // overflows, so the torque is refused rather than returned as inf or NaN
+    let huge = Matrix3::new(1e200, -1e200, 3e200, 0.0, 1e200, 0.0, 2e200, 0.0, -1e200);
+    assert_eq!(
+        c.compute(&huge, &Vector3::zeros(), &desired3())
+            .unwrap_err(),
+        Error::NonFinite(Quantity::Torque)
+    );
 }
 
 #[test]
@@ -237,9 +284,17 @@ fn the_law_works_in_f32_on_both_groups() {
         torque_limit: None,
     })
     .unwrap();
-    let d = Desired { q: Matrix3::identity(), p: Vector3::zeros(), v: Vector3::zeros(), tau: Vector3::zeros() };
+    let d = Desired {
+        q: Matrix3::identity(),
+        p: Vector3::zeros(),
+        v: Vector3::zeros(),
+        tau: Vector3::zeros(),
+    };
     let r = So3::exp(&Vector3::new(0.1f32, 0.2, 0.3));
-    let t32 = c.compute(&r, &Vector3::new(0.5, 0.0, 0.0), &d).unwrap().torque;
+    let t32 = c
+        .compute(&r, &Vector3::new(0.5, 0.0, 0.0), &d)
+        .unwrap()
+        .torque;
     let c64 = Controller::<f64, So3, 3, 3>::new(config3(Law::Eqt)).unwrap();
     let mut d64 = desired3();
     d64.tau = Vector3::zeros();
@@ -248,7 +303,11 @@ fn the_law_works_in_f32_on_both_groups() {
     let c64b = Controller::<f64, So3, 3, 3>::new(cfg).unwrap();
     let _ = c64;
     let t64 = c64b
-        .compute(&So3::exp(&Vector3::new(0.1, 0.2, 0.3)), &Vector3::new(0.5, 0.0, 0.0), &d64)
+        .compute(
+            &So3::exp(&Vector3::new(0.1, 0.2, 0.3)),
+            &Vector3::new(0.5, 0.0, 0.0),
+            &d64,
+        )
         .unwrap()
         .torque;
     for i in 0..3 {
@@ -263,7 +322,12 @@ fn the_law_works_in_f32_on_both_groups() {
     })
     .unwrap();
     let q = Se3::exp(&SVector::<f32, 6>::new(0.1, 0.2, 0.3, 1.0, -1.0, 0.5));
-    let d6 = Desired { q: SMatrix::identity(), p: SVector::zeros(), v: SVector::zeros(), tau: SVector::zeros() };
+    let d6 = Desired {
+        q: SMatrix::identity(),
+        p: SVector::zeros(),
+        v: SVector::zeros(),
+        tau: SVector::zeros(),
+    };
     let out = c6.compute(&q, &SVector::zeros(), &d6).unwrap();
     assert!(out.torque.iter().all(|t| t.is_finite()) && out.torque.norm() > 0.1);
 }

@@ -4,16 +4,25 @@
 mod common;
 
 use common::{close, seed_loop};
-use controller::group::So3;
 use controller::Law;
+use controller::group::So3;
 
 fn reference_rows() -> (Vec<String>, Vec<Vec<f64>>) {
     let text = include_str!("data/seed_eqt.csv");
     let mut lines = text.lines();
-    let header: Vec<String> = lines.next().unwrap().split(',').map(str::to_owned).collect();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_owned)
+        .collect();
     let rows = lines
         .filter(|l| !l.trim().is_empty())
-        .map(|l| l.split(',').map(|x| x.trim().parse::<f64>().unwrap()).collect())
+        .map(|l| {
+            l.split(',')
+                .map(|x| x.trim().parse::<f64>().unwrap())
+                .collect()
+        })
         .collect();
     (header, rows)
 }

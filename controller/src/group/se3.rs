@@ -3,7 +3,7 @@
 
 use super::so3::{exp_so3, log_so3, skew};
 use super::{GroupKind, MatrixLieGroup};
-use crate::{real, Real};
+use crate::{Real, real};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// The rigid-body group SE(3).

@@ -1,7 +1,7 @@
 //! SO(3): n = m = 3, `hat(v)` the cross-product matrix, `Ad_R = R`, `ad_v = v×`.
 
 use super::{GroupKind, MatrixLieGroup};
-use crate::{real, Real};
+use crate::{Real, real};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// The rotation group SO(3).

@@ -1,0 +1,136 @@
+//! Calls the controller for SO(3) and SE(3) in f32 and f64 and runs a short closed loop, in a
+//! binary with no std, no alloc and no global allocator. Exits 0 when every check holds.
+#![no_std]
+#![no_main]
+
+mod rt;
+
+use controller::closed_loop::ClosedLoop;
+use controller::group::{MatrixLieGroup, Se3, So3};
+use controller::integrator::RigidBody;
+use controller::law::Desired;
+use controller::{Controller, ControllerConfig, Law, Real, Reference, real, so3_seed_feedforward};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+
+fn so3_check<T: Real>(law: Law) -> bool {
+    let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759).map(real::<T>);
+    let c = match Controller::<T, So3, 3, 3>::new(ControllerConfig {
+        law,
+        inertia,
+        k: Matrix3::identity(),
+        kd: Matrix3::identity() * real::<T>(0.5),
+        torque_limit: Some(Vector3::repeat(real(5.0))),
+    }) {
+        Ok(c) => c,
+        Err(_) => return false,
+    };
+    let d = Desired {
+        q: Matrix3::identity(),
+        p: Vector3::zeros(),
+        v: Vector3::zeros(),
+        tau: Vector3::zeros(),
+    };
+    // at the goal with zero velocity the torque is zero; away from it, finite and non-zero
+    let at_goal = match c.compute(&Matrix3::identity(), &Vector3::zeros(), &d) {
+        Ok(o) => o.torque.norm() == T::zero(),
+        Err(_) => false,
+    };
+    let r = So3::exp(&Vector3::new(real(0.3), real(-0.2), real(1.0)));
+    let away = match c.compute(&r, &Vector3::new(real(1.0), real(0.0), real(0.5)), &d) {
+        Ok(o) => o.torque.iter().all(|t| t.is_finite()) && o.torque.norm() > T::zero(),
+        Err(_) => false,
+    };
+    at_goal && away
+}
+
+fn se3_check<T: Real>() -> bool {
+    let c = match Controller::<T, Se3, 4, 6>::new(ControllerConfig {
+        law: Law::Eqt,
+        inertia: SMatrix::<T, 6, 6>::identity(),
+        k: SMatrix::<T, 4, 4>::identity(),
+        kd: SMatrix::<T, 6, 6>::identity(),
+        torque_limit: None,
+    }) {
+        Ok(c) => c,
+        Err(_) => return false,
+    };
+    let d = Desired {
+        q: SMatrix::identity(),
+        p: SVector::zeros(),
+        v: SVector::zeros(),
+        tau: SVector::zeros(),
+    };
+    let q = Se3::exp(&SVector::<T, 6>::from_fn(|i, _| {
+        real(0.1 * (i as f64 + 1.0))
+    }));
+    match c.compute(&q, &SVector::zeros(), &d) {
+        Ok(o) => o.torque.iter().all(|t| t.is_finite()) && o.torque.norm() > T::zero(),
+        Err(_) => false,
+    }
+}
+
+fn closed_loop_check<T: Real>() -> bool {
+    let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759).map(real::<T>);
+    let build = || -> Result<ClosedLoop<T, So3, 3, 3>, controller::Error> {
+        let c = Controller::new(ControllerConfig {
+            law: Law::Eqt,
+            inertia,
+            k: Matrix3::identity() * real::<T>(0.5),
+            kd: Matrix3::identity() * real::<T>(0.5),
+            torque_limit: None,
+        })?;
+        let r = Reference::new(
+            Matrix3::identity(),
+            Vector3::zeros(),
+            inertia,
+            so3_seed_feedforward(),
+            real(0.01),
+            10,
+        )?;
+        let axis = Vector3::new(0.8, 0.6, 0.0) * (core::f64::consts::PI - 0.1);
+        let p = RigidBody::new(
+            inertia,
+            So3::exp(&axis.map(real::<T>)),
+            Vector3::new(real(4.0), real(-3.0), real(2.0)),
+        )?;
+        ClosedLoop::new(c, r, p, 10)
+    };
+    let Ok(mut sim) = build() else { return false };
+    let Ok(first) = sim.step() else { return false };
+    let mut last = first;
+    for _ in 0..500 {
+        match sim.step() {
+            Ok(s) => last = s,
+            Err(_) => return false,
+        }
+    }
+    last.output.lyapunov.total < first.output.lyapunov.total
+}
+
+/// Runs every check; 0 when all hold.
+fn run() -> i32 {
+    let checks: [(&str, bool); 7] = [
+        ("so3 eqt f32", so3_check::<f32>(Law::Eqt)),
+        ("so3 eqt f64", so3_check::<f64>(Law::Eqt)),
+        ("so3 gt f64", so3_check::<f64>(Law::Gt)),
+        ("se3 eqt f32", se3_check::<f32>()),
+        ("se3 eqt f64", se3_check::<f64>()),
+        ("so3 closed loop f32", closed_loop_check::<f32>()),
+        ("so3 closed loop f64", closed_loop_check::<f64>()),
+    ];
+    let mut code = 0;
+    for (name, ok) in checks {
+        rt::write(if ok { b"ok    " } else { b"FAIL  " });
+        rt::write(name.as_bytes());
+        rt::write(b"\n");
+        if !ok {
+            code = 1;
+        }
+    }
+    rt::write(if code == 0 {
+        b"nostd-check: controller runs with no std, no alloc, no allocator\n"
+    } else {
+        b"nostd-check: FAILED\n"
+    });
+    code
+}
