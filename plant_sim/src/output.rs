@@ -1,0 +1,163 @@
+//! `trajectory.csv` and `summary.json`.
+
+use crate::SimError;
+use crate::trajectory::{Trajectory, effort, settling_time};
+use serde::Serialize;
+use std::path::Path;
+
+/// Formats a number with the shortest representation that reads back to the same f64.
+pub fn num(x: f64) -> String {
+    format!("{x:?}")
+}
+
+/// The column names of `trajectory.csv` for the group's (n, m).
+pub fn trajectory_header(n: usize, m: usize) -> Vec<String> {
+    let mut h: Vec<String> = [
+        "t",
+        "lyapunov",
+        "config_error",
+        "momentum_error",
+        "attitude_error",
+        "velocity_error",
+        "torque_norm",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    h.extend((0..m).map(|i| format!("tau_{i}")));
+    for i in 0..n {
+        for j in 0..n {
+            h.push(format!("q_{i}{j}"));
+        }
+    }
+    h.extend((0..m).map(|i| format!("v_{i}")));
+    h
+}
+
+fn io(path: &Path) -> impl Fn(std::io::Error) -> SimError + '_ {
+    move |e| SimError::Run(format!("cannot write {}: {e}", path.display()))
+}
+
+fn csv_err(path: &Path) -> impl Fn(csv::Error) -> SimError + '_ {
+    move |e| SimError::Run(format!("cannot write {}: {e}", path.display()))
+}
+
+/// Writes `trajectory.csv`, one row per control step, numbers in full round-trip precision.
+pub fn write_trajectory_csv(traj: &Trajectory, path: &Path) -> Result<(), SimError> {
+    let (n, m) = traj.dims();
+    let mut w = csv::Writer::from_path(path).map_err(csv_err(path))?;
+    w.write_record(trajectory_header(n, m))
+        .map_err(csv_err(path))?;
+    let mut rec: Vec<String> = Vec::with_capacity(7 + m * 2 + n * n);
+    for r in &traj.rows {
+        rec.clear();
+        for x in [
+            r.t,
+            r.lyapunov,
+            r.config_error,
+            r.momentum_error,
+            r.attitude_error,
+            r.velocity_error,
+            r.torque_norm,
+        ] {
+            rec.push(num(x));
+        }
+        rec.extend(r.tau[..m].iter().map(|x| num(*x)));
+        rec.extend(r.q[..n * n].iter().map(|x| num(*x)));
+        rec.extend(r.v[..m].iter().map(|x| num(*x)));
+        w.write_record(&rec).map_err(csv_err(path))?;
+    }
+    w.flush().map_err(io(path))
+}
+
+/// The final errors of a run.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct FinalErrors {
+    /// L at t = T.
+    pub lyapunov: f64,
+    /// ‖Q_E − I‖_F at t = T.
+    pub config_error: f64,
+    /// ‖p_E‖ at t = T.
+    pub momentum_error: f64,
+    /// ‖I − R_dᵀR‖_F at t = T.
+    pub attitude_error: f64,
+    /// ‖V − V_d‖ at t = T.
+    pub velocity_error: f64,
+}
+
+/// `summary.json` of a simulation.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Summary {
+    /// Scenario name.
+    pub scenario: String,
+    /// Group name.
+    pub group: String,
+    /// Law name.
+    pub law: String,
+    /// Duration T (s).
+    pub duration: f64,
+    /// Control period (s).
+    pub control_period: f64,
+    /// Rows written (N + 1).
+    pub rows: usize,
+    /// Errors at t = T.
+    #[serde(rename = "final")]
+    pub final_errors: FinalErrors,
+    /// Largest `‖τ_k‖`.
+    pub peak_torque: f64,
+    /// Largest `|τ_k,i|` over steps and axes.
+    pub peak_torque_axis: f64,
+    /// `Σ_{t_k < T} ‖τ_k‖·control_period`.
+    pub effort: f64,
+    /// First time after which attitude_error stays below 0.1 (null: not settled by T).
+    pub settling_time: Option<f64>,
+}
+
+impl Summary {
+    /// Computes the summary of a trajectory.
+    pub fn of(traj: &Trajectory, scenario: &str, law: &str) -> Summary {
+        let (_, m) = traj.dims();
+        let last = traj.rows.last().copied();
+        let f = |g: fn(&crate::trajectory::Row) -> f64| last.as_ref().map(g).unwrap_or(f64::NAN);
+        Summary {
+            scenario: scenario.to_owned(),
+            group: traj.group.name().to_owned(),
+            law: law.to_owned(),
+            duration: traj.duration,
+            control_period: traj.control_period,
+            rows: traj.rows.len(),
+            final_errors: FinalErrors {
+                lyapunov: f(|r| r.lyapunov),
+                config_error: f(|r| r.config_error),
+                momentum_error: f(|r| r.momentum_error),
+                attitude_error: f(|r| r.attitude_error),
+                velocity_error: f(|r| r.velocity_error),
+            },
+            peak_torque: traj.rows.iter().map(|r| r.torque_norm).fold(0.0, f64::max),
+            peak_torque_axis: traj
+                .rows
+                .iter()
+                .flat_map(|r| r.tau[..m].iter().map(|x| x.abs()))
+                .fold(0.0, f64::max),
+            effort: effort(&traj.rows, traj.control_period, traj.duration),
+            settling_time: settling_time(&traj.rows),
+        }
+    }
+}
+
+/// Writes any serialisable summary as pretty JSON.
+pub fn write_json<S: Serialize>(value: &S, path: &Path) -> Result<(), SimError> {
+    let text = serde_json::to_string_pretty(value)
+        .map_err(|e| SimError::Run(format!("cannot encode {}: {e}", path.display())))?;
+    std::fs::write(path, text + "\n").map_err(io(path))
+}
+
+/// Creates the output directory if needed.
+pub fn ensure_dir(dir: &Path) -> Result<(), SimError> {
+    std::fs::create_dir_all(dir).map_err(|e| {
+        SimError::Run(format!(
+            "cannot create output directory {}: {e}",
+            dir.display()
+        ))
+    })
+}

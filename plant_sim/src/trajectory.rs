@@ -1,0 +1,157 @@
+//! The in-process closed loop and what it records per control step.
+
+use crate::SimError;
+use controller::GroupKind;
+use controller::closed_loop::{ClosedLoop, Sample};
+use controller::group::{MatrixLieGroup, Se3, So3};
+use controller::integrator::RigidBody;
+use scenario::Scenario;
+
+/// One row of `trajectory.csv`: the state and what the controller did at `t_k`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Row {
+    /// `t_k = k·control_period`.
+    pub t: f64,
+    /// Lyapunov function (controller's model inertia).
+    pub lyapunov: f64,
+    /// `‖Q_E − I‖_F`.
+    pub config_error: f64,
+    /// `‖p_E‖`.
+    pub momentum_error: f64,
+    /// `‖I − R_dᵀR‖_F`.
+    pub attitude_error: f64,
+    /// `‖V − V_d‖`.
+    pub velocity_error: f64,
+    /// `‖τ_k‖` (after saturation, without the disturbance).
+    pub torque_norm: f64,
+    /// `τ_k` (first m entries used).
+    pub tau: [f64; 6],
+    /// `Q` row-major (first n² entries used).
+    pub q: [f64; 16],
+    /// Body velocity (first m entries used).
+    pub v: [f64; 6],
+}
+
+impl Row {
+    /// The row of a closed-loop sample.
+    pub fn from_sample<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        s: &Sample<f64, N, M>,
+    ) -> Row {
+        let n = s.norms::<G>();
+        let mut tau = [0.0; 6];
+        let mut v = [0.0; 6];
+        let mut q = [0.0; 16];
+        for i in 0..M {
+            tau[i] = s.output.torque[i];
+            v[i] = s.v[i];
+        }
+        for i in 0..N {
+            for j in 0..N {
+                q[i * N + j] = s.q[(i, j)];
+            }
+        }
+        Row {
+            t: s.t,
+            lyapunov: s.output.lyapunov.total,
+            config_error: n.config_error,
+            momentum_error: n.momentum_error,
+            attitude_error: n.attitude_error,
+            velocity_error: n.velocity_error,
+            torque_norm: s.output.torque.norm(),
+            tau,
+            q,
+            v,
+        }
+    }
+}
+
+/// A recorded closed-loop run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    /// The group (decides n and m).
+    pub group: GroupKind,
+    /// The control period.
+    pub control_period: f64,
+    /// The duration T (rows cover t = 0..T).
+    pub duration: f64,
+    /// One row per control step k = 0..N.
+    pub rows: Vec<Row>,
+}
+
+impl Trajectory {
+    /// `(n, m)` of the group.
+    pub fn dims(&self) -> (usize, usize) {
+        scenario::dims(self.group)
+    }
+}
+
+/// Runs the scenario's closed loop in this process. `on_step(k)` is called after each step
+/// (for progress display).
+pub fn simulate(s: &Scenario, on_step: &(dyn Fn(u64) + Sync)) -> Result<Trajectory, SimError> {
+    match s.group {
+        GroupKind::So3 => {
+            let plant = s.plant_body::<So3, 3, 3>().map_err(input(s))?;
+            simulate_with::<So3, 3, 3>(s, plant, on_step)
+        }
+        GroupKind::Se3 => {
+            let plant = s.plant_body::<Se3, 4, 6>().map_err(input(s))?;
+            simulate_with::<Se3, 4, 6>(s, plant, on_step)
+        }
+    }
+}
+
+fn input(s: &Scenario) -> impl Fn(controller::Error) -> SimError + '_ {
+    move |e| SimError::Input(format!("scenario `{}`: {e}", s.name))
+}
+
+/// Runs the scenario's controller and reference against a given plant body.
+pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    s: &Scenario,
+    plant: RigidBody<f64, G, N, M>,
+    on_step: &(dyn Fn(u64) + Sync),
+) -> Result<Trajectory, SimError> {
+    let controller = s.controller::<G, N, M>().map_err(input(s))?;
+    let reference = s.reference_generator::<G, N, M>().map_err(input(s))?;
+    let mut sim = ClosedLoop::new(controller, reference, plant, s.plant_substeps)
+        .and_then(|l| l.with_disturbance(s.disturbance_vector()))
+        .map_err(input(s))?;
+    let steps = s.steps();
+    let mut rows = Vec::with_capacity(steps as usize + 1);
+    for k in 0..=steps {
+        let t = sim.time();
+        let sample = sim
+            .step()
+            .map_err(|e| SimError::Run(format!("closed loop stopped at t = {t} s: {e}")))?;
+        rows.push(Row::from_sample::<G, N, M>(&sample));
+        on_step(k);
+    }
+    Ok(Trajectory {
+        group: s.group,
+        control_period: s.control_period,
+        duration: s.duration,
+        rows,
+    })
+}
+
+/// Number of control steps with `t_k < horizon`: `Σ_{t_k < T}` ranges over these.
+pub fn steps_before(horizon: f64, control_period: f64) -> usize {
+    ((horizon / control_period) - 1e-9).ceil().max(0.0) as usize
+}
+
+/// Control effort over `[0, horizon)`: `Σ_{t_k < horizon} ‖τ_k‖·control_period`.
+pub fn effort(rows: &[Row], control_period: f64, horizon: f64) -> f64 {
+    rows.iter()
+        .take(steps_before(horizon, control_period))
+        .map(|r| r.torque_norm * control_period)
+        .sum()
+}
+
+/// The first time after which `attitude_error` stays below 0.1; `None` if it does not settle
+/// by the end.
+pub fn settling_time(rows: &[Row]) -> Option<f64> {
+    match rows.iter().rposition(|r| r.attitude_error >= 0.1) {
+        None => rows.first().map(|r| r.t),
+        Some(i) if i + 1 < rows.len() => Some(rows[i + 1].t),
+        Some(_) => None,
+    }
+}

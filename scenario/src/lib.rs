@@ -1,0 +1,760 @@
+//! Scenario files: the TOML schema, its validation, the built-in scenarios, and the builders
+//! that turn a validated [`Scenario`] into the controller crate's objects. Both processes
+//! (plant and controller) read configuration only through this crate.
+//!
+//! ```toml
+//! name = "seed"                 # optional
+//! group = "so3"                 # "so3" | "se3"
+//! law = "eqt"                   # "eqt" | "gt" | "nog" | "asym" (the last three: so3 only)
+//! duration = 20.0               # s, a whole number of control periods
+//! control_period = 0.01         # s
+//! plant_substeps = 10           # default 10
+//! reference_substeps = 10       # default 1
+//! [plant]
+//! inertia = [[...]]             # m×m, symmetric positive definite
+//! torque_limit = 5.0            # optional: a number for every axis, or m numbers
+//! disturbance = [0.0, 0.0, 0.0] # optional, m entries, body frame
+//! [controller]
+//! inertia = [[...]]             # optional, defaults to plant.inertia
+//! kp = 0.5                      # number (times identity) or n×n matrix: K
+//! kd = 0.5                      # number (times identity) or m×m matrix: K_d
+//! [initial]
+//! rotation = [rx, ry, rz]       # R(0) = exp(hat(rotation))
+//! position = [x, y, z]          # se3 only
+//! velocity = [...]              # m entries (se3: ω then v)
+//! [reference]
+//! rotation = [...]; position = [...] (se3 only); velocity = [...]
+//! torque = [ { offset = 0.0, terms = [ { amplitude = 1.0, frequency = 1.0, phase = 0.0 } ] }, ... ]
+//! ```
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+use controller::group::MatrixLieGroup;
+use controller::group::so3::exp_so3;
+use controller::integrator::RigidBody;
+use controller::reference::{AxisTorque, CosTerm, Feedforward, MAX_TERMS};
+use controller::validate::spd_inverse;
+use controller::{Controller, ControllerConfig, GroupKind, Law, Quantity, Reference};
+use nalgebra::{SMatrix, SVector, Vector3};
+use serde::Deserialize;
+use std::path::Path;
+
+/// The built-in scenarios, shipped as TOML files in `scenarios/`.
+pub const BUILTINS: [(&str, &str); 3] = [
+    ("seed", include_str!("../../scenarios/seed.toml")),
+    (
+        "montecarlo",
+        include_str!("../../scenarios/montecarlo.toml"),
+    ),
+    (
+        "se3_circle",
+        include_str!("../../scenarios/se3_circle.toml"),
+    ),
+];
+
+/// What can be wrong with a scenario. Every variant names where, and what.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    #[error("cannot read scenario file {path}: {source}")]
+    Io {
+        /// The path given.
+        path: String,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The TOML is malformed, has an unknown key, or a value of the wrong type.
+    #[error("{origin}: {message}")]
+    Parse {
+        /// The file or built-in name.
+        origin: String,
+        /// The parser's message (it names the key and the line).
+        message: String,
+    },
+    /// A value is present and well-typed but not acceptable.
+    #[error("{origin}: key `{key}`: {message}")]
+    Invalid {
+        /// The file or built-in name.
+        origin: String,
+        /// The dotted key, e.g. `plant.inertia`.
+        key: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// No built-in scenario has that name.
+    #[error("unknown built-in scenario `{0}` (available: seed, montecarlo, se3_circle)")]
+    UnknownBuiltin(String),
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScenario {
+    name: Option<String>,
+    group: String,
+    law: String,
+    duration: f64,
+    control_period: f64,
+    plant_substeps: Option<i64>,
+    reference_substeps: Option<i64>,
+    plant: RawPlant,
+    controller: RawController,
+    initial: RawState,
+    reference: RawReference,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPlant {
+    inertia: Vec<Vec<f64>>,
+    torque_limit: Option<NumberOrList>,
+    disturbance: Option<Vec<f64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawController {
+    inertia: Option<Vec<Vec<f64>>>,
+    kp: NumberOrMatrix,
+    kd: NumberOrMatrix,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawState {
+    rotation: Vec<f64>,
+    position: Option<Vec<f64>>,
+    velocity: Vec<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawReference {
+    rotation: Vec<f64>,
+    position: Option<Vec<f64>>,
+    velocity: Vec<f64>,
+    torque: Option<Vec<RawAxis>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawAxis {
+    #[serde(default)]
+    offset: f64,
+    #[serde(default)]
+    terms: Vec<RawTerm>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTerm {
+    amplitude: f64,
+    frequency: f64,
+    #[serde(default)]
+    phase: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+enum NumberOrMatrix {
+    Number(f64),
+    Matrix(Vec<Vec<f64>>),
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+enum NumberOrList {
+    Number(f64),
+    List(Vec<f64>),
+}
+
+/// One cosine term of a feedforward axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Term {
+    /// Amplitude.
+    pub amplitude: f64,
+    /// Angular frequency (rad/s).
+    pub frequency: f64,
+    /// Phase (rad).
+    pub phase: f64,
+}
+
+/// One feedforward axis: `offset + Σ amplitude·cos(frequency·t + phase)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Axis {
+    /// Constant part.
+    pub offset: f64,
+    /// Cosine terms.
+    pub terms: Vec<Term>,
+}
+
+/// A configuration and velocity: `Q = [[exp(hat(rotation)), position], [0, 1]]` (SO(3): the
+/// rotation alone) and the body velocity.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateSpec {
+    /// Rotation vector (rad).
+    pub rotation: [f64; 3],
+    /// Position (SE(3) only; zero on SO(3)).
+    pub position: [f64; 3],
+    /// Body velocity, m entries.
+    pub velocity: Vec<f64>,
+}
+
+/// A validated scenario. Matrices are row-major; dimensions match the group.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    /// Name (from the file, else the built-in name or the file stem).
+    pub name: String,
+    /// The group.
+    pub group: GroupKind,
+    /// The law.
+    pub law: Law,
+    /// Duration (s).
+    pub duration: f64,
+    /// Control period (s).
+    pub control_period: f64,
+    /// RKMK4 steps of the plant per control period.
+    pub plant_substeps: usize,
+    /// RKMK4 steps of the reference per control period.
+    pub reference_substeps: usize,
+    /// The plant's true inertia (m×m).
+    pub plant_inertia: Vec<f64>,
+    /// Per-axis torque limit (m entries), if any.
+    pub torque_limit: Option<Vec<f64>>,
+    /// Constant body-frame disturbance (m entries).
+    pub disturbance: Vec<f64>,
+    /// The controller's model inertia (m×m).
+    pub model_inertia: Vec<f64>,
+    /// The potential weight K (n×n).
+    pub kp: Vec<f64>,
+    /// The damping K_d (m×m).
+    pub kd: Vec<f64>,
+    /// The plant at t = 0.
+    pub initial: StateSpec,
+    /// The reference at t = 0.
+    pub reference: StateSpec,
+    /// Feedforward torque, one axis per algebra dimension.
+    pub feedforward: Vec<Axis>,
+}
+
+/// The dimensions `(n, m)` of a group.
+pub fn dims(group: GroupKind) -> (usize, usize) {
+    match group {
+        GroupKind::So3 => (3, 3),
+        GroupKind::Se3 => (4, 6),
+    }
+}
+
+impl Scenario {
+    /// Loads a built-in scenario by name.
+    pub fn builtin(name: &str) -> Result<Scenario, ScenarioError> {
+        let (_, text) = BUILTINS
+            .iter()
+            .find(|(n, _)| *n == name)
+            .ok_or_else(|| ScenarioError::UnknownBuiltin(name.to_owned()))?;
+        Scenario::from_toml(text, &format!("built-in scenario `{name}`"), name)
+    }
+
+    /// Loads and validates a scenario file.
+    pub fn from_file(path: &Path) -> Result<Scenario, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scenario".to_owned());
+        Scenario::from_toml(&text, &path.display().to_string(), &stem)
+    }
+
+    /// Parses and validates TOML text; `origin` names it in errors, `default_name` is used
+    /// when the file has no `name`.
+    pub fn from_toml(
+        text: &str,
+        origin: &str,
+        default_name: &str,
+    ) -> Result<Scenario, ScenarioError> {
+        let raw: RawScenario = toml::from_str(text).map_err(|e| ScenarioError::Parse {
+            origin: origin.to_owned(),
+            message: e.to_string().trim_end().to_owned(),
+        })?;
+        Validator { origin }.validate(raw, default_name)
+    }
+
+    /// Overrides the law (checked against the group).
+    pub fn with_law(mut self, law: &str) -> Result<Scenario, ScenarioError> {
+        self.law = parse_law(law, self.group, "--law", "the command line")?;
+        Ok(self)
+    }
+
+    /// The number of control steps N = duration / control_period.
+    pub fn steps(&self) -> u64 {
+        (self.duration / self.control_period).round() as u64
+    }
+
+    /// n×n configuration from a [`StateSpec`].
+    pub fn configuration<const N: usize>(spec: &StateSpec) -> SMatrix<f64, N, N> {
+        let r = exp_so3(&Vector3::from(spec.rotation));
+        let mut q = SMatrix::<f64, N, N>::identity();
+        for i in 0..3.min(N) {
+            for j in 0..3.min(N) {
+                q[(i, j)] = r[(i, j)];
+            }
+            if N > 3 {
+                q[(i, N - 1)] = spec.position[i];
+            }
+        }
+        q
+    }
+
+    /// The controller configuration (validated again by [`Controller::new`]).
+    pub fn controller_config<const N: usize, const M: usize>(&self) -> ControllerConfig<f64, N, M> {
+        ControllerConfig {
+            law: self.law,
+            inertia: SMatrix::from_row_slice(&self.model_inertia),
+            k: SMatrix::from_row_slice(&self.kp),
+            kd: SMatrix::from_row_slice(&self.kd),
+            torque_limit: self
+                .torque_limit
+                .as_ref()
+                .map(|l| SVector::from_row_slice(l)),
+        }
+    }
+
+    /// The controller.
+    pub fn controller<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Result<Controller<f64, G, N, M>, controller::Error> {
+        Controller::new(self.controller_config())
+    }
+
+    /// The feedforward torque.
+    pub fn feedforward<const M: usize>(&self) -> Result<Feedforward<f64, M>, controller::Error> {
+        let mut ff = Feedforward::<f64, M>::zero();
+        for (i, axis) in self.feedforward.iter().enumerate().take(M) {
+            let terms: Vec<CosTerm<f64>> = axis
+                .terms
+                .iter()
+                .map(|t| CosTerm {
+                    amplitude: t.amplitude,
+                    frequency: t.frequency,
+                    phase: t.phase,
+                })
+                .collect();
+            ff.axes[i] = AxisTorque::new(i, axis.offset, &terms)?;
+        }
+        Ok(ff)
+    }
+
+    /// The reference generator (model inertia, control period, reference substeps).
+    pub fn reference_generator<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Result<Reference<f64, G, N, M>, controller::Error> {
+        Reference::new(
+            Self::configuration::<N>(&self.reference),
+            SVector::from_row_slice(&self.reference.velocity),
+            SMatrix::from_row_slice(&self.model_inertia),
+            self.feedforward()?,
+            self.control_period,
+            self.reference_substeps,
+        )
+    }
+
+    /// The plant body at its initial state (true inertia).
+    pub fn plant_body<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Result<RigidBody<f64, G, N, M>, controller::Error> {
+        RigidBody::new(
+            SMatrix::from_row_slice(&self.plant_inertia),
+            Self::configuration::<N>(&self.initial),
+            SVector::from_row_slice(&self.initial.velocity),
+        )
+    }
+
+    /// The disturbance as a vector.
+    pub fn disturbance_vector<const M: usize>(&self) -> SVector<f64, M> {
+        SVector::from_row_slice(&self.disturbance)
+    }
+}
+
+fn parse_law(text: &str, group: GroupKind, key: &str, origin: &str) -> Result<Law, ScenarioError> {
+    let law = Law::from_name(text).ok_or_else(|| ScenarioError::Invalid {
+        origin: origin.to_owned(),
+        key: key.to_owned(),
+        message: format!("unknown law `{text}` (expected eqt, gt, nog or asym)"),
+    })?;
+    if !law.defined_for(group) {
+        return Err(ScenarioError::Invalid {
+            origin: origin.to_owned(),
+            key: key.to_owned(),
+            message: format!(
+                "law `{text}` is not defined for group {} (only eqt is)",
+                group.name()
+            ),
+        });
+    }
+    Ok(law)
+}
+
+struct Validator<'a> {
+    origin: &'a str,
+}
+
+impl Validator<'_> {
+    fn err(&self, key: &str, message: impl Into<String>) -> ScenarioError {
+        ScenarioError::Invalid {
+            origin: self.origin.to_owned(),
+            key: key.to_owned(),
+            message: message.into(),
+        }
+    }
+
+    fn finite(&self, key: &str, xs: &[f64]) -> Result<(), ScenarioError> {
+        match xs.iter().position(|x| !x.is_finite()) {
+            Some(i) => Err(self.err(key, format!("entry {i} is not a finite number ({})", xs[i]))),
+            None => Ok(()),
+        }
+    }
+
+    fn vector(
+        &self,
+        key: &str,
+        xs: &[f64],
+        len: usize,
+        why: &str,
+    ) -> Result<Vec<f64>, ScenarioError> {
+        if xs.len() != len {
+            return Err(self.err(
+                key,
+                format!("expected {len} numbers ({why}), got {}", xs.len()),
+            ));
+        }
+        self.finite(key, xs)?;
+        Ok(xs.to_vec())
+    }
+
+    fn matrix(
+        &self,
+        key: &str,
+        rows: &[Vec<f64>],
+        d: usize,
+        why: &str,
+    ) -> Result<Vec<f64>, ScenarioError> {
+        if rows.len() != d || rows.iter().any(|r| r.len() != d) {
+            let shape = rows
+                .iter()
+                .map(|r| r.len().to_string())
+                .collect::<Vec<_>>()
+                .join(", ");
+            return Err(self.err(
+                key,
+                format!(
+                    "expected a {d}×{d} matrix ({why}), got {} rows of lengths [{shape}]",
+                    rows.len()
+                ),
+            ));
+        }
+        let flat: Vec<f64> = rows.iter().flatten().copied().collect();
+        self.finite(key, &flat)?;
+        Ok(flat)
+    }
+
+    fn spd(&self, key: &str, flat: &[f64], d: usize) -> Result<(), ScenarioError> {
+        let check = match d {
+            3 => spd_inverse(
+                Quantity::Inertia,
+                &SMatrix::<f64, 3, 3>::from_row_slice(flat),
+            )
+            .map(|_| ()),
+            4 => spd_inverse(
+                Quantity::Inertia,
+                &SMatrix::<f64, 4, 4>::from_row_slice(flat),
+            )
+            .map(|_| ()),
+            6 => spd_inverse(
+                Quantity::Inertia,
+                &SMatrix::<f64, 6, 6>::from_row_slice(flat),
+            )
+            .map(|_| ()),
+            _ => Ok(()),
+        };
+        check.map_err(|e| {
+            let what = match e {
+                controller::Error::NotSymmetric(_) => "the matrix is not symmetric",
+                _ => "the matrix is not positive definite",
+            };
+            self.err(key, what)
+        })
+    }
+
+    fn gain(
+        &self,
+        key: &str,
+        g: &NumberOrMatrix,
+        d: usize,
+        why: &str,
+    ) -> Result<Vec<f64>, ScenarioError> {
+        let flat = match g {
+            NumberOrMatrix::Number(x) => {
+                self.finite(key, &[*x])?;
+                if *x <= 0.0 {
+                    return Err(self.err(key, format!("must be positive, got {x}")));
+                }
+                let mut m = vec![0.0; d * d];
+                for i in 0..d {
+                    m[i * d + i] = *x;
+                }
+                m
+            }
+            NumberOrMatrix::Matrix(rows) => self.matrix(key, rows, d, why)?,
+        };
+        self.spd(key, &flat, d)?;
+        Ok(flat)
+    }
+
+    fn state(
+        &self,
+        section: &str,
+        raw: &RawState,
+        group: GroupKind,
+        m: usize,
+    ) -> Result<StateSpec, ScenarioError> {
+        self.state_parts(
+            section,
+            &raw.rotation,
+            raw.position.as_deref(),
+            &raw.velocity,
+            group,
+            m,
+        )
+    }
+
+    fn state_parts(
+        &self,
+        section: &str,
+        rotation: &[f64],
+        position: Option<&[f64]>,
+        velocity: &[f64],
+        group: GroupKind,
+        m: usize,
+    ) -> Result<StateSpec, ScenarioError> {
+        let rot = self.vector(
+            &format!("{section}.rotation"),
+            rotation,
+            3,
+            "a rotation vector",
+        )?;
+        let pos = match (group, position) {
+            (GroupKind::So3, Some(_)) => {
+                return Err(self.err(
+                    &format!("{section}.position"),
+                    "only se3 scenarios have a position",
+                ));
+            }
+            (GroupKind::So3, None) | (GroupKind::Se3, None) => vec![0.0; 3],
+            (GroupKind::Se3, Some(p)) => {
+                self.vector(&format!("{section}.position"), p, 3, "x, y, z")?
+            }
+        };
+        let why = if m == 6 {
+            "ω then v"
+        } else {
+            "body angular velocity"
+        };
+        let vel = self.vector(&format!("{section}.velocity"), velocity, m, why)?;
+        Ok(StateSpec {
+            rotation: [rot[0], rot[1], rot[2]],
+            position: [pos[0], pos[1], pos[2]],
+            velocity: vel,
+        })
+    }
+
+    fn validate(&self, raw: RawScenario, default_name: &str) -> Result<Scenario, ScenarioError> {
+        let group = match raw.group.as_str() {
+            "so3" => GroupKind::So3,
+            "se3" => GroupKind::Se3,
+            other => {
+                return Err(self.err(
+                    "group",
+                    format!("unknown group `{other}` (expected so3 or se3)"),
+                ));
+            }
+        };
+        let (n, m) = dims(group);
+        let law = parse_law(&raw.law, group, "law", self.origin)?;
+        for (key, x) in [
+            ("duration", raw.duration),
+            ("control_period", raw.control_period),
+        ] {
+            if !x.is_finite() {
+                return Err(self.err(key, format!("not a finite number ({x})")));
+            }
+            if x <= 0.0 {
+                return Err(self.err(key, format!("must be positive, got {x}")));
+            }
+        }
+        let steps = raw.duration / raw.control_period;
+        if (steps - steps.round()).abs() > 1e-9 * steps.max(1.0) {
+            return Err(self.err(
+                "duration",
+                format!(
+                    "must be a whole number of control periods ({} / {} = {steps})",
+                    raw.duration, raw.control_period
+                ),
+            ));
+        }
+        if steps.round() > 1e9 {
+            return Err(self.err(
+                "duration",
+                format!("{steps} control steps is more than 1e9"),
+            ));
+        }
+        let substeps =
+            |key: &str, v: Option<i64>, default: usize| -> Result<usize, ScenarioError> {
+                match v {
+                    None => Ok(default),
+                    Some(x) if (1..=100_000).contains(&x) => Ok(x as usize),
+                    Some(x) => Err(self.err(
+                        key,
+                        format!("must be a whole number from 1 to 100000, got {x}"),
+                    )),
+                }
+            };
+        let plant_substeps = substeps("plant_substeps", raw.plant_substeps, 10)?;
+        let reference_substeps = substeps("reference_substeps", raw.reference_substeps, 1)?;
+
+        let plant_inertia =
+            self.matrix("plant.inertia", &raw.plant.inertia, m, "m×m for the group")?;
+        self.spd("plant.inertia", &plant_inertia, m)?;
+        let torque_limit = match &raw.plant.torque_limit {
+            None => None,
+            Some(NumberOrList::Number(x)) => Some(vec![*x; m]),
+            Some(NumberOrList::List(xs)) => Some(xs.clone()),
+        };
+        if let Some(l) = &torque_limit {
+            let l = self.vector("plant.torque_limit", l, m, "one limit per axis")?;
+            if let Some(x) = l.iter().find(|x| **x <= 0.0) {
+                return Err(self.err("plant.torque_limit", format!("must be positive, got {x}")));
+            }
+        }
+        let disturbance = match &raw.plant.disturbance {
+            None => vec![0.0; m],
+            Some(d) => self.vector("plant.disturbance", d, m, "one entry per axis")?,
+        };
+        let model_inertia = match &raw.controller.inertia {
+            None => plant_inertia.clone(),
+            Some(rows) => {
+                let i = self.matrix("controller.inertia", rows, m, "m×m for the group")?;
+                self.spd("controller.inertia", &i, m)?;
+                i
+            }
+        };
+        let kp = self.gain("controller.kp", &raw.controller.kp, n, "n×n for the group")?;
+        let kd = self.gain("controller.kd", &raw.controller.kd, m, "m×m for the group")?;
+        let initial = self.state("initial", &raw.initial, group, m)?;
+        let reference = self.state_parts(
+            "reference",
+            &raw.reference.rotation,
+            raw.reference.position.as_deref(),
+            &raw.reference.velocity,
+            group,
+            m,
+        )?;
+        let feedforward = match &raw.reference.torque {
+            None => vec![
+                Axis {
+                    offset: 0.0,
+                    terms: vec![]
+                };
+                m
+            ],
+            Some(axes) => {
+                if axes.len() != m {
+                    return Err(self.err(
+                        "reference.torque",
+                        format!(
+                            "expected {m} axes (one per algebra dimension), got {}",
+                            axes.len()
+                        ),
+                    ));
+                }
+                let mut out = Vec::with_capacity(m);
+                for (i, a) in axes.iter().enumerate() {
+                    let key = format!("reference.torque[{i}]");
+                    if a.terms.len() > MAX_TERMS {
+                        return Err(self.err(
+                            &key,
+                            format!("at most {MAX_TERMS} terms, got {}", a.terms.len()),
+                        ));
+                    }
+                    self.finite(&format!("{key}.offset"), &[a.offset])?;
+                    let mut terms = Vec::new();
+                    for (j, t) in a.terms.iter().enumerate() {
+                        self.finite(
+                            &format!("{key}.terms[{j}]"),
+                            &[t.amplitude, t.frequency, t.phase],
+                        )?;
+                        terms.push(Term {
+                            amplitude: t.amplitude,
+                            frequency: t.frequency,
+                            phase: t.phase,
+                        });
+                    }
+                    out.push(Axis {
+                        offset: a.offset,
+                        terms,
+                    });
+                }
+                out
+            }
+        };
+        Ok(Scenario {
+            name: raw.name.unwrap_or_else(|| default_name.to_owned()),
+            group,
+            law,
+            duration: raw.duration,
+            control_period: raw.control_period,
+            plant_substeps,
+            reference_substeps,
+            plant_inertia,
+            torque_limit,
+            disturbance,
+            model_inertia,
+            kp,
+            kd,
+            initial,
+            reference,
+            feedforward,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn builtins_load() {
+        for (name, _) in BUILTINS {
+            let s = Scenario::builtin(name).unwrap();
+            assert_eq!(s.name, name);
+        }
+        let seed = Scenario::builtin("seed").unwrap();
+        assert_eq!(seed.steps(), 2000);
+        assert_eq!(seed.kp, vec![0.5, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.5]);
+        let se3 = Scenario::builtin("se3_circle").unwrap();
+        assert_eq!(se3.group, GroupKind::Se3);
+        assert_eq!(se3.kd.len(), 36);
+    }
+
+    #[test]
+    fn law_override_is_checked_against_the_group() {
+        let e = Scenario::builtin("se3_circle")
+            .unwrap()
+            .with_law("gt")
+            .unwrap_err();
+        assert!(e.to_string().contains("not defined for group se3"), "{e}");
+        let s = Scenario::builtin("seed").unwrap().with_law("asym").unwrap();
+        assert_eq!(s.law, Law::Asym);
+    }
+}
