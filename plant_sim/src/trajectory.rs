@@ -138,10 +138,12 @@ pub fn steps_before(horizon: f64, control_period: f64) -> usize {
     ((horizon / control_period) - 1e-9).ceil().max(0.0) as usize
 }
 
-/// Control effort over `[0, horizon)`: `Σ_{t_k < horizon} ‖τ_k‖·control_period`.
+/// Control effort over `[0, horizon)`: `Σ_{t_k < horizon} ‖τ_k‖·control_period`, over the
+/// torques actually held within the run (the last row's torque at `t_N = T` is not).
 pub fn effort(rows: &[Row], control_period: f64, horizon: f64) -> f64 {
+    let held = rows.len().saturating_sub(1);
     rows.iter()
-        .take(steps_before(horizon, control_period))
+        .take(steps_before(horizon, control_period).min(held))
         .map(|r| r.torque_norm * control_period)
         .sum()
 }
