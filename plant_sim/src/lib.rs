@@ -9,6 +9,7 @@
 
 pub mod montecarlo;
 pub mod output;
+pub mod pair;
 pub mod plot;
 pub mod trajectory;
 

@@ -5,6 +5,8 @@
 //! plant_sim sim [--scenario FILE | --builtin NAME] [--law L] [--out DIR]
 //! plant_sim montecarlo [--scenario FILE] [--runs N] [--seed S] [--laws eqt,gt,nog,asym]
 //!                      [--samples FILE] [--threads N] [--out DIR]
+//! plant_sim run [--scenario FILE | --builtin NAME] [--mode lockstep|realtime] [--rate-hz F]
+//!               [--wake spin|event] [--no-spawn] [--name RUN] [--out DIR]
 //! ```
 //! Exit codes: 0 done, 2 bad input (with a message naming the key and what is wrong),
 //! 1 the run could not complete.
@@ -37,6 +39,62 @@ enum Command {
     Sim(SimArgs),
     /// The extended paper's Monte Carlo study over the four laws.
     Montecarlo(McArgs),
+    /// The plant process of the pair: talks to controller_node over iceoryx2.
+    Run(RunArgs),
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ModeArg {
+    Lockstep,
+    Realtime,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum WakeArg {
+    Spin,
+    Event,
+}
+
+#[derive(Args)]
+struct RunArgs {
+    #[command(flatten)]
+    source: Source,
+    /// lockstep: exact, waits for each command; realtime: steps on the wall clock.
+    #[arg(long, value_enum, default_value = "realtime")]
+    mode: ModeArg,
+    /// Real-time rate; the control period becomes 1/F.
+    #[arg(long, value_name = "F", default_value_t = 1000.0)]
+    rate_hz: f64,
+    /// How the processes wait for each other's messages.
+    #[arg(long, value_enum, default_value = "spin")]
+    wake: WakeArg,
+    /// Override the scenario's duration (s).
+    #[arg(long, value_name = "S")]
+    duration: Option<f64>,
+    /// Do not start controller_node; wait for one started by hand.
+    #[arg(long)]
+    no_spawn: bool,
+    /// Run name: pairs with different names run side by side.
+    #[arg(long, value_name = "RUN", default_value = "eqtrack")]
+    name: String,
+    /// Output directory; default out/run-<RUN>.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Consecutive deadline misses that start safe mode.
+    #[arg(long, value_name = "N", default_value_t = 3)]
+    miss_limit: u32,
+    /// Lockstep: seconds to wait for each command.
+    #[arg(long, value_name = "S", default_value_t = 5.0)]
+    lockstep_timeout: f64,
+    /// Seconds to wait for the controller (default 10, or 60 with --no-spawn).
+    #[arg(long, value_name = "S")]
+    connect_timeout: Option<f64>,
+    /// Test only: K:version|group|nan publishes a corrupted state instead of state K.
+    #[arg(long, value_name = "K:KIND", hide = true)]
+    fault_state: Vec<String>,
+    /// Test only: the spawned controller publishes a NaN torque instead of command K.
+    #[arg(long, value_name = "K", hide = true)]
+    fault_nan_torque: Option<u64>,
 }
 
 #[derive(Args, Default)]
@@ -225,12 +283,106 @@ fn montecarlo_cmd(args: McArgs) -> Result<(), SimError> {
     Ok(())
 }
 
+fn seconds(name: &str, v: f64) -> Result<std::time::Duration, SimError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(std::time::Duration::from_secs_f64(v))
+    } else {
+        Err(SimError::Input(format!("{name}: must be a positive number of seconds, got {v}")))
+    }
+}
+
+fn run_cmd(args: RunArgs) -> Result<(), SimError> {
+    use plant_sim::pair::{run_pair, Mode, PairOptions, StateFault, Wake};
+    let mut scenario = args.source.load("seed")?;
+    if let Some(d) = args.duration {
+        seconds("--duration", d)?;
+        scenario.duration = d;
+    }
+    let scenario_args = match (&args.source.scenario, &args.source.builtin) {
+        (Some(p), _) => {
+            let abs = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+            vec!["--scenario".to_owned(), abs.display().to_string()]
+        }
+        (None, Some(n)) => vec!["--builtin".to_owned(), n.clone()],
+        (None, None) => vec!["--builtin".to_owned(), "seed".to_owned()],
+    };
+    let mut state_faults = Vec::new();
+    for text in &args.fault_state {
+        let bad = || SimError::Input(format!("--fault-state: expected K:version|group|nan, got `{text}`"));
+        let (k, kind) = text.split_once(':').ok_or_else(bad)?;
+        let k: u64 = k.parse().map_err(|_| bad())?;
+        let kind = match kind {
+            "version" => StateFault::Version,
+            "group" => StateFault::Group,
+            "nan" => StateFault::Nan,
+            _ => return Err(bad()),
+        };
+        state_faults.push((k, kind));
+    }
+    let spawn = !args.no_spawn;
+    let opts = PairOptions {
+        scenario,
+        scenario_args,
+        mode: match args.mode {
+            ModeArg::Lockstep => Mode::Lockstep,
+            ModeArg::Realtime => Mode::Realtime,
+        },
+        rate_hz: args.rate_hz,
+        wake: match args.wake {
+            WakeArg::Spin => Wake::Spin,
+            WakeArg::Event => Wake::Event,
+        },
+        spawn,
+        run: args.name.clone(),
+        out: args.out.unwrap_or_else(|| Path::new("out").join(format!("run-{}", args.name))),
+        miss_limit: args.miss_limit,
+        lockstep_timeout: seconds("--lockstep-timeout", args.lockstep_timeout)?,
+        connect_timeout: seconds(
+            "--connect-timeout",
+            args.connect_timeout.unwrap_or(if spawn { 10.0 } else { 60.0 }),
+        )?,
+        state_faults,
+        controller_fault_nan_torque: args.fault_nan_torque,
+    };
+    let (_, s) = run_pair(&opts)?;
+    let f = &s.sim.final_errors;
+    println!(
+        "run `{}`: scenario {} ({}, law {}), {}, {} cycles, {} wake-up",
+        s.run,
+        s.sim.scenario,
+        s.sim.group,
+        s.sim.law,
+        match s.rate_hz {
+            Some(r) => format!("real time at {r} Hz"),
+            None => "lockstep".to_owned(),
+        },
+        s.cycles,
+        s.wake
+    );
+    println!(
+        "final: L = {:.4e}, |Q_E - I| = {:.4e}, |p_E| = {:.4e}, attitude error = {:.4e}",
+        f.lyapunov, f.config_error, f.momentum_error, f.attitude_error
+    );
+    let p = |x: &plant_sim::pair::Percentiles| {
+        format!("p50 {:.2} / p99 {:.2} / p99.9 {:.2} / max {:.2} us", x.p50_us, x.p99_us, x.p99_9_us, x.max_us)
+    };
+    println!("round trip (state published -> command received): {}", p(&s.latency));
+    println!("controller compute (state received -> command published): {}", p(&s.controller_compute));
+    println!(
+        "deadline misses {}, safe-mode entries {} ({} cycles), commands rejected {}, late {}",
+        s.deadline_misses, s.safe_mode_entries, s.safe_mode_cycles, s.commands_rejected, s.late_commands
+    );
+    println!("wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}", opts.out.display());
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         None => sim(SimArgs::default()),
         Some(Command::Sim(a)) => sim(a),
         Some(Command::Montecarlo(a)) => montecarlo_cmd(a),
+        Some(Command::Run(a)) => run_cmd(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -46,10 +46,14 @@ fn csv_err(path: &Path) -> impl Fn(csv::Error) -> SimError + '_ {
 pub fn write_trajectory_csv(traj: &Trajectory, path: &Path) -> Result<(), SimError> {
     let (n, m) = traj.dims();
     let mut w = csv::Writer::from_path(path).map_err(csv_err(path))?;
-    w.write_record(trajectory_header(n, m))
-        .map_err(csv_err(path))?;
+    let mut header = trajectory_header(n, m);
+    let with_status = !traj.status.is_empty();
+    if with_status {
+        header.push("command_status".to_owned());
+    }
+    w.write_record(header).map_err(csv_err(path))?;
     let mut rec: Vec<String> = Vec::with_capacity(7 + m * 2 + n * n);
-    for r in &traj.rows {
+    for (k, r) in traj.rows.iter().enumerate() {
         rec.clear();
         for x in [
             r.t,
@@ -65,6 +69,9 @@ pub fn write_trajectory_csv(traj: &Trajectory, path: &Path) -> Result<(), SimErr
         rec.extend(r.tau[..m].iter().map(|x| num(*x)));
         rec.extend(r.q[..n * n].iter().map(|x| num(*x)));
         rec.extend(r.v[..m].iter().map(|x| num(*x)));
+        if with_status {
+            rec.push(traj.status.get(k).copied().unwrap_or(0).to_string());
+        }
         w.write_record(&rec).map_err(csv_err(path))?;
     }
     w.flush().map_err(io(path))

@@ -1,7 +1,11 @@
 //! The in-process closed loop and what it records per control step.
 
 use crate::SimError;
+use controller::law::Desired;
+use controller::semidirect::Phase;
+use controller::tracking::{error_norms, lyapunov, tracking_error};
 use controller::GroupKind;
+use nalgebra::{SMatrix, SVector};
 use controller::closed_loop::{ClosedLoop, Sample};
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;
@@ -33,35 +37,59 @@ pub struct Row {
 }
 
 impl Row {
-    /// The row of a closed-loop sample.
-    pub fn from_sample<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
-        s: &Sample<f64, N, M>,
+    /// The row at `t` for the plant state `(q, v)`, the desired state and the torque held
+    /// over `[t_k, t_{k+1})`. The tracking error and L use the controller's model inertia and
+    /// K through the same functions the controller uses, so the in-process simulation and the
+    /// plant process of the pair record identical numbers.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        t: f64,
+        q: &SMatrix<f64, N, N>,
+        v: &SVector<f64, M>,
+        desired: &Desired<f64, N, M>,
+        torque: &SVector<f64, M>,
+        model_inertia: &SMatrix<f64, M, M>,
+        k: &SMatrix<f64, N, N>,
     ) -> Row {
-        let n = s.norms::<G>();
+        let error = tracking_error::<G, f64, N, M>(
+            &Phase { q: *q, p: model_inertia * v },
+            &Phase { q: desired.q, p: desired.p },
+        );
+        let velocity_error = v - desired.v;
+        let n = error_norms::<G, f64, N, M>(q, &desired.q, &error, &velocity_error);
         let mut tau = [0.0; 6];
-        let mut v = [0.0; 6];
-        let mut q = [0.0; 16];
+        let mut vv = [0.0; 6];
+        let mut qq = [0.0; 16];
         for i in 0..M {
-            tau[i] = s.output.torque[i];
-            v[i] = s.v[i];
+            tau[i] = torque[i];
+            vv[i] = v[i];
         }
         for i in 0..N {
             for j in 0..N {
-                q[i * N + j] = s.q[(i, j)];
+                qq[i * N + j] = q[(i, j)];
             }
         }
         Row {
-            t: s.t,
-            lyapunov: s.output.lyapunov.total,
+            t,
+            lyapunov: lyapunov(&error.q, &velocity_error, model_inertia, k).total,
             config_error: n.config_error,
             momentum_error: n.momentum_error,
             attitude_error: n.attitude_error,
             velocity_error: n.velocity_error,
-            torque_norm: s.output.torque.norm(),
+            torque_norm: torque.norm(),
             tau,
-            q,
-            v,
+            q: qq,
+            v: vv,
         }
+    }
+
+    /// The row of a closed-loop sample.
+    pub fn from_sample<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        s: &Sample<f64, N, M>,
+        model_inertia: &SMatrix<f64, M, M>,
+        k: &SMatrix<f64, N, N>,
+    ) -> Row {
+        Row::new::<G, N, M>(s.t, &s.q, &s.v, &s.desired, &s.output.torque, model_inertia, k)
     }
 }
 
@@ -76,6 +104,9 @@ pub struct Trajectory {
     pub duration: f64,
     /// One row per control step k = 0..N.
     pub rows: Vec<Row>,
+    /// Real-time runs: per row, 0 = fresh command, 1 = deadline missed (torque held),
+    /// 2 = safe mode. Empty otherwise (and then no `command_status` column is written).
+    pub status: Vec<u8>,
 }
 
 impl Trajectory {
@@ -122,7 +153,8 @@ pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         let sample = sim
             .step()
             .map_err(|e| SimError::Run(format!("closed loop stopped at t = {t} s: {e}")))?;
-        rows.push(Row::from_sample::<G, N, M>(&sample));
+        let c = sim.controller.config();
+        rows.push(Row::from_sample::<G, N, M>(&sample, &c.inertia, &c.k));
         on_step(k);
     }
     Ok(Trajectory {
@@ -130,6 +162,7 @@ pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         control_period: s.control_period,
         duration: s.duration,
         rows,
+        status: Vec::new(),
     })
 }
 

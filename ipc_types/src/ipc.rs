@@ -1,0 +1,234 @@
+//! Opening a run's services with iceoryx2 (`std` feature). Both processes call
+//! [`PlantPorts::open`] / [`ControllerPorts::open`], so their settings are identical by
+//! construction.
+//!
+//! Each direction is an iceoryx2 **blackboard** entry in shared memory — a latest-value slot
+//! that the writer updates in place and the reader loads, both with atomics only, so a cycle
+//! allocates nothing. (In iceoryx2 0.10 every publish-subscribe send allocates a reference
+//! count for the loaned sample; the blackboard's entry handles do not.) Messages carry a
+//! sequence number and a timestamp, so a reader tells a new message from one it has seen.
+//! Two event services wake a sleeping reader in event mode.
+
+use crate::{service_names, CommandMsg, StateMsg};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::reader::{EntryHandle, Reader};
+use iceoryx2::port::writer::{EntryHandleMut, Writer};
+use iceoryx2::prelude::*;
+use iceoryx2::service::builder::blackboard::{BlackboardCreateError, BlackboardOpenError};
+use iceoryx2::service::port_factory::blackboard::PortFactory as BoardFactory;
+use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
+use std::time::{Duration, Instant};
+
+/// CLOCK_MONOTONIC in nanoseconds: the clock of every timestamp in the messages (one clock
+/// for all processes on a machine).
+pub fn monotonic_ns() -> u64 {
+    match nix::time::clock_gettime(nix::time::ClockId::CLOCK_MONOTONIC) {
+        Ok(ts) => ts.tv_sec() as u64 * 1_000_000_000 + ts.tv_nsec() as u64,
+        Err(_) => 0,
+    }
+}
+
+/// The blackboard key of the single entry of each board.
+const KEY: u32 = 0;
+
+/// A message type that can travel on a board.
+pub trait Message: Copy + core::fmt::Debug + ZeroCopySend + 'static {
+    /// The value the slot holds before anything was written (version 0: "nothing yet").
+    fn empty() -> Self;
+    /// `(seq, stamp_ns)`: identifies one write.
+    fn identity(&self) -> (u64, u64);
+    /// Stamps the message with the current time just before it is written.
+    fn stamp(&mut self);
+}
+
+impl Message for StateMsg {
+    fn empty() -> Self {
+        let mut m = StateMsg::new(0);
+        m.version = 0;
+        m
+    }
+    fn identity(&self) -> (u64, u64) {
+        (self.seq, self.stamp_ns)
+    }
+    fn stamp(&mut self) {
+        self.stamp_ns = monotonic_ns();
+    }
+}
+
+impl Message for CommandMsg {
+    fn empty() -> Self {
+        let mut m = CommandMsg::new(0);
+        m.version = 0;
+        m
+    }
+    fn identity(&self) -> (u64, u64) {
+        (self.seq, self.stamp_ns)
+    }
+    fn stamp(&mut self) {
+        self.stamp_ns = monotonic_ns();
+    }
+}
+
+/// The ports of one side of a run.
+pub struct Ports<Out: Message, In: Message> {
+    out: EntryHandleMut<ipc::Service, u32, Out>,
+    inp: EntryHandle<ipc::Service, u32, In>,
+    last_in: core::cell::Cell<(u64, u64)>,
+    /// Wakes the other side (event mode).
+    pub notifier: Notifier<ipc::Service>,
+    /// Wakes this side (event mode).
+    pub listener: Listener<ipc::Service>,
+    _ports: (Writer<ipc::Service, u32>, Reader<ipc::Service, u32>),
+    _factories: (BoardFactory<ipc::Service, u32>, BoardFactory<ipc::Service, u32>, EventFactory<ipc::Service>, EventFactory<ipc::Service>),
+}
+
+/// The plant's side: writes states, reads commands.
+pub type PlantPorts = Ports<StateMsg, CommandMsg>;
+/// The controller's side: writes commands, reads states.
+pub type ControllerPorts = Ports<CommandMsg, StateMsg>;
+
+/// Any failure while setting up IPC, as text (the caller adds context).
+pub type SetupError = String;
+
+fn err<E: core::fmt::Debug>(what: &str) -> impl Fn(E) -> SetupError + '_ {
+    move |e| format!("{what}: {e:?}")
+}
+
+/// Creates this process's node for `run` (`plant` or `controller` role), after removing the
+/// stale resources of dead nodes (a crashed process leaves shared memory behind).
+pub fn node(run: &str, role: &str) -> Result<Node<ipc::Service>, SetupError> {
+    let names = service_names(run).ok_or_else(|| format!("invalid run name `{run}` (1-64 of A-Z a-z 0-9 _ -)"))?;
+    set_log_level_from_env_or(LogLevel::Warn);
+    remove_stale_nodes();
+    let name = if role == "plant" { &names.plant_node } else { &names.controller_node };
+    let node_name: NodeName = name.as_str().try_into().map_err(err("node name"))?;
+    NodeBuilder::new()
+        .name(&node_name)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(err("cannot create iceoryx2 node"))
+}
+
+/// Removes the stale resources of every dead node; returns how many were removed.
+pub fn remove_stale_nodes() -> usize {
+    let mut dead = Vec::new();
+    let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
+        if let NodeState::Dead(view) = state {
+            dead.push(view);
+        }
+        CallbackProgression::Continue
+    });
+    dead.into_iter().filter(|v| v.clone().try_remove_stale_resources().is_ok()).count()
+}
+
+/// Whether a node with this name exists and is alive.
+pub fn node_alive(name: &str) -> bool {
+    use iceoryx2::node::NodeView;
+    let mut alive = false;
+    let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
+        if let NodeState::Alive(view) = &state {
+            if view.details().as_ref().is_some_and(|d| d.name().as_str() == name) {
+                alive = true;
+                return CallbackProgression::Stop;
+            }
+        }
+        CallbackProgression::Continue
+    });
+    alive
+}
+
+fn board<T: Message>(node: &Node<ipc::Service>, name: &str) -> Result<BoardFactory<ipc::Service, u32>, SetupError> {
+    let service_name: ServiceName = name.try_into().map_err(err("service name"))?;
+    let until = Instant::now() + Duration::from_secs(5);
+    loop {
+        match node.service_builder(&service_name).blackboard_opener::<u32>().max_readers(2).max_nodes(4).open() {
+            Ok(f) => return Ok(f),
+            Err(BlackboardOpenError::DoesNotExist) => {}
+            Err(e) => return Err(format!("{name}: {e:?}")),
+        }
+        match node
+            .service_builder(&service_name)
+            .blackboard_creator::<u32>()
+            .max_readers(2)
+            .max_nodes(4)
+            .add::<T>(KEY, T::empty())
+            .create()
+        {
+            Ok(f) => return Ok(f),
+            Err(BlackboardCreateError::AlreadyExists) | Err(BlackboardCreateError::IsBeingCreatedByAnotherInstance) => {}
+            Err(e) => return Err(format!("{name}: {e:?}")),
+        }
+        if Instant::now() > until {
+            return Err(format!("{name}: could neither open nor create the service"));
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+fn event(node: &Node<ipc::Service>, name: &str) -> Result<EventFactory<ipc::Service>, SetupError> {
+    let service_name: ServiceName = name.try_into().map_err(err("service name"))?;
+    node.service_builder(&service_name)
+        .event()
+        .max_notifiers(2)
+        .max_listeners(2)
+        .max_nodes(4)
+        .open_or_create()
+        .map_err(err(name))
+}
+
+impl<Out: Message, In: Message> Ports<Out, In> {
+    fn open_named(node: &Node<ipc::Service>, out_name: &str, in_name: &str, notify_name: &str, listen_name: &str) -> Result<Self, SetupError> {
+        let out_board = board::<Out>(node, out_name)?;
+        let in_board = board::<In>(node, in_name)?;
+        let notify = event(node, notify_name)?;
+        let listen = event(node, listen_name)?;
+        let writer = out_board.writer_builder().create().map_err(err("blackboard writer (is another process writing this run?)"))?;
+        let reader = in_board.reader_builder().create().map_err(err("blackboard reader"))?;
+        Ok(Ports {
+            out: writer.entry::<Out>(&KEY).map_err(err("blackboard entry"))?,
+            inp: reader.entry::<In>(&KEY).map_err(err("blackboard entry"))?,
+            last_in: core::cell::Cell::new(In::empty().identity()),
+            notifier: notify.notifier_builder().create().map_err(err("notifier"))?,
+            listener: listen.listener_builder().create().map_err(err("listener"))?,
+            _ports: (writer, reader),
+            _factories: (out_board, in_board, notify, listen),
+        })
+    }
+
+    /// Stamps and writes a message; returns its timestamp. Allocation-free.
+    pub fn send(&self, msg: Out) -> u64 {
+        let mut m = msg;
+        m.stamp();
+        self.out.update_with_copy(m);
+        m.identity().1
+    }
+
+    /// The message in the slot if it is one this side has not seen yet (and not the empty
+    /// initial value). Allocation-free.
+    pub fn receive(&self) -> Option<In> {
+        let m: In = *self.inp.get();
+        let id = m.identity();
+        if id == self.last_in.get() || id == In::empty().identity() {
+            return None;
+        }
+        self.last_in.set(id);
+        Some(m)
+    }
+}
+
+impl PlantPorts {
+    /// The plant's ports of run `run`.
+    pub fn open(node: &Node<ipc::Service>, run: &str) -> Result<Self, SetupError> {
+        let n = service_names(run).ok_or_else(|| format!("invalid run name `{run}`"))?;
+        Self::open_named(node, &n.state, &n.command, &n.state_event, &n.command_event)
+    }
+}
+
+impl ControllerPorts {
+    /// The controller's ports of run `run`.
+    pub fn open(node: &Node<ipc::Service>, run: &str) -> Result<Self, SetupError> {
+        let n = service_names(run).ok_or_else(|| format!("invalid run name `{run}`"))?;
+        Self::open_named(node, &n.command, &n.state, &n.command_event, &n.state_event)
+    }
+}
