@@ -12,8 +12,8 @@
 
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::{GroupKind, Reference};
-use ipc_types::ipc::{monotonic_ns, node_alive, ControllerPorts};
-use ipc_types::{check_state, flags, CommandMsg, Reject, StateMsg};
+use ipc_types::ipc::{ControllerPorts, monotonic_ns, node_alive};
+use ipc_types::{CommandMsg, Reject, StateMsg, check_state, flags};
 use nalgebra::{SMatrix, SVector};
 use scenario::Scenario;
 use std::time::{Duration, Instant};
@@ -109,11 +109,20 @@ impl Rejections {
         let i = kind.index();
         if self.counts[i] == 0 {
             let detail = match kind {
-                Reject::Version => format!("version {}, expected {}", msg.version, ipc_types::PROTOCOL_VERSION),
+                Reject::Version => format!(
+                    "version {}, expected {}",
+                    msg.version,
+                    ipc_types::PROTOCOL_VERSION
+                ),
                 Reject::Group => format!("group code {}, expected {}", msg.group, expected_group),
                 Reject::NonFinite => "the state holds NaN or infinity".to_owned(),
-                Reject::Sequence => format!("seq {} does not follow the last accepted one", msg.seq),
-                Reject::Period => format!("period {} s, running with {:?} s", msg.control_period, period),
+                Reject::Sequence => {
+                    format!("seq {} does not follow the last accepted one", msg.seq)
+                }
+                Reject::Period => format!(
+                    "period {} s, running with {:?} s",
+                    msg.control_period, period
+                ),
             };
             log(format_args!(
                 "rejected state seq {} ({}: {detail}); no torque for it. Further rejections of this kind are counted, not logged",
@@ -131,8 +140,12 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     allocations: &dyn Fn() -> u64,
 ) -> Result<Report, NodeError> {
     let s = &opts.scenario;
-    let names = ipc_types::service_names(&opts.run)
-        .ok_or_else(|| NodeError::Input(format!("invalid run name `{}` (1-64 of A-Z a-z 0-9 _ -)", opts.run)))?;
+    let names = ipc_types::service_names(&opts.run).ok_or_else(|| {
+        NodeError::Input(format!(
+            "invalid run name `{}` (1-64 of A-Z a-z 0-9 _ -)",
+            opts.run
+        ))
+    })?;
     let controller = s
         .controller::<G, N, M>()
         .map_err(|e| NodeError::Input(format!("scenario `{}`: {e}", s.name)))?;
@@ -169,10 +182,12 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                     break 'outer Stop::Shutdown;
                 }
                 let period = reference.as_ref().map(|r| r.period());
-                let checked = check_state(&msg, group_code, last_seq).and_then(|_| match period {
-                    Some(p) if p != msg.control_period => Err(Reject::Period),
-                    _ if !(msg.control_period > 0.0) => Err(Reject::Period),
-                    _ => Ok(()),
+                let period_ok =
+                    msg.control_period > 0.0 && period.is_none_or(|p| p == msg.control_period);
+                let checked = check_state(&msg, group_code, last_seq).and(if period_ok {
+                    Ok(())
+                } else {
+                    Err(Reject::Period)
                 });
                 match checked {
                     Ok(()) => {
@@ -193,7 +208,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                 std::hint::spin_loop();
             }
             spins = spins.wrapping_add(1);
-            if event_mode || reference.is_none() || spins % 1024 == 0 {
+            if event_mode || reference.is_none() || spins.is_multiple_of(1024) {
                 let silent = last_state.elapsed();
                 if reference.is_none() {
                     if started.elapsed() > opts.startup_timeout {
@@ -201,7 +216,9 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                     }
                 } else if silent > opts.silence_timeout {
                     break 'outer Stop::Silence(silent);
-                } else if silent > Duration::from_millis(100) && last_liveness.elapsed() > Duration::from_millis(100) {
+                } else if silent > Duration::from_millis(100)
+                    && last_liveness.elapsed() > Duration::from_millis(100)
+                {
                     last_liveness = Instant::now();
                     if !node_alive(&names.plant_node) {
                         break 'outer Stop::PlantGone;
@@ -230,7 +247,9 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             ));
             reference = Some(r);
         }
-        let Some(reference) = reference.as_mut() else { continue };
+        let Some(reference) = reference.as_mut() else {
+            continue;
+        };
         while reference.step_index() < msg.seq {
             reference.advance();
         }
@@ -249,7 +268,10 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                 cmd.lyapunov = out.lyapunov.total;
                 if opts.fault == Some(Fault::NanTorque(msg.seq)) {
                     cmd.tau[0] = f64::NAN;
-                    log(format_args!("fault injection: publishing a NaN torque for seq {}", msg.seq));
+                    log(format_args!(
+                        "fault injection: publishing a NaN torque for seq {}",
+                        msg.seq
+                    ));
                 }
                 publish(&ports, cmd, received);
                 if event_mode {
@@ -261,7 +283,10 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                 refused += 1;
                 if !logged_refusal {
                     logged_refusal = true;
-                    log(format_args!("law refused state seq {}: {e}; no torque published", msg.seq));
+                    log(format_args!(
+                        "law refused state seq {}: {e}; no torque published",
+                        msg.seq
+                    ));
                 }
             }
         }

@@ -5,7 +5,7 @@
 //! failed, 2 bad input.
 
 use clap::Parser;
-use controller_node::{run, Fault, NodeError, Options, Stop};
+use controller_node::{Fault, NodeError, Options, Stop, run};
 use scenario::Scenario;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::PathBuf;
@@ -46,7 +46,11 @@ unsafe impl GlobalAlloc for Counting {
 static GLOBAL: Counting = Counting;
 
 #[derive(Parser)]
-#[command(name = "controller_node", version, about = "Equivariant tracking control: the controller process")]
+#[command(
+    name = "controller_node",
+    version,
+    about = "Equivariant tracking control: the controller process"
+)]
 struct Cli {
     /// Scenario file (TOML).
     #[arg(long, value_name = "FILE", conflicts_with = "builtin")]
@@ -92,9 +96,14 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    for (name, v) in [("--silence-timeout", cli.silence_timeout), ("--startup-timeout", cli.startup_timeout)] {
+    for (name, v) in [
+        ("--silence-timeout", cli.silence_timeout),
+        ("--startup-timeout", cli.startup_timeout),
+    ] {
         if !(v.is_finite() && v > 0.0) {
-            eprintln!("controller_node: error: {name}: must be a positive number of seconds, got {v}");
+            eprintln!(
+                "controller_node: error: {name}: must be a positive number of seconds, got {v}"
+            );
             return ExitCode::from(2);
         }
     }
@@ -110,13 +119,31 @@ fn main() -> ExitCode {
             let rejected: u64 = report.rejected.iter().sum();
             let allocs = match report.allocations_after_startup {
                 Some((a, c)) => format!("heap allocations after start-up: {a} in {c} cycles"),
-                None => "heap allocations after start-up: not measured (fewer than 2 cycles)".to_owned(),
+                None => {
+                    "heap allocations after start-up: not measured (fewer than 2 cycles)".to_owned()
+                }
             };
             let (code, why) = match &report.stop {
                 Stop::Shutdown => (0, "the plant ended the run".to_owned()),
-                Stop::PlantGone => (1, format!("the plant of run `{}` is gone (its node is dead or removed)", cli.name)),
-                Stop::Silence(d) => (1, format!("no state from the plant for {:.2} s", d.as_secs_f64())),
-                Stop::NoPlant(d) => (1, format!("no plant appeared on run `{}` within {:.0} s", cli.name, d.as_secs_f64())),
+                Stop::PlantGone => (
+                    1,
+                    format!(
+                        "the plant of run `{}` is gone (its node is dead or removed)",
+                        cli.name
+                    ),
+                ),
+                Stop::Silence(d) => (
+                    1,
+                    format!("no state from the plant for {:.2} s", d.as_secs_f64()),
+                ),
+                Stop::NoPlant(d) => (
+                    1,
+                    format!(
+                        "no plant appeared on run `{}` within {:.0} s",
+                        cli.name,
+                        d.as_secs_f64()
+                    ),
+                ),
             };
             eprintln!(
                 "controller_node: exiting: {why}; {} commands, {rejected} states rejected, {} refused; {allocs}",

@@ -9,7 +9,7 @@
 //! sequence number and a timestamp, so a reader tells a new message from one it has seen.
 //! Two event services wake a sleeping reader in event mode.
 
-use crate::{service_names, CommandMsg, StateMsg};
+use crate::{CommandMsg, StateMsg, service_names};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::reader::{EntryHandle, Reader};
@@ -29,8 +29,8 @@ pub fn monotonic_ns() -> u64 {
     }
 }
 
-/// The blackboard key of the single entry of each board.
-const KEY: u32 = 0;
+/// Entries (writer slots) per board.
+pub const SLOTS: u32 = 8;
 
 /// A message type that can travel on a board.
 pub trait Message: Copy + core::fmt::Debug + ZeroCopySend + 'static {
@@ -70,17 +70,27 @@ impl Message for CommandMsg {
     }
 }
 
+/// The services a side keeps open while it runs.
+type Factories = (
+    BoardFactory<ipc::Service, u32>,
+    BoardFactory<ipc::Service, u32>,
+    EventFactory<ipc::Service>,
+    EventFactory<ipc::Service>,
+);
+
 /// The ports of one side of a run.
 pub struct Ports<Out: Message, In: Message> {
     out: EntryHandleMut<ipc::Service, u32, Out>,
-    inp: EntryHandle<ipc::Service, u32, In>,
-    last_in: core::cell::Cell<(u64, u64)>,
+    /// The slot this side writes.
+    pub slot: u32,
+    inp: Vec<EntryHandle<ipc::Service, u32, In>>,
+    last_in: Vec<core::cell::Cell<(u64, u64)>>,
     /// Wakes the other side (event mode).
     pub notifier: Notifier<ipc::Service>,
     /// Wakes this side (event mode).
     pub listener: Listener<ipc::Service>,
     _ports: (Writer<ipc::Service, u32>, Reader<ipc::Service, u32>),
-    _factories: (BoardFactory<ipc::Service, u32>, BoardFactory<ipc::Service, u32>, EventFactory<ipc::Service>, EventFactory<ipc::Service>),
+    _factories: Factories,
 }
 
 /// The plant's side: writes states, reads commands.
@@ -98,10 +108,17 @@ fn err<E: core::fmt::Debug>(what: &str) -> impl Fn(E) -> SetupError + '_ {
 /// Creates this process's node for `run` (`plant` or `controller` role), after removing the
 /// stale resources of dead nodes (a crashed process leaves shared memory behind).
 pub fn node(run: &str, role: &str) -> Result<Node<ipc::Service>, SetupError> {
-    let names = service_names(run).ok_or_else(|| format!("invalid run name `{run}` (1-64 of A-Z a-z 0-9 _ -)"))?;
-    set_log_level_from_env_or(LogLevel::Warn);
+    let names = service_names(run)
+        .ok_or_else(|| format!("invalid run name `{run}` (1-64 of A-Z a-z 0-9 _ -)"))?;
+    set_log_level_from_env_or(LogLevel::Error);
+    // Sleeps and waits end when asked, not up to 50 µs later (the default timer slack).
+    let _ = nix::sys::prctl::set_timerslack(1);
     remove_stale_nodes();
-    let name = if role == "plant" { &names.plant_node } else { &names.controller_node };
+    let name = if role == "plant" {
+        &names.plant_node
+    } else {
+        &names.controller_node
+    };
     let node_name: NodeName = name.as_str().try_into().map_err(err("node name"))?;
     NodeBuilder::new()
         .name(&node_name)
@@ -119,7 +136,9 @@ pub fn remove_stale_nodes() -> usize {
         }
         CallbackProgression::Continue
     });
-    dead.into_iter().filter(|v| v.clone().try_remove_stale_resources().is_ok()).count()
+    dead.into_iter()
+        .filter(|v| v.clone().try_remove_stale_resources().is_ok())
+        .count()
 }
 
 /// Whether a node with this name exists and is alive.
@@ -127,36 +146,50 @@ pub fn node_alive(name: &str) -> bool {
     use iceoryx2::node::NodeView;
     let mut alive = false;
     let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
-        if let NodeState::Alive(view) = &state {
-            if view.details().as_ref().is_some_and(|d| d.name().as_str() == name) {
-                alive = true;
-                return CallbackProgression::Stop;
-            }
+        if let NodeState::Alive(view) = &state
+            && view
+                .details()
+                .as_ref()
+                .is_some_and(|d| d.name().as_str() == name)
+        {
+            alive = true;
+            return CallbackProgression::Stop;
         }
         CallbackProgression::Continue
     });
     alive
 }
 
-fn board<T: Message>(node: &Node<ipc::Service>, name: &str) -> Result<BoardFactory<ipc::Service, u32>, SetupError> {
+fn board<T: Message>(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<BoardFactory<ipc::Service, u32>, SetupError> {
     let service_name: ServiceName = name.try_into().map_err(err("service name"))?;
     let until = Instant::now() + Duration::from_secs(5);
     loop {
-        match node.service_builder(&service_name).blackboard_opener::<u32>().max_readers(2).max_nodes(4).open() {
+        match node
+            .service_builder(&service_name)
+            .blackboard_opener::<u32>()
+            .max_readers(2)
+            .max_nodes(4)
+            .open()
+        {
             Ok(f) => return Ok(f),
             Err(BlackboardOpenError::DoesNotExist) => {}
             Err(e) => return Err(format!("{name}: {e:?}")),
         }
-        match node
+        let mut creator = node
             .service_builder(&service_name)
             .blackboard_creator::<u32>()
             .max_readers(2)
-            .max_nodes(4)
-            .add::<T>(KEY, T::empty())
-            .create()
-        {
+            .max_nodes(4);
+        for slot in 0..SLOTS {
+            creator = creator.add::<T>(slot, T::empty());
+        }
+        match creator.create() {
             Ok(f) => return Ok(f),
-            Err(BlackboardCreateError::AlreadyExists) | Err(BlackboardCreateError::IsBeingCreatedByAnotherInstance) => {}
+            Err(BlackboardCreateError::AlreadyExists)
+            | Err(BlackboardCreateError::IsBeingCreatedByAnotherInstance) => {}
             Err(e) => return Err(format!("{name}: {e:?}")),
         }
         if Instant::now() > until {
@@ -178,19 +211,46 @@ fn event(node: &Node<ipc::Service>, name: &str) -> Result<EventFactory<ipc::Serv
 }
 
 impl<Out: Message, In: Message> Ports<Out, In> {
-    fn open_named(node: &Node<ipc::Service>, out_name: &str, in_name: &str, notify_name: &str, listen_name: &str) -> Result<Self, SetupError> {
+    fn open_named(
+        node: &Node<ipc::Service>,
+        out_name: &str,
+        in_name: &str,
+        notify_name: &str,
+        listen_name: &str,
+    ) -> Result<Self, SetupError> {
         let out_board = board::<Out>(node, out_name)?;
         let in_board = board::<In>(node, in_name)?;
         let notify = event(node, notify_name)?;
         let listen = event(node, listen_name)?;
-        let writer = out_board.writer_builder().create().map_err(err("blackboard writer (is another process writing this run?)"))?;
-        let reader = in_board.reader_builder().create().map_err(err("blackboard reader"))?;
+        let writer = out_board.writer_builder().create().map_err(err(
+            "blackboard writer (is another process writing this run?)",
+        ))?;
+        let reader = in_board
+            .reader_builder()
+            .create()
+            .map_err(err("blackboard reader"))?;
+        let (slot, out) = (0..SLOTS)
+            .find_map(|slot| writer.entry::<Out>(&slot).ok().map(|h| (slot, h)))
+            .ok_or_else(|| format!("{out_name}: all {SLOTS} writer slots are taken (held by running or crashed processes of this run); end both processes or use another run name"))?;
+        let inp = (0..SLOTS)
+            .map(|slot| reader.entry::<In>(&slot).map_err(err("blackboard entry")))
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(Ports {
-            out: writer.entry::<Out>(&KEY).map_err(err("blackboard entry"))?,
-            inp: reader.entry::<In>(&KEY).map_err(err("blackboard entry"))?,
-            last_in: core::cell::Cell::new(In::empty().identity()),
-            notifier: notify.notifier_builder().create().map_err(err("notifier"))?,
-            listener: listen.listener_builder().create().map_err(err("listener"))?,
+            out,
+            slot,
+            last_in: inp
+                .iter()
+                .map(|_| core::cell::Cell::new(In::empty().identity()))
+                .collect(),
+            inp,
+            notifier: notify
+                .notifier_builder()
+                .create()
+                .map_err(err("notifier"))?,
+            listener: listen
+                .listener_builder()
+                .create()
+                .map_err(err("listener"))?,
             _ports: (writer, reader),
             _factories: (out_board, in_board, notify, listen),
         })
@@ -204,16 +264,37 @@ impl<Out: Message, In: Message> Ports<Out, In> {
         m.identity().1
     }
 
-    /// The message in the slot if it is one this side has not seen yet (and not the empty
-    /// initial value). Allocation-free.
+    /// Waits until the other side notifies or `timeout` passes, with the precision of
+    /// select(2) on the listener's descriptor (high-resolution timers) — unlike the
+    /// listener's own timed wait, whose socket timeout counts in scheduler ticks. Drains the
+    /// listener; true when a notification arrived.
+    pub fn wait_notified(&self, timeout: Duration) -> bool {
+        use iceoryx2_bb_posix::file_descriptor_set::{FileDescriptorSet, FileEvent};
+        let set = FileDescriptorSet::new();
+        let notified = match set.add(&self.listener) {
+            Ok(_guard) => {
+                set.timed_wait(timeout, FileEvent::Read, |_| {})
+                    .unwrap_or(0)
+                    > 0
+            }
+            Err(_) => false,
+        };
+        let _ = self.listener.try_wait(|_| {});
+        notified
+    }
+
+    /// A message this side has not seen yet, from any slot (`None`: nothing new). Call it
+    /// until `None` to see every new message. Allocation-free.
     pub fn receive(&self) -> Option<In> {
-        let m: In = *self.inp.get();
-        let id = m.identity();
-        if id == self.last_in.get() || id == In::empty().identity() {
-            return None;
+        for (entry, last) in self.inp.iter().zip(&self.last_in) {
+            let m: In = *entry.get();
+            let id = m.identity();
+            if id != last.get() && id != In::empty().identity() {
+                last.set(id);
+                return Some(m);
+            }
         }
-        self.last_in.set(id);
-        Some(m)
+        None
     }
 }
 

@@ -186,13 +186,17 @@ pub fn check_state(msg: &StateMsg, group: u32, last_seq: Option<u64>) -> Result<
     let Some((n, m)) = dims(msg.group).filter(|_| msg.group == group) else {
         return Err(Reject::Group);
     };
-    if !all_finite(&msg.q[..n * n]) || !all_finite(&msg.v[..m]) || !msg.t.is_finite() || !msg.control_period.is_finite() {
+    if !all_finite(&msg.q[..n * n])
+        || !all_finite(&msg.v[..m])
+        || !msg.t.is_finite()
+        || !msg.control_period.is_finite()
+    {
         return Err(Reject::NonFinite);
     }
-    if let Some(last) = last_seq {
-        if msg.seq <= last {
-            return Err(Reject::Sequence);
-        }
+    if let Some(last) = last_seq
+        && msg.seq <= last
+    {
+        return Err(Reject::Sequence);
     }
     Ok(())
 }
@@ -237,7 +241,11 @@ pub struct ServiceNames {
 
 /// Whether `run` is a usable run name: 1 to 64 characters of `[A-Za-z0-9_-]`.
 pub fn valid_run_name(run: &str) -> bool {
-    !run.is_empty() && run.len() <= 64 && run.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+    !run.is_empty()
+        && run.len() <= 64
+        && run
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
 }
 
 /// The service names of run `run`; `None` if the name is not [`valid_run_name`].

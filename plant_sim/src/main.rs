@@ -65,8 +65,9 @@ struct RunArgs {
     /// Real-time rate; the control period becomes 1/F.
     #[arg(long, value_name = "F", default_value_t = 1000.0)]
     rate_hz: f64,
-    /// How the processes wait for each other's messages.
-    #[arg(long, value_enum, default_value = "spin")]
+    /// How the processes wait for each other's messages: event (they sleep; robust on a
+    /// shared machine) or spin (busy polling; lowest latency, needs a core per process).
+    #[arg(long, value_enum, default_value = "event")]
     wake: WakeArg,
     /// Override the scenario's duration (s).
     #[arg(long, value_name = "S")]
@@ -287,12 +288,14 @@ fn seconds(name: &str, v: f64) -> Result<std::time::Duration, SimError> {
     if v.is_finite() && v > 0.0 {
         Ok(std::time::Duration::from_secs_f64(v))
     } else {
-        Err(SimError::Input(format!("{name}: must be a positive number of seconds, got {v}")))
+        Err(SimError::Input(format!(
+            "{name}: must be a positive number of seconds, got {v}"
+        )))
     }
 }
 
 fn run_cmd(args: RunArgs) -> Result<(), SimError> {
-    use plant_sim::pair::{run_pair, Mode, PairOptions, StateFault, Wake};
+    use plant_sim::pair::{Mode, PairOptions, StateFault, Wake, run_pair};
     let mut scenario = args.source.load("seed")?;
     if let Some(d) = args.duration {
         seconds("--duration", d)?;
@@ -308,7 +311,11 @@ fn run_cmd(args: RunArgs) -> Result<(), SimError> {
     };
     let mut state_faults = Vec::new();
     for text in &args.fault_state {
-        let bad = || SimError::Input(format!("--fault-state: expected K:version|group|nan, got `{text}`"));
+        let bad = || {
+            SimError::Input(format!(
+                "--fault-state: expected K:version|group|nan, got `{text}`"
+            ))
+        };
         let (k, kind) = text.split_once(':').ok_or_else(bad)?;
         let k: u64 = k.parse().map_err(|_| bad())?;
         let kind = match kind {
@@ -334,12 +341,15 @@ fn run_cmd(args: RunArgs) -> Result<(), SimError> {
         },
         spawn,
         run: args.name.clone(),
-        out: args.out.unwrap_or_else(|| Path::new("out").join(format!("run-{}", args.name))),
+        out: args
+            .out
+            .unwrap_or_else(|| Path::new("out").join(format!("run-{}", args.name))),
         miss_limit: args.miss_limit,
         lockstep_timeout: seconds("--lockstep-timeout", args.lockstep_timeout)?,
         connect_timeout: seconds(
             "--connect-timeout",
-            args.connect_timeout.unwrap_or(if spawn { 10.0 } else { 60.0 }),
+            args.connect_timeout
+                .unwrap_or(if spawn { 10.0 } else { 60.0 }),
         )?,
         state_faults,
         controller_fault_nan_torque: args.fault_nan_torque,
@@ -364,15 +374,31 @@ fn run_cmd(args: RunArgs) -> Result<(), SimError> {
         f.lyapunov, f.config_error, f.momentum_error, f.attitude_error
     );
     let p = |x: &plant_sim::pair::Percentiles| {
-        format!("p50 {:.2} / p99 {:.2} / p99.9 {:.2} / max {:.2} us", x.p50_us, x.p99_us, x.p99_9_us, x.max_us)
+        format!(
+            "p50 {:.2} / p99 {:.2} / p99.9 {:.2} / max {:.2} us",
+            x.p50_us, x.p99_us, x.p99_9_us, x.max_us
+        )
     };
-    println!("round trip (state published -> command received): {}", p(&s.latency));
-    println!("controller compute (state received -> command published): {}", p(&s.controller_compute));
+    println!(
+        "round trip (state published -> command received): {}",
+        p(&s.latency)
+    );
+    println!(
+        "controller compute (state received -> command published): {}",
+        p(&s.controller_compute)
+    );
     println!(
         "deadline misses {}, safe-mode entries {} ({} cycles), commands rejected {}, late {}",
-        s.deadline_misses, s.safe_mode_entries, s.safe_mode_cycles, s.commands_rejected, s.late_commands
+        s.deadline_misses,
+        s.safe_mode_entries,
+        s.safe_mode_cycles,
+        s.commands_rejected,
+        s.late_commands
     );
-    println!("wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}", opts.out.display());
+    println!(
+        "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}",
+        opts.out.display()
+    );
     Ok(())
 }
 

@@ -4,21 +4,22 @@
 //! * **lockstep**: the plant publishes state k and waits for command k before integrating
 //!   `[t_k, t_{k+1})`; the result equals `plant_sim sim` bit for bit.
 //! * **realtime**: tick k+1 comes at `t0 + (k+1)/F` on CLOCK_MONOTONIC (absolute-time
-//!   `clock_nanosleep`, then a short spin — never an iceoryx2 timeout). Command k must arrive
+//!   `clock_nanosleep`, then a short spin — never an iceoryx2 timeout; in event mode the wait
+//!   for a command is a select(2) on the listener bounded by the tick). Command k must arrive
 //!   before tick k+1; otherwise it is a deadline miss and the previous torque is held. After
 //!   `miss_limit` consecutive misses the plant enters **safe mode**: damping only,
 //!   `τ = −K_d V` (the scenario's K_d, body frame, within the torque limit), which brings the
 //!   body to rest instead of tracking; it leaves safe mode at the first fresh command.
 
-use crate::output::{ensure_dir, write_json, write_trajectory_csv, Summary};
+use crate::SimError;
+use crate::output::{Summary, ensure_dir, write_json, write_trajectory_csv};
 use crate::plot::trajectory_figure;
 use crate::trajectory::{Row, Trajectory};
-use crate::SimError;
-use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::GroupKind;
+use controller::group::{MatrixLieGroup, Se3, So3};
 use hdrhistogram::Histogram;
-use ipc_types::ipc::{monotonic_ns, node_alive, PlantPorts};
-use ipc_types::{check_command, flags, CommandMsg, Reject, StateMsg};
+use ipc_types::ipc::{PlantPorts, monotonic_ns, node_alive};
+use ipc_types::{CommandMsg, Reject, StateMsg, check_command, flags};
 use nalgebra::{SMatrix, SVector};
 use scenario::Scenario;
 use serde::Serialize;
@@ -171,7 +172,9 @@ impl Spawned {
             if Instant::now() > until {
                 let _ = child.kill();
                 let _ = child.wait();
-                log(format_args!("controller_node did not exit within {grace:?}; killed"));
+                log(format_args!(
+                    "controller_node did not exit within {grace:?}; killed"
+                ));
                 return None;
             }
             std::thread::sleep(Duration::from_millis(5));
@@ -195,7 +198,10 @@ pub fn sleep_until(deadline: u64) {
     if deadline > SPIN_NS {
         let early = deadline - SPIN_NS;
         if monotonic_ns() < early {
-            let ts = nix::sys::time::TimeSpec::new((early / 1_000_000_000) as i64, (early % 1_000_000_000) as i64);
+            let ts = nix::sys::time::TimeSpec::new(
+                (early / 1_000_000_000) as i64,
+                (early % 1_000_000_000) as i64,
+            );
             let _ = nix::time::clock_nanosleep(
                 nix::time::ClockId::CLOCK_MONOTONIC,
                 nix::time::ClockNanosleepFlags::TIMER_ABSTIME,
@@ -210,14 +216,24 @@ pub fn sleep_until(deadline: u64) {
 
 /// Runs the pair; returns the trajectory and the summary (also written to `out`).
 pub fn run_pair(opts: &PairOptions) -> Result<(Trajectory, PairSummary), SimError> {
-    if opts.mode == Mode::Realtime && !(opts.rate_hz.is_finite() && opts.rate_hz > 0.0 && opts.rate_hz <= 100_000.0) {
-        return Err(SimError::Input(format!("--rate-hz: must be in (0, 100000], got {}", opts.rate_hz)));
+    if opts.mode == Mode::Realtime
+        && !(opts.rate_hz.is_finite() && opts.rate_hz > 0.0 && opts.rate_hz <= 100_000.0)
+    {
+        return Err(SimError::Input(format!(
+            "--rate-hz: must be in (0, 100000], got {}",
+            opts.rate_hz
+        )));
     }
     if opts.miss_limit == 0 {
-        return Err(SimError::Input("--miss-limit: must be at least 1".to_owned()));
+        return Err(SimError::Input(
+            "--miss-limit: must be at least 1".to_owned(),
+        ));
     }
     if ipc_types::service_names(&opts.run).is_none() {
-        return Err(SimError::Input(format!("--name: invalid run name `{}` (1-64 of A-Z a-z 0-9 _ -)", opts.run)));
+        return Err(SimError::Input(format!(
+            "--name: invalid run name `{}` (1-64 of A-Z a-z 0-9 _ -)",
+            opts.run
+        )));
     }
     match opts.scenario.group {
         GroupKind::So3 => run_group::<So3, 3, 3>(opts, ipc_types::group::SO3),
@@ -269,30 +285,26 @@ impl Waiter<'_> {
                 }
             }
             let now = monotonic_ns();
-            if let Some(d) = deadline {
-                if now >= d {
-                    return Ok(Got::Deadline);
-                }
+            if deadline.is_some_and(|d| now >= d) {
+                return Ok(Got::Deadline);
             }
             if now >= give_up {
                 return Err(SimError::Run(format!("no command for step {k}: timed out")));
             }
             polls = polls.wrapping_add(1);
-            if polls % 256 == 0 {
+            if polls.is_multiple_of(256) {
                 idle()?;
             }
             let until = deadline.unwrap_or(give_up);
             match self.wake {
                 Wake::Spin => std::hint::spin_loop(),
                 Wake::Event => {
-                    let remaining = until.saturating_sub(now);
-                    // The listener's timeout is a socket timeout (jiffy granularity): use it
-                    // only far from the tick; close to it, short absolute-time sleeps.
-                    if remaining > 2_500_000 {
-                        let _ = self.ports.listener.timed_wait(|_| {}, Duration::from_nanos(remaining - 2_000_000));
+                    // precise wait on the command event, bounded by the tick
+                    let _ = self
+                        .ports
+                        .wait_notified(Duration::from_nanos(until.saturating_sub(now)));
+                    if polls.is_multiple_of(16) {
                         idle()?;
-                    } else {
-                        sleep_until((now + 50_000).min(until));
                     }
                 }
             }
@@ -309,7 +321,8 @@ fn publish(ports: &PlantPorts, msg: StateMsg, notify: bool) -> u64 {
 }
 
 fn spawn_controller(opts: &PairOptions) -> Result<Child, SimError> {
-    let exe = std::env::current_exe().map_err(|e| SimError::Run(format!("cannot locate plant_sim: {e}")))?;
+    let exe = std::env::current_exe()
+        .map_err(|e| SimError::Run(format!("cannot locate plant_sim: {e}")))?;
     let path = exe.with_file_name("controller_node");
     if !path.exists() {
         return Err(SimError::Run(format!(
@@ -318,7 +331,9 @@ fn spawn_controller(opts: &PairOptions) -> Result<Child, SimError> {
         )));
     }
     let mut cmd = Command::new(&path);
-    cmd.args(&opts.scenario_args).args(["--name", &opts.run]).stdin(Stdio::null());
+    cmd.args(&opts.scenario_args)
+        .args(["--name", &opts.run])
+        .stdin(Stdio::null());
     if let Some(k) = opts.controller_fault_nan_torque {
         cmd.args(["--fault-nan-torque", &k.to_string()]);
     }
@@ -346,17 +361,34 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let cfg = s.controller_config::<N, M>();
     let limit = cfg.torque_limit;
     let disturbance = s.disturbance_vector::<M>();
-    let names = ipc_types::service_names(&opts.run).ok_or_else(|| SimError::Input("bad run name".to_owned()))?;
+    let names = ipc_types::service_names(&opts.run)
+        .ok_or_else(|| SimError::Input("bad run name".to_owned()))?;
     ensure_dir(&opts.out)?;
 
     if node_alive(&names.plant_node) {
-        return Err(SimError::Input(format!("a plant for run `{}` is already running: choose another --name", opts.run)));
+        return Err(SimError::Input(format!(
+            "a plant for run `{}` is already running: choose another --name",
+            opts.run
+        )));
     }
-    let node = ipc_types::ipc::node(&opts.run, "plant").map_err(|e| SimError::Run(format!("IPC set-up failed: {e}")))?;
-    let ports = PlantPorts::open(&node, &opts.run).map_err(|e| SimError::Run(format!("IPC set-up failed: {e}")))?;
-    let mut child = Spawned(if opts.spawn { Some(spawn_controller(opts)?) } else { None });
+    let node = ipc_types::ipc::node(&opts.run, "plant")
+        .map_err(|e| SimError::Run(format!("IPC set-up failed: {e}")))?;
+    let ports = PlantPorts::open(&node, &opts.run)
+        .map_err(|e| SimError::Run(format!("IPC set-up failed: {e}")))?;
+    let mut child = Spawned(if opts.spawn {
+        Some(spawn_controller(opts)?)
+    } else {
+        None
+    });
     let event = opts.wake == Wake::Event;
-    let mut waiter = Waiter { ports: &ports, group, wake: opts.wake, rejected: 0, logged: [false; 5], late: 0 };
+    let mut waiter = Waiter {
+        ports: &ports,
+        group,
+        wake: opts.wake,
+        rejected: 0,
+        logged: [false; 5],
+        late: 0,
+    };
 
     let state_msg = |k: u64, q: &SMatrix<f64, N, N>, v: &SVector<f64, M>| {
         let mut m = StateMsg::new(group);
@@ -374,27 +406,37 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         }
         m
     };
-    let publish_state = |k: u64, q: &SMatrix<f64, N, N>, v: &SVector<f64, M>| -> Result<u64, SimError> {
-        let mut msg = state_msg(k, q, v);
-        if let Some(&(_, fault)) = opts.state_faults.iter().find(|(fk, _)| *fk == k) {
-            {
-                match fault {
-                    StateFault::Version => msg.version += 1,
-                    StateFault::Group => {
-                        msg.group = if group == ipc_types::group::SO3 { ipc_types::group::SE3 } else { ipc_types::group::SO3 }
+    let publish_state =
+        |k: u64, q: &SMatrix<f64, N, N>, v: &SVector<f64, M>| -> Result<u64, SimError> {
+            let mut msg = state_msg(k, q, v);
+            if let Some(&(_, fault)) = opts.state_faults.iter().find(|(fk, _)| *fk == k) {
+                {
+                    match fault {
+                        StateFault::Version => msg.version += 1,
+                        StateFault::Group => {
+                            msg.group = if group == ipc_types::group::SO3 {
+                                ipc_types::group::SE3
+                            } else {
+                                ipc_types::group::SO3
+                            }
+                        }
+                        StateFault::Nan => msg.v[0] = f64::NAN,
                     }
-                    StateFault::Nan => msg.v[0] = f64::NAN,
+                    log(format_args!(
+                        "fault injection: publishing a corrupted state ({fault:?}) for seq {k}"
+                    ));
                 }
-                log(format_args!("fault injection: publishing a corrupted state ({fault:?}) for seq {k}"));
             }
-        }
-        Ok(publish(&ports, msg, event))
-    };
+            Ok(publish(&ports, msg, event))
+        };
 
     // Connect: publish state 0 (kept in the service's history for a late controller) and
     // wait for command 0; the clock starts when it arrives.
     if opts.spawn {
-        log(format_args!("run `{}`: started controller_node, waiting for it", opts.run));
+        log(format_args!(
+            "run `{}`: started controller_node, waiting for it",
+            opts.run
+        ));
     } else {
         log(format_args!(
             "run `{}`: waiting up to {:.0} s for a controller (controller_node --name {} ...)",
@@ -409,7 +451,9 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let connect_until = monotonic_ns() + opts.connect_timeout.as_nanos() as u64;
     let mut connect_idle = || -> Result<(), SimError> {
         if let Some(status) = child.exited() {
-            return Err(SimError::Run(format!("controller_node exited before the run started ({status})")));
+            return Err(SimError::Run(format!(
+                "controller_node exited before the run started ({status})"
+            )));
         }
         std::thread::sleep(Duration::from_micros(500));
         Ok(())
@@ -429,12 +473,17 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     log(format_args!(
         "controller connected; running {} steps {} ({} wake-up, period {} s)",
         steps,
-        if realtime { "in real time" } else { "in lockstep" },
+        if realtime {
+            "in real time"
+        } else {
+            "in lockstep"
+        },
         if event { "event" } else { "busy-poll" },
         period
     ));
 
-    let mut latency = Histogram::<u64>::new_with_bounds(1, 60_000_000_000, 3).map_err(|e| SimError::Run(e.to_string()))?;
+    let mut latency = Histogram::<u64>::new_with_bounds(1, 60_000_000_000, 3)
+        .map_err(|e| SimError::Run(e.to_string()))?;
     let mut compute = latency.clone();
     let mut rows = Vec::with_capacity(steps as usize + 1);
     let mut status = Vec::new();
@@ -459,7 +508,9 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                 let give_up = monotonic_ns() + opts.lockstep_timeout.as_nanos() as u64;
                 let mut idle = || -> Result<(), SimError> {
                     if let Some(status) = child.exited() {
-                        return Err(SimError::Run(format!("controller_node exited during the run ({status})")));
+                        return Err(SimError::Run(format!(
+                            "controller_node exited during the run ({status})"
+                        )));
                     }
                     Ok(())
                 };
@@ -482,7 +533,10 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                 in_row = 0;
                 if safe {
                     safe = false;
-                    log(format_args!("t = {:.3} s: fresh commands are back, leaving safe mode", k as f64 * period));
+                    log(format_args!(
+                        "t = {:.3} s: fresh commands are back, leaving safe mode",
+                        k as f64 * period
+                    ));
                 }
                 0
             }
@@ -513,7 +567,15 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             }
         }
         let t = controller::real::<f64>(k as f64) * period;
-        rows.push(Row::new::<G, N, M>(t, &q, &v, &monitor.desired(), &tau, &cfg.inertia, &cfg.k));
+        rows.push(Row::new::<G, N, M>(
+            t,
+            &q,
+            &v,
+            &monitor.desired(),
+            &tau,
+            &cfg.inertia,
+            &cfg.k,
+        ));
         if realtime {
             status.push(row_status);
             sleep_until(t0 + (k + 1) * period_ns);
@@ -550,7 +612,13 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     publish(&ports, bye, true);
     let controller_exit = child.finish(Duration::from_secs(3));
 
-    let traj = Trajectory { group: s.group, control_period: period, duration: steps as f64 * period, rows, status };
+    let traj = Trajectory {
+        group: s.group,
+        control_period: period,
+        duration: steps as f64 * period,
+        rows,
+        status,
+    };
     let summary = PairSummary {
         sim: Summary::of(&traj, &s.name, s.law.name()),
         mode: if realtime { "realtime" } else { "lockstep" }.to_owned(),
@@ -574,10 +642,18 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         s.name,
         s.law.name().to_uppercase(),
         s.group.name().to_uppercase(),
-        if realtime { format!("real time at {} Hz", opts.rate_hz) } else { "lockstep".to_owned() },
+        if realtime {
+            format!("real time at {} Hz", opts.rate_hz)
+        } else {
+            "lockstep".to_owned()
+        },
         opts.run
     );
     trajectory_figure(&traj, &title, &opts.out.join("figure"))?;
-    log(format_args!("{} cycles in {:.3} s of wall time", steps + 1, elapsed.as_secs_f64()));
+    log(format_args!(
+        "{} cycles in {:.3} s of wall time",
+        steps + 1,
+        elapsed.as_secs_f64()
+    ));
     Ok((traj, summary))
 }

@@ -1,14 +1,14 @@
 //! The in-process closed loop and what it records per control step.
 
 use crate::SimError;
-use controller::law::Desired;
-use controller::semidirect::Phase;
-use controller::tracking::{error_norms, lyapunov, tracking_error};
 use controller::GroupKind;
-use nalgebra::{SMatrix, SVector};
 use controller::closed_loop::{ClosedLoop, Sample};
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;
+use controller::law::Desired;
+use controller::semidirect::Phase;
+use controller::tracking::{error_norms, lyapunov, tracking_error};
+use nalgebra::{SMatrix, SVector};
 use scenario::Scenario;
 
 /// One row of `trajectory.csv`: the state and what the controller did at `t_k`.
@@ -52,8 +52,14 @@ impl Row {
         k: &SMatrix<f64, N, N>,
     ) -> Row {
         let error = tracking_error::<G, f64, N, M>(
-            &Phase { q: *q, p: model_inertia * v },
-            &Phase { q: desired.q, p: desired.p },
+            &Phase {
+                q: *q,
+                p: model_inertia * v,
+            },
+            &Phase {
+                q: desired.q,
+                p: desired.p,
+            },
         );
         let velocity_error = v - desired.v;
         let n = error_norms::<G, f64, N, M>(q, &desired.q, &error, &velocity_error);
@@ -89,7 +95,15 @@ impl Row {
         model_inertia: &SMatrix<f64, M, M>,
         k: &SMatrix<f64, N, N>,
     ) -> Row {
-        Row::new::<G, N, M>(s.t, &s.q, &s.v, &s.desired, &s.output.torque, model_inertia, k)
+        Row::new::<G, N, M>(
+            s.t,
+            &s.q,
+            &s.v,
+            &s.desired,
+            &s.output.torque,
+            model_inertia,
+            k,
+        )
     }
 }
 
