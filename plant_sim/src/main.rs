@@ -387,6 +387,9 @@ fn run_cmd(args: RunArgs) -> Result<(), SimError> {
         "controller compute (state received -> command published): {}",
         p(&s.controller_compute)
     );
+    if let Some(t) = &s.tick_lateness {
+        println!("plant tick lateness (scheduling): {}", p(t));
+    }
     println!(
         "deadline misses {}, safe-mode entries {} ({} cycles), commands rejected {}, late {}",
         s.deadline_misses,

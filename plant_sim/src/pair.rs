@@ -136,6 +136,9 @@ pub struct PairSummary {
     pub latency: Percentiles,
     /// The controller's compute time (state received → command published).
     pub controller_compute: Percentiles,
+    /// Real time: how late the plant woke for its ticks (scheduling). A tick more than a
+    /// period late makes the controller's command for it arrive too late by construction.
+    pub tick_lateness: Option<Percentiles>,
     /// Commands that missed their deadline (real time).
     pub deadline_misses: u64,
     /// Times safe mode was entered.
@@ -485,6 +488,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let mut latency = Histogram::<u64>::new_with_bounds(1, 60_000_000_000, 3)
         .map_err(|e| SimError::Run(e.to_string()))?;
     let mut compute = latency.clone();
+    let mut lateness = latency.clone();
     let mut rows = Vec::with_capacity(steps as usize + 1);
     let mut status = Vec::new();
     let mut tau = SVector::<f64, M>::zeros();
@@ -578,7 +582,9 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         ));
         if realtime {
             status.push(row_status);
-            sleep_until(t0 + (k + 1) * period_ns);
+            let tick = t0 + (k + 1) * period_ns;
+            sleep_until(tick);
+            let _ = lateness.record(monotonic_ns().saturating_sub(tick).max(1));
         }
         if live && last_status.elapsed() > Duration::from_millis(250) {
             last_status = Instant::now();
@@ -628,6 +634,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         cycles: steps + 1,
         latency: Percentiles::of(&latency),
         controller_compute: Percentiles::of(&compute),
+        tick_lateness: realtime.then(|| Percentiles::of(&lateness)),
         deadline_misses: misses,
         safe_mode_entries: safe_entries,
         safe_mode_cycles: safe_cycles,
