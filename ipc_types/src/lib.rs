@@ -1,7 +1,8 @@
 //! The only contract between the plant and the controller processes: fixed-size `#[repr(C)]`
 //! messages that cross iceoryx2 shared memory, the service names of a run, and the protocol
-//! version. `#![no_std]`; the `std` feature adds [`ipc::Services`], the one place where the
-//! services are opened (both processes must use identical settings).
+//! version. `#![no_std]` with no `alloc`. Features: `zero-copy` (default) derives iceoryx2's
+//! `ZeroCopySend` on the messages (iceoryx2's trait crate links `alloc`); `std` adds `ipc`,
+//! the one place where the services are opened (both processes use identical settings).
 //!
 //! One control cycle (DESIGN.md): the plant publishes [`StateMsg`] `{seq k, t_k, Q, V}`; the
 //! controller answers with [`CommandMsg`] `{seq k, τ_k, L, compute time}`.
@@ -10,7 +11,9 @@
 #![warn(missing_docs)]
 
 use core::fmt::Write;
+#[cfg(feature = "zero-copy")]
 use iceoryx2_bb_derive_macros::ZeroCopySend;
+#[cfg(feature = "zero-copy")]
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 #[cfg(feature = "std")]
@@ -40,8 +43,12 @@ pub mod flags {
 }
 
 /// The plant's state at `t_k`: configuration and body velocity (what a gyro measures).
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("eqtrack::StateMsg")]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "zero-copy",
+    derive(ZeroCopySend),
+    type_name("eqtrack::StateMsg")
+)]
 #[repr(C)]
 pub struct StateMsg {
     /// [`PROTOCOL_VERSION`].
@@ -67,8 +74,12 @@ pub struct StateMsg {
 }
 
 /// The controller's answer to state k.
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("eqtrack::CommandMsg")]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "zero-copy",
+    derive(ZeroCopySend),
+    type_name("eqtrack::CommandMsg")
+)]
 #[repr(C)]
 pub struct CommandMsg {
     /// [`PROTOCOL_VERSION`].

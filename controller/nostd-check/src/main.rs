@@ -1,5 +1,5 @@
-//! Calls the controller for SO(3) and SE(3) in f32 and f64 and runs a short closed loop, in a
-//! binary with no std, no alloc and no global allocator. Exits 0 when every check holds.
+//! Calls the controller for SO(3) and SE(3) in f32 and f64, runs a short closed loop and uses
+//! the `ipc_types` wire contract, in a binary with no std, no alloc and no global allocator. Exits 0 when every check holds.
 #![no_std]
 #![no_main]
 
@@ -107,9 +107,29 @@ fn closed_loop_check<T: Real>() -> bool {
     last.output.lyapunov.total < first.output.lyapunov.total
 }
 
+/// The wire contract without std: build, validate and reject messages.
+fn ipc_check() -> bool {
+    use ipc_types::{
+        CommandMsg, Reject, StateMsg, check_command, check_state, group, service_names,
+    };
+    let mut s = StateMsg::new(group::SO3);
+    s.seq = 3;
+    s.control_period = 0.001;
+    let ok = check_state(&s, group::SO3, Some(2)) == Ok(());
+    s.v[1] = f64::NAN;
+    let nan = check_state(&s, group::SO3, Some(2)) == Err(Reject::NonFinite);
+    let mut c = CommandMsg::new(group::SE3);
+    c.seq = 3;
+    let cmd = check_command(&c, group::SE3, 3) == Ok(())
+        && check_command(&c, group::SO3, 3) == Err(Reject::Group);
+    let names = service_names("board1").is_some_and(|n| n.state.as_str() == "eqtrack/board1/state");
+    ok && nan && cmd && names
+}
+
 /// Runs every check; 0 when all hold.
 fn run() -> i32 {
-    let checks: [(&str, bool); 7] = [
+    let checks: [(&str, bool); 8] = [
+        ("ipc_types messages", ipc_check()),
         ("so3 eqt f32", so3_check::<f32>(Law::Eqt)),
         ("so3 eqt f64", so3_check::<f64>(Law::Eqt)),
         ("so3 gt f64", so3_check::<f64>(Law::Gt)),
@@ -128,7 +148,7 @@ fn run() -> i32 {
         }
     }
     rt::write(if code == 0 {
-        b"nostd-check: controller runs with no std, no alloc, no allocator\n"
+        b"nostd-check: controller and ipc_types run with no std, no alloc, no allocator\n"
     } else {
         b"nostd-check: FAILED\n"
     });
