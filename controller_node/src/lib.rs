@@ -11,8 +11,9 @@
 #![warn(missing_docs)]
 
 use controller::group::{MatrixLieGroup, Se3, So3};
-use controller::{GroupKind, Reference};
-use ipc_types::ipc::{ControllerPorts, monotonic_ns, node_alive};
+use controller::{Controller, GroupKind, Reference};
+use ipc_types::ipc::{ControllerPorts, Link, monotonic_ns, node_alive};
+use ipc_types::uds::ControllerUds;
 use ipc_types::{CommandMsg, Reject, StateMsg, check_state, flags};
 use nalgebra::{SMatrix, SVector};
 use scenario::Scenario;
@@ -38,6 +39,17 @@ pub struct Options {
     pub silence_timeout: Duration,
     /// A fault to inject (tests only).
     pub fault: Option<Fault>,
+    /// The transport (iceoryx2, or the Unix-socket baseline for benchmarks).
+    pub transport: Transport,
+}
+
+/// How the two processes exchange messages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Transport {
+    /// iceoryx2 shared memory (the product).
+    Iceoryx2,
+    /// Unix datagram sockets (the benchmark baseline).
+    Uds,
 }
 
 /// Why the node stopped.
@@ -89,10 +101,68 @@ impl std::fmt::Display for NodeError {
 /// Runs the node until it stops. `allocations()` reads the process's allocation counter
 /// (the binary installs a counting allocator; pass `|| 0` without one).
 pub fn run(opts: &Options, allocations: &dyn Fn() -> u64) -> Result<Report, NodeError> {
-    match opts.scenario.group {
-        GroupKind::So3 => run_group::<So3, 3, 3>(opts, ipc_types::group::SO3, allocations),
-        GroupKind::Se3 => run_group::<Se3, 4, 6>(opts, ipc_types::group::SE3, allocations),
+    let names = ipc_types::service_names(&opts.run).ok_or_else(|| {
+        NodeError::Input(format!(
+            "invalid run name `{}` (1-64 of A-Z a-z 0-9 _ -)",
+            opts.run
+        ))
+    })?;
+    match opts.transport {
+        Transport::Iceoryx2 => {
+            let node = ipc_types::ipc::node(&opts.run, "controller").map_err(NodeError::Ipc)?;
+            let ports = ControllerPorts::open(&node, &opts.run).map_err(NodeError::Ipc)?;
+            dispatch(opts, &ports, Some(names.plant_node.as_str()), allocations)
+        }
+        Transport::Uds => {
+            let link = ControllerUds::open(&opts.run, "controller").map_err(NodeError::Ipc)?;
+            dispatch(opts, &link, None, allocations)
+        }
     }
+}
+
+fn dispatch<L: Link<CommandMsg, StateMsg>>(
+    opts: &Options,
+    link: &L,
+    plant_node: Option<&str>,
+    allocations: &dyn Fn() -> u64,
+) -> Result<Report, NodeError> {
+    match opts.scenario.group {
+        GroupKind::So3 => {
+            run_group::<So3, L, 3, 3>(opts, ipc_types::group::SO3, link, plant_node, allocations)
+        }
+        GroupKind::Se3 => {
+            run_group::<Se3, L, 4, 6>(opts, ipc_types::group::SE3, link, plant_node, allocations)
+        }
+    }
+}
+
+/// One controller cycle without IPC: steps the reference up to the state's k (normally it is
+/// there already), runs the law through the controller crate (finite-state check,
+/// saturation) with the state's configuration and body velocity, and fills the command.
+/// Allocation-free; generic over the scalar so the same cycle can be measured in f32.
+pub fn respond<T, G, const N: usize, const M: usize>(
+    controller: &Controller<T, G, N, M>,
+    reference: &mut Reference<T, G, N, M>,
+    msg: &StateMsg,
+    group_code: u32,
+) -> Result<CommandMsg, controller::Error>
+where
+    T: controller::Real,
+    G: MatrixLieGroup<N, M>,
+{
+    while reference.step_index() < msg.seq {
+        reference.advance();
+    }
+    let q = SMatrix::<T, N, N>::from_fn(|i, j| controller::real(msg.q[i * N + j]));
+    let v = SVector::<T, M>::from_fn(|i, _| controller::real(msg.v[i]));
+    let out = controller.compute(&q, &v, &reference.desired())?;
+    let mut cmd = CommandMsg::new(group_code);
+    cmd.seq = msg.seq;
+    for i in 0..M {
+        cmd.tau[i] = nalgebra::try_convert(out.torque[i]).unwrap_or(f64::NAN);
+    }
+    cmd.lyapunov = nalgebra::try_convert(out.lyapunov.total).unwrap_or(f64::NAN);
+    Ok(cmd)
 }
 
 fn log(msg: std::fmt::Arguments) {
@@ -134,23 +204,22 @@ impl Rejections {
     }
 }
 
-fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn run_group<
+    G: MatrixLieGroup<N, M>,
+    L: Link<CommandMsg, StateMsg>,
+    const N: usize,
+    const M: usize,
+>(
     opts: &Options,
     group_code: u32,
+    ports: &L,
+    plant_node: Option<&str>,
     allocations: &dyn Fn() -> u64,
 ) -> Result<Report, NodeError> {
     let s = &opts.scenario;
-    let names = ipc_types::service_names(&opts.run).ok_or_else(|| {
-        NodeError::Input(format!(
-            "invalid run name `{}` (1-64 of A-Z a-z 0-9 _ -)",
-            opts.run
-        ))
-    })?;
     let controller = s
         .controller::<G, N, M>()
         .map_err(|e| NodeError::Input(format!("scenario `{}`: {e}", s.name)))?;
-    let node = ipc_types::ipc::node(&opts.run, "controller").map_err(NodeError::Ipc)?;
-    let ports = ControllerPorts::open(&node, &opts.run).map_err(NodeError::Ipc)?;
     log(format_args!(
         "run `{}`: scenario `{}`, {} on {}, waiting for the plant",
         opts.run,
@@ -201,7 +270,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                 break;
             }
             if event_mode {
-                let _ = ports.listener.timed_wait(|_| {}, Duration::from_millis(20));
+                ports.wait(Duration::from_millis(20));
             } else if reference.is_none() {
                 std::thread::sleep(Duration::from_micros(200));
             } else {
@@ -220,7 +289,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                     && last_liveness.elapsed() > Duration::from_millis(100)
                 {
                     last_liveness = Instant::now();
-                    if !node_alive(&names.plant_node) {
+                    if plant_node.is_some_and(|n| !node_alive(n)) {
                         break 'outer Stop::PlantGone;
                     }
                 }
@@ -250,22 +319,13 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         let Some(reference) = reference.as_mut() else {
             continue;
         };
-        while reference.step_index() < msg.seq {
-            reference.advance();
-        }
-
         // 3. The law, through the controller crate.
-        let q = SMatrix::<f64, N, N>::from_fn(|i, j| msg.q[i * N + j]);
-        let v = SVector::<f64, M>::from_fn(|i, _| msg.v[i]);
-        match controller.compute(&q, &v, &reference.desired()) {
-            Ok(out) => {
-                let mut cmd = CommandMsg::new(group_code);
-                cmd.seq = msg.seq;
+        match respond(&controller, reference, &msg, group_code) {
+            Ok(mut cmd) => {
                 cmd.state_received_ns = received;
-                for i in 0..M {
-                    cmd.tau[i] = out.torque[i];
+                if let Some((a, _)) = baseline {
+                    cmd.heap_allocations = allocations().saturating_sub(a);
                 }
-                cmd.lyapunov = out.lyapunov.total;
                 if opts.fault == Some(Fault::NanTorque(msg.seq)) {
                     cmd.tau[0] = f64::NAN;
                     log(format_args!(
@@ -273,9 +333,9 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                         msg.seq
                     ));
                 }
-                publish(&ports, cmd, received);
+                publish(ports, cmd, received);
                 if event_mode {
-                    let _ = ports.notifier.notify();
+                    ports.notify();
                 }
                 cycles += 1;
             }
@@ -309,7 +369,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 }
 
 /// Writes a command, with its compute time (state received → now). Allocation-free.
-fn publish(ports: &ControllerPorts, mut cmd: CommandMsg, received: u64) {
+fn publish<L: Link<CommandMsg, StateMsg>>(ports: &L, mut cmd: CommandMsg, received: u64) {
     cmd.compute_ns = monotonic_ns().saturating_sub(received);
     ports.send(cmd);
 }

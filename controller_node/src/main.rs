@@ -5,7 +5,7 @@
 //! failed, 2 bad input.
 
 use clap::Parser;
-use controller_node::{Fault, NodeError, Options, Stop, run};
+use controller_node::{Fault, NodeError, Options, Stop, Transport, run};
 use scenario::Scenario;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::PathBuf;
@@ -70,6 +70,9 @@ struct Cli {
     /// Seconds to wait for the first state.
     #[arg(long, value_name = "S", default_value_t = 30.0)]
     startup_timeout: f64,
+    /// Transport: iceoryx2 (default) or uds (the Unix-socket baseline of `plant_sim bench-loop`).
+    #[arg(long, value_name = "T", default_value = "iceoryx2", value_parser = ["iceoryx2", "uds"])]
+    transport: String,
     /// Test only: publish a NaN torque instead of command K.
     #[arg(long, value_name = "K", hide = true)]
     fault_nan_torque: Option<u64>,
@@ -113,6 +116,11 @@ fn main() -> ExitCode {
         startup_timeout: Duration::from_secs_f64(cli.startup_timeout),
         silence_timeout: Duration::from_secs_f64(cli.silence_timeout),
         fault: cli.fault_nan_torque.map(Fault::NanTorque),
+        transport: if cli.transport == "uds" {
+            Transport::Uds
+        } else {
+            Transport::Iceoryx2
+        },
     };
     match run(&opts, &|| ALLOCATIONS.load(Ordering::Relaxed)) {
         Ok(report) => {

@@ -32,6 +32,25 @@ pub fn monotonic_ns() -> u64 {
 /// Entries (writer slots) per board.
 pub const SLOTS: u32 = 8;
 
+/// What one side of the pair needs from a transport: iceoryx2 ([`Ports`]) or the Unix-socket
+/// baseline ([`crate::uds::UdsLink`]).
+pub trait Link<Out, In> {
+    /// Stamps and sends a message; returns its timestamp.
+    fn send(&self, msg: Out) -> u64;
+    /// A message not seen yet, or `None`.
+    fn receive(&self) -> Option<In>;
+    /// Wakes the other side if it sleeps (event mode).
+    fn notify(&self);
+    /// Sleeps until a message may have arrived or `timeout` passes, with high-resolution
+    /// timing (for a waiter with a deadline; may allocate).
+    fn wait_notified(&self, timeout: Duration) -> bool;
+    /// Sleeps until a message may have arrived or roughly `timeout` passes; allocation-free
+    /// (for the controller, which has no deadline of its own).
+    fn wait(&self, timeout: Duration);
+    /// Sends the last message again, unchanged (for a peer that connects late).
+    fn resend(&self);
+}
+
 /// A message type that can travel on a board.
 pub trait Message: Copy + core::fmt::Debug + ZeroCopySend + 'static {
     /// The value the slot holds before anything was written (version 0: "nothing yet").
@@ -105,14 +124,23 @@ fn err<E: core::fmt::Debug>(what: &str) -> impl Fn(E) -> SetupError + '_ {
     move |e| format!("{what}: {e:?}")
 }
 
+/// iceoryx2 logs at error level unless `IOX2_LOG_LEVEL` says otherwise, and sleeps end
+/// when asked, not up to 50 µs later (the default timer slack). Called by every function
+/// here that touches iceoryx2.
+fn init() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        set_log_level_from_env_or(LogLevel::Error);
+        let _ = nix::sys::prctl::set_timerslack(1);
+    });
+}
+
 /// Creates this process's node for `run` (`plant` or `controller` role), after removing the
 /// stale resources of dead nodes (a crashed process leaves shared memory behind).
 pub fn node(run: &str, role: &str) -> Result<Node<ipc::Service>, SetupError> {
     let names = service_names(run)
         .ok_or_else(|| format!("invalid run name `{run}` (1-64 of A-Z a-z 0-9 _ -)"))?;
-    set_log_level_from_env_or(LogLevel::Error);
-    // Sleeps and waits end when asked, not up to 50 µs later (the default timer slack).
-    let _ = nix::sys::prctl::set_timerslack(1);
+    init();
     remove_stale_nodes();
     let name = if role == "plant" {
         &names.plant_node
@@ -129,6 +157,7 @@ pub fn node(run: &str, role: &str) -> Result<Node<ipc::Service>, SetupError> {
 
 /// Removes the stale resources of every dead node; returns how many were removed.
 pub fn remove_stale_nodes() -> usize {
+    init();
     let mut dead = Vec::new();
     let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
         if let NodeState::Dead(view) = state {
@@ -143,6 +172,7 @@ pub fn remove_stale_nodes() -> usize {
 
 /// Whether a node with this name exists and is alive.
 pub fn node_alive(name: &str) -> bool {
+    init();
     use iceoryx2::node::NodeView;
     let mut alive = false;
     let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
@@ -267,7 +297,8 @@ impl<Out: Message, In: Message> Ports<Out, In> {
     /// Waits until the other side notifies or `timeout` passes, with the precision of
     /// select(2) on the listener's descriptor (high-resolution timers) — unlike the
     /// listener's own timed wait, whose socket timeout counts in scheduler ticks. Drains the
-    /// listener; true when a notification arrived.
+    /// listener; true when a notification arrived. (iceoryx2's descriptor set allocates: this
+    /// is for the plant, not for the controller's loop.)
     pub fn wait_notified(&self, timeout: Duration) -> bool {
         use iceoryx2_bb_posix::file_descriptor_set::{FileDescriptorSet, FileEvent};
         let set = FileDescriptorSet::new();
@@ -295,6 +326,27 @@ impl<Out: Message, In: Message> Ports<Out, In> {
             }
         }
         None
+    }
+}
+
+impl<Out: Message, In: Message> Link<Out, In> for Ports<Out, In> {
+    fn send(&self, msg: Out) -> u64 {
+        Ports::send(self, msg)
+    }
+    fn receive(&self) -> Option<In> {
+        Ports::receive(self)
+    }
+    fn notify(&self) {
+        let _ = self.notifier.notify();
+    }
+    fn wait_notified(&self, timeout: Duration) -> bool {
+        Ports::wait_notified(self, timeout)
+    }
+    fn wait(&self, timeout: Duration) {
+        let _ = self.listener.timed_wait(|_| {}, timeout);
+    }
+    fn resend(&self) {
+        // the slot keeps its last value: a late reader finds it there
     }
 }
 

@@ -18,6 +18,8 @@ use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 #[cfg(feature = "std")]
 pub mod ipc;
+#[cfg(feature = "std")]
+pub mod uds;
 
 /// Bumped whenever a message layout or meaning changes.
 pub const PROTOCOL_VERSION: u32 = 1;
@@ -98,6 +100,8 @@ pub struct CommandMsg {
     pub tau: [f64; MAX_M],
     /// Lyapunov function at `t_k` (diagnostic).
     pub lyapunov: f64,
+    /// Heap allocations the controller made since the end of its first cycle (diagnostic).
+    pub heap_allocations: u64,
 }
 
 impl StateMsg {
@@ -130,7 +134,145 @@ impl CommandMsg {
             compute_ns: 0,
             tau: [0.0; MAX_M],
             lyapunov: 0.0,
+            heap_allocations: 0,
         }
+    }
+}
+
+/// Bytes of an encoded [`StateMsg`] (little-endian, field by field).
+pub const STATE_BYTES: usize = 4 + 4 + 8 + 8 + 8 + 8 + 8 * MAX_N * MAX_N + 8 * MAX_M + 4 + 4;
+/// Bytes of an encoded [`CommandMsg`].
+pub const COMMAND_BYTES: usize = 4 + 4 + 8 * 4 + 8 * MAX_M + 8 + 8;
+
+/// Writes fields into a byte buffer in order (for transports that carry bytes, such as the
+/// Unix-socket baseline).
+struct Put<'a> {
+    buf: &'a mut [u8],
+    at: usize,
+}
+
+impl Put<'_> {
+    fn bytes<const K: usize>(&mut self, b: [u8; K]) {
+        self.buf[self.at..self.at + K].copy_from_slice(&b);
+        self.at += K;
+    }
+}
+
+/// Reads fields back in the same order.
+struct Get<'a> {
+    buf: &'a [u8],
+    at: usize,
+}
+
+impl Get<'_> {
+    fn bytes<const K: usize>(&mut self) -> [u8; K] {
+        let mut b = [0u8; K];
+        b.copy_from_slice(&self.buf[self.at..self.at + K]);
+        self.at += K;
+        b
+    }
+    fn u32(&mut self) -> u32 {
+        u32::from_le_bytes(self.bytes())
+    }
+    fn u64(&mut self) -> u64 {
+        u64::from_le_bytes(self.bytes())
+    }
+    fn f64(&mut self) -> f64 {
+        f64::from_le_bytes(self.bytes())
+    }
+}
+
+impl StateMsg {
+    /// Little-endian encoding.
+    pub fn to_bytes(&self) -> [u8; STATE_BYTES] {
+        let mut buf = [0u8; STATE_BYTES];
+        let mut p = Put {
+            buf: &mut buf,
+            at: 0,
+        };
+        p.bytes(self.version.to_le_bytes());
+        p.bytes(self.group.to_le_bytes());
+        p.bytes(self.seq.to_le_bytes());
+        p.bytes(self.t.to_le_bytes());
+        p.bytes(self.control_period.to_le_bytes());
+        p.bytes(self.stamp_ns.to_le_bytes());
+        for x in self.q {
+            p.bytes(x.to_le_bytes());
+        }
+        for x in self.v {
+            p.bytes(x.to_le_bytes());
+        }
+        p.bytes(self.flags.to_le_bytes());
+        p.bytes(self.reserved.to_le_bytes());
+        buf
+    }
+
+    /// Decodes [`StateMsg::to_bytes`]; `None` for a buffer of the wrong length.
+    pub fn from_bytes(buf: &[u8]) -> Option<StateMsg> {
+        if buf.len() != STATE_BYTES {
+            return None;
+        }
+        let mut g = Get { buf, at: 0 };
+        let mut m = StateMsg::new(0);
+        m.version = g.u32();
+        m.group = g.u32();
+        m.seq = g.u64();
+        m.t = g.f64();
+        m.control_period = g.f64();
+        m.stamp_ns = g.u64();
+        for x in m.q.iter_mut() {
+            *x = g.f64();
+        }
+        for x in m.v.iter_mut() {
+            *x = g.f64();
+        }
+        m.flags = g.u32();
+        m.reserved = g.u32();
+        Some(m)
+    }
+}
+
+impl CommandMsg {
+    /// Little-endian encoding.
+    pub fn to_bytes(&self) -> [u8; COMMAND_BYTES] {
+        let mut buf = [0u8; COMMAND_BYTES];
+        let mut p = Put {
+            buf: &mut buf,
+            at: 0,
+        };
+        p.bytes(self.version.to_le_bytes());
+        p.bytes(self.group.to_le_bytes());
+        p.bytes(self.seq.to_le_bytes());
+        p.bytes(self.state_received_ns.to_le_bytes());
+        p.bytes(self.stamp_ns.to_le_bytes());
+        p.bytes(self.compute_ns.to_le_bytes());
+        for x in self.tau {
+            p.bytes(x.to_le_bytes());
+        }
+        p.bytes(self.lyapunov.to_le_bytes());
+        p.bytes(self.heap_allocations.to_le_bytes());
+        buf
+    }
+
+    /// Decodes [`CommandMsg::to_bytes`]; `None` for a buffer of the wrong length.
+    pub fn from_bytes(buf: &[u8]) -> Option<CommandMsg> {
+        if buf.len() != COMMAND_BYTES {
+            return None;
+        }
+        let mut g = Get { buf, at: 0 };
+        let mut m = CommandMsg::new(0);
+        m.version = g.u32();
+        m.group = g.u32();
+        m.seq = g.u64();
+        m.state_received_ns = g.u64();
+        m.stamp_ns = g.u64();
+        m.compute_ns = g.u64();
+        for x in m.tau.iter_mut() {
+            *x = g.f64();
+        }
+        m.lyapunov = g.f64();
+        m.heap_allocations = g.u64();
+        Some(m)
     }
 }
 
@@ -317,6 +459,22 @@ mod tests {
         assert_eq!(check_command(&c, group::SE3, 4), Err(Reject::Sequence));
         c.tau[5] = f64::INFINITY;
         assert_eq!(check_command(&c, group::SE3, 3), Err(Reject::NonFinite));
+    }
+
+    #[test]
+    fn byte_encoding_round_trips() {
+        let mut s = StateMsg::new(group::SE3);
+        s.seq = 77;
+        s.t = 0.125;
+        s.q[15] = -3.5;
+        s.v[5] = 1e-300;
+        s.flags = flags::WAKE_EVENT;
+        assert_eq!(StateMsg::from_bytes(&s.to_bytes()), Some(s));
+        assert_eq!(StateMsg::from_bytes(&[0u8; 3]), None);
+        let mut c = CommandMsg::new(group::SO3);
+        c.tau[2] = 2.5;
+        c.heap_allocations = 9;
+        assert_eq!(CommandMsg::from_bytes(&c.to_bytes()), Some(c));
     }
 
     #[test]

@@ -7,6 +7,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod bench_loop;
 pub mod montecarlo;
 pub mod output;
 pub mod pair;

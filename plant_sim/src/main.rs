@@ -41,12 +41,35 @@ enum Command {
     Montecarlo(McArgs),
     /// The plant process of the pair: talks to controller_node over iceoryx2.
     Run(RunArgs),
+    /// Round trip of the real loop: iceoryx2 busy-poll, iceoryx2 event, Unix-socket baseline.
+    BenchLoop(BenchLoopArgs),
+}
+
+#[derive(Args)]
+struct BenchLoopArgs {
+    #[command(flatten)]
+    source: Source,
+    /// Loop rates to measure, comma-separated (Hz).
+    #[arg(long, value_name = "LIST", default_value = "1000,10000")]
+    rates: String,
+    /// Seconds per case and rate.
+    #[arg(long, value_name = "S", default_value_t = 5.0)]
+    duration: f64,
+    /// Output directory; default out/bench-loop.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
 enum ModeArg {
     Lockstep,
     Realtime,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum TransportArg {
+    Iceoryx2,
+    Uds,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -72,6 +95,9 @@ struct RunArgs {
     /// Override the scenario's duration (s).
     #[arg(long, value_name = "S")]
     duration: Option<f64>,
+    /// Transport: iceoryx2, or uds (the Unix-socket baseline; spawned controllers follow).
+    #[arg(long, value_enum, default_value = "iceoryx2")]
+    transport: TransportArg,
     /// Do not start controller_node; wait for one started by hand.
     #[arg(long)]
     no_spawn: bool,
@@ -294,6 +320,53 @@ fn seconds(name: &str, v: f64) -> Result<std::time::Duration, SimError> {
     }
 }
 
+fn scenario_args(source: &Source) -> Vec<String> {
+    match (&source.scenario, &source.builtin) {
+        (Some(p), _) => {
+            let abs = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+            vec!["--scenario".to_owned(), abs.display().to_string()]
+        }
+        (None, Some(n)) => vec!["--builtin".to_owned(), n.clone()],
+        (None, None) => vec!["--builtin".to_owned(), "seed".to_owned()],
+    }
+}
+
+fn bench_loop_cmd(args: BenchLoopArgs) -> Result<(), SimError> {
+    let scenario = args.source.load("seed")?;
+    seconds("--duration", args.duration)?;
+    let rates = args
+        .rates
+        .split(',')
+        .map(|r| match r.trim().parse::<f64>() {
+            Ok(x) if x.is_finite() && x > 0.0 && x <= 100_000.0 => Ok(x),
+            _ => Err(SimError::Input(format!(
+                "--rates: `{}` is not a rate in (0, 100000] Hz",
+                r.trim()
+            ))),
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let out = args
+        .out
+        .unwrap_or_else(|| Path::new("out").join("bench-loop"));
+    let rows = plant_sim::bench_loop::bench_loop(
+        &scenario,
+        &scenario_args(&args.source),
+        &rates,
+        args.duration,
+        &out,
+    )?;
+    println!(
+        "round trip of the controller loop (state published -> command received), scenario {}:",
+        scenario.name
+    );
+    print!("{}", plant_sim::bench_loop::table(&rows));
+    println!(
+        "wrote {}/{{summary.json, table.md}} and one run directory per case",
+        out.display()
+    );
+    Ok(())
+}
+
 fn run_cmd(args: RunArgs) -> Result<(), SimError> {
     use plant_sim::pair::{Mode, PairOptions, StateFault, Wake, run_pair};
     let mut scenario = args.source.load("seed")?;
@@ -301,14 +374,7 @@ fn run_cmd(args: RunArgs) -> Result<(), SimError> {
         seconds("--duration", d)?;
         scenario.duration = d;
     }
-    let scenario_args = match (&args.source.scenario, &args.source.builtin) {
-        (Some(p), _) => {
-            let abs = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
-            vec!["--scenario".to_owned(), abs.display().to_string()]
-        }
-        (None, Some(n)) => vec!["--builtin".to_owned(), n.clone()],
-        (None, None) => vec!["--builtin".to_owned(), "seed".to_owned()],
-    };
+    let scenario_args = scenario_args(&args.source);
     let mut state_faults = Vec::new();
     for text in &args.fault_state {
         let bad = || {
@@ -338,6 +404,10 @@ fn run_cmd(args: RunArgs) -> Result<(), SimError> {
         wake: match args.wake {
             WakeArg::Spin => Wake::Spin,
             WakeArg::Event => Wake::Event,
+        },
+        transport: match args.transport {
+            TransportArg::Iceoryx2 => plant_sim::pair::Transport::Iceoryx2,
+            TransportArg::Uds => plant_sim::pair::Transport::Uds,
         },
         spawn,
         run: args.name.clone(),
@@ -412,6 +482,7 @@ fn main() -> ExitCode {
         Some(Command::Sim(a)) => sim(a),
         Some(Command::Montecarlo(a)) => montecarlo_cmd(a),
         Some(Command::Run(a)) => run_cmd(a),
+        Some(Command::BenchLoop(a)) => bench_loop_cmd(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -18,7 +18,8 @@ use crate::trajectory::{Row, Trajectory};
 use controller::GroupKind;
 use controller::group::{MatrixLieGroup, Se3, So3};
 use hdrhistogram::Histogram;
-use ipc_types::ipc::{PlantPorts, monotonic_ns, node_alive};
+use ipc_types::ipc::{Link, PlantPorts, monotonic_ns, node_alive};
+use ipc_types::uds::PlantUds;
 use ipc_types::{CommandMsg, Reject, StateMsg, check_command, flags};
 use nalgebra::{SMatrix, SVector};
 use scenario::Scenario;
@@ -46,6 +47,25 @@ pub enum Wake {
     Event,
 }
 
+/// How the two processes exchange messages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Transport {
+    /// iceoryx2 shared memory (the product).
+    Iceoryx2,
+    /// Unix datagram sockets (the benchmark baseline).
+    Uds,
+}
+
+impl Transport {
+    /// `iceoryx2` or `uds`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Transport::Iceoryx2 => "iceoryx2",
+            Transport::Uds => "uds",
+        }
+    }
+}
+
 /// A corrupted state to publish instead of the real one (tests of the controller's checks).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StateFault {
@@ -70,6 +90,8 @@ pub struct PairOptions {
     pub rate_hz: f64,
     /// Busy polling or events.
     pub wake: Wake,
+    /// iceoryx2, or the Unix-socket baseline.
+    pub transport: Transport,
     /// Spawn `controller_node` (else wait for one started by hand).
     pub spawn: bool,
     /// Run name.
@@ -151,6 +173,11 @@ pub struct PairSummary {
     pub late_commands: u64,
     /// Exit status of the spawned controller (`None`: not spawned or killed).
     pub controller_exit: Option<i32>,
+    /// `iceoryx2` or `uds`.
+    pub transport: String,
+    /// Heap allocations the controller reported making after its first cycle (from its last
+    /// command).
+    pub controller_heap_allocations: Option<u64>,
 }
 
 fn log(msg: std::fmt::Arguments) {
@@ -238,14 +265,40 @@ pub fn run_pair(opts: &PairOptions) -> Result<(Trajectory, PairSummary), SimErro
             opts.run
         )));
     }
-    match opts.scenario.group {
-        GroupKind::So3 => run_group::<So3, 3, 3>(opts, ipc_types::group::SO3),
-        GroupKind::Se3 => run_group::<Se3, 4, 6>(opts, ipc_types::group::SE3),
+    let setup = |e: String| SimError::Run(format!("IPC set-up failed: {e}"));
+    match opts.transport {
+        Transport::Iceoryx2 => {
+            let names = ipc_types::service_names(&opts.run)
+                .ok_or_else(|| SimError::Input("bad run name".to_owned()))?;
+            if node_alive(&names.plant_node) {
+                return Err(SimError::Input(format!(
+                    "a plant for run `{}` is already running: choose another --name",
+                    opts.run
+                )));
+            }
+            let node = ipc_types::ipc::node(&opts.run, "plant").map_err(setup)?;
+            let ports = PlantPorts::open(&node, &opts.run).map_err(setup)?;
+            dispatch(opts, &ports)
+        }
+        Transport::Uds => {
+            let link = PlantUds::open(&opts.run, "plant").map_err(setup)?;
+            dispatch(opts, &link)
+        }
     }
 }
 
-struct Waiter<'a> {
-    ports: &'a PlantPorts,
+fn dispatch<L: Link<StateMsg, CommandMsg>>(
+    opts: &PairOptions,
+    link: &L,
+) -> Result<(Trajectory, PairSummary), SimError> {
+    match opts.scenario.group {
+        GroupKind::So3 => run_group::<So3, L, 3, 3>(opts, ipc_types::group::SO3, link),
+        GroupKind::Se3 => run_group::<Se3, L, 4, 6>(opts, ipc_types::group::SE3, link),
+    }
+}
+
+struct Waiter<'a, L> {
+    ports: &'a L,
     group: u32,
     wake: Wake,
     rejected: u64,
@@ -258,7 +311,7 @@ enum Got {
     Deadline,
 }
 
-impl Waiter<'_> {
+impl<L: Link<StateMsg, CommandMsg>> Waiter<'_, L> {
     /// Waits for command `k` until `deadline` (ns; `None`: until `give_up`), calling `idle`
     /// now and then (for liveness checks); `Err` when `give_up` passes.
     fn wait(
@@ -302,11 +355,14 @@ impl Waiter<'_> {
             match self.wake {
                 Wake::Spin => std::hint::spin_loop(),
                 Wake::Event => {
-                    // precise wait on the command event, bounded by the tick
-                    let _ = self
-                        .ports
-                        .wait_notified(Duration::from_nanos(until.saturating_sub(now)));
-                    if polls.is_multiple_of(16) {
+                    // precise wait on the command event, bounded by the tick; untimed waits
+                    // (connection, lockstep) in 1 ms slices, so `idle` runs between them
+                    let mut wait = until.saturating_sub(now);
+                    if deadline.is_none() {
+                        wait = wait.min(1_000_000);
+                    }
+                    let _ = self.ports.wait_notified(Duration::from_nanos(wait));
+                    if deadline.is_none() || polls.is_multiple_of(16) {
                         idle()?;
                     }
                 }
@@ -315,10 +371,10 @@ impl Waiter<'_> {
     }
 }
 
-fn publish(ports: &PlantPorts, msg: StateMsg, notify: bool) -> u64 {
+fn publish<L: Link<StateMsg, CommandMsg>>(ports: &L, msg: StateMsg, notify: bool) -> u64 {
     let stamp = ports.send(msg);
     if notify {
-        let _ = ports.notifier.notify();
+        ports.notify();
     }
     stamp
 }
@@ -337,6 +393,9 @@ fn spawn_controller(opts: &PairOptions) -> Result<Child, SimError> {
     cmd.args(&opts.scenario_args)
         .args(["--name", &opts.run])
         .stdin(Stdio::null());
+    if opts.transport == Transport::Uds {
+        cmd.args(["--transport", "uds"]);
+    }
     if let Some(k) = opts.controller_fault_nan_torque {
         cmd.args(["--fault-nan-torque", &k.to_string()]);
     }
@@ -344,9 +403,15 @@ fn spawn_controller(opts: &PairOptions) -> Result<Child, SimError> {
         .map_err(|e| SimError::Run(format!("cannot start {}: {e}", path.display())))
 }
 
-fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn run_group<
+    G: MatrixLieGroup<N, M>,
+    L: Link<StateMsg, CommandMsg>,
+    const N: usize,
+    const M: usize,
+>(
     opts: &PairOptions,
     group: u32,
+    ports: &L,
 ) -> Result<(Trajectory, PairSummary), SimError> {
     let realtime = opts.mode == Mode::Realtime;
     let mut s = opts.scenario.clone();
@@ -364,20 +429,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let cfg = s.controller_config::<N, M>();
     let limit = cfg.torque_limit;
     let disturbance = s.disturbance_vector::<M>();
-    let names = ipc_types::service_names(&opts.run)
-        .ok_or_else(|| SimError::Input("bad run name".to_owned()))?;
     ensure_dir(&opts.out)?;
-
-    if node_alive(&names.plant_node) {
-        return Err(SimError::Input(format!(
-            "a plant for run `{}` is already running: choose another --name",
-            opts.run
-        )));
-    }
-    let node = ipc_types::ipc::node(&opts.run, "plant")
-        .map_err(|e| SimError::Run(format!("IPC set-up failed: {e}")))?;
-    let ports = PlantPorts::open(&node, &opts.run)
-        .map_err(|e| SimError::Run(format!("IPC set-up failed: {e}")))?;
     let mut child = Spawned(if opts.spawn {
         Some(spawn_controller(opts)?)
     } else {
@@ -385,7 +437,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     });
     let event = opts.wake == Wake::Event;
     let mut waiter = Waiter {
-        ports: &ports,
+        ports,
         group,
         wake: opts.wake,
         rejected: 0,
@@ -430,7 +482,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                     ));
                 }
             }
-            Ok(publish(&ports, msg, event))
+            Ok(publish(ports, msg, event))
         };
 
     // Connect: publish state 0 (kept in the service's history for a late controller) and
@@ -453,6 +505,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let mut stamp = publish_state(0, &q0, &v0)?;
     let connect_until = monotonic_ns() + opts.connect_timeout.as_nanos() as u64;
     let mut connect_idle = || -> Result<(), SimError> {
+        ports.resend();
         if let Some(status) = child.exited() {
             return Err(SimError::Run(format!(
                 "controller_node exited before the run started ({status})"
@@ -496,6 +549,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let mut safe = false;
     let live = std::io::stderr().is_terminal();
     let mut last_status = Instant::now();
+    let mut last_allocations = None;
     let mut pending = Some(first);
 
     for k in 0..=steps {
@@ -533,6 +587,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                     let _ = latency.record(received.saturating_sub(stamp).max(1));
                 }
                 let _ = compute.record(c.compute_ns.max(1));
+                last_allocations = Some(c.heap_allocations);
                 tau = SVector::<f64, M>::from_fn(|i, _| c.tau[i]);
                 in_row = 0;
                 if safe {
@@ -615,7 +670,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let mut bye = StateMsg::new(group);
     bye.seq = steps + 1;
     bye.flags = flags::SHUTDOWN;
-    publish(&ports, bye, true);
+    publish(ports, bye, true);
     let controller_exit = child.finish(Duration::from_secs(3));
 
     let traj = Trajectory {
@@ -641,6 +696,8 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         commands_rejected: waiter.rejected,
         late_commands: waiter.late,
         controller_exit,
+        transport: opts.transport.name().to_owned(),
+        controller_heap_allocations: last_allocations,
     };
     write_trajectory_csv(&traj, &opts.out.join("trajectory.csv"))?;
     write_json(&summary, &opts.out.join("summary.json"))?;
