@@ -117,11 +117,11 @@ impl<Out: Wire, In: Wire> Link<Out, In> for UdsLink<Out, In> {
     fn receive(&self) -> Option<In> {
         let mut buf = [0u8; 512];
         while let Ok(n) = self.sock.recv(&mut buf) {
-            if let Some(m) = In::decode(&buf[..n]) {
-                if m.identity() != self.last_in.get() {
-                    self.last_in.set(m.identity());
-                    return Some(m);
-                }
+            if let Some(m) = In::decode(&buf[..n])
+                && m.identity() != self.last_in.get()
+            {
+                self.last_in.set(m.identity());
+                return Some(m);
             }
         }
         None
