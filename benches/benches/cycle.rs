@@ -1,0 +1,113 @@
+//! Per-cycle latency, one control cycle per iteration. IDs are `<what>/<group>/<scalar>`.
+//!
+//! `cargo bench -p benches` (full) or `cargo bench -p benches -- --quick`.
+
+use benches::*;
+use controller::group::{Se3, So3};
+use controller::law::{eqt, so3};
+use controller::{real, Law, Real};
+use controller_node::respond;
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
+use nalgebra::{SVector, Vector3};
+use std::hint::black_box;
+
+fn laws<T: Real>(c: &mut Criterion, scalar: &str) {
+    let x = so3_input::<T>();
+    let closed: [(&str, fn(&so3::So3LawInput<T>) -> Vector3<T>); 4] =
+        [("eqt", so3::eqt), ("gt", so3::gt), ("nog", so3::nog), ("asym", so3::asym)];
+    for (name, law) in closed {
+        let mut g = c.benchmark_group(name);
+        g.throughput(Throughput::Elements(1));
+        g.bench_function(format!("so3/{scalar}"), |b| b.iter(|| law(black_box(&x))));
+        g.finish();
+    }
+    let mut g = c.benchmark_group("eqt_generic");
+    g.throughput(Throughput::Elements(1));
+    let (q, v, p, d, k, kd) = so3_generic::<T>();
+    g.bench_function(format!("so3/{scalar}"), |b| {
+        b.iter(|| eqt::<So3, T, 3, 3>(black_box(&q), black_box(&v), black_box(&p), black_box(&d), &k, &kd).0)
+    });
+    let (q, v, p, d, k, kd) = se3_generic::<T>();
+    g.bench_function(format!("se3/{scalar}"), |b| {
+        b.iter(|| eqt::<Se3, T, 4, 6>(black_box(&q), black_box(&v), black_box(&p), black_box(&d), &k, &kd).0)
+    });
+    g.finish();
+}
+
+fn steps<T: Real>(c: &mut Criterion, scalar: &str) {
+    let mut g = c.benchmark_group("reference_step");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function(format!("so3/{scalar}"), |b| {
+        b.iter_batched_ref(seed_reference::<T>, |r| r.advance(), BatchSize::SmallInput)
+    });
+    g.bench_function(format!("se3/{scalar}"), |b| {
+        b.iter_batched_ref(se3_reference::<T>, |r| r.advance(), BatchSize::SmallInput)
+    });
+    g.finish();
+
+    let mut g = c.benchmark_group("plant_step");
+    g.throughput(Throughput::Elements(1));
+    let tau3 = Vector3::new(0.3, -0.2, 0.1).map(real::<T>);
+    g.bench_function(format!("so3/{scalar}"), |b| {
+        b.iter_batched_ref(seed_plant::<T>, |p| p.advance(black_box(&tau3), real(0.001), 10), BatchSize::SmallInput)
+    });
+    let tau6 = SVector::<f64, 6>::new(0.3, -0.2, 0.1, 0.5, 0.0, -0.5).map(real::<T>);
+    g.bench_function(format!("se3/{scalar}"), |b| {
+        b.iter_batched_ref(se3_plant::<T>, |p| p.advance(black_box(&tau6), real(0.001), 10), BatchSize::SmallInput)
+    });
+    g.finish();
+
+    // The controller's whole cycle without IPC, as controller_node runs it: read the state
+    // message, step the reference, run the law (checks, saturation), write the command, then
+    // advance the reference to the next period.
+    let mut g = c.benchmark_group("cycle");
+    g.throughput(Throughput::Elements(1));
+    let ctl = seed_controller::<T>(Law::Eqt);
+    let (q, v, ..) = so3_generic::<f64>();
+    let msg = state_msg::<So3, 3, 3>(&q, &v, ipc_types::group::SO3);
+    g.bench_function(format!("so3/{scalar}"), |b| {
+        b.iter_batched_ref(
+            seed_reference::<T>,
+            |r| {
+                let cmd = respond(&ctl, r, black_box(&msg), ipc_types::group::SO3);
+                r.advance();
+                cmd
+            },
+            BatchSize::SmallInput,
+        )
+    });
+    let ctl = se3_controller::<T>();
+    let (q, v, ..) = se3_generic::<f64>();
+    let msg = state_msg::<Se3, 4, 6>(&q, &v, ipc_types::group::SE3);
+    g.bench_function(format!("se3/{scalar}"), |b| {
+        b.iter_batched_ref(
+            se3_reference::<T>,
+            |r| {
+                let cmd = respond(&ctl, r, black_box(&msg), ipc_types::group::SE3);
+                r.advance();
+                cmd
+            },
+            BatchSize::SmallInput,
+        )
+    });
+    g.finish();
+}
+
+fn baseline(c: &mut Criterion) {
+    let x = so3_input::<f64>();
+    let mut g = c.benchmark_group("plain_nalgebra_eqt");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("so3/f64", |b| b.iter(|| plain_nalgebra_eqt(black_box(&x))));
+    g.finish();
+}
+
+fn all(c: &mut Criterion) {
+    laws::<f64>(c, "f64");
+    laws::<f32>(c, "f32");
+    baseline(c);
+    steps::<f64>(c, "f64");
+    steps::<f32>(c, "f32");
+}
+
+criterion_group!(benches, all);
+criterion_main!(benches);
