@@ -1,0 +1,353 @@
+#!/usr/bin/env bash
+# Runs the `controller` crate on an emulated Cortex-M4F and compares it with the host.
+#
+#   scripts/cortex-m.sh
+#
+# 1. Toolchain, privately, in $CACHE (default: <repo>/.cortex-m-toolchain, git-ignored):
+#    Debian's rustc-web + rust-web-src (a compiler with its library sources, for
+#    `-Z build-std=core`) and qemu-system-arm, fetched with
+#    `apt-get install --download-only -o Dir::Cache::archives=...` and unpacked with `dpkg -x`.
+#    Nothing is installed system-wide. A second run re-uses the cache without apt.
+#    If the packages cannot be fetched, prints one `SKIPPED: <reason>` line and exits 0.
+# 2. Builds controller/firmware-cortex-m for thumbv7em-none-eabihf with the private rustc
+#    (RUSTC_BOOTSTRAP=1, linker: the rustup toolchain's rust-lld) and runs it under the
+#    private qemu-system-arm (board mps2-an386) with a timeout.
+# 3. Builds and runs the host program (firmware-cortex-m/host, the machine's normal cargo),
+#    which prints the same lines from the same inputs (crate firmware-cases), and compares:
+#      torques (TAU) and Lyapunov values at the test states (V):
+#          |a_i - b_i| <= 1e-5 * max(max_j |b_j|, 1)       (per line, j over its components)
+#      the closed loop's Lyapunov function (L, every 0.5 s to t = 2 s, the last is the final):
+#          |a - b|     <= 1e-4 * max(|b|, 1)
+#    a = target, b = host. Relative to the line's largest entry, with a floor of 1 (N·m, J):
+#    the problem's quantities are O(1), and a component produced by cancellation carries an
+#    absolute, not a relative, rounding error of a few f32 ulps of the O(1) terms.
+# 4. Prints the ELF's flash/RAM footprint and the stack use the firmware measured.
+#
+# Environment:
+#   CORTEX_M_CACHE=dir     toolchain cache (default <repo>/.cortex-m-toolchain)
+#   CORTEX_M_TIMEOUT=s     QEMU run timeout in seconds (default 120)
+#   CORTEX_M_PERTURB=1     multiply one expected (host) torque by 1.001: the comparison must fail
+#
+# Exit: 0 on PASS or SKIPPED, 1 on any failure.
+set -euo pipefail
+
+REPO=$(cd -- "$(dirname -- "${BASH_SOURCE[0]}")/.." && pwd)
+FW=$REPO/controller/firmware-cortex-m
+CACHE=${CORTEX_M_CACHE:-$REPO/.cortex-m-toolchain}
+DEBS=$CACHE/debs
+PREFIX=$CACHE/prefix
+LOGS=$CACHE/logs
+PACKAGES=(rustc-web rust-web-src qemu-system-arm)
+TARGET=thumbv7em-none-eabihf
+TIMEOUT=${CORTEX_M_TIMEOUT:-120}
+OUT=$FW/target/cortex-m # run outputs (inside the firmware's own target dir)
+ELF=$FW/target/$TARGET/release/firmware-cortex-m
+
+skip() {
+	echo "SKIPPED: $*"
+	exit 0
+}
+die() {
+	echo "cortex-m: FAIL: $*" >&2
+	exit 1
+}
+# Progress goes to stderr: when the toolchain cannot be had, stdout is the one SKIPPED line.
+step() { printf '[%4ds] %s\n' "$SECONDS" "$*" >&2; }
+
+# The rustc the repository needs (workspace rust-version), e.g. 1.89.
+NEED_RUST=$(sed -n 's/^rust-version *= *"\([0-9.]*\)".*/\1/p' "$REPO/Cargo.toml" | head -1)
+NEED_RUST=${NEED_RUST:-1.85}
+
+mkdir -p "$CACHE" "$LOGS"
+# The cache (about 1 GiB) must never be committed, whatever the repository's .gitignore says.
+[[ -f $CACHE/.gitignore ]] ||
+	printf '# Written by scripts/cortex-m.sh: the private toolchain cache is never committed.\n*\n' >"$CACHE/.gitignore"
+# One run at a time per cache.
+exec 9>"$CACHE/.lock"
+flock 9
+
+# --- 1. the private toolchain ------------------------------------------------------------
+
+# The prefix's shared-library directories (qemu's libraries land in both).
+LIBS=$PREFIX/usr/lib/x86_64-linux-gnu:$PREFIX/lib/x86_64-linux-gnu
+RUSTC_PRIVATE=$PREFIX/usr/bin/rustc
+QEMU=$PREFIX/usr/bin/qemu-system-arm
+
+# True when apt's lists offer every package, and a rustc-web at least $NEED_RUST.
+lists_ok() {
+	local p cand
+	for p in "${PACKAGES[@]}"; do
+		cand=$(apt-cache policy "$p" 2>/dev/null | sed -n 's/^ *Candidate: *//p')
+		[[ -n $cand && $cand != "(none)" ]] || return 1
+		if [[ $p == rustc-web ]] && ! dpkg --compare-versions "$cand" ge "$NEED_RUST"; then
+			return 1
+		fi
+	done
+}
+
+# Downloads the packages and the dependencies this machine lacks into $DEBS (once).
+download() {
+	[[ -f $DEBS/.complete ]] && return 0
+	command -v apt-get >/dev/null && command -v dpkg >/dev/null ||
+		skip "apt-get/dpkg not found: the Cortex-M toolchain comes from Debian packages"
+	if ! lists_ok; then
+		step "apt-get update (the package lists lack ${PACKAGES[*]} or a rustc-web >= $NEED_RUST)"
+		# A failing extra repository makes update exit non-zero: judge by the lists instead.
+		apt-get update >"$LOGS/apt-update.log" 2>&1 || true
+		if ! lists_ok; then
+			why=$(grep -E '^(E|W):' "$LOGS/apt-update.log" | tail -1 || true)
+			skip "apt-get update did not provide ${PACKAGES[*]} with rustc-web >= $NEED_RUST${why:+ ($why)}"
+		fi
+	fi
+	step "downloading ${PACKAGES[*]} and their missing dependencies (apt-get --download-only)"
+	rm -rf "$DEBS.partial"
+	mkdir -p "$DEBS.partial/partial"
+	if ! apt-get install -y --download-only --no-install-recommends \
+		-o Dir::Cache::archives="$DEBS.partial" "${PACKAGES[@]}" >"$LOGS/apt-download.log" 2>&1; then
+		skip "apt-get could not download ${PACKAGES[*]}: $(grep -E '^E:' "$LOGS/apt-download.log" | tail -1 || tail -1 "$LOGS/apt-download.log")"
+	fi
+	rm -rf "$DEBS.partial/partial" "$DEBS.partial/lock"
+	compgen -G "$DEBS.partial/rustc-web_*.deb" >/dev/null || skip "apt-get downloaded no rustc-web package (is it installed system-wide? see $LOGS/apt-download.log)"
+	ls "$DEBS.partial" >"$DEBS.partial/.complete"
+	rm -rf "$DEBS"
+	mv "$DEBS.partial" "$DEBS"
+}
+
+# Unpacks every downloaded package into $PREFIX (once).
+unpack() {
+	[[ -f $PREFIX/.complete ]] && return 0
+	step "unpacking $(ls "$DEBS"/*.deb | wc -l) packages into $PREFIX"
+	rm -rf "$PREFIX.partial"
+	mkdir -p "$PREFIX.partial"
+	local d
+	for d in "$DEBS"/*.deb; do dpkg -x "$d" "$PREFIX.partial"; done
+	# build-std reads only library/ of the source tree: drop the compiler's and the tools'
+	# sources (about 370 MB) and the documentation.
+	rm -rf "$PREFIX.partial"/usr/src/rustc-*/{src,compiler,tests} "$PREFIX.partial"/usr/share/doc
+	rm -rf "$PREFIX"
+	mv "$PREFIX.partial" "$PREFIX"
+	date -u +%FT%TZ >"$PREFIX/.complete"
+}
+
+# Shared libraries a private binary cannot find.
+missing_libs() { LD_LIBRARY_PATH=$LIBS ldd "$1" 2>/dev/null | sed -n 's/^\s*\(\S*\) => not found.*/\1/p'; }
+
+# Libraries the system may hold only through packages apt assumed installed: when ldd finds
+# one missing, fetch its package (named by Debian's soname rule: libfoo.so.1 -> libfoo1,
+# libnl-3.so.200 -> libnl-3-200) with `apt-get download` and unpack it too.
+fix_missing_libs() {
+	local bin lib base ver pkg missing=()
+	for bin in "$QEMU" "$RUSTC_PRIVATE"; do
+		mapfile -t -O "${#missing[@]}" missing < <(missing_libs "$bin")
+	done
+	((${#missing[@]})) || return 0
+	step "private binaries lack ${missing[*]}: fetching their packages"
+	for lib in $(printf '%s\n' "${missing[@]}" | sort -u); do
+		base=${lib%%.so.*}
+		ver=${lib##*.so.}
+		ver=${ver%%.*}
+		if [[ $base =~ [0-9]$ ]]; then pkg=$base-$ver; else pkg=$base$ver; fi
+		pkg=${pkg,,}
+		(cd "$DEBS" && apt-get download "$pkg" >>"$LOGS/apt-download.log" 2>&1) ||
+			skip "could not download $pkg (for $lib): $(tail -1 "$LOGS/apt-download.log")"
+		dpkg -x "$DEBS/${pkg}"_*.deb "$PREFIX"
+	done
+	for bin in "$QEMU" "$RUSTC_PRIVATE"; do
+		[[ -z $(missing_libs "$bin") ]] || die "$bin still lacks: $(missing_libs "$bin" | tr '\n' ' ')"
+	done
+}
+
+# The cached toolchain must still satisfy the repository's rust-version.
+if [[ -f $PREFIX/.complete ]]; then
+	have=$(LD_LIBRARY_PATH=$LIBS "$RUSTC_PRIVATE" --version 2>/dev/null | awk '{print $2}' || true)
+	if [[ -z $have ]] || ! dpkg --compare-versions "$have" ge "$NEED_RUST"; then
+		step "cached rustc '${have:-none}' is older than $NEED_RUST: fetching again"
+		rm -rf "$PREFIX" "$DEBS"
+	else
+		step "toolchain: cached in $CACHE (rustc $have)"
+	fi
+fi
+download
+unpack
+fix_missing_libs
+
+# build-std reads the library sources from <sysroot>/lib/rustlib/src/rust (the package links
+# it to /usr/src/rustc-<version>; make sure the link exists).
+SRC_LINK=$PREFIX/usr/lib/rustlib/src/rust
+if [[ ! -d $SRC_LINK/library/core ]]; then
+	src=$(ls -d "$PREFIX"/usr/src/rustc-* 2>/dev/null | head -1)
+	[[ -n $src && -d $src/library/core ]] || die "rust-web-src did not provide library sources under $PREFIX/usr/src"
+	mkdir -p "$(dirname "$SRC_LINK")"
+	ln -sfn "$src" "$SRC_LINK"
+fi
+
+# The linker: rust-lld from the machine's rustup toolchain (Debian's rustc-web has none).
+HOST_SYSROOT=$(env -u RUSTC rustc --print sysroot 2>/dev/null || true)
+LLD=$(ls "$HOST_SYSROOT"/lib/rustlib/*/bin/rust-lld 2>/dev/null | head -1 || true)
+[[ -n $LLD ]] || LLD=$(ls "${RUSTUP_HOME:-$HOME/.rustup}"/toolchains/*/lib/rustlib/*/bin/rust-lld 2>/dev/null | head -1 || true)
+[[ -n $LLD ]] || die "rust-lld not found (expected in the rustup toolchain: $HOST_SYSROOT/lib/rustlib/<host>/bin)"
+
+echo "toolchain: $(LD_LIBRARY_PATH=$LIBS "$RUSTC_PRIVATE" --version); $(LD_LIBRARY_PATH=$LIBS "$QEMU" --version | head -1); linker $LLD"
+
+# --- 2. firmware: build and run under QEMU ---------------------------------------------------
+
+# Only the firmware's commands see the private toolchain; RUSTFLAGS from the caller would
+# replace the config's `-Tlink.x`, so they are dropped.
+fw_env() {
+	(cd "$FW" && exec env -u RUSTFLAGS -u CARGO_ENCODED_RUSTFLAGS -u CARGO_BUILD_RUSTFLAGS \
+		-u CARGO_BUILD_TARGET \
+		CARGO_TARGET_DIR="$FW/target" \
+		LD_LIBRARY_PATH="$LIBS${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}" \
+		PATH="$PREFIX/usr/bin:$PATH" \
+		RUSTC="$RUSTC_PRIVATE" RUSTC_BOOTSTRAP=1 \
+		CARGO_TARGET_THUMBV7EM_NONE_EABIHF_LINKER="$LLD" \
+		"$@")
+}
+
+mkdir -p "$OUT"
+step "building the firmware ($TARGET, -Z build-std=core)"
+fw_env cargo build --release --locked -Z build-std=core >"$OUT/firmware-build.log" 2>&1 ||
+	{ tail -30 "$OUT/firmware-build.log" >&2; die "firmware build failed (log: $OUT/firmware-build.log)"; }
+
+step "running the firmware under qemu-system-arm (mps2-an386, timeout ${TIMEOUT}s)"
+# `cargo run` uses the runner of .cargo/config.toml (the private qemu comes first on PATH);
+# the build above is up to date, so this only runs it. timeout signals the whole group.
+set +e
+fw_env timeout --kill-after=5 "$TIMEOUT" cargo run --release --locked -Z build-std=core \
+	</dev/null >"$OUT/firmware.out" 2>"$OUT/firmware-run.log"
+rc=$?
+set -e
+if ((rc == 124 || rc == 137)); then
+	tail -5 "$OUT/firmware.out" >&2
+	die "qemu timed out after ${TIMEOUT}s (output so far: $OUT/firmware.out)"
+elif ((rc != 0)); then
+	tail -20 "$OUT/firmware.out" "$OUT/firmware-run.log" >&2
+	die "the firmware run failed: exit code $rc (1 = the firmware reported a failure or panicked)"
+fi
+grep -q '^END$' "$OUT/firmware.out" || die "the firmware output has no END line ($OUT/firmware.out)"
+
+# --- 3. host: the same report on x86_64 --------------------------------------------------------
+
+step "building and running the host program (normal cargo)"
+(cd "$FW" && env -u RUSTC -u RUSTC_BOOTSTRAP -u CARGO_BUILD_TARGET CARGO_TARGET_DIR="$FW/target" \
+	cargo run --release --locked -p firmware-host --target host-tuple) \
+	>"$OUT/host.out" 2>"$OUT/host-build.log" ||
+	{ tail -30 "$OUT/host-build.log" >&2; die "host program failed (log: $OUT/host-build.log)"; }
+
+step "comparing"
+python3 - "$OUT/firmware.out" "$OUT/host.out" <<'PY' || die "target and host differ (see the lines above)"
+import math, os, struct, sys
+
+RTOL_LAW, RTOL_LOOP, FLOOR = 1e-5, 1e-4, 1.0
+
+def parse(path):
+    """{key: [floats]} for TAU/V/L lines, plus DONE and any ERR/PANIC lines."""
+    rows, done, errors = {}, None, []
+    for line in open(path, encoding="utf-8", errors="replace"):
+        f = line.split()
+        if not f:
+            continue
+        if f[0] in ("TAU", "V"):
+            rows[" ".join(f[:3])] = [float(x) for x in f[3:]]
+        elif f[0] == "L":
+            rows[" ".join(f[:2])] = [float(x) for x in f[2:]]
+        elif f[0] == "DONE":
+            done = f[1]
+        elif f[0] in ("ERR", "PANIC"):
+            errors.append(line.rstrip())
+    return rows, done, errors
+
+def ulps(a, b):
+    """Distance in f32 units in the last place."""
+    def key(x):
+        i = struct.unpack("<i", struct.pack("<f", x))[0]
+        return i if i >= 0 else -(i & 0x7FFFFFFF)
+    return abs(key(a) - key(b))
+
+target, t_done, t_err = parse(sys.argv[1])
+host, h_done, h_err = parse(sys.argv[2])
+fail = []
+if t_err or h_err:
+    fail += [f"error line: {e}" for e in t_err + h_err]
+if t_done != "1" or h_done != "1":
+    fail.append(f"DONE target={t_done} host={h_done} (1 = every number finite)")
+if set(target) != set(host):
+    fail.append(f"different lines: only target {sorted(set(target) - set(host))}, "
+                f"only host {sorted(set(host) - set(target))}")
+
+if os.environ.get("CORTEX_M_PERTURB", "0") not in ("", "0"):
+    key = "TAU so3 1"
+    j = max(range(len(host[key])), key=lambda i: abs(host[key][i]))
+    host[key][j] *= 1.001
+    print(f"CORTEX_M_PERTURB: expected {key}[{j}] multiplied by 1.001")
+
+print(f"{'line':<12} {'n':>2} {'max |target-host|':>18} {'tolerance':>10} {'max ulps':>8}  result")
+for key in sorted(set(target) & set(host), key=lambda k: (k[0] == "L", k)):
+    a, b = target[key], host[key]
+    if len(a) != len(b):
+        fail.append(f"{key}: {len(a)} numbers on target, {len(b)} on host")
+        continue
+    rtol = RTOL_LOOP if key.startswith("L ") else RTOL_LAW
+    tol = rtol * max(max(abs(x) for x in b), FLOOR)
+    diff = max(abs(x - y) for x, y in zip(a, b))
+    ok = all(math.isfinite(x) for x in a) and diff <= tol
+    print(f"{key:<12} {len(a):>2} {diff:>18.3e} {tol:>10.1e} {max(ulps(x, y) for x, y in zip(a, b)):>8}  {'ok' if ok else 'FAIL'}")
+    if not ok:
+        fail.append(f"{key}: target {' '.join(f'{x:.9e}' for x in a)}; "
+                    f"host {' '.join(f'{x:.9e}' for x in b)}; max diff {diff:.3e} > {tol:.1e}")
+final = max((k for k in target if k.startswith("L ")), key=lambda k: float(k.split()[1]), default=None)
+if final in host:
+    print(f"final Lyapunov ({final}): target {target[final][0]:.9e}, host {host[final][0]:.9e}")
+if fail:
+    print("cortex-m: comparison FAILED:")
+    for f in fail:
+        print("  " + f)
+    sys.exit(1)
+PY
+
+# --- 4. footprint and stack ----------------------------------------------------------------
+
+# text (code, rodata, vector table) and data initialisers are in flash; data and bss in RAM.
+# llvm-size from the rustup toolchain's llvm-tools if installed, else any llvm-size, else
+# binutils' size, else the ELF's own section headers.
+SIZE_TOOL="" sizes=""
+for t in "$HOST_SYSROOT"/lib/rustlib/*/bin/llvm-size llvm-size $(compgen -c llvm-size- | sort -uV | tail -1) size; do
+	if [[ -n $t ]] && command -v "$t" >/dev/null 2>&1; then SIZE_TOOL=$t; break; fi
+done
+if [[ -n $SIZE_TOOL ]]; then
+	sizes=$("$SIZE_TOOL" "$ELF" 2>/dev/null | awk 'NR==2 {print $1, $2, $3}') || sizes=""
+fi
+if [[ -z $sizes ]]; then
+	# SHF_ALLOC sections: NOBITS = bss, writable = data, the rest = text (as `size` counts).
+	SIZE_TOOL="ELF section headers"
+	sizes=$(python3 - "$ELF" <<'PY'
+import struct, sys
+b = open(sys.argv[1], "rb").read()
+shoff, = struct.unpack_from("<I", b, 0x20)
+shentsize, shnum = struct.unpack_from("<HH", b, 0x2E)
+t = d = s = 0
+for i in range(shnum):
+    _, typ, flags, _, _, size = struct.unpack_from("<IIIIII", b, shoff + i * shentsize)
+    if flags & 2:  # SHF_ALLOC
+        if typ == 8: s += size        # SHT_NOBITS
+        elif flags & 1: d += size     # SHF_WRITE
+        else: t += size
+print(t, d, s)
+PY
+)
+fi
+read -r text data bss <<<"$sizes"
+echo "footprint ($SIZE_TOOL): flash $((text + data)) bytes (text+rodata+vectors $text, data initialisers $data)"
+echo "footprint ($SIZE_TOOL): static RAM $((data + bss)) bytes (data $data, bss $bss), plus the stack below"
+while read -r _ what bytes; do
+	case $what in
+	so3_compute) label="Controller::compute, SO(3) EqT (one call)" ;;
+	se3_compute) label="Controller::compute, SE(3) EqT (one call)" ;;
+	loop_step) label="ClosedLoop::step, SO(3) seed loop (law + 10 plant + 10 reference RKMK4 substeps)" ;;
+	report) label="whole report (all cases, 2 s loop, formatting, semihosting)" ;;
+	*) label=$what ;;
+	esac
+	echo "stack (painted high-water mark): $label: $bytes bytes"
+done < <(grep '^STACK ' "$OUT/firmware.out")
+
+echo "cortex-m: PASS (${SECONDS}s; outputs in $OUT)"
