@@ -5,16 +5,20 @@
 use benches::*;
 use controller::group::{Se3, So3};
 use controller::law::{eqt, so3};
-use controller::{real, Law, Real};
+use controller::{Law, Real, real};
 use controller_node::respond;
-use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
+use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::{SVector, Vector3};
 use std::hint::black_box;
 
 fn laws<T: Real>(c: &mut Criterion, scalar: &str) {
     let x = so3_input::<T>();
-    let closed: [(&str, fn(&so3::So3LawInput<T>) -> Vector3<T>); 4] =
-        [("eqt", so3::eqt), ("gt", so3::gt), ("nog", so3::nog), ("asym", so3::asym)];
+    let closed: [(&str, fn(&so3::So3LawInput<T>) -> Vector3<T>); 4] = [
+        ("eqt", so3::eqt),
+        ("gt", so3::gt),
+        ("nog", so3::nog),
+        ("asym", so3::asym),
+    ];
     for (name, law) in closed {
         let mut g = c.benchmark_group(name);
         g.throughput(Throughput::Elements(1));
@@ -25,72 +29,114 @@ fn laws<T: Real>(c: &mut Criterion, scalar: &str) {
     g.throughput(Throughput::Elements(1));
     let (q, v, p, d, k, kd) = so3_generic::<T>();
     g.bench_function(format!("so3/{scalar}"), |b| {
-        b.iter(|| eqt::<So3, T, 3, 3>(black_box(&q), black_box(&v), black_box(&p), black_box(&d), &k, &kd).0)
+        b.iter(|| {
+            eqt::<So3, T, 3, 3>(
+                black_box(&q),
+                black_box(&v),
+                black_box(&p),
+                black_box(&d),
+                &k,
+                &kd,
+            )
+            .0
+        })
     });
     let (q, v, p, d, k, kd) = se3_generic::<T>();
     g.bench_function(format!("se3/{scalar}"), |b| {
-        b.iter(|| eqt::<Se3, T, 4, 6>(black_box(&q), black_box(&v), black_box(&p), black_box(&d), &k, &kd).0)
+        b.iter(|| {
+            eqt::<Se3, T, 4, 6>(
+                black_box(&q),
+                black_box(&v),
+                black_box(&p),
+                black_box(&d),
+                &k,
+                &kd,
+            )
+            .0
+        })
     });
     g.finish();
 }
 
 fn steps<T: Real>(c: &mut Criterion, scalar: &str) {
-    let mut g = c.benchmark_group("reference_step");
-    g.throughput(Throughput::Elements(1));
-    g.bench_function(format!("so3/{scalar}"), |b| {
-        b.iter_batched_ref(seed_reference::<T>, |r| r.advance(), BatchSize::SmallInput)
-    });
-    g.bench_function(format!("se3/{scalar}"), |b| {
-        b.iter_batched_ref(se3_reference::<T>, |r| r.advance(), BatchSize::SmallInput)
-    });
-    g.finish();
+    // One control period of the reference generator: 1 RKMK4 substep (a scenario's default)
+    // and 10 (the seed scenario's setting).
+    for (name, sub) in [("reference_step", 1), ("reference_step_10sub", 10)] {
+        let mut g = c.benchmark_group(name);
+        g.throughput(Throughput::Elements(1));
+        g.bench_function(format!("so3/{scalar}"), |b| {
+            b.iter_batched_ref(
+                || seed_reference::<T>(sub),
+                |r| r.advance(),
+                BatchSize::SmallInput,
+            )
+        });
+        g.bench_function(format!("se3/{scalar}"), |b| {
+            b.iter_batched_ref(
+                || se3_reference::<T>(sub),
+                |r| r.advance(),
+                BatchSize::SmallInput,
+            )
+        });
+        g.finish();
+    }
 
     let mut g = c.benchmark_group("plant_step");
     g.throughput(Throughput::Elements(1));
     let tau3 = Vector3::new(0.3, -0.2, 0.1).map(real::<T>);
     g.bench_function(format!("so3/{scalar}"), |b| {
-        b.iter_batched_ref(seed_plant::<T>, |p| p.advance(black_box(&tau3), real(0.001), 10), BatchSize::SmallInput)
+        b.iter_batched_ref(
+            seed_plant::<T>,
+            |p| p.advance(black_box(&tau3), real(0.001), 10),
+            BatchSize::SmallInput,
+        )
     });
     let tau6 = SVector::<f64, 6>::new(0.3, -0.2, 0.1, 0.5, 0.0, -0.5).map(real::<T>);
     g.bench_function(format!("se3/{scalar}"), |b| {
-        b.iter_batched_ref(se3_plant::<T>, |p| p.advance(black_box(&tau6), real(0.001), 10), BatchSize::SmallInput)
+        b.iter_batched_ref(
+            se3_plant::<T>,
+            |p| p.advance(black_box(&tau6), real(0.001), 10),
+            BatchSize::SmallInput,
+        )
     });
     g.finish();
 
     // The controller's whole cycle without IPC, as controller_node runs it: read the state
     // message, step the reference, run the law (checks, saturation), write the command, then
-    // advance the reference to the next period.
-    let mut g = c.benchmark_group("cycle");
-    g.throughput(Throughput::Elements(1));
-    let ctl = seed_controller::<T>(Law::Eqt);
-    let (q, v, ..) = so3_generic::<f64>();
-    let msg = state_msg::<So3, 3, 3>(&q, &v, ipc_types::group::SO3);
-    g.bench_function(format!("so3/{scalar}"), |b| {
-        b.iter_batched_ref(
-            seed_reference::<T>,
-            |r| {
-                let cmd = respond(&ctl, r, black_box(&msg), ipc_types::group::SO3);
-                r.advance();
-                cmd
-            },
-            BatchSize::SmallInput,
-        )
-    });
-    let ctl = se3_controller::<T>();
-    let (q, v, ..) = se3_generic::<f64>();
-    let msg = state_msg::<Se3, 4, 6>(&q, &v, ipc_types::group::SE3);
-    g.bench_function(format!("se3/{scalar}"), |b| {
-        b.iter_batched_ref(
-            se3_reference::<T>,
-            |r| {
-                let cmd = respond(&ctl, r, black_box(&msg), ipc_types::group::SE3);
-                r.advance();
-                cmd
-            },
-            BatchSize::SmallInput,
-        )
-    });
-    g.finish();
+    // advance the reference to the next period — with 1 and with 10 reference substeps.
+    for (name, sub) in [("cycle", 1), ("cycle_10sub", 10)] {
+        let mut g = c.benchmark_group(name);
+        g.throughput(Throughput::Elements(1));
+        let ctl = seed_controller::<T>(Law::Eqt);
+        let (q, v, ..) = so3_generic::<f64>();
+        let msg = state_msg::<So3, 3, 3>(&q, &v, ipc_types::group::SO3);
+        g.bench_function(format!("so3/{scalar}"), |b| {
+            b.iter_batched_ref(
+                || seed_reference::<T>(sub),
+                |r| {
+                    let cmd = respond(&ctl, r, black_box(&msg), ipc_types::group::SO3);
+                    r.advance();
+                    cmd
+                },
+                BatchSize::SmallInput,
+            )
+        });
+        let ctl = se3_controller::<T>();
+        let (q, v, ..) = se3_generic::<f64>();
+        let msg = state_msg::<Se3, 4, 6>(&q, &v, ipc_types::group::SE3);
+        g.bench_function(format!("se3/{scalar}"), |b| {
+            b.iter_batched_ref(
+                || se3_reference::<T>(sub),
+                |r| {
+                    let cmd = respond(&ctl, r, black_box(&msg), ipc_types::group::SE3);
+                    r.advance();
+                    cmd
+                },
+                BatchSize::SmallInput,
+            )
+        });
+        g.finish();
+    }
 }
 
 fn baseline(c: &mut Criterion) {

@@ -9,7 +9,7 @@
 use benches::*;
 use controller::group::{Se3, So3};
 use controller::law::so3::So3LawInput;
-use controller::law::{eqt, Desired};
+use controller::law::{Desired, eqt};
 use controller::{Law, Reference};
 use controller_node::respond;
 use gungraun::{library_benchmark, library_benchmark_group, main};
@@ -35,8 +35,22 @@ fn plain_nalgebra_eqt_so3_f64(x: So3LawInput<f64>) -> Vector3<f64> {
     black_box(plain_nalgebra_eqt(black_box(&x)))
 }
 
-type So3Args = (Matrix3<f64>, Vector3<f64>, Vector3<f64>, Desired<f64, 3, 3>, Matrix3<f64>, Matrix3<f64>);
-type Se3Args = (SMatrix<f64, 4, 4>, SVector<f64, 6>, SVector<f64, 6>, Desired<f64, 4, 6>, SMatrix<f64, 4, 4>, SMatrix<f64, 6, 6>);
+type So3Args = (
+    Matrix3<f64>,
+    Vector3<f64>,
+    Vector3<f64>,
+    Desired<f64, 3, 3>,
+    Matrix3<f64>,
+    Matrix3<f64>,
+);
+type Se3Args = (
+    SMatrix<f64, 4, 4>,
+    SVector<f64, 6>,
+    SVector<f64, 6>,
+    Desired<f64, 4, 6>,
+    SMatrix<f64, 4, 4>,
+    SMatrix<f64, 6, 6>,
+);
 
 #[library_benchmark]
 #[bench::f64(so3_generic::<f64>())]
@@ -50,13 +64,17 @@ fn eqt_generic_se3_f64(a: Se3Args) -> SVector<f64, 6> {
     black_box(eqt::<Se3, f64, 4, 6>(&a.0, &a.1, &a.2, &a.3, &a.4, &a.5).0)
 }
 
-type CycleSetup = (controller::Controller<f64, So3, 3, 3>, Reference<f64, So3, 3, 3>, StateMsg);
+type CycleSetup = (
+    controller::Controller<f64, So3, 3, 3>,
+    Reference<f64, So3, 3, 3>,
+    StateMsg,
+);
 
 fn so3_cycle_setup() -> CycleSetup {
     let (q, v, ..) = so3_generic::<f64>();
     (
         seed_controller::<f64>(Law::Eqt),
-        seed_reference::<f64>(),
+        seed_reference::<f64>(1),
         state_msg::<So3, 3, 3>(&q, &v, ipc_types::group::SO3),
     )
 }

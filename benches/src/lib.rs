@@ -5,9 +5,11 @@
 
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;
-use controller::law::so3::So3LawInput;
 use controller::law::Desired;
-use controller::{real, so3_seed_feedforward, Controller, ControllerConfig, Feedforward, Law, Real, Reference};
+use controller::law::so3::So3LawInput;
+use controller::{
+    Controller, ControllerConfig, Feedforward, Law, Real, Reference, real, so3_seed_feedforward,
+};
 use ipc_types::StateMsg;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
@@ -33,28 +35,61 @@ pub fn so3_input<T: Real>() -> So3LawInput<T> {
 
 /// The same state as the generic law's arguments: `(q, v, p, desired, K, K_d)`.
 #[allow(clippy::type_complexity)]
-pub fn so3_generic<T: Real>() -> (Matrix3<T>, Vector3<T>, Vector3<T>, Desired<T, 3, 3>, Matrix3<T>, Matrix3<T>) {
+pub fn so3_generic<T: Real>() -> (
+    Matrix3<T>,
+    Vector3<T>,
+    Vector3<T>,
+    Desired<T, 3, 3>,
+    Matrix3<T>,
+    Matrix3<T>,
+) {
     let x = so3_input::<T>();
-    let desired = Desired { q: x.r_d, p: x.inertia * x.omega_d, v: x.omega_d, tau: x.tau_d };
+    let desired = Desired {
+        q: x.r_d,
+        p: x.inertia * x.omega_d,
+        v: x.omega_d,
+        tau: x.tau_d,
+    };
     (x.r, x.omega, x.inertia * x.omega, desired, x.k, x.kd)
 }
 
 /// SE(3) inertia: J = diag(0.8, 1.0, 1.2), m = 2.
 pub fn se3_inertia<T: Real>() -> SMatrix<T, 6, 6> {
-    SMatrix::<f64, 6, 6>::from_diagonal(&SVector::<f64, 6>::new(0.8, 1.0, 1.2, 2.0, 2.0, 2.0)).map(real)
+    SMatrix::<f64, 6, 6>::from_diagonal(&SVector::<f64, 6>::new(0.8, 1.0, 1.2, 2.0, 2.0, 2.0))
+        .map(real)
 }
 
 /// A representative SE(3) state as the generic law's arguments.
 #[allow(clippy::type_complexity)]
-pub fn se3_generic<T: Real>() -> (SMatrix<T, 4, 4>, SVector<T, 6>, SVector<T, 6>, Desired<T, 4, 6>, SMatrix<T, 4, 4>, SMatrix<T, 6, 6>) {
+pub fn se3_generic<T: Real>() -> (
+    SMatrix<T, 4, 4>,
+    SVector<T, 6>,
+    SVector<T, 6>,
+    Desired<T, 4, 6>,
+    SMatrix<T, 4, 4>,
+    SMatrix<T, 6, 6>,
+) {
     let i = se3_inertia::<T>();
     let q = Se3::exp(&SVector::<f64, 6>::new(1.2, -0.9, 1.3, 2.0, -1.0, 1.2).map(real::<T>));
     let q_d = Se3::exp(&SVector::<f64, 6>::new(0.1, 0.2, 0.4, 0.3, 0.1, -0.2).map(real::<T>));
     let v = SVector::<f64, 6>::new(1.0, -0.5, 0.3, 0.0, 0.5, -1.0).map(real::<T>);
     let v_d = SVector::<f64, 6>::new(0.0, 0.0, 0.4, 0.4, 0.0, 0.0).map(real::<T>);
-    let desired = Desired { q: q_d, p: i * v_d, v: v_d, tau: SVector::<f64, 6>::new(0.0, 0.0, 0.0, 0.0, 0.32, 0.0).map(real) };
-    let k = SMatrix::<f64, 4, 4>::from_diagonal(&nalgebra::Vector4::new(1.6, 1.2, 1.4, 2.0)).map(real::<T>);
-    (q, v, i * v, desired, k, SMatrix::<T, 6, 6>::identity() * real::<T>(1.5))
+    let desired = Desired {
+        q: q_d,
+        p: i * v_d,
+        v: v_d,
+        tau: SVector::<f64, 6>::new(0.0, 0.0, 0.0, 0.0, 0.32, 0.0).map(real),
+    };
+    let k = SMatrix::<f64, 4, 4>::from_diagonal(&nalgebra::Vector4::new(1.6, 1.2, 1.4, 2.0))
+        .map(real::<T>);
+    (
+        q,
+        v,
+        i * v,
+        desired,
+        k,
+        SMatrix::<T, 6, 6>::identity() * real::<T>(1.5),
+    )
 }
 
 /// A straightforward, non-generic nalgebra EqT for SO(3) in f64 — what an engineer would
@@ -82,31 +117,54 @@ pub fn seed_controller<T: Real>(law: Law) -> Controller<T, So3, 3, 3> {
     .expect("valid configuration")
 }
 
-/// The seed reference at 1 kHz with 10 RKMK4 substeps per period.
-pub fn seed_reference<T: Real>() -> Reference<T, So3, 3, 3> {
-    Reference::new(Matrix3::identity(), Vector3::zeros(), fixed_wing(), so3_seed_feedforward(), real(0.001), 10)
-        .expect("valid reference")
+/// The seed reference at 1 kHz with `substeps` RKMK4 steps per period (the seed scenario
+/// uses 10; a scenario's default is 1).
+pub fn seed_reference<T: Real>(substeps: usize) -> Reference<T, So3, 3, 3> {
+    Reference::new(
+        Matrix3::identity(),
+        Vector3::zeros(),
+        fixed_wing(),
+        so3_seed_feedforward(),
+        real(0.001),
+        substeps,
+    )
+    .expect("valid reference")
 }
 
 /// The seed plant (fixed-wing inertia), tumbling.
 pub fn seed_plant<T: Real>() -> RigidBody<T, So3, 3, 3> {
-    let r0 = So3::exp(&(Vector3::new(0.8, 0.6, 0.0) * (core::f64::consts::PI - 0.1)).map(real::<T>));
+    let r0 =
+        So3::exp(&(Vector3::new(0.8, 0.6, 0.0) * (core::f64::consts::PI - 0.1)).map(real::<T>));
     RigidBody::new(fixed_wing(), r0, Vector3::new(4.0, -3.0, 2.0).map(real)).expect("valid plant")
 }
 
 /// The SE(3) controller of the se3_circle scenario.
 pub fn se3_controller<T: Real>() -> Controller<T, Se3, 4, 6> {
     let (_, _, _, _, k, kd) = se3_generic::<T>();
-    Controller::new(ControllerConfig { law: Law::Eqt, inertia: se3_inertia(), k, kd, torque_limit: Some(SVector::repeat(real(10.0))) })
-        .expect("valid configuration")
+    Controller::new(ControllerConfig {
+        law: Law::Eqt,
+        inertia: se3_inertia(),
+        k,
+        kd,
+        torque_limit: Some(SVector::repeat(real(10.0))),
+    })
+    .expect("valid configuration")
 }
 
-/// The se3_circle reference at 1 kHz, 10 substeps.
-pub fn se3_reference<T: Real>() -> Reference<T, Se3, 4, 6> {
+/// The se3_circle reference at 1 kHz with `substeps` RKMK4 steps per period.
+pub fn se3_reference<T: Real>(substeps: usize) -> Reference<T, Se3, 4, 6> {
     let mut ff = Feedforward::<T, 6>::zero();
     ff.axes[4] = controller::AxisTorque::constant(real(0.32));
     let v_d = SVector::<f64, 6>::new(0.0, 0.0, 0.4, 0.4, 0.0, 0.0).map(real::<T>);
-    Reference::new(SMatrix::identity(), v_d, se3_inertia(), ff, real(0.001), 10).expect("valid reference")
+    Reference::new(
+        SMatrix::identity(),
+        v_d,
+        se3_inertia(),
+        ff,
+        real(0.001),
+        substeps,
+    )
+    .expect("valid reference")
 }
 
 /// The se3_circle plant.
