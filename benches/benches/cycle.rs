@@ -11,9 +11,12 @@ use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_mai
 use nalgebra::{SVector, Vector3};
 use std::hint::black_box;
 
+/// A closed-form SO(3) law.
+type ClosedForm<T> = fn(&so3::So3LawInput<T>) -> Vector3<T>;
+
 fn laws<T: Real>(c: &mut Criterion, scalar: &str) {
     let x = so3_input::<T>();
-    let closed: [(&str, fn(&so3::So3LawInput<T>) -> Vector3<T>); 4] = [
+    let closed: [(&str, ClosedForm<T>); 4] = [
         ("eqt", so3::eqt),
         ("gt", so3::gt),
         ("nog", so3::nog),
