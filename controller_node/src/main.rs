@@ -73,7 +73,9 @@ struct Cli {
     /// Transport: iceoryx2 (default) or uds (the Unix-socket baseline of `plant_sim bench-loop`).
     #[arg(long, value_name = "T", default_value = "iceoryx2", value_parser = ["iceoryx2", "uds"])]
     transport: String,
-    /// Test only: publish a NaN torque instead of command K.
+    /// Test builds only (feature `fault-injection`): publish a NaN torque instead of command
+    /// K, to test the plant's own checks. Release builds have no such flag.
+    #[cfg(feature = "fault-injection")]
     #[arg(long, value_name = "K", hide = true)]
     fault_nan_torque: Option<u64>,
 }
@@ -115,7 +117,10 @@ fn main() -> ExitCode {
         run: cli.name.clone(),
         startup_timeout: Duration::from_secs_f64(cli.startup_timeout),
         silence_timeout: Duration::from_secs_f64(cli.silence_timeout),
+        #[cfg(feature = "fault-injection")]
         fault: cli.fault_nan_torque.map(Fault::NanTorque),
+        #[cfg(not(feature = "fault-injection"))]
+        fault: None::<Fault>,
         transport: if cli.transport == "uds" {
             Transport::Uds
         } else {

@@ -116,10 +116,13 @@ struct RunArgs {
     /// Seconds to wait for the controller (default 10, or 60 with --no-spawn).
     #[arg(long, value_name = "S")]
     connect_timeout: Option<f64>,
-    /// Test only: K:version|group|nan publishes a corrupted state instead of state K.
+    /// Test builds only (feature `fault-injection`): K:version|group|nan publishes a
+    /// corrupted state instead of state K.
+    #[cfg(feature = "fault-injection")]
     #[arg(long, value_name = "K:KIND", hide = true)]
     fault_state: Vec<String>,
-    /// Test only: the spawned controller publishes a NaN torque instead of command K.
+    /// Test builds only: the spawned controller publishes a NaN torque instead of command K.
+    #[cfg(feature = "fault-injection")]
     #[arg(long, value_name = "K", hide = true)]
     fault_nan_torque: Option<u64>,
 }
@@ -368,14 +371,16 @@ fn bench_loop_cmd(args: BenchLoopArgs) -> Result<(), SimError> {
 }
 
 fn run_cmd(args: RunArgs) -> Result<(), SimError> {
-    use plant_sim::pair::{Mode, PairOptions, StateFault, Wake, run_pair};
+    use plant_sim::pair::{Mode, PairOptions, Wake, run_pair};
     let mut scenario = args.source.load("seed")?;
     if let Some(d) = args.duration {
         seconds("--duration", d)?;
         scenario.duration = d;
     }
     let scenario_args = scenario_args(&args.source);
+    #[allow(unused_mut)]
     let mut state_faults = Vec::new();
+    #[cfg(feature = "fault-injection")]
     for text in &args.fault_state {
         let bad = || {
             SimError::Input(format!(
@@ -385,9 +390,9 @@ fn run_cmd(args: RunArgs) -> Result<(), SimError> {
         let (k, kind) = text.split_once(':').ok_or_else(bad)?;
         let k: u64 = k.parse().map_err(|_| bad())?;
         let kind = match kind {
-            "version" => StateFault::Version,
-            "group" => StateFault::Group,
-            "nan" => StateFault::Nan,
+            "version" => plant_sim::pair::StateFault::Version,
+            "group" => plant_sim::pair::StateFault::Group,
+            "nan" => plant_sim::pair::StateFault::Nan,
             _ => return Err(bad()),
         };
         state_faults.push((k, kind));
@@ -422,7 +427,10 @@ fn run_cmd(args: RunArgs) -> Result<(), SimError> {
                 .unwrap_or(if spawn { 10.0 } else { 60.0 }),
         )?,
         state_faults,
+        #[cfg(feature = "fault-injection")]
         controller_fault_nan_torque: args.fault_nan_torque,
+        #[cfg(not(feature = "fault-injection"))]
+        controller_fault_nan_torque: None,
     };
     let (_, s) = run_pair(&opts)?;
     let f = &s.sim.final_errors;

@@ -166,17 +166,17 @@ fn real_time_at_1_khz_tracks_like_the_simulation() {
         );
         // Tracking: with every command on time the run is the 1 ms simulation exactly. A missed
         // deadline holds τ_{k−1} for one period instead of τ_k; |τ_k − τ_{k−1}| ≲ 1e-2 N m at
-        // 1 ms here, |V| ≲ 5 rad/s, so each miss moves L by at most ~5e-5 (measured 1e-5).
-        // Allow 2e-4 per miss; safe mode (≥ 3 misses in a row) changes the torque law, so
-        // there only convergence is checked.
+        // 1 ms here and |V| ≲ 5 rad/s, so each miss moves L by at most ~5e-5 (measured 1e-5):
+        // allow 2e-4 per miss. A safe-mode period applies −K_d V instead of the law:
+        // |Δτ| ≲ 5 N m for 1 ms at |V| ≲ 5 rad/s moves L by at most ~2.5e-2: allow 3e-2 each.
         let l = Csv::read(&Path::new(&rt).join("trajectory.csv")).col("lyapunov");
+        let safe_cycles = s["safe_mode_cycles"].as_u64().unwrap();
         let dl = (l[2000] - reference[2000]).abs();
-        if s["safe_mode_entries"] == 0 {
-            assert!(
-                dl <= 2e-4 * (misses as f64 + 1.0),
-                "{wake}: |ΔL(2 s)| = {dl} with {misses} misses"
-            );
-        }
+        let tol = 2e-4 * (misses as f64 + 1.0) + 3e-2 * safe_cycles as f64;
+        assert!(
+            dl <= tol,
+            "{wake}: |ΔL(2 s)| = {dl} > {tol} with {misses} misses, {safe_cycles} safe-mode cycles"
+        );
         assert!(
             l[2000] < 0.5 * l[0],
             "{wake}: L did not fall: {} -> {}",
@@ -382,6 +382,11 @@ fn bad_messages_are_rejected_and_never_applied() {
         "--fault-nan-torque",
         "80",
     ]);
+    assert!(
+        !out.contains("unexpected argument '--fault"),
+        "the binaries lack the test-only fault-injection feature: run the workspace's tests \
+         (cargo test --workspace), whose dev-dependencies enable it\n{out}"
+    );
     assert_eq!(code, 0, "{out}");
     for needle in [
         "rejected state seq 20 (wrong protocol version",

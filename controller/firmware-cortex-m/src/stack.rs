@@ -11,6 +11,8 @@ const PATTERN: u32 = 0xDEAD_BEEF;
 /// Bytes painted below the stack pointer (the RAM is 4 MiB; the law needs far less).
 const PAINTED: usize = 64 * 1024;
 
+// SAFETY (extern block): cortex-m-rt's link.x defines `_stack_end`; only its address is
+// taken (never read through), so its declared type does not matter.
 unsafe extern "C" {
     /// The lowest address the stack may grow to (end of the statics), from cortex-m-rt's
     /// `link.x`.

@@ -4,6 +4,8 @@
 use core::arch::{asm, naked_asm};
 
 /// The process entry point: align the stack to 16 bytes (SSE stores need it) and call main.
+// SAFETY (naked, no_mangle): `_start` is the one entry symbol of this freestanding binary
+// (no C runtime defines it); its body is the single naked_asm block, which never returns.
 #[unsafe(naked)]
 #[unsafe(no_mangle)]
 pub extern "C" fn _start() -> ! {
@@ -45,11 +47,14 @@ fn panic(_: &core::panic::PanicInfo) -> ! {
 }
 
 /// Unwinding is off (panic = "abort"); unoptimised builds still reference this symbol.
+// SAFETY (no_mangle): no other object defines this symbol in a no-std, no-unwind binary.
 #[unsafe(no_mangle)]
 pub extern "C" fn rust_eh_personality() {}
 
 // The memory functions, written with volatile accesses so that LLVM cannot turn the loops
 // back into calls to themselves.
+// SAFETY (no_mangle on each): linked with -nostdlib, nothing else provides memcpy, memmove,
+// memset, memcmp or bcmp, and each follows the C contract for its symbol.
 
 /// # Safety
 /// `dest` and `src` valid for `n` bytes and not overlapping.
