@@ -356,6 +356,21 @@ fn killing_the_plant_stops_the_controller_within_a_second() {
             || out.contains("no state from the plant"),
         "{out}"
     );
+    // A new run under the same name starts by removing what the killed plant left in shared
+    // memory, and runs.
+    let again = d.join("again");
+    let (code, out) = plant(&[
+        "run",
+        "--mode",
+        "lockstep",
+        "--duration",
+        "0.5",
+        "--name",
+        "t-killplant",
+        "--out",
+        &again,
+    ]);
+    assert_eq!(code, 0, "{out}");
 }
 
 #[test]
