@@ -96,6 +96,37 @@ where
     (tau, e)
 }
 
+/// Clamps each axis of `tau` to `[−l_i, l_i]` (no limit: unchanged); true when any axis was
+/// clamped (docs/maths.md, "The safe-mode law and saturation"). The one saturation of the
+/// project: the law, the safe mode and every plant use it.
+pub fn saturate<T: Real, const M: usize>(
+    tau: &mut SVector<T, M>,
+    limit: Option<&SVector<T, M>>,
+) -> bool {
+    let mut clamped = false;
+    if let Some(l) = limit {
+        for i in 0..M {
+            let c = tau[i].clamp(-l[i], l[i]);
+            clamped |= c != tau[i];
+            tau[i] = c;
+        }
+    }
+    clamped
+}
+
+/// The safe-mode law: damping only, `τ = sat(−K_d V)` with the body velocity `V`
+/// (docs/maths.md, "The safe-mode law and saturation"). It brings the body to rest instead of
+/// tracking; a plant applies it when the controller's commands stop arriving.
+pub fn safe_mode_torque<T: Real, const M: usize>(
+    kd: &SMatrix<T, M, M>,
+    v: &SVector<T, M>,
+    limit: Option<&SVector<T, M>>,
+) -> SVector<T, M> {
+    let mut tau = -(kd * v);
+    saturate(&mut tau, limit);
+    tau
+}
+
 /// The SO(3) closed forms of the extended paper.
 ///
 /// With `ω̃ = ω − ω_d`, `R_E = R R_dᵀ`, `prop = R_dᵀ (K R_E − R_Eᵀ K)^∨`.
@@ -174,6 +205,39 @@ pub mod so3 {
             + x.inertia * x.omega.cross(&x.omega_d) * h
             - damping(x, &we)
             - proportional(x)
+    }
+
+    /// The closed form of `law` for a controller whose group is SO(3) (n = m = 3; the
+    /// generic signature lets [`Controller`] call it for any group). `Controller::new` admits
+    /// GT, nog and asym only on SO(3); for any other size this returns zero.
+    pub(crate) fn dispatch<T: Real, const N: usize, const M: usize>(
+        law: crate::Law,
+        q: &nalgebra::SMatrix<T, N, N>,
+        v: &nalgebra::SVector<T, M>,
+        desired: &super::Desired<T, N, M>,
+        c: &super::ControllerConfig<T, N, M>,
+    ) -> nalgebra::SVector<T, M> {
+        if N != 3 || M != 3 {
+            return nalgebra::SVector::zeros();
+        }
+        let m3 = |x: &dyn Fn(usize, usize) -> T| Matrix3::from_fn(|i, j| x(i, j));
+        let x = So3LawInput {
+            r: m3(&|i, j| q[(i, j)]),
+            omega: Vector3::from_fn(|i, _| v[i]),
+            r_d: m3(&|i, j| desired.q[(i, j)]),
+            omega_d: Vector3::from_fn(|i, _| desired.v[i]),
+            tau_d: Vector3::from_fn(|i, _| desired.tau[i]),
+            inertia: m3(&|i, j| c.inertia[(i, j)]),
+            k: m3(&|i, j| c.k[(i, j)]),
+            kd: m3(&|i, j| c.kd[(i, j)]),
+        };
+        let tau = match law {
+            crate::Law::Eqt => eqt(&x),
+            crate::Law::Gt => gt(&x),
+            crate::Law::Nog => nog(&x),
+            crate::Law::Asym => asym(&x),
+        };
+        nalgebra::SVector::from_fn(|i, _| tau[i])
     }
 
     /// The seed paper's SO(3) formula with scalar gains:
@@ -290,12 +354,15 @@ where
                         p: desired.p,
                     },
                 );
-                // `new` admits the comparison laws only on SO(3); the group supplies them.
-                let tau = G::comparison_law(law, q, v, desired, &c.inertia, &c.k, &c.kd)
-                    .unwrap_or_else(SVector::zeros);
-                (tau, e)
+                (so3::dispatch(law, q, v, desired, c), e)
             }
         }
+    }
+
+    /// The safe-mode torque `sat(−K_d V)` with this controller's damping and limit
+    /// (docs/maths.md, "The safe-mode law and saturation"); see [`safe_mode_torque`].
+    pub fn safe_mode_torque(&self, v: &SVector<T, M>) -> SVector<T, M> {
+        safe_mode_torque(&self.config.kd, v, self.config.torque_limit.as_ref())
     }
 
     /// One evaluation of the law: checks the state is finite, computes the torque, saturates
@@ -314,14 +381,7 @@ where
         finite(Quantity::Reference, &desired.tau)?;
         let (mut tau, error) = self.raw_torque(q, v, desired);
         finite(Quantity::Torque, &tau)?;
-        let mut saturated = false;
-        if let Some(l) = &self.config.torque_limit {
-            for i in 0..M {
-                let c = tau[i].clamp(-l[i], l[i]);
-                saturated |= c != tau[i];
-                tau[i] = c;
-            }
-        }
+        let saturated = saturate(&mut tau, self.config.torque_limit.as_ref());
         let velocity_error = v - desired.v;
         let lyapunov = lyapunov(
             &error.q,

@@ -331,3 +331,66 @@ fn the_law_works_in_f32_on_both_groups() {
     let out = c6.compute(&q, &SVector::zeros(), &d6).unwrap();
     assert!(out.torque.iter().all(|t| t.is_finite()) && out.torque.norm() > 0.1);
 }
+
+proptest! {
+    /// The safe-mode law dissipates: `Vᵀ sat(−K_d V) ≤ 0` for a diagonal `K_d` whatever the
+    /// limits, `= −VᵀK_dV` without one; every axis stays within its limit.
+    #[test]
+    fn safe_mode_torque_damps_and_respects_the_limit(
+        v in prop::collection::vec(-10.0..10.0f64, 6),
+        d in prop::collection::vec(0.05..5.0f64, 6),
+        l in prop::collection::vec(0.01..3.0f64, 6),
+    ) {
+        use controller::law::safe_mode_torque;
+        let v = SVector::<f64, 6>::from_column_slice(&v);
+        let kd = SMatrix::<f64, 6, 6>::from_diagonal(&SVector::from_column_slice(&d));
+        let limit = SVector::<f64, 6>::from_column_slice(&l);
+        let free = safe_mode_torque(&kd, &v, None);
+        prop_assert!((v.dot(&free) + v.dot(&(kd * v))).abs() <= 1e-9 * (1.0 + v.norm_squared()));
+        let tau = safe_mode_torque(&kd, &v, Some(&limit));
+        prop_assert!(v.dot(&tau) <= 0.0);
+        for i in 0..6 {
+            prop_assert!(tau[i].abs() <= limit[i]);
+            prop_assert!(tau[i] * free[i] >= 0.0, "clamping keeps each axis' sign");
+        }
+    }
+}
+
+#[test]
+fn saturation_clamps_each_axis_and_says_so() {
+    use controller::law::saturate;
+    let limit = Vector3::new(1.0, 2.0, 3.0);
+    let mut tau = Vector3::new(-5.0, 1.5, 3.5);
+    assert!(saturate(&mut tau, Some(&limit)));
+    assert_eq!(tau, Vector3::new(-1.0, 1.5, 3.0));
+    let mut inside = Vector3::new(0.5, -2.0, 0.0);
+    assert!(!saturate(&mut inside, Some(&limit)));
+    assert_eq!(inside, Vector3::new(0.5, -2.0, 0.0));
+    assert!(!saturate(&mut tau, None));
+    // the controller's own safe-mode torque uses its K_d and limit
+    let c = Controller::<f64, So3, 3, 3>::new(config3(Law::Eqt)).unwrap();
+    let v = Vector3::new(100.0, -0.1, 0.0);
+    let t = c.safe_mode_torque(&v);
+    let kd = c.config().kd;
+    let mut expect = -(kd * v);
+    saturate(&mut expect, c.config().torque_limit.as_ref());
+    assert_eq!(t, expect);
+}
+
+#[test]
+fn group_dispatch_gives_each_kind_its_type() {
+    use controller::group::OnGroup;
+    struct Dims;
+    impl OnGroup for Dims {
+        type Output = (GroupKind, usize, usize);
+        fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+            (G::KIND, N, M)
+        }
+    }
+    for g in GroupKind::ALL {
+        let (kind, n, m) = g.dispatch(Dims);
+        assert_eq!(kind, g);
+        assert_eq!((n, m), g.dims());
+        assert_eq!(GroupKind::from_name(g.name()), Some(g));
+    }
+}

@@ -23,6 +23,9 @@ pub enum GroupKind {
 }
 
 impl GroupKind {
+    /// Every supported group.
+    pub const ALL: [GroupKind; 2] = [GroupKind::So3, GroupKind::Se3];
+
     /// The lower-case name used in files and messages (`"so3"`, `"se3"`).
     pub fn name(self) -> &'static str {
         match self {
@@ -30,6 +33,36 @@ impl GroupKind {
             GroupKind::Se3 => "se3",
         }
     }
+
+    /// Parses a lower-case name (`"so3"`, `"se3"`).
+    pub fn from_name(name: &str) -> Option<GroupKind> {
+        GroupKind::ALL.iter().copied().find(|g| g.name() == name)
+    }
+
+    /// `(n, m)`: the matrix size and the algebra dimension.
+    pub fn dims(self) -> (usize, usize) {
+        match self {
+            GroupKind::So3 => (3, 3),
+            GroupKind::Se3 => (4, 6),
+        }
+    }
+
+    /// Runs `f` with the group's type and dimensions: the one place where a run-time
+    /// [`GroupKind`] becomes a compile-time [`MatrixLieGroup`].
+    pub fn dispatch<F: OnGroup>(self, f: F) -> F::Output {
+        match self {
+            GroupKind::So3 => f.run::<So3, 3, 3>(),
+            GroupKind::Se3 => f.run::<Se3, 4, 6>(),
+        }
+    }
+}
+
+/// Code that is generic over the group, run through [`GroupKind::dispatch`].
+pub trait OnGroup {
+    /// What the code returns.
+    type Output;
+    /// Runs with the group `G` of n×n matrices and an m-dimensional algebra.
+    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output;
 }
 
 /// A matrix Lie group of n×n matrices with an m-dimensional algebra.
@@ -84,22 +117,6 @@ pub trait MatrixLieGroup<const N: usize, const M: usize>:
     /// The group product `a·b`.
     fn compose<T: Real>(a: &SMatrix<T, N, N>, b: &SMatrix<T, N, N>) -> SMatrix<T, N, N> {
         a * b
-    }
-
-    /// The comparison laws that exist only in closed form on this group (GT, nog, asym, and the
-    /// closed-form EqT on SO(3)); `None` where the law is not defined on the group.
-    #[allow(clippy::too_many_arguments)]
-    fn comparison_law<T: Real>(
-        law: crate::Law,
-        q: &SMatrix<T, N, N>,
-        v: &SVector<T, M>,
-        desired: &crate::law::Desired<T, N, M>,
-        inertia: &SMatrix<T, M, M>,
-        k: &SMatrix<T, N, N>,
-        kd: &SMatrix<T, M, M>,
-    ) -> Option<SVector<T, M>> {
-        let _ = (law, q, v, desired, inertia, k, kd);
-        None
     }
 
     /// The coordinates of the Frobenius pairing with the basis, `(⟨X, E_i⟩_F)_i`.

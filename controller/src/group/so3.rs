@@ -124,34 +124,6 @@ impl MatrixLieGroup<3, 3> for So3 {
         skew(v)
     }
 
-    fn comparison_law<T: Real>(
-        law: crate::Law,
-        q: &SMatrix<T, 3, 3>,
-        v: &SVector<T, 3>,
-        desired: &crate::law::Desired<T, 3, 3>,
-        inertia: &SMatrix<T, 3, 3>,
-        k: &SMatrix<T, 3, 3>,
-        kd: &SMatrix<T, 3, 3>,
-    ) -> Option<SVector<T, 3>> {
-        use crate::law::so3;
-        let x = so3::So3LawInput {
-            r: *q,
-            omega: *v,
-            r_d: desired.q,
-            omega_d: desired.v,
-            tau_d: desired.tau,
-            inertia: *inertia,
-            k: *k,
-            kd: *kd,
-        };
-        Some(match law {
-            crate::Law::Eqt => so3::eqt(&x),
-            crate::Law::Gt => so3::gt(&x),
-            crate::Law::Nog => so3::nog(&x),
-            crate::Law::Asym => so3::asym(&x),
-        })
-    }
-
     fn frobenius_coordinates<T: Real>(x: &SMatrix<T, 3, 3>) -> SVector<T, 3> {
         Vector3::new(
             x[(2, 1)] - x[(1, 2)],
