@@ -1,39 +1,45 @@
-//! The only contract between the plant and the controller processes: fixed-size `#[repr(C)]`
-//! messages that cross iceoryx2 shared memory, the service names of a run, and the protocol
-//! version. `#![no_std]` with no `alloc`. Features: `zero-copy` (default) derives iceoryx2's
-//! `ZeroCopySend` on the messages (iceoryx2's trait crate links `alloc`); `std` adds `ipc`,
-//! the one place where the services are opened (both processes use identical settings).
+//! The wire contract between the plant and the controller processes: fixed-size `#[repr(C)]`
+//! messages, the group codes, the checks every receiver applies, a little-endian byte
+//! encoding (for transports that carry bytes), the service names of a run and the protocol
+//! version. `#![no_std]` with no `alloc`, and no transport: opening services is the `link`
+//! crate's job. Feature `zero-copy` (default) derives iceoryx2's `ZeroCopySend` on the
+//! messages (iceoryx2's trait crate links `alloc`).
 //!
-//! One control cycle (DESIGN.md): the plant publishes [`StateMsg`] `{seq k, t_k, Q, V}`; the
-//! controller answers with [`CommandMsg`] `{seq k, τ_k, L, compute time}`.
-#![cfg_attr(not(feature = "std"), no_std)]
+//! One control cycle (docs/architecture.md, "One control cycle"): the plant publishes
+//! [`StateMsg`] `{seq k, t_k, Q, V}`; the controller answers with [`CommandMsg`]
+//! `{seq k, τ_k, L, compute time}`.
+#![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+use controller::GroupKind;
 use core::fmt::Write;
 #[cfg(feature = "zero-copy")]
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 #[cfg(feature = "zero-copy")]
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
-
-#[cfg(feature = "std")]
-pub mod ipc;
-#[cfg(feature = "std")]
-pub mod uds;
+use nalgebra::{SMatrix, SVector};
 
 /// Bumped whenever a message layout or meaning changes.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
 /// The largest n (configuration matrices are n×n) any supported group needs.
 pub const MAX_N: usize = 4;
 /// The largest m (algebra dimension) any supported group needs.
 pub const MAX_M: usize = 6;
+/// Bytes of the scenario name carried in the messages (UTF-8, NUL-padded).
+pub const NAME_BYTES: usize = 32;
 
-/// Group codes on the wire.
-pub mod group {
-    /// SO(3): n = m = 3.
-    pub const SO3: u32 = 1;
-    /// SE(3): n = 4, m = 6.
-    pub const SE3: u32 = 2;
+/// The group's code on the wire: the one mapping between [`GroupKind`] and a `u32`.
+pub fn group_code(kind: GroupKind) -> u32 {
+    match kind {
+        GroupKind::So3 => 1,
+        GroupKind::Se3 => 2,
+    }
+}
+
+/// The group of a wire code; `None` for an unknown code.
+pub fn group_kind(code: u32) -> Option<GroupKind> {
+    GroupKind::ALL.into_iter().find(|k| group_code(*k) == code)
 }
 
 /// Bits of [`StateMsg::flags`].
@@ -42,24 +48,38 @@ pub mod flags {
     pub const WAKE_EVENT: u32 = 1;
     /// The run is over: the controller exits cleanly.
     pub const SHUTDOWN: u32 = 2;
+    /// [`CommandMsg::flags`]: the controller refuses the run (configuration mismatch, see
+    /// [`CommandMsg::mismatch`]); the plant stops.
+    pub const REFUSED: u32 = 4;
 }
 
-/// The plant's state at `t_k`: configuration and body velocity (what a gyro measures).
+/// Bits of [`CommandMsg::mismatch`]: what differs between the two sides' settings.
+pub mod mismatch {
+    /// The group.
+    pub const GROUP: u32 = 1;
+    /// The control period (only when the controller insists on one).
+    pub const PERIOD: u32 = 2;
+    /// The scenario (only when both sides send a fingerprint).
+    pub const SCENARIO: u32 = 4;
+}
+
+/// The plant's state at `t_k`: configuration and body velocity (what a gyro measures), and
+/// the identity of what the plant runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::StateMsg")
+    type_name("eqtrack::StateMsg2")
 )]
 #[repr(C)]
 pub struct StateMsg {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
-    /// [`group`] code.
+    /// [`group_code`].
     pub group: u32,
     /// Control step k (strictly increasing).
     pub seq: u64,
-    /// Simulated time `t_k = k·control_period` (s).
+    /// Time `t_k = k·control_period` (s).
     pub t: f64,
     /// The plant's control period (s); the controller's reference steps with it.
     pub control_period: f64,
@@ -71,22 +91,26 @@ pub struct StateMsg {
     pub v: [f64; MAX_M],
     /// [`flags`] bits.
     pub flags: u32,
-    /// Reserved, zero.
-    pub reserved: u32,
+    /// The plant's process id (the controller's liveness check; 0: unknown).
+    pub plant_pid: u32,
+    /// Fingerprint of the plant's scenario settings (0: none, e.g. a hardware plant).
+    pub fingerprint: u64,
+    /// The plant's scenario name, UTF-8, NUL-padded (empty: none).
+    pub scenario: [u8; NAME_BYTES],
 }
 
-/// The controller's answer to state k.
+/// The controller's answer to state k (or its refusal of the run).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::CommandMsg")
+    type_name("eqtrack::CommandMsg2")
 )]
 #[repr(C)]
 pub struct CommandMsg {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
-    /// [`group`] code.
+    /// [`group_code`] of the controller's group.
     pub group: u32,
     /// The state's k.
     pub seq: u64,
@@ -102,14 +126,102 @@ pub struct CommandMsg {
     pub lyapunov: f64,
     /// Heap allocations the controller made since the end of its first cycle (diagnostic).
     pub heap_allocations: u64,
+    /// [`flags`] bits ([`flags::REFUSED`]).
+    pub flags: u32,
+    /// With [`flags::REFUSED`]: the [`mismatch`] bits.
+    pub mismatch: u32,
+    /// The controller's scenario fingerprint (0: none).
+    pub fingerprint: u64,
+    /// The control period the controller insists on (0: it follows the plant).
+    pub expected_period: f64,
+    /// The controller's scenario name, UTF-8, NUL-padded.
+    pub scenario: [u8; NAME_BYTES],
+}
+
+/// What one side runs: compared once, on the first state, to catch two processes started with
+/// different settings (docs/architecture.md, "Configuration identity").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Identity {
+    /// The group.
+    pub group: u32,
+    /// The control period (s); 0 on the controller's side: it follows the plant.
+    pub period: f64,
+    /// The scenario fingerprint; 0: none (accepted by anyone).
+    pub fingerprint: u64,
+    /// The scenario name, NUL-padded.
+    pub scenario: [u8; NAME_BYTES],
+}
+
+impl Identity {
+    /// An identity; `scenario` is cut to [`NAME_BYTES`] bytes (at a character boundary).
+    pub fn new(group: GroupKind, period: f64, fingerprint: u64, scenario: &str) -> Identity {
+        Identity {
+            group: group_code(group),
+            period,
+            fingerprint,
+            scenario: name_bytes(scenario),
+        }
+    }
+
+    /// The [`mismatch`] bits of a plant's identity against this controller's.
+    pub fn mismatch(&self, plant: &Identity) -> u32 {
+        let mut bits = 0;
+        if plant.group != self.group {
+            bits |= mismatch::GROUP;
+        }
+        if self.period != 0.0 && plant.period != self.period {
+            bits |= mismatch::PERIOD;
+        }
+        if self.fingerprint != 0 && plant.fingerprint != 0 && plant.fingerprint != self.fingerprint
+        {
+            bits |= mismatch::SCENARIO;
+        }
+        bits
+    }
+}
+
+impl core::fmt::Display for Identity {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match group_kind(self.group) {
+            Some(g) => write!(f, "group {}", g.name())?,
+            None => write!(f, "group code {}", self.group)?,
+        }
+        if self.period == 0.0 {
+            write!(f, ", period: the plant's")?;
+        } else {
+            write!(f, ", period {} s", self.period)?;
+        }
+        match (name_str(&self.scenario), self.fingerprint) {
+            (_, 0) => write!(f, ", no scenario fingerprint"),
+            ("", fp) => write!(f, ", scenario {fp:016x}"),
+            (name, fp) => write!(f, ", scenario `{name}` ({fp:016x})"),
+        }
+    }
+}
+
+/// `text` as NUL-padded bytes, cut at a character boundary to fit.
+pub fn name_bytes(text: &str) -> [u8; NAME_BYTES] {
+    let mut out = [0u8; NAME_BYTES];
+    let mut end = text.len().min(NAME_BYTES);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    out[..end].copy_from_slice(&text.as_bytes()[..end]);
+    out
+}
+
+/// The text of NUL-padded name bytes (`"?"` if they are not UTF-8).
+pub fn name_str(bytes: &[u8; NAME_BYTES]) -> &str {
+    let end = bytes.iter().position(|b| *b == 0).unwrap_or(NAME_BYTES);
+    core::str::from_utf8(&bytes[..end]).unwrap_or("?")
 }
 
 impl StateMsg {
-    /// A zeroed message with the version and group filled in.
-    pub fn new(group: u32) -> Self {
+    /// A zeroed message of `group` with the version filled in.
+    pub fn new(group: GroupKind) -> Self {
         StateMsg {
             version: PROTOCOL_VERSION,
-            group,
+            group: group_code(group),
             seq: 0,
             t: 0.0,
             control_period: 0.0,
@@ -117,17 +229,55 @@ impl StateMsg {
             q: [0.0; MAX_N * MAX_N],
             v: [0.0; MAX_M],
             flags: 0,
-            reserved: 0,
+            plant_pid: 0,
+            fingerprint: 0,
+            scenario: [0; NAME_BYTES],
+        }
+    }
+
+    /// Writes the configuration `Q` (row-major) and the body velocity `V`.
+    pub fn set_state<const N: usize, const M: usize>(
+        &mut self,
+        q: &SMatrix<f64, N, N>,
+        v: &SVector<f64, M>,
+    ) {
+        for i in 0..N.min(MAX_N) {
+            for j in 0..N.min(MAX_N) {
+                self.q[i * N + j] = q[(i, j)];
+            }
+        }
+        for i in 0..M.min(MAX_M) {
+            self.v[i] = v[i];
+        }
+    }
+
+    /// The configuration `Q` (n×n, from the row-major entries).
+    pub fn configuration<const N: usize>(&self) -> SMatrix<f64, N, N> {
+        SMatrix::from_fn(|i, j| self.q.get(i * N + j).copied().unwrap_or(f64::NAN))
+    }
+
+    /// The body velocity `V` (m entries).
+    pub fn velocity<const M: usize>(&self) -> SVector<f64, M> {
+        SVector::from_fn(|i, _| self.v.get(i).copied().unwrap_or(f64::NAN))
+    }
+
+    /// The plant's identity carried by this state.
+    pub fn identity(&self) -> Identity {
+        Identity {
+            group: self.group,
+            period: self.control_period,
+            fingerprint: self.fingerprint,
+            scenario: self.scenario,
         }
     }
 }
 
 impl CommandMsg {
-    /// A zeroed message with the version and group filled in.
-    pub fn new(group: u32) -> Self {
+    /// A zeroed message of `group` with the version filled in.
+    pub fn new(group: GroupKind) -> Self {
         CommandMsg {
             version: PROTOCOL_VERSION,
-            group,
+            group: group_code(group),
             seq: 0,
             state_received_ns: 0,
             stamp_ns: 0,
@@ -135,50 +285,133 @@ impl CommandMsg {
             tau: [0.0; MAX_M],
             lyapunov: 0.0,
             heap_allocations: 0,
+            flags: 0,
+            mismatch: 0,
+            fingerprint: 0,
+            expected_period: 0.0,
+            scenario: [0; NAME_BYTES],
         }
+    }
+
+    /// The torque `τ` (m entries).
+    pub fn torque<const M: usize>(&self) -> SVector<f64, M> {
+        SVector::from_fn(|i, _| self.tau.get(i).copied().unwrap_or(f64::NAN))
+    }
+
+    /// Writes the torque `τ`.
+    pub fn set_torque<const M: usize>(&mut self, tau: &SVector<f64, M>) {
+        for i in 0..M.min(MAX_M) {
+            self.tau[i] = tau[i];
+        }
+    }
+
+    /// The controller's identity carried by this command.
+    pub fn identity(&self) -> Identity {
+        Identity {
+            group: self.group,
+            period: self.expected_period,
+            fingerprint: self.fingerprint,
+            scenario: self.scenario,
+        }
+    }
+
+    /// A refusal of state `seq`: the controller's identity and what differs.
+    pub fn refusal(controller: &Identity, seq: u64, mismatch: u32) -> Self {
+        let mut c = CommandMsg::new(GroupKind::So3);
+        c.group = controller.group;
+        c.seq = seq;
+        c.flags = flags::REFUSED;
+        c.mismatch = mismatch;
+        c.fingerprint = controller.fingerprint;
+        c.expected_period = controller.period;
+        c.scenario = controller.scenario;
+        c
     }
 }
 
 /// Bytes of an encoded [`StateMsg`] (little-endian, field by field).
-pub const STATE_BYTES: usize = 4 + 4 + 8 + 8 + 8 + 8 + 8 * MAX_N * MAX_N + 8 * MAX_M + 4 + 4;
+pub const STATE_BYTES: usize =
+    4 + 4 + 8 + 8 + 8 + 8 + 8 * MAX_N * MAX_N + 8 * MAX_M + 4 + 4 + 8 + NAME_BYTES;
 /// Bytes of an encoded [`CommandMsg`].
-pub const COMMAND_BYTES: usize = 4 + 4 + 8 * 4 + 8 * MAX_M + 8 + 8;
+pub const COMMAND_BYTES: usize = 4 + 4 + 8 * 4 + 8 * MAX_M + 8 + 8 + 4 + 4 + 8 + 8 + NAME_BYTES;
 
-/// Writes fields into a byte buffer in order (for transports that carry bytes, such as the
-/// Unix-socket baseline).
+/// Why bytes are not a message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DecodeError {
+    /// The buffer's length is not the message's.
+    Length {
+        /// The message's encoded length.
+        expected: usize,
+        /// The buffer's.
+        got: usize,
+    },
+}
+
+impl core::fmt::Display for DecodeError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            DecodeError::Length { expected, got } => {
+                write!(f, "a message of {got} bytes, expected {expected}")
+            }
+        }
+    }
+}
+
+/// Writes fields into a byte buffer in order.
 struct Put<'a> {
     buf: &'a mut [u8],
     at: usize,
 }
 
 impl Put<'_> {
-    fn bytes<const K: usize>(&mut self, b: [u8; K]) {
-        self.buf[self.at..self.at + K].copy_from_slice(&b);
-        self.at += K;
+    fn bytes(&mut self, b: &[u8]) {
+        self.buf[self.at..self.at + b.len()].copy_from_slice(b);
+        self.at += b.len();
+    }
+    fn f64s(&mut self, xs: &[f64]) {
+        for x in xs {
+            self.bytes(&x.to_le_bytes());
+        }
     }
 }
 
-/// Reads fields back in the same order.
+/// Reads fields back in the same order (the length was checked first).
 struct Get<'a> {
     buf: &'a [u8],
     at: usize,
 }
 
 impl Get<'_> {
-    fn bytes<const K: usize>(&mut self) -> [u8; K] {
+    fn take<const K: usize>(&mut self) -> [u8; K] {
         let mut b = [0u8; K];
         b.copy_from_slice(&self.buf[self.at..self.at + K]);
         self.at += K;
         b
     }
     fn u32(&mut self) -> u32 {
-        u32::from_le_bytes(self.bytes())
+        u32::from_le_bytes(self.take())
     }
     fn u64(&mut self) -> u64 {
-        u64::from_le_bytes(self.bytes())
+        u64::from_le_bytes(self.take())
     }
     fn f64(&mut self) -> f64 {
-        f64::from_le_bytes(self.bytes())
+        f64::from_le_bytes(self.take())
+    }
+    fn f64s(&mut self, xs: &mut [f64]) {
+        for x in xs {
+            *x = self.f64();
+        }
+    }
+}
+
+fn length(buf: &[u8], expected: usize) -> Result<(), DecodeError> {
+    if buf.len() == expected {
+        Ok(())
+    } else {
+        Err(DecodeError::Length {
+            expected,
+            got: buf.len(),
+        })
     }
 }
 
@@ -190,45 +423,39 @@ impl StateMsg {
             buf: &mut buf,
             at: 0,
         };
-        p.bytes(self.version.to_le_bytes());
-        p.bytes(self.group.to_le_bytes());
-        p.bytes(self.seq.to_le_bytes());
-        p.bytes(self.t.to_le_bytes());
-        p.bytes(self.control_period.to_le_bytes());
-        p.bytes(self.stamp_ns.to_le_bytes());
-        for x in self.q {
-            p.bytes(x.to_le_bytes());
-        }
-        for x in self.v {
-            p.bytes(x.to_le_bytes());
-        }
-        p.bytes(self.flags.to_le_bytes());
-        p.bytes(self.reserved.to_le_bytes());
+        p.bytes(&self.version.to_le_bytes());
+        p.bytes(&self.group.to_le_bytes());
+        p.bytes(&self.seq.to_le_bytes());
+        p.f64s(&[self.t, self.control_period]);
+        p.bytes(&self.stamp_ns.to_le_bytes());
+        p.f64s(&self.q);
+        p.f64s(&self.v);
+        p.bytes(&self.flags.to_le_bytes());
+        p.bytes(&self.plant_pid.to_le_bytes());
+        p.bytes(&self.fingerprint.to_le_bytes());
+        p.bytes(&self.scenario);
         buf
     }
 
-    /// Decodes [`StateMsg::to_bytes`]; `None` for a buffer of the wrong length.
-    pub fn from_bytes(buf: &[u8]) -> Option<StateMsg> {
-        if buf.len() != STATE_BYTES {
-            return None;
-        }
+    /// Decodes [`StateMsg::to_bytes`]. Any bytes of the right length decode; whether the
+    /// message makes sense is [`check_state`]'s question.
+    pub fn from_bytes(buf: &[u8]) -> Result<StateMsg, DecodeError> {
+        length(buf, STATE_BYTES)?;
         let mut g = Get { buf, at: 0 };
-        let mut m = StateMsg::new(0);
+        let mut m = StateMsg::new(GroupKind::So3);
         m.version = g.u32();
         m.group = g.u32();
         m.seq = g.u64();
         m.t = g.f64();
         m.control_period = g.f64();
         m.stamp_ns = g.u64();
-        for x in m.q.iter_mut() {
-            *x = g.f64();
-        }
-        for x in m.v.iter_mut() {
-            *x = g.f64();
-        }
+        g.f64s(&mut m.q);
+        g.f64s(&mut m.v);
         m.flags = g.u32();
-        m.reserved = g.u32();
-        Some(m)
+        m.plant_pid = g.u32();
+        m.fingerprint = g.u64();
+        m.scenario = g.take();
+        Ok(m)
     }
 }
 
@@ -240,39 +467,47 @@ impl CommandMsg {
             buf: &mut buf,
             at: 0,
         };
-        p.bytes(self.version.to_le_bytes());
-        p.bytes(self.group.to_le_bytes());
-        p.bytes(self.seq.to_le_bytes());
-        p.bytes(self.state_received_ns.to_le_bytes());
-        p.bytes(self.stamp_ns.to_le_bytes());
-        p.bytes(self.compute_ns.to_le_bytes());
-        for x in self.tau {
-            p.bytes(x.to_le_bytes());
+        p.bytes(&self.version.to_le_bytes());
+        p.bytes(&self.group.to_le_bytes());
+        for x in [
+            self.seq,
+            self.state_received_ns,
+            self.stamp_ns,
+            self.compute_ns,
+        ] {
+            p.bytes(&x.to_le_bytes());
         }
-        p.bytes(self.lyapunov.to_le_bytes());
-        p.bytes(self.heap_allocations.to_le_bytes());
+        p.f64s(&self.tau);
+        p.f64s(&[self.lyapunov]);
+        p.bytes(&self.heap_allocations.to_le_bytes());
+        p.bytes(&self.flags.to_le_bytes());
+        p.bytes(&self.mismatch.to_le_bytes());
+        p.bytes(&self.fingerprint.to_le_bytes());
+        p.f64s(&[self.expected_period]);
+        p.bytes(&self.scenario);
         buf
     }
 
-    /// Decodes [`CommandMsg::to_bytes`]; `None` for a buffer of the wrong length.
-    pub fn from_bytes(buf: &[u8]) -> Option<CommandMsg> {
-        if buf.len() != COMMAND_BYTES {
-            return None;
-        }
+    /// Decodes [`CommandMsg::to_bytes`] (see [`StateMsg::from_bytes`]).
+    pub fn from_bytes(buf: &[u8]) -> Result<CommandMsg, DecodeError> {
+        length(buf, COMMAND_BYTES)?;
         let mut g = Get { buf, at: 0 };
-        let mut m = CommandMsg::new(0);
+        let mut m = CommandMsg::new(GroupKind::So3);
         m.version = g.u32();
         m.group = g.u32();
         m.seq = g.u64();
         m.state_received_ns = g.u64();
         m.stamp_ns = g.u64();
         m.compute_ns = g.u64();
-        for x in m.tau.iter_mut() {
-            *x = g.f64();
-        }
+        g.f64s(&mut m.tau);
         m.lyapunov = g.f64();
         m.heap_allocations = g.u64();
-        Some(m)
+        m.flags = g.u32();
+        m.mismatch = g.u32();
+        m.fingerprint = g.u64();
+        m.expected_period = g.f64();
+        m.scenario = g.take();
+        Ok(m)
     }
 }
 
@@ -287,7 +522,7 @@ pub enum Reject {
     NonFinite,
     /// The sequence number did not increase (or, for commands, is not the one awaited).
     Sequence,
-    /// The control period differs from the one the receiver runs with.
+    /// The control period is not positive, or differs from the one the receiver runs with.
     Period,
 }
 
@@ -318,27 +553,36 @@ impl Reject {
     }
 }
 
+impl core::fmt::Display for Reject {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 fn all_finite(xs: &[f64]) -> bool {
     xs.iter().all(|x| x.is_finite())
 }
 
-/// `(n, m)` of a group code, `None` for an unknown code.
-pub fn dims(group: u32) -> Option<(usize, usize)> {
-    match group {
-        group::SO3 => Some((3, 3)),
-        group::SE3 => Some((4, 6)),
-        _ => None,
+/// The `(n, m)` of a message's group code, if it is the receiver's group.
+fn own_dims(code: u32, group: GroupKind) -> Result<(usize, usize), Reject> {
+    match group_kind(code) {
+        Some(g) if g == group => Ok(g.dims()),
+        _ => Err(Reject::Group),
     }
 }
 
-/// Checks a state against the receiver's group and the last accepted sequence number.
-pub fn check_state(msg: &StateMsg, group: u32, last_seq: Option<u64>) -> Result<(), Reject> {
+/// Checks a state against the receiver's group, the last accepted sequence number and the
+/// period the receiver runs with (`None`: any positive period).
+pub fn check_state(
+    msg: &StateMsg,
+    group: GroupKind,
+    last_seq: Option<u64>,
+    period: Option<f64>,
+) -> Result<(), Reject> {
     if msg.version != PROTOCOL_VERSION {
         return Err(Reject::Version);
     }
-    let Some((n, m)) = dims(msg.group).filter(|_| msg.group == group) else {
-        return Err(Reject::Group);
-    };
+    let (n, m) = own_dims(msg.group, group)?;
     if !all_finite(&msg.q[..n * n])
         || !all_finite(&msg.v[..m])
         || !msg.t.is_finite()
@@ -346,22 +590,21 @@ pub fn check_state(msg: &StateMsg, group: u32, last_seq: Option<u64>) -> Result<
     {
         return Err(Reject::NonFinite);
     }
-    if let Some(last) = last_seq
-        && msg.seq <= last
-    {
+    if last_seq.is_some_and(|last| msg.seq <= last) {
         return Err(Reject::Sequence);
+    }
+    if msg.control_period <= 0.0 || period.is_some_and(|p| p != msg.control_period) {
+        return Err(Reject::Period);
     }
     Ok(())
 }
 
 /// Checks a command against the receiver's group and the sequence number it awaits.
-pub fn check_command(msg: &CommandMsg, group: u32, awaited: u64) -> Result<(), Reject> {
+pub fn check_command(msg: &CommandMsg, group: GroupKind, awaited: u64) -> Result<(), Reject> {
     if msg.version != PROTOCOL_VERSION {
         return Err(Reject::Version);
     }
-    let Some((_, m)) = dims(msg.group).filter(|_| msg.group == group) else {
-        return Err(Reject::Group);
-    };
+    let (_, m) = own_dims(msg.group, group)?;
     if !all_finite(&msg.tau[..m]) || !msg.lyapunov.is_finite() {
         return Err(Reject::NonFinite);
     }
@@ -374,8 +617,9 @@ pub fn check_command(msg: &CommandMsg, group: u32, awaited: u64) -> Result<(), R
 /// A service name, at most 200 bytes.
 pub type Name = heapless::String<200>;
 
-/// The names of one run's four services: `eqtrack/<run>/{state, command, state_event,
-/// command_event}`. Several runs with different names never share a service.
+/// The names of one run's services: `eqtrack/<run>/{state, command, state_event,
+/// command_event}`, and the two nodes. Several runs with different names never share a
+/// service.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ServiceNames {
     /// Plant → controller states.
@@ -406,75 +650,129 @@ pub fn service_names(run: &str) -> Option<ServiceNames> {
     if !valid_run_name(run) {
         return None;
     }
-    let make = |suffix: &str| {
+    let make = |prefix: &str, sep: &str, suffix: &str| {
         let mut s = Name::new();
-        // 64 + 20 bytes always fit in 200.
-        let _ = write!(s, "eqtrack/{run}/{suffix}");
-        s
-    };
-    let node = |role: &str| {
-        let mut s = Name::new();
-        let _ = write!(s, "eqtrack-{role}-{run}");
+        // at most 64 + 30 bytes: always fits in 200
+        let _ = write!(s, "{prefix}{sep}{run}{suffix}");
         s
     };
     Some(ServiceNames {
-        state: make("state"),
-        command: make("command"),
-        state_event: make("state_event"),
-        command_event: make("command_event"),
-        plant_node: node("plant"),
-        controller_node: node("controller"),
+        state: make("eqtrack", "/", "/state"),
+        command: make("eqtrack", "/", "/command"),
+        state_event: make("eqtrack", "/", "/state_event"),
+        command_event: make("eqtrack", "/", "/command_event"),
+        plant_node: make("eqtrack-plant", "-", ""),
+        controller_node: make("eqtrack-controller", "-", ""),
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use GroupKind::{Se3, So3};
 
     #[test]
     fn states_are_checked() {
-        let mut s = StateMsg::new(group::SO3);
-        assert_eq!(check_state(&s, group::SO3, None), Ok(()));
-        assert_eq!(check_state(&s, group::SE3, None), Err(Reject::Group));
+        let mut s = StateMsg::new(So3);
+        s.control_period = 0.01;
+        assert_eq!(check_state(&s, So3, None, None), Ok(()));
+        assert_eq!(check_state(&s, Se3, None, None), Err(Reject::Group));
         s.seq = 5;
-        assert_eq!(check_state(&s, group::SO3, Some(5)), Err(Reject::Sequence));
-        assert_eq!(check_state(&s, group::SO3, Some(4)), Ok(()));
+        assert_eq!(check_state(&s, So3, Some(5), None), Err(Reject::Sequence));
+        assert_eq!(check_state(&s, So3, Some(4), None), Ok(()));
+        assert_eq!(check_state(&s, So3, None, Some(0.02)), Err(Reject::Period));
+        assert_eq!(check_state(&s, So3, None, Some(0.01)), Ok(()));
         s.v[2] = f64::NAN;
-        assert_eq!(check_state(&s, group::SO3, None), Err(Reject::NonFinite));
+        assert_eq!(check_state(&s, So3, None, None), Err(Reject::NonFinite));
         s.v[2] = 0.0;
         s.v[5] = f64::NAN; // beyond m = 3: ignored
-        assert_eq!(check_state(&s, group::SO3, None), Ok(()));
+        assert_eq!(check_state(&s, So3, None, None), Ok(()));
+        s.control_period = 0.0;
+        assert_eq!(check_state(&s, So3, None, None), Err(Reject::Period));
         s.version = 99;
-        assert_eq!(check_state(&s, group::SO3, None), Err(Reject::Version));
-        let mut u = StateMsg::new(77);
+        assert_eq!(check_state(&s, So3, None, None), Err(Reject::Version));
+        let mut u = StateMsg::new(So3);
         u.group = 77;
-        assert_eq!(check_state(&u, 77, None), Err(Reject::Group));
+        assert_eq!(check_state(&u, So3, None, None), Err(Reject::Group));
     }
 
     #[test]
     fn commands_are_checked() {
-        let mut c = CommandMsg::new(group::SE3);
+        let mut c = CommandMsg::new(Se3);
         c.seq = 3;
-        assert_eq!(check_command(&c, group::SE3, 3), Ok(()));
-        assert_eq!(check_command(&c, group::SE3, 4), Err(Reject::Sequence));
+        assert_eq!(check_command(&c, Se3, 3), Ok(()));
+        assert_eq!(check_command(&c, So3, 3), Err(Reject::Group));
+        assert_eq!(check_command(&c, Se3, 4), Err(Reject::Sequence));
         c.tau[5] = f64::INFINITY;
-        assert_eq!(check_command(&c, group::SE3, 3), Err(Reject::NonFinite));
+        assert_eq!(check_command(&c, Se3, 3), Err(Reject::NonFinite));
+    }
+
+    #[test]
+    fn group_codes_round_trip_and_unknown_codes_are_none() {
+        for g in GroupKind::ALL {
+            assert_eq!(group_kind(group_code(g)), Some(g));
+        }
+        assert_eq!(group_kind(0), None);
+        assert_eq!(group_kind(99), None);
     }
 
     #[test]
     fn byte_encoding_round_trips() {
-        let mut s = StateMsg::new(group::SE3);
+        let mut s = StateMsg::new(Se3);
         s.seq = 77;
         s.t = 0.125;
         s.q[15] = -3.5;
         s.v[5] = 1e-300;
         s.flags = flags::WAKE_EVENT;
-        assert_eq!(StateMsg::from_bytes(&s.to_bytes()), Some(s));
-        assert_eq!(StateMsg::from_bytes(&[0u8; 3]), None);
-        let mut c = CommandMsg::new(group::SO3);
+        s.plant_pid = 4242;
+        s.fingerprint = 0xdead_beef_0123_4567;
+        s.scenario = name_bytes("se3_circle");
+        assert_eq!(StateMsg::from_bytes(&s.to_bytes()), Ok(s));
+        assert_eq!(
+            StateMsg::from_bytes(&[0u8; 3]),
+            Err(DecodeError::Length {
+                expected: STATE_BYTES,
+                got: 3
+            })
+        );
+        let mut c = CommandMsg::new(So3);
         c.tau[2] = 2.5;
         c.heap_allocations = 9;
-        assert_eq!(CommandMsg::from_bytes(&c.to_bytes()), Some(c));
+        c.mismatch = mismatch::SCENARIO;
+        c.expected_period = 0.001;
+        assert_eq!(CommandMsg::from_bytes(&c.to_bytes()), Ok(c));
+        assert!(CommandMsg::from_bytes(&[0u8; COMMAND_BYTES + 1]).is_err());
+    }
+
+    #[test]
+    fn identities_name_what_differs() {
+        let plant = Identity::new(So3, 0.001, 11, "seed");
+        let follows = Identity::new(So3, 0.0, 11, "seed");
+        assert_eq!(follows.mismatch(&plant), 0);
+        assert_eq!(
+            Identity::new(Se3, 0.0, 11, "seed").mismatch(&plant),
+            mismatch::GROUP
+        );
+        assert_eq!(
+            Identity::new(So3, 0.01, 11, "seed").mismatch(&plant),
+            mismatch::PERIOD
+        );
+        assert_eq!(
+            Identity::new(So3, 0.0, 12, "montecarlo").mismatch(&plant),
+            mismatch::SCENARIO
+        );
+        // a plant without a fingerprint (hardware) is accepted
+        let board = Identity::new(So3, 0.001, 0, "");
+        assert_eq!(Identity::new(So3, 0.0, 12, "x").mismatch(&board), 0);
+        // names are cut at a character boundary
+        let long = "é".repeat(40);
+        assert_eq!(name_str(&name_bytes(&long)), "é".repeat(16));
+        let mut text = heapless::String::<200>::new();
+        let _ = write!(text, "{plant}");
+        assert_eq!(
+            text.as_str(),
+            "group so3, period 0.001 s, scenario `seed` (000000000000000b)"
+        );
     }
 
     #[test]
@@ -482,6 +780,7 @@ mod tests {
         let a = service_names("a").unwrap();
         let b = service_names("b").unwrap();
         assert_eq!(a.state.as_str(), "eqtrack/a/state");
+        assert_eq!(a.plant_node.as_str(), "eqtrack-plant-a");
         assert_ne!(a.state, b.state);
         assert!(service_names("no spaces").is_none());
         assert!(service_names("").is_none());

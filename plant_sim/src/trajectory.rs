@@ -126,7 +126,7 @@ pub struct Trajectory {
 impl Trajectory {
     /// `(n, m)` of the group.
     pub fn dims(&self) -> (usize, usize) {
-        scenario::dims(self.group)
+        self.group.dims()
     }
 }
 

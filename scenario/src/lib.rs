@@ -236,14 +236,6 @@ pub struct Scenario {
     pub feedforward: Vec<Axis>,
 }
 
-/// The dimensions `(n, m)` of a group.
-pub fn dims(group: GroupKind) -> (usize, usize) {
-    match group {
-        GroupKind::So3 => (3, 3),
-        GroupKind::Se3 => (4, 6),
-    }
-}
-
 impl Scenario {
     /// Loads a built-in scenario by name.
     pub fn builtin(name: &str) -> Result<Scenario, ScenarioError> {
@@ -371,9 +363,55 @@ impl Scenario {
         )
     }
 
+    /// A 64-bit fingerprint (FNV-1a, never 0) of what the controller takes from the scenario:
+    /// the group, the control period and reference substeps, the model inertia, `K`, `K_d`,
+    /// the torque limit, the reference's initial state and its feedforward. Not the law (a
+    /// controller may override it), the duration, the name, nor the plant's own initial state,
+    /// inertia or disturbance. Two processes of a pair compare it on their first message
+    /// (docs/architecture.md, "Configuration identity").
+    pub fn fingerprint(&self) -> u64 {
+        let mut h = Fnv(0xcbf2_9ce4_8422_2325);
+        h.bytes(self.group.name().as_bytes());
+        h.f64s(&[self.control_period, self.reference_substeps as f64]);
+        for part in [&self.model_inertia, &self.kp, &self.kd] {
+            h.f64s(&[part.len() as f64]);
+            h.f64s(part);
+        }
+        match &self.torque_limit {
+            Some(l) => h.f64s(l),
+            None => h.bytes(b"no limit"),
+        }
+        h.f64s(&self.reference.rotation);
+        h.f64s(&self.reference.position);
+        h.f64s(&self.reference.velocity);
+        for axis in &self.feedforward {
+            h.f64s(&[axis.offset, axis.terms.len() as f64]);
+            for t in &axis.terms {
+                h.f64s(&[t.amplitude, t.frequency, t.phase]);
+            }
+        }
+        h.0.max(1)
+    }
+
     /// The disturbance as a vector.
     pub fn disturbance_vector<const M: usize>(&self) -> SVector<f64, M> {
         SVector::from_row_slice(&self.disturbance)
+    }
+}
+
+/// FNV-1a, 64 bits.
+struct Fnv(u64);
+
+impl Fnv {
+    fn bytes(&mut self, b: &[u8]) {
+        for x in b {
+            self.0 = (self.0 ^ u64::from(*x)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    fn f64s(&mut self, xs: &[f64]) {
+        for x in xs {
+            self.bytes(&x.to_bits().to_le_bytes());
+        }
     }
 }
 
@@ -580,7 +618,7 @@ impl Validator<'_> {
                 ));
             }
         };
-        let (n, m) = dims(group);
+        let (n, m) = group.dims();
         let law = parse_law(&raw.law, group, "law", self.origin)?;
         for (key, x) in [
             ("duration", raw.duration),
@@ -756,5 +794,35 @@ mod tests {
         assert!(e.to_string().contains("not defined for group se3"), "{e}");
         let s = Scenario::builtin("seed").unwrap().with_law("asym").unwrap();
         assert_eq!(s.law, Law::Asym);
+    }
+
+    #[test]
+    fn the_fingerprint_covers_what_the_controller_uses_and_nothing_else() {
+        let seed = Scenario::builtin("seed").unwrap();
+        let fp = seed.fingerprint();
+        assert_ne!(fp, 0);
+        assert_ne!(fp, Scenario::builtin("montecarlo").unwrap().fingerprint());
+        assert_ne!(fp, Scenario::builtin("se3_circle").unwrap().fingerprint());
+        // not covered: law, duration, name, the plant's own state
+        let mut same = seed.clone().with_law("gt").unwrap();
+        same.duration = 3.0;
+        same.name = "other".to_owned();
+        same.initial.velocity[0] += 1.0;
+        same.disturbance[1] = 0.5;
+        assert_eq!(same.fingerprint(), fp);
+        // covered: gains, model inertia, period, limit, reference
+        let changes: [fn(&mut Scenario); 6] = [
+            |s| s.kd[0] += 1e-9,
+            |s| s.model_inertia[4] *= 1.01,
+            |s| s.control_period = 0.001,
+            |s| s.torque_limit = Some(vec![5.0; 3]),
+            |s| s.reference.rotation[2] = 0.1,
+            |s| s.feedforward[0].terms[0].frequency = 2.0,
+        ];
+        for change in changes {
+            let mut s = seed.clone();
+            change(&mut s);
+            assert_ne!(s.fingerprint(), fp);
+        }
     }
 }

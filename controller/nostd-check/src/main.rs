@@ -109,21 +109,20 @@ fn closed_loop_check<T: Real>() -> bool {
 
 /// The wire contract without std: build, validate and reject messages.
 fn ipc_check() -> bool {
-    use ipc_types::{
-        CommandMsg, Reject, StateMsg, check_command, check_state, group, service_names,
-    };
-    let mut s = StateMsg::new(group::SO3);
+    use controller::GroupKind::{Se3, So3};
+    use ipc_types::{CommandMsg, Reject, StateMsg, check_command, check_state, service_names};
+    let mut s = StateMsg::new(So3);
     s.seq = 3;
     s.control_period = 0.001;
-    let ok = check_state(&s, group::SO3, Some(2)) == Ok(());
+    let ok = check_state(&s, So3, Some(2), None) == Ok(());
     s.v[1] = f64::NAN;
-    let nan = check_state(&s, group::SO3, Some(2)) == Err(Reject::NonFinite);
-    let mut c = CommandMsg::new(group::SE3);
+    let nan = check_state(&s, So3, Some(2), None) == Err(Reject::NonFinite);
+    let mut c = CommandMsg::new(Se3);
     c.seq = 3;
-    let cmd = check_command(&c, group::SE3, 3) == Ok(())
-        && check_command(&c, group::SO3, 3) == Err(Reject::Group);
+    let cmd = check_command(&c, Se3, 3) == Ok(()) && check_command(&c, So3, 3) == Err(Reject::Group);
+    let round_trip = StateMsg::from_bytes(&s.to_bytes()).is_ok_and(|d| d.seq == 3);
     let names = service_names("board1").is_some_and(|n| n.state.as_str() == "eqtrack/board1/state");
-    ok && nan && cmd && names
+    ok && nan && cmd && names && round_trip
 }
 
 /// Runs every check; 0 when all hold.
