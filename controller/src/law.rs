@@ -220,16 +220,21 @@ pub mod so3 {
         if N != 3 || M != 3 {
             return nalgebra::SVector::zeros();
         }
-        let m3 = |x: &dyn Fn(usize, usize) -> T| Matrix3::from_fn(|i, j| x(i, j));
+        fn m3<T: Real, const R: usize>(x: &nalgebra::SMatrix<T, R, R>) -> Matrix3<T> {
+            Matrix3::from_fn(|i, j| x[(i, j)])
+        }
+        fn v3<T: Real, const R: usize>(x: &nalgebra::SVector<T, R>) -> Vector3<T> {
+            Vector3::from_fn(|i, _| x[i])
+        }
         let x = So3LawInput {
-            r: m3(&|i, j| q[(i, j)]),
-            omega: Vector3::from_fn(|i, _| v[i]),
-            r_d: m3(&|i, j| desired.q[(i, j)]),
-            omega_d: Vector3::from_fn(|i, _| desired.v[i]),
-            tau_d: Vector3::from_fn(|i, _| desired.tau[i]),
-            inertia: m3(&|i, j| c.inertia[(i, j)]),
-            k: m3(&|i, j| c.k[(i, j)]),
-            kd: m3(&|i, j| c.kd[(i, j)]),
+            r: m3(q),
+            omega: v3(v),
+            r_d: m3(&desired.q),
+            omega_d: v3(&desired.v),
+            tau_d: v3(&desired.tau),
+            inertia: m3(&c.inertia),
+            k: m3(&c.k),
+            kd: m3(&c.kd),
         };
         let tau = match law {
             crate::Law::Eqt => eqt(&x),

@@ -1,15 +1,16 @@
-//! Opening a run's services with iceoryx2 (`std` feature). Both processes call
-//! [`PlantPorts::open`] / [`ControllerPorts::open`], so their settings are identical by
-//! construction.
+//! The iceoryx2 transport, and the node housekeeping of a run.
 //!
 //! Each direction is an iceoryx2 **blackboard** entry in shared memory — a latest-value slot
 //! that the writer updates in place and the reader loads, both with atomics only, so a cycle
 //! allocates nothing. (In iceoryx2 0.10 every publish-subscribe send allocates a reference
 //! count for the loaned sample; the blackboard's entry handles do not.) Messages carry a
 //! sequence number and a timestamp, so a reader tells a new message from one it has seen.
-//! Two event services wake a sleeping reader in event mode.
+//! A blackboard entry's "has a writer" flag is never released by a writer killed with
+//! SIGKILL, so each board has [`SLOTS`] writer slots: a restarted process takes the next free
+//! one and the reader scans them all. Two event services wake a sleeping reader.
 
-use crate::{CommandMsg, StateMsg, service_names};
+use crate::transport::{Message, Transport};
+use crate::{LinkError, Role, check_run_name, clock};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::reader::{EntryHandle, Reader};
@@ -18,144 +19,27 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::builder::blackboard::{BlackboardCreateError, BlackboardOpenError};
 use iceoryx2::service::port_factory::blackboard::PortFactory as BoardFactory;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
+use iceoryx2_bb_posix::file_descriptor_set::{FileDescriptorSet, FileEvent};
 use std::time::{Duration, Instant};
 
-/// CLOCK_MONOTONIC in nanoseconds: the clock of every timestamp in the messages (one clock
-/// for all processes on a machine).
-pub fn monotonic_ns() -> u64 {
-    match nix::time::clock_gettime(nix::time::ClockId::CLOCK_MONOTONIC) {
-        Ok(ts) => ts.tv_sec() as u64 * 1_000_000_000 + ts.tv_nsec() as u64,
-        Err(_) => 0,
-    }
-}
-
-/// Entries (writer slots) per board.
+/// Writer slots (entries) per board.
 pub const SLOTS: u32 = 8;
 
-/// What one side of the pair needs from a transport: iceoryx2 ([`Ports`]) or the Unix-socket
-/// baseline ([`crate::uds::UdsLink`]).
-pub trait Link<Out, In> {
-    /// Stamps and sends a message; returns its timestamp.
-    fn send(&self, msg: Out) -> u64;
-    /// A message not seen yet, or `None`.
-    fn receive(&self) -> Option<In>;
-    /// Wakes the other side if it sleeps (event mode).
-    fn notify(&self);
-    /// Sleeps until a message may have arrived or `timeout` passes, with high-resolution
-    /// timing (for a waiter with a deadline; may allocate).
-    fn wait_notified(&self, timeout: Duration) -> bool;
-    /// Sleeps until a message may have arrived or roughly `timeout` passes; allocation-free
-    /// (for the controller, which has no deadline of its own).
-    fn wait(&self, timeout: Duration);
-    /// Sends the last message again, unchanged (for a peer that connects late).
-    fn resend(&self);
-}
+/// Readers and nodes a board admits: the two sides plus observers.
+const MAX_READERS: usize = 4;
+const MAX_NODES: usize = 6;
 
-/// A message type that can travel on a board.
-pub trait Message: Copy + core::fmt::Debug + ZeroCopySend + 'static {
-    /// The value the slot holds before anything was written (version 0: "nothing yet").
-    fn empty() -> Self;
-    /// `(seq, stamp_ns)`: identifies one write.
-    fn identity(&self) -> (u64, u64);
-    /// Stamps the message with the current time just before it is written.
-    fn stamp(&mut self);
-}
-
-impl Message for StateMsg {
-    fn empty() -> Self {
-        let mut m = StateMsg::new(0);
-        m.version = 0;
-        m
-    }
-    fn identity(&self) -> (u64, u64) {
-        (self.seq, self.stamp_ns)
-    }
-    fn stamp(&mut self) {
-        self.stamp_ns = monotonic_ns();
-    }
-}
-
-impl Message for CommandMsg {
-    fn empty() -> Self {
-        let mut m = CommandMsg::new(0);
-        m.version = 0;
-        m
-    }
-    fn identity(&self) -> (u64, u64) {
-        (self.seq, self.stamp_ns)
-    }
-    fn stamp(&mut self) {
-        self.stamp_ns = monotonic_ns();
-    }
-}
-
-/// The services a side keeps open while it runs.
-type Factories = (
-    BoardFactory<ipc::Service, u32>,
-    BoardFactory<ipc::Service, u32>,
-    EventFactory<ipc::Service>,
-    EventFactory<ipc::Service>,
-);
-
-/// The ports of one side of a run.
-pub struct Ports<Out: Message, In: Message> {
-    out: EntryHandleMut<ipc::Service, u32, Out>,
-    /// The slot this side writes.
-    pub slot: u32,
-    inp: Vec<EntryHandle<ipc::Service, u32, In>>,
-    last_in: Vec<core::cell::Cell<(u64, u64)>>,
-    /// Wakes the other side (event mode).
-    pub notifier: Notifier<ipc::Service>,
-    /// Wakes this side (event mode).
-    pub listener: Listener<ipc::Service>,
-    _ports: (Writer<ipc::Service, u32>, Reader<ipc::Service, u32>),
-    _factories: Factories,
-}
-
-/// The plant's side: writes states, reads commands.
-pub type PlantPorts = Ports<StateMsg, CommandMsg>;
-/// The controller's side: writes commands, reads states.
-pub type ControllerPorts = Ports<CommandMsg, StateMsg>;
-
-/// Any failure while setting up IPC, as text (the caller adds context).
-pub type SetupError = String;
-
-fn err<E: core::fmt::Debug>(what: &str) -> impl Fn(E) -> SetupError + '_ {
-    move |e| format!("{what}: {e:?}")
-}
-
-/// iceoryx2 logs at error level unless `IOX2_LOG_LEVEL` says otherwise, and sleeps end
-/// when asked, not up to 50 µs later (the default timer slack). Called by every function
-/// here that touches iceoryx2.
+/// iceoryx2 logs at error level unless `IOX2_LOG_LEVEL` says otherwise.
 fn init() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         set_log_level_from_env_or(LogLevel::Error);
-        let _ = nix::sys::prctl::set_timerslack(1);
+        clock::precise_sleeps();
     });
 }
 
-/// Creates this process's node for `run` (`plant` or `controller` role), after removing the
-/// stale resources of dead nodes (a crashed process leaves shared memory behind).
-pub fn node(run: &str, role: &str) -> Result<Node<ipc::Service>, SetupError> {
-    let names = service_names(run)
-        .ok_or_else(|| format!("invalid run name `{run}` (1-64 of A-Z a-z 0-9 _ -)"))?;
-    init();
-    remove_stale_nodes();
-    let name = if role == "plant" {
-        &names.plant_node
-    } else {
-        &names.controller_node
-    };
-    let node_name: NodeName = name.as_str().try_into().map_err(err("node name"))?;
-    NodeBuilder::new()
-        .name(&node_name)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()
-        .map_err(err("cannot create iceoryx2 node"))
-}
-
-/// Removes the stale resources of every dead node; returns how many were removed.
+/// Removes the stale resources of every dead iceoryx2 node (a crashed process leaves shared
+/// memory behind); returns how many nodes were cleaned. Allocates: for start-up only.
 pub fn remove_stale_nodes() -> usize {
     init();
     let mut dead = Vec::new();
@@ -170,10 +54,12 @@ pub fn remove_stale_nodes() -> usize {
         .count()
 }
 
-/// Whether a node with this name exists and is alive.
-pub fn node_alive(name: &str) -> bool {
-    init();
+/// Whether `role`'s node of run `run` exists and is alive. Allocates: for start-up only.
+pub fn node_alive(run: &str, role: Role) -> Result<bool, LinkError> {
     use iceoryx2::node::NodeView;
+    let names = check_run_name(run)?;
+    let name = node_name(&names, role);
+    init();
     let mut alive = false;
     let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
         if let NodeState::Alive(view) = &state
@@ -187,32 +73,192 @@ pub fn node_alive(name: &str) -> bool {
         }
         CallbackProgression::Continue
     });
-    alive
+    Ok(alive)
+}
+
+fn node_name(names: &ipc_types::ServiceNames, role: Role) -> &str {
+    match role {
+        Role::Plant => names.plant_node.as_str(),
+        Role::Controller => names.controller_node.as_str(),
+    }
+}
+
+/// The services a side keeps open while it runs: two boards, two event services.
+type Services = (
+    BoardFactory<ipc::Service, u32>,
+    BoardFactory<ipc::Service, u32>,
+    EventFactory<ipc::Service>,
+    EventFactory<ipc::Service>,
+);
+
+/// One side's ports of a run over iceoryx2. Fields drop in order: ports, then the services,
+/// then the node.
+pub struct Iceoryx2<Out: Message, In: Message> {
+    out: EntryHandleMut<ipc::Service, u32, Out>,
+    inp: Vec<EntryHandle<ipc::Service, u32, In>>,
+    last_in: Vec<(u64, u64)>,
+    notifier: Notifier<ipc::Service>,
+    /// Holds the listener's descriptor (added once at start-up, so waiting never allocates).
+    wait_set: FileDescriptorSet,
+    listener: Listener<ipc::Service>,
+    _ports: (Writer<ipc::Service, u32>, Reader<ipc::Service, u32>),
+    _services: Services,
+    _node: Node<ipc::Service>,
+    slot: u32,
+}
+
+impl<Out: Message, In: Message> Iceoryx2<Out, In> {
+    /// Opens `role`'s side of run `run`: its node (after removing dead nodes' leftovers), the
+    /// two boards and the two event services, with the same settings on both sides.
+    pub fn open(run: &str, role: Role) -> Result<Self, LinkError> {
+        let names = check_run_name(run)?;
+        init();
+        remove_stale_nodes();
+        let node_name: NodeName = node_name(&names, role)
+            .try_into()
+            .map_err(|e| LinkError::iceoryx2("node name", e))?;
+        let node = NodeBuilder::new()
+            .name(&node_name)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| LinkError::iceoryx2("cannot create the node", e))?;
+        let (out_name, in_name, notify_name, listen_name) = match role {
+            Role::Plant => (
+                &names.state,
+                &names.command,
+                &names.state_event,
+                &names.command_event,
+            ),
+            Role::Controller => (
+                &names.command,
+                &names.state,
+                &names.command_event,
+                &names.state_event,
+            ),
+        };
+        let out_board = board::<Out>(&node, out_name)?;
+        let in_board = board::<In>(&node, in_name)?;
+        let notify = event(&node, notify_name)?;
+        let listen = event(&node, listen_name)?;
+        let writer = out_board.writer_builder().create().map_err(|e| {
+            LinkError::iceoryx2(
+                format!("{out_name}: writer (is another process writing this run?)"),
+                e,
+            )
+        })?;
+        let reader = in_board
+            .reader_builder()
+            .create()
+            .map_err(|e| LinkError::iceoryx2(format!("{in_name}: reader"), e))?;
+        let (slot, out) = (0..SLOTS)
+            .find_map(|slot| writer.entry::<Out>(&slot).ok().map(|h| (slot, h)))
+            .ok_or_else(|| LinkError::SlotsTaken {
+                service: out_name.to_string(),
+                slots: SLOTS,
+            })?;
+        let inp = (0..SLOTS)
+            .map(|slot| {
+                reader
+                    .entry::<In>(&slot)
+                    .map_err(|e| LinkError::iceoryx2(format!("{in_name}: entry {slot}"), e))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let listener = listen
+            .listener_builder()
+            .create()
+            .map_err(|e| LinkError::iceoryx2(format!("{listen_name}: listener"), e))?;
+        let wait_set = FileDescriptorSet::new();
+        // The guard would remove the descriptor when dropped; the listener lives exactly as
+        // long as the set (both are fields of this struct), so it stays.
+        std::mem::forget(
+            wait_set
+                .add(&listener)
+                .map_err(|e| LinkError::iceoryx2("listener descriptor", e))?,
+        );
+        Ok(Iceoryx2 {
+            out,
+            last_in: vec![In::empty().write_id(); inp.len()],
+            inp,
+            notifier: notify
+                .notifier_builder()
+                .create()
+                .map_err(|e| LinkError::iceoryx2(format!("{notify_name}: notifier"), e))?,
+            wait_set,
+            listener,
+            _ports: (writer, reader),
+            _services: (out_board, in_board, notify, listen),
+            _node: node,
+            slot,
+        })
+    }
+
+    /// The writer slot this side took (0 unless crashed processes hold earlier ones).
+    pub fn slot(&self) -> u32 {
+        self.slot
+    }
+}
+
+impl<Out: Message, In: Message> Transport<Out, In> for Iceoryx2<Out, In> {
+    fn send(&mut self, msg: &Out, wake_peer: bool) -> Result<u64, LinkError> {
+        let mut m = *msg;
+        let stamp = clock::monotonic_ns();
+        m.set_stamp(stamp);
+        self.out.update_with_copy(m);
+        if wake_peer {
+            // no listener (a peer that crashed or has not come yet) is not an error: the
+            // slot keeps the message for it
+            let _ = self.notifier.notify();
+        }
+        Ok(stamp)
+    }
+
+    fn receive(&mut self) -> Option<In> {
+        for (entry, last) in self.inp.iter().zip(self.last_in.iter_mut()) {
+            let m: In = *entry.get();
+            let id = m.write_id();
+            if id != *last && id != In::empty().write_id() {
+                *last = id;
+                return Some(m);
+            }
+        }
+        None
+    }
+
+    fn wait(&mut self, timeout: Duration) {
+        // select(2) on the listener's descriptor: high-resolution timers, unlike the
+        // listener's own timed wait (a socket timeout that counts in scheduler ticks)
+        let _ = self
+            .wait_set
+            .timed_wait(timeout, FileEvent::Read, |_| {});
+        let _ = self.listener.try_wait(|_| {});
+    }
 }
 
 fn board<T: Message>(
     node: &Node<ipc::Service>,
     name: &str,
-) -> Result<BoardFactory<ipc::Service, u32>, SetupError> {
-    let service_name: ServiceName = name.try_into().map_err(err("service name"))?;
+) -> Result<BoardFactory<ipc::Service, u32>, LinkError> {
+    let service_name: ServiceName = name
+        .try_into()
+        .map_err(|e| LinkError::iceoryx2(format!("service name {name}"), e))?;
     let until = Instant::now() + Duration::from_secs(5);
     loop {
         match node
             .service_builder(&service_name)
             .blackboard_opener::<u32>()
-            .max_readers(2)
-            .max_nodes(4)
+            .max_readers(MAX_READERS)
+            .max_nodes(MAX_NODES)
             .open()
         {
             Ok(f) => return Ok(f),
             Err(BlackboardOpenError::DoesNotExist) => {}
-            Err(e) => return Err(format!("{name}: {e:?}")),
+            Err(e) => return Err(LinkError::iceoryx2(format!("{name}: open"), e)),
         }
         let mut creator = node
             .service_builder(&service_name)
             .blackboard_creator::<u32>()
-            .max_readers(2)
-            .max_nodes(4);
+            .max_readers(MAX_READERS)
+            .max_nodes(MAX_NODES);
         for slot in 0..SLOTS {
             creator = creator.add::<T>(slot, T::empty());
         }
@@ -220,148 +266,27 @@ fn board<T: Message>(
             Ok(f) => return Ok(f),
             Err(BlackboardCreateError::AlreadyExists)
             | Err(BlackboardCreateError::IsBeingCreatedByAnotherInstance) => {}
-            Err(e) => return Err(format!("{name}: {e:?}")),
+            Err(e) => return Err(LinkError::iceoryx2(format!("{name}: create"), e)),
         }
         if Instant::now() > until {
-            return Err(format!("{name}: could neither open nor create the service"));
+            return Err(LinkError::iceoryx2(
+                name,
+                "could neither open nor create the service within 5 s",
+            ));
         }
         std::thread::sleep(Duration::from_millis(1));
     }
 }
 
-fn event(node: &Node<ipc::Service>, name: &str) -> Result<EventFactory<ipc::Service>, SetupError> {
-    let service_name: ServiceName = name.try_into().map_err(err("service name"))?;
+fn event(node: &Node<ipc::Service>, name: &str) -> Result<EventFactory<ipc::Service>, LinkError> {
+    let service_name: ServiceName = name
+        .try_into()
+        .map_err(|e| LinkError::iceoryx2(format!("service name {name}"), e))?;
     node.service_builder(&service_name)
         .event()
         .max_notifiers(2)
         .max_listeners(2)
-        .max_nodes(4)
+        .max_nodes(MAX_NODES)
         .open_or_create()
-        .map_err(err(name))
-}
-
-impl<Out: Message, In: Message> Ports<Out, In> {
-    fn open_named(
-        node: &Node<ipc::Service>,
-        out_name: &str,
-        in_name: &str,
-        notify_name: &str,
-        listen_name: &str,
-    ) -> Result<Self, SetupError> {
-        let out_board = board::<Out>(node, out_name)?;
-        let in_board = board::<In>(node, in_name)?;
-        let notify = event(node, notify_name)?;
-        let listen = event(node, listen_name)?;
-        let writer = out_board.writer_builder().create().map_err(err(
-            "blackboard writer (is another process writing this run?)",
-        ))?;
-        let reader = in_board
-            .reader_builder()
-            .create()
-            .map_err(err("blackboard reader"))?;
-        let (slot, out) = (0..SLOTS)
-            .find_map(|slot| writer.entry::<Out>(&slot).ok().map(|h| (slot, h)))
-            .ok_or_else(|| format!("{out_name}: all {SLOTS} writer slots are taken (held by running or crashed processes of this run); end both processes or use another run name"))?;
-        let inp = (0..SLOTS)
-            .map(|slot| reader.entry::<In>(&slot).map_err(err("blackboard entry")))
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(Ports {
-            out,
-            slot,
-            last_in: inp
-                .iter()
-                .map(|_| core::cell::Cell::new(In::empty().identity()))
-                .collect(),
-            inp,
-            notifier: notify
-                .notifier_builder()
-                .create()
-                .map_err(err("notifier"))?,
-            listener: listen
-                .listener_builder()
-                .create()
-                .map_err(err("listener"))?,
-            _ports: (writer, reader),
-            _factories: (out_board, in_board, notify, listen),
-        })
-    }
-
-    /// Stamps and writes a message; returns its timestamp. Allocation-free.
-    pub fn send(&self, msg: Out) -> u64 {
-        let mut m = msg;
-        m.stamp();
-        self.out.update_with_copy(m);
-        m.identity().1
-    }
-
-    /// Waits until the other side notifies or `timeout` passes, with the precision of
-    /// select(2) on the listener's descriptor (high-resolution timers) — unlike the
-    /// listener's own timed wait, whose socket timeout counts in scheduler ticks. Drains the
-    /// listener; true when a notification arrived. (iceoryx2's descriptor set allocates: this
-    /// is for the plant, not for the controller's loop.)
-    pub fn wait_notified(&self, timeout: Duration) -> bool {
-        use iceoryx2_bb_posix::file_descriptor_set::{FileDescriptorSet, FileEvent};
-        let set = FileDescriptorSet::new();
-        let notified = match set.add(&self.listener) {
-            Ok(_guard) => {
-                set.timed_wait(timeout, FileEvent::Read, |_| {})
-                    .unwrap_or(0)
-                    > 0
-            }
-            Err(_) => false,
-        };
-        let _ = self.listener.try_wait(|_| {});
-        notified
-    }
-
-    /// A message this side has not seen yet, from any slot (`None`: nothing new). Call it
-    /// until `None` to see every new message. Allocation-free.
-    pub fn receive(&self) -> Option<In> {
-        for (entry, last) in self.inp.iter().zip(&self.last_in) {
-            let m: In = *entry.get();
-            let id = m.identity();
-            if id != last.get() && id != In::empty().identity() {
-                last.set(id);
-                return Some(m);
-            }
-        }
-        None
-    }
-}
-
-impl<Out: Message, In: Message> Link<Out, In> for Ports<Out, In> {
-    fn send(&self, msg: Out) -> u64 {
-        Ports::send(self, msg)
-    }
-    fn receive(&self) -> Option<In> {
-        Ports::receive(self)
-    }
-    fn notify(&self) {
-        let _ = self.notifier.notify();
-    }
-    fn wait_notified(&self, timeout: Duration) -> bool {
-        Ports::wait_notified(self, timeout)
-    }
-    fn wait(&self, timeout: Duration) {
-        let _ = self.listener.timed_wait(|_| {}, timeout);
-    }
-    fn resend(&self) {
-        // the slot keeps its last value: a late reader finds it there
-    }
-}
-
-impl PlantPorts {
-    /// The plant's ports of run `run`.
-    pub fn open(node: &Node<ipc::Service>, run: &str) -> Result<Self, SetupError> {
-        let n = service_names(run).ok_or_else(|| format!("invalid run name `{run}`"))?;
-        Self::open_named(node, &n.state, &n.command, &n.state_event, &n.command_event)
-    }
-}
-
-impl ControllerPorts {
-    /// The controller's ports of run `run`.
-    pub fn open(node: &Node<ipc::Service>, run: &str) -> Result<Self, SetupError> {
-        let n = service_names(run).ok_or_else(|| format!("invalid run name `{run}`"))?;
-        Self::open_named(node, &n.command, &n.state, &n.command_event, &n.state_event)
-    }
+        .map_err(|e| LinkError::iceoryx2(name, e))
 }

@@ -1,0 +1,272 @@
+//! The plant's handle on a run: publish states, wait for commands with a deadline.
+
+use crate::deadline::Arrival;
+use crate::rejections::{Rejected, Rejections};
+use crate::transport::{PlantTransport, open};
+use crate::{LinkError, Role, TransportKind, Wake, check_run_name, clock};
+use controller::GroupKind;
+use ipc_types::{
+    CommandMsg, Identity, PROTOCOL_VERSION, Reject, StateMsg, check_command, flags, mismatch,
+};
+use nalgebra::{SMatrix, SVector};
+use std::fmt;
+use std::time::Duration;
+
+/// How to open the plant's side of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlantConfig {
+    /// The run name (services and sockets derive from it).
+    pub run: String,
+    /// The plant's group.
+    pub group: GroupKind,
+    /// The control period (s): states carry `t_k = k·period`, and the controller's reference
+    /// steps with it.
+    pub control_period: f64,
+    /// The transport.
+    pub transport: TransportKind,
+    /// Whether this plant sleeps while it waits for a command (the controller then wakes
+    /// it) or busy-polls.
+    pub wake: Wake,
+    /// A fingerprint of the scenario this plant simulates (0: none — a hardware plant).
+    pub fingerprint: u64,
+    /// The scenario's name (empty: none).
+    pub scenario: String,
+}
+
+impl PlantConfig {
+    /// A hardware plant's configuration: iceoryx2, event wake-up, no scenario fingerprint.
+    pub fn new(run: &str, group: GroupKind, control_period: f64) -> PlantConfig {
+        PlantConfig {
+            run: run.to_owned(),
+            group,
+            control_period,
+            transport: TransportKind::Iceoryx2,
+            wake: Wake::Event,
+            fingerprint: 0,
+            scenario: String::new(),
+        }
+    }
+}
+
+/// A command that passed the checks, and when it arrived.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Command {
+    /// The message.
+    pub msg: CommandMsg,
+    /// CLOCK_MONOTONIC when it was received (ns).
+    pub received_ns: u64,
+}
+
+impl Command {
+    /// The torque `τ_k` (m entries; the controller has saturated it with its own limit).
+    pub fn torque<const M: usize>(&self) -> SVector<f64, M> {
+        self.msg.torque()
+    }
+
+    /// What the [`crate::DeadlinePolicy`] needs to know about it.
+    pub fn arrival(&self) -> Arrival {
+        Arrival {
+            seq: self.msg.seq,
+            at_ns: self.received_ns,
+        }
+    }
+}
+
+/// The controller refused the run: the two sides' settings differ.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Refusal {
+    /// The [`mismatch`] bits.
+    pub mismatch: u32,
+    /// The plant's settings.
+    pub plant: Identity,
+    /// The controller's settings.
+    pub controller: Identity,
+}
+
+impl fmt::Display for Refusal {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let mut what = Vec::new();
+        for (bit, name) in [
+            (mismatch::GROUP, "group"),
+            (mismatch::PERIOD, "control period"),
+            (mismatch::SCENARIO, "scenario"),
+        ] {
+            if self.mismatch & bit != 0 {
+                what.push(name);
+            }
+        }
+        write!(
+            f,
+            "configuration mismatch ({}): plant: {}; controller: {}",
+            what.join(", "),
+            self.plant,
+            self.controller
+        )
+    }
+}
+
+/// Why [`PlantEndpoint::wait_command`] returned without a command.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NoCommand {
+    /// The deadline passed first.
+    Missed,
+    /// The controller refused the run (configuration mismatch): stop.
+    Refused(Refusal),
+}
+
+/// The plant's side of a run.
+pub struct PlantEndpoint {
+    transport: PlantTransport,
+    config: PlantConfig,
+    identity: Identity,
+    rejections: Rejections<CommandMsg>,
+    last_state: StateMsg,
+    late: u64,
+}
+
+impl PlantEndpoint {
+    /// Opens the plant's side of run `config.run`. With iceoryx2 it fails if a live plant
+    /// already holds the run; shared memory left by crashed processes is removed first.
+    pub fn open(config: PlantConfig) -> Result<PlantEndpoint, LinkError> {
+        check_run_name(&config.run)?;
+        if config.transport == TransportKind::Iceoryx2
+            && crate::iceoryx2::node_alive(&config.run, Role::Plant)?
+        {
+            return Err(LinkError::AlreadyRunning {
+                role: Role::Plant,
+                run: config.run,
+            });
+        }
+        let transport = open(config.transport, &config.run, Role::Plant)?;
+        let identity = Identity::new(
+            config.group,
+            config.control_period,
+            config.fingerprint,
+            &config.scenario,
+        );
+        let mut last_state = StateMsg::new(config.group);
+        last_state.control_period = config.control_period;
+        last_state.flags = if config.wake == Wake::Event {
+            flags::WAKE_EVENT
+        } else {
+            0
+        };
+        last_state.plant_pid = std::process::id();
+        last_state.fingerprint = identity.fingerprint;
+        last_state.scenario = identity.scenario;
+        Ok(PlantEndpoint {
+            transport,
+            config,
+            identity,
+            rejections: Rejections::new(),
+            last_state,
+            late: 0,
+        })
+    }
+
+    /// The configuration it was opened with.
+    pub fn config(&self) -> &PlantConfig {
+        &self.config
+    }
+
+    /// Publishes the state of tick `seq`: configuration `q` and body velocity `v` at
+    /// `t = seq·period`. Returns its publication stamp (CLOCK_MONOTONIC ns).
+    pub fn publish<const N: usize, const M: usize>(
+        &mut self,
+        seq: u64,
+        q: &SMatrix<f64, N, N>,
+        v: &SVector<f64, M>,
+    ) -> Result<u64, LinkError> {
+        let mut msg = self.last_state;
+        msg.seq = seq;
+        msg.t = seq as f64 * self.config.control_period;
+        msg.set_state(q, v);
+        self.publish_message(&msg)
+    }
+
+    /// Publishes a state message as it is (for tests that need a malformed one; prefer
+    /// [`PlantEndpoint::publish`]). The template of the run: [`PlantEndpoint::state_template`].
+    pub fn publish_message(&mut self, msg: &StateMsg) -> Result<u64, LinkError> {
+        self.last_state = *msg;
+        self.transport
+            .send(msg, self.config.wake == Wake::Event)
+    }
+
+    /// The last state published (before the first: the run's template, with this plant's
+    /// group, period, flags, pid and identity filled in).
+    pub fn state_template(&self) -> StateMsg {
+        self.last_state
+    }
+
+    /// Waits until the command for tick `seq` arrives or CLOCK_MONOTONIC reaches
+    /// `deadline_ns`. Commands that fail the checks are never returned (see
+    /// [`PlantEndpoint::next_rejection`]); commands for earlier ticks are skipped (counted in
+    /// [`PlantEndpoint::late_commands`]).
+    pub fn wait_command(&mut self, seq: u64, deadline_ns: u64) -> Result<Command, NoCommand> {
+        loop {
+            while let Some(msg) = self.transport.receive() {
+                if let Some(outcome) = self.judge(msg, seq) {
+                    return outcome;
+                }
+            }
+            let now = clock::monotonic_ns();
+            if now >= deadline_ns {
+                return Err(NoCommand::Missed);
+            }
+            match self.config.wake {
+                Wake::Spin => std::hint::spin_loop(),
+                Wake::Event => self.transport.wait(Duration::from_nanos(deadline_ns - now)),
+            }
+        }
+    }
+
+    /// What one received command means for the wait for `seq` (`None`: keep waiting).
+    fn judge(&mut self, msg: CommandMsg, seq: u64) -> Option<Result<Command, NoCommand>> {
+        if msg.version == PROTOCOL_VERSION && msg.flags & flags::REFUSED != 0 {
+            return Some(Err(NoCommand::Refused(Refusal {
+                mismatch: msg.mismatch,
+                plant: self.identity,
+                controller: msg.identity(),
+            })));
+        }
+        match check_command(&msg, self.config.group, seq) {
+            Ok(()) => Some(Ok(Command {
+                msg,
+                received_ns: clock::monotonic_ns(),
+            })),
+            Err(Reject::Sequence) if msg.seq < seq => {
+                self.late += 1;
+                None
+            }
+            Err(kind) => {
+                self.rejections.record(kind, &msg);
+                None
+            }
+        }
+    }
+
+    /// The first rejected command of a kind not reported yet (log it; later ones of that kind
+    /// are only counted).
+    pub fn next_rejection(&mut self) -> Option<Rejected<CommandMsg>> {
+        self.rejections.next()
+    }
+
+    /// Commands rejected by the checks (never applied).
+    pub fn rejected_commands(&self) -> u64 {
+        self.rejections.counts().iter().sum()
+    }
+
+    /// Commands for earlier ticks that arrived while waiting for a later one.
+    pub fn late_commands(&self) -> u64 {
+        self.late
+    }
+
+    /// Ends the run: tells the controller (it exits cleanly), then closes the services.
+    pub fn shutdown(mut self) {
+        let mut bye = self.last_state;
+        bye.seq = bye.seq.saturating_add(1);
+        bye.flags |= flags::SHUTDOWN;
+        // the controller also notices the plant's exit by itself if this cannot be sent
+        let _ = self.transport.send(&bye, true);
+    }
+}
