@@ -50,6 +50,7 @@ pub mod controller_side;
 pub mod deadline;
 pub mod iceoryx2;
 pub mod plant_side;
+pub mod process;
 mod rejections;
 pub mod transport;
 pub mod uds;
@@ -57,6 +58,7 @@ pub mod uds;
 pub use controller_side::{ControllerConfig, ControllerEndpoint, Incoming};
 pub use deadline::{Arrival, DeadlinePolicy, Decision, Step, Transition};
 pub use plant_side::{Command, NoCommand, PlantConfig, PlantEndpoint, Refusal};
+pub use process::{Exit, StopFlag, StopSignal};
 pub use rejections::Rejected;
 pub use transport::{Message, Transport, open};
 

@@ -120,7 +120,8 @@ pub struct PlantEndpoint {
     config: PlantConfig,
     identity: Identity,
     rejections: Rejections<CommandMsg>,
-    last_state: StateMsg,
+    template: StateMsg,
+    last_seq: u64,
     late: u64,
 }
 
@@ -144,22 +145,23 @@ impl PlantEndpoint {
             config.fingerprint,
             &config.scenario,
         );
-        let mut last_state = StateMsg::new(config.group);
-        last_state.control_period = config.control_period;
-        last_state.flags = if config.wake == Wake::Event {
+        let mut template = StateMsg::new(config.group);
+        template.control_period = config.control_period;
+        template.flags = if config.wake == Wake::Event {
             flags::WAKE_EVENT
         } else {
             0
         };
-        last_state.plant_pid = std::process::id();
-        last_state.fingerprint = identity.fingerprint;
-        last_state.scenario = identity.scenario;
+        template.plant_pid = std::process::id();
+        template.fingerprint = identity.fingerprint;
+        template.scenario = identity.scenario;
         Ok(PlantEndpoint {
             transport,
             config,
             identity,
             rejections: Rejections::new(),
-            last_state,
+            template,
+            last_seq: 0,
             late: 0,
         })
     }
@@ -177,7 +179,7 @@ impl PlantEndpoint {
         q: &SMatrix<f64, N, N>,
         v: &SVector<f64, M>,
     ) -> Result<u64, LinkError> {
-        let mut msg = self.last_state;
+        let mut msg = self.template;
         msg.seq = seq;
         msg.t = seq as f64 * self.config.control_period;
         msg.set_state(q, v);
@@ -185,17 +187,17 @@ impl PlantEndpoint {
     }
 
     /// Publishes a state message as it is (for tests that need a malformed one; prefer
-    /// [`PlantEndpoint::publish`]). The template of the run: [`PlantEndpoint::state_template`].
+    /// [`PlantEndpoint::publish`], which fills in [`PlantEndpoint::state_template`]).
     pub fn publish_message(&mut self, msg: &StateMsg) -> Result<u64, LinkError> {
-        self.last_state = *msg;
+        self.last_seq = msg.seq;
         self.transport
             .send(msg, self.config.wake == Wake::Event)
     }
 
-    /// The last state published (before the first: the run's template, with this plant's
-    /// group, period, flags, pid and identity filled in).
+    /// The run's state message without a state: this plant's group, period, wake-up flag,
+    /// pid and identity filled in.
     pub fn state_template(&self) -> StateMsg {
-        self.last_state
+        self.template
     }
 
     /// Waits until the command for tick `seq` arrives or CLOCK_MONOTONIC reaches
@@ -263,8 +265,8 @@ impl PlantEndpoint {
 
     /// Ends the run: tells the controller (it exits cleanly), then closes the services.
     pub fn shutdown(mut self) {
-        let mut bye = self.last_state;
-        bye.seq = bye.seq.saturating_add(1);
+        let mut bye = self.template;
+        bye.seq = self.last_seq.saturating_add(1);
         bye.flags |= flags::SHUTDOWN;
         // the controller also notices the plant's exit by itself if this cannot be sent
         let _ = self.transport.send(&bye, true);

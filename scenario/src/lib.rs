@@ -29,6 +29,8 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod cli;
+
 use controller::group::MatrixLieGroup;
 use controller::group::so3::exp_so3;
 use controller::integrator::RigidBody;
@@ -274,8 +276,8 @@ impl Scenario {
     }
 
     /// Overrides the law (checked against the group).
-    pub fn with_law(mut self, law: &str) -> Result<Scenario, ScenarioError> {
-        self.law = parse_law(law, self.group, "--law", "the command line")?;
+    pub fn with_law(mut self, law: Law) -> Result<Scenario, ScenarioError> {
+        self.law = parse_law(law.name(), self.group, "--law", "the command line")?;
         Ok(self)
     }
 
@@ -789,10 +791,10 @@ mod tests {
     fn law_override_is_checked_against_the_group() {
         let e = Scenario::builtin("se3_circle")
             .unwrap()
-            .with_law("gt")
+            .with_law(Law::Gt)
             .unwrap_err();
         assert!(e.to_string().contains("not defined for group se3"), "{e}");
-        let s = Scenario::builtin("seed").unwrap().with_law("asym").unwrap();
+        let s = Scenario::builtin("seed").unwrap().with_law(Law::Asym).unwrap();
         assert_eq!(s.law, Law::Asym);
     }
 
@@ -804,7 +806,7 @@ mod tests {
         assert_ne!(fp, Scenario::builtin("montecarlo").unwrap().fingerprint());
         assert_ne!(fp, Scenario::builtin("se3_circle").unwrap().fingerprint());
         // not covered: law, duration, name, the plant's own state
-        let mut same = seed.clone().with_law("gt").unwrap();
+        let mut same = seed.clone().with_law(Law::Gt).unwrap();
         same.duration = 3.0;
         same.name = "other".to_owned();
         same.initial.velocity[0] += 1.0;

@@ -1,0 +1,111 @@
+//! The command-line pieces both binaries share: where the scenario comes from, the law and
+//! group values, and the one positive-duration parser.
+
+use crate::{Scenario, ScenarioError};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
+use controller::{GroupKind, Law};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// `--scenario FILE | --builtin NAME`.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct ScenarioSource {
+    /// Scenario file (TOML).
+    #[arg(long, value_name = "FILE", conflicts_with = "builtin")]
+    pub scenario: Option<PathBuf>,
+    /// Built-in scenario: seed, montecarlo, se3_circle.
+    #[arg(long, value_name = "NAME")]
+    pub builtin: Option<String>,
+}
+
+impl ScenarioSource {
+    /// Loads the scenario (the built-in `default` when neither flag is given).
+    pub fn load(&self, default: &str) -> Result<Scenario, ScenarioError> {
+        match (&self.scenario, &self.builtin) {
+            (Some(p), _) => Scenario::from_file(p),
+            (None, Some(n)) => Scenario::builtin(n),
+            (None, None) => Scenario::builtin(default),
+        }
+    }
+
+    /// The arguments that make another process load the same scenario (a file path made
+    /// absolute).
+    pub fn args(&self, default: &str) -> Vec<String> {
+        match (&self.scenario, &self.builtin) {
+            (Some(p), _) => {
+                let abs = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+                vec!["--scenario".to_owned(), abs.display().to_string()]
+            }
+            (None, Some(n)) => vec!["--builtin".to_owned(), n.clone()],
+            (None, None) => vec!["--builtin".to_owned(), default.to_owned()],
+        }
+    }
+}
+
+/// clap's parser for a [`Law`] (`eqt`, `gt`, `nog`, `asym`; listed in `--help`). The law
+/// enum lives in the `no_std` controller crate, which stays free of clap, so this maps
+/// clap's possible values onto it instead of deriving `ValueEnum` there.
+pub fn law_parser() -> impl TypedValueParser<Value = Law> {
+    PossibleValuesParser::new(Law::ALL.map(Law::name))
+        .map(|name| Law::from_name(&name).unwrap_or(Law::Eqt))
+}
+
+/// clap's parser for a [`GroupKind`] (`so3`, `se3`), as [`law_parser`].
+pub fn group_parser() -> impl TypedValueParser<Value = GroupKind> {
+    PossibleValuesParser::new(GroupKind::ALL.map(GroupKind::name))
+        .map(|name| GroupKind::from_name(&name).unwrap_or(GroupKind::So3))
+}
+
+/// A positive, finite number of seconds (the one duration parser of both binaries).
+pub fn positive_seconds(text: &str) -> Result<Duration, String> {
+    let v: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{text}` is not a number of seconds"))?;
+    if v.is_finite() && v > 0.0 && v < 1e9 {
+        Ok(Duration::from_secs_f64(v))
+    } else {
+        Err(format!("must be a positive number of seconds, got {text}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[arg(long, value_parser = law_parser())]
+        law: Option<Law>,
+        #[arg(long, value_parser = law_parser(), value_delimiter = ',')]
+        laws: Vec<Law>,
+        #[arg(long, value_parser = group_parser())]
+        group: Option<GroupKind>,
+        #[arg(long, value_parser = positive_seconds)]
+        wait: Option<Duration>,
+    }
+
+    #[test]
+    fn typed_values_parse_and_bad_ones_are_named() {
+        let c = Cli::try_parse_from(["x", "--law", "gt", "--laws", "eqt,asym", "--group", "se3"])
+            .unwrap();
+        assert_eq!(c.law, Some(Law::Gt));
+        assert_eq!(c.laws, vec![Law::Eqt, Law::Asym]);
+        assert_eq!(c.group, Some(GroupKind::Se3));
+        let e = Cli::try_parse_from(["x", "--law", "pid"]).err().unwrap().to_string();
+        assert!(e.contains("pid") && e.contains("eqt"), "{e}");
+        let e = Cli::try_parse_from(["x", "--laws", "eqt,nope"]).err().unwrap().to_string();
+        assert!(e.contains("nope"), "{e}");
+    }
+
+    #[test]
+    fn durations_must_be_positive_and_finite() {
+        assert_eq!(positive_seconds("1.5"), Ok(Duration::from_millis(1500)));
+        for bad in ["0", "-1", "nan", "inf", "x", ""] {
+            assert!(positive_seconds(bad).is_err(), "{bad}");
+        }
+        let e = Cli::try_parse_from(["x", "--wait=-2"]).err().unwrap().to_string();
+        assert!(e.contains("--wait") && e.contains("positive"), "{e}");
+    }
+}
