@@ -112,12 +112,12 @@ fn steps<T: Real>(c: &mut Criterion, scalar: &str) {
         g.throughput(Throughput::Elements(1));
         let ctl = seed_controller::<T>(Law::Eqt);
         let (q, v, ..) = so3_generic::<f64>();
-        let msg = state_msg::<So3, 3, 3>(&q, &v, ipc_types::group::SO3);
+        let msg = state_msg::<So3, 3, 3>(&q, &v);
         g.bench_function(format!("so3/{scalar}"), |b| {
             b.iter_batched_ref(
                 || seed_reference::<T>(sub),
                 |r| {
-                    let cmd = respond(&ctl, r, black_box(&msg), ipc_types::group::SO3);
+                    let cmd = respond(&ctl, r, black_box(&msg));
                     r.advance();
                     cmd
                 },
@@ -126,12 +126,12 @@ fn steps<T: Real>(c: &mut Criterion, scalar: &str) {
         });
         let ctl = se3_controller::<T>();
         let (q, v, ..) = se3_generic::<f64>();
-        let msg = state_msg::<Se3, 4, 6>(&q, &v, ipc_types::group::SE3);
+        let msg = state_msg::<Se3, 4, 6>(&q, &v);
         g.bench_function(format!("se3/{scalar}"), |b| {
             b.iter_batched_ref(
                 || se3_reference::<T>(sub),
                 |r| {
-                    let cmd = respond(&ctl, r, black_box(&msg), ipc_types::group::SE3);
+                    let cmd = respond(&ctl, r, black_box(&msg));
                     r.advance();
                     cmd
                 },

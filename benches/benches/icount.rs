@@ -106,7 +106,7 @@ fn so3_cycle<T: controller::Real>(substeps: usize) -> So3Cycle<T> {
     (
         seed_controller::<T>(Law::Eqt),
         seed_reference::<T>(substeps),
-        state_msg::<So3, 3, 3>(&q, &v, ipc_types::group::SO3),
+        state_msg::<So3, 3, 3>(&q, &v),
     )
 }
 
@@ -115,7 +115,7 @@ fn se3_cycle<T: controller::Real>(substeps: usize) -> Se3Cycle<T> {
     (
         se3_controller::<T>(),
         se3_reference::<T>(substeps),
-        state_msg::<Se3, 4, 6>(&q, &v, ipc_types::group::SE3),
+        state_msg::<Se3, 4, 6>(&q, &v),
     )
 }
 
@@ -161,7 +161,7 @@ macro_rules! steps {
         #[bench::sub10(so3_cycle::<$t>(10))]
         fn $cso3(s: So3Cycle<$t>) -> (Option<CommandMsg>, Reference<$t, So3, 3, 3>) {
             let (ctl, mut r, msg) = s;
-            let cmd = respond(&ctl, &mut r, black_box(&msg), ipc_types::group::SO3).ok();
+            let cmd = respond(&ctl, &mut r, black_box(&msg)).ok();
             r.advance();
             black_box((cmd, r))
         }
@@ -170,7 +170,7 @@ macro_rules! steps {
         #[bench::sub10(se3_cycle::<$t>(10))]
         fn $cse3(s: Se3Cycle<$t>) -> (Option<CommandMsg>, Reference<$t, Se3, 4, 6>) {
             let (ctl, mut r, msg) = s;
-            let cmd = respond(&ctl, &mut r, black_box(&msg), ipc_types::group::SE3).ok();
+            let cmd = respond(&ctl, &mut r, black_box(&msg)).ok();
             r.advance();
             black_box((cmd, r))
         }

@@ -177,17 +177,9 @@ pub fn se3_plant<T: Real>() -> RigidBody<T, Se3, 4, 6> {
 pub fn state_msg<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     q: &SMatrix<f64, N, N>,
     v: &SVector<f64, M>,
-    group_code: u32,
 ) -> StateMsg {
-    let mut m = StateMsg::new(group_code);
+    let mut m = StateMsg::new(G::KIND);
     m.control_period = 0.001;
-    for i in 0..N {
-        for j in 0..N {
-            m.q[i * N + j] = q[(i, j)];
-        }
-    }
-    for i in 0..M {
-        m.v[i] = v[i];
-    }
+    m.set_state(q, v);
     m
 }

@@ -1,14 +1,16 @@
 //! `controller_node [--scenario FILE | --builtin NAME] [--name RUN]`
 //!
 //! The controller process of the pair. Start it by hand (as on a target board) or let
-//! `plant_sim run` spawn it. Exit codes: 0 the plant ended the run, 1 the plant is gone or IPC
-//! failed, 2 bad input.
+//! `plant_sim run` spawn it. Exit codes (shared with `plant_sim`, `link::Exit`): 0 the plant
+//! ended the run or SIGINT/SIGTERM asked the node to leave, 1 the plant is gone or IPC
+//! failed, 2 bad input or a configuration mismatch with the plant.
 
 use clap::Parser;
-use controller_node::{Fault, NodeError, Options, Stop, Transport, run};
-use scenario::Scenario;
+use controller::Law;
+use controller_node::{Fault, Options, Report, Stop, run};
+use link::{Exit, StopFlag, TransportKind};
+use scenario::cli::{ScenarioSource, law_parser, positive_seconds};
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
@@ -52,27 +54,27 @@ static GLOBAL: Counting = Counting;
     about = "Equivariant tracking control: the controller process"
 )]
 struct Cli {
-    /// Scenario file (TOML).
-    #[arg(long, value_name = "FILE", conflicts_with = "builtin")]
-    scenario: Option<PathBuf>,
-    /// Built-in scenario: seed, montecarlo, se3_circle (default seed).
-    #[arg(long, value_name = "NAME")]
-    builtin: Option<String>,
+    #[command(flatten)]
+    source: ScenarioSource,
     /// Override the scenario's law.
-    #[arg(long, value_name = "L")]
-    law: Option<String>,
+    #[arg(long, value_name = "L", value_parser = law_parser())]
+    law: Option<Law>,
     /// Run name: pairs with different names never see each other's messages.
     #[arg(long, value_name = "RUN", default_value = "eqtrack")]
     name: String,
+    /// Insist on this control rate (Hz): a plant running at another one is refused. By
+    /// default the controller follows the plant's period.
+    #[arg(long, value_name = "F")]
+    rate_hz: Option<f64>,
     /// Seconds of silence after which the plant counts as gone.
-    #[arg(long, value_name = "S", default_value_t = 1.0)]
-    silence_timeout: f64,
+    #[arg(long, value_name = "S", default_value = "1", value_parser = positive_seconds)]
+    silence_timeout: Duration,
     /// Seconds to wait for the first state.
-    #[arg(long, value_name = "S", default_value_t = 30.0)]
-    startup_timeout: f64,
-    /// Transport: iceoryx2 (default) or uds (the Unix-socket baseline of `plant_sim bench-loop`).
-    #[arg(long, value_name = "T", default_value = "iceoryx2", value_parser = ["iceoryx2", "uds"])]
-    transport: String,
+    #[arg(long, value_name = "S", default_value = "30", value_parser = positive_seconds)]
+    startup_timeout: Duration,
+    /// Transport: iceoryx2, or uds (the Unix-socket baseline of `plant_sim bench-loop`).
+    #[arg(long, value_enum, default_value_t = TransportKind::Iceoryx2)]
+    transport: TransportKind,
     /// Test builds only (feature `fault-injection`): publish a NaN torque instead of command
     /// K, to test the plant's own checks. Release builds have no such flag.
     #[cfg(feature = "fault-injection")]
@@ -80,96 +82,83 @@ struct Cli {
     fault_nan_torque: Option<u64>,
 }
 
+fn fail(exit: Exit, msg: std::fmt::Arguments) -> ExitCode {
+    eprintln!("controller_node: error: {msg}");
+    exit.into()
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let load = || -> Result<Scenario, String> {
-        let s = match (&cli.scenario, &cli.builtin) {
-            (Some(p), _) => Scenario::from_file(p),
-            (None, Some(n)) => Scenario::builtin(n),
-            (None, None) => Scenario::builtin("seed"),
-        }
-        .map_err(|e| e.to_string())?;
-        match &cli.law {
-            Some(l) => s.with_law(l).map_err(|e| e.to_string()),
-            None => Ok(s),
-        }
-    };
-    let scenario = match load() {
+    let stop = match StopFlag::install() {
         Ok(s) => s,
-        Err(e) => {
-            eprintln!("controller_node: error: {e}");
-            return ExitCode::from(2);
+        Err(e) => return fail(Exit::Failed, format_args!("cannot handle signals: {e}")),
+    };
+    let scenario = match cli.source.load("seed").and_then(|s| match cli.law {
+        Some(l) => s.with_law(l),
+        None => Ok(s),
+    }) {
+        Ok(s) => s,
+        Err(e) => return fail(Exit::BadInput, format_args!("{e}")),
+    };
+    let period = match cli.rate_hz {
+        None => None,
+        Some(f) if f.is_finite() && f > 0.0 && f <= 100_000.0 => Some(1.0 / f),
+        Some(f) => {
+            return fail(
+                Exit::BadInput,
+                format_args!("--rate-hz: must be in (0, 100000], got {f}"),
+            );
         }
     };
-    for (name, v) in [
-        ("--silence-timeout", cli.silence_timeout),
-        ("--startup-timeout", cli.startup_timeout),
-    ] {
-        if !(v.is_finite() && v > 0.0) {
-            eprintln!(
-                "controller_node: error: {name}: must be a positive number of seconds, got {v}"
-            );
-            return ExitCode::from(2);
-        }
-    }
     let opts = Options {
         scenario,
         run: cli.name.clone(),
-        startup_timeout: Duration::from_secs_f64(cli.startup_timeout),
-        silence_timeout: Duration::from_secs_f64(cli.silence_timeout),
+        transport: cli.transport,
+        period,
+        startup_timeout: cli.startup_timeout,
+        silence_timeout: cli.silence_timeout,
         #[cfg(feature = "fault-injection")]
         fault: cli.fault_nan_torque.map(Fault::NanTorque),
         #[cfg(not(feature = "fault-injection"))]
         fault: None::<Fault>,
-        transport: if cli.transport == "uds" {
-            Transport::Uds
-        } else {
-            Transport::Iceoryx2
-        },
+        stop,
     };
     match run(&opts, &|| ALLOCATIONS.load(Ordering::Relaxed)) {
-        Ok(report) => {
-            let rejected: u64 = report.rejected.iter().sum();
-            let allocs = match report.allocations_after_startup {
-                Some((a, c)) => format!("heap allocations after start-up: {a} in {c} cycles"),
-                None => {
-                    "heap allocations after start-up: not measured (fewer than 2 cycles)".to_owned()
-                }
-            };
-            let (code, why) = match &report.stop {
-                Stop::Shutdown => (0, "the plant ended the run".to_owned()),
-                Stop::PlantGone => (
-                    1,
-                    format!(
-                        "the plant of run `{}` is gone (its node is dead or removed)",
-                        cli.name
-                    ),
-                ),
-                Stop::Silence(d) => (
-                    1,
-                    format!("no state from the plant for {:.2} s", d.as_secs_f64()),
-                ),
-                Stop::NoPlant(d) => (
-                    1,
-                    format!(
-                        "no plant appeared on run `{}` within {:.0} s",
-                        cli.name,
-                        d.as_secs_f64()
-                    ),
-                ),
-            };
-            eprintln!(
-                "controller_node: exiting: {why}; {} commands, {rejected} states rejected, {} refused; {allocs}",
-                report.cycles, report.refused
-            );
-            ExitCode::from(code)
-        }
-        Err(e) => {
-            eprintln!("controller_node: error: {e}");
-            ExitCode::from(match e {
-                NodeError::Input(_) => 2,
-                NodeError::Ipc(_) => 1,
-            })
-        }
+        Ok(report) => finish(&report, &cli.name),
+        Err(e) => fail(e.exit(), format_args!("{e}")),
     }
+}
+
+/// Prints why the node stopped and what it did; the exit code.
+fn finish(report: &Report, run: &str) -> ExitCode {
+    let (exit, why) = match &report.stop {
+        Stop::Shutdown => (Exit::Done, "the plant ended the run".to_owned()),
+        Stop::Signal(s) => (Exit::Done, format!("{s} received, leaving the run")),
+        Stop::PlantGone => (
+            Exit::Failed,
+            format!("the plant of run `{run}` is gone (its process has exited)"),
+        ),
+        Stop::Silence(d) => (
+            Exit::Failed,
+            format!("no state from the plant for {:.2} s", d.as_secs_f64()),
+        ),
+        Stop::NoPlant(d) => (
+            Exit::Failed,
+            format!(
+                "no plant appeared on run `{run}` within {:.0} s",
+                d.as_secs_f64()
+            ),
+        ),
+        Stop::Mismatch(r) => (Exit::BadInput, format!("refused the run: {r}")),
+    };
+    let rejected: u64 = report.rejected.iter().sum();
+    let allocs = match report.allocations_after_startup {
+        Some((a, c)) => format!("heap allocations after start-up: {a} in {c} cycles"),
+        None => "heap allocations after start-up: not measured (fewer than 2 cycles)".to_owned(),
+    };
+    eprintln!(
+        "controller_node: exiting: {why}; {} commands, {rejected} states rejected, {} refused; {allocs}",
+        report.cycles, report.refused
+    );
+    exit.into()
 }

@@ -55,7 +55,11 @@ mod tests {
         let woke = monotonic_ns();
         assert!(woke >= deadline);
         // generous: a loaded 2-core machine can preempt us
-        assert!(woke - deadline < 50_000_000, "woke {} ns late", woke - deadline);
+        assert!(
+            woke - deadline < 50_000_000,
+            "woke {} ns late",
+            woke - deadline
+        );
         let t = monotonic_ns();
         sleep_until(start); // in the past
         assert!(monotonic_ns() - t < 1_000_000);

@@ -5,9 +5,7 @@ use crate::rejections::{Rejected, Rejections};
 use crate::transport::{ControllerTransport, open};
 use crate::{LinkError, Refusal, Role, TransportKind, check_run_name, clock};
 use controller::GroupKind;
-use ipc_types::{
-    CommandMsg, Identity, PROTOCOL_VERSION, StateMsg, check_state, flags, group_code,
-};
+use ipc_types::{CommandMsg, Identity, PROTOCOL_VERSION, StateMsg, check_state, flags, group_code};
 use std::time::{Duration, Instant};
 
 /// How to open the controller's side of a run.

@@ -227,9 +227,7 @@ impl<Out: Message, In: Message> Transport<Out, In> for Iceoryx2<Out, In> {
     fn wait(&mut self, timeout: Duration) {
         // select(2) on the listener's descriptor: high-resolution timers, unlike the
         // listener's own timed wait (a socket timeout that counts in scheduler ticks)
-        let _ = self
-            .wait_set
-            .timed_wait(timeout, FileEvent::Read, |_| {});
+        let _ = self.wait_set.timed_wait(timeout, FileEvent::Read, |_| {});
         let _ = self.listener.try_wait(|_| {});
     }
 }

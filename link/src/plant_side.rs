@@ -190,8 +190,7 @@ impl PlantEndpoint {
     /// [`PlantEndpoint::publish`], which fills in [`PlantEndpoint::state_template`]).
     pub fn publish_message(&mut self, msg: &StateMsg) -> Result<u64, LinkError> {
         self.last_seq = msg.seq;
-        self.transport
-            .send(msg, self.config.wake == Wake::Event)
+        self.transport.send(msg, self.config.wake == Wake::Event)
     }
 
     /// The run's state message without a state: this plant's group, period, wake-up flag,
@@ -263,8 +262,9 @@ impl PlantEndpoint {
         self.late
     }
 
-    /// Ends the run: tells the controller (it exits cleanly), then closes the services.
-    pub fn shutdown(mut self) {
+    /// Ends the run: tells the controller (it exits cleanly). The services close when the
+    /// endpoint is dropped.
+    pub fn shutdown(&mut self) {
         let mut bye = self.template;
         bye.seq = self.last_seq.saturating_add(1);
         bye.flags |= flags::SHUTDOWN;

@@ -5,7 +5,8 @@
 
 use crate::SimError;
 use crate::output::{ensure_dir, write_json};
-use crate::pair::{Mode, PairOptions, Transport, Wake, run_pair};
+use crate::pair::{Mode, PairOptions, run_pair};
+use link::{StopFlag, TransportKind as Transport, Wake};
 use scenario::Scenario;
 use serde::Serialize;
 use std::path::Path;
@@ -48,13 +49,15 @@ pub struct LoopRow {
     pub controller_heap_allocations: Option<u64>,
 }
 
-/// Runs every case at every rate for `duration` seconds each.
+/// Runs every case at every rate for `duration` seconds each; SIGINT/SIGTERM (`stop`) end
+/// it after the current case's run directory is written.
 pub fn bench_loop(
     scenario: &Scenario,
     scenario_args: &[String],
     rates: &[f64],
     duration: f64,
     out: &Path,
+    stop: &StopFlag,
 ) -> Result<Vec<LoopRow>, SimError> {
     ensure_dir(out)?;
     let mut rows = Vec::new();
@@ -80,8 +83,11 @@ pub fn bench_loop(
                 connect_timeout: Duration::from_secs(10),
                 state_faults: Vec::new(),
                 controller_fault_nan_torque: None,
+                stop: stop.clone(),
             };
             let (_, sum) = run_pair(&opts)?;
+            // a stopped case is not a measurement: stop here (its run directory is written)
+            SimError::check(stop)?;
             let p50 = sum.latency.p50_us;
             let base = *base_p50.get_or_insert(p50);
             rows.push(LoopRow {

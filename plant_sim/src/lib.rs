@@ -12,6 +12,7 @@ pub mod montecarlo;
 pub mod output;
 pub mod pair;
 pub mod plot;
+pub mod spawn;
 pub mod trajectory;
 
 /// Errors of the simulation front end, split by who is to blame (for the exit code).
@@ -23,6 +24,15 @@ pub enum SimError {
     /// The run could not complete (controller refused a state, I/O failed). Exit code 1.
     #[error("{0}")]
     Run(String),
+    /// The process layer failed.
+    #[error("{0}")]
+    Link(#[from] link::LinkError),
+    /// The controller refused the run: the two processes' settings differ. Exit code 2.
+    #[error("controller_node refused the run: {0}")]
+    Mismatch(link::Refusal),
+    /// SIGINT or SIGTERM stopped the work (what finished was written). Exit code 130/143.
+    #[error("stopped by {0}")]
+    Interrupted(link::StopSignal),
 }
 
 impl From<scenario::ScenarioError> for SimError {
@@ -32,11 +42,22 @@ impl From<scenario::ScenarioError> for SimError {
 }
 
 impl SimError {
-    /// The process exit code for this error.
-    pub fn exit_code(&self) -> i32 {
+    /// The process exit status for this error (`link::Exit`, shared with `controller_node`).
+    pub fn exit(&self) -> link::Exit {
         match self {
-            SimError::Input(_) => 2,
-            SimError::Run(_) => 1,
+            SimError::Input(_) | SimError::Mismatch(_) => link::Exit::BadInput,
+            SimError::Link(link::LinkError::InvalidRunName(_)) => link::Exit::BadInput,
+            SimError::Link(link::LinkError::AlreadyRunning { .. }) => link::Exit::BadInput,
+            SimError::Run(_) | SimError::Link(_) => link::Exit::Failed,
+            SimError::Interrupted(s) => link::Exit::Signal(*s),
+        }
+    }
+
+    /// Fails with [`SimError::Interrupted`] when a stop signal has arrived.
+    pub fn check(stop: &link::StopFlag) -> Result<(), SimError> {
+        match stop.requested() {
+            Some(s) => Err(SimError::Interrupted(s)),
+            None => Ok(()),
         }
     }
 }

@@ -12,15 +12,20 @@
 //! 1 the run could not complete.
 
 use clap::{Args, Parser, Subcommand};
+use controller::Law;
 use indicatif::{ProgressBar, ProgressStyle};
+use link::{StopFlag, TransportKind, Wake};
 use plant_sim::SimError;
 use plant_sim::montecarlo;
 use plant_sim::output::{Summary, ensure_dir, write_json, write_trajectory_csv};
+use plant_sim::pair::Mode;
 use plant_sim::plot::trajectory_figure;
 use plant_sim::trajectory::simulate;
 use scenario::Scenario;
+use scenario::cli::{ScenarioSource, law_parser, positive_seconds};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Duration;
 
 #[derive(Parser)]
 #[command(
@@ -48,56 +53,43 @@ enum Command {
 #[derive(Args)]
 struct BenchLoopArgs {
     #[command(flatten)]
-    source: Source,
+    source: ScenarioSource,
     /// Loop rates to measure, comma-separated (Hz).
-    #[arg(long, value_name = "LIST", default_value = "1000,10000")]
-    rates: String,
+    #[arg(
+        long,
+        value_name = "LIST",
+        default_value = "1000,10000",
+        value_delimiter = ','
+    )]
+    rates: Vec<f64>,
     /// Seconds per case and rate.
-    #[arg(long, value_name = "S", default_value_t = 5.0)]
-    duration: f64,
+    #[arg(long, value_name = "S", default_value = "5", value_parser = positive_seconds)]
+    duration: Duration,
     /// Output directory; default out/bench-loop.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
 }
 
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum ModeArg {
-    Lockstep,
-    Realtime,
-}
-
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum TransportArg {
-    Iceoryx2,
-    Uds,
-}
-
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum WakeArg {
-    Spin,
-    Event,
-}
-
 #[derive(Args)]
 struct RunArgs {
     #[command(flatten)]
-    source: Source,
+    source: ScenarioSource,
     /// lockstep: exact, waits for each command; realtime: steps on the wall clock.
-    #[arg(long, value_enum, default_value = "realtime")]
-    mode: ModeArg,
+    #[arg(long, value_enum, default_value_t = Mode::Realtime)]
+    mode: Mode,
     /// Real-time rate; the control period becomes 1/F.
     #[arg(long, value_name = "F", default_value_t = 1000.0)]
     rate_hz: f64,
     /// How the processes wait for each other's messages: event (they sleep; robust on a
     /// shared machine) or spin (busy polling; lowest latency, needs a core per process).
-    #[arg(long, value_enum, default_value = "event")]
-    wake: WakeArg,
+    #[arg(long, value_enum, default_value_t = Wake::Event)]
+    wake: Wake,
     /// Override the scenario's duration (s).
-    #[arg(long, value_name = "S")]
-    duration: Option<f64>,
+    #[arg(long, value_name = "S", value_parser = positive_seconds)]
+    duration: Option<Duration>,
     /// Transport: iceoryx2, or uds (the Unix-socket baseline; spawned controllers follow).
-    #[arg(long, value_enum, default_value = "iceoryx2")]
-    transport: TransportArg,
+    #[arg(long, value_enum, default_value_t = TransportKind::Iceoryx2)]
+    transport: TransportKind,
     /// Do not start controller_node; wait for one started by hand.
     #[arg(long)]
     no_spawn: bool,
@@ -111,11 +103,11 @@ struct RunArgs {
     #[arg(long, value_name = "N", default_value_t = 3)]
     miss_limit: u32,
     /// Lockstep: seconds to wait for each command.
-    #[arg(long, value_name = "S", default_value_t = 5.0)]
-    lockstep_timeout: f64,
+    #[arg(long, value_name = "S", default_value = "5", value_parser = positive_seconds)]
+    lockstep_timeout: Duration,
     /// Seconds to wait for the controller (default 10, or 60 with --no-spawn).
-    #[arg(long, value_name = "S")]
-    connect_timeout: Option<f64>,
+    #[arg(long, value_name = "S", value_parser = positive_seconds)]
+    connect_timeout: Option<Duration>,
     /// Test builds only (feature `fault-injection`): K:version|group|nan publishes a
     /// corrupted state instead of state K.
     #[cfg(feature = "fault-injection")]
@@ -128,32 +120,12 @@ struct RunArgs {
 }
 
 #[derive(Args, Default)]
-struct Source {
-    /// Scenario file (TOML).
-    #[arg(long, value_name = "FILE", conflicts_with = "builtin")]
-    scenario: Option<PathBuf>,
-    /// Built-in scenario: seed, montecarlo, se3_circle.
-    #[arg(long, value_name = "NAME")]
-    builtin: Option<String>,
-}
-
-impl Source {
-    fn load(&self, default: &str) -> Result<Scenario, SimError> {
-        Ok(match (&self.scenario, &self.builtin) {
-            (Some(p), _) => Scenario::from_file(p)?,
-            (None, Some(n)) => Scenario::builtin(n)?,
-            (None, None) => Scenario::builtin(default)?,
-        })
-    }
-}
-
-#[derive(Args, Default)]
 struct SimArgs {
     #[command(flatten)]
-    source: Source,
-    /// Override the scenario's law: eqt, gt, nog, asym.
-    #[arg(long, value_name = "L")]
-    law: Option<String>,
+    source: ScenarioSource,
+    /// Override the scenario's law.
+    #[arg(long, value_name = "L", value_parser = law_parser())]
+    law: Option<Law>,
     /// Output directory (created if needed); default out/<scenario name>.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
@@ -171,8 +143,8 @@ struct McArgs {
     #[arg(long, default_value_t = 1, value_name = "S")]
     seed: u64,
     /// Laws to compare, comma-separated.
-    #[arg(long, default_value = "eqt,gt,nog,asym", value_name = "LIST")]
-    laws: String,
+    #[arg(long, default_value = "eqt,gt,nog,asym", value_name = "LIST", value_delimiter = ',', value_parser = law_parser())]
+    laws: Vec<Law>,
     /// Samples CSV (header rx,ry,rz,wx,wy,wz), one run per row.
     #[arg(long, value_name = "FILE")]
     samples: Option<PathBuf>,
@@ -196,9 +168,9 @@ fn progress(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
-fn sim(args: SimArgs) -> Result<(), SimError> {
+fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
     let mut s = args.source.load("seed")?;
-    if let Some(l) = &args.law {
+    if let Some(l) = args.law {
         s = s.with_law(l)?;
     }
     let out = args.out.unwrap_or_else(|| Path::new("out").join(&s.name));
@@ -207,7 +179,9 @@ fn sim(args: SimArgs) -> Result<(), SimError> {
     let traj = simulate(&s, &|k| {
         if k % 256 == 0 {
             bar.set_position(k);
+            SimError::check(stop)?;
         }
+        Ok(())
     })?;
     bar.finish_and_clear();
     write_trajectory_csv(&traj, &out.join("trajectory.csv"))?;
@@ -250,23 +224,12 @@ fn sim(args: SimArgs) -> Result<(), SimError> {
     Ok(())
 }
 
-fn montecarlo_cmd(args: McArgs) -> Result<(), SimError> {
+fn montecarlo_cmd(args: McArgs, stop: &StopFlag) -> Result<(), SimError> {
     let base = match &args.scenario {
         Some(p) => Scenario::from_file(p)?,
         None => Scenario::builtin("montecarlo")?,
     };
-    let laws = args
-        .laws
-        .split(',')
-        .map(|n| {
-            controller::Law::from_name(n.trim()).ok_or_else(|| {
-                SimError::Input(format!(
-                    "--laws: unknown law `{}` (expected eqt, gt, nog, asym)",
-                    n.trim()
-                ))
-            })
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    let laws = args.laws;
     if args.threads == Some(0) {
         return Err(SimError::Input("--threads: must be at least 1".to_owned()));
     }
@@ -284,9 +247,18 @@ fn montecarlo_cmd(args: McArgs) -> Result<(), SimError> {
         .unwrap_or_else(|| Path::new("out").join("montecarlo"));
     ensure_dir(&out)?;
     let bar = progress((samples.len() * laws.len()) as u64, "montecarlo");
-    let results = montecarlo::run_all(&base, &samples, &laws, args.threads, &|| bar.inc(1))?;
+    let results = montecarlo::run_all(&base, &samples, &laws, args.threads, &|| bar.inc(1), stop)?;
     bar.finish_and_clear();
     montecarlo::write_runs_csv(&results, &out.join("runs.csv"))?;
+    if let Some(sig) = stop.requested() {
+        eprintln!(
+            "{sig}: stopped after {} of {} runs; wrote {}/runs.csv",
+            results.len(),
+            samples.len() * laws.len(),
+            out.display()
+        );
+        return Err(SimError::Interrupted(sig));
+    }
     let mean = montecarlo::means(&results, &laws);
     montecarlo::write_mean_csv(&mean, &laws, base.control_period, &out.join("mean.csv"))?;
     let stats = montecarlo::stats(&results, &laws);
@@ -313,50 +285,27 @@ fn montecarlo_cmd(args: McArgs) -> Result<(), SimError> {
     Ok(())
 }
 
-fn seconds(name: &str, v: f64) -> Result<std::time::Duration, SimError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(std::time::Duration::from_secs_f64(v))
-    } else {
-        Err(SimError::Input(format!(
-            "{name}: must be a positive number of seconds, got {v}"
-        )))
-    }
-}
-
-fn scenario_args(source: &Source) -> Vec<String> {
-    match (&source.scenario, &source.builtin) {
-        (Some(p), _) => {
-            let abs = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
-            vec!["--scenario".to_owned(), abs.display().to_string()]
-        }
-        (None, Some(n)) => vec!["--builtin".to_owned(), n.clone()],
-        (None, None) => vec!["--builtin".to_owned(), "seed".to_owned()],
-    }
-}
-
-fn bench_loop_cmd(args: BenchLoopArgs) -> Result<(), SimError> {
+fn bench_loop_cmd(args: BenchLoopArgs, stop: &StopFlag) -> Result<(), SimError> {
     let scenario = args.source.load("seed")?;
-    seconds("--duration", args.duration)?;
-    let rates = args
-        .rates
-        .split(',')
-        .map(|r| match r.trim().parse::<f64>() {
-            Ok(x) if x.is_finite() && x > 0.0 && x <= 100_000.0 => Ok(x),
-            _ => Err(SimError::Input(format!(
-                "--rates: `{}` is not a rate in (0, 100000] Hz",
-                r.trim()
-            ))),
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    let rates = args.rates;
+    if let Some(r) = rates
+        .iter()
+        .find(|x| !(x.is_finite() && **x > 0.0 && **x <= 100_000.0))
+    {
+        return Err(SimError::Input(format!(
+            "--rates: `{r}` is not a rate in (0, 100000] Hz"
+        )));
+    }
     let out = args
         .out
         .unwrap_or_else(|| Path::new("out").join("bench-loop"));
     let rows = plant_sim::bench_loop::bench_loop(
         &scenario,
-        &scenario_args(&args.source),
+        &args.source.args("seed"),
         &rates,
-        args.duration,
+        args.duration.as_secs_f64(),
         &out,
+        stop,
     )?;
     println!(
         "round trip of the controller loop (state published -> command received), scenario {}:",
@@ -370,14 +319,12 @@ fn bench_loop_cmd(args: BenchLoopArgs) -> Result<(), SimError> {
     Ok(())
 }
 
-fn run_cmd(args: RunArgs) -> Result<(), SimError> {
-    use plant_sim::pair::{Mode, PairOptions, Wake, run_pair};
+fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
+    use plant_sim::pair::{PairOptions, run_pair};
     let mut scenario = args.source.load("seed")?;
     if let Some(d) = args.duration {
-        seconds("--duration", d)?;
-        scenario.duration = d;
+        scenario.duration = d.as_secs_f64();
     }
-    let scenario_args = scenario_args(&args.source);
     #[allow(unused_mut)]
     let mut state_faults = Vec::new();
     #[cfg(feature = "fault-injection")]
@@ -400,37 +347,27 @@ fn run_cmd(args: RunArgs) -> Result<(), SimError> {
     let spawn = !args.no_spawn;
     let opts = PairOptions {
         scenario,
-        scenario_args,
-        mode: match args.mode {
-            ModeArg::Lockstep => Mode::Lockstep,
-            ModeArg::Realtime => Mode::Realtime,
-        },
+        scenario_args: args.source.args("seed"),
+        mode: args.mode,
         rate_hz: args.rate_hz,
-        wake: match args.wake {
-            WakeArg::Spin => Wake::Spin,
-            WakeArg::Event => Wake::Event,
-        },
-        transport: match args.transport {
-            TransportArg::Iceoryx2 => plant_sim::pair::Transport::Iceoryx2,
-            TransportArg::Uds => plant_sim::pair::Transport::Uds,
-        },
+        wake: args.wake,
+        transport: args.transport,
         spawn,
         run: args.name.clone(),
         out: args
             .out
             .unwrap_or_else(|| Path::new("out").join(format!("run-{}", args.name))),
         miss_limit: args.miss_limit,
-        lockstep_timeout: seconds("--lockstep-timeout", args.lockstep_timeout)?,
-        connect_timeout: seconds(
-            "--connect-timeout",
-            args.connect_timeout
-                .unwrap_or(if spawn { 10.0 } else { 60.0 }),
-        )?,
+        lockstep_timeout: args.lockstep_timeout,
+        connect_timeout: args
+            .connect_timeout
+            .unwrap_or(Duration::from_secs(if spawn { 10 } else { 60 })),
         state_faults,
         #[cfg(feature = "fault-injection")]
         controller_fault_nan_torque: args.fault_nan_torque,
         #[cfg(not(feature = "fault-injection"))]
         controller_fault_nan_torque: None,
+        stop: stop.clone(),
     };
     let (_, s) = run_pair(&opts)?;
     let f = &s.sim.final_errors;
@@ -480,23 +417,33 @@ fn run_cmd(args: RunArgs) -> Result<(), SimError> {
         "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}",
         opts.out.display()
     );
-    Ok(())
+    match stop.requested() {
+        Some(sig) if s.interrupted => Err(SimError::Interrupted(sig)),
+        _ => Ok(()),
+    }
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    let stop = match StopFlag::install() {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: cannot handle signals: {e}");
+            return link::Exit::Failed.into();
+        }
+    };
     let result = match cli.command {
-        None => sim(SimArgs::default()),
-        Some(Command::Sim(a)) => sim(a),
-        Some(Command::Montecarlo(a)) => montecarlo_cmd(a),
-        Some(Command::Run(a)) => run_cmd(a),
-        Some(Command::BenchLoop(a)) => bench_loop_cmd(a),
+        None => sim(SimArgs::default(), &stop),
+        Some(Command::Sim(a)) => sim(a, &stop),
+        Some(Command::Montecarlo(a)) => montecarlo_cmd(a, &stop),
+        Some(Command::Run(a)) => run_cmd(a, &stop),
+        Some(Command::BenchLoop(a)) => bench_loop_cmd(a, &stop),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
-            ExitCode::from(e.exit_code() as u8)
+            e.exit().into()
         }
     }
 }

@@ -1,4 +1,4 @@
-//! The extended paper's Monte Carlo study (its Figure 3; MATH.md, "The simulations").
+//! The extended paper's Monte Carlo study (its Figure 3; docs/maths.md, "The simulations").
 //!
 //! Each run starts at `R(0) = R_d(0)·exp(hat(r))`, `ω(0) = ω_d(0) + w`. Drawn samples take
 //! `R = Rz(θ)Ry(φ)Rx(ψ)` with the Euler angles uniform on [−π, π] and `r = log(R)`, and
@@ -132,13 +132,16 @@ pub struct RunResult {
     pub series: Vec<[f64; 4]>,
 }
 
-/// Runs every (sample, law) pair; results ordered by run, then by the order of `laws`.
+/// Runs every (sample, law) pair; results ordered by run, then by the order of `laws`. Once
+/// `stop` is set, runs not yet started are skipped: the result holds the runs that finished
+/// (check the flag afterwards).
 pub fn run_all(
     base: &Scenario,
     samples: &[Sample],
     laws: &[Law],
     threads: Option<usize>,
     on_done: &(dyn Fn() + Sync),
+    stop: &link::StopFlag,
 ) -> Result<Vec<RunResult>, SimError> {
     if base.group != GroupKind::So3 {
         return Err(SimError::Input(format!(
@@ -148,7 +151,7 @@ pub fn run_all(
         )));
     }
     for law in laws {
-        base.clone().with_law(law.name())?;
+        base.clone().with_law(*law)?;
     }
     let jobs: Vec<(usize, Law)> = (0..samples.len())
         .flat_map(|i| laws.iter().map(move |l| (i, *l)))
@@ -156,11 +159,15 @@ pub fn run_all(
     let work = || {
         jobs.par_iter()
             .map(|(i, law)| {
+                if stop.requested().is_some() {
+                    return Ok(None);
+                }
                 let r = one_run(base, *i, samples[*i], *law);
                 on_done();
-                r
+                r.map(Some)
             })
             .collect::<Result<Vec<_>, _>>()
+            .map(|runs| runs.into_iter().flatten().collect())
     };
     match threads {
         None => work(),
@@ -185,7 +192,7 @@ fn one_run(base: &Scenario, run: usize, sample: Sample, law: Law) -> Result<RunR
         SVector::from(w0),
     )
     .map_err(|e| SimError::Input(format!("run {run}: {e}")))?;
-    let traj = simulate_with::<So3, 3, 3>(&s, plant, &|_| {})
+    let traj = simulate_with::<So3, 3, 3>(&s, plant, &|_| Ok(()))
         .map_err(|e| SimError::Run(format!("run {run}, law {}: {e}", law.name())))?;
     let h = traj.control_period;
     Ok(RunResult {

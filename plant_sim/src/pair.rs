@@ -1,69 +1,43 @@
-//! `plant_sim run`: the plant process of the pair, talking to `controller_node` over
-//! iceoryx2 shared memory (`ipc_types`), in lockstep or against the wall clock.
+//! `plant_sim run`: the plant process of the pair, written against `link`'s
+//! [`PlantEndpoint`] like any plant (docs/architecture.md, "One control cycle").
 //!
 //! * **lockstep**: the plant publishes state k and waits for command k before integrating
 //!   `[t_k, t_{k+1})`; the result equals `plant_sim sim` bit for bit.
-//! * **realtime**: tick k+1 comes at `t0 + (k+1)/F` on CLOCK_MONOTONIC (absolute-time
-//!   `clock_nanosleep`, then a short spin — never an iceoryx2 timeout; in event mode the wait
-//!   for a command is a select(2) on the listener bounded by the tick). Command k must arrive
-//!   before tick k+1; otherwise it is a deadline miss and the previous torque is held. After
-//!   `miss_limit` consecutive misses the plant enters **safe mode**: damping only,
-//!   `τ = −K_d V` (the scenario's K_d, body frame, within the torque limit), which brings the
-//!   body to rest instead of tracking; it leaves safe mode at the first fresh command.
+//! * **realtime**: tick k+1 comes at `t0 + (k+1)/F` on CLOCK_MONOTONIC
+//!   ([`link::clock::sleep_until`]); command k must arrive before it. What is applied is the
+//!   [`DeadlinePolicy`]'s decision: the command, the held torque, or the safe-mode torque
+//!   (`controller::law::safe_mode_torque`) after `miss_limit` consecutive misses.
+//!
+//! SIGINT/SIGTERM stop the loop at the next cycle; the cycles that ran are written and the
+//! summary says `"interrupted": true` (docs/architecture.md, "Stopping a run").
 
 use crate::SimError;
 use crate::output::{Summary, ensure_dir, write_json, write_trajectory_csv};
 use crate::plot::trajectory_figure;
-use crate::trajectory::{Row, Trajectory};
-use controller::GroupKind;
-use controller::group::{MatrixLieGroup, Se3, So3};
+use crate::spawn::Spawned;
+use crate::trajectory::{Row, Trajectory, input};
+use controller::group::{MatrixLieGroup, OnGroup};
+use controller::law::{safe_mode_torque, saturate};
 use hdrhistogram::Histogram;
-use ipc_types::ipc::{Link, PlantPorts, monotonic_ns, node_alive};
-use ipc_types::uds::PlantUds;
-use ipc_types::{CommandMsg, Reject, StateMsg, check_command, flags};
-use nalgebra::{SMatrix, SVector};
+use ipc_types::{StateMsg, group_code};
+use link::{
+    Command, DeadlinePolicy, Decision, NoCommand, PlantConfig, PlantEndpoint, StopFlag, Transition,
+    TransportKind, Wake, clock,
+};
+use nalgebra::SVector;
 use scenario::Scenario;
 use serde::Serialize;
 use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// How the plant's clock runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Mode {
     /// Wait for each command; exact.
     Lockstep,
     /// Step on the wall clock.
     Realtime,
-}
-
-/// How each side waits for the other's message.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Wake {
-    /// Busy polling: lowest latency, a core per waiting process.
-    Spin,
-    /// iceoryx2 events: the waiting process sleeps.
-    Event,
-}
-
-/// How the two processes exchange messages.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Transport {
-    /// iceoryx2 shared memory (the product).
-    Iceoryx2,
-    /// Unix datagram sockets (the benchmark baseline).
-    Uds,
-}
-
-impl Transport {
-    /// `iceoryx2` or `uds`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Transport::Iceoryx2 => "iceoryx2",
-            Transport::Uds => "uds",
-        }
-    }
 }
 
 /// A corrupted state to publish instead of the real one (tests of the controller's checks).
@@ -91,7 +65,7 @@ pub struct PairOptions {
     /// Busy polling or events.
     pub wake: Wake,
     /// iceoryx2, or the Unix-socket baseline.
-    pub transport: Transport,
+    pub transport: TransportKind,
     /// Spawn `controller_node` (else wait for one started by hand).
     pub spawn: bool,
     /// Run name.
@@ -108,6 +82,8 @@ pub struct PairOptions {
     pub state_faults: Vec<(u64, StateFault)>,
     /// Test only: the spawned controller publishes a NaN torque instead of command k.
     pub controller_fault_nan_torque: Option<u64>,
+    /// Set by SIGINT/SIGTERM.
+    pub stop: StopFlag,
 }
 
 /// Percentiles of a latency histogram, in microseconds.
@@ -154,6 +130,10 @@ pub struct PairSummary {
     pub rate_hz: Option<f64>,
     /// Control cycles (rows).
     pub cycles: u64,
+    /// Whether SIGINT/SIGTERM stopped the run before its end.
+    pub interrupted: bool,
+    /// The signal that stopped it (`SIGINT`, `SIGTERM`).
+    pub signal: Option<String>,
     /// Round trip: state published → command received (excludes the connection cycle).
     pub latency: Percentiles,
     /// The controller's compute time (state received → command published).
@@ -184,67 +164,8 @@ fn log(msg: std::fmt::Arguments) {
     eprintln!("plant_sim: {msg}");
 }
 
-/// The spawned controller; killed and reaped on drop, so no zombie outlives the plant.
-struct Spawned(Option<Child>);
-
-impl Spawned {
-    fn exited(&mut self) -> Option<std::process::ExitStatus> {
-        self.0.as_mut().and_then(|c| c.try_wait().ok().flatten())
-    }
-
-    fn finish(&mut self, grace: Duration) -> Option<i32> {
-        let mut child = self.0.take()?;
-        let until = Instant::now() + grace;
-        loop {
-            if let Ok(Some(status)) = child.try_wait() {
-                return status.code();
-            }
-            if Instant::now() > until {
-                let _ = child.kill();
-                let _ = child.wait();
-                log(format_args!(
-                    "controller_node did not exit within {grace:?}; killed"
-                ));
-                return None;
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        }
-    }
-}
-
-impl Drop for Spawned {
-    fn drop(&mut self) {
-        if let Some(mut c) = self.0.take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
-/// Sleeps until `deadline` (CLOCK_MONOTONIC ns): absolute-time sleep to 40 µs before it, then
-/// spin.
-pub fn sleep_until(deadline: u64) {
-    const SPIN_NS: u64 = 40_000;
-    if deadline > SPIN_NS {
-        let early = deadline - SPIN_NS;
-        if monotonic_ns() < early {
-            let ts = nix::sys::time::TimeSpec::new(
-                (early / 1_000_000_000) as i64,
-                (early % 1_000_000_000) as i64,
-            );
-            let _ = nix::time::clock_nanosleep(
-                nix::time::ClockId::CLOCK_MONOTONIC,
-                nix::time::ClockNanosleepFlags::TIMER_ABSTIME,
-                &ts,
-            );
-        }
-    }
-    while monotonic_ns() < deadline {
-        std::hint::spin_loop();
-    }
-}
-
-/// Runs the pair; returns the trajectory and the summary (also written to `out`).
+/// Runs the pair; returns the trajectory and the summary (also written to `out`). An
+/// interrupted run is written too, and returned with `interrupted: true`.
 pub fn run_pair(opts: &PairOptions) -> Result<(Trajectory, PairSummary), SimError> {
     if opts.mode == Mode::Realtime
         && !(opts.rate_hz.is_finite() && opts.rate_hz > 0.0 && opts.rate_hz <= 100_000.0)
@@ -259,465 +180,455 @@ pub fn run_pair(opts: &PairOptions) -> Result<(Trajectory, PairSummary), SimErro
             "--miss-limit: must be at least 1".to_owned(),
         ));
     }
-    if ipc_types::service_names(&opts.run).is_none() {
-        return Err(SimError::Input(format!(
-            "--name: invalid run name `{}` (1-64 of A-Z a-z 0-9 _ -)",
-            opts.run
-        )));
+    link::check_run_name(&opts.run)?;
+    opts.scenario.group.dispatch(Pair(opts))
+}
+
+struct Pair<'a>(&'a PairOptions);
+
+impl OnGroup for Pair<'_> {
+    type Output = Result<(Trajectory, PairSummary), SimError>;
+    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+        run_group::<G, N, M>(self.0)
     }
-    let setup = |e: String| SimError::Run(format!("IPC set-up failed: {e}"));
-    match opts.transport {
-        Transport::Iceoryx2 => {
-            let names = ipc_types::service_names(&opts.run)
-                .ok_or_else(|| SimError::Input("bad run name".to_owned()))?;
-            if node_alive(&names.plant_node) {
-                return Err(SimError::Input(format!(
-                    "a plant for run `{}` is already running: choose another --name",
-                    opts.run
+}
+
+/// The loop's figures.
+struct Stats {
+    latency: Histogram<u64>,
+    compute: Histogram<u64>,
+    lateness: Histogram<u64>,
+    last_allocations: Option<u64>,
+}
+
+impl Stats {
+    fn new() -> Result<Stats, SimError> {
+        let h = Histogram::<u64>::new_with_bounds(1, 60_000_000_000, 3)
+            .map_err(|e| SimError::Run(e.to_string()))?;
+        Ok(Stats {
+            latency: h.clone(),
+            compute: h.clone(),
+            lateness: h,
+            last_allocations: None,
+        })
+    }
+
+    fn command(&mut self, c: &Command, published: u64, first: bool) {
+        if !first {
+            let _ = self
+                .latency
+                .record(c.received_ns.saturating_sub(published).max(1));
+        }
+        let _ = self.compute.record(c.msg.compute_ns.max(1));
+        self.last_allocations = Some(c.msg.heap_allocations);
+    }
+}
+
+/// The plant side of one run: body, scenario, endpoint, policy and records.
+struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
+    opts: &'a PairOptions,
+    s: Scenario,
+    steps: u64,
+    period_ns: u64,
+    plant: controller::integrator::RigidBody<f64, G, N, M>,
+    reference: controller::Reference<f64, G, N, M>,
+    cfg: controller::ControllerConfig<f64, N, M>,
+    ep: PlantEndpoint,
+    policy: DeadlinePolicy,
+    stats: Stats,
+    rows: Vec<Row>,
+    status: Vec<u8>,
+    tau: SVector<f64, M>,
+    published: u64,
+    t0: u64,
+}
+
+fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    opts: &PairOptions,
+) -> Result<(Trajectory, PairSummary), SimError> {
+    let mut run = PlantRun::<G, N, M>::new(opts)?;
+    ensure_dir(&opts.out)?;
+    let mut child = Spawned::start(opts)?;
+    let first = run.connect(&mut child)?;
+    let started = Instant::now();
+    let mut pending = Some(first);
+    let mut interrupted = None;
+    for k in 0..=run.steps {
+        run.cycle(k, pending.take(), &mut child)?;
+        if k == run.steps {
+            break;
+        }
+        if let Some(sig) = opts.stop.requested() {
+            log(format_args!(
+                "{sig} at t = {:.3} s: stopping the run, writing what ran",
+                k as f64 * run.s.control_period
+            ));
+            interrupted = Some(sig);
+            break;
+        }
+        run.advance(k)?;
+    }
+    run.live_status_end();
+    let wall = started.elapsed();
+    let (rejected, late) = (run.ep.rejected_commands(), run.ep.late_commands());
+    // The run is over: tell the controller, then reap it.
+    run.ep.shutdown();
+    let controller_exit = child.finish(Duration::from_secs(3));
+    let out = run.write(interrupted, controller_exit, rejected, late)?;
+    log(format_args!(
+        "{} cycles in {:.3} s of wall time",
+        out.1.cycles,
+        wall.as_secs_f64()
+    ));
+    Ok(out)
+}
+
+impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G, N, M> {
+    /// The scenario at the run's period, the body, the reference for the records, the
+    /// endpoint.
+    fn new(opts: &'a PairOptions) -> Result<Self, SimError> {
+        let mut s = opts.scenario.clone();
+        let fingerprint = s.fingerprint();
+        let steps = match opts.mode {
+            Mode::Realtime => {
+                s.control_period = 1.0 / opts.rate_hz;
+                (s.duration * opts.rate_hz).round() as u64
+            }
+            Mode::Lockstep => s.steps(),
+        };
+        let plant = s.plant_body::<G, N, M>().map_err(input(&s))?;
+        let reference = s.reference_generator::<G, N, M>().map_err(input(&s))?;
+        let cfg = s.controller_config::<N, M>();
+        let ep = PlantEndpoint::open(PlantConfig {
+            run: opts.run.clone(),
+            group: s.group,
+            control_period: s.control_period,
+            transport: opts.transport,
+            wake: opts.wake,
+            fingerprint,
+            scenario: s.name.clone(),
+        })?;
+        Ok(PlantRun {
+            opts,
+            steps,
+            period_ns: (s.control_period * 1e9).round() as u64,
+            plant,
+            reference,
+            cfg,
+            ep,
+            policy: DeadlinePolicy::new(opts.miss_limit),
+            stats: Stats::new()?,
+            rows: Vec::with_capacity(steps as usize + 1),
+            status: Vec::new(),
+            tau: SVector::zeros(),
+            published: 0,
+            t0: 0,
+            s,
+        })
+    }
+
+    fn realtime(&self) -> bool {
+        self.opts.mode == Mode::Realtime
+    }
+
+    /// Publishes state k (or the test's corrupted version of it).
+    fn publish(&mut self, k: u64) -> Result<(), SimError> {
+        let q = *self.plant.configuration();
+        let v = self.plant.velocity();
+        self.published = match self.opts.state_faults.iter().find(|(fk, _)| *fk == k) {
+            None => self.ep.publish(k, &q, &v)?,
+            Some(&(_, fault)) => {
+                let mut msg = self.ep.state_template();
+                msg.seq = k;
+                msg.t = k as f64 * self.s.control_period;
+                msg.set_state(&q, &v);
+                corrupt(&mut msg, fault, self.s.group);
+                log(format_args!(
+                    "fault injection: publishing a corrupted state ({fault:?}) for seq {k}"
+                ));
+                self.ep.publish_message(&msg)?
+            }
+        };
+        Ok(())
+    }
+
+    /// Publishes state 0 and waits for command 0; the clock starts when it arrives.
+    fn connect(&mut self, child: &mut Spawned) -> Result<Command, SimError> {
+        let opts = self.opts;
+        if opts.spawn {
+            log(format_args!(
+                "run `{}`: started controller_node, waiting for it",
+                opts.run
+            ));
+        } else {
+            log(format_args!(
+                "run `{}`: waiting up to {:.0} s for a controller (controller_node --name {} ...)",
+                opts.run,
+                opts.connect_timeout.as_secs_f64(),
+                opts.run
+            ));
+        }
+        self.publish(0)?;
+        let give_up = Instant::now() + opts.connect_timeout;
+        let first = loop {
+            match self.ep.wait_command(0, clock::monotonic_ns() + 1_000_000) {
+                Ok(c) => break c,
+                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(r)),
+                Err(NoCommand::Missed) => {}
+            }
+            self.log_rejections();
+            SimError::check(&opts.stop)?;
+            if let Some(status) = child.exited() {
+                return Err(SimError::Run(format!(
+                    "controller_node exited before the run started ({status})"
                 )));
             }
-            let node = ipc_types::ipc::node(&opts.run, "plant").map_err(setup)?;
-            let ports = PlantPorts::open(&node, &opts.run).map_err(setup)?;
-            dispatch(opts, &ports)
-        }
-        Transport::Uds => {
-            let link = PlantUds::open(&opts.run, "plant").map_err(setup)?;
-            dispatch(opts, &link)
+            if Instant::now() > give_up {
+                return Err(SimError::Run(format!(
+                    "no controller answered on run `{}` within {:.0} s",
+                    opts.run,
+                    opts.connect_timeout.as_secs_f64()
+                )));
+            }
+        };
+        self.t0 = clock::monotonic_ns();
+        log(format_args!(
+            "controller connected; running {} steps {} ({} wake-up, period {} s)",
+            self.steps,
+            if self.realtime() {
+                "in real time"
+            } else {
+                "in lockstep"
+            },
+            self.opts.wake,
+            self.s.control_period
+        ));
+        Ok(first)
+    }
+
+    /// Command k in lockstep: waits for it (checking the controller and the stop flag).
+    fn lockstep_command(&mut self, k: u64, child: &mut Spawned) -> Result<Command, SimError> {
+        let give_up = Instant::now() + self.opts.lockstep_timeout;
+        loop {
+            match self.ep.wait_command(k, clock::monotonic_ns() + 20_000_000) {
+                Ok(c) => return Ok(c),
+                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(r)),
+                Err(NoCommand::Missed) => {}
+            }
+            self.log_rejections();
+            SimError::check(&self.opts.stop)?;
+            if let Some(status) = child.exited() {
+                return Err(SimError::Run(format!(
+                    "controller_node exited during the run ({status})"
+                )));
+            }
+            if Instant::now() > give_up {
+                return Err(SimError::Run(format!(
+                    "lockstep: no command for step {k} within {:.1} s",
+                    self.opts.lockstep_timeout.as_secs_f64()
+                )));
+            }
         }
     }
-}
 
-fn dispatch<L: Link<StateMsg, CommandMsg>>(
-    opts: &PairOptions,
-    link: &L,
-) -> Result<(Trajectory, PairSummary), SimError> {
-    match opts.scenario.group {
-        GroupKind::So3 => run_group::<So3, L, 3, 3>(opts, ipc_types::group::SO3, link),
-        GroupKind::Se3 => run_group::<Se3, L, 4, 6>(opts, ipc_types::group::SE3, link),
-    }
-}
-
-struct Waiter<'a, L> {
-    ports: &'a L,
-    group: u32,
-    wake: Wake,
-    rejected: u64,
-    logged: [bool; 5],
-    late: u64,
-}
-
-enum Got {
-    Command(CommandMsg, u64),
-    Deadline,
-}
-
-impl<L: Link<StateMsg, CommandMsg>> Waiter<'_, L> {
-    /// Waits for command `k` until `deadline` (ns; `None`: until `give_up`), calling `idle`
-    /// now and then (for liveness checks); `Err` when `give_up` passes.
-    fn wait(
+    /// Tick k: obtain command k, decide, record the row, wait for the tick's end.
+    fn cycle(
         &mut self,
         k: u64,
-        deadline: Option<u64>,
-        give_up: u64,
-        idle: &mut dyn FnMut() -> Result<(), SimError>,
-    ) -> Result<Got, SimError> {
-        let mut polls = 0u32;
-        loop {
-            if let Some(msg) = self.ports.receive() {
-                match check_command(&msg, self.group, k) {
-                    Ok(()) => return Ok(Got::Command(msg, monotonic_ns())),
-                    Err(Reject::Sequence) if msg.seq < k => self.late += 1,
-                    Err(kind) => {
-                        self.rejected += 1;
-                        if !self.logged[kind.index()] {
-                            self.logged[kind.index()] = true;
-                            log(format_args!(
-                                "rejected command seq {} ({}); it is never applied. Further rejections of this kind are counted, not logged",
-                                msg.seq,
-                                kind.name()
-                            ));
-                        }
-                    }
-                }
-            }
-            let now = monotonic_ns();
-            if deadline.is_some_and(|d| now >= d) {
-                return Ok(Got::Deadline);
-            }
-            if now >= give_up {
-                return Err(SimError::Run(format!("no command for step {k}: timed out")));
-            }
-            polls = polls.wrapping_add(1);
-            if polls.is_multiple_of(256) {
-                idle()?;
-            }
-            let until = deadline.unwrap_or(give_up);
-            match self.wake {
-                Wake::Spin => std::hint::spin_loop(),
-                Wake::Event => {
-                    // precise wait on the command event, bounded by the tick; untimed waits
-                    // (connection, lockstep) in 1 ms slices, so `idle` runs between them
-                    let mut wait = until.saturating_sub(now);
-                    if deadline.is_none() {
-                        wait = wait.min(1_000_000);
-                    }
-                    let _ = self.ports.wait_notified(Duration::from_nanos(wait));
-                    if deadline.is_none() || polls.is_multiple_of(16) {
-                        idle()?;
-                    }
-                }
-            }
-        }
-    }
-}
-
-fn publish<L: Link<StateMsg, CommandMsg>>(ports: &L, msg: StateMsg, notify: bool) -> u64 {
-    let stamp = ports.send(msg);
-    if notify {
-        ports.notify();
-    }
-    stamp
-}
-
-fn spawn_controller(opts: &PairOptions) -> Result<Child, SimError> {
-    let exe = std::env::current_exe()
-        .map_err(|e| SimError::Run(format!("cannot locate plant_sim: {e}")))?;
-    let path = exe.with_file_name("controller_node");
-    if !path.exists() {
-        return Err(SimError::Run(format!(
-            "{} not found: build it (cargo build --release --workspace) or start one by hand and pass --no-spawn",
-            path.display()
-        )));
-    }
-    let mut cmd = Command::new(&path);
-    cmd.args(&opts.scenario_args)
-        .args(["--name", &opts.run])
-        .stdin(Stdio::null());
-    if opts.transport == Transport::Uds {
-        cmd.args(["--transport", "uds"]);
-    }
-    if let Some(k) = opts.controller_fault_nan_torque {
-        cmd.args(["--fault-nan-torque", &k.to_string()]);
-    }
-    cmd.spawn()
-        .map_err(|e| SimError::Run(format!("cannot start {}: {e}", path.display())))
-}
-
-fn run_group<
-    G: MatrixLieGroup<N, M>,
-    L: Link<StateMsg, CommandMsg>,
-    const N: usize,
-    const M: usize,
->(
-    opts: &PairOptions,
-    group: u32,
-    ports: &L,
-) -> Result<(Trajectory, PairSummary), SimError> {
-    let realtime = opts.mode == Mode::Realtime;
-    let mut s = opts.scenario.clone();
-    let steps = if realtime {
-        s.control_period = 1.0 / opts.rate_hz;
-        (s.duration * opts.rate_hz).round() as u64
-    } else {
-        s.steps()
-    };
-    let period = s.control_period;
-    let period_ns = (period * 1e9).round() as u64;
-    let input = |e: controller::Error| SimError::Input(format!("scenario `{}`: {e}", s.name));
-    let mut plant = s.plant_body::<G, N, M>().map_err(input)?;
-    let mut monitor = s.reference_generator::<G, N, M>().map_err(input)?;
-    let cfg = s.controller_config::<N, M>();
-    let limit = cfg.torque_limit;
-    let disturbance = s.disturbance_vector::<M>();
-    ensure_dir(&opts.out)?;
-    let mut child = Spawned(if opts.spawn {
-        Some(spawn_controller(opts)?)
-    } else {
-        None
-    });
-    let event = opts.wake == Wake::Event;
-    let mut waiter = Waiter {
-        ports,
-        group,
-        wake: opts.wake,
-        rejected: 0,
-        logged: [false; 5],
-        late: 0,
-    };
-
-    let state_msg = |k: u64, q: &SMatrix<f64, N, N>, v: &SVector<f64, M>| {
-        let mut m = StateMsg::new(group);
-        m.seq = k;
-        m.t = controller::real::<f64>(k as f64) * period;
-        m.control_period = period;
-        m.flags = if event { flags::WAKE_EVENT } else { 0 };
-        for i in 0..N {
-            for j in 0..N {
-                m.q[i * N + j] = q[(i, j)];
-            }
-        }
-        for i in 0..M {
-            m.v[i] = v[i];
-        }
-        m
-    };
-    let publish_state =
-        |k: u64, q: &SMatrix<f64, N, N>, v: &SVector<f64, M>| -> Result<u64, SimError> {
-            let mut msg = state_msg(k, q, v);
-            if let Some(&(_, fault)) = opts.state_faults.iter().find(|(fk, _)| *fk == k) {
-                {
-                    match fault {
-                        StateFault::Version => msg.version += 1,
-                        StateFault::Group => {
-                            msg.group = if group == ipc_types::group::SO3 {
-                                ipc_types::group::SE3
-                            } else {
-                                ipc_types::group::SO3
-                            }
-                        }
-                        StateFault::Nan => msg.v[0] = f64::NAN,
-                    }
-                    log(format_args!(
-                        "fault injection: publishing a corrupted state ({fault:?}) for seq {k}"
-                    ));
-                }
-            }
-            Ok(publish(ports, msg, event))
+        pending: Option<Command>,
+        child: &mut Spawned,
+    ) -> Result<(), SimError> {
+        let deadline = self.t0 + (k + 1) * self.period_ns;
+        let got = match pending {
+            Some(c) => Some(c),
+            None if self.realtime() => match self.ep.wait_command(k, deadline) {
+                Ok(c) => Some(c),
+                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(r)),
+                Err(NoCommand::Missed) => None,
+            },
+            None => Some(self.lockstep_command(k, child)?),
         };
-
-    // Connect: publish state 0 (kept in the service's history for a late controller) and
-    // wait for command 0; the clock starts when it arrives.
-    if opts.spawn {
-        log(format_args!(
-            "run `{}`: started controller_node, waiting for it",
-            opts.run
-        ));
-    } else {
-        log(format_args!(
-            "run `{}`: waiting up to {:.0} s for a controller (controller_node --name {} ...)",
-            opts.run,
-            opts.connect_timeout.as_secs_f64(),
-            opts.run
-        ));
-    }
-    let q0 = *plant.configuration();
-    let v0 = plant.velocity();
-    let mut stamp = publish_state(0, &q0, &v0)?;
-    let connect_until = monotonic_ns() + opts.connect_timeout.as_nanos() as u64;
-    let mut connect_idle = || -> Result<(), SimError> {
-        ports.resend();
-        if let Some(status) = child.exited() {
-            return Err(SimError::Run(format!(
-                "controller_node exited before the run started ({status})"
-            )));
+        self.log_rejections();
+        if let Some(c) = &got {
+            self.stats.command(c, self.published, k == 0);
         }
-        std::thread::sleep(Duration::from_micros(500));
+        // the first command arrived before the clock started: it is on time by definition
+        let arrival = got.map(|c| link::Arrival {
+            at_ns: if k == 0 { deadline } else { c.received_ns },
+            ..c.arrival()
+        });
+        let step = self.policy.step(k, deadline, arrival);
+        let v = self.plant.velocity();
+        self.tau = match (step.decision, &got) {
+            (Decision::Fresh, Some(c)) => c.torque(),
+            (Decision::Safe, _) => {
+                safe_mode_torque(&self.cfg.kd, &v, self.cfg.torque_limit.as_ref())
+            }
+            _ => self.tau,
+        };
+        saturate(&mut self.tau, self.cfg.torque_limit.as_ref());
+        self.log_transition(k, step.transition, step.misses_in_row);
+        self.record(k, step.decision);
+        if self.realtime() {
+            clock::sleep_until(deadline);
+            let _ = self
+                .stats
+                .lateness
+                .record(clock::monotonic_ns().saturating_sub(deadline).max(1));
+        }
+        self.live_status();
         Ok(())
-    };
-    let first = match waiter.wait(0, None, connect_until, &mut connect_idle) {
-        Ok(Got::Command(c, t)) => (c, t),
-        Ok(Got::Deadline) | Err(_) => {
-            return Err(SimError::Run(format!(
-                "no controller answered on run `{}` within {:.0} s",
-                opts.run,
-                opts.connect_timeout.as_secs_f64()
-            )));
-        }
-    };
-    let t0 = monotonic_ns();
-    let started = Instant::now();
-    log(format_args!(
-        "controller connected; running {} steps {} ({} wake-up, period {} s)",
-        steps,
-        if realtime {
-            "in real time"
-        } else {
-            "in lockstep"
-        },
-        if event { "event" } else { "busy-poll" },
-        period
-    ));
+    }
 
-    let mut latency = Histogram::<u64>::new_with_bounds(1, 60_000_000_000, 3)
-        .map_err(|e| SimError::Run(e.to_string()))?;
-    let mut compute = latency.clone();
-    let mut lateness = latency.clone();
-    let mut rows = Vec::with_capacity(steps as usize + 1);
-    let mut status = Vec::new();
-    let mut tau = SVector::<f64, M>::zeros();
-    let (mut misses, mut in_row, mut safe_entries, mut safe_cycles) = (0u64, 0u32, 0u64, 0u64);
-    let mut safe = false;
-    let live = std::io::stderr().is_terminal();
-    let mut last_status = Instant::now();
-    let mut last_allocations = None;
-    let mut pending = Some(first);
+    /// Integrates `[t_k, t_{k+1})` under the held torque and publishes state k+1.
+    fn advance(&mut self, k: u64) -> Result<(), SimError> {
+        let applied = self.tau + self.s.disturbance_vector::<M>();
+        self.plant
+            .advance(&applied, self.s.control_period, self.s.plant_substeps);
+        self.reference.advance();
+        self.publish(k + 1)
+    }
 
-    for k in 0..=steps {
-        let q = *plant.configuration();
-        let v = plant.velocity();
-        // 1. Command k.
-        let got = match pending.take() {
-            Some((c, t)) => Got::Command(c, t),
-            None if realtime => {
-                let mut idle = || Ok(());
-                waiter.wait(k, Some(t0 + (k + 1) * period_ns), u64::MAX, &mut idle)?
-            }
-            None => {
-                let give_up = monotonic_ns() + opts.lockstep_timeout.as_nanos() as u64;
-                let mut idle = || -> Result<(), SimError> {
-                    if let Some(status) = child.exited() {
-                        return Err(SimError::Run(format!(
-                            "controller_node exited during the run ({status})"
-                        )));
-                    }
-                    Ok(())
-                };
-                waiter.wait(k, None, give_up, &mut idle).map_err(|_| {
-                    SimError::Run(format!(
-                        "lockstep: no command for step {k} within {:.1} s",
-                        opts.lockstep_timeout.as_secs_f64()
-                    ))
-                })?
-            }
-        };
-        // 2. The torque held over [t_k, t_{k+1}).
-        let row_status = match got {
-            Got::Command(c, received) => {
-                if k > 0 {
-                    let _ = latency.record(received.saturating_sub(stamp).max(1));
-                }
-                let _ = compute.record(c.compute_ns.max(1));
-                last_allocations = Some(c.heap_allocations);
-                tau = SVector::<f64, M>::from_fn(|i, _| c.tau[i]);
-                in_row = 0;
-                if safe {
-                    safe = false;
-                    log(format_args!(
-                        "t = {:.3} s: fresh commands are back, leaving safe mode",
-                        k as f64 * period
-                    ));
-                }
-                0
-            }
-            Got::Deadline => {
-                misses += 1;
-                in_row += 1;
-                if in_row >= opts.miss_limit && !safe {
-                    safe = true;
-                    safe_entries += 1;
-                    log(format_args!(
-                        "t = {:.3} s: {} consecutive deadline misses, entering SAFE MODE (damping only, tau = -K_d V)",
-                        k as f64 * period,
-                        in_row
-                    ));
-                }
-                if safe {
-                    safe_cycles += 1;
-                    tau = -(cfg.kd * v);
-                    2
-                } else {
-                    1
-                }
-            }
-        };
-        if let Some(l) = &limit {
-            for i in 0..M {
-                tau[i] = tau[i].clamp(-l[i], l[i]);
-            }
-        }
-        let t = controller::real::<f64>(k as f64) * period;
-        rows.push(Row::new::<G, N, M>(
+    fn record(&mut self, k: u64, decision: Decision) {
+        let t = controller::real::<f64>(k as f64) * self.s.control_period;
+        self.rows.push(Row::new::<G, N, M>(
             t,
-            &q,
-            &v,
-            &monitor.desired(),
-            &tau,
-            &cfg.inertia,
-            &cfg.k,
+            self.plant.configuration(),
+            &self.plant.velocity(),
+            &self.reference.desired(),
+            &self.tau,
+            &self.cfg.inertia,
+            &self.cfg.k,
         ));
-        if realtime {
-            status.push(row_status);
-            let tick = t0 + (k + 1) * period_ns;
-            sleep_until(tick);
-            let _ = lateness.record(monotonic_ns().saturating_sub(tick).max(1));
+        if self.realtime() {
+            self.status.push(decision.code());
         }
-        if live && last_status.elapsed() > Duration::from_millis(250) {
-            last_status = Instant::now();
-            let r = rows[rows.len() - 1];
+    }
+
+    fn log_transition(&self, k: u64, transition: Option<Transition>, in_row: u32) {
+        let t = k as f64 * self.s.control_period;
+        match transition {
+            Some(Transition::EnteredSafe) => log(format_args!(
+                "t = {t:.3} s: {in_row} consecutive deadline misses, entering SAFE MODE (damping only, tau = -K_d V)"
+            )),
+            Some(Transition::LeftSafe) => log(format_args!(
+                "t = {t:.3} s: fresh commands are back, leaving safe mode"
+            )),
+            None => {}
+        }
+    }
+
+    fn log_rejections(&mut self) {
+        while let Some(r) = self.ep.next_rejection() {
+            log(format_args!(
+                "rejected command seq {} ({}); it is never applied. Further rejections of this kind are counted, not logged",
+                r.msg.seq, r.kind
+            ));
+        }
+    }
+
+    /// A status line on a terminal, four times a second.
+    fn live_status(&mut self) {
+        let every = (0.25 / self.s.control_period).max(1.0) as usize;
+        if !self.rows.len().is_multiple_of(every) || !std::io::stderr().is_terminal() {
+            return;
+        }
+        if let Some(r) = self.rows.last() {
             eprint!(
                 "\r  t = {:8.3} s  L = {:10.4e}  misses {:6}  {}  RTT p50 {:7.1} us  ",
                 r.t,
                 r.lyapunov,
-                misses,
-                if safe { "SAFE MODE" } else { "tracking " },
-                latency.value_at_quantile(0.5) as f64 / 1000.0
+                self.policy.misses(),
+                if self.policy.in_safe_mode() {
+                    "SAFE MODE"
+                } else {
+                    "tracking "
+                },
+                self.stats.latency.value_at_quantile(0.5) as f64 / 1000.0
             );
         }
-        if k == steps {
-            break;
-        }
-        // 3. Integrate [t_k, t_{k+1}) and publish state k+1.
-        let applied = tau + disturbance;
-        plant.advance(&applied, period, s.plant_substeps);
-        monitor.advance();
-        stamp = publish_state(k + 1, plant.configuration(), &plant.velocity())?;
     }
-    if live {
-        eprintln!();
-    }
-    let elapsed = started.elapsed();
-    // The run is over: tell the controller, then reap it.
-    let mut bye = StateMsg::new(group);
-    bye.seq = steps + 1;
-    bye.flags = flags::SHUTDOWN;
-    publish(ports, bye, true);
-    let controller_exit = child.finish(Duration::from_secs(3));
 
-    let traj = Trajectory {
-        group: s.group,
-        control_period: period,
-        duration: steps as f64 * period,
-        rows,
-        status,
-    };
-    let summary = PairSummary {
-        sim: Summary::of(&traj, &s.name, s.law.name()),
-        mode: if realtime { "realtime" } else { "lockstep" }.to_owned(),
-        wake: if event { "event" } else { "spin" }.to_owned(),
-        run: opts.run.clone(),
-        rate_hz: realtime.then_some(opts.rate_hz),
-        cycles: steps + 1,
-        latency: Percentiles::of(&latency),
-        controller_compute: Percentiles::of(&compute),
-        tick_lateness: realtime.then(|| Percentiles::of(&lateness)),
-        deadline_misses: misses,
-        safe_mode_entries: safe_entries,
-        safe_mode_cycles: safe_cycles,
-        commands_rejected: waiter.rejected,
-        late_commands: waiter.late,
-        controller_exit,
-        transport: opts.transport.name().to_owned(),
-        controller_heap_allocations: last_allocations,
-    };
-    write_trajectory_csv(&traj, &opts.out.join("trajectory.csv"))?;
-    write_json(&summary, &opts.out.join("summary.json"))?;
-    let title = format!(
-        "{} — {} on {}, {} ({})",
-        s.name,
-        s.law.name().to_uppercase(),
-        s.group.name().to_uppercase(),
-        if realtime {
-            format!("real time at {} Hz", opts.rate_hz)
-        } else {
-            "lockstep".to_owned()
-        },
-        opts.run
-    );
-    trajectory_figure(&traj, &title, &opts.out.join("figure"))?;
-    log(format_args!(
-        "{} cycles in {:.3} s of wall time",
-        steps + 1,
-        elapsed.as_secs_f64()
-    ));
-    Ok((traj, summary))
+    fn live_status_end(&self) {
+        if std::io::stderr().is_terminal() {
+            eprintln!();
+        }
+    }
+
+    /// Writes trajectory.csv, summary.json and the figure.
+    fn write(
+        self,
+        interrupted: Option<link::StopSignal>,
+        controller_exit: Option<i32>,
+        rejected: u64,
+        late: u64,
+    ) -> Result<(Trajectory, PairSummary), SimError> {
+        let (opts, s) = (self.opts, &self.s);
+        let realtime = self.realtime();
+        let cycles = self.rows.len() as u64;
+        let traj = Trajectory {
+            group: s.group,
+            control_period: s.control_period,
+            duration: cycles.saturating_sub(1) as f64 * s.control_period,
+            rows: self.rows,
+            status: self.status,
+        };
+        let summary = PairSummary {
+            sim: Summary::of(&traj, &s.name, s.law.name()),
+            mode: if realtime { "realtime" } else { "lockstep" }.to_owned(),
+            wake: opts.wake.name().to_owned(),
+            run: opts.run.clone(),
+            rate_hz: realtime.then_some(opts.rate_hz),
+            cycles,
+            interrupted: interrupted.is_some(),
+            signal: interrupted.map(|s| s.name().to_owned()),
+            latency: Percentiles::of(&self.stats.latency),
+            controller_compute: Percentiles::of(&self.stats.compute),
+            tick_lateness: realtime.then(|| Percentiles::of(&self.stats.lateness)),
+            deadline_misses: if realtime { self.policy.misses() } else { 0 },
+            safe_mode_entries: self.policy.safe_entries(),
+            safe_mode_cycles: self.policy.safe_cycles(),
+            commands_rejected: rejected,
+            late_commands: late + self.policy.late(),
+            controller_exit,
+            transport: opts.transport.name().to_owned(),
+            controller_heap_allocations: self.stats.last_allocations,
+        };
+        write_trajectory_csv(&traj, &opts.out.join("trajectory.csv"))?;
+        write_json(&summary, &opts.out.join("summary.json"))?;
+        let title = format!(
+            "{} — {} on {}, {} ({}){}",
+            s.name,
+            s.law.name().to_uppercase(),
+            s.group.name().to_uppercase(),
+            if realtime {
+                format!("real time at {} Hz", opts.rate_hz)
+            } else {
+                "lockstep".to_owned()
+            },
+            opts.run,
+            if interrupted.is_some() {
+                ", interrupted"
+            } else {
+                ""
+            }
+        );
+        trajectory_figure(&traj, &title, &opts.out.join("figure"))?;
+        Ok((traj, summary))
+    }
+}
+
+/// Corrupts a state as a test asks.
+fn corrupt(msg: &mut StateMsg, fault: StateFault, group: controller::GroupKind) {
+    match fault {
+        StateFault::Version => msg.version += 1,
+        StateFault::Group => {
+            let other = controller::GroupKind::ALL
+                .into_iter()
+                .find(|g| *g != group)
+                .unwrap_or(group);
+            msg.group = group_code(other);
+        }
+        StateFault::Nan => msg.v[0] = f64::NAN,
+    }
 }

@@ -3,7 +3,7 @@
 use crate::SimError;
 use controller::GroupKind;
 use controller::closed_loop::{ClosedLoop, Sample};
-use controller::group::{MatrixLieGroup, Se3, So3};
+use controller::group::{MatrixLieGroup, OnGroup};
 use controller::integrator::RigidBody;
 use controller::law::Desired;
 use controller::semidirect::Phase;
@@ -131,21 +131,28 @@ impl Trajectory {
 }
 
 /// Runs the scenario's closed loop in this process. `on_step(k)` is called after each step
-/// (for progress display).
-pub fn simulate(s: &Scenario, on_step: &(dyn Fn(u64) + Sync)) -> Result<Trajectory, SimError> {
-    match s.group {
-        GroupKind::So3 => {
-            let plant = s.plant_body::<So3, 3, 3>().map_err(input(s))?;
-            simulate_with::<So3, 3, 3>(s, plant, on_step)
-        }
-        GroupKind::Se3 => {
-            let plant = s.plant_body::<Se3, 4, 6>().map_err(input(s))?;
-            simulate_with::<Se3, 4, 6>(s, plant, on_step)
-        }
+/// (progress display; an error from it, such as [`SimError::Interrupted`], stops the run).
+pub fn simulate(
+    s: &Scenario,
+    on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
+) -> Result<Trajectory, SimError> {
+    s.group.dispatch(Simulate { s, on_step })
+}
+
+struct Simulate<'a> {
+    s: &'a Scenario,
+    on_step: &'a (dyn Fn(u64) -> Result<(), SimError> + Sync),
+}
+
+impl OnGroup for Simulate<'_> {
+    type Output = Result<Trajectory, SimError>;
+    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+        let plant = self.s.plant_body::<G, N, M>().map_err(input(self.s))?;
+        simulate_with::<G, N, M>(self.s, plant, self.on_step)
     }
 }
 
-fn input(s: &Scenario) -> impl Fn(controller::Error) -> SimError + '_ {
+pub(crate) fn input(s: &Scenario) -> impl Fn(controller::Error) -> SimError + '_ {
     move |e| SimError::Input(format!("scenario `{}`: {e}", s.name))
 }
 
@@ -153,7 +160,7 @@ fn input(s: &Scenario) -> impl Fn(controller::Error) -> SimError + '_ {
 pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     s: &Scenario,
     plant: RigidBody<f64, G, N, M>,
-    on_step: &(dyn Fn(u64) + Sync),
+    on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
 ) -> Result<Trajectory, SimError> {
     let controller = s.controller::<G, N, M>().map_err(input(s))?;
     let reference = s.reference_generator::<G, N, M>().map_err(input(s))?;
@@ -169,7 +176,7 @@ pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             .map_err(|e| SimError::Run(format!("closed loop stopped at t = {t} s: {e}")))?;
         let c = sim.controller.config();
         rows.push(Row::from_sample::<G, N, M>(&sample, &c.inertia, &c.k));
-        on_step(k);
+        on_step(k)?;
     }
     Ok(Trajectory {
         group: s.group,

@@ -93,9 +93,15 @@ mod tests {
         assert_eq!(c.law, Some(Law::Gt));
         assert_eq!(c.laws, vec![Law::Eqt, Law::Asym]);
         assert_eq!(c.group, Some(GroupKind::Se3));
-        let e = Cli::try_parse_from(["x", "--law", "pid"]).err().unwrap().to_string();
+        let e = Cli::try_parse_from(["x", "--law", "pid"])
+            .err()
+            .unwrap()
+            .to_string();
         assert!(e.contains("pid") && e.contains("eqt"), "{e}");
-        let e = Cli::try_parse_from(["x", "--laws", "eqt,nope"]).err().unwrap().to_string();
+        let e = Cli::try_parse_from(["x", "--laws", "eqt,nope"])
+            .err()
+            .unwrap()
+            .to_string();
         assert!(e.contains("nope"), "{e}");
     }
 
@@ -105,7 +111,10 @@ mod tests {
         for bad in ["0", "-1", "nan", "inf", "x", ""] {
             assert!(positive_seconds(bad).is_err(), "{bad}");
         }
-        let e = Cli::try_parse_from(["x", "--wait=-2"]).err().unwrap().to_string();
+        let e = Cli::try_parse_from(["x", "--wait=-2"])
+            .err()
+            .unwrap()
+            .to_string();
         assert!(e.contains("--wait") && e.contains("positive"), "{e}");
     }
 }

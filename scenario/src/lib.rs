@@ -794,7 +794,10 @@ mod tests {
             .with_law(Law::Gt)
             .unwrap_err();
         assert!(e.to_string().contains("not defined for group se3"), "{e}");
-        let s = Scenario::builtin("seed").unwrap().with_law(Law::Asym).unwrap();
+        let s = Scenario::builtin("seed")
+            .unwrap()
+            .with_law(Law::Asym)
+            .unwrap();
         assert_eq!(s.law, Law::Asym);
     }
 

@@ -1,0 +1,75 @@
+//! The controller process that `plant_sim run` starts by itself: killed and reaped on drop,
+//! so no zombie outlives the plant (a zombie's iceoryx2 node would never look dead).
+
+use crate::SimError;
+use crate::pair::PairOptions;
+use link::TransportKind;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+/// The spawned `controller_node`, if any.
+pub struct Spawned(Option<Child>);
+
+impl Spawned {
+    /// Starts `controller_node` from this executable's directory with the run's scenario,
+    /// name and transport (nothing with `--no-spawn`).
+    pub fn start(opts: &PairOptions) -> Result<Spawned, SimError> {
+        if !opts.spawn {
+            return Ok(Spawned(None));
+        }
+        let exe = std::env::current_exe()
+            .map_err(|e| SimError::Run(format!("cannot locate plant_sim: {e}")))?;
+        let path = exe.with_file_name("controller_node");
+        if !path.exists() {
+            return Err(SimError::Run(format!(
+                "{} not found: build it (cargo build --release --workspace) or start one by hand and pass --no-spawn",
+                path.display()
+            )));
+        }
+        let mut cmd = Command::new(&path);
+        cmd.args(&opts.scenario_args)
+            .args(["--name", &opts.run])
+            .stdin(Stdio::null());
+        if opts.transport == TransportKind::Uds {
+            cmd.args(["--transport", "uds"]);
+        }
+        if let Some(k) = opts.controller_fault_nan_torque {
+            cmd.args(["--fault-nan-torque", &k.to_string()]);
+        }
+        cmd.spawn()
+            .map(|c| Spawned(Some(c)))
+            .map_err(|e| SimError::Run(format!("cannot start {}: {e}", path.display())))
+    }
+
+    /// Its exit status, if it has exited.
+    pub fn exited(&mut self) -> Option<ExitStatus> {
+        self.0.as_mut().and_then(|c| c.try_wait().ok().flatten())
+    }
+
+    /// Waits up to `grace` for it to exit (then kills it); its exit code.
+    pub fn finish(&mut self, grace: Duration) -> Option<i32> {
+        let mut child = self.0.take()?;
+        let until = Instant::now() + grace;
+        loop {
+            if let Ok(Some(status)) = child.try_wait() {
+                return status.code();
+            }
+            if Instant::now() > until {
+                let _ = child.kill();
+                let _ = child.wait();
+                eprintln!("plant_sim: controller_node did not exit within {grace:?}; killed");
+                return None;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+}
+
+impl Drop for Spawned {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.0.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
