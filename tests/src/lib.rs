@@ -39,6 +39,7 @@ pub fn bin(name: &str) -> PathBuf {
 pub struct Proc {
     child: Option<Child>,
     lines: Arc<Mutex<Vec<String>>>,
+    stdout: Arc<Mutex<Vec<String>>>,
     readers: Vec<std::thread::JoinHandle<()>>,
     /// The exit status, once waited for.
     pub status: Option<ExitStatus>,
@@ -47,7 +48,13 @@ pub struct Proc {
 impl Proc {
     /// Starts `bin(name)` with `args`.
     pub fn start(name: &str, args: &[&str]) -> Proc {
-        let mut child = Command::new(bin(name))
+        Proc::start_path(&bin(name), args)
+    }
+
+    /// Starts the executable at `path` with `args`.
+    pub fn start_path(path: &Path, args: &[&str]) -> Proc {
+        let name = path.display();
+        let mut child = Command::new(path)
             .args(args)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
@@ -55,6 +62,7 @@ impl Proc {
             .spawn()
             .unwrap_or_else(|e| panic!("cannot start {name}: {e}"));
         let lines = Arc::new(Mutex::new(Vec::new()));
+        let stdout = Arc::new(Mutex::new(Vec::new()));
         let mut readers = Vec::new();
         let out = child
             .stdout
@@ -64,10 +72,17 @@ impl Proc {
             .stderr
             .take()
             .map(|s| Box::new(s) as Box<dyn std::io::Read + Send>);
-        for stream in [out, err].into_iter().flatten() {
+        for (stream, is_stdout) in [(out, true), (err, false)] {
+            let Some(stream) = stream else { continue };
             let sink = Arc::clone(&lines);
+            let own = Arc::clone(&stdout);
             readers.push(std::thread::spawn(move || {
                 for line in BufReader::new(stream).lines().map_while(Result::ok) {
+                    if is_stdout {
+                        own.lock()
+                            .unwrap_or_else(|p| p.into_inner())
+                            .push(line.clone());
+                    }
                     sink.lock().unwrap_or_else(|p| p.into_inner()).push(line);
                 }
             }));
@@ -75,9 +90,32 @@ impl Proc {
         Proc {
             child: Some(child),
             lines,
+            stdout,
             readers,
             status: None,
         }
+    }
+
+    /// The lines printed on standard output so far.
+    pub fn stdout_lines(&self) -> Vec<String> {
+        self.stdout
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone()
+    }
+
+    /// Sends a signal (SIGINT, SIGTERM, SIGSTOP, SIGCONT...) to the process.
+    pub fn signal(&self, sig: &str) {
+        if let Some(c) = &self.child {
+            let _ = Command::new("kill")
+                .args([&format!("-{sig}"), &c.id().to_string()])
+                .status();
+        }
+    }
+
+    /// The process id.
+    pub fn pid(&self) -> Option<u32> {
+        self.child.as_ref().map(Child::id)
     }
 
     /// Everything printed so far.

@@ -1,0 +1,132 @@
+//! Bring your own plant: a plant process written only against `link`'s public API, shaped
+//! like a hardware driver. Its "sensor" is a simulated rigid body — on SO(3) the seed
+//! scenario's fixed-wing body, on SE(3) the se3_circle scenario's — so its lockstep run can be
+//! compared with `plant_sim sim` bit for bit. On a board, `read_sensors` reads the IMU and
+//! `drive_motors` writes the actuators. It sends no scenario fingerprint, as a board would.
+//!
+//! ```text
+//! example_plant [RUN] [so3|se3] [lockstep|realtime] [SECONDS]   # eqtrack so3 lockstep 20
+//! controller_node --name RUN [--builtin se3_circle]            # in another terminal
+//! ```
+//! One CSV line per tick on stdout: `k, t, Q (row-major), V, τ, status` (0 fresh, 1 held,
+//! 2 safe mode).
+use controller::GroupKind;
+use controller::group::{MatrixLieGroup, Se3, So3};
+use controller::integrator::RigidBody;
+use controller::law::safe_mode_torque;
+use link::{DeadlinePolicy, Decision, NoCommand, PlantConfig, PlantEndpoint, clock};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+
+const PERIOD: f64 = 0.01; // s: 100 Hz, the scenarios' control period
+const SUBSTEPS: usize = 10; // RKMK4 steps per period, as in the scenarios
+const MISS_LIMIT: u32 = 3; // consecutive misses before safe mode
+const TORQUE_LIMIT: f64 = 5.0; // per axis, for the safe-mode torque: what the actuators do
+const KD_SAFE: f64 = 0.5; // safe-mode damping
+
+/// The "hardware": a rigid body integrated over each period under the held torque.
+struct Body<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(RigidBody<f64, G, N, M>);
+
+impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Body<G, N, M> {
+    /// Attitude (pose) and gyro rates (on a board: read the IMU and the position fix).
+    fn read_sensors(&self) -> (SMatrix<f64, N, N>, SVector<f64, M>) {
+        (*self.0.configuration(), self.0.velocity())
+    }
+    /// Applies the torque for one period (on a board: write the motor drivers).
+    fn drive_motors(&mut self, torque: &SVector<f64, M>) {
+        self.0.advance(torque, PERIOD, SUBSTEPS);
+    }
+}
+
+fn main() -> std::process::ExitCode {
+    let arg = |i: usize, default: &str| std::env::args().nth(i).unwrap_or(default.to_owned());
+    let (run, group, mode) = (arg(1, "eqtrack"), arg(2, "so3"), arg(3, "lockstep"));
+    let steps = (arg(4, "20").parse::<f64>().unwrap_or(20.0) / PERIOD).round() as u64;
+    let realtime = mode == "realtime";
+    let r = |x: f64, y: f64, z: f64| Vector3::new(x, y, z);
+    let result = if group == "se3" {
+        let inertia = SMatrix::<f64, 6, 6>::from_diagonal(&[0.8, 1.0, 1.2, 2.0, 2.0, 2.0].into());
+        let mut q0 = SMatrix::<f64, 4, 4>::identity();
+        q0.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&So3::exp(&r(1.2, -0.9, 1.3)));
+        q0.fixed_view_mut::<3, 1>(0, 3)
+            .copy_from(&r(2.0, -1.0, 1.2));
+        let v0 = [1.0, -0.5, 0.3, 0.0, 0.5, -1.0].into();
+        let body = Body::<Se3, 4, 6>(RigidBody::new(inertia, q0, v0).expect("a valid body"));
+        fly(&run, GroupKind::Se3, realtime, steps, body)
+    } else {
+        let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759);
+        let q0 = So3::exp(&(r(0.8, 0.6, 0.0) * (std::f64::consts::PI - 0.1)));
+        let body = Body::<So3, 3, 3>(RigidBody::new(inertia, q0, r(4.0, -3.0, 2.0)).expect("ok"));
+        fly(&run, GroupKind::So3, realtime, steps, body)
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("example_plant: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn fly<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    run: &str,
+    group: GroupKind,
+    realtime: bool,
+    steps: u64,
+    mut body: Body<G, N, M>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let mut plant = PlantEndpoint::open(PlantConfig::new(run, group, PERIOD))?;
+    let mut policy = DeadlinePolicy::new(MISS_LIMIT);
+    let kd = SMatrix::<f64, M, M>::identity() * KD_SAFE;
+    let limit = SVector::<f64, M>::repeat(TORQUE_LIMIT);
+    let mut torque = SVector::<f64, M>::zeros();
+    let period_ns = (PERIOD * 1e9) as u64;
+    let mut t0 = 0; // the clock starts with the controller's first answer
+    for k in 0..=steps {
+        // 1. Read the sensors and publish the state.
+        let (q, v) = body.read_sensors();
+        plant.publish(k, &q, &v)?;
+        // 2. Wait for the torque: until the tick ends in real time; in lockstep (and for
+        //    the first command) as long as it takes, up to 10 s.
+        let deadline = if realtime && k > 0 {
+            t0 + (k + 1) * period_ns
+        } else {
+            clock::monotonic_ns() + 10_000_000_000
+        };
+        let got = match plant.wait_command(k, deadline) {
+            Ok(cmd) => Some(cmd),
+            Err(NoCommand::Missed) if realtime && k > 0 => None,
+            Err(NoCommand::Missed) => return Err(format!("no command for tick {k}").into()),
+            Err(NoCommand::Refused(r)) => return Err(r.to_string().into()),
+        };
+        if k == 0 {
+            t0 = clock::monotonic_ns();
+        }
+        // 3. Apply it, hold the last one, or fall back to the safe-mode torque.
+        let step = policy.step(k, deadline, got.as_ref().map(|c| c.arrival()));
+        torque = match (step.decision, got) {
+            (Decision::Fresh, Some(cmd)) => cmd.torque(),
+            (Decision::Safe, _) => safe_mode_torque(&kd, &v, Some(&limit)),
+            _ => torque,
+        };
+        let (t, qs, vs, ts) = (k as f64 * PERIOD, q.transpose(), csv(&v), csv(&torque));
+        println!("{k},{t:?},{},{vs},{ts},{}", csv(&qs), step.decision.code());
+        // 4. Drive the motors over [t_k, t_k+1), then wait for the next tick.
+        if k < steps {
+            body.drive_motors(&torque);
+        }
+        if realtime {
+            clock::sleep_until(t0 + (k + 1) * period_ns);
+        }
+    }
+    plant.shutdown();
+    Ok(())
+}
+
+/// Numbers in full round-trip precision, comma-separated (column-major: transpose first).
+fn csv<const R: usize, const C: usize>(xs: &SMatrix<f64, R, C>) -> String {
+    xs.iter()
+        .map(|x| format!("{x:?}"))
+        .collect::<Vec<_>>()
+        .join(",")
+}
