@@ -1,4 +1,4 @@
-//! The seed paper's simulation (MATH.md, "The simulations") with the controller crate alone:
+//! The seed paper's simulation (docs/maths.md, "The simulations") with the controller crate alone:
 //! prints L, ‖Q_E − I‖_F and ‖p_E‖ once a second of simulated time.
 //!
 //! `cargo run --release -p controller --example seed`

@@ -1,4 +1,4 @@
-//! RKMK4 on the group and the physical rigid body (MATH.md, "Integrating on the group").
+//! RKMK4 on the group and the physical rigid body (docs/maths.md, "Integrating on the group").
 
 use crate::error::{Error, Quantity};
 use crate::group::MatrixLieGroup;
@@ -66,7 +66,7 @@ where
 }
 
 /// One RKMK4 step of the physical system `Q̇ = Q·hat(V)`, `ṗ = ad_Vᵀp + τ(t)`, `V = I⁻¹p`
-/// (MATH.md, "The objects"), for a torque given as a function of time (use a constant
+/// (docs/maths.md, "The objects"), for a torque given as a function of time (use a constant
 /// closure for zero-order hold).
 pub fn physical_step<G, T, F, const N: usize, const M: usize>(
     x: &Phase<T, N, M>,

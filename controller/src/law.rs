@@ -1,5 +1,7 @@
-//! The control laws and the run-time [`Controller`] (MATH.md, "The EqT law" and "The four SO(3)
-//! laws of the extended paper").
+//! The control laws and the run-time [`Controller`]:
+//! docs/maths.md, "The EqT law";
+//! docs/maths.md, "The four SO(3) laws of the extended paper";
+//! docs/maths.md, "The safe-mode law and saturation".
 
 use crate::Real;
 use crate::error::{Error, Quantity};
@@ -61,7 +63,7 @@ pub struct Desired<T: Real, const N: usize, const M: usize> {
     pub tau: SVector<T, M>,
 }
 
-/// The EqT law on any group (MATH.md, "The EqT law"):
+/// The EqT law on any group (docs/maths.md, "The EqT law"):
 ///
 /// ```text
 /// τ_E = −ad_{A V_d}ᵀ p_E − K_d V_E − grad,   grad_i = ⟨Q_Eᵀ(Q_E − I)K, E_i⟩_F

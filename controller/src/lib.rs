@@ -2,13 +2,13 @@
 //!
 //! The mathematics of Hampsey, van Goor, Banavar and Mahony, "Exploiting Equivariance in the
 //! Design of Tracking Controllers for Euler–Poincaré Systems on Matrix Lie Groups" (2024) and its
-//! extension (arXiv 2511.18800), in coordinates as written out in the project's `MATH.md`.
+//! extension (arXiv 2511.18800), in coordinates as written out in the project's `docs/maths.md`.
 //!
 //! * `#![no_std]`, no `alloc`, no `unsafe`: fixed-size nalgebra matrices only.
 //! * Generic over the scalar ([`Real`]: `f32` for a microcontroller FPU, `f64` on Linux) and over
 //!   the group ([`MatrixLieGroup`]: [`So3`], [`Se3`]).
 //!
-//! Module map (one equation of MATH.md, one named function):
+//! Module map (one equation of docs/maths.md, one named function):
 //!
 //! | module | what |
 //! |---|---|

@@ -1,4 +1,4 @@
-//! The desired-trajectory generator (MATH.md, "Tracking error and its dynamics" and
+//! The desired-trajectory generator (docs/maths.md, "Tracking error and its dynamics" and
 //! "Integrating on the group").
 
 use crate::error::{Error, Quantity};

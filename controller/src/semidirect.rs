@@ -1,5 +1,5 @@
 //! The phase-space group `G ⋉ g*`, its actions and the extended Euler–Poincaré vector field
-//! (MATH.md, "The objects").
+//! (docs/maths.md, "The objects").
 
 use crate::Real;
 use crate::group::MatrixLieGroup;

@@ -1,5 +1,5 @@
 //! Tracking error, error inputs, error inertia and the Lyapunov function
-//! (MATH.md, "Tracking error and its dynamics" and "The EqT law").
+//! (docs/maths.md, "Tracking error and its dynamics" and "The EqT law").
 //!
 //! Throughout, `A = Ad_{Q_d}` and `A⁻¹ = Ad_{Q_d⁻¹}` (no matrix is inverted numerically).
 
@@ -26,7 +26,7 @@ where
 }
 
 /// The error inputs `V_E = A(V − V_d)`, `τ_E = A⁻ᵀ(τ − τ_d) + ad_{V_E}ᵀ A⁻ᵀ p_d`
-/// (MATH.md, "Tracking error and its dynamics"; equal to `ψ((Q_d,p_d)⁻¹, (V − V_d, τ − τ_d))`).
+/// (docs/maths.md, "Tracking error and its dynamics"; equal to `ψ((Q_d,p_d)⁻¹, (V − V_d, τ − τ_d))`).
 pub fn error_input<G, T, const N: usize, const M: usize>(
     desired: &Phase<T, N, M>,
     input: &Input<T, M>,
@@ -105,7 +105,7 @@ where
     ad * ii + ii * ad.transpose()
 }
 
-/// The potential `Υ(Q) = ½ tr((Q − I) K (Q − I)ᵀ)` (MATH.md, "The EqT law").
+/// The potential `Υ(Q) = ½ tr((Q − I) K (Q − I)ᵀ)` (docs/maths.md, "The EqT law").
 pub fn potential<T: Real, const N: usize>(q_e: &SMatrix<T, N, N>, k: &SMatrix<T, N, N>) -> T {
     let d = q_e - SMatrix::<T, N, N>::identity();
     (d * k).dot(&d) * crate::real(0.5)
@@ -135,7 +135,7 @@ pub struct Lyapunov<T> {
     pub total: T,
 }
 
-/// The Lyapunov function `L = ½ (V − V_d)ᵀ I (V − V_d) + Υ(Q_E)` (MATH.md, "The EqT law"),
+/// The Lyapunov function `L = ½ (V − V_d)ᵀ I (V − V_d) + Υ(Q_E)` (docs/maths.md, "The EqT law"),
 /// with `I` the controller's model inertia.
 pub fn lyapunov<T: Real, const N: usize, const M: usize>(
     q_e: &SMatrix<T, N, N>,

@@ -12,7 +12,7 @@ pub fn fixed_wing<T: Real>() -> Matrix3<T> {
     Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759).map(controller::real)
 }
 
-/// The seed scenario (MATH.md, "The simulations") with K = K_d = 0.5·1₃, 10 substeps.
+/// The seed scenario (docs/maths.md, "The simulations") with K = K_d = 0.5·1₃, 10 substeps.
 pub fn seed_loop<T: Real>(law: Law, period: f64, substeps: usize) -> ClosedLoop<T, So3, 3, 3> {
     let inertia = fixed_wing::<T>();
     let half: T = controller::real(0.5);

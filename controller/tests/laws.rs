@@ -65,7 +65,7 @@ proptest! {
         xs in prop::collection::vec(-1.0..1.0f64, 42), kp in 0.1..3.0f64, kv in 0.1..3.0f64,
     ) {
         let mut x = so3_input(&xs);
-        // The seed's (k_p, k_v) are K = (k_p/2)·1₃, K_d = k_v·1₃ (MATH.md, typos).
+        // The seed's (k_p, k_v) are K = (k_p/2)·1₃, K_d = k_v·1₃ (docs/maths.md, "Typos in the seed paper").
         x.k = Matrix3::identity() * (kp / 2.0);
         x.kd = Matrix3::identity() * kv;
         let g = generic_eqt(&x);

@@ -90,5 +90,6 @@ fn seed_in_f32_stays_within_1e_3_of_f64_in_lyapunov_at_20s() {
     }
     let diff = (la - lb as f64).abs();
     eprintln!("L(20) f64 = {la:.9e}, f32 = {lb:.9e}, |diff| = {diff:.3e}");
-    assert!(diff < 1e-3, "f32 drifts from f64: {diff}");
+    // measured 2.9e-6 (f32 rounding through 2000 steps of 10 RKMK4 substeps): a 3x margin
+    assert!(diff < 1e-5, "f32 drifts from f64: {diff}");
 }

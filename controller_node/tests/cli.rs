@@ -26,7 +26,7 @@ fn bad_input_exits_2_with_a_message() {
         ),
         (
             vec!["--silence-timeout=-1"],
-            "--silence-timeout: must be a positive number",
+            "'--silence-timeout <S>': must be a positive number of seconds",
         ),
     ] {
         let out = run(&args);

@@ -262,7 +262,10 @@ fn every_validation_error_names_the_key_and_exits_2() {
             vec!["sim", "--scenario", "/nonexistent/x.toml"],
             "cannot read scenario file",
         ),
-        (vec!["montecarlo", "--laws", "eqt,pid"], "unknown law `pid`"),
+        (
+            vec!["montecarlo", "--laws", "eqt,pid"],
+            "invalid value 'pid' for '--laws",
+        ),
         (vec!["sim", "--frobnicate"], "unexpected argument"),
     ] {
         let out = run(&args);

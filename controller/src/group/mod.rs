@@ -1,4 +1,4 @@
-//! Matrix Lie groups: one uniform set of operations on every group (MATH.md, "Conventions").
+//! Matrix Lie groups: one uniform set of operations on every group (docs/maths.md, "Conventions").
 //!
 //! A group element is its n×n matrix `Q`; an algebra element is its coordinate vector
 //! `v ∈ ℝᵐ` in the basis `E_1..E_m` (`hat(v) = Σ vᵢ Eᵢ`). Momenta are coordinate vectors dual
@@ -121,7 +121,7 @@ pub trait MatrixLieGroup<const N: usize, const M: usize>:
 
     /// The coordinates of the Frobenius pairing with the basis, `(⟨X, E_i⟩_F)_i`.
     ///
-    /// This is how the left-trivialised gradient of MATH.md ("The EqT law",
+    /// This is how the left-trivialised gradient (docs/maths.md, "The EqT law":
     /// `grad_i = ⟨Q_Eᵀ(Q_E − I)K, E_i⟩_F`) is read off a matrix.
     fn frobenius_coordinates<T: Real>(x: &SMatrix<T, N, N>) -> SVector<T, M> {
         SVector::<T, M>::from_fn(|i, _| x.dot(&Self::basis::<T>(i)))

@@ -1,5 +1,5 @@
 //! SE(3): n = 4, m = 6, twists ordered **(ω, v)** (angular first), wrenches (torque, force).
-//! `Ad_(R,x) = [[R, 0], [x×R, R]]`, `ad_(ω,v) = [[ω×, 0], [v×, ω×]]` (MATH.md, "Conventions").
+//! `Ad_(R,x) = [[R, 0], [x×R, R]]`, `ad_(ω,v) = [[ω×, 0], [v×, ω×]]` (docs/maths.md, "Conventions").
 
 use super::so3::{exp_so3, log_so3, skew};
 use super::{GroupKind, MatrixLieGroup};

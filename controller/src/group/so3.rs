@@ -8,7 +8,7 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct So3;
 
-/// The cross-product matrix `v×` (MATH.md: `hat(v) = [[0,-v3,v2],[v3,0,-v1],[-v2,v1,0]]`;
+/// The cross-product matrix `v×` (docs/maths.md: `hat(v) = [[0,-v3,v2],[v3,0,-v1],[-v2,v1,0]]`;
 /// the seed paper's displayed map has a typo, `v_2` where `v_3` belongs).
 #[inline]
 pub fn skew<T: Real>(v: &Vector3<T>) -> Matrix3<T> {

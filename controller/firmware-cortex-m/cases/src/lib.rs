@@ -203,7 +203,7 @@ pub const LOOP_STEPS: usize = 200;
 /// Print `L` every this many steps (0.5 s).
 pub const LOOP_PRINT_EVERY: usize = 50;
 
-/// The seed scenario's closed loop in f32 (MATH.md, "The simulations"): EqT with
+/// The seed scenario's closed loop in f32 (docs/maths.md, "The simulations"): EqT with
 /// `K = K_d = 0.5·I`, reference from `R_d(0) = I`, `ω_d(0) = 0` driven by
 /// [`so3_seed_feedforward`], 10 reference and 10 plant RKMK4 substeps per 0.01 s period,
 /// plant from `R(0) = exp((π − 0.1)·(0.8, 0.6, 0))`, `ω(0) = (4, −3, 2)`.
