@@ -1,0 +1,566 @@
+//! A fuzz harness for the project's untrusted input, on stable Rust (no libFuzzer, no
+//! nightly): deterministic, seeded, mutation-based.
+//!
+//! Two targets ([`Target`]):
+//!
+//! * **scenario** — TOML text through [`scenario::Scenario::from_toml`] (parser and
+//!   validator); an accepted scenario then goes through what the processes do with it: its
+//!   fingerprint, step count and law overrides, and, on its group, the controller, the
+//!   reference generator and the plant body, and a few closed-loop cycles (bounded, see
+//!   `SUBSTEP_BUDGET` in the source). Seeds: [`scenario::BUILTINS`] and three hand-written
+//!   scenarios that reach the optional keys.
+//! * **wire** — bytes through [`ipc_types::StateMsg::from_bytes`] /
+//!   [`ipc_types::CommandMsg::from_bytes`], the decoded message through `check_state` /
+//!   `check_command` for a receiver in a given state (and a grid of other receivers), the
+//!   identity helpers, and what each side does with an accepted message (the law evaluated on
+//!   a state, a command's torque integrated by the plant). Seeds: realistic messages of both
+//!   groups from a few cycles of the built-in scenarios' closed loops.
+//!
+//! Each case is one corpus item with 1–8 random mutations (byte-level: bit flips, byte
+//! overwrite, insert, delete, truncation, chunk duplication, splicing; TOML: number and string
+//! tokens replaced by interesting values, lines deleted, duplicated, swapped or inserted,
+//! known keys set, list lengths changed; wire: f64 fields set to NaN, infinities,
+//! subnormals, extremes, integer fields to boundary or random values, odd names, wrong
+//! lengths), or a fully random input. Case `i` of seed `s` draws from ChaCha8 stream `i` of
+//! key `s`, so it can be regenerated alone ([`generate`], [`replay`]).
+//!
+//! The oracle: no panic, and every rejection a typed error. Each case runs under
+//! [`std::panic::catch_unwind`] ([`run_case`]); a quiet panic hook records the message and
+//! location of panics inside a case. Rejections are counted by kind ([`Report::rejected`]);
+//! panics are [`Finding`]s and fail the run ([`Report::passed`]). A few extra assertions turn
+//! broken documented properties into panics too: decoding then encoding a message gives the
+//! same bytes, `check_*` accepts only messages of the right version, group and sequence,
+//! `Controller::compute` never returns a non-finite torque, a fingerprint is never 0.
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+mod mutate;
+mod rng;
+mod scenario_target;
+mod wire_target;
+
+use controller::GroupKind;
+use std::cell::{Cell, RefCell};
+use std::collections::BTreeMap;
+use std::fmt;
+use std::io;
+use std::ops::Range;
+use std::panic::{self, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+use std::time::{Duration, Instant};
+
+/// What is fuzzed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Target {
+    /// Scenario TOML: parser, validator, and the builders of an accepted scenario.
+    Scenario,
+    /// Wire messages: decoder, receiver checks, identities.
+    Wire,
+}
+
+impl Target {
+    /// Both targets.
+    pub const ALL: [Target; 2] = [Target::Scenario, Target::Wire];
+
+    /// Lower-case name (`"scenario"`, `"wire"`), as on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Target::Scenario => "scenario",
+            Target::Wire => "wire",
+        }
+    }
+}
+
+impl fmt::Display for Target {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Which message type a wire case's bytes are handed to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MsgKind {
+    /// [`ipc_types::StateMsg::from_bytes`] (plant → controller).
+    State,
+    /// [`ipc_types::CommandMsg::from_bytes`] (controller → plant).
+    Command,
+}
+
+/// The state of the side receiving a wire message: the arguments of `check_state` /
+/// `check_command`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Receiver {
+    /// The receiver's group.
+    pub group: GroupKind,
+    /// States: the last accepted sequence number.
+    pub last_seq: Option<u64>,
+    /// States: the period the receiver runs with (`None`: any positive period).
+    pub period: Option<f64>,
+    /// Commands: the sequence number awaited.
+    pub awaited: u64,
+}
+
+/// One wire case: bytes received, by whom.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WireCase {
+    /// The decoder the bytes go to.
+    pub kind: MsgKind,
+    /// The receiver's state.
+    pub receiver: Receiver,
+    /// The bytes.
+    pub bytes: Vec<u8>,
+}
+
+/// One generated input.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Case {
+    /// Scenario TOML (bytes: not necessarily UTF-8; the checker replaces invalid sequences).
+    Scenario(Vec<u8>),
+    /// A wire message and its receiver.
+    Wire(WireCase),
+}
+
+impl Case {
+    /// The raw input bytes (TOML text, or the message bytes).
+    pub fn bytes(&self) -> &[u8] {
+        match self {
+            Case::Scenario(b) => b,
+            Case::Wire(w) => &w.bytes,
+        }
+    }
+
+    /// What besides the bytes defines the case (the wire receiver), for reports.
+    pub fn context(&self) -> String {
+        match self {
+            Case::Scenario(_) => String::new(),
+            Case::Wire(w) => format!("{:?} message, receiver {:?}", w.kind, w.receiver),
+        }
+    }
+}
+
+/// What the checked code did with one input (when it did not panic).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Outcome {
+    /// Accepted all the way.
+    Accepted,
+    /// Rejected with a typed error; the string names its kind (e.g.
+    /// `"ScenarioError::Invalid (plant.inertia)"`, `"check_state: Reject::NonFinite"`).
+    Rejected(String),
+}
+
+/// A panic caught while checking one input.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Panic {
+    /// The panic message.
+    pub message: String,
+    /// `file:line:column` of the panic.
+    pub location: String,
+}
+
+/// A panicking case.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Finding {
+    /// The target.
+    pub target: Target,
+    /// The run's seed.
+    pub seed: u64,
+    /// The case index (regenerate it with [`generate`] or `fuzz --seed S --case I`).
+    pub case: u64,
+    /// The input.
+    pub input: Case,
+    /// The panic.
+    pub panic: Panic,
+}
+
+impl Finding {
+    /// Writes `<dir>/<target>-seed<S>-case<I>.bin` (the input bytes) and `.txt` (panic,
+    /// context, how to replay); returns the `.bin` path.
+    pub fn save(&self, dir: &Path) -> io::Result<PathBuf> {
+        std::fs::create_dir_all(dir)?;
+        let stem = format!("{}-seed{}-case{}", self.target, self.seed, self.case);
+        let bin = dir.join(format!("{stem}.bin"));
+        std::fs::write(&bin, self.input.bytes())?;
+        std::fs::write(dir.join(format!("{stem}.txt")), format!("{self}\n"))?;
+        Ok(bin)
+    }
+}
+
+impl fmt::Display for Finding {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "panic at {}: {}",
+            self.panic.location, self.panic.message
+        )?;
+        writeln!(
+            f,
+            "  case {} of seed {} (replay: fuzz --target {} --seed {} --case {})",
+            self.case, self.seed, self.target, self.seed, self.case
+        )?;
+        let context = self.input.context();
+        if !context.is_empty() {
+            writeln!(f, "  {context}")?;
+        }
+        match &self.input {
+            Case::Scenario(b) => write!(f, "  input:\n{}", String::from_utf8_lossy(b)),
+            Case::Wire(w) => write!(f, "  input ({} bytes): {}", w.bytes.len(), hex(&w.bytes)),
+        }
+    }
+}
+
+fn hex(bytes: &[u8]) -> String {
+    const SHOWN: usize = 400;
+    let mut s: String = bytes
+        .iter()
+        .take(SHOWN)
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    if bytes.len() > SHOWN {
+        s.push('…');
+    }
+    s
+}
+
+/// Findings kept per run: the first panic at each distinct location, up to this many.
+pub const MAX_FINDINGS: usize = 8;
+
+/// The result of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Report {
+    /// The target.
+    pub target: Target,
+    /// The seed.
+    pub seed: u64,
+    /// Cases run.
+    pub cases: u64,
+    /// Cases accepted all the way.
+    pub accepted: u64,
+    /// Cases rejected, by the kind of the first typed error.
+    pub rejected: BTreeMap<String, u64>,
+    /// Cases that panicked (all of them, including those not kept in `panics`).
+    pub panic_count: u64,
+    /// The first panicking case at each distinct panic location (at most [`MAX_FINDINGS`]).
+    pub panics: Vec<Finding>,
+    /// Wall time of the run.
+    pub elapsed: Duration,
+}
+
+impl Report {
+    /// Whether no case panicked.
+    pub fn passed(&self) -> bool {
+        self.panic_count == 0
+    }
+
+    /// Cases rejected, all kinds.
+    pub fn rejected_total(&self) -> u64 {
+        self.rejected.values().sum()
+    }
+
+    /// Throughput.
+    pub fn cases_per_second(&self) -> f64 {
+        self.cases as f64 / self.elapsed.as_secs_f64().max(1e-9)
+    }
+
+    fn record(&mut self, case: u64, input: impl FnOnce() -> Case, result: Result<Outcome, Panic>) {
+        self.cases += 1;
+        match result {
+            Ok(Outcome::Accepted) => self.accepted += 1,
+            Ok(Outcome::Rejected(kind)) => *self.rejected.entry(kind).or_default() += 1,
+            Err(panic) => {
+                self.panic_count += 1;
+                if self.panics.len() < MAX_FINDINGS
+                    && !self
+                        .panics
+                        .iter()
+                        .any(|f| f.panic.location == panic.location)
+                {
+                    self.panics.push(Finding {
+                        target: self.target,
+                        seed: self.seed,
+                        case,
+                        input: input(),
+                        panic,
+                    });
+                }
+            }
+        }
+    }
+}
+
+impl fmt::Display for Report {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let pct = |n: u64| 100.0 * n as f64 / self.cases.max(1) as f64;
+        writeln!(
+            f,
+            "{}: {} cases in {:.2} s ({:.0} cases/s), seed {}",
+            self.target,
+            self.cases,
+            self.elapsed.as_secs_f64(),
+            self.cases_per_second(),
+            self.seed
+        )?;
+        writeln!(
+            f,
+            "  accepted {:>10}  ({:5.1} %)",
+            self.accepted,
+            pct(self.accepted)
+        )?;
+        let rejected = self.rejected_total();
+        writeln!(f, "  rejected {:>10}  ({:5.1} %)", rejected, pct(rejected))?;
+        let width = self.rejected.keys().map(|k| k.chars().count()).max();
+        for (kind, n) in &self.rejected {
+            writeln!(
+                f,
+                "    {kind:<w$}  {n:>10}  ({:5.2} %)",
+                pct(*n),
+                w = width.unwrap_or(0)
+            )?;
+        }
+        write!(
+            f,
+            "  panics   {:>10}  ({} distinct location(s) kept)",
+            self.panic_count,
+            self.panics.len()
+        )?;
+        for finding in &self.panics {
+            write!(f, "\n  {}", finding.to_string().replace('\n', "\n    "))?;
+        }
+        Ok(())
+    }
+}
+
+thread_local! {
+    /// Whether this thread is inside [`run_case`].
+    static CAPTURING: Cell<bool> = const { Cell::new(false) };
+    /// The last panic caught on this thread inside [`run_case`].
+    static CAUGHT: RefCell<Option<Panic>> = const { RefCell::new(None) };
+}
+
+/// Installs, once per process, a panic hook that is quiet on threads inside [`run_case`]
+/// (it records the message and location there) and hands every other panic to the hook
+/// that was installed before. Installed once rather than swapped per run, so that runs on
+/// several threads (the test harness) do not race on the global hook.
+fn install_hook() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        let previous = panic::take_hook();
+        panic::set_hook(Box::new(move |info| {
+            if CAPTURING.with(Cell::get) {
+                let message = payload_text(info.payload());
+                let location = info
+                    .location()
+                    .map_or_else(|| "(unknown)".to_owned(), ToString::to_string);
+                CAUGHT.with(|c| *c.borrow_mut() = Some(Panic { message, location }));
+            } else {
+                previous(info);
+            }
+        }));
+    });
+}
+
+/// The text of a panic payload (`panic!` gives a `&str` or a `String`).
+fn payload_text(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(non-string panic payload)".to_owned())
+}
+
+/// Runs `check` on `input`, catching a panic: `Err` with the panic's message and location.
+/// Generic over the checked function, so any code can be put under the harness.
+pub fn run_case<I: ?Sized, F: FnOnce(&I) -> Outcome>(
+    input: &I,
+    check: F,
+) -> Result<Outcome, Panic> {
+    install_hook();
+    let was = CAPTURING.with(|c| c.replace(true));
+    let result = panic::catch_unwind(AssertUnwindSafe(|| check(input)));
+    CAPTURING.with(|c| c.set(was));
+    result.map_err(|payload| {
+        CAUGHT
+            .with(|c| c.borrow_mut().take())
+            .unwrap_or_else(|| Panic {
+                message: payload_text(payload.as_ref()),
+                location: "(unknown)".to_owned(),
+            })
+    })
+}
+
+/// The real checks: the scenario or wire oracle, by the case's kind.
+pub fn check(case: &Case) -> Outcome {
+    match case {
+        Case::Scenario(bytes) => scenario_target::check(bytes),
+        Case::Wire(w) => wire_target::check(w),
+    }
+}
+
+/// The case generator of one target and seed.
+pub struct Generator {
+    target: Target,
+    streams: rng::Streams,
+    scenarios: Option<scenario_target::Corpus>,
+    wire: Option<wire_target::Corpus>,
+}
+
+impl Generator {
+    /// The generator of `target` seeded with `seed` (builds the seed corpus).
+    pub fn new(target: Target, seed: u64) -> Generator {
+        Generator {
+            target,
+            streams: rng::Streams::new(seed),
+            scenarios: (target == Target::Scenario).then(scenario_target::Corpus::new),
+            wire: (target == Target::Wire).then(wire_target::Corpus::new),
+        }
+    }
+
+    /// Case `case` (depends only on the target, the seed and `case`).
+    pub fn case(&self, case: u64) -> Case {
+        let mut g = self.streams.case(case);
+        match (&self.scenarios, &self.wire) {
+            (Some(c), _) => Case::Scenario(c.generate(&mut g)),
+            (_, Some(c)) => Case::Wire(c.generate(&mut g)),
+            _ => unreachable!("a generator has the corpus of its target"),
+        }
+    }
+
+    /// The target.
+    pub fn target(&self) -> Target {
+        self.target
+    }
+}
+
+/// Case `case` of `target` with seed `seed`.
+pub fn generate(target: Target, seed: u64, case: u64) -> Case {
+    Generator::new(target, seed).case(case)
+}
+
+/// Regenerates one case and checks it *without* catching panics (the default hook prints
+/// it, with a backtrace under `RUST_BACKTRACE=1`): the reproduction of a finding.
+pub fn replay(target: Target, seed: u64, case: u64) -> (Case, Outcome) {
+    let input = generate(target, seed, case);
+    let outcome = check(&input);
+    (input, outcome)
+}
+
+/// Runs cases `0..cases` of `target` with seed `seed` through the real checks.
+pub fn run(target: Target, cases: u64, seed: u64) -> Report {
+    run_with(target, seed, 0..cases, check, |_| {})
+}
+
+/// Runs cases `cases` of `target` with seed `seed` through `check` (the real one is
+/// [`check`]; a test can wrap it to plant a bug), calling `progress` with the number of
+/// cases done every 1024 cases and at the end.
+pub fn run_with<C, P>(
+    target: Target,
+    seed: u64,
+    cases: Range<u64>,
+    check: C,
+    mut progress: P,
+) -> Report
+where
+    C: Fn(&Case) -> Outcome,
+    P: FnMut(u64),
+{
+    let start = Instant::now();
+    let generator = Generator::new(target, seed);
+    let mut report = Report {
+        target,
+        seed,
+        cases: 0,
+        accepted: 0,
+        rejected: BTreeMap::new(),
+        panic_count: 0,
+        panics: Vec::new(),
+        elapsed: Duration::ZERO,
+    };
+    for case in cases {
+        let input = generator.case(case);
+        let result = run_case(&input, &check);
+        report.record(case, || input.clone(), result);
+        if report.cases.is_multiple_of(1024) {
+            progress(report.cases);
+        }
+    }
+    progress(report.cases);
+    report.elapsed = start.elapsed();
+    report
+}
+
+/// Where `fuzz --save` writes findings: `target/fuzz-findings/` of this workspace.
+pub fn default_findings_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap_or_else(|| Path::new("."))
+        .join("target")
+        .join("fuzz-findings")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panicking_check_is_recorded_with_message_and_location() {
+        let caught = run_case(&41u32, |x: &u32| {
+            if *x == 41 {
+                panic!("planted bug: {x}");
+            }
+            Outcome::Accepted
+        });
+        let p = caught.unwrap_err();
+        assert_eq!(p.message, "planted bug: 41");
+        assert!(p.location.contains("lib.rs"), "{}", p.location);
+        // the thread is no longer capturing, and a good check passes through
+        assert!(!CAPTURING.with(Cell::get));
+        assert_eq!(
+            run_case(&1u32, |_| Outcome::Accepted),
+            Ok(Outcome::Accepted)
+        );
+    }
+
+    #[test]
+    fn a_planted_bug_in_a_run_fails_the_run_and_keeps_the_input() {
+        let planted = |case: &Case| match case {
+            Case::Wire(w) if w.bytes.len() == ipc_types::STATE_BYTES + 1 => {
+                let v: Vec<u8> = vec![];
+                // an out-of-bounds index, the typical decoder bug
+                Outcome::Rejected(format!("{}", v[w.bytes.len()]))
+            }
+            other => check(other),
+        };
+        let r = run_with(Target::Wire, 9, 0..3000, planted, |_| {});
+        assert!(!r.passed());
+        assert!(r.panic_count > 0);
+        let f = &r.panics[0];
+        assert!(f.panic.message.contains("index out of bounds"), "{f}");
+        assert_eq!(f.input.bytes().len(), ipc_types::STATE_BYTES + 1);
+        assert_eq!(generate(Target::Wire, 9, f.case), f.input);
+        assert_eq!(r.cases, 3000);
+        assert_eq!(r.accepted + r.rejected_total() + r.panic_count, r.cases);
+    }
+
+    #[test]
+    fn findings_are_saved() {
+        let dir = std::env::temp_dir().join(format!("fuzz-findings-test-{}", std::process::id()));
+        let f = Finding {
+            target: Target::Scenario,
+            seed: 1,
+            case: 2,
+            input: Case::Scenario(b"group = \"so3\"".to_vec()),
+            panic: Panic {
+                message: "m".to_owned(),
+                location: "x.rs:1:1".to_owned(),
+            },
+        };
+        let bin = f.save(&dir).unwrap();
+        assert_eq!(std::fs::read(&bin).unwrap(), b"group = \"so3\"");
+        let txt = std::fs::read_to_string(bin.with_extension("txt")).unwrap();
+        assert!(
+            txt.contains("fuzz --target scenario --seed 1 --case 2"),
+            "{txt}"
+        );
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+}

@@ -1,0 +1,100 @@
+//! The short form of the fuzz run, for CI: a fixed number of cases per target in the dev
+//! profile (a few seconds), no panic allowed, the generator checked for a spread of accepted
+//! and rejected inputs, and a planted bug checked to be caught end to end. The long form is
+//! the `fuzz` binary (`cargo build --release -p fuzz && target/release/fuzz --cases 1000000`).
+
+use fuzz::{Case, Outcome, Report, Target};
+
+/// Cases per target: about 3 s for both targets in the dev profile (opt-level 2).
+const CASES: u64 = 100_000;
+/// The seed of the short run (fixed: CI runs the same cases every time).
+const SEED: u64 = 1;
+
+/// Asserts no panic, and that the generator reaches both paths: at least 2 % of the cases
+/// accepted, at least 20 % rejected, over at least `kinds` distinct rejection kinds.
+fn assert_sound(r: &Report, kinds: usize) {
+    eprintln!("{r}");
+    assert!(r.passed(), "the fuzz run found panics:\n{r}");
+    assert_eq!(r.cases, CASES);
+    assert_eq!(r.accepted + r.rejected_total(), r.cases);
+    assert!(
+        r.accepted * 50 >= r.cases,
+        "fewer than 2 % of the cases accepted: the generator no longer reaches the accepting path\n{r}"
+    );
+    assert!(
+        r.rejected_total() * 5 >= r.cases,
+        "fewer than 20 % of the cases rejected\n{r}"
+    );
+    assert!(
+        r.rejected.len() >= kinds,
+        "only {} rejection kinds (expected at least {kinds})\n{r}",
+        r.rejected.len()
+    );
+}
+
+#[test]
+fn scenario_inputs_never_panic() {
+    let r = fuzz::run(Target::Scenario, CASES, SEED);
+    assert_sound(&r, 20);
+    // the validator's and the parser's rejections are both reached
+    assert!(
+        r.rejected
+            .keys()
+            .any(|k| k.starts_with("ScenarioError::Invalid"))
+    );
+    assert!(
+        r.rejected
+            .keys()
+            .any(|k| k.starts_with("ScenarioError::Parse"))
+    );
+}
+
+#[test]
+fn wire_inputs_never_panic() {
+    let r = fuzz::run(Target::Wire, CASES, SEED);
+    assert_sound(&r, 8);
+    // every kind of the checks' rejections, and the decoder's, are reached
+    for kind in [
+        "StateMsg::from_bytes: DecodeError::Length",
+        "CommandMsg::from_bytes: DecodeError::Length",
+        "check_state: Reject::Version",
+        "check_state: Reject::Group",
+        "check_state: Reject::NonFinite",
+        "check_state: Reject::Sequence",
+        "check_state: Reject::Period",
+        "check_command: Reject::Version",
+        "check_command: Reject::Group",
+        "check_command: Reject::NonFinite",
+        "check_command: Reject::Sequence",
+    ] {
+        assert!(r.rejected.contains_key(kind), "{kind} never seen\n{r}");
+    }
+}
+
+/// A bug planted in the checked code (a panic on a NaN control period in an accepted-length
+/// state, deep in the generated inputs) is caught: the run fails, the finding names the
+/// planted panic and its location, and its input regenerates from (seed, case).
+#[test]
+fn a_planted_bug_is_caught() {
+    let planted = |case: &Case| {
+        if let Case::Wire(w) = case
+            && let Ok(msg) = ipc_types::StateMsg::from_bytes(&w.bytes)
+        {
+            assert!(!msg.control_period.is_nan(), "planted: NaN period");
+        }
+        fuzz::check(case)
+    };
+    let r = fuzz::run_with(Target::Wire, SEED, 0..5_000, planted, |_| {});
+    assert!(!r.passed(), "the planted bug was not caught:\n{r}");
+    assert_eq!(r.panics.len(), 1, "{r}");
+    let f = &r.panics[0];
+    assert_eq!(f.panic.message, "planted: NaN period");
+    assert!(
+        f.panic.location.contains("short.rs"),
+        "{}",
+        f.panic.location
+    );
+    assert_eq!(fuzz::generate(Target::Wire, SEED, f.case), f.input);
+    // the same case without the planted bug is an ordinary rejection
+    assert!(matches!(fuzz::check(&f.input), Outcome::Rejected(_)));
+}
