@@ -253,7 +253,10 @@ fn every_validation_error_names_the_key_and_exits_2() {
             vec!["sim", "--builtin", "nope"],
             "unknown built-in scenario `nope`",
         ),
-        (vec!["sim", "--law", "pid"], "unknown law `pid`"),
+        (
+            vec!["sim", "--law", "pid"],
+            "invalid value 'pid' for '--law",
+        ),
         (
             vec!["sim", "--builtin", "se3_circle", "--law", "asym"],
             "not defined for group se3",
