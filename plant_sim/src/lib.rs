@@ -29,7 +29,7 @@ pub enum SimError {
     Link(#[from] link::LinkError),
     /// The controller refused the run: the two processes' settings differ. Exit code 2.
     #[error("controller_node refused the run: {0}")]
-    Mismatch(link::Refusal),
+    Mismatch(Box<link::Refusal>),
     /// SIGINT or SIGTERM stopped the work (what finished was written). Exit code 130/143.
     #[error("stopped by {0}")]
     Interrupted(link::StopSignal),

@@ -373,7 +373,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         let first = loop {
             match self.ep.wait_command(0, clock::monotonic_ns() + 1_000_000) {
                 Ok(c) => break c,
-                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(r)),
+                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
                 Err(NoCommand::Missed) => {}
             }
             self.log_rejections();
@@ -412,7 +412,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         loop {
             match self.ep.wait_command(k, clock::monotonic_ns() + 20_000_000) {
                 Ok(c) => return Ok(c),
-                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(r)),
+                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
                 Err(NoCommand::Missed) => {}
             }
             self.log_rejections();
@@ -443,7 +443,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             Some(c) => Some(c),
             None if self.realtime() => match self.ep.wait_command(k, deadline) {
                 Ok(c) => Some(c),
-                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(r)),
+                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
                 Err(NoCommand::Missed) => None,
             },
             None => Some(self.lockstep_command(k, child)?),
