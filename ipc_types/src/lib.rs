@@ -520,7 +520,8 @@ pub enum Reject {
     Group,
     /// A number is NaN or infinite.
     NonFinite,
-    /// The sequence number did not increase (or, for commands, is not the one awaited).
+    /// The sequence number did not increase, or jumped by more than [`MAX_SEQ_JUMP`] (for
+    /// commands: is not the one awaited).
     Sequence,
     /// The control period is not positive, or differs from the one the receiver runs with.
     Period,
@@ -571,8 +572,16 @@ fn own_dims(code: u32, group: GroupKind) -> Result<(usize, usize), Reject> {
     }
 }
 
+/// How many sequence numbers a state may skip past the one expected next (0 for the first
+/// state): 2²² ≈ 4.2 million cycles, 70 min at 1 kHz. A controller that joins late or
+/// missed states steps its reference through every skipped cycle (≈ 0.2–0.5 µs each, so
+/// at most about 2 s of catching up); an absurd jump (a corrupt or hostile sequence number
+/// near 2⁶⁴) is refused instead of stalling it.
+pub const MAX_SEQ_JUMP: u64 = 1 << 22;
+
 /// Checks a state against the receiver's group, the last accepted sequence number and the
-/// period the receiver runs with (`None`: any positive period).
+/// period the receiver runs with (`None`: any positive period). The sequence number must
+/// increase, by at most [`MAX_SEQ_JUMP`] + 1.
 pub fn check_state(
     msg: &StateMsg,
     group: GroupKind,
@@ -590,7 +599,11 @@ pub fn check_state(
     {
         return Err(Reject::NonFinite);
     }
-    if last_seq.is_some_and(|last| msg.seq <= last) {
+    let next = match last_seq {
+        None => 0,
+        Some(last) => last.checked_add(1).ok_or(Reject::Sequence)?,
+    };
+    if msg.seq < next || msg.seq - next > MAX_SEQ_JUMP {
         return Err(Reject::Sequence);
     }
     if msg.control_period <= 0.0 || period.is_some_and(|p| p != msg.control_period) {
@@ -680,6 +693,19 @@ mod tests {
         s.seq = 5;
         assert_eq!(check_state(&s, So3, Some(5), None), Err(Reject::Sequence));
         assert_eq!(check_state(&s, So3, Some(4), None), Ok(()));
+        s.seq = 5 + MAX_SEQ_JUMP;
+        assert_eq!(check_state(&s, So3, Some(4), None), Ok(()));
+        s.seq += 1;
+        assert_eq!(check_state(&s, So3, Some(4), None), Err(Reject::Sequence));
+        s.seq = MAX_SEQ_JUMP;
+        assert_eq!(check_state(&s, So3, None, None), Ok(()));
+        s.seq = u64::MAX;
+        assert_eq!(check_state(&s, So3, None, None), Err(Reject::Sequence));
+        assert_eq!(
+            check_state(&s, So3, Some(u64::MAX), None),
+            Err(Reject::Sequence)
+        );
+        s.seq = 5;
         assert_eq!(check_state(&s, So3, None, Some(0.02)), Err(Reject::Period));
         assert_eq!(check_state(&s, So3, None, Some(0.01)), Ok(()));
         s.v[2] = f64::NAN;

@@ -45,6 +45,37 @@ pub enum Incoming {
 const LIVENESS_EVERY: Duration = Duration::from_millis(100);
 
 /// The controller's side of a run.
+///
+/// A controller process in outline (`controller_node` is the whole thing, with the law):
+///
+/// ```no_run
+/// use controller::GroupKind;
+/// use link::{ControllerConfig, ControllerEndpoint, Incoming, TransportKind};
+/// use nalgebra::Vector3;
+/// use std::time::Duration;
+///
+/// let mut ctl = ControllerEndpoint::open(ControllerConfig {
+///     run: "board1".into(),
+///     transport: TransportKind::Iceoryx2,
+///     group: GroupKind::So3,
+///     period: None,       // follow the plant's control period
+///     fingerprint: 0,     // no scenario: accept any plant of the group
+///     scenario: String::new(),
+/// })?;
+/// loop {
+///     match ctl.wait_state(Duration::from_secs(1)) {
+///         Incoming::State(state, _received_ns) => {
+///             let (_q, _v) = (state.configuration::<3>(), state.velocity::<3>());
+///             let mut cmd = ctl.command(state.seq);
+///             cmd.set_torque(&Vector3::<f64>::zeros()); // the law's torque for (q, v)
+///             ctl.publish(&cmd)?;
+///         }
+///         Incoming::Nothing => continue,
+///         Incoming::Shutdown | Incoming::PlantGone | Incoming::Mismatch(_) => break,
+///     }
+/// }
+/// # Ok::<(), link::LinkError>(())
+/// ```
 pub struct ControllerEndpoint {
     transport: ControllerTransport,
     config: ControllerConfig,

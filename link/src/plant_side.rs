@@ -114,7 +114,8 @@ pub enum NoCommand {
     Refused(Refusal),
 }
 
-/// The plant's side of a run.
+/// The plant's side of a run (a plant process in outline is the crate documentation's example;
+/// the whole one is `examples/example_plant.rs`).
 pub struct PlantEndpoint {
     transport: PlantTransport,
     config: PlantConfig,

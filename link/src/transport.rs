@@ -38,51 +38,35 @@ pub trait Message: Copy + core::fmt::Debug + ZeroCopySend + 'static {
     fn decode(buf: &[u8]) -> Result<Self, DecodeError>;
 }
 
-impl Message for StateMsg {
-    fn empty() -> Self {
-        let mut m = StateMsg::new(controller::GroupKind::So3);
-        m.version = 0;
-        m.group = 0;
-        m
-    }
-    fn write_id(&self) -> (u64, u64) {
-        (self.seq, self.stamp_ns)
-    }
-    fn set_stamp(&mut self, ns: u64) {
-        self.stamp_ns = ns;
-    }
-    fn encode(&self, buf: &mut [u8; 512]) -> usize {
-        let b = self.to_bytes();
-        buf[..b.len()].copy_from_slice(&b);
-        b.len()
-    }
-    fn decode(buf: &[u8]) -> Result<Self, DecodeError> {
-        StateMsg::from_bytes(buf)
-    }
+/// Both messages share their layout's identifying fields and byte encoding: one impl.
+macro_rules! message {
+    ($msg:ty) => {
+        impl Message for $msg {
+            fn empty() -> Self {
+                let mut m = <$msg>::new(controller::GroupKind::So3);
+                m.version = 0;
+                m.group = 0;
+                m
+            }
+            fn write_id(&self) -> (u64, u64) {
+                (self.seq, self.stamp_ns)
+            }
+            fn set_stamp(&mut self, ns: u64) {
+                self.stamp_ns = ns;
+            }
+            fn encode(&self, buf: &mut [u8; 512]) -> usize {
+                let b = self.to_bytes();
+                buf[..b.len()].copy_from_slice(&b);
+                b.len()
+            }
+            fn decode(buf: &[u8]) -> Result<Self, DecodeError> {
+                <$msg>::from_bytes(buf)
+            }
+        }
+    };
 }
-
-impl Message for CommandMsg {
-    fn empty() -> Self {
-        let mut m = CommandMsg::new(controller::GroupKind::So3);
-        m.version = 0;
-        m.group = 0;
-        m
-    }
-    fn write_id(&self) -> (u64, u64) {
-        (self.seq, self.stamp_ns)
-    }
-    fn set_stamp(&mut self, ns: u64) {
-        self.stamp_ns = ns;
-    }
-    fn encode(&self, buf: &mut [u8; 512]) -> usize {
-        let b = self.to_bytes();
-        buf[..b.len()].copy_from_slice(&b);
-        b.len()
-    }
-    fn decode(buf: &[u8]) -> Result<Self, DecodeError> {
-        CommandMsg::from_bytes(buf)
-    }
-}
+message!(StateMsg);
+message!(CommandMsg);
 
 /// The plant's side of a transport: sends states, receives commands.
 pub type PlantTransport = Box<dyn Transport<StateMsg, CommandMsg>>;

@@ -325,25 +325,7 @@ fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
     if let Some(d) = args.duration {
         scenario.duration = d.as_secs_f64();
     }
-    #[allow(unused_mut)]
-    let mut state_faults = Vec::new();
-    #[cfg(feature = "fault-injection")]
-    for text in &args.fault_state {
-        let bad = || {
-            SimError::Input(format!(
-                "--fault-state: expected K:version|group|nan, got `{text}`"
-            ))
-        };
-        let (k, kind) = text.split_once(':').ok_or_else(bad)?;
-        let k: u64 = k.parse().map_err(|_| bad())?;
-        let kind = match kind {
-            "version" => plant_sim::pair::StateFault::Version,
-            "group" => plant_sim::pair::StateFault::Group,
-            "nan" => plant_sim::pair::StateFault::Nan,
-            _ => return Err(bad()),
-        };
-        state_faults.push((k, kind));
-    }
+    let state_faults = state_faults(&args)?;
     let spawn = !args.no_spawn;
     let opts = PairOptions {
         scenario,
@@ -370,6 +352,41 @@ fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
         stop: stop.clone(),
     };
     let (_, s) = run_pair(&opts)?;
+    print_pair_summary(&s, &opts.out);
+    match stop.requested() {
+        Some(sig) if s.interrupted => Err(SimError::Interrupted(sig)),
+        _ => Ok(()),
+    }
+}
+
+/// The `--fault-state K:KIND` injections (test builds only; empty otherwise).
+fn state_faults(
+    #[allow(unused_variables)] args: &RunArgs,
+) -> Result<Vec<(u64, plant_sim::pair::StateFault)>, SimError> {
+    #[allow(unused_mut)]
+    let mut state_faults = Vec::new();
+    #[cfg(feature = "fault-injection")]
+    for text in &args.fault_state {
+        let bad = || {
+            SimError::Input(format!(
+                "--fault-state: expected K:version|group|nan, got `{text}`"
+            ))
+        };
+        let (k, kind) = text.split_once(':').ok_or_else(bad)?;
+        let k: u64 = k.parse().map_err(|_| bad())?;
+        let kind = match kind {
+            "version" => plant_sim::pair::StateFault::Version,
+            "group" => plant_sim::pair::StateFault::Group,
+            "nan" => plant_sim::pair::StateFault::Nan,
+            _ => return Err(bad()),
+        };
+        state_faults.push((k, kind));
+    }
+    Ok(state_faults)
+}
+
+/// Prints a finished (or interrupted) pair run's summary to stdout.
+fn print_pair_summary(s: &plant_sim::pair::PairSummary, out: &Path) {
     let f = &s.sim.final_errors;
     println!(
         "run `{}`: scenario {} ({}, law {}), {}, {} cycles, {} wake-up",
@@ -415,12 +432,8 @@ fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
     );
     println!(
         "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}",
-        opts.out.display()
+        out.display()
     );
-    match stop.requested() {
-        Some(sig) if s.interrupted => Err(SimError::Interrupted(sig)),
-        _ => Ok(()),
-    }
 }
 
 fn main() -> ExitCode {

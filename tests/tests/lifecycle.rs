@@ -95,30 +95,37 @@ fn sigterm_stops_a_real_time_run_and_writes_what_ran() {
     interrupt_run("TERM", 143);
 }
 
-#[test]
-fn sigterm_to_the_controller_makes_it_leave_and_the_plant_goes_to_safe_mode() {
-    let _g = serial();
-    let d = TempDir::new("ctl-term");
-    let out_dir = d.join("run");
-    let mut p = Proc::start(
+/// A real-time `plant_sim run --no-spawn` of `seconds` under `run` writing to `out`, and a
+/// `controller_node` started by hand beside it, once the plant reports the connection.
+fn start_pair(run: &str, seconds: &str, out: &str) -> (Proc, Proc) {
+    let p = Proc::start(
         "plant_sim",
         &[
             "run",
             "--no-spawn",
             "--duration",
-            "3",
+            seconds,
             "--name",
-            "t-ctl-term",
+            run,
             "--out",
-            &out_dir,
+            out,
         ],
     );
-    let mut ctl = Proc::start("controller_node", &["--name", "t-ctl-term"]);
+    let ctl = Proc::start("controller_node", &["--name", run]);
     assert!(
         p.wait_for_line("controller connected", Duration::from_secs(20)),
         "{}",
         p.output()
     );
+    (p, ctl)
+}
+
+#[test]
+fn sigterm_to_the_controller_makes_it_leave_and_the_plant_goes_to_safe_mode() {
+    let _g = serial();
+    let d = TempDir::new("ctl-term");
+    let out_dir = d.join("run");
+    let (mut p, mut ctl) = start_pair("t-ctl-term", "3", &out_dir);
     std::thread::sleep(Duration::from_millis(1000));
     ctl.signal("TERM");
     let status = ctl.wait_timeout(Duration::from_secs(2));
@@ -210,25 +217,7 @@ fn allocations(out: &str) -> u64 {
 fn the_controller_allocates_nothing_when_the_plant_is_killed() {
     let _g = serial();
     let d = TempDir::new("alloc-kill");
-    let mut p = Proc::start(
-        "plant_sim",
-        &[
-            "run",
-            "--no-spawn",
-            "--duration",
-            "30",
-            "--name",
-            "t-alloc-kill",
-            "--out",
-            &d.join("r"),
-        ],
-    );
-    let mut ctl = Proc::start("controller_node", &["--name", "t-alloc-kill"]);
-    assert!(
-        p.wait_for_line("controller connected", Duration::from_secs(20)),
-        "{}",
-        p.output()
-    );
+    let (mut p, mut ctl) = start_pair("t-alloc-kill", "30", &d.join("r"));
     std::thread::sleep(Duration::from_millis(1000));
     p.kill();
     let status = ctl.wait_timeout(Duration::from_secs(5));
@@ -243,25 +232,7 @@ fn the_controller_allocates_nothing_when_the_plant_pauses() {
     let _g = serial();
     let d = TempDir::new("alloc-pause");
     let out_dir = d.join("r");
-    let mut p = Proc::start(
-        "plant_sim",
-        &[
-            "run",
-            "--no-spawn",
-            "--duration",
-            "3",
-            "--name",
-            "t-alloc-pause",
-            "--out",
-            &out_dir,
-        ],
-    );
-    let mut ctl = Proc::start("controller_node", &["--name", "t-alloc-pause"]);
-    assert!(
-        p.wait_for_line("controller connected", Duration::from_secs(20)),
-        "{}",
-        p.output()
-    );
+    let (mut p, mut ctl) = start_pair("t-alloc-pause", "3", &out_dir);
     std::thread::sleep(Duration::from_millis(800));
     p.signal("STOP");
     std::thread::sleep(Duration::from_millis(500));
