@@ -10,7 +10,7 @@ use crate::error::{Error, Quantity};
 use crate::group::MatrixLieGroup;
 use crate::integrator::RigidBody;
 use crate::law::{Controller, Desired, LawOutput};
-use crate::reference::Reference;
+use crate::reference::{Reference, Trajectory};
 use crate::tracking::{ErrorNorms, error_norms};
 use crate::validate::finite;
 use nalgebra::{SMatrix, SVector};
@@ -42,28 +42,30 @@ impl<T: Real, const N: usize, const M: usize> Sample<T, N, M> {
     }
 }
 
-/// Controller, reference and plant stepping together.
+/// Controller, reference and plant stepping together. The reference is any [`Trajectory`]
+/// (by default the feedforward-series [`Reference`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct ClosedLoop<T: Real, G, const N: usize, const M: usize> {
+pub struct ClosedLoop<T: Real, G, const N: usize, const M: usize, R = Reference<T, G, N, M>> {
     /// The controller.
     pub controller: Controller<T, G, N, M>,
     /// The desired trajectory (its period is the control period).
-    pub reference: Reference<T, G, N, M>,
+    pub reference: R,
     /// The plant.
     pub plant: RigidBody<T, G, N, M>,
     disturbance: SVector<T, M>,
     plant_substeps: usize,
 }
 
-impl<T, G, const N: usize, const M: usize> ClosedLoop<T, G, N, M>
+impl<T, G, const N: usize, const M: usize, R> ClosedLoop<T, G, N, M, R>
 where
     T: Real,
     G: MatrixLieGroup<N, M>,
+    R: Trajectory<T, N, M>,
 {
     /// Assembles a loop; the control period is the reference's.
     pub fn new(
         controller: Controller<T, G, N, M>,
-        reference: Reference<T, G, N, M>,
+        reference: R,
         plant: RigidBody<T, G, N, M>,
         plant_substeps: usize,
     ) -> Result<Self, Error> {

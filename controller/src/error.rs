@@ -84,6 +84,16 @@ pub enum Error {
         /// The capacity per axis.
         capacity: usize,
     },
+    /// A path's times do not increase strictly (at waypoint or segment `index`).
+    NotIncreasing {
+        /// The first offending waypoint (or segment) index.
+        index: usize,
+    },
+    /// A path holds more segments than its fixed capacity.
+    TooManySegments {
+        /// The capacity.
+        capacity: usize,
+    },
 }
 
 impl fmt::Display for Error {
@@ -114,6 +124,15 @@ impl fmt::Display for Error {
                 f,
                 "feedforward axis {} has more than {} cosine terms",
                 axis, capacity
+            ),
+            Error::NotIncreasing { index } => write!(
+                f,
+                "path times must increase strictly; waypoint {index} is not later than the one before"
+            ),
+            Error::TooManySegments { capacity } => write!(
+                f,
+                "a path holds at most {capacity} segments ({} waypoints)",
+                capacity + 1
             ),
         }
     }

@@ -16,7 +16,8 @@
 //! | [`semidirect`] | the phase-space group `G ⋉ g*`, the actions φ and ψ, the vector field f |
 //! | [`tracking`] | tracking error, error inputs, error inertia, Lyapunov function |
 //! | [`law`] | the EqT law (any group), the SO(3) closed forms EqT, GT, nog, asym, the [`Controller`] |
-//! | [`reference`](mod@reference) | the desired-trajectory generator with cosine-series feedforward |
+//! | [`reference`](mod@reference) | the [`Trajectory`] interface; the generator with cosine-series feedforward |
+//! | [`path`] | set-points, paths through waypoints, streamed pieces |
 //! | [`integrator`] | RKMK4 on the group, the rigid body |
 //! | [`closed_loop`] | controller + reference + plant in one loop (simulation, firmware) |
 //!
@@ -31,6 +32,7 @@ pub mod error;
 pub mod group;
 pub mod integrator;
 pub mod law;
+pub mod path;
 pub mod reference;
 pub mod semidirect;
 pub mod tracking;
@@ -39,7 +41,10 @@ pub mod validate;
 pub use error::{Error, Quantity};
 pub use group::{GroupKind, MatrixLieGroup, Se3, So3};
 pub use law::{Controller, ControllerConfig, Law, LawOutput};
-pub use reference::{AxisTorque, CosTerm, Feedforward, Reference, so3_seed_feedforward};
+pub use path::{Path, PathReference, PathSample, Segment};
+pub use reference::{
+    AxisTorque, CosTerm, Feedforward, Reference, Source, Trajectory, so3_seed_feedforward,
+};
 
 /// The scalar type: a real field that is `Copy` (`f32`, `f64`).
 ///

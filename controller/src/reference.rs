@@ -10,6 +10,69 @@ use crate::validate::{finite, spd_inverse};
 use crate::{Real, real};
 use nalgebra::{SMatrix, SVector};
 
+/// What the loop asks of any desired-trajectory source, stepped at the control period: the
+/// time `t_k = k·period`, the desired state `(Q_d, p_d, V_d, τ_d)` at `t_k`, and the step to
+/// `t_{k+1}`. Implemented by the feedforward-series [`Reference`], by
+/// [`crate::path::PathReference`] (set-point, waypoints, streamed pieces) and by [`Source`].
+pub trait Trajectory<T: Real, const N: usize, const M: usize> {
+    /// The current time `t_k = k·period`.
+    fn time(&self) -> T;
+    /// The control period.
+    fn period(&self) -> T;
+    /// The index k of the current control step.
+    fn step_index(&self) -> u64;
+    /// The desired state at `t_k`.
+    fn desired(&self) -> Desired<T, N, M>;
+    /// Advances from `t_k` to `t_{k+1}`.
+    fn advance(&mut self);
+}
+
+/// Any of the sources, chosen at run time (the scenario's `[reference]`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Source<T: Real, G, const N: usize, const M: usize> {
+    /// The feedforward cosine series, integrated.
+    Series(Reference<T, G, N, M>),
+    /// A set-point, a path through waypoints, or streamed pieces.
+    Path(crate::path::PathReference<T, G, N, M>),
+}
+
+impl<T, G, const N: usize, const M: usize> Trajectory<T, N, M> for Source<T, G, N, M>
+where
+    T: Real,
+    G: MatrixLieGroup<N, M>,
+{
+    fn time(&self) -> T {
+        match self {
+            Source::Series(r) => r.time(),
+            Source::Path(r) => r.time(),
+        }
+    }
+    fn period(&self) -> T {
+        match self {
+            Source::Series(r) => r.period(),
+            Source::Path(r) => r.period(),
+        }
+    }
+    fn step_index(&self) -> u64 {
+        match self {
+            Source::Series(r) => r.step_index(),
+            Source::Path(r) => r.step_index(),
+        }
+    }
+    fn desired(&self) -> Desired<T, N, M> {
+        match self {
+            Source::Series(r) => r.desired(),
+            Source::Path(r) => r.desired(),
+        }
+    }
+    fn advance(&mut self) {
+        match self {
+            Source::Series(r) => r.advance(),
+            Source::Path(r) => r.advance(),
+        }
+    }
+}
+
 /// The number of cosine terms each feedforward axis can hold.
 pub const MAX_TERMS: usize = 8;
 
@@ -200,6 +263,10 @@ where
 
     /// Advances from `t_k` to `t_{k+1}`.
     pub fn advance(&mut self) {
+        self.step_once();
+    }
+
+    fn step_once(&mut self) {
         let t0 = self.time();
         let h = self.period / real(self.substeps as f64);
         for j in 0..self.substeps {
@@ -211,5 +278,27 @@ where
                 });
         }
         self.step += 1;
+    }
+}
+
+impl<T, G, const N: usize, const M: usize> Trajectory<T, N, M> for Reference<T, G, N, M>
+where
+    T: Real,
+    G: MatrixLieGroup<N, M>,
+{
+    fn time(&self) -> T {
+        Reference::time(self)
+    }
+    fn period(&self) -> T {
+        Reference::period(self)
+    }
+    fn step_index(&self) -> u64 {
+        Reference::step_index(self)
+    }
+    fn desired(&self) -> Desired<T, N, M> {
+        Reference::desired(self)
+    }
+    fn advance(&mut self) {
+        self.step_once();
     }
 }

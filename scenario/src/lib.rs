@@ -22,21 +22,27 @@
 //! rotation = [rx, ry, rz]       # R(0) = exp(hat(rotation))
 //! position = [x, y, z]          # se3 only
 //! velocity = [...]              # m entries (se3: ω then v)
-//! [reference]
-//! rotation = [...]; position = [...] (se3 only); velocity = [...]
+//! [reference]                   # one of three kinds:
+//! rotation = [...]; position = [...] (se3 only); velocity = [...]     # 1. feedforward series
 //! torque = [ { offset = 0.0, terms = [ { amplitude = 1.0, frequency = 1.0, phase = 0.0 } ] }, ... ]
+//! waypoints = "slew.csv"        # 2. a path through waypoints (relative to this file)
+//! setpoint = { rotation = [...], position = [...] }                   # 3. a set-point
 //! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod cli;
+pub mod waypoints;
 
 use controller::group::MatrixLieGroup;
 use controller::group::so3::exp_so3;
 use controller::integrator::RigidBody;
 use controller::reference::{AxisTorque, CosTerm, Feedforward, MAX_TERMS};
 use controller::validate::spd_inverse;
-use controller::{Controller, ControllerConfig, GroupKind, Law, Quantity, Reference};
+use controller::{
+    Controller, ControllerConfig, GroupKind, Law, Path as GroupPath, PathReference, Quantity,
+    Reference, Source,
+};
 use nalgebra::{SMatrix, SVector, Vector3};
 use serde::Deserialize;
 use std::path::Path;
@@ -80,6 +86,20 @@ pub enum ScenarioError {
         origin: String,
         /// The dotted key, e.g. `plant.inertia`.
         key: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A waypoint file is malformed.
+    #[error("{file}: line {line}, column {column} (`{name}`): {message}")]
+    Waypoints {
+        /// The file.
+        file: String,
+        /// The line (1: the header).
+        line: u64,
+        /// The column (1-based).
+        column: usize,
+        /// The column's name in the header.
+        name: String,
         /// What is wrong.
         message: String,
     },
@@ -131,10 +151,19 @@ struct RawState {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawReference {
+    rotation: Option<Vec<f64>>,
+    position: Option<Vec<f64>>,
+    velocity: Option<Vec<f64>>,
+    torque: Option<Vec<RawAxis>>,
+    waypoints: Option<String>,
+    setpoint: Option<RawPose>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPose {
     rotation: Vec<f64>,
     position: Option<Vec<f64>>,
-    velocity: Vec<f64>,
-    torque: Option<Vec<RawAxis>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -201,6 +230,26 @@ pub struct StateSpec {
     pub velocity: Vec<f64>,
 }
 
+/// A pose: `Q = [[exp(hat(rotation)), position], [0, 1]]` (SO(3): the rotation alone).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose {
+    /// Rotation vector (rad).
+    pub rotation: [f64; 3],
+    /// Position (SE(3) only; zero on SO(3)).
+    pub position: [f64; 3],
+}
+
+/// A reference given as poses at times: a set-point (one pose) or a path through waypoints.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PathSpec {
+    /// Where it came from: the waypoint file, or `setpoint`.
+    pub file: String,
+    /// Waypoint times, strictly increasing.
+    pub times: Vec<f64>,
+    /// Waypoint poses.
+    pub poses: Vec<Pose>,
+}
+
 /// A validated scenario. Matrices are row-major; dimensions match the group.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
@@ -234,8 +283,11 @@ pub struct Scenario {
     pub initial: StateSpec,
     /// The reference at t = 0.
     pub reference: StateSpec,
-    /// Feedforward torque, one axis per algebra dimension.
+    /// Feedforward torque, one axis per algebra dimension (zero for a path).
     pub feedforward: Vec<Axis>,
+    /// The reference as poses at times (`[reference] waypoints` or `setpoint`); `None`: the
+    /// feedforward series. With a path, `reference` is its first pose at rest.
+    pub path: Option<PathSpec>,
 }
 
 impl Scenario {
@@ -258,7 +310,11 @@ impl Scenario {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "scenario".to_owned());
-        Scenario::from_toml(&text, &path.display().to_string(), &stem)
+        Validator {
+            origin: &path.display().to_string(),
+            base: path.parent(),
+        }
+        .parse(&text, &stem)
     }
 
     /// Parses and validates TOML text; `origin` names it in errors, `default_name` is used
@@ -268,11 +324,7 @@ impl Scenario {
         origin: &str,
         default_name: &str,
     ) -> Result<Scenario, ScenarioError> {
-        let raw: RawScenario = toml::from_str(text).map_err(|e| ScenarioError::Parse {
-            origin: origin.to_owned(),
-            message: e.to_string().trim_end().to_owned(),
-        })?;
-        Validator { origin }.validate(raw, default_name)
+        Validator { origin, base: None }.parse(text, default_name)
     }
 
     /// Overrides the law (checked against the group).
@@ -354,6 +406,43 @@ impl Scenario {
         )
     }
 
+    /// The path of a waypoint or set-point scenario (`None` for a feedforward series).
+    pub fn path<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Option<Result<GroupPath<f64, G, N, M>, controller::Error>> {
+        let spec = self.path.as_ref()?;
+        let poses: Vec<SMatrix<f64, N, N>> = spec
+            .poses
+            .iter()
+            .map(|p| Self::pose::<N>(p.rotation, p.position))
+            .collect();
+        Some(GroupPath::through(&spec.times, &poses))
+    }
+
+    /// The desired trajectory, whichever its kind: the feedforward series integrated, or the
+    /// path through waypoints (a set-point) stepped at the control period.
+    pub fn reference_source<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Result<Source<f64, G, N, M>, controller::Error> {
+        Ok(match self.path::<G, N, M>() {
+            None => Source::Series(self.reference_generator()?),
+            Some(path) => Source::Path(PathReference::new(
+                path?,
+                SMatrix::from_row_slice(&self.model_inertia),
+                self.control_period,
+            )?),
+        })
+    }
+
+    /// n×n configuration from a rotation vector and a position (ignored on SO(3)).
+    pub fn pose<const N: usize>(rotation: [f64; 3], position: [f64; 3]) -> SMatrix<f64, N, N> {
+        Self::configuration::<N>(&StateSpec {
+            rotation,
+            position,
+            velocity: Vec::new(),
+        })
+    }
+
     /// The plant body at its initial state (true inertia).
     pub fn plant_body<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         &self,
@@ -390,6 +479,14 @@ impl Scenario {
             h.f64s(&[axis.offset, axis.terms.len() as f64]);
             for t in &axis.terms {
                 h.f64s(&[t.amplitude, t.frequency, t.phase]);
+            }
+        }
+        if let Some(p) = &self.path {
+            h.f64s(&[p.times.len() as f64]);
+            h.f64s(&p.times);
+            for pose in &p.poses {
+                h.f64s(&pose.rotation);
+                h.f64s(&pose.position);
             }
         }
         h.0.max(1)
@@ -438,9 +535,20 @@ fn parse_law(text: &str, group: GroupKind, key: &str, origin: &str) -> Result<La
 
 struct Validator<'a> {
     origin: &'a str,
+    /// The scenario file's folder (waypoint files are relative to it); `None`: the current
+    /// directory.
+    base: Option<&'a Path>,
 }
 
 impl Validator<'_> {
+    fn parse(&self, text: &str, default_name: &str) -> Result<Scenario, ScenarioError> {
+        let raw: RawScenario = toml::from_str(text).map_err(|e| ScenarioError::Parse {
+            origin: self.origin.to_owned(),
+            message: e.to_string().trim_end().to_owned(),
+        })?;
+        self.validate(raw, default_name)
+    }
+
     fn err(&self, key: &str, message: impl Into<String>) -> ScenarioError {
         ScenarioError::Invalid {
             origin: self.origin.to_owned(),
@@ -692,62 +800,7 @@ impl Validator<'_> {
         let kp = self.gain("controller.kp", &raw.controller.kp, n, "n×n for the group")?;
         let kd = self.gain("controller.kd", &raw.controller.kd, m, "m×m for the group")?;
         let initial = self.state("initial", &raw.initial, group, m)?;
-        let reference = self.state_parts(
-            "reference",
-            &raw.reference.rotation,
-            raw.reference.position.as_deref(),
-            &raw.reference.velocity,
-            group,
-            m,
-        )?;
-        let feedforward = match &raw.reference.torque {
-            None => vec![
-                Axis {
-                    offset: 0.0,
-                    terms: vec![]
-                };
-                m
-            ],
-            Some(axes) => {
-                if axes.len() != m {
-                    return Err(self.err(
-                        "reference.torque",
-                        format!(
-                            "expected {m} axes (one per algebra dimension), got {}",
-                            axes.len()
-                        ),
-                    ));
-                }
-                let mut out = Vec::with_capacity(m);
-                for (i, a) in axes.iter().enumerate() {
-                    let key = format!("reference.torque[{i}]");
-                    if a.terms.len() > MAX_TERMS {
-                        return Err(self.err(
-                            &key,
-                            format!("at most {MAX_TERMS} terms, got {}", a.terms.len()),
-                        ));
-                    }
-                    self.finite(&format!("{key}.offset"), &[a.offset])?;
-                    let mut terms = Vec::new();
-                    for (j, t) in a.terms.iter().enumerate() {
-                        self.finite(
-                            &format!("{key}.terms[{j}]"),
-                            &[t.amplitude, t.frequency, t.phase],
-                        )?;
-                        terms.push(Term {
-                            amplitude: t.amplitude,
-                            frequency: t.frequency,
-                            phase: t.phase,
-                        });
-                    }
-                    out.push(Axis {
-                        offset: a.offset,
-                        terms,
-                    });
-                }
-                out
-            }
-        };
+        let (reference, feedforward, path) = self.reference(&raw.reference, group, m)?;
         Ok(Scenario {
             name: raw.name.unwrap_or_else(|| default_name.to_owned()),
             group,
@@ -765,7 +818,122 @@ impl Validator<'_> {
             initial,
             reference,
             feedforward,
+            path,
         })
+    }
+
+    /// `[reference]`: exactly one of the feedforward series (`rotation`, `velocity`, optional
+    /// `position` and `torque`), `waypoints = "FILE"` or `setpoint = { ... }`.
+    fn reference(
+        &self,
+        raw: &RawReference,
+        group: GroupKind,
+        m: usize,
+    ) -> Result<(StateSpec, Vec<Axis>, Option<PathSpec>), ScenarioError> {
+        let series = raw.rotation.is_some()
+            || raw.velocity.is_some()
+            || raw.position.is_some()
+            || raw.torque.is_some();
+        let kinds = [series, raw.waypoints.is_some(), raw.setpoint.is_some()];
+        if kinds.iter().filter(|k| **k).count() != 1 {
+            return Err(self.err(
+                "reference",
+                "give exactly one of: rotation + velocity (+ torque) for a feedforward series, \
+                 waypoints = \"FILE.csv\", or setpoint = { rotation = [...] }",
+            ));
+        }
+        let zero = vec![
+            Axis {
+                offset: 0.0,
+                terms: vec![]
+            };
+            m
+        ];
+        let path = if let Some(file) = &raw.waypoints {
+            let full = self
+                .base
+                .map_or_else(|| Path::new(file).to_path_buf(), |b| b.join(file));
+            waypoints::read(&full, group)?
+        } else if let Some(sp) = &raw.setpoint {
+            let st = self.state_parts(
+                "reference.setpoint",
+                &sp.rotation,
+                sp.position.as_deref(),
+                &vec![0.0; m],
+                group,
+                m,
+            )?;
+            PathSpec {
+                file: "setpoint".to_owned(),
+                times: vec![0.0],
+                poses: vec![Pose {
+                    rotation: st.rotation,
+                    position: st.position,
+                }],
+            }
+        } else {
+            let missing = |k: &str| self.err(&format!("reference.{k}"), "missing");
+            let reference = self.state_parts(
+                "reference",
+                raw.rotation.as_deref().ok_or_else(|| missing("rotation"))?,
+                raw.position.as_deref(),
+                raw.velocity.as_deref().ok_or_else(|| missing("velocity"))?,
+                group,
+                m,
+            )?;
+            let feedforward = match &raw.torque {
+                None => zero,
+                Some(axes) => self.feedforward(axes, m)?,
+            };
+            return Ok((reference, feedforward, None));
+        };
+        let first = path.poses[0];
+        let reference = StateSpec {
+            rotation: first.rotation,
+            position: first.position,
+            velocity: vec![0.0; m],
+        };
+        Ok((reference, zero, Some(path)))
+    }
+
+    fn feedforward(&self, axes: &[RawAxis], m: usize) -> Result<Vec<Axis>, ScenarioError> {
+        if axes.len() != m {
+            return Err(self.err(
+                "reference.torque",
+                format!(
+                    "expected {m} axes (one per algebra dimension), got {}",
+                    axes.len()
+                ),
+            ));
+        }
+        let mut out = Vec::with_capacity(m);
+        for (i, a) in axes.iter().enumerate() {
+            let key = format!("reference.torque[{i}]");
+            if a.terms.len() > MAX_TERMS {
+                return Err(self.err(
+                    &key,
+                    format!("at most {MAX_TERMS} terms, got {}", a.terms.len()),
+                ));
+            }
+            self.finite(&format!("{key}.offset"), &[a.offset])?;
+            let mut terms = Vec::new();
+            for (j, t) in a.terms.iter().enumerate() {
+                self.finite(
+                    &format!("{key}.terms[{j}]"),
+                    &[t.amplitude, t.frequency, t.phase],
+                )?;
+                terms.push(Term {
+                    amplitude: t.amplitude,
+                    frequency: t.frequency,
+                    phase: t.phase,
+                });
+            }
+            out.push(Axis {
+                offset: a.offset,
+                terms,
+            });
+        }
+        Ok(out)
     }
 }
 
