@@ -13,7 +13,7 @@
 #![warn(missing_docs)]
 
 use controller::group::{MatrixLieGroup, OnGroup};
-use controller::{Controller, Reference};
+use controller::{Controller, Source, Trajectory};
 use ipc_types::{CommandMsg, StateMsg, name_str};
 use link::{
     ControllerConfig, ControllerEndpoint, Incoming, LinkError, Refusal, StopFlag, StopSignal,
@@ -132,15 +132,18 @@ impl OnGroup for Node<'_> {
 /// One controller cycle without IPC: steps the reference up to the state's k (normally it is
 /// there already), runs the law through the controller crate (finite-state check,
 /// saturation) with the state's configuration and body velocity, and fills the command.
-/// Allocation-free; generic over the scalar so the same cycle can be measured in f32.
-pub fn respond<T, G, const N: usize, const M: usize>(
+/// Allocation-free; generic over the scalar so the same cycle can be measured in f32, and
+/// over the reference source. The state must have passed `ipc_types::check_state` (its
+/// sequence number jumps by at most `MAX_SEQ_JUMP`, which bounds the catching up).
+pub fn respond<T, G, R, const N: usize, const M: usize>(
     controller: &Controller<T, G, N, M>,
-    reference: &mut Reference<T, G, N, M>,
+    reference: &mut R,
     msg: &StateMsg,
 ) -> Result<CommandMsg, controller::Error>
 where
     T: controller::Real,
     G: MatrixLieGroup<N, M>,
+    R: Trajectory<T, N, M>,
 {
     while reference.step_index() < msg.seq {
         reference.advance();
@@ -165,7 +168,7 @@ fn log(msg: std::fmt::Arguments) {
 struct Cycles<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     opts: &'a Options,
     controller: Controller<f64, G, N, M>,
-    reference: Option<Reference<f64, G, N, M>>,
+    reference: Option<Source<f64, G, N, M>>,
     cycles: u64,
     refused: u64,
     /// Allocations counted at the end of the first cycle.
@@ -224,7 +227,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M
 fn first_reference<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     opts: &Options,
     msg: &StateMsg,
-) -> Result<Reference<f64, G, N, M>, NodeError> {
+) -> Result<Source<f64, G, N, M>, NodeError> {
     let mut s = opts.scenario.clone();
     s.control_period = msg.control_period;
     log(format_args!(
@@ -238,7 +241,7 @@ fn first_reference<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         name_str(&msg.scenario),
         msg.seq
     ));
-    s.reference_generator::<G, N, M>()
+    s.reference_source::<G, N, M>()
         .map_err(|source| NodeError::Scenario {
             scenario: s.name.clone(),
             source,

@@ -666,6 +666,7 @@ fn scenario_error_kind(e: &ScenarioError) -> String {
             format!("ScenarioError::Invalid ({k})")
         }
         ScenarioError::UnknownBuiltin(_) => "ScenarioError::UnknownBuiltin".to_owned(),
+        ScenarioError::Waypoints { .. } => "ScenarioError::Waypoints".to_owned(),
     }
 }
 
@@ -681,6 +682,8 @@ pub(crate) fn controller_error_kind(e: &controller::Error) -> String {
         E::WrongShape { quantity, .. } => format!("WrongShape({})", q(quantity)),
         E::LawNotDefined { law, group } => format!("LawNotDefined({law:?}, {group:?})"),
         E::TooManyTerms { .. } => "TooManyTerms".to_owned(),
+        E::NotIncreasing { .. } => "NotIncreasing".to_owned(),
+        E::TooManySegments { .. } => "TooManySegments".to_owned(),
     }
 }
 

@@ -3,7 +3,8 @@
 //! * [`trajectory`]: the in-process closed loop (controller crate's `ClosedLoop`) and its rows;
 //! * [`output`]: `trajectory.csv` and `summary.json`;
 //! * [`plot`]: the figures (PNG and SVG);
-//! * [`montecarlo`]: the extended paper's Monte Carlo study.
+//! * [`montecarlo`]: the extended paper's Monte Carlo study;
+//! * [`reference`](mod@reference): the desired trajectory sampled for inspection.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -12,6 +13,7 @@ pub mod montecarlo;
 pub mod output;
 pub mod pair;
 pub mod plot;
+pub mod reference;
 pub mod spawn;
 pub mod trajectory;
 

@@ -48,6 +48,18 @@ enum Command {
     Run(RunArgs),
     /// Round trip of the real loop: iceoryx2 busy-poll, iceoryx2 event, Unix-socket baseline.
     BenchLoop(BenchLoopArgs),
+    /// The scenario's desired trajectory sampled at its control period: reference.csv and a
+    /// figure (check a manoeuvre before flying it).
+    Reference(ReferenceArgs),
+}
+
+#[derive(Args)]
+struct ReferenceArgs {
+    #[command(flatten)]
+    source: ScenarioSource,
+    /// Output directory (created if needed); default out/<scenario name>.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -436,6 +448,23 @@ fn print_pair_summary(s: &plant_sim::pair::PairSummary, out: &Path) {
     );
 }
 
+fn reference_cmd(args: ReferenceArgs) -> Result<(), SimError> {
+    let s = args.source.load("seed")?;
+    let out = args.out.unwrap_or_else(|| Path::new("out").join(&s.name));
+    let csv = plant_sim::reference::write_reference(&s, &out)?;
+    println!(
+        "reference of `{}` ({}, {}): {} samples at {} s; wrote {} and {}/reference.{{png,svg}}",
+        s.name,
+        s.group.name(),
+        s.path.as_ref().map_or("feedforward series", |p| p.file.as_str()),
+        s.steps() + 1,
+        s.control_period,
+        csv.display(),
+        out.display()
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let stop = match StopFlag::install() {
@@ -451,6 +480,7 @@ fn main() -> ExitCode {
         Some(Command::Montecarlo(a)) => montecarlo_cmd(a, &stop),
         Some(Command::Run(a)) => run_cmd(a, &stop),
         Some(Command::BenchLoop(a)) => bench_loop_cmd(a, &stop),
+        Some(Command::Reference(a)) => reference_cmd(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

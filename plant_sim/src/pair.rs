@@ -17,6 +17,7 @@ use crate::plot::trajectory_figure;
 use crate::spawn::Spawned;
 use crate::trajectory::{Row, Trajectory, input};
 use controller::group::{MatrixLieGroup, OnGroup};
+use controller::Trajectory as _;
 use controller::law::{safe_mode_torque, saturate};
 use hdrhistogram::Histogram;
 use ipc_types::{StateMsg, group_code};
@@ -231,7 +232,7 @@ struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     steps: u64,
     period_ns: u64,
     plant: controller::integrator::RigidBody<f64, G, N, M>,
-    reference: controller::Reference<f64, G, N, M>,
+    reference: controller::Source<f64, G, N, M>,
     cfg: controller::ControllerConfig<f64, N, M>,
     ep: PlantEndpoint,
     policy: DeadlinePolicy,
@@ -297,7 +298,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             Mode::Lockstep => s.steps(),
         };
         let plant = s.plant_body::<G, N, M>().map_err(input(&s))?;
-        let reference = s.reference_generator::<G, N, M>().map_err(input(&s))?;
+        let reference = s.reference_source::<G, N, M>().map_err(input(&s))?;
         let cfg = s.controller_config::<N, M>();
         let ep = PlantEndpoint::open(PlantConfig {
             run: opts.run.clone(),

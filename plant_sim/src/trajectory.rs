@@ -163,7 +163,7 @@ pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
 ) -> Result<Trajectory, SimError> {
     let controller = s.controller::<G, N, M>().map_err(input(s))?;
-    let reference = s.reference_generator::<G, N, M>().map_err(input(s))?;
+    let reference = s.reference_source::<G, N, M>().map_err(input(s))?;
     let mut sim = ClosedLoop::new(controller, reference, plant, s.plant_substeps)
         .and_then(|l| l.with_disturbance(s.disturbance_vector()))
         .map_err(input(s))?;
