@@ -456,7 +456,9 @@ fn reference_cmd(args: ReferenceArgs) -> Result<(), SimError> {
         "reference of `{}` ({}, {}): {} samples at {} s; wrote {} and {}/reference.{{png,svg}}",
         s.name,
         s.group.name(),
-        s.path.as_ref().map_or("feedforward series", |p| p.file.as_str()),
+        s.path
+            .as_ref()
+            .map_or("feedforward series", |p| p.file.as_str()),
         s.steps() + 1,
         s.control_period,
         csv.display(),

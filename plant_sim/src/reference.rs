@@ -139,6 +139,10 @@ fn reference_figure(s: &Scenario, rows: &[ReferenceRow], stem: &Path) -> Result<
         panel("Body acceleration dV_d/dt", "vd_dot", &|r| &r.v_dot),
         panel("Feedforward torque τ_d", "tau_d", &|r| &r.tau),
     ];
-    let title = format!("{} — reference on {}", s.name, s.group.name().to_uppercase());
+    let title = format!(
+        "{} — reference on {}",
+        s.name,
+        s.group.name().to_uppercase()
+    );
     render(stem, &title, &panels, 1, (1000, 1400))
 }
