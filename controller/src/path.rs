@@ -1,6 +1,6 @@
 //! Desired trajectories given as poses at times: a set-point, a smooth path through waypoints,
-//! and the same pieces arriving one by one from a planner (docs/maths.md, "Desired
-//! trajectories as inputs").
+//! and the same pieces arriving one by one.
+//! The mathematics: docs/maths.md, "Desired trajectories as inputs".
 //!
 //! Every piece is a [`Segment`]: the geodesic `Q(t) = Q_a·exp(s(σ)·ξ)` from waypoint `a` to
 //! waypoint `b`, `ξ = log(Q_a⁻¹ Q_b)`, `σ = (t − t_a)/(t_b − t_a)`, with the quintic time
@@ -22,8 +22,8 @@ use nalgebra::{SMatrix, SVector};
 /// How many segments a [`Path`] holds: a path through up to `MAX_SEGMENTS + 1` waypoints.
 pub const MAX_SEGMENTS: usize = 32;
 
-/// The quintic time scaling `(s, ds/dσ, d²s/dσ²)` at `σ ∈ [0, 1]` (docs/maths.md, "Desired
-/// trajectories as inputs": `s(σ) = 10σ³ − 15σ⁴ + 6σ⁵`).
+/// The quintic time scaling `(s, ds/dσ, d²s/dσ²)` at `σ ∈ [0, 1]`: `s(σ) = 10σ³ − 15σ⁴ + 6σ⁵`
+/// of docs/maths.md, "Desired trajectories as inputs".
 pub fn quintic<T: Real>(sigma: T) -> (T, T, T) {
     let s = sigma;
     let s2 = s * s;
