@@ -956,6 +956,44 @@ mod tests {
     }
 
     #[test]
+    fn a_set_point_or_waypoints_replace_the_series_and_only_one_kind_is_given() {
+        let seed = BUILTINS[0].1;
+        let at = seed.find("[reference]").unwrap();
+        let head = &seed[..at];
+        let sp = format!("{head}[reference]\nsetpoint = {{ rotation = [0.0, 0.0, 1.0] }}\n");
+        let s = Scenario::from_toml(&sp, "sp", "sp").unwrap();
+        let p = s.path.as_ref().unwrap();
+        assert_eq!((p.times.len(), p.poses[0].rotation), (1, [0.0, 0.0, 1.0]));
+        assert_eq!(s.reference.rotation, [0.0, 0.0, 1.0]);
+        assert_ne!(
+            s.fingerprint(),
+            Scenario::builtin("seed").unwrap().fingerprint()
+        );
+        let both =
+            format!("{head}[reference]\nrotation = [0.0, 0.0, 0.0]\nwaypoints = \"w.csv\"\n");
+        let e = Scenario::from_toml(&both, "both", "both")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("key `reference`: give exactly one of"), "{e}");
+        let pos = format!(
+            "{head}[reference]\nsetpoint = {{ rotation = [0.0, 0.0, 1.0], position = [1.0, 0.0, 0.0] }}\n"
+        );
+        let e = Scenario::from_toml(&pos, "pos", "pos")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("reference.setpoint.position"), "{e}");
+        let file = Scenario::from_file(Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../scenarios/slew_se3.toml"
+        )))
+        .unwrap();
+        assert_eq!(
+            file.path.as_ref().unwrap().poses[1].position,
+            [2.0, 0.0, 0.0]
+        );
+    }
+
+    #[test]
     fn law_override_is_checked_against_the_group() {
         let e = Scenario::builtin("se3_circle")
             .unwrap()

@@ -5,10 +5,14 @@
 use crate::{PathSpec, Pose, ScenarioError};
 use controller::GroupKind;
 use controller::path::MAX_SEGMENTS;
+use std::io::Read;
 use std::path::Path;
 
 /// The most waypoints a path holds.
 pub const MAX_WAYPOINTS: usize = MAX_SEGMENTS + 1;
+
+/// The largest waypoint file read (far more than 33 lines need).
+const MAX_BYTES: u64 = 1 << 20;
 
 /// The header a group's waypoint file must have.
 pub fn header(group: GroupKind) -> &'static [&'static str] {
@@ -21,10 +25,24 @@ pub fn header(group: GroupKind) -> &'static [&'static str] {
 /// Reads and checks a waypoint file for `group`.
 pub fn read(path: &Path, group: GroupKind) -> Result<PathSpec, ScenarioError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+    let io = |source| ScenarioError::Io {
         path: file.clone(),
         source,
-    })?;
+    };
+    // at most MAX_BYTES: a waypoint file is small, and /dev/zero must not exhaust memory
+    let mut text = String::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(MAX_BYTES + 1).read_to_string(&mut text))
+        .map_err(io)?;
+    if text.len() as u64 > MAX_BYTES {
+        return Err(ScenarioError::Waypoints {
+            file,
+            line: 1,
+            column: 1,
+            name: "t".to_owned(),
+            message: format!("larger than {MAX_BYTES} bytes: not a waypoint file"),
+        });
+    }
     parse(&text, &file, group)
 }
 
@@ -137,6 +155,19 @@ mod tests {
 
     fn msg(text: &str, group: GroupKind) -> String {
         parse(text, "w.csv", group).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn an_oversized_file_is_refused_without_reading_it_all() {
+        let path = std::env::temp_dir().join(format!("eqtrack-big-{}.csv", std::process::id()));
+        let mut text = String::from("t,rx,ry,rz\n");
+        while text.len() as u64 <= MAX_BYTES {
+            text.push_str("0,0,0,0\n");
+        }
+        std::fs::write(&path, text).unwrap();
+        let m = read(&path, GroupKind::So3).unwrap_err().to_string();
+        let _ = std::fs::remove_file(&path);
+        assert!(m.contains("larger than 1048576 bytes"), "{m}");
     }
 
     #[test]
