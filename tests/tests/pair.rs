@@ -19,21 +19,20 @@ fn same_file(a: &str, b: &str) -> bool {
 fn lockstep_equals_the_in_process_simulation_bit_for_bit() {
     let _g = serial();
     let d = TempDir::new("lockstep");
-    for (builtin, name) in [("seed", "t-lock-so3"), ("se3_circle", "t-lock-se3")] {
-        let sim = d.join(&format!("{builtin}-sim"));
-        let pair = d.join(&format!("{builtin}-pair"));
-        let (code, out) = plant(&["sim", "--builtin", builtin, "--out", &sim]);
+    // the two built-ins (feedforward series) and a waypoint scenario from its file
+    let slew = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/slew_se3.toml");
+    for (flag, builtin, name) in [
+        ("--builtin", "seed", "t-lock-so3"),
+        ("--builtin", "se3_circle", "t-lock-se3"),
+        ("--scenario", slew, "t-lock-slew"),
+    ] {
+        let tag = name.trim_start_matches("t-lock-");
+        let sim = d.join(&format!("{tag}-sim"));
+        let pair = d.join(&format!("{tag}-pair"));
+        let (code, out) = plant(&["sim", flag, builtin, "--out", &sim]);
         assert_eq!(code, 0, "{out}");
         let (code, out) = plant(&[
-            "run",
-            "--builtin",
-            builtin,
-            "--mode",
-            "lockstep",
-            "--name",
-            name,
-            "--out",
-            &pair,
+            "run", flag, builtin, "--mode", "lockstep", "--name", name, "--out", &pair,
         ]);
         assert_eq!(code, 0, "{out}");
         assert!(
