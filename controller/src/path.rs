@@ -269,12 +269,7 @@ where
         period: T,
     ) -> Result<Self, Error> {
         crate::validate::spd_inverse(Quantity::Inertia, &inertia)?;
-        if !period.is_finite() {
-            return Err(Error::NonFinite(Quantity::Period));
-        }
-        if period <= T::zero() {
-            return Err(Error::NotPositive(Quantity::Period));
-        }
+        crate::validate::period(period)?;
         Ok(PathReference {
             path,
             inertia,

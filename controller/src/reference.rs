@@ -213,12 +213,7 @@ where
         if !feedforward.axes.iter().all(AxisTorque::is_finite) {
             return Err(Error::NonFinite(Quantity::Feedforward));
         }
-        if !period.is_finite() {
-            return Err(Error::NonFinite(Quantity::Period));
-        }
-        if period <= T::zero() {
-            return Err(Error::NotPositive(Quantity::Period));
-        }
+        crate::validate::period(period)?;
         if substeps == 0 {
             return Err(Error::NotPositive(Quantity::Substeps));
         }

@@ -5,6 +5,18 @@ use crate::error::{Error, Quantity};
 use crate::{Real, real};
 use nalgebra::{SMatrix, SVector};
 
+/// A control period or step length: finite (`NonFinite(Period)`) and strictly positive
+/// (`NotPositive(Period)`).
+pub fn period<T: Real>(period: T) -> Result<(), Error> {
+    if !period.is_finite() {
+        return Err(Error::NonFinite(Quantity::Period));
+    }
+    if period <= T::zero() {
+        return Err(Error::NotPositive(Quantity::Period));
+    }
+    Ok(())
+}
+
 /// `Ok` when every entry is finite, `Err(NonFinite(quantity))` otherwise.
 pub fn finite<T: Real, const R: usize, const C: usize>(
     quantity: Quantity,
