@@ -13,8 +13,10 @@
 #![warn(missing_docs)]
 
 use controller::group::{MatrixLieGroup, OnGroup};
+use controller::path::{Path, PathReference};
 use controller::{Controller, Source, Trajectory};
-use ipc_types::{CommandMsg, StateMsg, name_str};
+use ipc_types::{CommandMsg, PlanReject, StateMsg, check_plan, name_str};
+use link::plan::PlanReader;
 use link::{
     ControllerConfig, ControllerEndpoint, Incoming, LinkError, Refusal, StopFlag, StopSignal,
     TransportKind, clock,
@@ -29,11 +31,24 @@ pub enum Fault {
     NanTorque(u64),
 }
 
+/// Where the desired trajectory comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum ReferenceMode {
+    /// The scenario's own reference (feedforward series, waypoints or set-point).
+    #[default]
+    Scenario,
+    /// Pieces streamed by a planner process on the run's `plan` service; until the first
+    /// arrive, and whenever none covers `t_k`, the last pose given is held.
+    Stream,
+}
+
 /// How to run.
 #[derive(Debug, Clone)]
 pub struct Options {
     /// The scenario (law, gains, model inertia, reference).
     pub scenario: Scenario,
+    /// Where the reference comes from.
+    pub reference: ReferenceMode,
     /// The run name (service names derive from it).
     pub run: String,
     /// The transport.
@@ -169,6 +184,8 @@ struct Cycles<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     opts: &'a Options,
     controller: Controller<f64, G, N, M>,
     reference: Option<Source<f64, G, N, M>>,
+    /// With `--reference stream`: the plan board and what came from it.
+    stream: Option<Stream>,
     cycles: u64,
     refused: u64,
     /// Allocations counted at the end of the first cycle.
@@ -186,7 +203,13 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M
     ) -> Result<(), NodeError> {
         let reference = match &mut self.reference {
             Some(r) => r,
-            None => self.reference.insert(first_reference(self.opts, msg)?),
+            None => {
+                let r = self.reference.insert(first_reference(self.opts, msg)?);
+                if let (Some(stream), Source::Path(p)) = (&mut self.stream, &mut *r) {
+                    stream.pull(p);
+                }
+                r
+            }
         };
         match respond(&self.controller, reference, msg) {
             Ok(mut cmd) => {
@@ -215,7 +238,14 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M
                 }
             }
         }
-        reference.advance();
+        if let (Some(stream), Source::Path(p)) = (&mut self.stream, &mut *reference) {
+            // after the command is out, so reading the plan adds nothing to the round trip
+            stream.pull(p);
+            p.advance();
+            stream.watch(p);
+        } else {
+            reference.advance();
+        }
         if self.cycles == 1 && self.baseline.is_none() {
             self.baseline = Some(allocations());
         }
@@ -241,11 +271,123 @@ fn first_reference<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         name_str(&msg.scenario),
         msg.seq
     ));
-    s.reference_source::<G, N, M>()
-        .map_err(|source| NodeError::Scenario {
-            scenario: s.name.clone(),
-            source,
+    let bad = |source| NodeError::Scenario {
+        scenario: s.name.clone(),
+        source,
+    };
+    let own = s.reference_source::<G, N, M>().map_err(bad)?;
+    if opts.reference == ReferenceMode::Scenario {
+        return Ok(own);
+    }
+    // streamed: start at rest at the pose the scenario's reference starts from
+    let start = own.desired().q;
+    let held = PathReference::new(
+        Path::hold(start).map_err(bad)?,
+        nalgebra::SMatrix::from_row_slice(&s.model_inertia),
+        s.control_period,
+    )
+    .map_err(bad)?;
+    log(format_args!(
+        "reference: streamed on `eqtrack/{}/plan`; holding the scenario's initial reference pose until a planner's pieces arrive",
+        opts.run
+    ));
+    Ok(Source::Path(held))
+}
+
+/// The streamed reference's bookkeeping: which pieces the path has, and whether it ran dry.
+struct Stream {
+    reader: PlanReader,
+    /// The end time of the last segment appended (pieces that start earlier are old).
+    high_water: f64,
+    /// No piece covers `t_k` or lies ahead of it (at the start: none came yet).
+    dry: bool,
+    /// Whether any piece has come.
+    started: bool,
+    /// Plan messages refused, per [`PlanReject`] kind (each kind logged once).
+    rejected: [u64; 6],
+}
+
+impl Stream {
+    fn open(run: &str) -> Result<Stream, NodeError> {
+        Ok(Stream {
+            reader: PlanReader::open(run)?,
+            high_water: f64::NEG_INFINITY,
+            dry: true,
+            started: false,
+            rejected: [0; 6],
         })
+    }
+
+    /// Appends the new pieces of every unseen plan message: those that start no earlier
+    /// than the last piece appended ends and end no earlier than now. Allocation-free.
+    fn pull<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &mut self,
+        reference: &mut PathReference<f64, G, N, M>,
+    ) {
+        let now = reference.time();
+        while let Some(msg) = self.reader.next() {
+            if let Err(kind) = check_plan(&msg, G::KIND) {
+                let i = reject_index(kind);
+                self.rejected[i] += 1;
+                if self.rejected[i] == 1 {
+                    log(format_args!(
+                        "refused a plan message from pid {} ({kind}); its pieces are not used. Further refusals of this kind are counted, not logged",
+                        msg.planner_pid
+                    ));
+                }
+                continue;
+            }
+            for w in msg.used() {
+                let seg = w.segment::<N, M>();
+                if seg.t0 < self.high_water || seg.t1 < now {
+                    continue;
+                }
+                if reference.path_mut().push(seg).is_err() {
+                    // full: the planner republishes the window as time moves on
+                    break;
+                }
+                self.high_water = seg.t1;
+            }
+        }
+    }
+
+    /// Logs once when the stream runs dry (the last pose given is held, at rest: every
+    /// piece ends at rest) and once when pieces cover `t_k` again.
+    fn watch<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &mut self,
+        reference: &PathReference<f64, G, N, M>,
+    ) {
+        let t = reference.time();
+        let dry = reference.path().end_time().is_none_or(|end| end < t);
+        if dry == self.dry {
+            return;
+        }
+        self.dry = dry;
+        if dry {
+            log(format_args!(
+                "t = {t:.3} s: the stream ran dry (no piece covers t or lies ahead): holding the last pose given, at rest"
+            ));
+        } else {
+            let end = reference.path().end_time().unwrap_or(t);
+            log(format_args!(
+                "t = {t:.3} s: stream {}: {} pieces, up to t = {end:.3} s",
+                if self.started { "resumed" } else { "started" },
+                reference.path().segments().count()
+            ));
+            self.started = true;
+        }
+    }
+}
+
+fn reject_index(kind: PlanReject) -> usize {
+    match kind {
+        PlanReject::Version => 0,
+        PlanReject::Group => 1,
+        PlanReject::Count => 2,
+        PlanReject::NonFinite => 3,
+        PlanReject::Times => 4,
+        PlanReject::NotOnGroup => 5,
+    }
 }
 
 /// Logs each rejection kind once.
@@ -285,10 +427,15 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         s.law.name(),
         s.group.name()
     ));
+    let stream = match opts.reference {
+        ReferenceMode::Stream => Some(Stream::open(&opts.run)?),
+        ReferenceMode::Scenario => None,
+    };
     let mut cycles = Cycles {
         opts,
         controller,
         reference: None,
+        stream,
         cycles: 0,
         refused: 0,
         baseline: None,

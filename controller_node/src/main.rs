@@ -7,7 +7,7 @@
 
 use clap::Parser;
 use controller::Law;
-use controller_node::{Fault, Options, Report, Stop, run};
+use controller_node::{Fault, Options, ReferenceMode, Report, Stop, run};
 use link::{Exit, StopFlag, TransportKind};
 use scenario::cli::{ScenarioSource, law_parser, positive_seconds};
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -59,6 +59,12 @@ struct Cli {
     /// Override the scenario's law.
     #[arg(long, value_name = "L", value_parser = law_parser())]
     law: Option<Law>,
+    /// Where the desired trajectory comes from: the scenario's own reference, or pieces a
+    /// planner process streams on the run's `plan` service (see the `planner` example). A
+    /// streamed reference holds the scenario's initial reference pose until pieces arrive,
+    /// and the last pose given whenever the stream runs dry.
+    #[arg(long, value_enum, value_name = "FROM", default_value_t = ReferenceMode::Scenario)]
+    reference: ReferenceMode,
     /// Run name: pairs with different names never see each other's messages.
     #[arg(long, value_name = "RUN", default_value = "eqtrack")]
     name: String,
@@ -112,6 +118,7 @@ fn main() -> ExitCode {
     };
     let opts = Options {
         scenario,
+        reference: cli.reference,
         run: cli.name.clone(),
         transport: cli.transport,
         period,

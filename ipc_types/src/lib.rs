@@ -20,6 +20,9 @@ use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 use nalgebra::{SMatrix, SVector};
 
+pub mod plan;
+pub use plan::{PLAN_WINDOW, PlanMsg, PlanReject, WireSegment, check_plan};
+
 /// Bumped whenever a message layout or meaning changes.
 pub const PROTOCOL_VERSION: u32 = 2;
 /// The largest n (configuration matrices are n×n) any supported group needs.
@@ -631,7 +634,7 @@ pub fn check_command(msg: &CommandMsg, group: GroupKind, awaited: u64) -> Result
 pub type Name = heapless::String<200>;
 
 /// The names of one run's services: `eqtrack/<run>/{state, command, state_event,
-/// command_event}`, and the two nodes. Several runs with different names never share a
+/// command_event, plan}`, and the nodes. Several runs with different names never share a
 /// service.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ServiceNames {
@@ -643,10 +646,14 @@ pub struct ServiceNames {
     pub state_event: Name,
     /// Notified after each command (event wake-up).
     pub command_event: Name,
+    /// Planner → controller pieces of a streamed reference.
+    pub plan: Name,
     /// The plant's node name.
     pub plant_node: Name,
     /// The controller's node name.
     pub controller_node: Name,
+    /// The planner's node name.
+    pub planner_node: Name,
 }
 
 /// Whether `run` is a usable run name: 1 to 64 characters of `[A-Za-z0-9_-]`.
@@ -674,8 +681,10 @@ pub fn service_names(run: &str) -> Option<ServiceNames> {
         command: make("eqtrack", "/", "/command"),
         state_event: make("eqtrack", "/", "/state_event"),
         command_event: make("eqtrack", "/", "/command_event"),
+        plan: make("eqtrack", "/", "/plan"),
         plant_node: make("eqtrack-plant", "-", ""),
         controller_node: make("eqtrack-controller", "-", ""),
+        planner_node: make("eqtrack-planner", "-", ""),
     })
 }
 

@@ -209,16 +209,7 @@ impl ControllerEndpoint {
     /// allocation; a plant that sent no pid counts as alive). A stopped (SIGSTOP) plant is
     /// alive; one that was killed and reaped is not.
     pub fn plant_alive(&self) -> bool {
-        use nix::errno::Errno;
-        use nix::sys::signal::kill;
-        use nix::unistd::Pid;
-        if self.plant_pid == 0 {
-            return true;
-        }
-        let Ok(pid) = i32::try_from(self.plant_pid) else {
-            return true;
-        };
-        !matches!(kill(Pid::from_raw(pid), None), Err(Errno::ESRCH))
+        crate::process::process_alive(self.plant_pid)
     }
 
     /// How long since the last accepted state.

@@ -19,15 +19,16 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::builder::blackboard::{BlackboardCreateError, BlackboardOpenError};
 use iceoryx2::service::port_factory::blackboard::PortFactory as BoardFactory;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
+use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 use iceoryx2_bb_posix::file_descriptor_set::{FileDescriptorSet, FileEvent};
 use std::time::{Duration, Instant};
 
 /// Writer slots (entries) per board.
 pub const SLOTS: u32 = 8;
 
-/// Readers and nodes a board admits: the two sides plus observers.
-const MAX_READERS: usize = 4;
-const MAX_NODES: usize = 6;
+/// Readers and nodes a board admits: the two sides, a planner and observers.
+const MAX_READERS: usize = 6;
+const MAX_NODES: usize = 8;
 
 /// iceoryx2 logs at error level unless `IOX2_LOG_LEVEL` says otherwise.
 fn init() {
@@ -112,16 +113,7 @@ impl<Out: Message, In: Message> Iceoryx2<Out, In> {
     /// two boards and the two event services, with the same settings on both sides.
     pub fn open(run: &str, role: Role) -> Result<Self, LinkError> {
         let names = check_run_name(run)?;
-        init();
-        remove_stale_nodes();
-        let node_name: NodeName = node_name(&names, role)
-            .try_into()
-            .map_err(|e| LinkError::iceoryx2("node name", e))?;
-        let node = NodeBuilder::new()
-            .name(&node_name)
-            .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<ipc::Service>()
-            .map_err(|e| LinkError::iceoryx2("cannot create the node", e))?;
+        let node = create_node(node_name(&names, role))?;
         let (out_name, in_name, notify_name, listen_name) = match role {
             Role::Plant => (
                 &names.state,
@@ -136,8 +128,8 @@ impl<Out: Message, In: Message> Iceoryx2<Out, In> {
                 &names.state_event,
             ),
         };
-        let out_board = board::<Out>(&node, out_name)?;
-        let in_board = board::<In>(&node, in_name)?;
+        let out_board = board(&node, out_name, Out::empty())?;
+        let in_board = board(&node, in_name, In::empty())?;
         let notify = event(&node, notify_name)?;
         let listen = event(&node, listen_name)?;
         let writer = out_board.writer_builder().create().map_err(|e| {
@@ -150,19 +142,8 @@ impl<Out: Message, In: Message> Iceoryx2<Out, In> {
             .reader_builder()
             .create()
             .map_err(|e| LinkError::iceoryx2(format!("{in_name}: reader"), e))?;
-        let (slot, out) = (0..SLOTS)
-            .find_map(|slot| writer.entry::<Out>(&slot).ok().map(|h| (slot, h)))
-            .ok_or_else(|| LinkError::SlotsTaken {
-                service: out_name.to_string(),
-                slots: SLOTS,
-            })?;
-        let inp = (0..SLOTS)
-            .map(|slot| {
-                reader
-                    .entry::<In>(&slot)
-                    .map_err(|e| LinkError::iceoryx2(format!("{in_name}: entry {slot}"), e))
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        let (slot, out) = free_slot::<Out>(&writer, out_name)?;
+        let inp = entries::<In>(&reader, in_name)?;
         let listener = listen
             .listener_builder()
             .create()
@@ -213,15 +194,7 @@ impl<Out: Message, In: Message> Transport<Out, In> for Iceoryx2<Out, In> {
     }
 
     fn receive(&mut self) -> Option<In> {
-        for (entry, last) in self.inp.iter().zip(self.last_in.iter_mut()) {
-            let m: In = *entry.get();
-            let id = m.write_id();
-            if id != *last && id != In::empty().write_id() {
-                *last = id;
-                return Some(m);
-            }
-        }
-        None
+        next_write(&self.inp, &mut self.last_in, |m: &In| m.write_id(), In::empty().write_id())
     }
 
     fn wait(&mut self, timeout: Duration) {
@@ -232,9 +205,75 @@ impl<Out: Message, In: Message> Transport<Out, In> for Iceoryx2<Out, In> {
     }
 }
 
-fn board<T: Message>(
+/// Creates the node `name` after removing dead nodes' leftovers.
+pub(crate) fn create_node(name: &str) -> Result<Node<ipc::Service>, LinkError> {
+    init();
+    remove_stale_nodes();
+    let node_name: NodeName = name
+        .try_into()
+        .map_err(|e| LinkError::iceoryx2("node name", e))?;
+    NodeBuilder::new()
+        .name(&node_name)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| LinkError::iceoryx2("cannot create the node", e))
+}
+
+/// The first writer slot of a board nobody holds (crashed writers keep theirs).
+pub(crate) fn free_slot<T: Slot>(
+    writer: &Writer<ipc::Service, u32>,
+    service: &str,
+) -> Result<(u32, EntryHandleMut<ipc::Service, u32, T>), LinkError> {
+    (0..SLOTS)
+        .find_map(|slot| writer.entry::<T>(&slot).ok().map(|h| (slot, h)))
+        .ok_or_else(|| LinkError::SlotsTaken {
+            service: service.to_string(),
+            slots: SLOTS,
+        })
+}
+
+/// Read handles on every slot of a board.
+pub(crate) fn entries<T: Slot>(
+    reader: &Reader<ipc::Service, u32>,
+    service: &str,
+) -> Result<Vec<EntryHandle<ipc::Service, u32, T>>, LinkError> {
+    (0..SLOTS)
+        .map(|slot| {
+            reader
+                .entry::<T>(&slot)
+                .map_err(|e| LinkError::iceoryx2(format!("{service}: entry {slot}"), e))
+        })
+        .collect()
+}
+
+/// The first slot holding a write not seen yet (`id` identifies a write; `empty` is the id
+/// of a slot nobody wrote), remembering it as seen. Allocation-free.
+pub(crate) fn next_write<T: Slot>(
+    entries: &[EntryHandle<ipc::Service, u32, T>],
+    seen: &mut [(u64, u64)],
+    id: impl Fn(&T) -> (u64, u64),
+    empty: (u64, u64),
+) -> Option<T> {
+    for (entry, last) in entries.iter().zip(seen.iter_mut()) {
+        let m: T = *entry.get();
+        let this = id(&m);
+        if this != *last && this != empty {
+            *last = this;
+            return Some(m);
+        }
+    }
+    None
+}
+
+/// What a board's slots hold: a fixed-size, copyable, zero-copy-sendable value.
+pub(crate) trait Slot: Copy + core::fmt::Debug + ZeroCopySend + 'static {}
+impl<T: Copy + core::fmt::Debug + ZeroCopySend + 'static> Slot for T {}
+
+/// Opens the board `name`, or creates it with [`SLOTS`] entries holding `empty`.
+pub(crate) fn board<T: Slot>(
     node: &Node<ipc::Service>,
     name: &str,
+    empty: T,
 ) -> Result<BoardFactory<ipc::Service, u32>, LinkError> {
     let service_name: ServiceName = name
         .try_into()
@@ -258,7 +297,7 @@ fn board<T: Message>(
             .max_readers(MAX_READERS)
             .max_nodes(MAX_NODES);
         for slot in 0..SLOTS {
-            creator = creator.add::<T>(slot, T::empty());
+            creator = creator.add::<T>(slot, empty);
         }
         match creator.create() {
             Ok(f) => return Ok(f),
@@ -276,7 +315,7 @@ fn board<T: Message>(
     }
 }
 
-fn event(node: &Node<ipc::Service>, name: &str) -> Result<EventFactory<ipc::Service>, LinkError> {
+pub(crate) fn event(node: &Node<ipc::Service>, name: &str) -> Result<EventFactory<ipc::Service>, LinkError> {
     let service_name: ServiceName = name
         .try_into()
         .map_err(|e| LinkError::iceoryx2(format!("service name {name}"), e))?;

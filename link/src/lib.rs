@@ -49,6 +49,7 @@ pub mod clock;
 pub mod controller_side;
 pub mod deadline;
 pub mod iceoryx2;
+pub mod plan;
 pub mod plant_side;
 pub mod process;
 mod rejections;
@@ -58,7 +59,7 @@ pub mod uds;
 pub use controller_side::{ControllerConfig, ControllerEndpoint, Incoming};
 pub use deadline::{Arrival, DeadlinePolicy, Decision, Step, Transition};
 pub use plant_side::{Command, NoCommand, PlantConfig, PlantEndpoint, Refusal};
-pub use process::{Exit, StopFlag, StopSignal};
+pub use process::{Exit, StopFlag, StopSignal, process_alive};
 pub use rejections::Rejected;
 pub use transport::{Message, Transport, open};
 

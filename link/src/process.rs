@@ -103,6 +103,19 @@ impl StopFlag {
     }
 }
 
+/// Whether the process `pid` exists: `kill(pid, 0)`, no allocation. 0 (unknown) and ids that
+/// do not fit a pid count as alive; a stopped (SIGSTOP) process is alive; one that exited and
+/// was reaped is not.
+pub fn process_alive(pid: u32) -> bool {
+    use nix::errno::Errno;
+    use nix::sys::signal::kill;
+    use nix::unistd::Pid;
+    match i32::try_from(pid) {
+        Ok(p) if p > 0 => !matches!(kill(Pid::from_raw(p), None), Err(Errno::ESRCH)),
+        _ => true,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -123,5 +136,15 @@ mod tests {
         nix::sys::signal::raise(nix::sys::signal::Signal::SIGTERM).unwrap();
         assert_eq!(flag.requested(), Some(StopSignal::Term));
         assert_eq!(StopFlag::never().requested(), None);
+    }
+
+    #[test]
+    fn liveness_of_a_process() {
+        assert!(process_alive(std::process::id()));
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        child.wait().unwrap();
+        assert!(!process_alive(pid), "a reaped child is gone");
+        assert!(process_alive(0), "unknown counts as alive");
     }
 }

@@ -1,0 +1,272 @@
+//! The streamed reference: a planner process publishes the pieces of a path ahead of time,
+//! [`PLAN_WINDOW`] segments per [`PlanMsg`], and the controller appends the ones it does not
+//! have yet to its `controller::path::Path` (docs/maths.md, "Streamed pieces"). A segment is
+//! exactly `controller::path::Segment`: start time, end time, start pose and body-frame
+//! displacement, timed by the quintic — so the controller evaluates it at any `t_k` without
+//! allocating, and a streamed path equals, bit for bit, the same path built from a file.
+
+use crate::{MAX_M, MAX_N, PROTOCOL_VERSION, all_finite, own_dims};
+use controller::GroupKind;
+use controller::path::Segment;
+#[cfg(feature = "zero-copy")]
+use iceoryx2_bb_derive_macros::ZeroCopySend;
+#[cfg(feature = "zero-copy")]
+use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+use nalgebra::{SMatrix, SVector};
+
+/// Segments per plan message.
+pub const PLAN_WINDOW: usize = 8;
+
+/// How far a streamed start pose's rotation may be from orthonormal (max-entry norm of
+/// `RᵀR − I`) and still be accepted: a pose written from a rotation matrix in f64 is within
+/// a few ulps; anything off by more is not a pose.
+pub const POSE_TOLERANCE: f64 = 1e-9;
+
+/// One piece of a path on the wire (`controller::path::Segment`, padded to the largest
+/// group).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "zero-copy",
+    derive(ZeroCopySend),
+    type_name("eqtrack::WireSegment2")
+)]
+#[repr(C)]
+pub struct WireSegment {
+    /// Start time (s, on the plant's clock `t_k = k·period`).
+    pub t0: f64,
+    /// End time (s, `> t0`).
+    pub t1: f64,
+    /// The pose at `t0`, row-major n×n in the first n² entries.
+    pub start: [f64; MAX_N * MAX_N],
+    /// `ξ = log(Q_start⁻¹ Q_end)`, first m entries.
+    pub twist: [f64; MAX_M],
+}
+
+/// A window of consecutive path segments from a planner.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "zero-copy",
+    derive(ZeroCopySend),
+    type_name("eqtrack::PlanMsg2")
+)]
+#[repr(C)]
+pub struct PlanMsg {
+    /// [`PROTOCOL_VERSION`] (0: nothing written yet).
+    pub version: u32,
+    /// [`crate::group_code`].
+    pub group: u32,
+    /// Increases with every publication of a planner.
+    pub seq: u64,
+    /// CLOCK_MONOTONIC at publication (ns).
+    pub stamp_ns: u64,
+    /// The index of `segments[0]` in the planner's path (diagnostic).
+    pub first_index: u32,
+    /// Segments used, `0..=PLAN_WINDOW`.
+    pub count: u32,
+    /// The planner's process id.
+    pub planner_pid: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// The segments, in time order.
+    pub segments: [WireSegment; PLAN_WINDOW],
+}
+
+/// Why a plan message was not used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum PlanReject {
+    /// The protocol version differs.
+    Version,
+    /// The group differs from the receiver's.
+    Group,
+    /// More segments than [`PLAN_WINDOW`].
+    Count,
+    /// A number is NaN or infinite.
+    NonFinite,
+    /// A segment ends before it starts, or starts before the previous one ends.
+    Times,
+    /// A start pose is not on the group (rotation not orthonormal within
+    /// [`POSE_TOLERANCE`], or a reflection; SE(3): last row not `0 0 0 1`).
+    NotOnGroup,
+}
+
+impl core::fmt::Display for PlanReject {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            PlanReject::Version => "wrong protocol version",
+            PlanReject::Group => "wrong group",
+            PlanReject::Count => "more segments than a plan message holds",
+            PlanReject::NonFinite => "non-finite number",
+            PlanReject::Times => "segment times not increasing",
+            PlanReject::NotOnGroup => "a start pose is not on the group",
+        })
+    }
+}
+
+const EMPTY_SEGMENT: WireSegment = WireSegment {
+    t0: 0.0,
+    t1: 0.0,
+    start: [0.0; MAX_N * MAX_N],
+    twist: [0.0; MAX_M],
+};
+
+impl WireSegment {
+    /// The wire form of `seg`.
+    pub fn from_segment<const N: usize, const M: usize>(seg: &Segment<f64, N, M>) -> Self {
+        let mut w = EMPTY_SEGMENT;
+        w.t0 = seg.t0;
+        w.t1 = seg.t1;
+        for i in 0..N.min(MAX_N) {
+            for j in 0..N.min(MAX_N) {
+                w.start[i * N + j] = seg.start[(i, j)];
+            }
+        }
+        for i in 0..M.min(MAX_M) {
+            w.twist[i] = seg.twist[i];
+        }
+        w
+    }
+
+    /// The segment (entries beyond the wire's are NaN, so a group the wire cannot hold never
+    /// passes [`Segment::check`]).
+    pub fn segment<const N: usize, const M: usize>(&self) -> Segment<f64, N, M> {
+        Segment {
+            t0: self.t0,
+            t1: self.t1,
+            start: SMatrix::from_fn(|i, j| self.start.get(i * N + j).copied().unwrap_or(f64::NAN)),
+            twist: SVector::from_fn(|i, _| self.twist.get(i).copied().unwrap_or(f64::NAN)),
+        }
+    }
+}
+
+impl PlanMsg {
+    /// An empty plan of `group` with the version filled in.
+    pub fn new(group: GroupKind) -> Self {
+        PlanMsg {
+            version: PROTOCOL_VERSION,
+            group: crate::group_code(group),
+            seq: 0,
+            stamp_ns: 0,
+            first_index: 0,
+            count: 0,
+            planner_pid: 0,
+            reserved: 0,
+            segments: [EMPTY_SEGMENT; PLAN_WINDOW],
+        }
+    }
+
+    /// The segments used.
+    pub fn used(&self) -> &[WireSegment] {
+        &self.segments[..(self.count as usize).min(PLAN_WINDOW)]
+    }
+}
+
+/// Whether the top-left 3×3 block of the row-major n×n `q` is a rotation, and (n = 4) the
+/// last row is `0 0 0 1`.
+fn on_group(q: &[f64], n: usize) -> bool {
+    let r = |i: usize, j: usize| q[i * n + j];
+    for i in 0..3 {
+        for j in 0..3 {
+            let dot: f64 = (0..3).map(|k| r(k, i) * r(k, j)).sum();
+            let want = if i == j { 1.0 } else { 0.0 };
+            if !((dot - want).abs() <= POSE_TOLERANCE) {
+                return false;
+            }
+        }
+    }
+    let det = r(0, 0) * (r(1, 1) * r(2, 2) - r(1, 2) * r(2, 1))
+        - r(0, 1) * (r(1, 0) * r(2, 2) - r(1, 2) * r(2, 0))
+        + r(0, 2) * (r(1, 0) * r(2, 1) - r(1, 1) * r(2, 0));
+    det > 0.0 && (n == 3 || (r(3, 0) == 0.0 && r(3, 1) == 0.0 && r(3, 2) == 0.0 && r(3, 3) == 1.0))
+}
+
+/// Checks a plan message against the receiver's group: version, group, count, finite
+/// numbers, increasing non-overlapping times, start poses on the group.
+pub fn check_plan(msg: &PlanMsg, group: GroupKind) -> Result<(), PlanReject> {
+    if msg.version != PROTOCOL_VERSION {
+        return Err(PlanReject::Version);
+    }
+    let (n, m) = own_dims(msg.group, group).map_err(|_| PlanReject::Group)?;
+    if msg.count as usize > PLAN_WINDOW {
+        return Err(PlanReject::Count);
+    }
+    let mut end = f64::NEG_INFINITY;
+    for s in msg.used() {
+        if !(s.t0.is_finite()
+            && s.t1.is_finite()
+            && all_finite(&s.start[..n * n])
+            && all_finite(&s.twist[..m]))
+        {
+            return Err(PlanReject::NonFinite);
+        }
+        if s.t1 <= s.t0 || s.t0 < end {
+            return Err(PlanReject::Times);
+        }
+        end = s.t1;
+        if !on_group(&s.start, n) {
+            return Err(PlanReject::NotOnGroup);
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use controller::group::{MatrixLieGroup, Se3, So3};
+    use nalgebra::{Matrix3, Vector3, Vector6};
+
+    fn so3_segment(t0: f64, t1: f64) -> Segment<f64, 3, 3> {
+        let a = So3::exp(&Vector3::new(0.3, -1.0, 2.0));
+        let b = So3::exp(&Vector3::new(-2.5, 0.4, 0.1));
+        Segment::between::<So3>(t0, &a, t1, &b)
+    }
+
+    #[test]
+    fn segments_cross_the_wire_unchanged_on_both_groups() {
+        let s = so3_segment(1.0, 2.5);
+        assert_eq!(WireSegment::from_segment(&s).segment::<3, 3>(), s);
+        let a = Se3::exp(&Vector6::new(0.1, 0.2, -3.0, 1.0, 2.0, 3.0));
+        let b = Se3::exp(&Vector6::new(2.0, -0.2, 0.3, -1.0, 0.5, 0.0));
+        let s = Segment::between::<Se3>(0.0, &a, 4.0, &b);
+        assert_eq!(WireSegment::from_segment(&s).segment::<4, 6>(), s);
+    }
+
+    #[test]
+    fn plans_are_checked() {
+        let mut p = PlanMsg::new(GroupKind::So3);
+        p.count = 2;
+        p.segments[0] = WireSegment::from_segment(&so3_segment(0.0, 1.0));
+        p.segments[1] = WireSegment::from_segment(&so3_segment(1.0, 2.0));
+        assert_eq!(check_plan(&p, GroupKind::So3), Ok(()));
+        assert_eq!(check_plan(&p, GroupKind::Se3), Err(PlanReject::Group));
+        let bad = |f: &dyn Fn(&mut PlanMsg)| {
+            let mut q = p;
+            f(&mut q);
+            check_plan(&q, GroupKind::So3)
+        };
+        assert_eq!(bad(&|q| q.version = 0), Err(PlanReject::Version));
+        assert_eq!(bad(&|q| q.count = 9), Err(PlanReject::Count));
+        assert_eq!(bad(&|q| q.segments[1].twist[2] = f64::NAN), Err(PlanReject::NonFinite));
+        assert_eq!(bad(&|q| q.segments[1].t0 = 0.5), Err(PlanReject::Times));
+        assert_eq!(bad(&|q| q.segments[0].t1 = 0.0), Err(PlanReject::Times));
+        assert_eq!(bad(&|q| q.segments[1].start[0] *= 1.001), Err(PlanReject::NotOnGroup));
+        // a reflection is orthonormal but not a rotation
+        let flip = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, -1.0);
+        let mut s = so3_segment(1.0, 2.0);
+        s.start = flip;
+        assert_eq!(
+            bad(&|q| q.segments[1] = WireSegment::from_segment(&s)),
+            Err(PlanReject::NotOnGroup)
+        );
+        // unused entries are not looked at
+        assert_eq!(bad(&|q| q.segments[5].t0 = f64::NAN), Ok(()));
+        // SE(3): the last row must be 0 0 0 1
+        let mut p = PlanMsg::new(GroupKind::Se3);
+        p.count = 1;
+        let a = Se3::exp(&Vector6::new(0.1, 0.2, -3.0, 1.0, 2.0, 3.0));
+        p.segments[0] = WireSegment::from_segment(&Segment::between::<Se3>(0.0, &a, 1.0, &a));
+        assert_eq!(check_plan(&p, GroupKind::Se3), Ok(()));
+        p.segments[0].start[14] = 0.5;
+        assert_eq!(check_plan(&p, GroupKind::Se3), Err(PlanReject::NotOnGroup));
+    }
+}
