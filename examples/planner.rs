@@ -91,7 +91,11 @@ impl OnGroup for Stream<'_> {
         let bad = |msg: String| (Exit::BadInput, format!("scenario `{}`: {msg}", s.name));
         let path = match s.path::<G, N, M>() {
             Some(p) => p.map_err(|e| bad(e.to_string()))?,
-            None => return Err(bad("has no `[reference] waypoints`: nothing to stream".into())),
+            None => {
+                return Err(bad(
+                    "has no `[reference] waypoints`: nothing to stream".into()
+                ));
+            }
         };
         let pieces: Vec<WireSegment> = path.segments().map(WireSegment::from_segment).collect();
         let (Some(first), Some(last)) = (pieces.first(), pieces.last()) else {
@@ -132,7 +136,7 @@ fn stream<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         let state = board.plant();
         if let Some(st) = state {
             if st.flags & flags::SHUTDOWN != 0 {
-                log(format_args!("the plant ended the run at t = {:.3} s", st.t));
+                log(format_args!("the plant ended the run"));
                 return Ok(());
             }
             plant_pid = Some(st.plant_pid);
@@ -154,7 +158,10 @@ fn stream<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             _ => {}
         }
         let now = state.map_or(0.0, |s| s.t);
-        let from = pieces.iter().position(|p| p.t1 >= now).unwrap_or(pieces.len());
+        let from = pieces
+            .iter()
+            .position(|p| p.t1 >= now)
+            .unwrap_or(pieces.len());
         let ahead = now + cli.horizon.as_secs_f64();
         let count = pieces[from..]
             .iter()

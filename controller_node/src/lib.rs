@@ -325,7 +325,7 @@ impl Stream {
         reference: &mut PathReference<f64, G, N, M>,
     ) {
         let now = reference.time();
-        while let Some(msg) = self.reader.next() {
+        while let Some(msg) = self.reader.receive() {
             if let Err(kind) = check_plan(&msg, G::KIND) {
                 let i = reject_index(kind);
                 self.rejected[i] += 1;

@@ -168,7 +168,7 @@ fn on_group(q: &[f64], n: usize) -> bool {
         for j in 0..3 {
             let dot: f64 = (0..3).map(|k| r(k, i) * r(k, j)).sum();
             let want = if i == j { 1.0 } else { 0.0 };
-            if !((dot - want).abs() <= POSE_TOLERANCE) {
+            if (dot - want).abs().is_nan() || (dot - want).abs() > POSE_TOLERANCE {
                 return false;
             }
         }
@@ -246,10 +246,16 @@ mod tests {
         };
         assert_eq!(bad(&|q| q.version = 0), Err(PlanReject::Version));
         assert_eq!(bad(&|q| q.count = 9), Err(PlanReject::Count));
-        assert_eq!(bad(&|q| q.segments[1].twist[2] = f64::NAN), Err(PlanReject::NonFinite));
+        assert_eq!(
+            bad(&|q| q.segments[1].twist[2] = f64::NAN),
+            Err(PlanReject::NonFinite)
+        );
         assert_eq!(bad(&|q| q.segments[1].t0 = 0.5), Err(PlanReject::Times));
         assert_eq!(bad(&|q| q.segments[0].t1 = 0.0), Err(PlanReject::Times));
-        assert_eq!(bad(&|q| q.segments[1].start[0] *= 1.001), Err(PlanReject::NotOnGroup));
+        assert_eq!(
+            bad(&|q| q.segments[1].start[0] *= 1.001),
+            Err(PlanReject::NotOnGroup)
+        );
         // a reflection is orthonormal but not a rotation
         let flip = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, -1.0);
         let mut s = so3_segment(1.0, 2.0);

@@ -194,7 +194,12 @@ impl<Out: Message, In: Message> Transport<Out, In> for Iceoryx2<Out, In> {
     }
 
     fn receive(&mut self) -> Option<In> {
-        next_write(&self.inp, &mut self.last_in, |m: &In| m.write_id(), In::empty().write_id())
+        next_write(
+            &self.inp,
+            &mut self.last_in,
+            |m: &In| m.write_id(),
+            In::empty().write_id(),
+        )
     }
 
     fn wait(&mut self, timeout: Duration) {
@@ -315,7 +320,10 @@ pub(crate) fn board<T: Slot>(
     }
 }
 
-pub(crate) fn event(node: &Node<ipc::Service>, name: &str) -> Result<EventFactory<ipc::Service>, LinkError> {
+pub(crate) fn event(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<EventFactory<ipc::Service>, LinkError> {
     let service_name: ServiceName = name
         .try_into()
         .map_err(|e| LinkError::iceoryx2(format!("service name {name}"), e))?;

@@ -52,7 +52,10 @@ impl PlanWriter {
         let state_board = board(&node, &names.state, empty_state())?;
         let writer = plan_board.writer_builder().create().map_err(|e| {
             LinkError::iceoryx2(
-                format!("{}: writer (is another planner running on this run?)", names.plan),
+                format!(
+                    "{}: writer (is another planner running on this run?)",
+                    names.plan
+                ),
                 e,
             )
         })?;
@@ -129,7 +132,12 @@ impl PlanReader {
 
     /// A plan message not seen yet, or `None`; call until `None`. Unchecked: pass it through
     /// [`ipc_types::check_plan`].
-    pub fn next(&mut self) -> Option<PlanMsg> {
-        next_write(&self.entries, &mut self.seen, plan_id, plan_id(&empty_plan()))
+    pub fn receive(&mut self) -> Option<PlanMsg> {
+        next_write(
+            &self.entries,
+            &mut self.seen,
+            plan_id,
+            plan_id(&empty_plan()),
+        )
     }
 }

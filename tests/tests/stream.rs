@@ -1,0 +1,328 @@
+//! The streamed reference, through the real processes: `planner` publishes path pieces on the
+//! run's plan board, `controller_node --reference stream` tracks them, `plant_sim run
+//! --no-spawn` is the plant. Tests run one at a time ([`serial`]).
+
+use controller::group::So3;
+use controller::path::{Path as GroupPath, PathReference};
+use controller::{Controller, Trajectory};
+use nalgebra::{Matrix3, SMatrix, Vector3};
+use pair_tests::{Csv, Proc, TempDir, run, serial};
+use scenario::Scenario;
+use std::path::Path;
+use std::time::Duration;
+
+const LONG: Duration = Duration::from_secs(60);
+
+fn scenarios() -> String {
+    concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios").to_owned()
+}
+
+/// The lockstep pair with its reference streamed by a planner whose horizon covers the whole
+/// path (lockstep runs faster than real time), written to `out`; the controller's output.
+fn streamed_lockstep(scenario: &str, run_name: &str, out: &str) -> String {
+    let mut planner = Proc::start(
+        "planner",
+        &[
+            "--scenario",
+            scenario,
+            "--name",
+            run_name,
+            "--horizon",
+            "1000",
+        ],
+    );
+    assert!(
+        planner.wait_for_line("published pieces", Duration::from_secs(20)),
+        "{}",
+        planner.output()
+    );
+    let mut ctl = Proc::start(
+        "controller_node",
+        &[
+            "--scenario",
+            scenario,
+            "--name",
+            run_name,
+            "--reference",
+            "stream",
+        ],
+    );
+    let (code, plant_out) = run(
+        "plant_sim",
+        &[
+            "run",
+            "--scenario",
+            scenario,
+            "--mode",
+            "lockstep",
+            "--no-spawn",
+            "--name",
+            run_name,
+            "--out",
+            out,
+        ],
+        LONG,
+    );
+    assert_eq!(code, 0, "{plant_out}");
+    for p in [&mut ctl, &mut planner] {
+        let status = p.wait_timeout(Duration::from_secs(5));
+        assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", p.output());
+    }
+    ctl.output()
+}
+
+#[test]
+fn a_streamed_lockstep_run_equals_the_same_waypoints_from_the_file_bit_for_bit() {
+    let _g = serial();
+    let d = TempDir::new("stream-lock");
+    for group in ["so3", "se3"] {
+        let scenario = format!("{}/slew_{group}.toml", scenarios());
+        let (file, streamed) = (
+            d.join(&format!("{group}-file")),
+            d.join(&format!("{group}-stream")),
+        );
+        let (code, out) = run(
+            "plant_sim",
+            &[
+                "run",
+                "--scenario",
+                &scenario,
+                "--mode",
+                "lockstep",
+                "--name",
+                &format!("t-sfile-{group}"),
+                "--out",
+                &file,
+            ],
+            LONG,
+        );
+        assert_eq!(code, 0, "{out}");
+        let ctl = streamed_lockstep(&scenario, &format!("t-stream-{group}"), &streamed);
+        assert!(ctl.contains("stream started"), "{ctl}");
+        assert!(
+            ctl.contains("heap allocations after start-up: 0 in"),
+            "the streamed reference allocates nothing per cycle:\n{ctl}"
+        );
+        let a = std::fs::read(format!("{file}/trajectory.csv")).unwrap();
+        let b = std::fs::read(format!("{streamed}/trajectory.csv")).unwrap();
+        assert!(
+            a == b,
+            "{group}: the streamed run's trajectory.csv differs from the file run's"
+        );
+    }
+}
+
+/// Waypoints one second apart, so a real-time run covers running dry and resuming in 7 s.
+const KILL_CSV: &str =
+    "t,rx,ry,rz\n0.5,0,0,0\n1.5,0,0,0.8\n2.5,0.6,0,0.8\n3.5,0,-0.5,0\n4.5,0.3,0.3,0\n";
+
+fn kill_scenario(d: &TempDir) -> String {
+    let toml = std::fs::read_to_string(format!("{}/slew_so3.toml", scenarios()))
+        .unwrap()
+        .replace("name = \"slew_so3\"", "name = \"stream_kill\"")
+        .replace("duration = 16.0", "duration = 7.0")
+        .replace("control_period = 0.01", "control_period = 0.001")
+        .replace("plant_substeps = 10", "plant_substeps = 2")
+        .replace("torque_limit = 5.0", "torque_limit = 20.0")
+        .replace("kp = 2.0", "kp = 8.0")
+        .replace("kd = 2.0", "kd = 6.0")
+        .replace("rotation = [0.3, -0.3, 0.2]", "rotation = [0.0, 0.0, 0.0]")
+        .replace("slew_so3.csv", "kill.csv");
+    assert!(
+        toml.contains("kill.csv") && toml.contains("kp = 8.0"),
+        "{toml}"
+    );
+    std::fs::write(d.join("kill.csv"), KILL_CSV).unwrap();
+    let path = d.join("kill.toml");
+    std::fs::write(&path, toml).unwrap();
+    path
+}
+
+/// `t` of the controller's log line containing `what` (`t = 2.501 s: ...`), in order.
+fn log_times(log: &str, what: &str) -> Vec<f64> {
+    log.lines()
+        .filter(|l| l.contains(what))
+        .filter_map(|l| l.split("t = ").nth(1)?.split(' ').next()?.parse().ok())
+        .collect()
+}
+
+fn rotation(r: [f64; 3]) -> Matrix3<f64> {
+    Scenario::pose::<3>(r, [0.0; 3])
+}
+
+#[test]
+fn killing_the_planner_holds_the_last_pose_and_a_new_planner_resumes() {
+    let _g = serial();
+    let d = TempDir::new("stream-kill");
+    let scenario = kill_scenario(&d);
+    let out = d.join("run");
+    let args = [
+        "--scenario",
+        &scenario,
+        "--name",
+        "t-stream-kill",
+        "--horizon",
+        "0.4",
+    ];
+    let mut first = Proc::start("planner", &args);
+    assert!(
+        first.wait_for_line("writer slot 0", Duration::from_secs(20)),
+        "{}",
+        first.output()
+    );
+    let mut plant = Proc::start(
+        "plant_sim",
+        &[
+            "run",
+            "--scenario",
+            &scenario,
+            "--no-spawn",
+            "--name",
+            "t-stream-kill",
+            "--out",
+            &out,
+        ],
+    );
+    let ctl_args = [
+        "--scenario",
+        &scenario,
+        "--name",
+        "t-stream-kill",
+        "--reference",
+        "stream",
+    ];
+    let mut ctl = Proc::start("controller_node", &ctl_args);
+    // the pieces up to the waypoint at 2.5 s are out once the plant's clock passes 1.1 s
+    assert!(
+        first.wait_for_line("published pieces 0..1", Duration::from_secs(20)),
+        "{}\n{}",
+        first.output(),
+        plant.output()
+    );
+    first.kill(); // SIGKILL, and reaped
+    assert!(
+        ctl.wait_for_line("ran dry", Duration::from_secs(5)),
+        "{}",
+        ctl.output()
+    );
+    std::thread::sleep(Duration::from_millis(500));
+    let mut second = Proc::start("planner", &args);
+    assert_eq!(
+        plant.wait_timeout(LONG).and_then(|s| s.code()),
+        Some(0),
+        "{}",
+        plant.output()
+    );
+    for p in [&mut ctl, &mut second] {
+        let status = p.wait_timeout(Duration::from_secs(5));
+        assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", p.output());
+    }
+    let (log, planner_log) = (ctl.output(), second.output());
+    assert!(
+        planner_log.contains("writer slot 1"),
+        "the killed planner's slot stays taken; the new one takes the next:\n{planner_log}"
+    );
+    let dry = log_times(&log, "ran dry");
+    let resumed = log_times(&log, "stream resumed");
+    assert_eq!(resumed.len(), 1, "{log}");
+    assert!(
+        dry.len() == 2 && (2.5..2.51).contains(&dry[0]) && dry[0] < resumed[0] && resumed[0] < 4.5,
+        "dry once at the end of the last piece given (2.5 s), once at the end of the path:\n{log}"
+    );
+
+    // While dry the controller tracks a set-point at the last waypoint given: its Lyapunov
+    // value, recomputed from the recorded states, must not rise.
+    let s = Scenario::from_file(Path::new(&scenario)).unwrap();
+    let controller: Controller<f64, So3, 3, 3> = s.controller::<So3, 3, 3>().unwrap();
+    let inertia = SMatrix::from_row_slice(&s.model_inertia);
+    let held = PathReference::new(
+        GroupPath::<f64, So3, 3, 3>::hold(rotation([0.6, 0.0, 0.8])).unwrap(),
+        inertia,
+        1e-3,
+    )
+    .unwrap()
+    .desired();
+    let csv = Csv::read(&Path::new(&out).join("trajectory.csv"));
+    let t = csv.col("t");
+    let q: Vec<Vec<f64>> = (0..3)
+        .flat_map(|i| (0..3).map(move |j| format!("q_{i}{j}")))
+        .map(|c| csv.col(&c))
+        .collect();
+    let v: Vec<Vec<f64>> = (0..3).map(|i| csv.col(&format!("v_{i}"))).collect();
+    let at = |k: usize| {
+        let qk = Matrix3::from_fn(|i, j| q[3 * i + j][k]);
+        let vk = Vector3::new(v[0][k], v[1][k], v[2][k]);
+        controller.compute(&qk, &vk, &held).unwrap().lyapunov.total
+    };
+    let hold: Vec<usize> = (0..t.len())
+        .filter(|&k| t[k] >= dry[0] && t[k] < resumed[0])
+        .collect();
+    assert!(hold.len() > 300, "{} cycles held", hold.len());
+    let l: Vec<f64> = hold.iter().map(|&k| at(k)).collect();
+    let rise = l
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(f64::NEG_INFINITY, f64::max);
+    eprintln!(
+        "hold from t = {} s to {} s: L from {:e} to {:e}, largest one-step change {rise:e}",
+        dry[0],
+        resumed[0],
+        l[0],
+        l[l.len() - 1]
+    );
+    assert!(
+        rise <= 1e-9 * l[0],
+        "L rose by {rise:e} (from {:e}) while holding",
+        l[0]
+    );
+    assert!(
+        l[l.len() - 1] < 0.9 * l[0],
+        "L did not fall while holding: {l:?}"
+    );
+
+    // After the new planner's pieces the body tracks the rest of the path: at the end it
+    // is at the last waypoint, far from the pose it held.
+    let end = t.len() - 1;
+    let q_end = Matrix3::from_fn(|i, j| q[3 * i + j][end]);
+    let err = |r: [f64; 3]| (rotation(r).transpose() * q_end - Matrix3::identity()).norm();
+    eprintln!(
+        "at the end: |Rᵀ Q - I| = {:e} to the last waypoint",
+        err([0.3, 0.3, 0.0])
+    );
+    assert!(err([0.3, 0.3, 0.0]) < 1e-2, "{}", err([0.3, 0.3, 0.0]));
+    assert!(err([0.6, 0.0, 0.8]) > 0.5);
+}
+
+#[test]
+fn the_planner_refuses_what_it_cannot_stream() {
+    let d = TempDir::new("stream-bad");
+    let seed_like = d.join("series.toml");
+    std::fs::write(
+        &seed_like,
+        std::fs::read_to_string(format!("{}/slew_so3.toml", scenarios()))
+            .unwrap()
+            .replace(
+                "waypoints = \"slew_so3.csv\"",
+                "setpoint = { rotation = [0.1, 0.0, 0.0] }",
+            ),
+    )
+    .unwrap();
+    let (code, out) = run("planner", &["--scenario", &seed_like], LONG);
+    assert_eq!(code, 2, "{out}");
+    assert!(out.contains("no pieces to stream"), "{out}");
+    let (code, out) = run("planner", &["--scenario", &d.join("missing.toml")], LONG);
+    assert_eq!(code, 2, "{out}");
+    assert!(out.contains("missing.toml"), "{out}");
+    let (code, out) = run(
+        "planner",
+        &[
+            "--scenario",
+            &format!("{}/slew_so3.toml", scenarios()),
+            "--horizon",
+            "0",
+        ],
+        LONG,
+    );
+    assert_eq!(code, 2, "{out}");
+    assert!(out.contains("--horizon"), "{out}");
+}
