@@ -3,11 +3,11 @@
 #
 #   scripts/cortex-m.sh
 #
-# 1. Toolchain, privately, in $CACHE (default: <repo>/.cortex-m-toolchain, git-ignored):
-#    Debian's rustc-web + rust-web-src (a compiler with its library sources, for
-#    `-Z build-std=core`) and qemu-system-arm, fetched with
-#    `apt-get install --download-only -o Dir::Cache::archives=...` and unpacked with `dpkg -x`.
-#    Nothing is installed system-wide. A second run re-uses the cache without apt.
+# 1. Toolchain, privately, in the cache of scripts/lib/debian.sh (default <repo>/.toolchain,
+#    git-ignored, shared with scripts/aarch64.sh): Debian's rustc-web + rust-web-src (a
+#    compiler with its library sources, for `-Z build-std=core`) and qemu-system-arm, fetched
+#    with `apt-get install --download-only` and unpacked with `dpkg -x`. Nothing is installed
+#    system-wide. A second run re-uses the cache without apt.
 #    If the packages cannot be fetched, prints one `SKIPPED: <reason>` line and exits 0.
 # 2. Builds controller/firmware-cortex-m for thumbv7em-none-eabihf with the private rustc
 #    (RUSTC_BOOTSTRAP=1, linker: the rustup toolchain's rust-lld) and runs it under the
@@ -25,7 +25,7 @@
 # 4. Prints the ELF's flash/RAM footprint and the stack use the firmware measured.
 #
 # Environment:
-#   CORTEX_M_CACHE=dir     toolchain cache (default <repo>/.cortex-m-toolchain)
+#   TOOLCHAIN_CACHE=dir    toolchain cache (default <repo>/.toolchain; CORTEX_M_CACHE also works)
 #   CORTEX_M_TIMEOUT=s     QEMU run timeout in seconds (default 120)
 #   CORTEX_M_PERTURB=1     multiply one expected (host) torque by 1.001: the comparison must fail
 #
@@ -34,10 +34,6 @@ set -euo pipefail
 
 REPO=$(cd -- "$(dirname -- "${BASH_SOURCE[0]}")/.." && pwd)
 FW=$REPO/controller/firmware-cortex-m
-CACHE=${CORTEX_M_CACHE:-$REPO/.cortex-m-toolchain}
-DEBS=$CACHE/debs
-PREFIX=$CACHE/prefix
-LOGS=$CACHE/logs
 PACKAGES=(rustc-web rust-web-src qemu-system-arm)
 TARGET=thumbv7em-none-eabihf
 TIMEOUT=${CORTEX_M_TIMEOUT:-120}
@@ -55,122 +51,17 @@ die() {
 # Progress goes to stderr: when the toolchain cannot be had, stdout is the one SKIPPED line.
 step() { printf '[%4ds] %s\n' "$SECONDS" "$*" >&2; }
 
-# The rustc the repository needs (workspace rust-version), e.g. 1.89.
-NEED_RUST=$(sed -n 's/^rust-version *= *"\([0-9.]*\)".*/\1/p' "$REPO/Cargo.toml" | head -1)
-NEED_RUST=${NEED_RUST:-1.85}
-
-mkdir -p "$CACHE" "$LOGS"
-# The cache (about 1 GiB) must never be committed, whatever the repository's .gitignore says.
-[[ -f $CACHE/.gitignore ]] ||
-	printf '# Written by scripts/cortex-m.sh: the private toolchain cache is never committed.\n*\n' >"$CACHE/.gitignore"
-# One run at a time per cache.
-exec 9>"$CACHE/.lock"
-flock 9
-
 # --- 1. the private toolchain ------------------------------------------------------------
 
-# The prefix's shared-library directories (qemu's libraries land in both).
-LIBS=$PREFIX/usr/lib/x86_64-linux-gnu:$PREFIX/lib/x86_64-linux-gnu
-RUSTC_PRIVATE=$PREFIX/usr/bin/rustc
+# shellcheck source=scripts/lib/debian.sh
+source "$REPO/scripts/lib/debian.sh"
 QEMU=$PREFIX/usr/bin/qemu-system-arm
-
-# True when apt's lists offer every package, and a rustc-web at least $NEED_RUST.
-lists_ok() {
-	local p cand
-	for p in "${PACKAGES[@]}"; do
-		cand=$(apt-cache policy "$p" 2>/dev/null | sed -n 's/^ *Candidate: *//p')
-		[[ -n $cand && $cand != "(none)" ]] || return 1
-		if [[ $p == rustc-web ]] && ! dpkg --compare-versions "$cand" ge "$NEED_RUST"; then
-			return 1
-		fi
-	done
-}
-
-# Downloads the packages and the dependencies this machine lacks into $DEBS (once).
-download() {
-	[[ -f $DEBS/.complete ]] && return 0
-	command -v apt-get >/dev/null && command -v dpkg >/dev/null ||
-		skip "apt-get/dpkg not found: the Cortex-M toolchain comes from Debian packages"
-	if ! lists_ok; then
-		step "apt-get update (the package lists lack ${PACKAGES[*]} or a rustc-web >= $NEED_RUST)"
-		# A failing extra repository makes update exit non-zero: judge by the lists instead.
-		apt-get update >"$LOGS/apt-update.log" 2>&1 || true
-		if ! lists_ok; then
-			why=$(grep -E '^(E|W):' "$LOGS/apt-update.log" | tail -1 || true)
-			skip "apt-get update did not provide ${PACKAGES[*]} with rustc-web >= $NEED_RUST${why:+ ($why)}"
-		fi
-	fi
-	step "downloading ${PACKAGES[*]} and their missing dependencies (apt-get --download-only)"
-	rm -rf "$DEBS.partial"
-	mkdir -p "$DEBS.partial/partial"
-	if ! apt-get install -y --download-only --no-install-recommends \
-		-o Dir::Cache::archives="$DEBS.partial" "${PACKAGES[@]}" >"$LOGS/apt-download.log" 2>&1; then
-		skip "apt-get could not download ${PACKAGES[*]}: $(grep -E '^E:' "$LOGS/apt-download.log" | tail -1 || tail -1 "$LOGS/apt-download.log")"
-	fi
-	rm -rf "$DEBS.partial/partial" "$DEBS.partial/lock"
-	compgen -G "$DEBS.partial/rustc-web_*.deb" >/dev/null || skip "apt-get downloaded no rustc-web package (is it installed system-wide? see $LOGS/apt-download.log)"
-	ls "$DEBS.partial" >"$DEBS.partial/.complete"
-	rm -rf "$DEBS"
-	mv "$DEBS.partial" "$DEBS"
-}
-
-# Unpacks every downloaded package into $PREFIX (once).
-unpack() {
-	[[ -f $PREFIX/.complete ]] && return 0
-	step "unpacking $(ls "$DEBS"/*.deb | wc -l) packages into $PREFIX"
-	rm -rf "$PREFIX.partial"
-	mkdir -p "$PREFIX.partial"
-	local d
-	for d in "$DEBS"/*.deb; do dpkg -x "$d" "$PREFIX.partial"; done
-	# build-std reads only library/ of the source tree: drop the compiler's and the tools'
-	# sources (about 370 MB) and the documentation.
-	rm -rf "$PREFIX.partial"/usr/src/rustc-*/{src,compiler,tests} "$PREFIX.partial"/usr/share/doc
-	rm -rf "$PREFIX"
-	mv "$PREFIX.partial" "$PREFIX"
-	date -u +%FT%TZ >"$PREFIX/.complete"
-}
-
-# Shared libraries a private binary cannot find.
-missing_libs() { LD_LIBRARY_PATH=$LIBS ldd "$1" 2>/dev/null | sed -n 's/^\s*\(\S*\) => not found.*/\1/p'; }
-
-# Libraries the system may hold only through packages apt assumed installed: when ldd finds
-# one missing, fetch its package (named by Debian's soname rule: libfoo.so.1 -> libfoo1,
-# libnl-3.so.200 -> libnl-3-200) with `apt-get download` and unpack it too.
-fix_missing_libs() {
-	local bin lib base ver pkg missing=()
-	for bin in "$QEMU" "$RUSTC_PRIVATE"; do
-		mapfile -t -O "${#missing[@]}" missing < <(missing_libs "$bin")
-	done
-	((${#missing[@]})) || return 0
-	step "private binaries lack ${missing[*]}: fetching their packages"
-	for lib in $(printf '%s\n' "${missing[@]}" | sort -u); do
-		base=${lib%%.so.*}
-		ver=${lib##*.so.}
-		ver=${ver%%.*}
-		if [[ $base =~ [0-9]$ ]]; then pkg=$base-$ver; else pkg=$base$ver; fi
-		pkg=${pkg,,}
-		(cd "$DEBS" && apt-get download "$pkg" >>"$LOGS/apt-download.log" 2>&1) ||
-			skip "could not download $pkg (for $lib): $(tail -1 "$LOGS/apt-download.log")"
-		dpkg -x "$DEBS/${pkg}"_*.deb "$PREFIX"
-	done
-	for bin in "$QEMU" "$RUSTC_PRIVATE"; do
-		[[ -z $(missing_libs "$bin") ]] || die "$bin still lacks: $(missing_libs "$bin" | tr '\n' ' ')"
-	done
-}
-
-# The cached toolchain must still satisfy the repository's rust-version.
-if [[ -f $PREFIX/.complete ]]; then
-	have=$(LD_LIBRARY_PATH=$LIBS "$RUSTC_PRIVATE" --version 2>/dev/null | awk '{print $2}' || true)
-	if [[ -z $have ]] || ! dpkg --compare-versions "$have" ge "$NEED_RUST"; then
-		step "cached rustc '${have:-none}' is older than $NEED_RUST: fetching again"
-		rm -rf "$PREFIX" "$DEBS"
-	else
-		step "toolchain: cached in $CACHE (rustc $have)"
-	fi
-fi
-download
-unpack
-fix_missing_libs
+debian_fetch "${PACKAGES[@]}"
+# build-std reads only library/ of the source tree: drop the compiler's and the tools'
+# sources (about 370 MB) and the documentation.
+rm -rf "$PREFIX"/usr/src/rustc-*/{src,compiler,tests} "$PREFIX"/usr/share/doc
+debian_fix_libs "$QEMU" "$RUSTC_PRIVATE"
+step "toolchain: in $CACHE"
 
 # build-std reads the library sources from <sysroot>/lib/rustlib/src/rust (the package links
 # it to /usr/src/rustc-<version>; make sure the link exists).
