@@ -6,7 +6,8 @@
 # 1. Toolchain, privately, in the cache of scripts/lib/debian.sh (shared with
 #    scripts/cortex-m.sh): Debian's rustc-web with its standard library for arm64
 #    (libstd-rust-web-dev:arm64, after `dpkg --add-architecture arm64`), the cross linker
-#    gcc-aarch64-linux-gnu (with the arm64 C library) and qemu-user-static. Nothing is
+#    gcc-aarch64-linux-gnu with the arm64 C library (libc6-dev-arm64-cross, only a
+#    recommendation of the compiler, so named) and qemu-user-static. Nothing is
 #    installed system-wide. If the packages cannot be fetched, prints one `SKIPPED: <reason>`
 #    line and exits 0.
 # 2. Cross-builds plant_sim and controller_node (release) for aarch64-unknown-linux-gnu.
@@ -20,7 +21,8 @@
 #    largest difference per column is printed and the run fails when any exceeds 1e-9
 #    (absolute): a one-ulp difference somewhere (a C-library routine, say) stays near 1e-15 in
 #    a contracting closed loop, while a real numerical defect shows far above 1e-9.
-# 4. Runs the `controller` crate's test suite for the target under emulation.
+# 4. Runs the `controller` crate's unit and integration tests for the target under emulation
+#    (not its doctests: rustdoc would need the private compiler's libraries as well).
 #
 # Environment:
 #   TOOLCHAIN_CACHE=dir   toolchain cache (default <repo>/.toolchain)
@@ -32,7 +34,7 @@ set -euo pipefail
 
 REPO=$(cd -- "$(dirname -- "${BASH_SOURCE[0]}")/.." && pwd)
 TARGET=aarch64-unknown-linux-gnu
-PACKAGES=(rustc-web libstd-rust-web-dev:arm64 gcc-aarch64-linux-gnu qemu-user-static)
+PACKAGES=(rustc-web libstd-rust-web-dev:arm64 gcc-aarch64-linux-gnu libc6-dev-arm64-cross qemu-user-static)
 TOL=1e-9
 
 skip() {
@@ -60,6 +62,11 @@ SYSROOT=$PREFIX/usr/aarch64-linux-gnu
 [[ -e $LINKER ]] || die "gcc-aarch64-linux-gnu did not provide $LINKER"
 [[ -d $PREFIX/usr/lib/rustlib/$TARGET/lib ]] || die "libstd-rust-web-dev:arm64 did not provide $PREFIX/usr/lib/rustlib/$TARGET"
 RUSTC_WRAPPED=$(debian_rustc_wrapper)
+# The C library's linker scripts (libc.so) name absolute paths under /usr/aarch64-linux-gnu;
+# with the prefix as the linker's sysroot they resolve inside the private copy.
+mkdir -p "$CACHE/bin"
+printf '#!/bin/sh\nexec %s -Wl,--sysroot=%s "$@"\n' "$LINKER" "$PREFIX" >"$CACHE/bin/aarch64-linker"
+chmod +x "$CACHE/bin/aarch64-linker"
 echo "toolchain: $("$RUSTC_WRAPPED" --version); $("$QEMU" --version | head -1); linker $("$LINKER" --version | head -1)"
 
 # --- 2. cross-build ------------------------------------------------------------------------
@@ -70,7 +77,7 @@ cross() {
 	(cd "$REPO" && env -u RUSTFLAGS -u CARGO_ENCODED_RUSTFLAGS -u CARGO_BUILD_TARGET \
 		RUSTC="$RUSTC_WRAPPED" CARGO_TARGET_DIR="$CROSS_DIR" \
 		PATH="$PREFIX/usr/bin:$PATH" \
-		CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER="$LINKER" \
+		CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER="$CACHE/bin/aarch64-linker" \
 		CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="$QEMU -L $SYSROOT" \
 		"$@")
 }
@@ -145,7 +152,7 @@ pair se3_circle --builtin se3_circle
 
 if [[ ${AARCH64_TESTS:-1} != 0 ]]; then
 	step "controller's test suite for $TARGET under qemu-aarch64"
-	cross cargo test --release --locked --target "$TARGET" -p controller >"$OUT/controller-tests.log" 2>&1 ||
+	cross cargo test --release --locked --target "$TARGET" -p controller --lib --tests >"$OUT/controller-tests.log" 2>&1 ||
 		{ grep -E "FAILED|panicked|error" "$OUT/controller-tests.log" | head -20 >&2; die "controller tests failed on $TARGET (log: $OUT/controller-tests.log)"; }
 	passed=$(grep -Eo '^test result: ok\. [0-9]+ passed' "$OUT/controller-tests.log" | awk '{s += $4} END {print s + 0}')
 	echo "controller tests on $TARGET: $passed passed"
