@@ -78,6 +78,8 @@ struct Cli {
     /// Seconds to wait for the first state.
     #[arg(long, value_name = "S", default_value = "30", value_parser = positive_seconds)]
     startup_timeout: Duration,
+    #[command(flatten)]
+    rt: link::rt::RtSettings,
     /// Transport: iceoryx2, or uds (the Unix-socket baseline of `plant_sim bench-loop`).
     #[arg(long, value_enum, default_value_t = TransportKind::Iceoryx2)]
     transport: TransportKind,
@@ -116,6 +118,10 @@ fn main() -> ExitCode {
             );
         }
     };
+    // before the transport starts any thread, so all of them inherit the settings
+    for line in cli.rt.apply().lines() {
+        eprintln!("controller_node: real-time settings: {line}");
+    }
     let opts = Options {
         scenario,
         reference: cli.reference,

@@ -53,6 +53,7 @@ pub mod plan;
 pub mod plant_side;
 pub mod process;
 mod rejections;
+pub mod rt;
 pub mod transport;
 pub mod uds;
 

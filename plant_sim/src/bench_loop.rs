@@ -79,6 +79,7 @@ pub fn bench_loop(
                 run: format!("bench-loop-{i}"),
                 out: dir,
                 miss_limit: 3,
+                rt: link::rt::RtSettings::default(),
                 lockstep_timeout: Duration::from_secs(5),
                 connect_timeout: Duration::from_secs(10),
                 state_faults: Vec::new(),

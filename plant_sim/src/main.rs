@@ -114,6 +114,8 @@ struct RunArgs {
     /// Consecutive deadline misses that start safe mode.
     #[arg(long, value_name = "N", default_value_t = 3)]
     miss_limit: u32,
+    #[command(flatten)]
+    rt: link::rt::RtSettings,
     /// Lockstep: seconds to wait for each command.
     #[arg(long, value_name = "S", default_value = "5", value_parser = positive_seconds)]
     lockstep_timeout: Duration,
@@ -352,6 +354,7 @@ fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
             .out
             .unwrap_or_else(|| Path::new("out").join(format!("run-{}", args.name))),
         miss_limit: args.miss_limit,
+        rt: args.rt.clone(),
         lockstep_timeout: args.lockstep_timeout,
         connect_timeout: args
             .connect_timeout

@@ -75,6 +75,9 @@ pub struct PairOptions {
     pub out: PathBuf,
     /// Consecutive deadline misses that start safe mode.
     pub miss_limit: u32,
+    /// Real-time settings of the plant process (applied after the controller is spawned,
+    /// which therefore does not inherit them).
+    pub rt: link::rt::RtSettings,
     /// Lockstep: how long to wait for a command.
     pub lockstep_timeout: Duration,
     /// How long to wait for the controller to appear.
@@ -159,6 +162,9 @@ pub struct PairSummary {
     /// Heap allocations the controller reported making after its first cycle (from its last
     /// command).
     pub controller_heap_allocations: Option<u64>,
+    /// The plant's real-time settings: applied, refused (with the OS's reason), and the
+    /// CPUs and scheduler read back.
+    pub realtime: link::rt::RtReport,
 }
 
 fn log(msg: std::fmt::Arguments) {
@@ -242,6 +248,8 @@ struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     tau: SVector<f64, M>,
     published: u64,
     t0: u64,
+    /// What the real-time settings did.
+    rt: link::rt::RtReport,
 }
 
 fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
@@ -250,6 +258,10 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let mut run = PlantRun::<G, N, M>::new(opts)?;
     ensure_dir(&opts.out)?;
     let mut child = Spawned::start(opts)?;
+    run.rt = opts.rt.apply();
+    for line in run.rt.lines() {
+        log(format_args!("real-time settings: {line}"));
+    }
     let first = run.connect(&mut child)?;
     let started = Instant::now();
     let mut pending = Some(first);
@@ -324,6 +336,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             tau: SVector::zeros(),
             published: 0,
             t0: 0,
+            rt: link::rt::RtReport::default(),
             s,
         })
     }
@@ -594,6 +607,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             controller_exit,
             transport: opts.transport.name().to_owned(),
             controller_heap_allocations: self.stats.last_allocations,
+            realtime: self.rt.clone(),
         };
         write_trajectory_csv(&traj, &opts.out.join("trajectory.csv"))?;
         write_json(&summary, &opts.out.join("summary.json"))?;
