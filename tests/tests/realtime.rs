@@ -145,8 +145,14 @@ fn impossible_settings_warn_and_the_run_goes_on() {
 #[test]
 fn bad_real_time_arguments_are_clear_errors() {
     for (args, needle) in [
-        (&["--rt-priority", "0"][..], "invalid value '0' for '--rt-priority"),
-        (&["--rt-priority", "100"][..], "invalid value '100' for '--rt-priority"),
+        (
+            &["--rt-priority", "0"][..],
+            "invalid value '0' for '--rt-priority",
+        ),
+        (
+            &["--rt-priority", "100"][..],
+            "invalid value '100' for '--rt-priority",
+        ),
         (&["--cpu", "3-1"][..], "upwards"),
         (&["--cpu", "x"][..], "`x`"),
     ] {
@@ -162,4 +168,44 @@ fn bad_real_time_arguments_are_clear_errors() {
             assert!(out.contains(needle), "{bin} {full:?}: {out}");
         }
     }
+}
+
+#[test]
+fn the_systemd_units_verify_against_the_built_binaries() {
+    let d = TempDir::new("units");
+    let deploy = concat!(env!("CARGO_MANIFEST_DIR"), "/../deploy");
+    let bin_dir = pair_tests::bin("plant_sim")
+        .parent()
+        .unwrap()
+        .display()
+        .to_string();
+    let mut units = Vec::new();
+    for name in ["eqtrack-controller.service", "eqtrack-plant.service"] {
+        let text = std::fs::read_to_string(format!("{deploy}/{name}")).unwrap();
+        for key in [
+            "CPUAffinity=",
+            "LimitRTPRIO=",
+            "LimitMEMLOCK=",
+            "--rt-priority",
+            "--cpu",
+        ] {
+            assert!(text.contains(key), "{name} lacks {key}");
+        }
+        let path = d.join(name);
+        std::fs::write(&path, text.replace("/opt/eqtrack", &bin_dir)).unwrap();
+        units.push(path);
+    }
+    let out = std::process::Command::new("systemd-analyze")
+        .arg("verify")
+        .args(&units)
+        .output()
+        .expect("systemd-analyze (systemd) is needed to check the units");
+    let text =
+        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.trim().is_empty(),
+        "systemd-analyze verify:\n{text}"
+    );
+    let controller = std::fs::read_to_string(&units[0]).unwrap();
+    assert!(controller.contains("Restart=always"));
 }
