@@ -1,9 +1,12 @@
 //! `plant_sim bench-loop`: the round trip of the real controller loop (plant_sim and
 //! controller_node as two processes, the same messages) over iceoryx2 with busy polling,
 //! iceoryx2 with event wake-up, and a Unix-domain-socket baseline (blocking, and busy-polled),
-//! at each requested rate.
+//! at each requested rate; and, in the same run at the same rates and durations, the floors
+//! it is measured against ([`crate::floors`]): cyclictest's wake-up latency and a bare
+//! iceoryx2 exchange.
 
 use crate::SimError;
+use crate::floors::{OsFloor, TransportFloor, os_floor, transport_floor};
 use crate::output::{ensure_dir, write_json};
 use crate::pair::{Mode, PairOptions, run_pair};
 use link::{StopFlag, TransportKind as Transport, Wake};
@@ -41,27 +44,84 @@ pub struct LoopRow {
     pub max_us: f64,
     /// Deadline misses.
     pub deadline_misses: u64,
+    /// The plant's tick lateness p50, µs (how late it woke for its ticks).
+    pub tick_lateness_p50_us: f64,
+    /// The plant's tick lateness p99, µs.
+    pub tick_lateness_p99_us: f64,
     /// The plant's tick lateness p99.9, µs (scheduling noise of the machine).
     pub tick_lateness_p99_9_us: f64,
+    /// The plant's tick lateness maximum, µs.
+    pub tick_lateness_max_us: f64,
     /// p50 divided by the iceoryx2 busy-poll p50 at the same rate.
     pub p50_ratio_to_busy_poll: f64,
     /// Heap allocations the controller reported after its first cycle.
     pub controller_heap_allocations: Option<u64>,
 }
 
-/// Runs every case at every rate for `duration` seconds each; SIGINT/SIGTERM (`stop`) end
-/// it after the current case's run directory is written.
+/// The floors at one rate (a floor that could not be measured says why).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct RateFloors {
+    /// Loop rate (Hz).
+    pub rate_hz: f64,
+    /// cyclictest at the loop's period.
+    pub os: Result<OsFloor, String>,
+    /// The bare iceoryx2 exchange, busy-polled.
+    pub transport_spin: Result<TransportFloor, String>,
+    /// The bare iceoryx2 exchange with event wake-up.
+    pub transport_event: Result<TransportFloor, String>,
+}
+
+/// What `bench-loop` measured.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct BenchLoop {
+    /// The pair, per case and rate.
+    pub cases: Vec<LoopRow>,
+    /// The floors, per rate.
+    pub floors: Vec<RateFloors>,
+}
+
+/// Measures the floors at `rate` for `duration` s each (`cyclictest`: the program to run).
+fn floors(cyclictest: &Path, rate: f64, duration: f64) -> RateFloors {
+    eprintln!("bench-loop: OS floor (cyclictest) at {rate} Hz for {duration} s ...");
+    let os = os_floor(cyclictest, rate, duration);
+    eprintln!("bench-loop: transport floor (bare iceoryx2) at {rate} Hz, busy-poll and event ...");
+    let transport_spin = transport_floor(true, rate, duration);
+    let transport_event = transport_floor(false, rate, duration);
+    for e in [
+        os.as_ref().err(),
+        transport_spin.as_ref().err(),
+        transport_event.as_ref().err(),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        eprintln!("bench-loop: warning: a floor could not be measured: {e}");
+    }
+    RateFloors {
+        rate_hz: rate,
+        os,
+        transport_spin,
+        transport_event,
+    }
+}
+
+/// Runs the floors and every case at every rate for `duration` seconds each; SIGINT/SIGTERM
+/// (`stop`) end it after the current case's run directory is written.
 pub fn bench_loop(
     scenario: &Scenario,
     scenario_args: &[String],
     rates: &[f64],
     duration: f64,
+    cyclictest: &Path,
     out: &Path,
     stop: &StopFlag,
-) -> Result<Vec<LoopRow>, SimError> {
+) -> Result<BenchLoop, SimError> {
     ensure_dir(out)?;
     let mut rows = Vec::new();
+    let mut all_floors = Vec::new();
     for rate in rates {
+        all_floors.push(floors(cyclictest, *rate, duration));
+        SimError::check(stop)?;
         let mut base_p50 = None;
         for (i, (label, transport, wake)) in CASES.iter().enumerate() {
             let mut s = scenario.clone();
@@ -91,6 +151,9 @@ pub fn bench_loop(
             SimError::check(stop)?;
             let p50 = sum.latency.p50_us;
             let base = *base_p50.get_or_insert(p50);
+            let lateness = |f: fn(&crate::pair::Percentiles) -> f64| {
+                sum.tick_lateness.as_ref().map(f).unwrap_or(f64::NAN)
+            };
             rows.push(LoopRow {
                 case: label.to_string(),
                 rate_hz: *rate,
@@ -100,20 +163,28 @@ pub fn bench_loop(
                 p99_9_us: sum.latency.p99_9_us,
                 max_us: sum.latency.max_us,
                 deadline_misses: sum.deadline_misses,
-                tick_lateness_p99_9_us: sum.tick_lateness.map(|t| t.p99_9_us).unwrap_or(f64::NAN),
+                tick_lateness_p50_us: lateness(|t| t.p50_us),
+                tick_lateness_p99_us: lateness(|t| t.p99_us),
+                tick_lateness_p99_9_us: lateness(|t| t.p99_9_us),
+                tick_lateness_max_us: lateness(|t| t.max_us),
                 p50_ratio_to_busy_poll: p50 / base,
                 controller_heap_allocations: sum.controller_heap_allocations,
             });
         }
     }
-    write_json(&rows, &out.join("summary.json"))?;
-    std::fs::write(out.join("table.md"), table(&rows)).map_err(|e| {
+    let result = BenchLoop {
+        cases: rows,
+        floors: all_floors,
+    };
+    write_json(&result, &out.join("summary.json"))?;
+    let text = table(&result.cases) + "\n" + &floors_table(&result);
+    std::fs::write(out.join("table.md"), text).map_err(|e| {
         SimError::Run(format!(
             "cannot write {}: {e}",
             out.join("table.md").display()
         ))
     })?;
-    Ok(rows)
+    Ok(result)
 }
 
 /// The comparison as a Markdown table.
@@ -138,6 +209,68 @@ pub fn table(rows: &[LoopRow]) -> String {
                 .map(|a| a.to_string())
                 .unwrap_or_else(|| "-".to_owned())
         );
+    }
+    s
+}
+
+/// The floors beside the pair, per rate: cyclictest's wake-up latency against the plant's tick
+/// lateness (in the iceoryx2 event case, where the plant sleeps as cyclictest does), and the
+/// bare iceoryx2 exchange against the pair's round trip in the same wake-up mode.
+pub fn floors_table(b: &BenchLoop) -> String {
+    let mut s = String::from(
+        "| rate | floor | floor p50 µs | floor p99 µs | floor max µs | the pair's figure | pair p50 µs | pair p99 µs | pair max µs | pair / floor |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    let case = |rate: f64, label: &str| {
+        b.cases
+            .iter()
+            .find(|r| r.rate_hz == rate && r.case == label)
+    };
+    for f in &b.floors {
+        let r = f.rate_hz;
+        match (&f.os, case(r, "iceoryx2 event")) {
+            (Ok(os), Some(c)) => {
+                s += &format!(
+                    "| {r} Hz | OS: cyclictest wake-up latency | {:.1} | {:.1} | {:.1} | plant tick lateness (iceoryx2 event) | {:.1} | {:.1} | {:.1} | p99: {:.2}× |\n",
+                    os.p50_us,
+                    os.p99_us,
+                    os.max_us,
+                    c.tick_lateness_p50_us,
+                    c.tick_lateness_p99_us,
+                    c.tick_lateness_max_us,
+                    c.tick_lateness_p99_us / os.p99_us
+                )
+            }
+            (Err(e), _) => {
+                s += &format!("| {r} Hz | OS: cyclictest | not measured: {e} | | | | | | | |\n")
+            }
+            (Ok(_), None) => {}
+        }
+        for (floor, label) in [
+            (&f.transport_spin, "iceoryx2 busy-poll"),
+            (&f.transport_event, "iceoryx2 event"),
+        ] {
+            match (floor, case(r, label)) {
+                (Ok(t), Some(c)) => {
+                    s += &format!(
+                        "| {r} Hz | transport: bare iceoryx2, {} | {:.2} | {:.2} | {:.1} | round trip ({label}) | {:.2} | {:.2} | {:.1} | p50: {:.2}× |\n",
+                        t.wake,
+                        t.p50_us,
+                        t.p99_us,
+                        t.max_us,
+                        c.p50_us,
+                        c.p99_us,
+                        c.max_us,
+                        c.p50_us / t.p50_us
+                    )
+                }
+                (Err(e), _) => {
+                    s += &format!(
+                        "| {r} Hz | transport ({label}) | not measured: {e} | | | | | | | |\n"
+                    )
+                }
+                (Ok(_), None) => {}
+            }
+        }
     }
     s
 }

@@ -9,6 +9,7 @@
 #![warn(missing_docs)]
 
 pub mod bench_loop;
+pub mod floors;
 pub mod montecarlo;
 pub mod output;
 pub mod pair;

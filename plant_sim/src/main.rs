@@ -80,6 +80,10 @@ struct BenchLoopArgs {
     /// Output directory; default out/bench-loop.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// The cyclictest program for the operating-system floor (Debian's rt-tests;
+    /// `scripts/rt-tests.sh` fetches it and prints its path).
+    #[arg(long, value_name = "PATH", default_value = "cyclictest")]
+    cyclictest: PathBuf,
 }
 
 #[derive(Args)]
@@ -313,11 +317,12 @@ fn bench_loop_cmd(args: BenchLoopArgs, stop: &StopFlag) -> Result<(), SimError> 
     let out = args
         .out
         .unwrap_or_else(|| Path::new("out").join("bench-loop"));
-    let rows = plant_sim::bench_loop::bench_loop(
+    let result = plant_sim::bench_loop::bench_loop(
         &scenario,
         &args.source.args("seed"),
         &rates,
         args.duration.as_secs_f64(),
+        &args.cyclictest,
         &out,
         stop,
     )?;
@@ -325,7 +330,9 @@ fn bench_loop_cmd(args: BenchLoopArgs, stop: &StopFlag) -> Result<(), SimError> 
         "round trip of the controller loop (state published -> command received), scenario {}:",
         scenario.name
     );
-    print!("{}", plant_sim::bench_loop::table(&rows));
+    print!("{}", plant_sim::bench_loop::table(&result.cases));
+    println!("\nthe floors, measured in the same run at the same rates and durations:");
+    print!("{}", plant_sim::bench_loop::floors_table(&result));
     println!(
         "wrote {}/{{summary.json, table.md}} and one run directory per case",
         out.display()
