@@ -52,6 +52,12 @@ pub struct LoopRow {
     pub tick_lateness_p99_9_us: f64,
     /// The plant's tick lateness maximum, µs.
     pub tick_lateness_max_us: f64,
+    /// Median of the first leg (state published → received by the controller), µs.
+    pub leg_to_controller_p50_us: f64,
+    /// Median of the controller's compute time, µs.
+    pub compute_p50_us: f64,
+    /// Median of the last leg (command published → received by the plant), µs.
+    pub leg_to_plant_p50_us: f64,
     /// p50 divided by the iceoryx2 busy-poll p50 at the same rate.
     pub p50_ratio_to_busy_poll: f64,
     /// Heap allocations the controller reported after its first cycle.
@@ -167,6 +173,9 @@ pub fn bench_loop(
                 tick_lateness_p99_us: lateness(|t| t.p99_us),
                 tick_lateness_p99_9_us: lateness(|t| t.p99_9_us),
                 tick_lateness_max_us: lateness(|t| t.max_us),
+                leg_to_controller_p50_us: sum.leg_to_controller.p50_us,
+                compute_p50_us: sum.controller_compute.p50_us,
+                leg_to_plant_p50_us: sum.leg_to_plant.p50_us,
                 p50_ratio_to_busy_poll: p50 / base,
                 controller_heap_allocations: sum.controller_heap_allocations,
             });
@@ -218,7 +227,7 @@ pub fn table(rows: &[LoopRow]) -> String {
 /// bare iceoryx2 exchange against the pair's round trip in the same wake-up mode.
 pub fn floors_table(b: &BenchLoop) -> String {
     let mut s = String::from(
-        "| rate | floor | floor p50 µs | floor p99 µs | floor max µs | the pair's figure | pair p50 µs | pair p99 µs | pair max µs | pair / floor |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| rate | floor | floor p50 µs | floor p99 µs | floor max µs | the pair's figure | pair p50 µs | pair p99 µs | pair max µs | pair / floor | legs p50 µs: floor · pair |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let case = |rate: f64, label: &str| {
         b.cases
@@ -227,23 +236,27 @@ pub fn floors_table(b: &BenchLoop) -> String {
     };
     for f in &b.floors {
         let r = f.rate_hz;
-        match (&f.os, case(r, "iceoryx2 event")) {
-            (Ok(os), Some(c)) => {
-                s += &format!(
-                    "| {r} Hz | OS: cyclictest wake-up latency | {:.1} | {:.1} | {:.1} | plant tick lateness (iceoryx2 event) | {:.1} | {:.1} | {:.1} | p99: {:.2}× |\n",
-                    os.p50_us,
-                    os.p99_us,
-                    os.max_us,
-                    c.tick_lateness_p50_us,
-                    c.tick_lateness_p99_us,
-                    c.tick_lateness_max_us,
-                    c.tick_lateness_p99_us / os.p99_us
-                )
+        for label in ["iceoryx2 event", "iceoryx2 busy-poll"] {
+            match (&f.os, case(r, label)) {
+                (Ok(os), Some(c)) => {
+                    s += &format!(
+                        "| {r} Hz | OS: cyclictest wake-up latency | {:.1} | {:.1} | {:.1} | plant tick lateness ({label}) | {:.1} | {:.1} | {:.1} | p99: {:.2}× | |\n",
+                        os.p50_us,
+                        os.p99_us,
+                        os.max_us,
+                        c.tick_lateness_p50_us,
+                        c.tick_lateness_p99_us,
+                        c.tick_lateness_max_us,
+                        c.tick_lateness_p99_us / os.p99_us
+                    )
+                }
+                (Err(e), _) if label == "iceoryx2 event" => {
+                    s += &format!(
+                        "| {r} Hz | OS: cyclictest | not measured: {e} | | | | | | | | |\n"
+                    )
+                }
+                _ => {}
             }
-            (Err(e), _) => {
-                s += &format!("| {r} Hz | OS: cyclictest | not measured: {e} | | | | | | | |\n")
-            }
-            (Ok(_), None) => {}
         }
         for (floor, label) in [
             (&f.transport_spin, "iceoryx2 busy-poll"),
@@ -252,7 +265,7 @@ pub fn floors_table(b: &BenchLoop) -> String {
             match (floor, case(r, label)) {
                 (Ok(t), Some(c)) => {
                     s += &format!(
-                        "| {r} Hz | transport: bare iceoryx2, {} | {:.2} | {:.2} | {:.1} | round trip ({label}) | {:.2} | {:.2} | {:.1} | p50: {:.2}× |\n",
+                        "| {r} Hz | transport: bare iceoryx2, {} | {:.2} | {:.2} | {:.1} | round trip ({label}) | {:.2} | {:.2} | {:.1} | p50: {:.2}× | {:.2} + {:.2} · {:.2} + {:.2} + {:.2} |\n",
                         t.wake,
                         t.p50_us,
                         t.p99_us,
@@ -260,12 +273,17 @@ pub fn floors_table(b: &BenchLoop) -> String {
                         c.p50_us,
                         c.p99_us,
                         c.max_us,
-                        c.p50_us / t.p50_us
+                        c.p50_us / t.p50_us,
+                        t.leg1_p50_us,
+                        t.leg2_p50_us,
+                        c.leg_to_controller_p50_us,
+                        c.compute_p50_us,
+                        c.leg_to_plant_p50_us
                     )
                 }
                 (Err(e), _) => {
                     s += &format!(
-                        "| {r} Hz | transport ({label}) | not measured: {e} | | | | | | | |\n"
+                        "| {r} Hz | transport ({label}) | not measured: {e} | | | | | | | | |\n"
                     )
                 }
                 (Ok(_), None) => {}

@@ -43,6 +43,10 @@ pub struct TransportFloor {
     pub max_us: f64,
     /// Replies not there by the next tick.
     pub missed: u64,
+    /// Median of the first leg (state written → seen by the other process), µs.
+    pub leg1_p50_us: f64,
+    /// Median of the last leg (reply written → seen), µs.
+    pub leg2_p50_us: f64,
 }
 
 /// Runs `cyclictest` at `rate_hz` for `duration` s and reads its histogram (1 µs buckets up
@@ -54,7 +58,10 @@ pub fn os_floor(cyclictest: &Path, rate_hz: f64, duration: f64) -> Result<OsFloo
     let out = Command::new(cyclictest)
         .args(["-q", "-t", "1", "-h", "20000"])
         .args(["-i", &interval_us.to_string()])
-        .args(["-D", &format!("{}", duration.ceil().max(1.0) as u64)])
+        .args([
+            "-l",
+            &((duration * rate_hz).round().max(1.0) as u64).to_string(),
+        ])
         .output()
         .map_err(|e| format!("cannot run {}: {e}", cyclictest.display()))?;
     if !out.status.success() {
@@ -162,6 +169,8 @@ pub fn transport_floor(spin: bool, rate_hz: f64, duration: f64) -> Result<Transp
         p99_9_us: field("p99_9_us")?,
         max_us: field("max_us")?,
         missed: field("missed")? as u64,
+        leg1_p50_us: field("leg1_p50_us")?,
+        leg2_p50_us: field("leg2_p50_us")?,
     })
 }
 

@@ -140,8 +140,13 @@ pub struct PairSummary {
     pub signal: Option<String>,
     /// Round trip: state published → command received (excludes the connection cycle).
     pub latency: Percentiles,
+    /// The round trip's first leg: state published → received by the controller (its
+    /// wake-up and read; the clock is the machine's one CLOCK_MONOTONIC).
+    pub leg_to_controller: Percentiles,
     /// The controller's compute time (state received → command published).
     pub controller_compute: Percentiles,
+    /// The round trip's last leg: command published → received by the plant.
+    pub leg_to_plant: Percentiles,
     /// Real time: how late the plant woke for its ticks (scheduling). A tick more than a
     /// period late makes the controller's command for it arrive too late by construction.
     pub tick_lateness: Option<Percentiles>,
@@ -203,6 +208,8 @@ impl OnGroup for Pair<'_> {
 /// The loop's figures.
 struct Stats {
     latency: Histogram<u64>,
+    to_controller: Histogram<u64>,
+    to_plant: Histogram<u64>,
     compute: Histogram<u64>,
     lateness: Histogram<u64>,
     last_allocations: Option<u64>,
@@ -214,6 +221,8 @@ impl Stats {
             .map_err(|e| SimError::Run(e.to_string()))?;
         Ok(Stats {
             latency: h.clone(),
+            to_controller: h.clone(),
+            to_plant: h.clone(),
             compute: h.clone(),
             lateness: h,
             last_allocations: None,
@@ -225,6 +234,12 @@ impl Stats {
             let _ = self
                 .latency
                 .record(c.received_ns.saturating_sub(published).max(1));
+            let _ = self
+                .to_controller
+                .record(c.msg.state_received_ns.saturating_sub(published).max(1));
+            let _ = self
+                .to_plant
+                .record(c.received_ns.saturating_sub(c.msg.stamp_ns).max(1));
         }
         let _ = self.compute.record(c.msg.compute_ns.max(1));
         self.last_allocations = Some(c.msg.heap_allocations);
@@ -597,7 +612,9 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             interrupted: interrupted.is_some(),
             signal: interrupted.map(|s| s.name().to_owned()),
             latency: Percentiles::of(&self.stats.latency),
+            leg_to_controller: Percentiles::of(&self.stats.to_controller),
             controller_compute: Percentiles::of(&self.stats.compute),
+            leg_to_plant: Percentiles::of(&self.stats.to_plant),
             tick_lateness: realtime.then(|| Percentiles::of(&self.stats.lateness)),
             deadline_misses: if realtime { self.policy.misses() } else { 0 },
             safe_mode_entries: self.policy.safe_entries(),

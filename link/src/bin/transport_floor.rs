@@ -13,7 +13,8 @@
 //! `floor wake=spin rate_hz=1000 cycles=5000 p50_us=.. p99_us=.. p99_9_us=.. max_us=.. missed=..`
 //!
 //! where the round trip is state written → reply seen, like the pair's, and `missed` counts
-//! replies not seen by the next tick.
+//! replies not seen by the next tick; `leg1_p50_us` (state written → seen by pong) and
+//! `leg2_p50_us` (reply stamped → seen by ping) split it as the pair's summary does.
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
@@ -220,6 +221,7 @@ fn run() -> Result<(), String> {
             if m.seq != last {
                 last = m.seq;
                 reply.seq = m.seq;
+                reply.state_received_ns = now_ns();
                 reply.stamp_ns = now_ns();
                 out.update_with_copy(reply);
                 if !a.spin {
@@ -254,6 +256,10 @@ fn measure(
     pong: &mut std::process::Child,
 ) -> Result<(), String> {
     let mut missed = 0u64;
+    let (mut leg1, mut leg2) = (
+        Vec::with_capacity(samples.capacity()),
+        Vec::with_capacity(samples.capacity()),
+    );
     let t0 = now_ns() + period_ns;
     for k in 0..cycles {
         let tick = t0 + k * period_ns;
@@ -266,8 +272,12 @@ fn measure(
         }
         let deadline = tick + period_ns;
         loop {
-            if inp.get().seq == msg.seq {
-                samples.push(now_ns() - msg.stamp_ns);
+            let reply = inp.get();
+            if reply.seq == msg.seq {
+                let seen = now_ns();
+                samples.push(seen - msg.stamp_ns);
+                leg1.push(reply.state_received_ns.saturating_sub(msg.stamp_ns));
+                leg2.push(seen.saturating_sub(reply.stamp_ns));
                 break;
             }
             let now = now_ns();
@@ -283,14 +293,16 @@ fn measure(
         }
     }
     let _ = pong.wait();
-    samples.sort_unstable();
-    let q = |p: f64| {
-        samples
-            .get(((samples.len() as f64 * p).ceil() as usize).saturating_sub(1))
+    for v in [&mut samples, &mut leg1, &mut leg2] {
+        v.sort_unstable();
+    }
+    let at = |v: &[u64], p: f64| {
+        v.get(((v.len() as f64 * p).ceil() as usize).saturating_sub(1))
             .map_or(f64::NAN, |&ns| ns as f64 / 1000.0)
     };
+    let q = |p: f64| at(&samples, p);
     println!(
-        "floor wake={} rate_hz={} cycles={} p50_us={:.3} p99_us={:.3} p99_9_us={:.3} max_us={:.3} missed={}",
+        "floor wake={} rate_hz={} cycles={} p50_us={:.3} p99_us={:.3} p99_9_us={:.3} max_us={:.3} missed={} leg1_p50_us={:.3} leg2_p50_us={:.3}",
         if a.spin { "spin" } else { "event" },
         a.rate_hz,
         samples.len(),
@@ -298,7 +310,9 @@ fn measure(
         q(0.99),
         q(0.999),
         q(1.0),
-        missed
+        missed,
+        at(&leg1, 0.5),
+        at(&leg2, 0.5)
     );
     Ok(())
 }
