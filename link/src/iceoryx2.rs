@@ -26,6 +26,10 @@ use std::time::{Duration, Instant};
 /// Writer slots (entries) per board.
 pub const SLOTS: u32 = 8;
 
+/// A receiving side reads every slot once per this many polls (and the slot that delivered
+/// last at every poll).
+const FULL_SCAN_EVERY: u32 = 16;
+
 /// Readers and nodes a board admits: the two sides, a planner and observers.
 const MAX_READERS: usize = 6;
 const MAX_NODES: usize = 8;
@@ -98,6 +102,12 @@ pub struct Iceoryx2<Out: Message, In: Message> {
     out: EntryHandleMut<ipc::Service, u32, Out>,
     inp: Vec<EntryHandle<ipc::Service, u32, In>>,
     last_in: Vec<(u64, u64)>,
+    /// The slot that delivered last.
+    active: usize,
+    /// Polls since start (for the periodic full scan).
+    polls: u32,
+    /// Read every slot at the next poll.
+    scan_all: bool,
     notifier: Notifier<ipc::Service>,
     /// Holds the listener's descriptor (added once at start-up, so waiting never allocates).
     wait_set: FileDescriptorSet,
@@ -159,6 +169,9 @@ impl<Out: Message, In: Message> Iceoryx2<Out, In> {
         Ok(Iceoryx2 {
             out,
             last_in: vec![In::empty().write_id(); inp.len()],
+            active: 0,
+            polls: 0,
+            scan_all: true,
             inp,
             notifier: notify
                 .notifier_builder()
@@ -199,15 +212,34 @@ impl<Out: Message, In: Message> Transport<Out, In> for Iceoryx2<Out, In> {
     }
 
     fn receive(&mut self) -> Option<In> {
-        next_write(
-            &self.inp,
-            &mut self.last_in,
-            |m: &In| m.write_id(),
-            In::empty().write_id(),
-        )
+        // The slot that delivered last comes first, alone: a busy-polling wait then reads one
+        // entry per poll instead of all of them. Every slot is read after a wake-up, after a
+        // message found by such a scan (until one finds nothing), and every FULL_SCAN_EVERY
+        // polls (a peer restarted into another slot is found within microseconds).
+        let (id, empty) = (|m: &In| m.write_id(), In::empty().write_id());
+        let a = self.active;
+        if let Some((_, m)) = next_write(&self.inp[a..=a], &mut self.last_in[a..=a], id, empty) {
+            return Some(m);
+        }
+        self.polls = self.polls.wrapping_add(1);
+        if !(self.scan_all || self.polls.is_multiple_of(FULL_SCAN_EVERY)) {
+            return None;
+        }
+        match next_write(&self.inp, &mut self.last_in, id, empty) {
+            Some((slot, m)) => {
+                self.active = slot;
+                self.scan_all = true;
+                Some(m)
+            }
+            None => {
+                self.scan_all = false;
+                None
+            }
+        }
     }
 
     fn wait(&mut self, timeout: Duration) {
+        self.scan_all = true;
         // select(2) on the listener's descriptor: high-resolution timers, unlike the
         // listener's own timed wait (a socket timeout that counts in scheduler ticks)
         let _ = self.wait_set.timed_wait(timeout, FileEvent::Read, |_| {});
@@ -256,20 +288,20 @@ pub(crate) fn entries<T: Slot>(
         .collect()
 }
 
-/// The first slot holding a write not seen yet (`id` identifies a write; `empty` is the id
-/// of a slot nobody wrote), remembering it as seen. Allocation-free.
+/// The first slot holding a write not seen yet, and its index (`id` identifies a write;
+/// `empty` is the id of a slot nobody wrote), remembering it as seen. Allocation-free.
 pub(crate) fn next_write<T: Slot>(
     entries: &[EntryHandle<ipc::Service, u32, T>],
     seen: &mut [(u64, u64)],
     id: impl Fn(&T) -> (u64, u64),
     empty: (u64, u64),
-) -> Option<T> {
-    for (entry, last) in entries.iter().zip(seen.iter_mut()) {
+) -> Option<(usize, T)> {
+    for (i, (entry, last)) in entries.iter().zip(seen.iter_mut()).enumerate() {
         let m: T = *entry.get();
         let this = id(&m);
         if this != *last && this != empty {
             *last = this;
-            return Some(m);
+            return Some((i, m));
         }
     }
     None

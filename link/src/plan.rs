@@ -25,6 +25,7 @@ fn empty_state() -> StateMsg {
     <StateMsg as crate::Message>::empty()
 }
 
+/// `(seq, stamp)` of a write; `(0, 0)` for an empty slot.
 fn plan_id(m: &PlanMsg) -> (u64, u64) {
     (m.seq, m.stamp_ns)
 }
@@ -133,11 +134,6 @@ impl PlanReader {
     /// A plan message not seen yet, or `None`; call until `None`. Unchecked: pass it through
     /// [`ipc_types::check_plan`].
     pub fn receive(&mut self) -> Option<PlanMsg> {
-        next_write(
-            &self.entries,
-            &mut self.seen,
-            plan_id,
-            plan_id(&empty_plan()),
-        )
+        next_write(&self.entries, &mut self.seen, plan_id, (0, 0)).map(|(_, m)| m)
     }
 }
