@@ -118,6 +118,10 @@ struct RunArgs {
     /// Consecutive deadline misses that start safe mode.
     #[arg(long, value_name = "N", default_value_t = 3)]
     miss_limit: u32,
+    /// Keep every Nth cycle in trajectory.csv (and the last one): for long runs, whose rows
+    /// are otherwise all held in memory until the end.
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    record_every: u64,
     #[command(flatten)]
     rt: link::rt::RtSettings,
     /// Lockstep: seconds to wait for each command.
@@ -362,6 +366,7 @@ fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
             .unwrap_or_else(|| Path::new("out").join(format!("run-{}", args.name))),
         miss_limit: args.miss_limit,
         rt: args.rt.clone(),
+        record_every: args.record_every,
         lockstep_timeout: args.lockstep_timeout,
         connect_timeout: args
             .connect_timeout

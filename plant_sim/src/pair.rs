@@ -75,6 +75,9 @@ pub struct PairOptions {
     pub out: PathBuf,
     /// Consecutive deadline misses that start safe mode.
     pub miss_limit: u32,
+    /// Keep every Nth cycle in trajectory.csv (and the last): long runs at a high rate
+    /// otherwise hold every row in memory (1 = every cycle).
+    pub record_every: u64,
     /// Real-time settings of the plant process (applied after the controller is spawned,
     /// which therefore does not inherit them).
     pub rt: link::rt::RtSettings,
@@ -132,8 +135,10 @@ pub struct PairSummary {
     pub run: String,
     /// Real time: the rate (Hz).
     pub rate_hz: Option<f64>,
-    /// Control cycles (rows).
+    /// Control cycles run.
     pub cycles: u64,
+    /// trajectory.csv keeps every Nth cycle (and the last).
+    pub record_every: u64,
     /// Whether SIGINT/SIGTERM stopped the run before its end.
     pub interrupted: bool,
     /// The signal that stopped it (`SIGINT`, `SIGTERM`).
@@ -260,6 +265,8 @@ struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     stats: Stats,
     rows: Vec<Row>,
     status: Vec<u8>,
+    /// Cycles run (rows are kept every `record_every`).
+    cycles: u64,
     tau: SVector<f64, M>,
     published: u64,
     t0: u64,
@@ -346,8 +353,9 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             ep,
             policy: DeadlinePolicy::new(opts.miss_limit),
             stats: Stats::new()?,
-            rows: Vec::with_capacity(steps as usize + 1),
-            status: Vec::new(),
+            rows: Vec::with_capacity((steps / opts.record_every.max(1)) as usize + 2),
+            status: Vec::with_capacity((steps / opts.record_every.max(1)) as usize + 2),
+            cycles: 0,
             tau: SVector::zeros(),
             published: 0,
             t0: 0,
@@ -519,6 +527,10 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
     }
 
     fn record(&mut self, k: u64, decision: Decision) {
+        self.cycles += 1;
+        if !k.is_multiple_of(self.opts.record_every.max(1)) && k != self.steps {
+            return;
+        }
         let t = controller::real::<f64>(k as f64) * self.s.control_period;
         self.rows.push(Row::new::<G, N, M>(
             t,
@@ -558,8 +570,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
 
     /// A status line on a terminal, four times a second.
     fn live_status(&mut self) {
-        let every = (0.25 / self.s.control_period).max(1.0) as usize;
-        if !self.rows.len().is_multiple_of(every) || !std::io::stderr().is_terminal() {
+        let every = (0.25 / self.s.control_period).max(1.0) as u64;
+        if !self.cycles.is_multiple_of(every) || !std::io::stderr().is_terminal() {
             return;
         }
         if let Some(r) = self.rows.last() {
@@ -594,10 +606,11 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
     ) -> Result<(Trajectory, PairSummary), SimError> {
         let (opts, s) = (self.opts, &self.s);
         let realtime = self.realtime();
-        let cycles = self.rows.len() as u64;
+        let cycles = self.cycles;
         let traj = Trajectory {
             group: s.group,
-            control_period: s.control_period,
+            // the spacing of the rows kept (the effort sums over them)
+            control_period: s.control_period * opts.record_every.max(1) as f64,
             duration: cycles.saturating_sub(1) as f64 * s.control_period,
             rows: self.rows,
             status: self.status,
@@ -609,6 +622,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             run: opts.run.clone(),
             rate_hz: realtime.then_some(opts.rate_hz),
             cycles,
+            record_every: opts.record_every.max(1),
             interrupted: interrupted.is_some(),
             signal: interrupted.map(|s| s.name().to_owned()),
             latency: Percentiles::of(&self.stats.latency),

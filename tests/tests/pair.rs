@@ -518,3 +518,46 @@ fn bad_input_to_run_exits_2_and_a_missing_controller_is_a_clear_error() {
     );
     assert!(started.elapsed() < Duration::from_secs(10));
 }
+
+#[test]
+fn record_every_keeps_every_nth_row_of_the_same_run() {
+    let _g = serial();
+    let d = TempDir::new("record-every");
+    let (full, thin) = (d.join("full"), d.join("thin"));
+    for (out, every) in [(&full, "1"), (&thin, "7")] {
+        let (code, text) = plant(&[
+            "run",
+            "--builtin",
+            "seed",
+            "--mode",
+            "lockstep",
+            "--name",
+            "t-rec-every",
+            "--out",
+            out,
+            "--record-every",
+            every,
+        ]);
+        assert_eq!(code, 0, "{text}");
+    }
+    let read = |dir: &str| std::fs::read_to_string(format!("{dir}/trajectory.csv")).unwrap();
+    let (a, b) = (read(&full), read(&thin));
+    let full_rows: Vec<&str> = a.lines().collect();
+    let thin_rows: Vec<&str> = b.lines().collect();
+    assert_eq!(full_rows[0], thin_rows[0], "same header");
+    let n = full_rows.len() - 1; // 2001 cycles: k = 0..=2000
+    let mut want: Vec<&str> = (0..n).step_by(7).map(|k| full_rows[k + 1]).collect();
+    if (n - 1) % 7 != 0 {
+        want.push(full_rows[n]); // and the last cycle
+    }
+    assert_eq!(
+        &thin_rows[1..],
+        &want[..],
+        "every 7th row, bit for bit, and the last"
+    );
+    let s = summary(Path::new(&thin));
+    assert_eq!(s["cycles"], n as u64, "the summary counts every cycle run");
+    assert_eq!(s["record_every"], 7);
+    let (code, text) = plant(&["run", "--record-every", "0"]);
+    assert_eq!(code, 2, "{text}");
+}
