@@ -23,6 +23,8 @@
 #    the vector's magnitude, not of itself. The 1e-6 floor only matters for an exactly zero
 #    line (the goal state), where it demands agreement to 1e-11.
 # 4. Prints the ELF's flash/RAM footprint and the stack use the firmware measured.
+# 5. Counts the instructions of one SO(3) and one SE(3) law call and of one controller cycle
+#    (1 and 10 reference substeps) in QEMU's single-step execution log (feature `icount`).
 #
 # Environment:
 #   TOOLCHAIN_CACHE=dir    toolchain cache (default <repo>/.toolchain; CORTEX_M_CACHE also works)
@@ -241,5 +243,76 @@ while read -r _ what bytes; do
 	esac
 	echo "stack (painted high-water mark): $label: $bytes bytes"
 done < <(grep '^STACK ' "$OUT/firmware.out")
+
+# --- 5. instruction counts -------------------------------------------------------------------
+
+# The firmware built with feature `icount` runs each measured call once between two calls of
+# `icount_mark`; QEMU single-steps (one translation block per instruction) and logs every
+# executed block with its symbol, so the lines between two marks are the instructions the
+# call executed. The 0 -> 1 gap (return from one mark, call of the next) is subtracted.
+# At the firmware's own opt-level "s" (size), and at opt-level 3 (speed; more flash).
+icount_run() { # opt-level
+	local label=opt-level-$1
+	step "instruction counts ($label): the firmware with feature icount under qemu -singlestep -d exec,nochain"
+	CARGO_PROFILE_RELEASE_OPT_LEVEL=$1 fw_env cargo build --release --locked -Z build-std=core --features icount \
+		>"$OUT/icount-build-$label.log" 2>&1 ||
+		{ tail -30 "$OUT/icount-build-$label.log" >&2; die "icount firmware build ($label) failed"; }
+	cp "$ELF" "$OUT/firmware-icount-$label.elf"
+	local rc
+	set +e
+	fw_env timeout --kill-after=5 "$TIMEOUT" qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic \
+		-semihosting-config enable=on,target=native -singlestep -d exec,nochain -D "$OUT/icount-exec-$label.log" \
+		-kernel "$OUT/firmware-icount-$label.elf" </dev/null >"$OUT/icount-$label.out" 2>"$OUT/icount-run-$label.log"
+	rc=$?
+	set -e
+	((rc == 0)) && grep -q '^ICOUNT done true' "$OUT/icount-$label.out" ||
+		{ tail -5 "$OUT/icount-$label.out" "$OUT/icount-run-$label.log" >&2; die "the icount firmware ($label) failed (exit $rc)"; }
+	echo "instruction counts, firmware built at $label:"
+	count_instructions "$OUT/icount-exec-$label.log" | tee "$OUT/icount-$label.txt" || die "instruction counting failed"
+	rm -f "$OUT/icount-exec-$label.log" # hundreds of MB
+}
+
+count_instructions() {
+python3 - "$1" <<'PY'
+import re, sys
+from collections import Counter
+mark = "icount_mark"
+gaps, current, in_mark, runs = [], None, False, 0
+for line in open(sys.argv[1], errors="replace"):
+    if not line.startswith("Trace "):
+        continue
+    m = re.search(r"\]\s*(\S*)\s*$", line)
+    sym = m.group(1) if m else ""
+    if mark in sym:
+        if not in_mark:
+            if current is not None:
+                gaps.append(current)
+            current, in_mark, runs = Counter(), True, runs + 1
+        continue
+    in_mark = False
+    if current is not None:
+        current[sym] += 1
+if runs < 10 or len(gaps) < 9:
+    sys.exit(f"expected 10 marks, found {runs}")
+base = sum(gaps[0].values())
+# gaps[i] lies between mark i and mark i + 1
+names = {2: "SO(3) EqT, Controller::compute, f32", 4: "SE(3) EqT (generic), Controller::compute, f32",
+         6: "controller cycle, 1 reference substep", 8: "controller cycle, 10 reference substeps"}
+soft = re.compile(r"__aeabi_d|__adddf3|__subdf3|__muldf3|__divdf3|__fixdfsi|__floatsidf|__extendsfdf2|__truncdfsf2|compiler_builtins.*float")
+for i, name in names.items():
+    g = gaps[i]
+    n = sum(g.values()) - base
+    d = sum(c for s, c in g.items() if soft.search(s))
+    top = ", ".join(f"{re.sub(r'^_ZN|17h[0-9a-f]{16}E$', '', s)[:48]} {c}" for s, c in g.most_common(4))
+    print(f"ICOUNT {i // 2} {n:>6} instructions  {name}  (software double: {d}; top: {top})")
+print(f"ICOUNT overhead {base} (subtracted)")
+PY
+}
+
+icount_run s
+icount_run 3
+# the report firmware again (opt-level "s"), so that a later `cargo run` finds it
+fw_env cargo build --release --locked -Z build-std=core >"$OUT/rebuild.log" 2>&1 ||
+	die "rebuilding the report firmware failed"
 
 echo "cortex-m: PASS (${SECONDS}s; outputs in $OUT)"

@@ -15,6 +15,8 @@
 #![no_std]
 #![no_main]
 
+#[cfg(feature = "icount")]
+mod icount;
 mod stack;
 
 use core::fmt::Write;
@@ -27,6 +29,9 @@ use firmware_cases::{
 
 #[entry]
 fn main() -> ! {
+    #[cfg(feature = "icount")]
+    let ok = icount::run();
+    #[cfg(not(feature = "icount"))]
     let ok = run();
     debug::exit(if ok { EXIT_SUCCESS } else { EXIT_FAILURE });
     // `exit` returns only when no debugger or emulator serves semihosting.
@@ -36,6 +41,7 @@ fn main() -> ! {
 }
 
 /// Measures the stack, then writes the report; true when everything worked and was finite.
+#[cfg_attr(feature = "icount", allow(dead_code))]
 fn run() -> bool {
     // Each measurement paints the stack below its own caller, so the order does not matter.
     let stack_ok = measure_stack();

@@ -209,14 +209,7 @@ pub const LOOP_PRINT_EVERY: usize = 50;
 /// plant from `R(0) = exp((π − 0.1)·(0.8, 0.6, 0))`, `ω(0) = (4, −3, 2)`.
 pub fn seed_closed_loop() -> Result<ClosedLoop<f32, So3, 3, 3>, Error> {
     let inertia = so3_inertia();
-    let reference = Reference::new(
-        Matrix3::identity(),
-        Vector3::zeros(),
-        inertia,
-        so3_seed_feedforward(),
-        PERIOD,
-        10,
-    )?;
+    let reference = seed_reference(10)?;
     let a = core::f32::consts::PI - 0.1;
     let plant = RigidBody::new(
         inertia,
@@ -224,6 +217,19 @@ pub fn seed_closed_loop() -> Result<ClosedLoop<f32, So3, 3, 3>, Error> {
         Vector3::new(4.0, -3.0, 2.0),
     )?;
     ClosedLoop::new(so3_controller()?, reference, plant, 10)
+}
+
+/// The seed scenario's reference generator in f32: `R_d(0) = I`, `ω_d(0) = 0`, driven by
+/// [`so3_seed_feedforward`] with `substeps` RKMK4 steps per [`PERIOD`].
+pub fn seed_reference(substeps: usize) -> Result<Reference<f32, So3, 3, 3>, Error> {
+    Reference::new(
+        Matrix3::identity(),
+        Vector3::zeros(),
+        so3_inertia(),
+        so3_seed_feedforward(),
+        PERIOD,
+        substeps,
+    )
 }
 
 /// Writes one number per field, space-separated, and ends the line.

@@ -1,0 +1,69 @@
+//! The instruction-count mode (feature `icount`): each measured call runs once between two
+//! calls of [`icount_mark`], and `scripts/cortex-m.sh` counts the instructions QEMU executes
+//! between them in its single-step execution log (`-singlestep -d exec,nochain`: one log
+//! line per executed instruction, with its function's symbol). The calls (BENCHMARKS.md,
+//! section 6):
+//!
+//! | marks | what |
+//! |---|---|
+//! | 0 → 1 | nothing: the cost of returning from one mark and calling the next (subtracted) |
+//! | 2 → 3 | `Controller::compute`, SO(3) EqT, f32 |
+//! | 4 → 5 | `Controller::compute`, SE(3) EqT (the generic law), f32 |
+//! | 6 → 7 | one controller cycle: reference `desired()`, `compute`, reference `advance()` with 1 RKMK4 substep |
+//! | 8 → 9 | the same with the seed's 10 substeps |
+
+use controller::Trajectory;
+use core::hint::black_box;
+use cortex_m_semihosting::hprintln;
+use firmware_cases::{se3_cases, se3_controller, seed_reference, so3_cases, so3_controller};
+
+/// The marker the counting script looks for by name.
+#[inline(never)]
+fn icount_mark(id: u32) {
+    black_box(id);
+}
+
+/// Runs the measured calls between marks; true when every result was finite.
+pub fn run() -> bool {
+    let (Ok(so3), Ok(se3), Ok(mut ref1), Ok(mut ref10)) =
+        (so3_controller(), se3_controller(), seed_reference(1), seed_reference(10))
+    else {
+        hprintln!("ERR icount - construction failed");
+        return false;
+    };
+    let c = so3_cases()[5];
+    let d = se3_cases(&se3.config().inertia)[2];
+    // one step in first, so no call is the very first (state as in a running loop)
+    ref1.advance();
+    ref10.advance();
+    // Opaque from here on: the inputs are constants, and the compiler would otherwise
+    // evaluate the calls at compile time or move them out from between the marks.
+    let (so3, se3, c, d) = (black_box(so3), black_box(se3), black_box(c), black_box(d));
+    let (mut ref1, mut ref10) = (black_box(ref1), black_box(ref10));
+    let mut ok = true;
+    let mut finite = |x: f32| ok &= x.is_finite();
+
+    icount_mark(0);
+    icount_mark(1);
+
+    icount_mark(2);
+    let r = black_box(so3.compute(black_box(&c.q), black_box(&c.v), black_box(&c.desired)));
+    icount_mark(3);
+    finite(r.map_or(f32::NAN, |o| o.torque.norm()));
+
+    icount_mark(4);
+    let r = black_box(se3.compute(black_box(&d.q), black_box(&d.v), black_box(&d.desired)));
+    icount_mark(5);
+    finite(r.map_or(f32::NAN, |o| o.torque.norm()));
+
+    for (first, reference) in [(6, &mut ref1), (8, &mut ref10)] {
+        icount_mark(first);
+        let desired = reference.desired();
+        let r = black_box(so3.compute(black_box(&c.q), black_box(&c.v), &desired));
+        reference.advance();
+        icount_mark(first + 1);
+        finite(r.map_or(f32::NAN, |o| o.torque.norm()));
+    }
+    hprintln!("ICOUNT done {}", ok);
+    ok
+}
