@@ -36,6 +36,7 @@ pub mod path;
 pub mod reference;
 pub mod semidirect;
 pub mod tracking;
+pub mod trig;
 pub mod validate;
 
 pub use error::{Error, Quantity};

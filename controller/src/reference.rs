@@ -118,7 +118,7 @@ impl<T: Real> AxisTorque<T> {
     /// The torque at time `t`.
     pub fn eval(&self, t: T) -> T {
         self.terms.iter().fold(self.offset, |acc, c| {
-            acc + c.amplitude * (c.frequency * t + c.phase).cos()
+            acc + c.amplitude * crate::trig::cos(c.frequency * t + c.phase)
         })
     }
 

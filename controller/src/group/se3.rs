@@ -89,8 +89,11 @@ impl MatrixLieGroup<4, 6> for Se3 {
         } else {
             let theta = theta2.sqrt();
             let half = theta * real(0.5);
-            let s = half.sin() / half;
-            (s * s * real(0.5), (theta - theta.sin()) / (theta2 * theta))
+            let s = crate::trig::sin(half) / half;
+            (
+                s * s * real(0.5),
+                (theta - crate::trig::sin(theta)) / (theta2 * theta),
+            )
         };
         let j = Matrix3::identity() + wx * b + wx * wx * c;
         from_parts(&exp_so3(&w), &(j * u))
@@ -111,7 +114,7 @@ impl MatrixLieGroup<4, 6> for Se3 {
         } else {
             let theta = theta2.sqrt();
             let half = theta * real(0.5);
-            (T::one() - half * half.cos() / half.sin()) / theta2
+            (T::one() - half * crate::trig::cos(half) / crate::trig::sin(half)) / theta2
         };
         let j_inv = Matrix3::<T>::identity() - wx * real::<T>(0.5) + wx * wx * d;
         join(&w, &(j_inv * x))

@@ -41,8 +41,8 @@ pub fn exp_so3<T: Real>(w: &Vector3<T>) -> Matrix3<T> {
     } else {
         let theta = theta2.sqrt();
         let half = theta * real(0.5);
-        let s = half.sin() / half;
-        (theta.sin() / theta, s * s * real(0.5))
+        let s = crate::trig::sin(half) / half;
+        (crate::trig::sin(theta) / theta, s * s * real(0.5))
     };
     Matrix3::identity() + wx * a + wx * wx * b
 }
