@@ -70,7 +70,7 @@ fn cos_poly(z: f32) -> f32 {
 /// `sin x` in `f32` arithmetic only.
 pub fn sin_f32(x: f32) -> f32 {
     let ax = x.abs();
-    if !(ax < LIMIT) {
+    if ax.is_nan() || ax >= LIMIT {
         return libm::sinf(x);
     }
     let (z, mut j) = reduce(ax);
@@ -86,7 +86,7 @@ pub fn sin_f32(x: f32) -> f32 {
 /// `cos x` in `f32` arithmetic only.
 pub fn cos_f32(x: f32) -> f32 {
     let ax = x.abs();
-    if !(ax < LIMIT) {
+    if ax.is_nan() || ax >= LIMIT {
         return libm::cosf(x);
     }
     let (z, mut j) = reduce(ax);
