@@ -547,7 +547,7 @@ fn record_every_keeps_every_nth_row_of_the_same_run() {
     assert_eq!(full_rows[0], thin_rows[0], "same header");
     let n = full_rows.len() - 1; // 2001 cycles: k = 0..=2000
     let mut want: Vec<&str> = (0..n).step_by(7).map(|k| full_rows[k + 1]).collect();
-    if (n - 1) % 7 != 0 {
+    if !(n - 1).is_multiple_of(7) {
         want.push(full_rows[n]); // and the last cycle
     }
     assert_eq!(
