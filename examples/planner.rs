@@ -1,5 +1,6 @@
 //! A trajectory planner process, written only against the public APIs of `link` (the plan
-//! board), `scenario` (the waypoint file) and `controller` (the path): it streams a
+//! board), `ipc_types` (the plan message), `scenario` (the waypoint file) and `controller`
+//! (the path): it streams a
 //! scenario's path through waypoints to a `controller_node --reference stream` of the same
 //! run while the pair runs. A planner that decides on the fly builds its segments the same
 //! way (`controller::path::Segment::between`) and publishes them the same way.
