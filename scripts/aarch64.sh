@@ -92,7 +92,10 @@ file -b "$BIN/plant_sim" 2>/dev/null | grep -q aarch64 || [[ $(head -c 20 "$BIN/
 step "building the host plant_sim (the reference)"
 (cd "$REPO" && env -u RUSTC cargo build --locked -p plant_sim >"$OUT/host-build.log" 2>&1) ||
 	{ tail -30 "$OUT/host-build.log" >&2; die "host build failed"; }
-HOST_PLANT=$REPO/target/debug/plant_sim
+# wherever cargo puts the host's build (CARGO_TARGET_DIR, or the workspace's target/)
+HOST_TARGET=$(cd "$REPO" && env -u RUSTC cargo metadata --format-version 1 --no-deps |
+	python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
+HOST_PLANT=$HOST_TARGET/debug/plant_sim
 
 # --- 3. the emulated pair against the host simulation ----------------------------------------
 
