@@ -1,0 +1,89 @@
+/*
+ * eqtrack_wire.h: the wire layout of eqtrack's messages, for C and C++ tools and for
+ * Python ctypes. The Rust structs are `ipc_types::{StateMsg, CommandMsg, WireSegment,
+ * PlanMsg}` (#[repr(C)]); `ipc_types/tests/c_header.rs` compiles this header and checks
+ * every size and field offset against them. docs/wire.md explains the fields and how to
+ * attach to a running pair.
+ *
+ * Each message sits in an iceoryx2 blackboard entry (key type uint32_t, keys 0..7 are the
+ * writer slots) of the service `eqtrack/<run>/state`, `eqtrack/<run>/command` or
+ * `eqtrack/<run>/plan`; iceoryx2 type names "eqtrack::StateMsg2", "eqtrack::CommandMsg2",
+ * "eqtrack::PlanMsg2". All numbers are little-endian on the machines eqtrack runs on.
+ */
+#ifndef EQTRACK_WIRE_H
+#define EQTRACK_WIRE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#define EQTRACK_PROTOCOL_VERSION 2u
+#define EQTRACK_MAX_N 4        /* configuration matrices are n x n, n <= 4 */
+#define EQTRACK_MAX_M 6        /* algebra dimension m <= 6 */
+#define EQTRACK_NAME_BYTES 32  /* scenario name, UTF-8, NUL-padded */
+#define EQTRACK_PLAN_WINDOW 8  /* segments per plan message */
+
+/* group codes */
+#define EQTRACK_GROUP_SO3 1u
+#define EQTRACK_GROUP_SE3 2u
+
+/* StateMsg.flags and CommandMsg.flags */
+#define EQTRACK_FLAG_WAKE_EVENT 1u
+#define EQTRACK_FLAG_SHUTDOWN 2u
+#define EQTRACK_FLAG_REFUSED 4u
+
+/* the plant's state at t_k */
+typedef struct eqtrack_StateMsg {
+    uint32_t version;       /* EQTRACK_PROTOCOL_VERSION; 0: slot never written */
+    uint32_t group;         /* EQTRACK_GROUP_* */
+    uint64_t seq;           /* control step k */
+    double t;               /* t_k = k * control_period, s */
+    double control_period;  /* s */
+    uint64_t stamp_ns;      /* CLOCK_MONOTONIC at publication */
+    double q[EQTRACK_MAX_N * EQTRACK_MAX_N]; /* Q, row-major n x n in the first n*n */
+    double v[EQTRACK_MAX_M]; /* body velocity V, first m (SE(3): omega then v) */
+    uint32_t flags;         /* EQTRACK_FLAG_* */
+    uint32_t plant_pid;
+    uint64_t fingerprint;   /* scenario fingerprint, 0: none */
+    uint8_t scenario[EQTRACK_NAME_BYTES];
+} eqtrack_StateMsg;
+
+/* the controller's answer to state k */
+typedef struct eqtrack_CommandMsg {
+    uint32_t version;
+    uint32_t group;
+    uint64_t seq;               /* the state's k */
+    uint64_t state_received_ns; /* CLOCK_MONOTONIC when the state was received */
+    uint64_t stamp_ns;          /* CLOCK_MONOTONIC at publication */
+    uint64_t compute_ns;        /* state received -> command published */
+    double tau[EQTRACK_MAX_M];  /* torque after saturation, first m */
+    double lyapunov;            /* L at t_k */
+    uint64_t heap_allocations;  /* since the controller's first cycle */
+    uint32_t flags;             /* EQTRACK_FLAG_REFUSED */
+    uint32_t mismatch;          /* with REFUSED: what differs (1 group, 2 period, 4 scenario) */
+    uint64_t fingerprint;
+    double expected_period;     /* 0: the controller follows the plant */
+    uint8_t scenario[EQTRACK_NAME_BYTES];
+} eqtrack_CommandMsg;
+
+/* one piece of a streamed path: geodesic from `start` at t0 by `twist`, quintic timing */
+typedef struct eqtrack_WireSegment {
+    double t0;
+    double t1;
+    double start[EQTRACK_MAX_N * EQTRACK_MAX_N]; /* row-major n x n */
+    double twist[EQTRACK_MAX_M];                 /* log(Q_start^-1 Q_end), first m */
+} eqtrack_WireSegment;
+
+/* a window of consecutive segments from a planner */
+typedef struct eqtrack_PlanMsg {
+    uint32_t version;
+    uint32_t group;
+    uint64_t seq;
+    uint64_t stamp_ns;
+    uint32_t first_index;
+    uint32_t count;           /* segments used, <= EQTRACK_PLAN_WINDOW */
+    uint32_t planner_pid;
+    uint32_t reserved;
+    eqtrack_WireSegment segments[EQTRACK_PLAN_WINDOW];
+} eqtrack_PlanMsg;
+
+#endif /* EQTRACK_WIRE_H */

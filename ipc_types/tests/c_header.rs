@@ -1,0 +1,224 @@
+//! The C header `include/eqtrack_wire.h` describes the Rust structs exactly: a C program
+//! compiled against it prints every struct's size and every field's offset and size, and
+//! they must equal what Rust reports for `ipc_types::{StateMsg, CommandMsg, WireSegment,
+//! PlanMsg}`. Needs a C compiler (`cc`, which Rust's own linking already needs).
+
+use ipc_types::{CommandMsg, PlanMsg, StateMsg, WireSegment};
+use std::collections::BTreeMap;
+use std::mem::{offset_of, size_of, size_of_val};
+use std::process::Command;
+
+/// `(struct, field) -> (offset, size)`, and `(struct, "") -> (0, size of the struct)`.
+type Layout = BTreeMap<(String, String), (usize, usize)>;
+
+/// Records a struct's size and each listed field's offset and size.
+macro_rules! fields {
+    ($map:ident, $value:expr, $ty:ty, $cname:literal, [$($f:ident),* $(,)?]) => {{
+        let v: $ty = $value;
+        $map.insert(($cname.to_owned(), String::new()), (0, size_of::<$ty>()));
+        $( $map.insert(
+            ($cname.to_owned(), stringify!($f).to_owned()),
+            (offset_of!($ty, $f), size_of_val(&v.$f)),
+        ); )*
+    }};
+}
+
+fn rust_layout() -> Layout {
+    use controller::GroupKind::So3;
+    let mut m = Layout::new();
+    fields!(
+        m,
+        StateMsg::new(So3),
+        StateMsg,
+        "eqtrack_StateMsg",
+        [
+            version,
+            group,
+            seq,
+            t,
+            control_period,
+            stamp_ns,
+            q,
+            v,
+            flags,
+            plant_pid,
+            fingerprint,
+            scenario,
+        ]
+    );
+    fields!(
+        m,
+        CommandMsg::new(So3),
+        CommandMsg,
+        "eqtrack_CommandMsg",
+        [
+            version,
+            group,
+            seq,
+            state_received_ns,
+            stamp_ns,
+            compute_ns,
+            tau,
+            lyapunov,
+            heap_allocations,
+            flags,
+            mismatch,
+            fingerprint,
+            expected_period,
+            scenario,
+        ]
+    );
+    fields!(
+        m,
+        PlanMsg::new(So3).segments[0],
+        WireSegment,
+        "eqtrack_WireSegment",
+        [t0, t1, start, twist,]
+    );
+    fields!(
+        m,
+        PlanMsg::new(So3),
+        PlanMsg,
+        "eqtrack_PlanMsg",
+        [
+            version,
+            group,
+            seq,
+            stamp_ns,
+            first_index,
+            count,
+            planner_pid,
+            reserved,
+            segments,
+        ]
+    );
+    m
+}
+
+/// The same table from C: a program that includes the header prints `struct field offset size`.
+fn c_layout(rust: &Layout) -> Layout {
+    let dir = std::env::temp_dir().join(format!("eqtrack-c-header-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut prog =
+        String::from("#include <stdio.h>\n#include \"eqtrack_wire.h\"\nint main(void) {\n");
+    for (s, f) in rust.keys() {
+        if f.is_empty() {
+            prog += &format!("  printf(\"{s} - 0 %zu\\n\", sizeof({s}));\n");
+        } else {
+            prog += &format!(
+                "  printf(\"{s} {f} %zu %zu\\n\", offsetof({s}, {f}), sizeof((({s} *)0)->{f}));\n"
+            );
+        }
+    }
+    prog += "  return 0;\n}\n";
+    let (src, exe) = (dir.join("layout.c"), dir.join("layout"));
+    std::fs::write(&src, prog).unwrap();
+    let include = concat!(env!("CARGO_MANIFEST_DIR"), "/include");
+    let out = Command::new("cc")
+        .args(["-std=c11", "-Wall", "-Werror", "-I", include, "-o"])
+        .arg(&exe)
+        .arg(&src)
+        .output()
+        .expect("a C compiler (cc) is needed to check the header");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let run = Command::new(&exe).output().unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    String::from_utf8(run.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let w: Vec<&str> = l.split_whitespace().collect();
+            let field = if w[1] == "-" {
+                String::new()
+            } else {
+                w[1].to_owned()
+            };
+            (
+                (w[0].to_owned(), field),
+                (w[2].parse().unwrap(), w[3].parse().unwrap()),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn the_c_header_has_the_rust_layout() {
+    let rust = rust_layout();
+    let c = c_layout(&rust);
+    assert_eq!(c.len(), rust.len());
+    for (key, r) in &rust {
+        assert_eq!(
+            c.get(key),
+            Some(r),
+            "{key:?}: C (offset, size) differs from Rust's"
+        );
+    }
+    // every field is listed: the fields fill their struct (up to a little padding)
+    for s in [
+        "eqtrack_StateMsg",
+        "eqtrack_CommandMsg",
+        "eqtrack_WireSegment",
+        "eqtrack_PlanMsg",
+    ] {
+        let total = rust[&(s.to_owned(), String::new())].1;
+        let fields: usize = rust
+            .iter()
+            .filter(|((n, f), _)| n == s && !f.is_empty())
+            .map(|(_, v)| v.1)
+            .sum();
+        assert!(
+            fields <= total && total - fields < 8,
+            "{s}: fields {fields} of {total} bytes"
+        );
+    }
+}
+
+#[test]
+fn the_header_names_the_protocol_version_and_limits() {
+    use controller::GroupKind::{Se3, So3};
+    let h = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/include/eqtrack_wire.h"
+    ))
+    .unwrap();
+    for (name, value) in [
+        (
+            "EQTRACK_PROTOCOL_VERSION",
+            format!("{}u", ipc_types::PROTOCOL_VERSION),
+        ),
+        ("EQTRACK_MAX_N", ipc_types::MAX_N.to_string()),
+        ("EQTRACK_MAX_M", ipc_types::MAX_M.to_string()),
+        ("EQTRACK_NAME_BYTES", ipc_types::NAME_BYTES.to_string()),
+        ("EQTRACK_PLAN_WINDOW", ipc_types::PLAN_WINDOW.to_string()),
+        (
+            "EQTRACK_GROUP_SO3",
+            format!("{}u", ipc_types::group_code(So3)),
+        ),
+        (
+            "EQTRACK_GROUP_SE3",
+            format!("{}u", ipc_types::group_code(Se3)),
+        ),
+        (
+            "EQTRACK_FLAG_WAKE_EVENT",
+            format!("{}u", ipc_types::flags::WAKE_EVENT),
+        ),
+        (
+            "EQTRACK_FLAG_SHUTDOWN",
+            format!("{}u", ipc_types::flags::SHUTDOWN),
+        ),
+        (
+            "EQTRACK_FLAG_REFUSED",
+            format!("{}u", ipc_types::flags::REFUSED),
+        ),
+    ] {
+        let line = format!("#define {name} {value}");
+        assert!(
+            h.lines().any(|l| l.starts_with(&line)),
+            "the header lacks `{line}`"
+        );
+    }
+}
