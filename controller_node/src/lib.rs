@@ -15,7 +15,7 @@
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::path::{Path, PathReference};
 use controller::{Controller, Source, Trajectory};
-use ipc_types::{CommandMsg, PlanReject, StateMsg, check_plan, name_str};
+use ipc_types::{CommandMsg, StateMsg, check_plan, name_str};
 use link::plan::PlanReader;
 use link::{
     ControllerConfig, ControllerEndpoint, Incoming, LinkError, Refusal, StopFlag, StopSignal,
@@ -303,7 +303,7 @@ struct Stream {
     dry: bool,
     /// Whether any piece has come.
     started: bool,
-    /// Plan messages refused, per [`PlanReject`] kind (each kind logged once).
+    /// Plan messages refused, per [`ipc_types::PlanReject`] kind (its discriminant) (each kind logged once).
     rejected: [u64; 6],
 }
 
@@ -327,7 +327,7 @@ impl Stream {
         let now = reference.time();
         while let Some(msg) = self.reader.receive() {
             if let Err(kind) = check_plan(&msg, G::KIND) {
-                let i = reject_index(kind);
+                let i = kind as usize;
                 self.rejected[i] += 1;
                 if self.rejected[i] == 1 {
                     log(format_args!(
@@ -376,17 +376,6 @@ impl Stream {
             ));
             self.started = true;
         }
-    }
-}
-
-fn reject_index(kind: PlanReject) -> usize {
-    match kind {
-        PlanReject::Version => 0,
-        PlanReject::Group => 1,
-        PlanReject::Count => 2,
-        PlanReject::NonFinite => 3,
-        PlanReject::Times => 4,
-        PlanReject::NotOnGroup => 5,
     }
 }
 

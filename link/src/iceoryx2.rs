@@ -100,14 +100,7 @@ type Services = (
 /// then the node.
 pub struct Iceoryx2<Out: Message, In: Message> {
     out: EntryHandleMut<ipc::Service, u32, Out>,
-    inp: Vec<EntryHandle<ipc::Service, u32, In>>,
-    last_in: Vec<(u64, u64)>,
-    /// The slot that delivered last.
-    active: usize,
-    /// Polls since start (for the periodic full scan).
-    polls: u32,
-    /// Read every slot at the next poll.
-    scan_all: bool,
+    inp: Slots<In>,
     notifier: Notifier<ipc::Service>,
     /// Holds the listener's descriptor (added once at start-up, so waiting never allocates).
     wait_set: FileDescriptorSet,
@@ -153,7 +146,7 @@ impl<Out: Message, In: Message> Iceoryx2<Out, In> {
             .create()
             .map_err(|e| LinkError::iceoryx2(format!("{in_name}: reader"), e))?;
         let (slot, out) = free_slot::<Out>(&writer, out_name)?;
-        let inp = entries::<In>(&reader, in_name)?;
+        let inp = Slots::new(entries::<In>(&reader, in_name)?, In::empty().write_id());
         let listener = listen
             .listener_builder()
             .create()
@@ -168,10 +161,6 @@ impl<Out: Message, In: Message> Iceoryx2<Out, In> {
         );
         Ok(Iceoryx2 {
             out,
-            last_in: vec![In::empty().write_id(); inp.len()],
-            active: 0,
-            polls: 0,
-            scan_all: true,
             inp,
             notifier: notify
                 .notifier_builder()
@@ -212,34 +201,11 @@ impl<Out: Message, In: Message> Transport<Out, In> for Iceoryx2<Out, In> {
     }
 
     fn receive(&mut self) -> Option<In> {
-        // The slot that delivered last comes first, alone: a busy-polling wait then reads one
-        // entry per poll instead of all of them. Every slot is read after a wake-up, after a
-        // message found by such a scan (until one finds nothing), and every FULL_SCAN_EVERY
-        // polls (a peer restarted into another slot is found within microseconds).
-        let (id, empty) = (|m: &In| m.write_id(), In::empty().write_id());
-        let a = self.active;
-        if let Some((_, m)) = next_write(&self.inp[a..=a], &mut self.last_in[a..=a], id, empty) {
-            return Some(m);
-        }
-        self.polls = self.polls.wrapping_add(1);
-        if !(self.scan_all || self.polls.is_multiple_of(FULL_SCAN_EVERY)) {
-            return None;
-        }
-        match next_write(&self.inp, &mut self.last_in, id, empty) {
-            Some((slot, m)) => {
-                self.active = slot;
-                self.scan_all = true;
-                Some(m)
-            }
-            None => {
-                self.scan_all = false;
-                None
-            }
-        }
+        self.inp.receive(|m: &In| m.write_id())
     }
 
     fn wait(&mut self, timeout: Duration) {
-        self.scan_all = true;
+        self.inp.woken();
         // select(2) on the listener's descriptor: high-resolution timers, unlike the
         // listener's own timed wait (a socket timeout that counts in scheduler ticks)
         let _ = self.wait_set.timed_wait(timeout, FileEvent::Read, |_| {});
@@ -288,23 +254,73 @@ pub(crate) fn entries<T: Slot>(
         .collect()
 }
 
-/// The first slot holding a write not seen yet, and its index (`id` identifies a write;
-/// `empty` is the id of a slot nobody wrote), remembering it as seen. Allocation-free.
-pub(crate) fn next_write<T: Slot>(
-    entries: &[EntryHandle<ipc::Service, u32, T>],
-    seen: &mut [(u64, u64)],
-    id: impl Fn(&T) -> (u64, u64),
+/// A reader's view of a board's writer slots. The slot that delivered last is read alone at
+/// each poll, so a busy-polling wait reads one entry per poll instead of all of them. Every
+/// slot is read after a wake-up ([`Slots::woken`]), after a message found by such a scan
+/// (until one finds nothing), and every [`FULL_SCAN_EVERY`] polls, so a peer restarted into
+/// another slot is found within microseconds. Allocation-free after `new`.
+pub(crate) struct Slots<T: Slot> {
+    entries: Vec<EntryHandle<ipc::Service, u32, T>>,
+    /// Per slot, the `(seq, stamp)` of the last write seen.
+    seen: Vec<(u64, u64)>,
+    /// The id of a slot nobody wrote.
     empty: (u64, u64),
-) -> Option<(usize, T)> {
-    for (i, (entry, last)) in entries.iter().zip(seen.iter_mut()).enumerate() {
-        let m: T = *entry.get();
-        let this = id(&m);
-        if this != *last && this != empty {
-            *last = this;
-            return Some((i, m));
+    /// The slot that delivered last.
+    active: usize,
+    /// Polls since start (for the periodic full scan).
+    polls: u32,
+    /// Read every slot at the next poll.
+    scan_all: bool,
+}
+
+impl<T: Slot> Slots<T> {
+    /// Read handles on every slot; `empty` identifies a slot never written.
+    pub(crate) fn new(entries: Vec<EntryHandle<ipc::Service, u32, T>>, empty: (u64, u64)) -> Self {
+        Slots {
+            seen: vec![empty; entries.len()],
+            entries,
+            empty,
+            active: 0,
+            polls: 0,
+            scan_all: true,
         }
     }
-    None
+
+    /// Read every slot at the next poll (a notification came).
+    pub(crate) fn woken(&mut self) {
+        self.scan_all = true;
+    }
+
+    /// A write not seen yet (`id` identifies a write), or `None`; call until `None`.
+    pub(crate) fn receive(&mut self, id: impl Fn(&T) -> (u64, u64)) -> Option<T> {
+        if let Some(m) = self.read(self.active, &id) {
+            return Some(m);
+        }
+        self.polls = self.polls.wrapping_add(1);
+        if !(self.scan_all || self.polls.is_multiple_of(FULL_SCAN_EVERY)) {
+            return None;
+        }
+        for slot in 0..self.entries.len() {
+            if let Some(m) = self.read(slot, &id) {
+                self.active = slot;
+                self.scan_all = true;
+                return Some(m);
+            }
+        }
+        self.scan_all = false;
+        None
+    }
+
+    /// Slot `slot`'s value if it holds a write not seen yet (remembered as seen).
+    fn read(&mut self, slot: usize, id: &impl Fn(&T) -> (u64, u64)) -> Option<T> {
+        let m: T = *self.entries[slot].get();
+        let this = id(&m);
+        if this != self.seen[slot] && this != self.empty {
+            self.seen[slot] = this;
+            return Some(m);
+        }
+        None
+    }
 }
 
 /// What a board's slots hold: a fixed-size, copyable, zero-copy-sendable value.

@@ -5,7 +5,7 @@
 //! was killed takes a free slot, and the reader picks up whichever slot was written last.
 //! Nothing here allocates after `open`.
 
-use crate::iceoryx2::{board, create_node, entries, free_slot, next_write};
+use crate::iceoryx2::{Slots, board, create_node, entries, free_slot};
 use crate::{LinkError, check_run_name, clock};
 use iceoryx2::port::reader::{EntryHandle, Reader};
 use iceoryx2::port::writer::{EntryHandleMut, Writer};
@@ -25,7 +25,7 @@ fn empty_state() -> StateMsg {
     <StateMsg as crate::Message>::empty()
 }
 
-/// `(seq, stamp)` of a write; `(0, 0)` for an empty slot.
+/// `(seq, stamp)` of a write.
 fn plan_id(m: &PlanMsg) -> (u64, u64) {
     (m.seq, m.stamp_ns)
 }
@@ -104,8 +104,7 @@ impl PlanWriter {
 
 /// The controller's side of the plan board.
 pub struct PlanReader {
-    entries: Vec<EntryHandle<ipc::Service, u32, PlanMsg>>,
-    seen: Vec<(u64, u64)>,
+    slots: Slots<PlanMsg>,
     _reader: Reader<ipc::Service, u32>,
     _service: BoardFactory<ipc::Service, u32>,
     _node: Node<ipc::Service>,
@@ -121,10 +120,12 @@ impl PlanReader {
             .reader_builder()
             .create()
             .map_err(|e| LinkError::iceoryx2(format!("{}: reader", names.plan), e))?;
-        let entries = entries::<PlanMsg>(&reader, &names.plan)?;
+        let slots = Slots::new(
+            entries::<PlanMsg>(&reader, &names.plan)?,
+            plan_id(&empty_plan()),
+        );
         Ok(PlanReader {
-            seen: vec![plan_id(&empty_plan()); entries.len()],
-            entries,
+            slots,
             _reader: reader,
             _service: service,
             _node: node,
@@ -134,6 +135,6 @@ impl PlanReader {
     /// A plan message not seen yet, or `None`; call until `None`. Unchecked: pass it through
     /// [`ipc_types::check_plan`].
     pub fn receive(&mut self) -> Option<PlanMsg> {
-        next_write(&self.entries, &mut self.seen, plan_id, (0, 0)).map(|(_, m)| m)
+        self.slots.receive(plan_id)
     }
 }
