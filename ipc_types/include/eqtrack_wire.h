@@ -1,14 +1,14 @@
 /*
  * eqtrack_wire.h: the wire layout of eqtrack's messages, for C and C++ tools and for
  * Python ctypes. The Rust structs are `ipc_types::{StateMsg, CommandMsg, WireSegment,
- * PlanMsg}` (#[repr(C)]); `ipc_types/tests/c_header.rs` compiles this header and checks
+ * PlanMsg, StatusMsg}` (#[repr(C)]); `ipc_types/tests/c_header.rs` compiles this header and checks
  * every size and field offset against them. docs/wire.md explains the fields and how to
  * attach to a running pair.
  *
  * Each message sits in an iceoryx2 blackboard entry (key type uint32_t, keys 0..7 are the
  * writer slots) of the service `eqtrack/<run>/state`, `eqtrack/<run>/command` or
- * `eqtrack/<run>/plan`; iceoryx2 type names "eqtrack::StateMsg2", "eqtrack::CommandMsg2",
- * "eqtrack::PlanMsg2". All numbers are little-endian on the machines eqtrack runs on.
+ * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg2",
+ * "eqtrack::CommandMsg2", "eqtrack::PlanMsg2", "eqtrack::StatusMsg2". All numbers are little-endian on the machines eqtrack runs on.
  */
 #ifndef EQTRACK_WIRE_H
 #define EQTRACK_WIRE_H
@@ -85,5 +85,32 @@ typedef struct eqtrack_PlanMsg {
     uint32_t reserved;
     eqtrack_WireSegment segments[EQTRACK_PLAN_WINDOW];
 } eqtrack_PlanMsg;
+
+/* StatusMsg.flags */
+#define EQTRACK_STATUS_SAFE_MODE 1u
+#define EQTRACK_STATUS_ENDED 2u
+#define EQTRACK_STATUS_REALTIME 4u
+
+/* a run's live figures, from the plant's flight recorder, about 20 times a second */
+typedef struct eqtrack_StatusMsg {
+    uint32_t version;
+    uint32_t group;
+    uint64_t seq;
+    uint64_t stamp_ns;
+    uint64_t cycle;             /* newest cycle k recorded */
+    double t;                   /* its t_k, s */
+    double target_rate_hz;      /* 0: lockstep */
+    double rate_hz;             /* cycles per second over the last second */
+    uint64_t rtt_p50_ns;        /* round trip over the last second */
+    uint64_t rtt_p99_ns;
+    uint64_t rtt_max_ns;
+    uint64_t misses;            /* deadline misses since the start */
+    uint64_t safe_mode_entries;
+    double lyapunov;            /* of the newest command; NaN: none yet */
+    uint64_t last_command_ns;   /* CLOCK_MONOTONIC of the newest command; 0: none */
+    uint32_t flags;             /* EQTRACK_STATUS_* */
+    uint32_t plant_pid;
+    uint8_t scenario[EQTRACK_NAME_BYTES];
+} eqtrack_StatusMsg;
 
 #endif /* EQTRACK_WIRE_H */

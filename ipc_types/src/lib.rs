@@ -22,6 +22,8 @@ use nalgebra::{SMatrix, SVector};
 
 pub mod plan;
 pub use plan::{PLAN_WINDOW, PlanMsg, PlanReject, WireSegment, check_plan};
+pub mod status;
+pub use status::{StatusMsg, status_flags};
 
 /// Bumped whenever a message layout or meaning changes.
 pub const PROTOCOL_VERSION: u32 = 2;
@@ -634,7 +636,7 @@ pub fn check_command(msg: &CommandMsg, group: GroupKind, awaited: u64) -> Result
 pub type Name = heapless::String<200>;
 
 /// The names of one run's services: `eqtrack/<run>/{state, command, state_event,
-/// command_event, plan}`, and the nodes. Several runs with different names never share a
+/// command_event, plan, status}`, and the nodes. Several runs with different names never share a
 /// service.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ServiceNames {
@@ -648,12 +650,18 @@ pub struct ServiceNames {
     pub command_event: Name,
     /// Planner → controller pieces of a streamed reference.
     pub plan: Name,
+    /// The plant's flight recorder → monitors: the run's live status.
+    pub status: Name,
     /// The plant's node name.
     pub plant_node: Name,
     /// The controller's node name.
     pub controller_node: Name,
     /// The planner's node name.
     pub planner_node: Name,
+    /// The node of the plant's flight-recorder thread.
+    pub recorder_node: Name,
+    /// A monitor's node name.
+    pub monitor_node: Name,
 }
 
 /// Whether `run` is a usable run name: 1 to 64 characters of `[A-Za-z0-9_-]`.
@@ -682,9 +690,12 @@ pub fn service_names(run: &str) -> Option<ServiceNames> {
         state_event: make("eqtrack", "/", "/state_event"),
         command_event: make("eqtrack", "/", "/command_event"),
         plan: make("eqtrack", "/", "/plan"),
+        status: make("eqtrack", "/", "/status"),
         plant_node: make("eqtrack-plant", "-", ""),
         controller_node: make("eqtrack-controller", "-", ""),
         planner_node: make("eqtrack-planner", "-", ""),
+        recorder_node: make("eqtrack-recorder", "-", ""),
+        monitor_node: make("eqtrack-monitor", "-", ""),
     })
 }
 

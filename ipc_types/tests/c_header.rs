@@ -1,9 +1,9 @@
 //! The C header `include/eqtrack_wire.h` describes the Rust structs exactly: a C program
 //! compiled against it prints every struct's size and every field's offset and size, and
 //! they must equal what Rust reports for `ipc_types::{StateMsg, CommandMsg, WireSegment,
-//! PlanMsg}`. Needs a C compiler (`cc`, which Rust's own linking already needs).
+//! PlanMsg, StatusMsg}`. Needs a C compiler (`cc`, which Rust's own linking already needs).
 
-use ipc_types::{CommandMsg, PlanMsg, StateMsg, WireSegment};
+use ipc_types::{CommandMsg, PlanMsg, StateMsg, StatusMsg, WireSegment};
 use std::collections::BTreeMap;
 use std::mem::{offset_of, size_of, size_of_val};
 use std::process::Command;
@@ -92,6 +92,32 @@ fn rust_layout() -> Layout {
             segments,
         ]
     );
+    fields!(
+        m,
+        StatusMsg::new(So3, ""),
+        StatusMsg,
+        "eqtrack_StatusMsg",
+        [
+            version,
+            group,
+            seq,
+            stamp_ns,
+            cycle,
+            t,
+            target_rate_hz,
+            rate_hz,
+            rtt_p50_ns,
+            rtt_p99_ns,
+            rtt_max_ns,
+            misses,
+            safe_mode_entries,
+            lyapunov,
+            last_command_ns,
+            flags,
+            plant_pid,
+            scenario,
+        ]
+    );
     m
 }
 
@@ -163,6 +189,7 @@ fn the_c_header_has_the_rust_layout() {
         "eqtrack_CommandMsg",
         "eqtrack_WireSegment",
         "eqtrack_PlanMsg",
+        "eqtrack_StatusMsg",
     ] {
         let total = rust[&(s.to_owned(), String::new())].1;
         let fields: usize = rust
@@ -213,6 +240,18 @@ fn the_header_names_the_protocol_version_and_limits() {
         (
             "EQTRACK_FLAG_REFUSED",
             format!("{}u", ipc_types::flags::REFUSED),
+        ),
+        (
+            "EQTRACK_STATUS_SAFE_MODE",
+            format!("{}u", ipc_types::status_flags::SAFE_MODE),
+        ),
+        (
+            "EQTRACK_STATUS_ENDED",
+            format!("{}u", ipc_types::status_flags::ENDED),
+        ),
+        (
+            "EQTRACK_STATUS_REALTIME",
+            format!("{}u", ipc_types::status_flags::REALTIME),
         ),
     ] {
         let line = format!("#define {name} {value}");

@@ -54,6 +54,7 @@ pub mod plant_side;
 pub mod process;
 mod rejections;
 pub mod rt;
+pub mod status;
 pub mod transport;
 pub mod uds;
 

@@ -15,14 +15,22 @@ use serde::Serialize;
 use std::path::Path;
 use std::time::Duration;
 
-/// The compared set-ups: label, transport, wake-up. The Unix-socket baseline runs both as
-/// people usually write it (blocking reads: event) and busy-polled, so that the transport's
-/// own cost can be told apart from the cost of waking a sleeping process.
-pub const CASES: [(&str, Transport, Wake); 4] = [
-    ("iceoryx2 busy-poll", Transport::Iceoryx2, Wake::Spin),
-    ("iceoryx2 event", Transport::Iceoryx2, Wake::Event),
-    ("unix socket", Transport::Uds, Wake::Event),
-    ("unix socket busy-poll", Transport::Uds, Wake::Spin),
+/// The compared set-ups: label, transport, wake-up, flight recorder on. The Unix-socket
+/// baseline runs both as people usually write it (blocking reads: event) and busy-polled, so
+/// that the transport's own cost can be told apart from the cost of waking a sleeping
+/// process. The loop is measured without the flight recorder, and once more with it (event
+/// wake-up, the default of `plant_sim run`), so its cost shows in the same run.
+pub const CASES: [(&str, Transport, Wake, bool); 5] = [
+    ("iceoryx2 busy-poll", Transport::Iceoryx2, Wake::Spin, false),
+    ("iceoryx2 event", Transport::Iceoryx2, Wake::Event, false),
+    (
+        "iceoryx2 event, recorded",
+        Transport::Iceoryx2,
+        Wake::Event,
+        true,
+    ),
+    ("unix socket", Transport::Uds, Wake::Event, false),
+    ("unix socket busy-poll", Transport::Uds, Wake::Spin, false),
 ];
 
 /// One line of the comparison.
@@ -115,7 +123,7 @@ fn floors(cyclictest: &Path, rate: f64, duration: f64) -> RateFloors {
 /// (`stop`) end it after the current case's run directory is written.
 pub fn bench_loop(
     scenario: &Scenario,
-    scenario_args: &[String],
+    source: &scenario::cli::ScenarioSource,
     rates: &[f64],
     duration: f64,
     cyclictest: &Path,
@@ -129,14 +137,16 @@ pub fn bench_loop(
         all_floors.push(floors(cyclictest, *rate, duration));
         SimError::check(stop)?;
         let mut base_p50 = None;
-        for (i, (label, transport, wake)) in CASES.iter().enumerate() {
+        for (i, (label, transport, wake, record)) in CASES.iter().enumerate() {
             let mut s = scenario.clone();
             s.duration = duration;
             let dir = out.join(format!("{}-{}hz", label.replace(' ', "-"), rate));
             eprintln!("bench-loop: {label} at {rate} Hz for {duration} s ...");
             let opts = PairOptions {
                 scenario: s,
-                scenario_args: scenario_args.to_vec(),
+                source: source.clone(),
+                record: *record,
+                thread_allocations: None,
                 mode: Mode::Realtime,
                 rate_hz: *rate,
                 wake: *wake,

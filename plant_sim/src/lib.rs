@@ -9,12 +9,15 @@
 #![warn(missing_docs)]
 
 pub mod bench_loop;
+pub mod flight;
 pub mod floors;
+pub mod monitor;
 pub mod montecarlo;
 pub mod output;
 pub mod pair;
 pub mod plot;
 pub mod reference;
+pub mod replay;
 pub mod spawn;
 pub mod trajectory;
 

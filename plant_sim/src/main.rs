@@ -27,6 +27,52 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
+/// Counts the heap allocations of each thread (the plant's loop thread reports its own in
+/// `summary.json`, to show that recording allocates nothing there).
+struct Counting;
+
+std::thread_local! {
+    static THREAD_ALLOCATIONS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+fn count_one() {
+    // `try_with`: a thread being torn down has no counter left, and is not the loop
+    let _ = THREAD_ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+}
+
+/// The calling thread's allocations so far.
+fn thread_allocations() -> u64 {
+    THREAD_ALLOCATIONS.try_with(|c| c.get()).unwrap_or(0)
+}
+
+// SAFETY: every call is forwarded unchanged to the system allocator, which upholds the
+// GlobalAlloc contract; the counter is a const-initialised thread-local Cell with no
+// destructor, so touching it neither allocates nor re-enters the allocator.
+unsafe impl std::alloc::GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+        count_one();
+        // SAFETY: same layout contract as our caller's.
+        unsafe { std::alloc::System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: std::alloc::Layout) -> *mut u8 {
+        count_one();
+        // SAFETY: same layout contract as our caller's.
+        unsafe { std::alloc::System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, new_size: usize) -> *mut u8 {
+        count_one();
+        // SAFETY: ptr was allocated by System with this layout (all our allocations are).
+        unsafe { std::alloc::System.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        // SAFETY: ptr was allocated by System with this layout.
+        unsafe { std::alloc::System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
 #[derive(Parser)]
 #[command(
     name = "plant_sim",
@@ -51,6 +97,61 @@ enum Command {
     /// The scenario's desired trajectory sampled at its control period: reference.csv and a
     /// figure (check a manoeuvre before flying it).
     Reference(ReferenceArgs),
+    /// Run the controller in-process over a recorded run's states (OUT_DIR/messages.log) and
+    /// compare every command with the recorded one, bit for bit: exit 0 when all are
+    /// identical, 1 naming the first that differs. With --law, --scenario, --kp or --kd: a
+    /// what-if, written to replay.csv and a figure (exit 0).
+    Replay(ReplayArgs),
+    /// Watch a running pair live in the terminal: rate, round trip, misses, safe mode, the
+    /// Lyapunov value. Read-only; exits when the run ends, or on q or Ctrl-C.
+    Monitor(MonitorArgs),
+}
+
+#[derive(Args)]
+struct ReplayArgs {
+    /// The run's output directory (holds messages.log and scenario.toml).
+    #[arg(value_name = "OUT_DIR")]
+    dir: PathBuf,
+    /// What-if: replay with this law.
+    #[arg(long, value_name = "L", value_parser = law_parser())]
+    law: Option<Law>,
+    /// What-if: replay with this scenario's controller (law, gains, model, reference).
+    #[arg(long, value_name = "FILE")]
+    scenario: Option<PathBuf>,
+    /// What-if: the potential weight K: one number X (X times the identity) or the n
+    /// diagonal entries, comma-separated.
+    #[arg(
+        long,
+        value_name = "X[,X...]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    kp: Option<Vec<f64>>,
+    /// What-if: the damping K_d: one number X (X times the identity) or the m diagonal
+    /// entries, comma-separated.
+    #[arg(
+        long,
+        value_name = "X[,X...]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    kd: Option<Vec<f64>>,
+    /// Where a what-if writes replay.csv and replay.png/.svg (default: OUT_DIR).
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct MonitorArgs {
+    /// The run to watch (as given to `plant_sim run --name`).
+    #[arg(long, value_name = "RUN", default_value = "eqtrack")]
+    name: String,
+    /// Seconds to wait for the run to start.
+    #[arg(long, value_name = "S", default_value = "30", value_parser = positive_seconds)]
+    wait: Duration,
+    /// One line per second on stdout instead of the terminal view.
+    #[arg(long)]
+    plain: bool,
 }
 
 #[derive(Args)]
@@ -118,6 +219,10 @@ struct RunArgs {
     /// Consecutive deadline misses that start safe mode.
     #[arg(long, value_name = "N", default_value_t = 3)]
     miss_limit: u32,
+    /// Do not record: no `messages.log`, no flight-recorder thread and no live status for
+    /// `plant_sim monitor` (the loop then runs exactly as it would without the recorder).
+    #[arg(long)]
+    no_record: bool,
     /// Keep every Nth cycle in trajectory.csv (and the last one): for long runs, whose rows
     /// are otherwise all held in memory until the end.
     #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
@@ -323,7 +428,7 @@ fn bench_loop_cmd(args: BenchLoopArgs, stop: &StopFlag) -> Result<(), SimError> 
         .unwrap_or_else(|| Path::new("out").join("bench-loop"));
     let result = plant_sim::bench_loop::bench_loop(
         &scenario,
-        &args.source.args("seed"),
+        &args.source,
         &rates,
         args.duration.as_secs_f64(),
         &args.cyclictest,
@@ -354,7 +459,9 @@ fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
     let spawn = !args.no_spawn;
     let opts = PairOptions {
         scenario,
-        scenario_args: args.source.args("seed"),
+        source: args.source.clone(),
+        record: !args.no_record,
+        thread_allocations: Some(thread_allocations),
         mode: args.mode,
         rate_hz: args.rate_hz,
         wake: args.wake,
@@ -387,6 +494,85 @@ fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
 }
 
 /// The `--fault-state K:KIND` injections (test builds only; empty otherwise).
+fn replay_cmd(args: ReplayArgs) -> Result<(), SimError> {
+    use plant_sim::replay::{ReplayOptions, replay};
+    let opts = ReplayOptions {
+        dir: args.dir,
+        law: args.law,
+        scenario: args.scenario,
+        kp: args.kp,
+        kd: args.kd,
+        out: args.out,
+    };
+    let r = replay(&opts)?;
+    if r.trailing_bytes > 0 {
+        println!(
+            "note: the log ends {} bytes into a record (the recording was cut short, e.g. by SIGKILL): replayed up to its last whole record",
+            r.trailing_bytes
+        );
+    }
+    if r.missing > 0 {
+        println!(
+            "note: {} cycles are missing from the log (the recorder dropped them)",
+            r.missing
+        );
+    }
+    println!(
+        "replayed {} cycles of {}: {} commands compared, {} differ{}",
+        r.cycles,
+        opts.dir.display(),
+        r.compared,
+        r.differing,
+        if opts.what_if() { " (what-if)" } else { "" }
+    );
+    if let Some(d) = &r.first {
+        println!(
+            "first difference: cycle {} (t = {:.6} s): {} recorded {:e}, replayed {:e}, by {:e}",
+            d.cycle,
+            d.t,
+            d.what,
+            d.recorded,
+            d.replayed,
+            d.by()
+        );
+    }
+    if let Some(dir) = &r.written {
+        println!(
+            "largest torque difference {:e}; wrote {}/{{replay.csv, replay.png, replay.svg}}",
+            r.max_torque_difference,
+            dir.display()
+        );
+    }
+    match &r.first {
+        Some(d) if !opts.what_if() => Err(SimError::Run(format!(
+            "replay differs from the recording: {} of {} commands, first at cycle {} ({} by {:e})",
+            r.differing,
+            r.compared,
+            d.cycle,
+            d.what,
+            d.by()
+        ))),
+        _ => Ok(()),
+    }
+}
+
+fn monitor_cmd(args: MonitorArgs, stop: &StopFlag) -> Result<(), SimError> {
+    use plant_sim::monitor::{MonitorEnd, MonitorOptions, monitor};
+    let end = monitor(&MonitorOptions {
+        run: args.name.clone(),
+        wait: args.wait,
+        plain: args.plain,
+        stop: stop.clone(),
+    })?;
+    match end {
+        MonitorEnd::RunEnded | MonitorEnd::Quit => Ok(()),
+        MonitorEnd::PlantGone => Err(SimError::Run(format!(
+            "the plant of run `{}` is gone without ending the run",
+            args.name
+        ))),
+    }
+}
+
 fn state_faults(
     #[allow(unused_variables)] args: &RunArgs,
 ) -> Result<Vec<(u64, plant_sim::pair::StateFault)>, SimError> {
@@ -498,6 +684,8 @@ fn main() -> ExitCode {
         Some(Command::Run(a)) => run_cmd(a, &stop),
         Some(Command::BenchLoop(a)) => bench_loop_cmd(a, &stop),
         Some(Command::Reference(a)) => reference_cmd(a),
+        Some(Command::Replay(a)) => replay_cmd(a),
+        Some(Command::Monitor(a)) => monitor_cmd(a, &stop),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

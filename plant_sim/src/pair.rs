@@ -12,6 +12,7 @@
 //! summary says `"interrupted": true` (docs/architecture.md, "Stopping a run").
 
 use crate::SimError;
+use crate::flight::{Header, Record, Recorder, RecordingReport};
 use crate::output::{Summary, ensure_dir, write_json, write_trajectory_csv};
 use crate::plot::trajectory_figure;
 use crate::spawn::Spawned;
@@ -27,6 +28,7 @@ use link::{
 };
 use nalgebra::SVector;
 use scenario::Scenario;
+use scenario::cli::ScenarioSource;
 use serde::Serialize;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -57,8 +59,9 @@ pub enum StateFault {
 pub struct PairOptions {
     /// The scenario.
     pub scenario: Scenario,
-    /// Arguments that make `controller_node` load the same scenario.
-    pub scenario_args: Vec<String>,
+    /// Where the scenario came from: the spawned `controller_node` loads the same, and the
+    /// flight recording keeps a copy of it.
+    pub source: ScenarioSource,
     /// Lockstep or real time.
     pub mode: Mode,
     /// Real-time rate (Hz); the control period becomes 1/F.
@@ -75,6 +78,12 @@ pub struct PairOptions {
     pub out: PathBuf,
     /// Consecutive deadline misses that start safe mode.
     pub miss_limit: u32,
+    /// Record every cycle in `messages.log` (the flight recorder, [`crate::flight`]) and
+    /// publish the live status the monitor shows.
+    pub record: bool,
+    /// The calling thread's heap allocations so far (the binary's counting allocator; `None`
+    /// without one). The loop's count is in the summary.
+    pub thread_allocations: Option<fn() -> u64>,
     /// Keep every Nth cycle in trajectory.csv (and the last): long runs at a high rate
     /// otherwise hold every row in memory (1 = every cycle).
     pub record_every: u64,
@@ -175,6 +184,12 @@ pub struct PairSummary {
     /// The plant's real-time settings: applied, refused (with the OS's reason), and the
     /// CPUs and scheduler read back.
     pub realtime: link::rt::RtReport,
+    /// The flight recording (`None`: `--no-record`).
+    pub recording: Option<RecordingReport>,
+    /// Heap allocations made by the plant's loop thread from the end of its first cycle (the
+    /// first state published to the connected controller) to the end of the loop (`None`:
+    /// not counted).
+    pub plant_loop_heap_allocations: Option<u64>,
 }
 
 fn log(msg: std::fmt::Arguments) {
@@ -269,6 +284,9 @@ struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     cycles: u64,
     tau: SVector<f64, M>,
     published: u64,
+    /// The state published last (with its stamp).
+    state: StateMsg,
+    recorder: Option<Recorder>,
     t0: u64,
     /// What the real-time settings did.
     rt: link::rt::RtReport,
@@ -279,6 +297,9 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 ) -> Result<(Trajectory, PairSummary), SimError> {
     let mut run = PlantRun::<G, N, M>::new(opts)?;
     ensure_dir(&opts.out)?;
+    if opts.record {
+        run.start_recorder()?;
+    }
     let mut child = Spawned::start(opts)?;
     run.rt = opts.rt.apply();
     for line in run.rt.lines() {
@@ -288,6 +309,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let started = Instant::now();
     let mut pending = Some(first);
     let mut interrupted = None;
+    let mut allocations = None;
     for k in 0..=run.steps {
         run.cycle(k, pending.take(), &mut child)?;
         if k == run.steps {
@@ -302,14 +324,27 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             break;
         }
         run.advance(k)?;
+        if k == 0 {
+            // The first state published to the connected controller makes iceoryx2's notifier
+            // connect to its listener (87 allocations, once): the count starts after it, as
+            // the controller's starts after its first cycle.
+            allocations = opts.thread_allocations.map(|count| (count, count()));
+        }
     }
+    let loop_allocations = allocations.map(|(count, at_start)| count() - at_start);
     run.live_status_end();
     let wall = started.elapsed();
     let (rejected, late) = (run.ep.rejected_commands(), run.ep.late_commands());
     // The run is over: tell the controller, then reap it.
     run.ep.shutdown();
     let controller_exit = child.finish(Duration::from_secs(3));
-    let out = run.write(interrupted, controller_exit, rejected, late)?;
+    let out = run.write(
+        interrupted,
+        controller_exit,
+        rejected,
+        late,
+        loop_allocations,
+    )?;
     log(format_args!(
         "{} cycles in {:.3} s of wall time",
         out.1.cycles,
@@ -358,6 +393,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             cycles: 0,
             tau: SVector::zeros(),
             published: 0,
+            state: StateMsg::new(s.group),
+            recorder: None,
             t0: 0,
             rt: link::rt::RtReport::default(),
             s,
@@ -368,24 +405,45 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         self.opts.mode == Mode::Realtime
     }
 
+    /// Copies the scenario into the output directory and starts the flight recorder (its
+    /// channel holds half a second of cycles, at least 4096).
+    fn start_recorder(&mut self) -> Result<(), SimError> {
+        let opts = self.opts;
+        opts.source.save("seed", &opts.out)?;
+        let header = Header {
+            group: group_code(self.s.group),
+            control_period: self.s.control_period,
+            rate_hz: if self.realtime() { opts.rate_hz } else { 0.0 },
+            realtime: self.realtime(),
+            event_wake: opts.wake == link::Wake::Event,
+            miss_limit: opts.miss_limit,
+            fingerprint: opts.scenario.fingerprint(),
+            run: opts.run.clone(),
+            scenario: self.s.name.clone(),
+            law: self.s.law.name().to_owned(),
+            plant_pid: std::process::id(),
+        };
+        let capacity = ((0.5 / self.s.control_period) as usize).clamp(4096, 1 << 16);
+        let sink = crate::monitor::status_sink(&opts.run, &header);
+        self.recorder = Some(Recorder::start(Some(&opts.out), &header, capacity, sink)?);
+        Ok(())
+    }
+
     /// Publishes state k (or the test's corrupted version of it).
     fn publish(&mut self, k: u64) -> Result<(), SimError> {
-        let q = *self.plant.configuration();
-        let v = self.plant.velocity();
-        self.published = match self.opts.state_faults.iter().find(|(fk, _)| *fk == k) {
-            None => self.ep.publish(k, &q, &v)?,
-            Some(&(_, fault)) => {
-                let mut msg = self.ep.state_template();
-                msg.seq = k;
-                msg.t = k as f64 * self.s.control_period;
-                msg.set_state(&q, &v);
-                corrupt(&mut msg, fault, self.s.group);
-                log(format_args!(
-                    "fault injection: publishing a corrupted state ({fault:?}) for seq {k}"
-                ));
-                self.ep.publish_message(&msg)?
-            }
-        };
+        let mut msg = self.ep.state_template();
+        msg.seq = k;
+        msg.t = k as f64 * self.s.control_period;
+        msg.set_state(self.plant.configuration(), &self.plant.velocity());
+        if let Some(&(_, fault)) = self.opts.state_faults.iter().find(|(fk, _)| *fk == k) {
+            corrupt(&mut msg, fault, self.s.group);
+            log(format_args!(
+                "fault injection: publishing a corrupted state ({fault:?}) for seq {k}"
+            ));
+        }
+        self.published = self.ep.publish_message(&msg)?;
+        msg.stamp_ns = self.published;
+        self.state = msg;
         Ok(())
     }
 
@@ -506,6 +564,19 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         saturate(&mut self.tau, self.cfg.torque_limit.as_ref());
         self.log_transition(k, step.transition, step.misses_in_row);
         self.record(k, step.decision);
+        if let Some(rec) = &mut self.recorder {
+            let mut applied = [0.0; ipc_types::MAX_M];
+            applied[..M].copy_from_slice(self.tau.as_slice());
+            rec.push(&Record {
+                cycle: k,
+                decision: step.decision,
+                misses_in_row: step.misses_in_row,
+                deadline_ns: deadline,
+                applied,
+                state: self.state,
+                command: got.map(|c| (c.msg, c.received_ns)),
+            });
+        }
         if self.realtime() {
             clock::sleep_until(deadline);
             let _ = self
@@ -598,12 +669,26 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
 
     /// Writes trajectory.csv, summary.json and the figure.
     fn write(
-        self,
+        mut self,
         interrupted: Option<link::StopSignal>,
         controller_exit: Option<i32>,
         rejected: u64,
         late: u64,
+        loop_allocations: Option<u64>,
     ) -> Result<(Trajectory, PairSummary), SimError> {
+        let recording = self.recorder.take().map(Recorder::finish).transpose()?;
+        if let Some(r) = &recording {
+            log(format_args!(
+                "flight recording: {} cycles in {}{}",
+                r.records,
+                r.path,
+                if r.dropped > 0 {
+                    format!(" ({} records dropped: the disk did not keep up)", r.dropped)
+                } else {
+                    String::new()
+                }
+            ));
+        }
         let (opts, s) = (self.opts, &self.s);
         let realtime = self.realtime();
         let cycles = self.cycles;
@@ -639,6 +724,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             transport: opts.transport.name().to_owned(),
             controller_heap_allocations: self.stats.last_allocations,
             realtime: self.rt.clone(),
+            recording,
+            plant_loop_heap_allocations: loop_allocations,
         };
         write_trajectory_csv(&traj, &opts.out.join("trajectory.csv"))?;
         write_json(&summary, &opts.out.join("summary.json"))?;

@@ -27,7 +27,7 @@ impl Spawned {
             )));
         }
         let mut cmd = Command::new(&path);
-        cmd.args(&opts.scenario_args)
+        cmd.args(opts.source.args("seed"))
             .args(["--name", &opts.run])
             .stdin(Stdio::null());
         if opts.transport == TransportKind::Uds {

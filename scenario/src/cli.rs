@@ -42,6 +42,66 @@ impl ScenarioSource {
     }
 }
 
+impl ScenarioSource {
+    /// Writes the scenario this source loads, as text, to `dir/scenario.toml`, so that the
+    /// directory alone reproduces the controller's configuration (a run's flight recording
+    /// is replayed with it). A waypoint file is copied beside it and the copy's reference
+    /// points at it; a scenario without a `name` gets the one it was loaded under. Returns
+    /// the path written.
+    pub fn save(&self, default: &str, dir: &std::path::Path) -> Result<PathBuf, ScenarioError> {
+        let io = |path: &std::path::Path| {
+            let path = path.display().to_string();
+            move |source| ScenarioError::Io { path, source }
+        };
+        let (text, origin, name, base) = match (&self.scenario, &self.builtin) {
+            (Some(p), _) => {
+                let text = std::fs::read_to_string(p).map_err(io(p))?;
+                let stem = p
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_else(|| "scenario".to_owned());
+                (text, p.display().to_string(), stem, p.parent())
+            }
+            (None, b) => {
+                let name = b.as_deref().unwrap_or(default);
+                let text = crate::BUILTINS
+                    .iter()
+                    .find(|(n, _)| *n == name)
+                    .map(|(_, t)| (*t).to_owned())
+                    .ok_or_else(|| ScenarioError::UnknownBuiltin(name.to_owned()))?;
+                (
+                    text,
+                    format!("built-in scenario `{name}`"),
+                    name.to_owned(),
+                    None,
+                )
+            }
+        };
+        let mut table: toml::Table = toml::from_str(&text).map_err(|e| ScenarioError::Parse {
+            origin: origin.clone(),
+            message: e.to_string().trim_end().to_owned(),
+        })?;
+        table
+            .entry("name")
+            .or_insert_with(|| toml::Value::String(name));
+        if let Some(toml::Value::Table(reference)) = table.get_mut("reference")
+            && let Some(toml::Value::String(file)) = reference.get_mut("waypoints")
+        {
+            let from = base.unwrap_or(std::path::Path::new(".")).join(&*file);
+            let copy = "waypoints.csv";
+            std::fs::copy(&from, dir.join(copy)).map_err(io(&from))?;
+            *file = copy.to_owned();
+        }
+        let out = dir.join("scenario.toml");
+        let text = toml::to_string(&table).map_err(|e| ScenarioError::Parse {
+            origin,
+            message: e.to_string(),
+        })?;
+        std::fs::write(&out, text).map_err(io(&out))?;
+        Ok(out)
+    }
+}
+
 /// clap's parser for a [`Law`] (`eqt`, `gt`, `nog`, `asym`; listed in `--help`). The law
 /// enum lives in the `no_std` controller crate, which stays free of clap, so this maps
 /// clap's possible values onto it instead of deriving `ValueEnum` there.
@@ -103,6 +163,42 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(e.contains("nope"), "{e}");
+    }
+
+    #[test]
+    fn a_saved_scenario_loads_back_to_the_same_one() {
+        let dir = std::env::temp_dir().join(format!("eqtrack-save-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let slew = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/slew_so3.toml");
+        let sources = [
+            ScenarioSource {
+                scenario: None,
+                builtin: Some("se3_circle".to_owned()),
+            },
+            ScenarioSource {
+                scenario: Some(PathBuf::from(slew)),
+                builtin: None,
+            },
+        ];
+        for src in sources {
+            let original = src.load("seed").unwrap();
+            let saved = src.save("seed", &dir).unwrap();
+            let mut back = Scenario::from_file(&saved).unwrap();
+            // only where the waypoints were read from differs
+            if let (Some(b), Some(o)) = (&mut back.path, &original.path) {
+                assert!(b.file.ends_with("waypoints.csv"), "{}", b.file);
+                b.file.clone_from(&o.file);
+            }
+            assert_eq!(back, original, "{src:?}");
+            assert_eq!(back.fingerprint(), original.fingerprint());
+        }
+        assert!(dir.join("waypoints.csv").exists());
+        let missing = ScenarioSource {
+            scenario: None,
+            builtin: Some("nope".to_owned()),
+        };
+        assert!(missing.save("seed", &dir).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

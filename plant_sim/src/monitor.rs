@@ -1,0 +1,406 @@
+//! The live view of a running pair (docs/architecture.md, "The flight recorder").
+//!
+//! * [`status_sink`]: on the plant's flight-recorder thread, turns the records into the run's
+//!   live figures (rate, round-trip percentiles over the last second, misses, safe mode, the
+//!   Lyapunov value, the newest command) and publishes them about 20 times a second on the
+//!   run's `status` board ([`link::status`]).
+//! * [`monitor`]: `plant_sim monitor --name RUN` reads that board, and only that board, in a
+//!   terminal UI (ratatui), redrawn 10 times a second; it never touches the pair's own
+//!   boards, so it cannot change the loop's timing. It exits when the run ends, on `q`, Esc
+//!   or Ctrl-C, and on SIGINT/SIGTERM.
+
+use crate::SimError;
+use crate::flight::{Header, Record, SinkFactory, StatusSink};
+use ipc_types::{StatusMsg, group_kind, name_str, status_flags};
+use link::status::{StatusReader, StatusWriter};
+use link::{Decision, StopFlag, clock};
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
+/// How often the recorder thread publishes the status (ns).
+const PUBLISH_EVERY_NS: u64 = 50_000_000;
+/// The window of "the last second" (ns).
+const WINDOW_NS: u64 = 1_000_000_000;
+
+/// The flight recorder's status publisher for run `run` (opened on the recorder thread).
+pub fn status_sink(run: &str, header: &Header) -> Option<SinkFactory> {
+    let run = run.to_owned();
+    let mut msg = StatusMsg::new(
+        group_kind(header.group).unwrap_or(controller::GroupKind::So3),
+        &header.scenario,
+    );
+    msg.target_rate_hz = header.rate_hz;
+    msg.plant_pid = header.plant_pid;
+    if header.realtime {
+        msg.flags |= status_flags::REALTIME;
+    }
+    // two seconds of cycles, so the window never reallocates
+    let capacity = ((2.0 / header.control_period) as usize).clamp(1024, 1 << 18);
+    Some(Box::new(move || match StatusWriter::open(&run) {
+        Ok(writer) => Some(Box::new(LiveStatus {
+            writer,
+            msg,
+            window: VecDeque::with_capacity(capacity),
+            sorted: Vec::with_capacity(capacity),
+            last_publish: 0,
+            last_decision: Decision::Fresh,
+        }) as Box<dyn StatusSink>),
+        Err(e) => {
+            eprintln!("plant_sim: no live status for monitors (recording goes on): {e}");
+            None
+        }
+    }))
+}
+
+/// The live figures, kept on the recorder thread.
+struct LiveStatus {
+    writer: StatusWriter,
+    msg: StatusMsg,
+    /// `(state published, round trip)` of the cycles of the last second (round trip 0:
+    /// no command in time).
+    window: VecDeque<(u64, u64)>,
+    sorted: Vec<u64>,
+    last_publish: u64,
+    last_decision: Decision,
+}
+
+impl StatusSink for LiveStatus {
+    fn record(&mut self, r: &Record) {
+        let m = &mut self.msg;
+        m.cycle = r.cycle;
+        m.t = r.state.t;
+        if r.decision != Decision::Fresh {
+            m.misses += 1;
+        }
+        if r.decision == Decision::Safe && self.last_decision != Decision::Safe {
+            m.safe_mode_entries += 1;
+        }
+        self.last_decision = r.decision;
+        if r.decision == Decision::Safe {
+            m.flags |= status_flags::SAFE_MODE;
+        } else {
+            m.flags &= !status_flags::SAFE_MODE;
+        }
+        let published = r.state.stamp_ns;
+        let mut rtt = 0;
+        if let Some((c, received)) = &r.command {
+            m.lyapunov = c.lyapunov;
+            m.last_command_ns = *received;
+            // the first command answers the connection, not a timed cycle
+            if r.cycle > 0 {
+                rtt = received.saturating_sub(published).max(1);
+            }
+        }
+        if self.window.len() == self.window.capacity() {
+            self.window.pop_front();
+        }
+        self.window.push_back((published, rtt));
+        while self
+            .window
+            .front()
+            .is_some_and(|(p, _)| *p + WINDOW_NS < published)
+        {
+            self.window.pop_front();
+        }
+    }
+
+    fn tick(&mut self) {
+        let now = clock::monotonic_ns();
+        if now.saturating_sub(self.last_publish) < PUBLISH_EVERY_NS {
+            return;
+        }
+        self.last_publish = now;
+        self.publish();
+    }
+
+    fn end(&mut self) {
+        self.msg.flags |= status_flags::ENDED;
+        self.publish();
+    }
+}
+
+impl LiveStatus {
+    fn publish(&mut self) {
+        self.sorted.clear();
+        self.sorted
+            .extend(self.window.iter().map(|w| w.1).filter(|r| *r > 0));
+        self.sorted.sort_unstable();
+        let q = |f: f64| match self.sorted.len() {
+            0 => 0,
+            n => self.sorted[((f * (n - 1) as f64).round() as usize).min(n - 1)],
+        };
+        let m = &mut self.msg;
+        (m.rtt_p50_ns, m.rtt_p99_ns, m.rtt_max_ns) = (q(0.5), q(0.99), q(1.0));
+        m.rate_hz = match (self.window.front(), self.window.back()) {
+            (Some(a), Some(b)) if b.0 > a.0 => {
+                (self.window.len() - 1) as f64 * 1e9 / (b.0 - a.0) as f64
+            }
+            _ => 0.0,
+        };
+        self.writer.publish(m);
+    }
+}
+
+/// `plant_sim monitor`'s options.
+#[derive(Debug, Clone)]
+pub struct MonitorOptions {
+    /// The run to watch.
+    pub run: String,
+    /// How long to wait for the run to publish its first status.
+    pub wait: Duration,
+    /// One line per second on stdout instead of the terminal UI (for logs and scripts).
+    pub plain: bool,
+    /// Set by SIGINT/SIGTERM.
+    pub stop: StopFlag,
+}
+
+/// How the monitor ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MonitorEnd {
+    /// The run ended (its plant said so).
+    RunEnded,
+    /// The user quit (`q`, Esc, Ctrl-C, SIGINT/SIGTERM).
+    Quit,
+    /// The plant's process is gone without ending the run (killed).
+    PlantGone,
+}
+
+/// What the screen shows, kept between redraws.
+struct View {
+    run: String,
+    status: Option<StatusMsg>,
+    /// Lyapunov values, one per new status (newest last).
+    history: VecDeque<f64>,
+    end: Option<MonitorEnd>,
+}
+
+const HISTORY: usize = 240;
+
+impl View {
+    fn update(&mut self, s: StatusMsg) {
+        if self
+            .status
+            .is_none_or(|old| old.seq != s.seq || old.stamp_ns != s.stamp_ns)
+        {
+            if s.lyapunov.is_finite() {
+                if self.history.len() == HISTORY {
+                    self.history.pop_front();
+                }
+                self.history.push_back(s.lyapunov);
+            }
+            self.status = Some(s);
+        }
+    }
+
+    /// The figures as text lines (the terminal UI and the plain mode share them).
+    fn lines(&self) -> Vec<String> {
+        let Some(s) = &self.status else {
+            return vec![format!(
+                "waiting for run `{}` to publish its status ...",
+                self.run
+            )];
+        };
+        let now = clock::monotonic_ns();
+        let us = |ns: u64| ns as f64 / 1000.0;
+        let target = if s.flags & status_flags::REALTIME != 0 {
+            format!("target {} Hz", s.target_rate_hz)
+        } else {
+            "lockstep".to_owned()
+        };
+        let since = if s.last_command_ns == 0 {
+            "none yet".to_owned()
+        } else {
+            format!(
+                "{:.1} ms ago",
+                now.saturating_sub(s.last_command_ns) as f64 / 1e6
+            )
+        };
+        vec![
+            format!(
+                "t            {:.3} s (cycle {}), scenario {}, plant pid {}",
+                s.t,
+                s.cycle,
+                name_str(&s.scenario),
+                s.plant_pid
+            ),
+            format!("rate         {:.1} Hz ({target})", s.rate_hz),
+            format!(
+                "round trip   p50 {:.1} us   p99 {:.1} us   max {:.1} us   (last second)",
+                us(s.rtt_p50_ns),
+                us(s.rtt_p99_ns),
+                us(s.rtt_max_ns)
+            ),
+            format!("misses       {}", s.misses),
+            format!(
+                "safe mode    {} (entered {} times)",
+                if s.flags & status_flags::SAFE_MODE != 0 {
+                    "ON: damping only"
+                } else {
+                    "off"
+                },
+                s.safe_mode_entries
+            ),
+            format!("last command {since}"),
+            format!("Lyapunov L   {:.6e}", s.lyapunov),
+        ]
+    }
+
+    /// The sparkline's bars: log10(L) mapped onto 0..=100 over the history's range.
+    fn bars(&self) -> (Vec<u64>, f64, f64) {
+        let logs: Vec<f64> = self.history.iter().map(|l| l.max(1e-300).log10()).collect();
+        let lo = logs.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = logs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let span = (hi - lo).max(1e-9);
+        let bars = logs
+            .iter()
+            .map(|x| 1 + ((x - lo) / span * 99.0).round() as u64)
+            .collect();
+        (bars, lo, hi)
+    }
+}
+
+/// Watches run `opts.run` until it ends or the user quits.
+pub fn monitor(opts: &MonitorOptions) -> Result<MonitorEnd, SimError> {
+    link::check_run_name(&opts.run)?;
+    let reader = StatusReader::open(&opts.run)?;
+    let mut view = View {
+        run: opts.run.clone(),
+        status: None,
+        history: VecDeque::with_capacity(HISTORY),
+        end: None,
+    };
+    let started = Instant::now();
+    // a status already ended when the monitor came is a previous run's: wait for a new one
+    let stale = reader
+        .latest()
+        .filter(|s| s.flags & status_flags::ENDED != 0)
+        .map(|s| s.seq);
+    let mut ui = if opts.plain {
+        None
+    } else {
+        Some(ratatui::try_init().map_err(|e| {
+            SimError::Run(format!(
+                "monitor: cannot take the terminal ({e}); use --plain for line output"
+            ))
+        })?)
+    };
+    let mut last_line = Instant::now() - Duration::from_secs(1);
+    let result = loop {
+        if let Some(s) = reader.latest().filter(|s| stale != Some(s.seq)) {
+            view.update(s);
+        }
+        let last_seen = view.status;
+        if let Some(s) = last_seen {
+            if s.flags & status_flags::ENDED != 0 {
+                view.end = Some(MonitorEnd::RunEnded);
+            } else if !link::process_alive(s.plant_pid) {
+                view.end = Some(MonitorEnd::PlantGone);
+            }
+        } else if started.elapsed() > opts.wait {
+            break Err(SimError::Run(format!(
+                "monitor: run `{}` published no status within {:.0} s (is it running? a run started with --no-record publishes none)",
+                opts.run,
+                opts.wait.as_secs_f64()
+            )));
+        }
+        if opts.stop.requested().is_some() {
+            view.end = Some(MonitorEnd::Quit);
+        }
+        match &mut ui {
+            Some(term) => {
+                if let Err(e) = term.draw(|f| draw(f, &view)) {
+                    break Err(SimError::Run(format!("monitor: cannot draw: {e}")));
+                }
+                if view.end.is_none() && quit_key(Duration::from_millis(100)) {
+                    view.end = Some(MonitorEnd::Quit);
+                }
+            }
+            None => {
+                if last_line.elapsed() >= Duration::from_secs(1) || view.end.is_some() {
+                    last_line = Instant::now();
+                    println!("{}", view.lines().join(" | "));
+                }
+                std::thread::sleep(Duration::from_millis(100));
+            }
+        }
+        if let Some(end) = view.end {
+            break Ok(end);
+        }
+    };
+    if ui.is_some() {
+        ratatui::restore();
+    }
+    if let Ok(end) = &result {
+        for line in view.lines() {
+            println!("{line}");
+        }
+        println!(
+            "monitor: {}",
+            match end {
+                MonitorEnd::RunEnded => "the run ended",
+                MonitorEnd::Quit => "quit",
+                MonitorEnd::PlantGone =>
+                    "the plant's process is gone (the run did not end cleanly)",
+            }
+        );
+    }
+    result
+}
+
+/// Whether `q`, Esc or Ctrl-C was pressed within `wait` (in raw mode Ctrl-C is a key).
+fn quit_key(wait: Duration) -> bool {
+    use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
+    let until = Instant::now() + wait;
+    loop {
+        let left = until.saturating_duration_since(Instant::now());
+        if !event::poll(left).unwrap_or(false) {
+            return false;
+        }
+        if let Ok(Event::Key(k)) = event::read()
+            && k.kind == KeyEventKind::Press
+            && (matches!(k.code, KeyCode::Char('q') | KeyCode::Esc)
+                || (k.code == KeyCode::Char('c') && k.modifiers.contains(KeyModifiers::CONTROL)))
+        {
+            return true;
+        }
+    }
+}
+
+fn draw(f: &mut ratatui::Frame, view: &View) {
+    use ratatui::layout::{Constraint, Layout};
+    use ratatui::widgets::{Block, Borders, Paragraph, Sparkline};
+    let lines = view.lines();
+    let [top, spark, help] = Layout::vertical([
+        Constraint::Length(lines.len() as u16 + 2),
+        Constraint::Min(4),
+        Constraint::Length(1),
+    ])
+    .areas(f.area());
+    let title = format!(" eqtrack monitor: run `{}` ", view.run);
+    f.render_widget(
+        Paragraph::new(lines.join("\n")).block(Block::default().borders(Borders::ALL).title(title)),
+        top,
+    );
+    let (bars, lo, hi) = view.bars();
+    let title = if bars.is_empty() {
+        " Lyapunov value L (log scale): no command yet ".to_owned()
+    } else {
+        format!(
+            " Lyapunov value L, log scale, last {} updates: 1e{lo:.1} .. 1e{hi:.1} ",
+            bars.len()
+        )
+    };
+    f.render_widget(
+        Sparkline::default()
+            .block(Block::default().borders(Borders::ALL).title(title))
+            .data(&bars)
+            .max(100),
+        spark,
+    );
+    let state = match view.end {
+        Some(MonitorEnd::RunEnded) => "the run ended",
+        Some(MonitorEnd::PlantGone) => "the plant is gone",
+        _ => "q: quit",
+    };
+    f.render_widget(Paragraph::new(state), help);
+}

@@ -1,0 +1,403 @@
+//! `plant_sim replay OUT_DIR`: the controller, in-process, over the states a run recorded
+//! (docs/architecture.md, "The flight recorder").
+//!
+//! Each recorded state goes through `controller_node::respond` — the very cycle the
+//! controller process runs — with the scenario the run stored beside its log, the reference
+//! built at the plant's period and stepped exactly as the node steps it. The controller is
+//! deterministic, so every recorded command must come out again bit for bit: a difference is
+//! a bug (or a different build, or a corrupted log), and replay names the first cycle that
+//! differs and by how much. With another law, scenario or gains it is a what-if: the same
+//! states, the other controller's answers, written to `replay.csv` and a figure. (Open loop:
+//! the body would have moved differently under the other torques; the states are the
+//! recorded ones.)
+
+use crate::SimError;
+use crate::flight::{LOG_FILE, LogReader, Record};
+use crate::output::ensure_dir;
+use crate::plot::{Line, Panel, law_color, render};
+use controller::group::{MatrixLieGroup, OnGroup};
+use controller::{Law, Trajectory as _};
+use ipc_types::{CommandMsg, MAX_M, group_code};
+use link::Decision;
+use scenario::Scenario;
+use std::path::{Path, PathBuf};
+
+/// What to replay, and what to change.
+#[derive(Debug, Clone, Default)]
+pub struct ReplayOptions {
+    /// The run's output directory (`messages.log`, `scenario.toml`).
+    pub dir: PathBuf,
+    /// What-if: another law.
+    pub law: Option<Law>,
+    /// What-if: another scenario file (the controller's law, gains, model and reference).
+    pub scenario: Option<PathBuf>,
+    /// What-if: the potential weight K (`X` for X·I, or the n diagonal entries).
+    pub kp: Option<Vec<f64>>,
+    /// What-if: the damping K_d (`X` for X·I, or the m diagonal entries).
+    pub kd: Option<Vec<f64>>,
+    /// Where replay.csv and the figure go (default: the run's directory).
+    pub out: Option<PathBuf>,
+}
+
+impl ReplayOptions {
+    /// Whether anything is changed (a what-if) rather than checked.
+    pub fn what_if(&self) -> bool {
+        self.law.is_some() || self.scenario.is_some() || self.kp.is_some() || self.kd.is_some()
+    }
+}
+
+/// The first command that came out differently.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Difference {
+    /// The cycle k.
+    pub cycle: u64,
+    /// Its time (s).
+    pub t: f64,
+    /// Which value: `tau[i]`, `L`, or why no command came out.
+    pub what: String,
+    /// The recorded value.
+    pub recorded: f64,
+    /// The replayed value.
+    pub replayed: f64,
+}
+
+impl Difference {
+    /// |replayed − recorded|.
+    pub fn by(&self) -> f64 {
+        (self.replayed - self.recorded).abs()
+    }
+}
+
+/// What a replay found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReplayReport {
+    /// Records replayed (whole records in the log).
+    pub cycles: u64,
+    /// Records with a recorded command (compared).
+    pub compared: u64,
+    /// Compared commands that differ in any bit of the torque or of L.
+    pub differing: u64,
+    /// The first of them.
+    pub first: Option<Difference>,
+    /// The largest torque difference over all compared cycles.
+    pub max_torque_difference: f64,
+    /// Cycles missing from the log (the recorder dropped them).
+    pub missing: u64,
+    /// Bytes after the last whole record (a log cut short, e.g. by SIGKILL).
+    pub trailing_bytes: u64,
+    /// What-if: `replay.csv` and the figure written.
+    pub written: Option<PathBuf>,
+}
+
+/// Replays `opts.dir`'s log.
+pub fn replay(opts: &ReplayOptions) -> Result<ReplayReport, SimError> {
+    let mut log = LogReader::open(&opts.dir.join(LOG_FILE))?;
+    let s = scenario_for(opts, &log)?;
+    s.group.dispatch(Replay {
+        opts,
+        log: &mut log,
+        s: &s,
+    })
+}
+
+/// The scenario of the run (its stored copy, checked against the log's fingerprint) with the
+/// what-if changes applied.
+fn scenario_for(opts: &ReplayOptions, log: &LogReader) -> Result<Scenario, SimError> {
+    let h = &log.header;
+    let stored = opts.dir.join("scenario.toml");
+    let mut s = match &opts.scenario {
+        Some(p) => Scenario::from_file(p)?,
+        None if stored.exists() => Scenario::from_file(&stored)?,
+        None => {
+            return Err(SimError::Input(format!(
+                "{} is missing: the run's scenario is stored there; give one with --scenario FILE",
+                stored.display()
+            )));
+        }
+    };
+    if group_code(s.group) != h.group {
+        return Err(SimError::Input(format!(
+            "scenario `{}` is on {}, the recorded run is not (group code {})",
+            s.name,
+            s.group.name(),
+            h.group
+        )));
+    }
+    if opts.scenario.is_none() && s.fingerprint() != h.fingerprint {
+        return Err(SimError::Input(format!(
+            "{}: fingerprint {:#x} differs from the recorded run's {:#x}: this is not the scenario the run used",
+            stored.display(),
+            s.fingerprint(),
+            h.fingerprint
+        )));
+    }
+    if let Some(l) = opts.law {
+        s = s.with_law(l)?;
+    }
+    let (n, m) = s.group.dims();
+    if let Some(kp) = &opts.kp {
+        s.kp = gain("--kp", kp, n)?;
+    }
+    if let Some(kd) = &opts.kd {
+        s.kd = gain("--kd", kd, m)?;
+    }
+    Ok(s)
+}
+
+/// A gain override as a row-major `dim`×`dim` matrix: one positive number X (X·I) or `dim`
+/// positive diagonal entries.
+fn gain(flag: &str, values: &[f64], dim: usize) -> Result<Vec<f64>, SimError> {
+    let diag: Vec<f64> = match values.len() {
+        1 => vec![values[0]; dim],
+        l if l == dim => values.to_vec(),
+        l => {
+            return Err(SimError::Input(format!(
+                "{flag}: expected one number (times the identity) or {dim} diagonal entries, got {l}"
+            )));
+        }
+    };
+    if let Some(x) = diag.iter().find(|x| !(x.is_finite() && **x > 0.0)) {
+        return Err(SimError::Input(format!(
+            "{flag}: gains must be positive and finite, got {x}"
+        )));
+    }
+    let mut g = vec![0.0; dim * dim];
+    for (i, x) in diag.iter().enumerate() {
+        g[i * dim + i] = *x;
+    }
+    Ok(g)
+}
+
+struct Replay<'a> {
+    opts: &'a ReplayOptions,
+    log: &'a mut LogReader,
+    s: &'a Scenario,
+}
+
+impl OnGroup for Replay<'_> {
+    type Output = Result<ReplayReport, SimError>;
+    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+        replay_group::<G, N, M>(self.opts, self.log, self.s)
+    }
+}
+
+/// One cycle of `replay.csv`.
+struct Row {
+    cycle: u64,
+    t: f64,
+    decision: Decision,
+    recorded: Option<CommandMsg>,
+    replayed: Option<CommandMsg>,
+}
+
+fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    opts: &ReplayOptions,
+    log: &mut LogReader,
+    s: &Scenario,
+) -> Result<ReplayReport, SimError> {
+    let bad = |e: controller::Error| SimError::Input(format!("scenario `{}`: {e}", s.name));
+    let controller = s.controller::<G, N, M>().map_err(bad)?;
+    let what_if = opts.what_if();
+    let mut report = ReplayReport {
+        cycles: 0,
+        compared: 0,
+        differing: 0,
+        first: None,
+        max_torque_difference: 0.0,
+        missing: 0,
+        trailing_bytes: log.trailing_bytes,
+        written: None,
+    };
+    let mut rows = Vec::new();
+    let mut reference = None;
+    let mut next = 0u64;
+    while let Some(r) = log.next_record()? {
+        report.cycles += 1;
+        report.missing += r.cycle.saturating_sub(next);
+        next = r.cycle + 1;
+        // the node builds its reference on the first state, at the plant's period
+        let reference = match &mut reference {
+            Some(x) => x,
+            None => {
+                let mut at = s.clone();
+                at.control_period = r.state.control_period;
+                reference.insert(at.reference_source::<G, N, M>().map_err(bad)?)
+            }
+        };
+        let replayed = controller_node::respond(&controller, reference, &r.state).ok();
+        reference.advance();
+        let recorded = r.command.map(|c| c.0);
+        if let Some(rec) = &recorded {
+            compare::<M>(&mut report, &r, rec, replayed.as_ref());
+        }
+        if what_if {
+            rows.push(Row {
+                cycle: r.cycle,
+                t: r.state.t,
+                decision: r.decision,
+                recorded,
+                replayed,
+            });
+        }
+    }
+    if what_if {
+        let out = opts.out.clone().unwrap_or_else(|| opts.dir.clone());
+        ensure_dir(&out)?;
+        write_csv::<M>(&rows, &out.join("replay.csv"))?;
+        figure::<M>(&rows, opts, s, &log.header.law, &out.join("replay"))?;
+        report.written = Some(out);
+    }
+    Ok(report)
+}
+
+/// Compares one recorded command with the replayed one, bit for bit (torque and L).
+fn compare<const M: usize>(
+    report: &mut ReplayReport,
+    r: &Record,
+    recorded: &CommandMsg,
+    replayed: Option<&CommandMsg>,
+) {
+    report.compared += 1;
+    let diff = |what: String, a: f64, b: f64| Difference {
+        cycle: r.cycle,
+        t: r.state.t,
+        what,
+        recorded: a,
+        replayed: b,
+    };
+    let found = match replayed {
+        None => Some(diff(
+            "the law refused the recorded state (no command)".to_owned(),
+            recorded.tau[0],
+            f64::NAN,
+        )),
+        Some(c) => {
+            let mut worst: Option<Difference> = None;
+            for i in 0..M {
+                let (a, b) = (recorded.tau[i], c.tau[i]);
+                let d = (b - a).abs();
+                if d.is_finite() {
+                    report.max_torque_difference = report.max_torque_difference.max(d);
+                }
+                if a.to_bits() != b.to_bits() && worst.as_ref().is_none_or(|w| !(w.by() >= d)) {
+                    worst = Some(diff(format!("tau[{i}]"), a, b));
+                }
+            }
+            worst.or_else(|| {
+                (recorded.lyapunov.to_bits() != c.lyapunov.to_bits())
+                    .then(|| diff("L".to_owned(), recorded.lyapunov, c.lyapunov))
+            })
+        }
+    };
+    if let Some(d) = found {
+        report.differing += 1;
+        if report.first.is_none() {
+            report.first = Some(d);
+        }
+    }
+}
+
+fn num(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:e}")
+    } else {
+        String::new()
+    }
+}
+
+fn write_csv<const M: usize>(rows: &[Row], path: &Path) -> Result<(), SimError> {
+    let fail = |e: csv::Error| SimError::Run(format!("cannot write {}: {e}", path.display()));
+    let mut w = csv::Writer::from_path(path).map_err(fail)?;
+    let mut head = vec![
+        "cycle".to_owned(),
+        "t".to_owned(),
+        "command_status".to_owned(),
+    ];
+    for side in ["recorded", "replayed"] {
+        head.extend((0..M).map(|i| format!("{side}_tau_{i}")));
+        head.push(format!("{side}_lyapunov"));
+    }
+    w.write_record(&head).map_err(fail)?;
+    let side = |c: &Option<CommandMsg>| -> Vec<String> {
+        let (tau, l) = match c {
+            Some(c) => (c.tau, c.lyapunov),
+            None => ([f64::NAN; MAX_M], f64::NAN),
+        };
+        tau[..M].iter().chain([&l]).map(|x| num(*x)).collect()
+    };
+    for r in rows {
+        let mut rec = vec![
+            r.cycle.to_string(),
+            format!("{:e}", r.t),
+            r.decision.code().to_string(),
+        ];
+        rec.extend(side(&r.recorded));
+        rec.extend(side(&r.replayed));
+        w.write_record(&rec).map_err(fail)?;
+    }
+    w.flush()
+        .map_err(|e| SimError::Run(format!("cannot write {}: {e}", path.display())))
+}
+
+/// Recorded and replayed torque per axis and L, against time.
+fn figure<const M: usize>(
+    rows: &[Row],
+    opts: &ReplayOptions,
+    s: &Scenario,
+    recorded_law: &str,
+    stem: &Path,
+) -> Result<(), SimError> {
+    let (rec_color, mut rep_color) = (law_color(recorded_law), law_color(s.law.name()));
+    if rec_color == rep_color {
+        rep_color = plotters::style::RGBColor(214, 39, 40);
+    }
+    let series = |pick: &dyn Fn(&CommandMsg) -> f64, which: fn(&Row) -> &Option<CommandMsg>| {
+        rows.iter()
+            .filter_map(|r| which(r).as_ref().map(|c| (r.t, pick(c))))
+            .collect::<Vec<_>>()
+    };
+    let rec_label = format!("recorded ({})", recorded_law.to_uppercase());
+    let rep_label = format!("replayed ({})", describe(opts, s));
+    let panel = |title: String, y: &str, pick: &dyn Fn(&CommandMsg) -> f64| Panel {
+        title,
+        y_label: y.to_owned(),
+        lines: vec![
+            Line {
+                label: rec_label.clone(),
+                color: rec_color,
+                points: series(pick, |r| &r.recorded),
+            },
+            Line {
+                label: rep_label.clone(),
+                color: rep_color,
+                points: series(pick, |r| &r.replayed),
+            },
+        ],
+    };
+    let mut panels: Vec<Panel> = (0..M)
+        .map(|i| panel(format!("Torque τ_{i}"), &format!("tau_{i}"), &|c| c.tau[i]))
+        .collect();
+    panels.push(panel("Lyapunov value L".to_owned(), "L", &|c| c.lyapunov));
+    let cols = if panels.len() > 4 { 2 } else { 1 };
+    let height = 300 * panels.len().div_ceil(cols) as u32 + 100;
+    let title = format!(
+        "replay of {}: recorded vs what-if, same states",
+        opts.dir.display()
+    );
+    render(stem, &title, &panels, cols, (1200, height))
+}
+
+/// The what-if, in words.
+fn describe(opts: &ReplayOptions, s: &Scenario) -> String {
+    let mut parts = vec![s.law.name().to_uppercase()];
+    if let Some(p) = &opts.scenario {
+        parts.push(format!("scenario {}", p.display()));
+    }
+    if opts.kp.is_some() {
+        parts.push("K changed".to_owned());
+    }
+    if opts.kd.is_some() {
+        parts.push("K_d changed".to_owned());
+    }
+    parts.join(", ")
+}
