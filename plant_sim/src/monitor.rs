@@ -207,13 +207,24 @@ impl View {
         } else {
             "lockstep".to_owned()
         };
+        // as of the newest status (the recorder publishes 20 times a second); a status
+        // that stops coming is the plant's own silence, said as such
         let since = if s.last_command_ns == 0 {
             "none yet".to_owned()
         } else {
             format!(
                 "{:.1} ms ago",
-                now.saturating_sub(s.last_command_ns) as f64 / 1e6
+                s.stamp_ns.saturating_sub(s.last_command_ns) as f64 / 1e6
             )
+        };
+        let age = now.saturating_sub(s.stamp_ns);
+        let since = if age > 500_000_000 && s.flags & status_flags::ENDED == 0 {
+            format!(
+                "{since} (no status from the plant for {:.1} s)",
+                age as f64 / 1e9
+            )
+        } else {
+            since
         };
         vec![
             format!(
