@@ -10,7 +10,7 @@ use crate::floors::{OsFloor, TransportFloor, os_floor, transport_floor};
 use crate::output::{ensure_dir, write_json};
 use crate::pair::{Mode, PairOptions, run_pair};
 use link::{StopFlag, TransportKind as Transport, Wake};
-use scenario::Scenario;
+use scenario::cli::ScenarioSource;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Duration;
@@ -88,6 +88,8 @@ pub struct RateFloors {
 /// What `bench-loop` measured.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct BenchLoop {
+    /// The scenario's name.
+    pub scenario: String,
     /// The pair, per case and rate.
     pub cases: Vec<LoopRow>,
     /// The floors, per rate.
@@ -122,14 +124,15 @@ fn floors(cyclictest: &Path, rate: f64, duration: f64) -> RateFloors {
 /// Runs the floors and every case at every rate for `duration` seconds each; SIGINT/SIGTERM
 /// (`stop`) end it after the current case's run directory is written.
 pub fn bench_loop(
-    scenario: &Scenario,
-    source: &scenario::cli::ScenarioSource,
+    source: &ScenarioSource,
     rates: &[f64],
     duration: f64,
     cyclictest: &Path,
     out: &Path,
+    thread_allocations: Option<fn() -> u64>,
     stop: &StopFlag,
 ) -> Result<BenchLoop, SimError> {
+    let scenario = source.load("seed")?;
     ensure_dir(out)?;
     let mut rows = Vec::new();
     let mut all_floors = Vec::new();
@@ -140,13 +143,17 @@ pub fn bench_loop(
         for (i, (label, transport, wake, record)) in CASES.iter().enumerate() {
             let mut s = scenario.clone();
             s.duration = duration;
-            let dir = out.join(format!("{}-{}hz", label.replace(' ', "-"), rate));
+            let dir = out.join(format!(
+                "{}-{}hz",
+                label.replace(", ", "-").replace(' ', "-"),
+                rate
+            ));
             eprintln!("bench-loop: {label} at {rate} Hz for {duration} s ...");
             let opts = PairOptions {
                 scenario: s,
                 source: source.clone(),
                 record: *record,
-                thread_allocations: None,
+                thread_allocations,
                 mode: Mode::Realtime,
                 rate_hz: *rate,
                 wake: *wake,
@@ -193,6 +200,7 @@ pub fn bench_loop(
         }
     }
     let result = BenchLoop {
+        scenario: scenario.name.clone(),
         cases: rows,
         floors: all_floors,
     };

@@ -413,7 +413,6 @@ fn montecarlo_cmd(args: McArgs, stop: &StopFlag) -> Result<(), SimError> {
 }
 
 fn bench_loop_cmd(args: BenchLoopArgs, stop: &StopFlag) -> Result<(), SimError> {
-    let scenario = args.source.load("seed")?;
     let rates = args.rates;
     if let Some(r) = rates
         .iter()
@@ -427,17 +426,17 @@ fn bench_loop_cmd(args: BenchLoopArgs, stop: &StopFlag) -> Result<(), SimError> 
         .out
         .unwrap_or_else(|| Path::new("out").join("bench-loop"));
     let result = plant_sim::bench_loop::bench_loop(
-        &scenario,
         &args.source,
         &rates,
         args.duration.as_secs_f64(),
         &args.cyclictest,
         &out,
+        Some(thread_allocations),
         stop,
     )?;
     println!(
         "round trip of the controller loop (state published -> command received), scenario {}:",
-        scenario.name
+        result.scenario
     );
     print!("{}", plant_sim::bench_loop::table(&result.cases));
     println!("\nthe floors, measured in the same run at the same rates and durations:");
@@ -644,8 +643,13 @@ fn print_pair_summary(s: &plant_sim::pair::PairSummary, out: &Path) {
         s.late_commands
     );
     println!(
-        "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}",
-        out.display()
+        "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg{}}}",
+        out.display(),
+        if s.recording.is_some() {
+            ", messages.log, scenario.toml"
+        } else {
+            ""
+        }
     );
 }
 

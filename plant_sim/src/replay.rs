@@ -279,7 +279,9 @@ fn compare<const M: usize>(
                 if d.is_finite() {
                     report.max_torque_difference = report.max_torque_difference.max(d);
                 }
-                if a.to_bits() != b.to_bits() && worst.as_ref().is_none_or(|w| !(w.by() >= d)) {
+                if a.to_bits() != b.to_bits()
+                    && worst.as_ref().is_none_or(|w| d.total_cmp(&w.by()).is_gt())
+                {
                     worst = Some(diff(format!("tau[{i}]"), a, b));
                 }
             }

@@ -70,6 +70,14 @@ fn bench_loop_shows_the_floors_beside_the_pair() {
     );
     assert!(f["transport_spin"]["Ok"]["p50_us"].is_number(), "{f}");
     assert!(f["transport_event"]["Ok"]["p50_us"].is_number(), "{f}");
-    assert_eq!(summary["cases"].as_array().unwrap().len(), 4);
+    assert_eq!(summary["cases"].as_array().unwrap().len(), 5);
+    // the loop is measured without the flight recorder, and once with it
+    assert!(table.contains("| iceoryx2 event, recorded |"), "{table}");
+    assert!(
+        out_dir
+            .join("iceoryx2-event-recorded-1000hz/messages.log")
+            .exists()
+    );
+    assert!(!out_dir.join("iceoryx2-event-1000hz/messages.log").exists());
     let _ = std::fs::remove_dir_all(&out_dir);
 }

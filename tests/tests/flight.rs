@@ -316,7 +316,7 @@ fn field<'a>(screen: &'a str, label: &str) -> Option<&'a str> {
     screen
         .lines()
         .find_map(|l| l.split(label).nth(1))
-        .map(|rest| rest.trim_start().split_whitespace().next().unwrap_or(""))
+        .map(|rest| rest.split_whitespace().next().unwrap_or(""))
 }
 
 fn wait_file(path: &Path, timeout: Duration) -> Option<String> {
