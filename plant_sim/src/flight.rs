@@ -393,6 +393,17 @@ impl Recorder {
     }
 }
 
+impl Drop for Recorder {
+    /// A run that ends on an error still gets its log: close the channel and let the writer
+    /// drain it.
+    fn drop(&mut self) {
+        self.tx = None;
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
 /// The writer thread: drain, encode, append, flush; sleep; until the loop closes the
 /// channel. Returns the records written.
 fn write_loop(

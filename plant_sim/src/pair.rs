@@ -676,7 +676,15 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         late: u64,
         loop_allocations: Option<u64>,
     ) -> Result<(Trajectory, PairSummary), SimError> {
-        let recording = self.recorder.take().map(Recorder::finish).transpose()?;
+        // a failed recording (a full disk) is reported, and the run's results still written
+        let recording = match self.recorder.take().map(Recorder::finish) {
+            Some(Ok(r)) => Some(r),
+            Some(Err(e)) => {
+                log(format_args!("warning: the flight recording failed: {e}"));
+                None
+            }
+            None => None,
+        };
         if let Some(r) = &recording {
             log(format_args!(
                 "flight recording: {} cycles in {}{}",
