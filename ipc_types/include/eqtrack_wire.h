@@ -100,7 +100,7 @@ typedef struct eqtrack_StatusMsg {
     uint64_t cycle;             /* newest cycle k recorded */
     double t;                   /* its t_k, s */
     double target_rate_hz;      /* 0: lockstep */
-    double rate_hz;             /* cycles per second over the last second */
+    double rate_hz;             /* cycles in the last second, counted */
     uint64_t rtt_p50_ns;        /* round trip over the last second */
     uint64_t rtt_p99_ns;
     uint64_t rtt_max_ns;

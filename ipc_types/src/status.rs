@@ -43,7 +43,7 @@ pub struct StatusMsg {
     pub t: f64,
     /// The rate the plant runs at (Hz; 0: lockstep).
     pub target_rate_hz: f64,
-    /// Cycles per second over the last second.
+    /// Cycles in the last second, counted (in a run's first second: the cycles so far).
     pub rate_hz: f64,
     /// Round trip (state published → command received), median over the last second (ns).
     pub rtt_p50_ns: u64,

@@ -98,7 +98,7 @@ impl StatusSink for LiveStatus {
         while self
             .window
             .front()
-            .is_some_and(|(p, _)| *p + WINDOW_NS < published)
+            .is_some_and(|(p, _)| *p + WINDOW_NS <= published)
         {
             self.window.pop_front();
         }
@@ -131,12 +131,8 @@ impl LiveStatus {
         };
         let m = &mut self.msg;
         (m.rtt_p50_ns, m.rtt_p99_ns, m.rtt_max_ns) = (q(0.5), q(0.99), q(1.0));
-        m.rate_hz = match (self.window.front(), self.window.back()) {
-            (Some(a), Some(b)) if b.0 > a.0 => {
-                (self.window.len() - 1) as f64 * 1e9 / (b.0 - a.0) as f64
-            }
-            _ => 0.0,
-        };
+        // the cycles of the last second, counted (in the first second of a run: so far)
+        m.rate_hz = self.window.len() as f64;
         self.writer.publish(m);
     }
 }
@@ -234,7 +230,10 @@ impl View {
                 name_str(&s.scenario),
                 s.plant_pid
             ),
-            format!("rate         {:.1} Hz ({target})", s.rate_hz),
+            format!(
+                "rate         {:.0} Hz: cycles in the last second ({target})",
+                s.rate_hz
+            ),
             format!(
                 "round trip   p50 {:.1} us   p99 {:.1} us   max {:.1} us   (last second)",
                 us(s.rtt_p50_ns),
