@@ -247,7 +247,10 @@ impl LogReader {
     pub fn open(path: &Path) -> Result<LogReader, SimError> {
         let bad = |what: String| SimError::Input(format!("{}: {what}", path.display()));
         let file = File::open(path).map_err(|e| bad(format!("cannot open: {e}")))?;
-        let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+        let len = file
+            .metadata()
+            .map_err(|e| bad(format!("cannot read its size: {e}")))?
+            .len();
         let mut input = BufReader::with_capacity(1 << 16, file);
         let mut head = [0u8; HEADER_BYTES];
         input.read_exact(&mut head).map_err(|_| {
@@ -256,7 +259,7 @@ impl LogReader {
             ))
         })?;
         let header = Header::from_bytes(&head).map_err(bad)?;
-        let body = len - HEADER_BYTES as u64;
+        let body = len.saturating_sub(HEADER_BYTES as u64);
         Ok(LogReader {
             input,
             path: path.to_owned(),
@@ -294,6 +297,9 @@ pub struct RecordingReport {
     /// Records the loop could not hand over (the channel was full: the disk did not keep
     /// up). Replay shows them as gaps.
     pub dropped: u64,
+    /// Why the file stopped being written, if it did (a full disk): the records before it
+    /// are in the file, and the live status went on.
+    pub error: Option<String>,
 }
 
 /// Where the writer thread sends the run's live figures (the monitor's board), besides the
@@ -314,7 +320,7 @@ pub type SinkFactory = Box<dyn FnOnce() -> Option<Box<dyn StatusSink>> + Send>;
 pub struct Recorder {
     tx: Option<SyncSender<Record>>,
     dropped: u64,
-    thread: Option<JoinHandle<Result<u64, String>>>,
+    thread: Option<JoinHandle<(u64, Option<String>)>>,
     path: PathBuf,
 }
 
@@ -331,7 +337,7 @@ impl Recorder {
         sink: Option<SinkFactory>,
     ) -> Result<Recorder, SimError> {
         let path = dir.map(|d| d.join(LOG_FILE)).unwrap_or_default();
-        let mut out = match dir {
+        let out = match dir {
             Some(_) => {
                 let file = File::create(&path)
                     .map_err(|e| SimError::Run(format!("cannot create {}: {e}", path.display())))?;
@@ -349,11 +355,11 @@ impl Recorder {
             .name("recorder".to_owned())
             .spawn(move || {
                 let mut sink = sink.and_then(|make| make());
-                let r = write_loop(&rx, out.as_mut(), sink.as_deref_mut());
+                let (written, error) = write_loop(&rx, out, sink.as_deref_mut());
                 if let Some(s) = sink.as_deref_mut() {
                     s.end();
                 }
-                r.map_err(|e| format!("{shown}: {e}"))
+                (written, error.map(|e| format!("{shown}: {e}")))
             })
             .map_err(|e| SimError::Run(format!("cannot start the recorder thread: {e}")))?;
         Ok(Recorder {
@@ -380,15 +386,16 @@ impl Recorder {
     /// Closes the channel, lets the writer drain it, flush and sync the file.
     pub fn finish(mut self) -> Result<RecordingReport, SimError> {
         self.tx = None;
-        let written = match self.thread.take().map(JoinHandle::join) {
-            Some(Ok(r)) => r.map_err(SimError::Run)?,
+        let (records, error) = match self.thread.take().map(JoinHandle::join) {
+            Some(Ok(r)) => r,
             Some(Err(_)) => return Err(SimError::Run("the recorder thread panicked".into())),
-            None => 0,
+            None => (0, None),
         };
         Ok(RecordingReport {
             path: self.path.display().to_string(),
-            records: written,
+            records,
             dropped: self.dropped,
+            error,
         })
     }
 }
@@ -405,22 +412,31 @@ impl Drop for Recorder {
 }
 
 /// The writer thread: drain, encode, append, flush; sleep; until the loop closes the
-/// channel. Returns the records written.
+/// channel. A file that cannot be written any more (a full disk) is given up, and the
+/// channel is still drained for the live status. Returns the records written and the error
+/// that stopped the file, if any.
 fn write_loop(
     rx: &Receiver<Record>,
-    mut out: Option<&mut BufWriter<File>>,
+    mut out: Option<BufWriter<File>>,
     mut sink: Option<&mut (dyn StatusSink + 'static)>,
-) -> std::io::Result<u64> {
+) -> (u64, Option<std::io::Error>) {
     let mut written = 0u64;
+    let mut error = None;
+    let mut give_up = |out: &mut Option<BufWriter<File>>, e: std::io::Error| {
+        *out = None;
+        error.get_or_insert(e);
+    };
     loop {
         let mut got = false;
         let closed = loop {
             match rx.try_recv() {
                 Ok(r) => {
                     got = true;
-                    if let Some(w) = out.as_deref_mut() {
-                        w.write_all(&r.to_bytes())?;
-                        written += 1;
+                    if let Some(w) = out.as_mut() {
+                        match w.write_all(&r.to_bytes()) {
+                            Ok(()) => written += 1,
+                            Err(e) => give_up(&mut out, e),
+                        }
                     }
                     if let Some(s) = sink.as_deref_mut() {
                         s.record(&r);
@@ -430,20 +446,21 @@ fn write_loop(
                 Err(TryRecvError::Disconnected) => break true,
             }
         };
-        if got && let Some(w) = out.as_deref_mut() {
-            // whole records only: BufWriter writes its buffer out before a record that
-            // does not fit, so the file always ends on a record boundary between passes
-            w.flush()?;
+        // whole records only: BufWriter writes its buffer out before a record that does
+        // not fit, so the file always ends on a record boundary between passes
+        if got && let Some(Err(e)) = out.as_mut().map(BufWriter::flush) {
+            give_up(&mut out, e);
         }
         if let Some(s) = sink.as_deref_mut() {
             s.tick();
         }
         if closed {
-            if let Some(w) = out {
-                w.flush()?;
-                w.get_ref().sync_all()?;
+            if let Some(mut w) = out.take()
+                && let Err(e) = w.flush().and_then(|_| w.get_ref().sync_all())
+            {
+                give_up(&mut out, e);
             }
-            return Ok(written);
+            return (written, error);
         }
         std::thread::sleep(POLL);
     }
@@ -567,6 +584,15 @@ mod tests {
         let log = LogReader::open(&path).unwrap();
         assert_eq!(log.records, report.records - 1);
         assert_eq!(log.trailing_bytes, RECORD_BYTES as u64 - 100);
+        // shorter than a header, or not a log: errors that name the file, no panic
+        for len in [0, 10, HEADER_BYTES as u64 - 1] {
+            f.set_len(len).unwrap();
+            let e = LogReader::open(&path).err().unwrap().to_string();
+            assert!(e.contains("messages.log") && e.contains("header"), "{e}");
+        }
+        std::fs::write(&path, [b'x'; 300]).unwrap();
+        let e = LogReader::open(&path).err().unwrap().to_string();
+        assert!(e.contains("not an eqtrack flight recording"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

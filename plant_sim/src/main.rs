@@ -6,7 +6,11 @@
 //! plant_sim montecarlo [--scenario FILE] [--runs N] [--seed S] [--laws eqt,gt,nog,asym]
 //!                      [--samples FILE] [--threads N] [--out DIR]
 //! plant_sim run [--scenario FILE | --builtin NAME] [--mode lockstep|realtime] [--rate-hz F]
-//!               [--wake spin|event] [--no-spawn] [--name RUN] [--out DIR]
+//!               [--wake spin|event] [--no-spawn] [--name RUN] [--out DIR] [--no-record]
+//! plant_sim replay OUT_DIR [--law L] [--scenario FILE] [--kp X[,X...]] [--kd X[,X...]]
+//! plant_sim monitor [--name RUN] [--plain]
+//! plant_sim bench-loop [--rates LIST] [--duration S] [--cyclictest PATH]
+//! plant_sim reference [--scenario FILE | --builtin NAME] [--out DIR]
 //! ```
 //! Exit codes: 0 done, 2 bad input (with a message naming the key and what is wrong),
 //! 1 the run could not complete.
@@ -492,7 +496,8 @@ fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
     }
 }
 
-/// The `--fault-state K:KIND` injections (test builds only; empty otherwise).
+/// `plant_sim replay`: prints what the replay found; a difference outside a what-if is an
+/// error (exit 1).
 fn replay_cmd(args: ReplayArgs) -> Result<(), SimError> {
     use plant_sim::replay::{ReplayOptions, replay};
     let opts = ReplayOptions {
@@ -526,13 +531,10 @@ fn replay_cmd(args: ReplayArgs) -> Result<(), SimError> {
     );
     if let Some(d) = &r.first {
         println!(
-            "first difference: cycle {} (t = {:.6} s): {} recorded {:e}, replayed {:e}, by {:e}",
+            "first difference: cycle {} (t = {:.6} s): {}",
             d.cycle,
             d.t,
-            d.what,
-            d.recorded,
-            d.replayed,
-            d.by()
+            d.describe()
         );
     }
     if let Some(dir) = &r.written {
@@ -544,12 +546,11 @@ fn replay_cmd(args: ReplayArgs) -> Result<(), SimError> {
     }
     match &r.first {
         Some(d) if !opts.what_if() => Err(SimError::Run(format!(
-            "replay differs from the recording: {} of {} commands, first at cycle {} ({} by {:e})",
+            "replay differs from the recording: {} of {} commands, first at cycle {} ({})",
             r.differing,
             r.compared,
             d.cycle,
-            d.what,
-            d.by()
+            d.describe()
         ))),
         _ => Ok(()),
     }
@@ -572,6 +573,7 @@ fn monitor_cmd(args: MonitorArgs, stop: &StopFlag) -> Result<(), SimError> {
     }
 }
 
+/// The `--fault-state K:KIND` injections (test builds only; empty otherwise).
 fn state_faults(
     #[allow(unused_variables)] args: &RunArgs,
 ) -> Result<Vec<(u64, plant_sim::pair::StateFault)>, SimError> {

@@ -34,7 +34,7 @@ pub fn status_sink(run: &str, header: &Header) -> Option<SinkFactory> {
     if header.realtime {
         msg.flags |= status_flags::REALTIME;
     }
-    // two seconds of cycles, so the window never reallocates
+    // two seconds of cycles at the nominal rate
     let capacity = ((2.0 / header.control_period) as usize).clamp(1024, 1 << 18);
     Some(Box::new(move || match StatusWriter::open(&run) {
         Ok(writer) => Some(Box::new(LiveStatus {
@@ -91,9 +91,8 @@ impl StatusSink for LiveStatus {
                 rtt = received.saturating_sub(published).max(1);
             }
         }
-        if self.window.len() == self.window.capacity() {
-            self.window.pop_front();
-        }
+        // the writer thread may allocate: a loop faster than its nominal rate (lockstep)
+        // grows the window
         self.window.push_back((published, rtt));
         while self
             .window
@@ -280,11 +279,12 @@ pub fn monitor(opts: &MonitorOptions) -> Result<MonitorEnd, SimError> {
         end: None,
     };
     let started = Instant::now();
-    // a status already ended when the monitor came is a previous run's: wait for a new one
+    // a status that had ended, or whose plant was dead, when the monitor came is a previous
+    // run's: wait for a new one
     let stale = reader
         .latest()
-        .filter(|s| s.flags & status_flags::ENDED != 0)
-        .map(|s| s.seq);
+        .filter(|s| s.flags & status_flags::ENDED != 0 || !link::process_alive(s.plant_pid))
+        .map(|s| (s.plant_pid, s.stamp_ns));
     let mut ui = if opts.plain {
         None
     } else {
@@ -296,7 +296,10 @@ pub fn monitor(opts: &MonitorOptions) -> Result<MonitorEnd, SimError> {
     };
     let mut last_line = Instant::now() - Duration::from_secs(1);
     let result = loop {
-        if let Some(s) = reader.latest().filter(|s| stale != Some(s.seq)) {
+        if let Some(s) = reader
+            .latest()
+            .filter(|s| stale != Some((s.plant_pid, s.stamp_ns)))
+        {
             view.update(s);
         }
         let last_seen = view.status;

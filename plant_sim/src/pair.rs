@@ -685,6 +685,11 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             }
             None => None,
         };
+        if let Some(e) = recording.as_ref().and_then(|r| r.error.as_ref()) {
+            log(format_args!(
+                "warning: the flight recording stopped early: {e}"
+            ));
+        }
         if let Some(r) = &recording {
             log(format_args!(
                 "flight recording: {} cycles in {}{}",

@@ -62,9 +62,23 @@ pub struct Difference {
 }
 
 impl Difference {
-    /// |replayed − recorded|.
+    /// |replayed − recorded| (NaN when no command came out).
     pub fn by(&self) -> f64 {
         (self.replayed - self.recorded).abs()
+    }
+
+    /// The difference in words: `tau[2] recorded …, replayed …, by …`.
+    pub fn describe(&self) -> String {
+        if self.replayed.is_nan() && !self.recorded.is_nan() {
+            return format!("{} (recorded tau[0] {:e})", self.what, self.recorded);
+        }
+        format!(
+            "{} recorded {:e}, replayed {:e}, by {:e}",
+            self.what,
+            self.recorded,
+            self.replayed,
+            self.by()
+        )
     }
 }
 
@@ -211,10 +225,20 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let mut rows = Vec::new();
     let mut reference = None;
     let mut next = 0u64;
+    // the node's own checks on each state (sequence, period, finite numbers): what it would
+    // have rejected gets no command in replay either
+    let (mut last_seq, mut period) = (None, None);
     while let Some(r) = log.next_record()? {
         report.cycles += 1;
         report.missing += r.cycle.saturating_sub(next);
         next = r.cycle + 1;
+        if ipc_types::check_state(&r.state, G::KIND, last_seq, period).is_err() {
+            if let Some((rec, _)) = &r.command {
+                compare::<M>(&mut report, &r, rec, None);
+            }
+            continue;
+        }
+        (last_seq, period) = (Some(r.state.seq), Some(r.state.control_period));
         // the node builds its reference on the first state, at the plant's period
         let reference = match &mut reference {
             Some(x) => x,
@@ -267,7 +291,7 @@ fn compare<const M: usize>(
     };
     let found = match replayed {
         None => Some(diff(
-            "the law refused the recorded state (no command)".to_owned(),
+            "no command: the controller would reject or refuse this state".to_owned(),
             recorded.tau[0],
             f64::NAN,
         )),

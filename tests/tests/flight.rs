@@ -2,7 +2,9 @@
 //! real processes. Tests run one at a time ([`serial`]).
 
 use pair_tests::{Proc, TempDir, bin, run, serial, summary};
-use plant_sim::flight::{HEADER_BYTES, LOG_FILE, LogReader, RECORD_BYTES, torque_byte_offset};
+use plant_sim::flight::{
+    HEADER_BYTES, LOG_FILE, LogReader, RECORD_BYTES, RECORD_STATE_OFFSET, torque_byte_offset,
+};
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
@@ -172,6 +174,22 @@ fn another_law_is_a_what_if_and_a_flipped_torque_byte_is_caught() {
         "{text}"
     );
     assert!(text.contains("1 differ"), "{text}");
+
+    // a corrupted sequence number (its top byte) is refused as the node refuses it: replay
+    // neither hangs catching up nor panics, and names the cycle
+    let bad = d.join("corrupt-seq");
+    copy_dir(&out, &bad);
+    let log = Path::new(&bad).join(LOG_FILE);
+    let mut bytes = std::fs::read(&log).unwrap();
+    bytes[HEADER_BYTES + 90 * RECORD_BYTES + RECORD_STATE_OFFSET + 8 + 7] ^= 0x40;
+    std::fs::write(&log, bytes).unwrap();
+    let (code, text) = replay(&[&bad]);
+    assert_eq!(code, 1, "{text}");
+    assert!(
+        text.contains("first difference: cycle 90 ") && text.contains("would reject"),
+        "{text}"
+    );
+    assert!(text.contains(" 1 differ"), "{text}");
 }
 
 #[test]
