@@ -31,9 +31,6 @@ CYCLICTEST=$PREFIX/usr/bin/cyclictest
 [[ -x $CYCLICTEST ]] || die "rt-tests did not provide $CYCLICTEST"
 debian_fix_libs "$CYCLICTEST"
 # a wrapper that finds the private libraries (libnuma) the binary may need
-W=$CACHE/bin/cyclictest
-mkdir -p "$CACHE/bin"
-printf '#!/bin/sh\nLD_LIBRARY_PATH=%s${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH} exec %s "$@"\n' "$LIBS" "$CYCLICTEST" >"$W"
-chmod +x "$W"
+W=$(debian_wrapper cyclictest "$CYCLICTEST")
 "$W" --help >/dev/null 2>&1 || [[ $? -le 1 ]] || die "$W does not run"
 echo "$W"

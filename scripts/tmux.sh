@@ -33,9 +33,6 @@ TMUX_BIN=$PREFIX/usr/bin/tmux
 [[ -x $TMUX_BIN ]] || die "the tmux package did not provide $TMUX_BIN"
 debian_fix_libs "$TMUX_BIN"
 # a wrapper that finds the private libraries (libevent, libutempter) the binary may need
-W=$CACHE/bin/tmux
-mkdir -p "$CACHE/bin"
-printf '#!/bin/sh\nLD_LIBRARY_PATH=%s${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH} exec %s "$@"\n' "$LIBS" "$TMUX_BIN" >"$W"
-chmod +x "$W"
+W=$(debian_wrapper tmux "$TMUX_BIN")
 "$W" -V >/dev/null || die "$W does not run"
 echo "$W"

@@ -204,10 +204,10 @@ impl core::fmt::Display for Identity {
     }
 }
 
-/// `text` as NUL-padded bytes, cut at a character boundary to fit.
-pub fn name_bytes(text: &str) -> [u8; NAME_BYTES] {
-    let mut out = [0u8; NAME_BYTES];
-    let mut end = text.len().min(NAME_BYTES);
+/// `text` as `N` NUL-padded bytes, cut at a character boundary to fit.
+pub fn padded_bytes<const N: usize>(text: &str) -> [u8; N] {
+    let mut out = [0u8; N];
+    let mut end = text.len().min(N);
     while !text.is_char_boundary(end) {
         end -= 1;
     }
@@ -215,10 +215,20 @@ pub fn name_bytes(text: &str) -> [u8; NAME_BYTES] {
     out
 }
 
+/// The text of NUL-padded bytes (`"?"` if they are not UTF-8).
+pub fn padded_str<const N: usize>(bytes: &[u8; N]) -> &str {
+    let end = bytes.iter().position(|b| *b == 0).unwrap_or(N);
+    core::str::from_utf8(&bytes[..end]).unwrap_or("?")
+}
+
+/// `text` as NUL-padded name bytes ([`NAME_BYTES`]), cut at a character boundary to fit.
+pub fn name_bytes(text: &str) -> [u8; NAME_BYTES] {
+    padded_bytes(text)
+}
+
 /// The text of NUL-padded name bytes (`"?"` if they are not UTF-8).
 pub fn name_str(bytes: &[u8; NAME_BYTES]) -> &str {
-    let end = bytes.iter().position(|b| *b == 0).unwrap_or(NAME_BYTES);
-    core::str::from_utf8(&bytes[..end]).unwrap_or("?")
+    padded_str(bytes)
 }
 
 impl StateMsg {

@@ -254,6 +254,20 @@ pub(crate) fn entries<T: Slot>(
         .collect()
 }
 
+/// The newest write on any of a board's slots: the largest stamp among the slots that
+/// `stamp` accepts (it returns `None` for a slot never written or of another protocol).
+pub(crate) fn newest<T: Slot>(
+    entries: &[EntryHandle<ipc::Service, u32, T>],
+    stamp: impl Fn(&T) -> Option<u64>,
+) -> Option<T> {
+    entries
+        .iter()
+        .map(|e| *e.get())
+        .filter_map(|m| stamp(&m).map(|s| (s, m)))
+        .max_by_key(|(s, _)| *s)
+        .map(|(_, m)| m)
+}
+
 /// A reader's view of a board's writer slots. The slot that delivered last is read alone at
 /// each poll, so a busy-polling wait reads one entry per poll instead of all of them. Every
 /// slot is read after a wake-up ([`Slots::woken`]), after a message found by such a scan

@@ -5,7 +5,7 @@
 //! was killed takes a free slot, and the reader picks up whichever slot was written last.
 //! Nothing here allocates after `open`.
 
-use crate::iceoryx2::{Slots, board, create_node, entries, free_slot};
+use crate::iceoryx2::{Slots, board, create_node, entries, free_slot, newest};
 use crate::{LinkError, check_run_name, clock};
 use iceoryx2::port::reader::{EntryHandle, Reader};
 use iceoryx2::port::writer::{EntryHandleMut, Writer};
@@ -89,11 +89,9 @@ impl PlanWriter {
 
     /// The plant's newest state on the board (any slot), if it has published one.
     pub fn plant(&self) -> Option<StateMsg> {
-        self.states
-            .iter()
-            .map(|e| *e.get())
-            .filter(|m| m.version == PROTOCOL_VERSION)
-            .max_by_key(|m| m.stamp_ns)
+        newest(&self.states, |m| {
+            (m.version == PROTOCOL_VERSION).then_some(m.stamp_ns)
+        })
     }
 
     /// The writer slot this planner took (0 unless crashed planners hold earlier ones).

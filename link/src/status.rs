@@ -4,7 +4,7 @@
 //! has [`SLOTS`](crate::iceoryx2::SLOTS) writer slots (a plant restarted after a SIGKILL takes
 //! a free one); a reader takes the newest write of any slot.
 
-use crate::iceoryx2::{board, create_node, entries, free_slot};
+use crate::iceoryx2::{board, create_node, entries, free_slot, newest};
 use crate::{LinkError, check_run_name, clock};
 use iceoryx2::port::reader::{EntryHandle, Reader};
 use iceoryx2::port::writer::{EntryHandleMut, Writer};
@@ -89,10 +89,8 @@ impl StatusReader {
 
     /// The newest status of the current protocol on any slot, if one was written.
     pub fn latest(&self) -> Option<StatusMsg> {
-        self.entries
-            .iter()
-            .map(|e| *e.get())
-            .filter(|m| m.version == PROTOCOL_VERSION)
-            .max_by_key(|m| m.stamp_ns)
+        newest(&self.entries, |m| {
+            (m.version == PROTOCOL_VERSION).then_some(m.stamp_ns)
+        })
     }
 }

@@ -15,7 +15,9 @@
 //! reason the loop notices (its end, SIGINT, SIGTERM), [`Recorder::finish`] drains it.
 
 use crate::SimError;
-use ipc_types::{COMMAND_BYTES, CommandMsg, MAX_M, NAME_BYTES, STATE_BYTES, StateMsg, name_bytes};
+use ipc_types::{
+    COMMAND_BYTES, CommandMsg, MAX_M, NAME_BYTES, STATE_BYTES, StateMsg, padded_bytes, padded_str,
+};
 use link::Decision;
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
@@ -88,9 +90,9 @@ impl Header {
         b[41] = u8::from(self.event_wake);
         put(&mut b, 44, &self.miss_limit.to_le_bytes());
         put(&mut b, 48, &self.fingerprint.to_le_bytes());
-        put(&mut b, 56, &text_bytes::<64>(&self.run));
-        put(&mut b, 120, &name_bytes(&self.scenario));
-        put(&mut b, 152, &text_bytes::<16>(&self.law));
+        put(&mut b, 56, &padded_bytes::<64>(&self.run));
+        put(&mut b, 120, &padded_bytes::<NAME_BYTES>(&self.scenario));
+        put(&mut b, 152, &padded_bytes::<16>(&self.law));
         put(&mut b, 168, &self.plant_pid.to_le_bytes());
         b
     }
@@ -122,9 +124,9 @@ impl Header {
             event_wake: b[41] != 0,
             miss_limit: u32_at(b, 44),
             fingerprint: u64_at(b, 48),
-            run: text(&b[56..120]),
-            scenario: text(&b[120..120 + NAME_BYTES]),
-            law: text(&b[152..168]),
+            run: text::<64>(b, 56),
+            scenario: text::<NAME_BYTES>(b, 120),
+            law: text::<16>(b, 152),
             plant_pid: u32_at(b, 168),
         })
     }
@@ -216,17 +218,10 @@ fn f64_at(b: &[u8], at: usize) -> f64 {
     f64::from_bits(u64_at(b, at))
 }
 
-/// `text` in `N` bytes, zero-padded (cut at N bytes).
-fn text_bytes<const N: usize>(text: &str) -> [u8; N] {
-    let mut b = [0u8; N];
-    let n = text.len().min(N);
-    b[..n].copy_from_slice(&text.as_bytes()[..n]);
-    b
-}
-
-fn text(b: &[u8]) -> String {
-    let end = b.iter().position(|&c| c == 0).unwrap_or(b.len());
-    String::from_utf8_lossy(&b[..end]).into_owned()
+/// The NUL-padded text in the `N` bytes at `at`.
+fn text<const N: usize>(b: &[u8], at: usize) -> String {
+    let bytes: [u8; N] = b[at..at + N].try_into().unwrap_or([0; N]);
+    padded_str(&bytes).to_owned()
 }
 
 /// A log opened for reading: its header, then [`LogReader::next_record`] until `None`.
@@ -329,26 +324,21 @@ const POLL: Duration = Duration::from_millis(1);
 
 impl Recorder {
     /// Creates `dir/messages.log`, writes the header and starts the writer thread. The
-    /// channel holds `capacity` records; the file (if `dir` is `Some`) and `sink` get them.
+    /// channel holds `capacity` records; the file and `sink` get them.
     pub fn start(
-        dir: Option<&Path>,
+        dir: &Path,
         header: &Header,
         capacity: usize,
         sink: Option<SinkFactory>,
     ) -> Result<Recorder, SimError> {
-        let path = dir.map(|d| d.join(LOG_FILE)).unwrap_or_default();
-        let out = match dir {
-            Some(_) => {
-                let file = File::create(&path)
-                    .map_err(|e| SimError::Run(format!("cannot create {}: {e}", path.display())))?;
-                let mut w = BufWriter::with_capacity(1 << 16, file);
-                w.write_all(&header.to_bytes())
-                    .and_then(|_| w.flush())
-                    .map_err(|e| SimError::Run(format!("{}: {e}", path.display())))?;
-                Some(w)
-            }
-            None => None,
-        };
+        let path = dir.join(LOG_FILE);
+        let file = File::create(&path)
+            .map_err(|e| SimError::Run(format!("cannot create {}: {e}", path.display())))?;
+        let mut w = BufWriter::with_capacity(1 << 16, file);
+        w.write_all(&header.to_bytes())
+            .and_then(|_| w.flush())
+            .map_err(|e| SimError::Run(format!("{}: {e}", path.display())))?;
+        let out = Some(w);
         let (tx, rx) = sync_channel::<Record>(capacity.max(1));
         let shown = path.display().to_string();
         let thread = std::thread::Builder::new()
@@ -555,7 +545,7 @@ mod tests {
             plant_pid: 1,
         };
         // a small channel: the loop outpaces the writer, pushes are dropped and counted
-        let mut rec = Recorder::start(Some(&dir), &h, 4, None).unwrap();
+        let mut rec = Recorder::start(&dir, &h, 4, None).unwrap();
         let mut pushed = 0;
         for k in 0..2000 {
             rec.push(&record(k, k % 3 != 0));

@@ -23,7 +23,7 @@ const PUBLISH_EVERY_NS: u64 = 50_000_000;
 const WINDOW_NS: u64 = 1_000_000_000;
 
 /// The flight recorder's status publisher for run `run` (opened on the recorder thread).
-pub fn status_sink(run: &str, header: &Header) -> Option<SinkFactory> {
+pub fn status_sink(run: &str, header: &Header) -> SinkFactory {
     let run = run.to_owned();
     let mut msg = StatusMsg::new(
         group_kind(header.group).unwrap_or(controller::GroupKind::So3),
@@ -36,7 +36,7 @@ pub fn status_sink(run: &str, header: &Header) -> Option<SinkFactory> {
     }
     // two seconds of cycles at the nominal rate
     let capacity = ((2.0 / header.control_period) as usize).clamp(1024, 1 << 18);
-    Some(Box::new(move || match StatusWriter::open(&run) {
+    Box::new(move || match StatusWriter::open(&run) {
         Ok(writer) => Some(Box::new(LiveStatus {
             writer,
             msg,
@@ -49,7 +49,7 @@ pub fn status_sink(run: &str, header: &Header) -> Option<SinkFactory> {
             eprintln!("plant_sim: no live status for monitors (recording goes on): {e}");
             None
         }
-    }))
+    })
 }
 
 /// The live figures, kept on the recorder thread.

@@ -425,7 +425,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         };
         let capacity = ((0.5 / self.s.control_period) as usize).clamp(4096, 1 << 16);
         let sink = crate::monitor::status_sink(&opts.run, &header);
-        self.recorder = Some(Recorder::start(Some(&opts.out), &header, capacity, sink)?);
+        self.recorder = Some(Recorder::start(&opts.out, &header, capacity, Some(sink))?);
         Ok(())
     }
 

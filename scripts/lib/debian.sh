@@ -106,6 +106,16 @@ debian_fetch() {
 	((n == 0)) || step "unpacked $n packages into $PREFIX"
 }
 
+# Writes $CACHE/bin/NAME, a wrapper that runs the private binary BIN with the prefix's
+# libraries, and prints its path.
+debian_wrapper() {
+	local w=$CACHE/bin/$1
+	mkdir -p "$CACHE/bin"
+	printf '#!/bin/sh\nLD_LIBRARY_PATH=%s${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH} exec %s "$@"\n' "$LIBS" "$2" >"$w"
+	chmod +x "$w"
+	echo "$w"
+}
+
 # Shared libraries a private binary cannot find.
 debian_missing_libs() { LD_LIBRARY_PATH=$LIBS ldd "$1" 2>/dev/null | sed -n 's/^\s*\(\S*\) => not found.*/\1/p'; }
 

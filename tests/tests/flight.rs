@@ -16,24 +16,13 @@ fn replay(args: &[&str]) -> (i32, String) {
     run("plant_sim", &all, Duration::from_secs(120))
 }
 
-/// A short lockstep run of the seed (exact, fast), recorded into `out`.
-fn lockstep_run(out: &str, name: &str) {
-    let (code, text) = run(
-        "plant_sim",
-        &[
-            "run",
-            "--mode",
-            "lockstep",
-            "--duration",
-            "2",
-            "--name",
-            name,
-            "--out",
-            out,
-        ],
-        Duration::from_secs(60),
-    );
-    assert_eq!(code, 0, "{text}");
+/// A lockstep run of the seed (exact, fast) into `out`, to its end.
+fn lockstep_run(name: &str, out: &str, seconds: &str, extra: &[&str]) {
+    let mut args = vec!["--mode", "lockstep"];
+    args.extend_from_slice(extra);
+    let mut plant = start_run(name, out, seconds, &args);
+    let status = plant.wait_timeout(Duration::from_secs(60));
+    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
 }
 
 fn copy_dir(from: &str, to: &str) {
@@ -54,30 +43,30 @@ fn read_log(dir: &str) -> (Vec<plant_sim::flight::Record>, LogReader) {
     (records, log)
 }
 
-#[test]
-fn a_real_time_run_with_misses_and_safe_mode_replays_bit_for_bit() {
-    let _g = serial();
-    let d = TempDir::new("flight-stop");
-    let out = d.join("run");
-    let mut plant = Proc::start(
-        "plant_sim",
-        &[
-            "run",
-            "--no-spawn",
-            "--duration",
-            "3",
-            "--name",
-            "t-flight-stop",
-            "--out",
-            &out,
-        ],
-    );
-    let ctl = Proc::start("controller_node", &["--name", "t-flight-stop"]);
+/// Starts `plant_sim run --duration SECONDS --name NAME --out OUT EXTRA...` in real time.
+fn start_run(name: &str, out: &str, seconds: &str, extra: &[&str]) -> Proc {
+    let mut args = vec!["run", "--duration", seconds, "--name", name, "--out", out];
+    args.extend_from_slice(extra);
+    Proc::start("plant_sim", &args)
+}
+
+/// Waits until the plant's controller has answered (the run's clock has started).
+fn connected(plant: &Proc) {
     assert!(
         plant.wait_for_line("controller connected", Duration::from_secs(20)),
         "{}",
         plant.output()
     );
+}
+
+#[test]
+fn a_real_time_run_with_misses_and_safe_mode_replays_bit_for_bit() {
+    let _g = serial();
+    let d = TempDir::new("flight-stop");
+    let out = d.join("run");
+    let mut plant = start_run("t-flight-stop", &out, "3", &["--no-spawn"]);
+    let ctl = Proc::start("controller_node", &["--name", "t-flight-stop"]);
+    connected(&plant);
     std::thread::sleep(Duration::from_millis(1000));
     // 20 ms without a controller: deadline misses, then safe mode (3 misses in a row at 1 kHz)
     ctl.signal("STOP");
@@ -123,7 +112,7 @@ fn another_law_is_a_what_if_and_a_flipped_torque_byte_is_caught() {
     let _g = serial();
     let d = TempDir::new("flight-diff");
     let out = d.join("run");
-    lockstep_run(&out, "t-flight-diff");
+    lockstep_run("t-flight-diff", &out, "2", &[]);
     let (code, text) = replay(&[&out]);
     assert_eq!(code, 0, "{text}");
     assert!(text.contains("0 differ"), "{text}");
@@ -198,23 +187,8 @@ fn a_killed_run_replays_up_to_its_last_whole_record_and_an_interrupted_one_is_co
     let d = TempDir::new("flight-kill");
     // SIGKILL mid-run: what reached the file replays
     let out = d.join("killed");
-    let mut plant = Proc::start(
-        "plant_sim",
-        &[
-            "run",
-            "--duration",
-            "30",
-            "--name",
-            "t-flight-kill",
-            "--out",
-            &out,
-        ],
-    );
-    assert!(
-        plant.wait_for_line("controller connected", Duration::from_secs(20)),
-        "{}",
-        plant.output()
-    );
+    let mut plant = start_run("t-flight-kill", &out, "30", &[]);
+    connected(&plant);
     std::thread::sleep(Duration::from_millis(1500));
     plant.kill();
     let (records, log) = read_log(&out);
@@ -245,19 +219,8 @@ fn a_killed_run_replays_up_to_its_last_whole_record_and_an_interrupted_one_is_co
 
     // SIGTERM: the run stops, and its log holds every cycle that ran
     let out = d.join("stopped");
-    let mut plant = Proc::start(
-        "plant_sim",
-        &[
-            "run",
-            "--duration",
-            "30",
-            "--name",
-            "t-flight-term",
-            "--out",
-            &out,
-        ],
-    );
-    assert!(plant.wait_for_line("controller connected", Duration::from_secs(20)));
+    let mut plant = start_run("t-flight-term", &out, "30", &[]);
+    connected(&plant);
     std::thread::sleep(Duration::from_millis(800));
     plant.signal("TERM");
     assert!(plant.wait_timeout(Duration::from_secs(20)).is_some());
@@ -268,23 +231,7 @@ fn a_killed_run_replays_up_to_its_last_whole_record_and_an_interrupted_one_is_co
     assert_eq!(log.trailing_bytes, 0);
     // --no-record: no log, no recorder
     let out = d.join("unrecorded");
-    let (code, text) = run(
-        "plant_sim",
-        &[
-            "run",
-            "--mode",
-            "lockstep",
-            "--duration",
-            "0.5",
-            "--no-record",
-            "--name",
-            "t-flight-none",
-            "--out",
-            &out,
-        ],
-        Duration::from_secs(60),
-    );
-    assert_eq!(code, 0, "{text}");
+    lockstep_run("t-flight-none", &out, "0.5", &["--no-record"]);
     assert!(!Path::new(&out).join(LOG_FILE).exists());
     assert!(summary(Path::new(&out))["recording"].is_null());
 }
@@ -375,19 +322,8 @@ fn the_monitor_shows_the_live_loop_in_a_terminal_and_quits_on_q() {
         &monitor,
     ]);
     let out = d.join("run");
-    let mut plant = Proc::start(
-        "plant_sim",
-        &[
-            "run",
-            "--duration",
-            "8",
-            "--name",
-            "t-flight-mon",
-            "--out",
-            &out,
-        ],
-    );
-    assert!(plant.wait_for_line("controller connected", Duration::from_secs(20)));
+    let mut plant = start_run("t-flight-mon", &out, "8", &[]);
+    connected(&plant);
     // in the run's first second the rate (cycles in the last second) is still climbing
     std::thread::sleep(Duration::from_millis(400));
     let first = t.capture();
