@@ -80,6 +80,12 @@ struct Cli {
     startup_timeout: Duration,
     #[command(flatten)]
     rt: link::rt::RtSettings,
+    /// Write what the real-time settings did (applied, refused with the OS's reason, the
+    /// scheduler and CPUs read back, the pid) as JSON to FILE, before the run starts.
+    /// `plant_sim run` passes it to the controller it starts and records the report in its
+    /// summary.
+    #[arg(long, value_name = "FILE")]
+    rt_report: Option<std::path::PathBuf>,
     /// Transport: iceoryx2, or uds (the Unix-socket baseline of `plant_sim bench-loop`).
     #[arg(long, value_enum, default_value_t = TransportKind::Iceoryx2)]
     transport: TransportKind,
@@ -119,8 +125,17 @@ fn main() -> ExitCode {
         }
     };
     // before the transport starts any thread, so all of them inherit the settings
-    for line in cli.rt.apply().lines() {
+    let rt = cli.rt.apply();
+    for line in rt.lines() {
         eprintln!("controller_node: real-time settings: {line}");
+    }
+    if let Some(path) = &cli.rt_report
+        && let Err(e) = rt.write_json(path)
+    {
+        eprintln!(
+            "controller_node: warning: cannot write the real-time report to {}: {e}",
+            path.display()
+        );
     }
     let opts = Options {
         scenario,

@@ -72,7 +72,7 @@ pub fn parse_cpu_list(text: &str) -> Result<CpuList, String> {
 }
 
 /// One setting the operating system refused, and its reason.
-#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Refused {
     /// `rt-priority`, `cpu` or `lock-memory`.
     pub setting: String,
@@ -81,8 +81,10 @@ pub struct Refused {
 }
 
 /// What [`RtSettings::apply`] did.
-#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct RtReport {
+    /// The process the settings were applied to.
+    pub pid: u32,
     /// Settings in force, e.g. `SCHED_FIFO priority 80`, `cpu 1`, `memory locked`.
     pub applied: Vec<String>,
     /// Settings asked for and refused.
@@ -108,6 +110,22 @@ impl RtReport {
             )
         }));
         v
+    }
+
+    /// Writes the report as JSON to `path` (through a temporary file and a rename, so a
+    /// reader never sees half of it). `controller_node --rt-report FILE` uses it to tell the
+    /// plant that started it what it applied (docs/architecture.md, "Real-time settings").
+    pub fn write_json(&self, path: &std::path::Path) -> std::io::Result<()> {
+        let tmp = path.with_extension("json.part");
+        let text = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
+        std::fs::write(&tmp, text + "\n")?;
+        std::fs::rename(&tmp, path)
+    }
+
+    /// Reads a report written by [`RtReport::write_json`].
+    pub fn read_json(path: &std::path::Path) -> Result<RtReport, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
     }
 }
 
@@ -153,6 +171,22 @@ impl RtSettings {
     /// Whether anything is asked for.
     pub fn any(&self) -> bool {
         self.rt_priority.is_some() || self.cpu.is_some() || self.lock_memory
+    }
+
+    /// The command-line flags that ask another process (a spawned `controller_node`) for
+    /// these settings: `--rt-priority N`, `--cpu LIST`, `--lock-memory`.
+    pub fn args(&self) -> Vec<String> {
+        let mut a = Vec::new();
+        if let Some(p) = self.rt_priority {
+            a.extend(["--rt-priority".to_owned(), p.to_string()]);
+        }
+        if let Some(c) = &self.cpu {
+            a.extend(["--cpu".to_owned(), c.to_string()]);
+        }
+        if self.lock_memory {
+            a.push("--lock-memory".to_owned());
+        }
+        a
     }
 
     /// Applies the settings to the calling thread (threads and child processes started
@@ -226,6 +260,7 @@ impl RtSettings {
             }
         }
         r.applied = applied;
+        r.pid = std::process::id();
         r.cpus_allowed = allowed_cpus();
         r.scheduler = scheduler();
         r
@@ -245,6 +280,38 @@ mod tests {
         assert!(parse_cpu_list("5000").unwrap_err().contains("5000"));
         assert!(parse_cpu_list("").is_err());
         assert_eq!(parse_cpu_list("0,2-3").unwrap().to_string(), "0,2,3");
+    }
+
+    #[test]
+    fn settings_become_flags_and_reports_round_trip_through_json() {
+        let s = RtSettings {
+            rt_priority: Some(80),
+            cpu: Some(CpuList(vec![0, 2, 3])),
+            lock_memory: true,
+        };
+        assert_eq!(
+            s.args(),
+            ["--rt-priority", "80", "--cpu", "0,2,3", "--lock-memory"]
+        );
+        assert!(RtSettings::default().args().is_empty());
+        let r = RtReport {
+            pid: 42,
+            applied: vec!["cpu 0".to_owned()],
+            refused: vec![Refused {
+                setting: "rt-priority".to_owned(),
+                reason: "EPERM: Operation not permitted".to_owned(),
+            }],
+            cpus_allowed: vec![0],
+            scheduler: "SCHED_OTHER".to_owned(),
+        };
+        let dir = std::env::temp_dir().join(format!("rt-json-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("r.json");
+        r.write_json(&path).unwrap();
+        assert_eq!(RtReport::read_json(&path).unwrap(), r);
+        std::fs::write(&path, "{").unwrap();
+        assert!(RtReport::read_json(&path).unwrap_err().contains("r.json"));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -163,6 +163,7 @@ pub fn bench_loop(
                 out: dir,
                 miss_limit: 3,
                 rt: link::rt::RtSettings::default(),
+                controller_rt: link::rt::RtSettings::default(),
                 record_every: 1,
                 lockstep_timeout: Duration::from_secs(5),
                 connect_timeout: Duration::from_secs(10),

@@ -233,6 +233,11 @@ struct RunArgs {
     record_every: u64,
     #[command(flatten)]
     rt: link::rt::RtSettings,
+    /// Pin the controller this command starts to these CPUs (default: `--cpu`'s list, the
+    /// best choice with event wake-up; give busy-polling processes a CPU each).
+    /// `--rt-priority` and `--lock-memory` apply to both processes.
+    #[arg(long, value_name = "LIST", value_parser = link::rt::parse_cpu_list, conflicts_with = "no_spawn")]
+    controller_cpu: Option<link::rt::CpuList>,
     /// Lockstep: seconds to wait for each command.
     #[arg(long, value_name = "S", default_value = "5", value_parser = positive_seconds)]
     lockstep_timeout: Duration,
@@ -476,6 +481,10 @@ fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
             .unwrap_or_else(|| Path::new("out").join(format!("run-{}", args.name))),
         miss_limit: args.miss_limit,
         rt: args.rt.clone(),
+        controller_rt: link::rt::RtSettings {
+            cpu: args.controller_cpu.clone().or_else(|| args.rt.cpu.clone()),
+            ..args.rt.clone()
+        },
         record_every: args.record_every,
         lockstep_timeout: args.lockstep_timeout,
         connect_timeout: args

@@ -90,6 +90,9 @@ pub struct PairOptions {
     /// Real-time settings of the plant process (applied after the controller is spawned,
     /// which therefore does not inherit them).
     pub rt: link::rt::RtSettings,
+    /// Real-time settings passed to the spawned controller (`plant_sim run` gives it the
+    /// plant's priority and memory locking, and `--controller-cpu`, else the plant's CPUs).
+    pub controller_rt: link::rt::RtSettings,
     /// Lockstep: how long to wait for a command.
     pub lockstep_timeout: Duration,
     /// How long to wait for the controller to appear.
@@ -181,15 +184,27 @@ pub struct PairSummary {
     /// Heap allocations the controller reported making after its first cycle (from its last
     /// command).
     pub controller_heap_allocations: Option<u64>,
-    /// The plant's real-time settings: applied, refused (with the OS's reason), and the
-    /// CPUs and scheduler read back.
-    pub realtime: link::rt::RtReport,
+    /// The real-time settings of both processes: applied, refused (with the OS's reason),
+    /// and the CPUs and scheduler read back.
+    pub realtime: Realtime,
     /// The flight recording (`None`: `--no-record`).
     pub recording: Option<RecordingReport>,
     /// Heap allocations made by the plant's loop thread from the end of its first cycle (the
     /// first state published to the connected controller) to the end of the loop (`None`:
     /// not counted).
     pub plant_loop_heap_allocations: Option<u64>,
+}
+
+/// What the real-time settings did in each process (docs/architecture.md, "Real-time
+/// settings").
+#[derive(Debug, Clone, Default, Serialize, PartialEq)]
+pub struct Realtime {
+    /// The plant's own report.
+    pub plant: link::rt::RtReport,
+    /// The report of the controller `plant_sim run` started (`controller_node --rt-report`),
+    /// read when it answered; `None` for a controller started by hand (`--no-spawn`), whose
+    /// settings only it knows.
+    pub controller: Option<link::rt::RtReport>,
 }
 
 fn log(msg: std::fmt::Arguments) {
@@ -289,7 +304,7 @@ struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     recorder: Option<Recorder>,
     t0: u64,
     /// What the real-time settings did.
-    rt: link::rt::RtReport,
+    rt: Realtime,
 }
 
 fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
@@ -301,11 +316,25 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         run.start_recorder()?;
     }
     let mut child = Spawned::start(opts)?;
-    run.rt = opts.rt.apply();
-    for line in run.rt.lines() {
+    run.rt.plant = opts.rt.apply();
+    for line in run.rt.plant.lines() {
         log(format_args!("real-time settings: {line}"));
     }
     let first = run.connect(&mut child)?;
+    // the controller wrote its report before it started its transport, so before it answered
+    if let Some(path) = child.rt_report() {
+        match link::rt::RtReport::read_json(path) {
+            Ok(r) => {
+                for line in r.lines() {
+                    log(format_args!("controller's real-time settings: {line}"));
+                }
+                run.rt.controller = Some(r);
+            }
+            Err(e) => log(format_args!(
+                "warning: the controller's real-time report is missing ({e})"
+            )),
+        }
+    }
     let started = Instant::now();
     let mut pending = Some(first);
     let mut interrupted = None;
@@ -396,7 +425,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             state: StateMsg::new(s.group),
             recorder: None,
             t0: 0,
-            rt: link::rt::RtReport::default(),
+            rt: Realtime::default(),
             s,
         })
     }

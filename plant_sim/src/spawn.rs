@@ -4,18 +4,20 @@
 use crate::SimError;
 use crate::pair::PairOptions;
 use link::TransportKind;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-/// The spawned `controller_node`, if any.
-pub struct Spawned(Option<Child>);
+/// The spawned `controller_node`, if any, and where it writes its real-time report.
+pub struct Spawned(Option<Child>, Option<PathBuf>);
 
 impl Spawned {
     /// Starts `controller_node` from this executable's directory with the run's scenario,
-    /// name and transport (nothing with `--no-spawn`).
+    /// name, transport and the controller's real-time settings; it writes what those did to
+    /// `controller-realtime.json` in the output directory (nothing with `--no-spawn`).
     pub fn start(opts: &PairOptions) -> Result<Spawned, SimError> {
         if !opts.spawn {
-            return Ok(Spawned(None));
+            return Ok(Spawned(None, None));
         }
         let exe = std::env::current_exe()
             .map_err(|e| SimError::Run(format!("cannot locate plant_sim: {e}")))?;
@@ -26,9 +28,15 @@ impl Spawned {
                 path.display()
             )));
         }
+        let report = opts.out.join("controller-realtime.json");
+        // a report left by an earlier run in the same directory must not stand in for this one
+        let _ = std::fs::remove_file(&report);
         let mut cmd = Command::new(&path);
         cmd.args(opts.source.args("seed"))
             .args(["--name", &opts.run])
+            .args(opts.controller_rt.args())
+            .arg("--rt-report")
+            .arg(&report)
             .stdin(Stdio::null());
         if opts.transport == TransportKind::Uds {
             cmd.args(["--transport", "uds"]);
@@ -36,9 +44,16 @@ impl Spawned {
         if let Some(k) = opts.controller_fault_nan_torque {
             cmd.args(["--fault-nan-torque", &k.to_string()]);
         }
-        cmd.spawn()
-            .map(|c| Spawned(Some(c)))
-            .map_err(|e| SimError::Run(format!("cannot start {}: {e}", path.display())))
+        let child = cmd
+            .spawn()
+            .map_err(|e| SimError::Run(format!("cannot start {}: {e}", path.display())))?;
+        eprintln!("plant_sim: started controller_node (pid {})", child.id());
+        Ok(Spawned(Some(child), Some(report)))
+    }
+
+    /// Where the spawned controller writes its real-time report (`None`: not spawned).
+    pub fn rt_report(&self) -> Option<&Path> {
+        self.1.as_deref()
     }
 
     /// Its exit status, if it has exited.
