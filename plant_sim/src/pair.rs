@@ -195,8 +195,8 @@ pub struct PairSummary {
     pub plant_loop_heap_allocations: Option<u64>,
 }
 
-/// What the real-time settings did in each process (docs/architecture.md, "Real-time
-/// settings").
+/// What the real-time settings did in each process
+/// (docs/architecture.md, "Real-time settings").
 #[derive(Debug, Clone, Default, Serialize, PartialEq)]
 pub struct Realtime {
     /// The plant's own report.
