@@ -32,7 +32,12 @@
 #![warn(missing_docs)]
 
 pub mod cli;
+pub mod sensing;
 pub mod waypoints;
+
+pub use sensing::{
+    DirectionSpec, EstimatorKind, EstimatorSpec, GyroSpec, PositionSpec, SensorsSpec,
+};
 
 use controller::group::MatrixLieGroup;
 use controller::group::so3::exp_so3;
@@ -122,6 +127,8 @@ struct RawScenario {
     controller: RawController,
     initial: RawState,
     reference: RawReference,
+    sensors: Option<sensing::RawSensors>,
+    estimator: Option<sensing::RawEstimator>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -288,6 +295,10 @@ pub struct Scenario {
     /// The reference as poses at times (`[reference] waypoints` or `setpoint`); `None`: the
     /// feedforward series. With a path, `reference` is its first pose at rest.
     pub path: Option<PathSpec>,
+    /// `[sensors]`: the simulated sensors (`None`: none are simulated).
+    pub sensors: Option<SensorsSpec>,
+    /// `[estimator]`: what the plant side hands the law (default: the exact state).
+    pub estimator: EstimatorSpec,
 }
 
 impl Scenario {
@@ -801,6 +812,15 @@ impl Validator<'_> {
         let kd = self.gain("controller.kd", &raw.controller.kd, m, "m×m for the group")?;
         let initial = self.state("initial", &raw.initial, group, m)?;
         let (reference, feedforward, path) = self.reference(&raw.reference, group, m)?;
+        let sensors = raw
+            .sensors
+            .as_ref()
+            .map(|r| self.sensors(r, group))
+            .transpose()?;
+        let estimator = match &raw.estimator {
+            None => EstimatorSpec::default(),
+            Some(r) => self.estimator(r, sensors.as_ref(), group)?,
+        };
         Ok(Scenario {
             name: raw.name.unwrap_or_else(|| default_name.to_owned()),
             group,
@@ -819,6 +839,8 @@ impl Validator<'_> {
             reference,
             feedforward,
             path,
+            sensors,
+            estimator,
         })
     }
 

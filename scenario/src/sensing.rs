@@ -1,0 +1,565 @@
+//! `[sensors]` and `[estimator]`: what the simulated board measures and how the plant side
+//! turns it into the state it hands the law (docs/maths.md, "Sensor models" and
+//! "Estimators"). Both tables are optional: without `[estimator]` (or with
+//! `kind = "truth"`) the law sees the exact state, as before they existed.
+
+use crate::{ScenarioError, Validator};
+use controller::GroupKind;
+use serde::Deserialize;
+
+/// At most this many direction sensors (the estimator's fixed capacity).
+pub const MAX_DIRECTIONS: usize = 4;
+
+/// Standard gravity (m/s²); the world's `g = (0, 0, −9.81)`.
+pub const GRAVITY: f64 = 9.81;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawSensors {
+    seed: Option<i64>,
+    gyro: Option<RawGyro>,
+    #[serde(default)]
+    directions: Vec<RawDirection>,
+    accelerometer: Option<RawNoise>,
+    position: Option<RawPosition>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGyro {
+    #[serde(default)]
+    noise: f64,
+    bias: Option<Vec<f64>>,
+    #[serde(default)]
+    bias_walk: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawDirection {
+    world: Vec<f64>,
+    #[serde(default)]
+    noise: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawNoise {
+    #[serde(default)]
+    noise: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPosition {
+    #[serde(default)]
+    noise: f64,
+    rate_hz: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawEstimator {
+    kind: String,
+    kp: Option<f64>,
+    ki: Option<f64>,
+    weights: Option<Vec<f64>>,
+    bias_limit: Option<f64>,
+    accel_gate: Option<f64>,
+    initial_attitude: Option<Vec<f64>>,
+}
+
+/// The gyro: `ω(t_k) + b_k + n`, `n ~ N(0, noise²/h)` per axis, `b_{k+1} = b_k + N(0,
+/// bias_walk²·h)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GyroSpec {
+    /// Rate noise density (rad/s/√Hz).
+    pub noise: f64,
+    /// The bias at t = 0 (rad/s).
+    pub bias: [f64; 3],
+    /// Bias random walk (rad/s²/√Hz).
+    pub bias_walk: f64,
+}
+
+/// A direction sensor: `normalize(Rᵀd + σ n)`, `n ~ N(0, 1)` per axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DirectionSpec {
+    /// The unit world direction `d` (`world` normalised).
+    pub world: [f64; 3],
+    /// `σ`, per axis (unitless).
+    pub noise: f64,
+}
+
+/// A position fix: `x + N(0, noise²)` per axis, at `rate_hz`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionSpec {
+    /// Standard deviation per axis (m).
+    pub noise: f64,
+    /// Fixes per second.
+    pub rate_hz: f64,
+}
+
+/// `[sensors]`: the simulated board's sensors, all drawn from one seeded stream.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorsSpec {
+    /// Seed of the sensors' random stream.
+    pub seed: u64,
+    /// The gyro.
+    pub gyro: GyroSpec,
+    /// Direction sensors, in the list's order.
+    pub directions: Vec<DirectionSpec>,
+    /// SE(3): the accelerometer's noise (m/s² per sample, per axis).
+    pub accelerometer: Option<f64>,
+    /// SE(3): position fixes.
+    pub position: Option<PositionSpec>,
+}
+
+/// Which state the law is handed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EstimatorKind {
+    /// The exact state (today's behaviour; the default).
+    Truth,
+    /// The complementary filter (docs/maths.md, "The complementary filter on SO(3)").
+    Complementary,
+}
+
+impl EstimatorKind {
+    /// The scenario's spelling.
+    pub fn name(self) -> &'static str {
+        match self {
+            EstimatorKind::Truth => "truth",
+            EstimatorKind::Complementary => "complementary",
+        }
+    }
+}
+
+/// `[estimator]`: the filter's kind, gains and guards.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimatorSpec {
+    /// The kind.
+    pub kind: EstimatorKind,
+    /// `k_P` (1/s).
+    pub kp: f64,
+    /// `k_I` (1/s²).
+    pub ki: f64,
+    /// `k_i`, one per direction in the list's order, and on SE(3) one more for the
+    /// accelerometer.
+    pub weights: Vec<f64>,
+    /// Clamp of each bias component (rad/s).
+    pub bias_limit: Option<f64>,
+    /// SE(3): skip the accelerometer as a direction when `| |f| − g |` exceeds this (m/s²).
+    pub accel_gate: Option<f64>,
+    /// The initial attitude estimate (rotation vector); `None`: TRIAD from the first two
+    /// direction samples.
+    pub initial_attitude: Option<[f64; 3]>,
+}
+
+impl EstimatorSpec {
+    /// Whether the law sees an estimate (anything but `truth`).
+    pub fn estimates(&self) -> bool {
+        self.kind != EstimatorKind::Truth
+    }
+}
+
+impl Default for EstimatorSpec {
+    fn default() -> Self {
+        EstimatorSpec {
+            kind: EstimatorKind::Truth,
+            kp: 0.0,
+            ki: 0.0,
+            weights: Vec::new(),
+            bias_limit: None,
+            accel_gate: None,
+            initial_attitude: None,
+        }
+    }
+}
+
+impl Validator<'_> {
+    fn non_negative(&self, key: &str, x: f64) -> Result<f64, ScenarioError> {
+        if !x.is_finite() || x < 0.0 {
+            return Err(self.err(key, format!("must be a finite number ≥ 0, got {x}")));
+        }
+        Ok(x)
+    }
+
+    fn positive(&self, key: &str, x: f64) -> Result<f64, ScenarioError> {
+        if !x.is_finite() || x <= 0.0 {
+            return Err(self.err(key, format!("must be a finite number > 0, got {x}")));
+        }
+        Ok(x)
+    }
+
+    fn three(&self, key: &str, xs: &[f64], why: &str) -> Result<[f64; 3], ScenarioError> {
+        let v = self.vector(key, xs, 3, why)?;
+        Ok([v[0], v[1], v[2]])
+    }
+
+    /// `[sensors]`.
+    pub(crate) fn sensors(
+        &self,
+        raw: &RawSensors,
+        group: GroupKind,
+    ) -> Result<SensorsSpec, ScenarioError> {
+        let seed = match raw.seed {
+            None => 0,
+            Some(s) if s >= 0 => s as u64,
+            Some(s) => return Err(self.err("sensors.seed", format!("must be ≥ 0, got {s}"))),
+        };
+        let gyro = match &raw.gyro {
+            None => GyroSpec {
+                noise: 0.0,
+                bias: [0.0; 3],
+                bias_walk: 0.0,
+            },
+            Some(g) => GyroSpec {
+                noise: self.non_negative("sensors.gyro.noise", g.noise)?,
+                bias: match &g.bias {
+                    None => [0.0; 3],
+                    Some(b) => self.three("sensors.gyro.bias", b, "rad/s per body axis")?,
+                },
+                bias_walk: self.non_negative("sensors.gyro.bias_walk", g.bias_walk)?,
+            },
+        };
+        if raw.directions.len() > MAX_DIRECTIONS {
+            return Err(self.err(
+                "sensors.directions",
+                format!(
+                    "at most {MAX_DIRECTIONS} directions, got {}",
+                    raw.directions.len()
+                ),
+            ));
+        }
+        let mut directions = Vec::new();
+        for (j, d) in raw.directions.iter().enumerate() {
+            let key = format!("sensors.directions[{j}]");
+            let w = self.three(&format!("{key}.world"), &d.world, "a world direction")?;
+            let norm = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+            if norm < 1e-9 {
+                return Err(self.err(&format!("{key}.world"), "a direction must not be zero"));
+            }
+            directions.push(DirectionSpec {
+                world: w.map(|x| x / norm),
+                noise: self.non_negative(&format!("{key}.noise"), d.noise)?,
+            });
+        }
+        let se3_only = |key: &str| {
+            self.err(
+                key,
+                "only se3 scenarios have it (on so3, an accelerometer on a body that does not \
+                 translate is the direction \"up\": list it in `directions`)",
+            )
+        };
+        let accelerometer = match (&raw.accelerometer, group) {
+            (None, _) => None,
+            (Some(_), GroupKind::So3) => return Err(se3_only("sensors.accelerometer")),
+            (Some(a), GroupKind::Se3) => {
+                Some(self.non_negative("sensors.accelerometer.noise", a.noise)?)
+            }
+        };
+        let position = match (&raw.position, group) {
+            (None, _) => None,
+            (Some(_), GroupKind::So3) => return Err(se3_only("sensors.position")),
+            (Some(p), GroupKind::Se3) => Some(PositionSpec {
+                noise: self.non_negative("sensors.position.noise", p.noise)?,
+                rate_hz: self.positive("sensors.position.rate_hz", p.rate_hz)?,
+            }),
+        };
+        Ok(SensorsSpec {
+            seed,
+            gyro,
+            directions,
+            accelerometer,
+            position,
+        })
+    }
+
+    /// `[estimator]`, checked against `[sensors]`.
+    pub(crate) fn estimator(
+        &self,
+        raw: &RawEstimator,
+        sensors: Option<&SensorsSpec>,
+        group: GroupKind,
+    ) -> Result<EstimatorSpec, ScenarioError> {
+        let kind = match raw.kind.as_str() {
+            "truth" => EstimatorKind::Truth,
+            "complementary" => EstimatorKind::Complementary,
+            other => {
+                return Err(self.err(
+                    "estimator.kind",
+                    format!("unknown kind `{other}` (expected truth or complementary)"),
+                ));
+            }
+        };
+        if kind == EstimatorKind::Truth {
+            let extra = [
+                ("kp", raw.kp.is_some()),
+                ("ki", raw.ki.is_some()),
+                ("weights", raw.weights.is_some()),
+                ("bias_limit", raw.bias_limit.is_some()),
+                ("accel_gate", raw.accel_gate.is_some()),
+                ("initial_attitude", raw.initial_attitude.is_some()),
+            ];
+            if let Some((k, _)) = extra.iter().find(|(_, given)| *given) {
+                return Err(self.err(
+                    &format!("estimator.{k}"),
+                    "kind = \"truth\" hands the law the exact state: it takes no gains",
+                ));
+            }
+            return Ok(EstimatorSpec::default());
+        }
+        let sensors = sensors.ok_or_else(|| {
+            self.err(
+                "estimator.kind",
+                "a complementary filter needs a [sensors] table to read",
+            )
+        })?;
+        let accel = usize::from(group == GroupKind::Se3);
+        if group == GroupKind::Se3 {
+            if sensors.accelerometer.is_none() {
+                return Err(self.err(
+                    "sensors.accelerometer",
+                    "missing: on se3 the filter's position and velocity are driven by the \
+                     accelerometer",
+                ));
+            }
+            if sensors.position.is_none() {
+                return Err(self.err(
+                    "sensors.position",
+                    "missing: on se3 the filter's position is corrected by position fixes",
+                ));
+            }
+        }
+        let sources = sensors.directions.len() + accel;
+        if sources < 2 {
+            return Err(self.err(
+                "sensors.directions",
+                format!(
+                    "the filter needs two directions to know the attitude (the accelerometer \
+                     counts as one on se3), got {sources}"
+                ),
+            ));
+        }
+        let kp = self.non_negative("estimator.kp", raw.kp.unwrap_or(1.0))?;
+        let ki = self.non_negative("estimator.ki", raw.ki.unwrap_or(0.3))?;
+        let weights = match &raw.weights {
+            None => vec![1.0; sources],
+            Some(w) => {
+                let why = if accel == 1 {
+                    "one per direction, then one for the accelerometer"
+                } else {
+                    "one per direction"
+                };
+                let w = self.vector("estimator.weights", w, sources, why)?;
+                if let Some(x) = w.iter().find(|x| **x <= 0.0) {
+                    return Err(self.err("estimator.weights", format!("must be > 0, got {x}")));
+                }
+                w
+            }
+        };
+        let bias_limit = raw
+            .bias_limit
+            .map(|x| self.positive("estimator.bias_limit", x))
+            .transpose()?;
+        let accel_gate = match (raw.accel_gate, group) {
+            (None, _) => None,
+            (Some(_), GroupKind::So3) => {
+                return Err(self.err(
+                    "estimator.accel_gate",
+                    "only se3 scenarios have an accelerometer",
+                ));
+            }
+            (Some(x), GroupKind::Se3) => Some(self.positive("estimator.accel_gate", x)?),
+        };
+        let initial_attitude = raw
+            .initial_attitude
+            .as_ref()
+            .map(|r| self.three("estimator.initial_attitude", r, "a rotation vector"))
+            .transpose()?;
+        Ok(EstimatorSpec {
+            kind,
+            kp,
+            ki,
+            weights,
+            bias_limit,
+            accel_gate,
+            initial_attitude,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::Scenario;
+
+    const SO3: &str = r#"
+[sensors]
+seed = 7
+gyro = { noise = 0.002, bias = [0.02, -0.01, 0.03], bias_walk = 1e-5 }
+directions = [ { world = [0.0, 0.0, 2.0], noise = 0.01 }, { world = [0.5, 0.0, 0.866], noise = 0.02 } ]
+
+[estimator]
+kind = "complementary"
+kp = 2.0
+ki = 0.5
+weights = [1.0, 0.5]
+bias_limit = 0.1
+"#;
+
+    fn seed_with(extra: &str) -> Result<Scenario, String> {
+        let text = format!("{}\n{extra}", crate::BUILTINS[0].1);
+        Scenario::from_toml(&text, "test.toml", "test").map_err(|e| e.to_string())
+    }
+
+    fn se3_with(extra: &str) -> Result<Scenario, String> {
+        let text = format!("{}\n{extra}", crate::BUILTINS[2].1);
+        Scenario::from_toml(&text, "test.toml", "test").map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn the_tables_parse_and_directions_are_normalised() {
+        let s = seed_with(SO3).unwrap();
+        let sensors = s.sensors.as_ref().unwrap();
+        assert_eq!(sensors.seed, 7);
+        assert_eq!(sensors.gyro.bias, [0.02, -0.01, 0.03]);
+        assert_eq!(sensors.directions[0].world, [0.0, 0.0, 1.0]);
+        let w = sensors.directions[1].world;
+        assert!(((w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt() - 1.0).abs() < 1e-15);
+        assert_eq!(s.estimator.kind, super::EstimatorKind::Complementary);
+        assert_eq!(s.estimator.weights, vec![1.0, 0.5]);
+        assert_eq!(s.estimator.bias_limit, Some(0.1));
+        // neither table changes what the controller takes
+        let plain = Scenario::builtin("seed").unwrap();
+        assert_eq!(s.fingerprint(), plain.fingerprint());
+        assert!(plain.sensors.is_none() && !plain.estimator.estimates());
+    }
+
+    #[test]
+    fn se3_needs_the_accelerometer_and_fixes_and_weighs_the_accelerometer_last() {
+        let ok = r#"
+[sensors]
+directions = [ { world = [1.0, 0.0, 0.0], noise = 0.01 } ]
+accelerometer = { noise = 0.05 }
+position = { noise = 0.005, rate_hz = 100.0 }
+[estimator]
+kind = "complementary"
+weights = [1.0, 2.0]
+accel_gate = 1.0
+"#;
+        let s = se3_with(ok).unwrap();
+        assert_eq!(s.estimator.weights, vec![1.0, 2.0]);
+        assert_eq!(s.sensors.unwrap().position.unwrap().rate_hz, 100.0);
+        let e =
+            se3_with(&ok.replace("position = { noise = 0.005, rate_hz = 100.0 }", "")).unwrap_err();
+        assert!(e.contains("key `sensors.position`: missing"), "{e}");
+        let e = se3_with(&ok.replace("weights = [1.0, 2.0]", "weights = [1.0]")).unwrap_err();
+        assert!(
+            e.contains("key `estimator.weights`: expected 2 numbers"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn bad_values_name_the_key_and_what_is_wrong() {
+        for (from, to, needle) in [
+            ("seed = 7", "seed = -1", "key `sensors.seed`: must be ≥ 0"),
+            (
+                "noise = 0.002",
+                "noise = -0.002",
+                "key `sensors.gyro.noise`: must be a finite number ≥ 0",
+            ),
+            (
+                "bias_walk = 1e-5",
+                "bias_walk = nan",
+                "key `sensors.gyro.bias_walk`",
+            ),
+            (
+                "bias = [0.02, -0.01, 0.03]",
+                "bias = [0.02, -0.01]",
+                "key `sensors.gyro.bias`: expected 3 numbers",
+            ),
+            (
+                "bias = [0.02, -0.01, 0.03]",
+                "bias = [0.02, -0.01, inf]",
+                "key `sensors.gyro.bias`: entry 2 is not a finite number",
+            ),
+            (
+                "world = [0.0, 0.0, 2.0]",
+                "world = [0.0, 0.0, 0.0]",
+                "key `sensors.directions[0].world`: a direction must not be zero",
+            ),
+            (
+                "noise = 0.02 }",
+                "noise = -1.0 }",
+                "key `sensors.directions[1].noise`",
+            ),
+            (
+                "kind = \"complementary\"",
+                "kind = \"kalman\"",
+                "key `estimator.kind`: unknown kind `kalman`",
+            ),
+            ("kp = 2.0", "kp = -2.0", "key `estimator.kp`"),
+            ("ki = 0.5", "ki = inf", "key `estimator.ki`"),
+            (
+                "weights = [1.0, 0.5]",
+                "weights = [1.0, 0.0]",
+                "key `estimator.weights`: must be > 0",
+            ),
+            (
+                "weights = [1.0, 0.5]",
+                "weights = [1.0, 0.5, 1.0]",
+                "key `estimator.weights`: expected 2 numbers (one per direction)",
+            ),
+            (
+                "bias_limit = 0.1",
+                "bias_limit = 0.0",
+                "key `estimator.bias_limit`",
+            ),
+            (
+                "bias_limit = 0.1",
+                "accel_gate = 1.0",
+                "key `estimator.accel_gate`: only se3",
+            ),
+            (
+                "seed = 7",
+                "seed = 7\naccelerometer = { noise = 0.1 }",
+                "key `sensors.accelerometer`: only se3",
+            ),
+            (
+                "seed = 7",
+                "seed = 7\nposition = { noise = 0.1, rate_hz = 10.0 }",
+                "key `sensors.position`: only se3",
+            ),
+            (
+                "seed = 7",
+                "seed = 7\nmagnetometer = 1",
+                "unknown field `magnetometer`",
+            ),
+            ("kp = 2.0", "kp = 2.0\ngain = 1", "unknown field `gain`"),
+            (
+                "noise = 0.002,",
+                "noise = \"low\",",
+                "invalid type: string \"low\", expected f64",
+            ),
+        ] {
+            assert!(SO3.contains(from), "{from}");
+            let e = seed_with(&SO3.replacen(from, to, 1)).unwrap_err();
+            assert!(e.contains(needle), "{to}: {e}");
+        }
+        // one direction is not enough for an attitude
+        let one = SO3.replace(", { world = [0.5, 0.0, 0.866], noise = 0.02 }", "");
+        let e = seed_with(&one.replace("weights = [1.0, 0.5]", "")).unwrap_err();
+        assert!(
+            e.contains("key `sensors.directions`: the filter needs two"),
+            "{e}"
+        );
+        let five = "directions = [ {world=[1.0,0.0,0.0]}, {world=[0.0,1.0,0.0]}, {world=[0.0,0.0,1.0]}, {world=[1.0,1.0,0.0]}, {world=[0.0,1.0,1.0]} ]";
+        let e = seed_with(&format!("[sensors]\n{five}\n")).unwrap_err();
+        assert!(e.contains("key `sensors.directions`: at most 4"), "{e}");
+        // a filter needs sensors; truth takes no gains
+        let e = seed_with("[estimator]\nkind = \"complementary\"\n").unwrap_err();
+        assert!(e.contains("needs a [sensors] table"), "{e}");
+        let e = seed_with("[estimator]\nkind = \"truth\"\nkp = 1.0\n").unwrap_err();
+        assert!(e.contains("key `estimator.kp`: kind = \"truth\""), "{e}");
+    }
+}
