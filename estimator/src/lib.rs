@@ -1,0 +1,93 @@
+//! # estimator — what a board measures, turned into the state the law needs
+//!
+//! `#![no_std]`, no `alloc`, no `unsafe`; fixed-size nalgebra maths, generic over the scalar
+//! (`f32`, `f64`), with the group maths of the `controller` crate. It is not part of the law:
+//! on a board it runs where the sensors are read (the plant side) and hands the controller
+//! `(Q̂, V̂)` (docs/maths.md, "Estimators").
+//!
+//! | item | what |
+//! |---|---|
+//! | [`triad`] | an attitude from two direction pairs |
+//! | [`ComplementaryFilter`] | Mahony–Hamel–Pflimlin's explicit complementary filter with gyro bias, on SO(3) |
+//! | [`PoseFilter`] | SE(3): the same filter for attitude (the accelerometer one more direction), and a linear Kalman filter for position and velocity |
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+mod complementary;
+mod pose;
+mod triad;
+
+pub use complementary::{AttitudeEstimate, ComplementaryConfig, ComplementaryFilter};
+pub use pose::{PoseConfig, PoseEstimate, PoseFilter, TranslationCovariance};
+pub use triad::triad;
+
+/// At most this many direction sensors (on SE(3) the accelerometer comes on top).
+pub const MAX_DIRECTIONS: usize = 4;
+
+/// Standard gravity (m/s²); the world's gravity is `g = (0, 0, −GRAVITY)`.
+pub const GRAVITY: f64 = 9.81;
+
+/// A direction shorter than this (after a non-finite check) is skipped: it has no direction.
+pub const MIN_DIRECTION_NORM: f64 = 1e-6;
+
+/// What is wrong with a filter's configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EstimatorError {
+    /// A gain or guard is negative, zero where it must not be, or not finite.
+    BadGain(&'static str),
+    /// More directions than [`MAX_DIRECTIONS`], or fewer than the filter needs.
+    DirectionCount {
+        /// Directions given.
+        given: usize,
+        /// The fewest accepted.
+        min: usize,
+        /// The most accepted.
+        max: usize,
+    },
+    /// A world direction is zero or not finite (its index).
+    BadDirection(usize),
+    /// A weight is not finite and positive (its index).
+    BadWeight(usize),
+    /// An initial value is not finite or not a rotation.
+    BadInitialState,
+}
+
+impl core::fmt::Display for EstimatorError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            EstimatorError::BadGain(which) => write!(f, "{which} must be finite and ≥ 0"),
+            EstimatorError::DirectionCount { given, min, max } => {
+                write!(f, "{given} directions given; {min} to {max} accepted")
+            }
+            EstimatorError::BadDirection(i) => write!(f, "direction {i} is zero or not finite"),
+            EstimatorError::BadWeight(i) => write!(f, "weight {i} must be finite and > 0"),
+            EstimatorError::BadInitialState => f.write_str("the initial state is not valid"),
+        }
+    }
+}
+
+/// What the filters skipped, held or clamped, counted since they started.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Faults {
+    /// Gyro samples with a non-finite entry: the step held the previous estimate.
+    pub gyro: u64,
+    /// Direction samples skipped: a non-finite entry, or shorter than
+    /// [`MIN_DIRECTION_NORM`].
+    pub directions: u64,
+    /// SE(3): accelerometer samples not used as a direction because `| |f| − g |` exceeded
+    /// the gate.
+    pub accel_gated: u64,
+    /// SE(3): accelerometer samples with a non-finite entry (position and velocity were
+    /// predicted without acceleration).
+    pub accel: u64,
+    /// SE(3): position fixes with a non-finite entry (skipped).
+    pub position: u64,
+    /// Bias components clamped to the limit.
+    pub bias_clamped: u64,
+}
+
+/// Whether every entry is finite.
+fn all_finite<T: controller::Real, const R: usize>(v: &nalgebra::SVector<T, R>) -> bool {
+    v.iter().all(|x| x.is_finite())
+}
