@@ -56,6 +56,13 @@ pub struct ClosedLoop<T: Real, G, const N: usize, const M: usize, R = Reference<
     plant_substeps: usize,
 }
 
+impl<T: Real, G, const N: usize, const M: usize, R> ClosedLoop<T, G, N, M, R> {
+    /// The constant body-frame disturbance the plant receives on top of the torque.
+    pub fn disturbance(&self) -> &SVector<T, M> {
+        &self.disturbance
+    }
+}
+
 impl<T, G, const N: usize, const M: usize, R> ClosedLoop<T, G, N, M, R>
 where
     T: Real,
@@ -95,11 +102,23 @@ where
 
     /// One control cycle; returns what it saw at `t_k` and the torque it held.
     pub fn step(&mut self) -> Result<Sample<T, N, M>, Error> {
+        let q = *self.plant.configuration();
+        let v = self.plant.velocity();
+        self.step_measured(&q, &v)
+    }
+
+    /// One control cycle with the law handed `(q̂, v̂)` (an estimate of the plant's state at
+    /// `t_k`) instead of the exact state; the sample records the plant's true state.
+    pub fn step_measured(
+        &mut self,
+        q_hat: &SMatrix<T, N, N>,
+        v_hat: &SVector<T, M>,
+    ) -> Result<Sample<T, N, M>, Error> {
         let t = self.reference.time();
         let q = *self.plant.configuration();
         let v = self.plant.velocity();
         let desired = self.reference.desired();
-        let output = self.controller.compute(&q, &v, &desired)?;
+        let output = self.controller.compute(q_hat, v_hat, &desired)?;
         let applied = output.torque + self.disturbance;
         self.plant
             .advance(&applied, self.reference.period(), self.plant_substeps);

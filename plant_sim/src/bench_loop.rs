@@ -164,6 +164,7 @@ pub fn bench_loop(
                 miss_limit: 3,
                 rt: link::rt::RtSettings::default(),
                 controller_rt: link::rt::RtSettings::default(),
+                sample_faults: Vec::new(),
                 record_every: 1,
                 lockstep_timeout: Duration::from_secs(5),
                 connect_timeout: Duration::from_secs(10),

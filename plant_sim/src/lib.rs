@@ -9,6 +9,7 @@
 #![warn(missing_docs)]
 
 pub mod bench_loop;
+pub mod estimation;
 pub mod flight;
 pub mod floors;
 pub mod monitor;
@@ -18,6 +19,7 @@ pub mod pair;
 pub mod plot;
 pub mod reference;
 pub mod replay;
+pub mod sensors;
 pub mod spawn;
 pub mod trajectory;
 

@@ -24,7 +24,6 @@ use plant_sim::montecarlo;
 use plant_sim::output::{Summary, ensure_dir, write_json, write_trajectory_csv};
 use plant_sim::pair::Mode;
 use plant_sim::plot::trajectory_figure;
-use plant_sim::trajectory::simulate;
 use scenario::Scenario;
 use scenario::cli::{ScenarioSource, law_parser, positive_seconds};
 use std::path::{Path, PathBuf};
@@ -253,6 +252,10 @@ struct RunArgs {
     #[cfg(feature = "fault-injection")]
     #[arg(long, value_name = "K", hide = true)]
     fault_nan_torque: Option<u64>,
+    /// Test builds only: K:KIND plants a bad sensor sample at tick K (as `sim`).
+    #[cfg(feature = "fault-injection")]
+    #[arg(long, value_name = "K:KIND", hide = true)]
+    fault_sample: Vec<String>,
 }
 
 #[derive(Args, Default)]
@@ -265,6 +268,11 @@ struct SimArgs {
     /// Output directory (created if needed); default out/<scenario name>.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// Test builds only (feature `fault-injection`): K:KIND plants a bad sensor sample at
+    /// tick K (gyro-nan, gyro-inf, gyro-spike, dir-nan, dir-inf, dir-zero, accel-far).
+    #[cfg(feature = "fault-injection")]
+    #[arg(long, value_name = "K:KIND", hide = true)]
+    fault_sample: Vec<String>,
 }
 
 #[derive(Args)]
@@ -312,7 +320,11 @@ fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
     let out = args.out.unwrap_or_else(|| Path::new("out").join(&s.name));
     ensure_dir(&out)?;
     let bar = progress(s.steps() + 1, &format!("sim {}", s.name));
-    let traj = simulate(&s, &|k| {
+    #[cfg(feature = "fault-injection")]
+    let planted = sample_faults(&args.fault_sample)?;
+    #[cfg(not(feature = "fault-injection"))]
+    let planted = Vec::new();
+    let traj = plant_sim::trajectory::simulate_planted(&s, &planted, &|k| {
         if k % 256 == 0 {
             bar.set_position(k);
             SimError::check(stop)?;
@@ -493,6 +505,10 @@ fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
         state_faults,
         #[cfg(feature = "fault-injection")]
         controller_fault_nan_torque: args.fault_nan_torque,
+        #[cfg(feature = "fault-injection")]
+        sample_faults: sample_faults(&args.fault_sample)?,
+        #[cfg(not(feature = "fault-injection"))]
+        sample_faults: Vec::new(),
         #[cfg(not(feature = "fault-injection"))]
         controller_fault_nan_torque: None,
         stop: stop.clone(),
@@ -583,6 +599,27 @@ fn monitor_cmd(args: MonitorArgs, stop: &StopFlag) -> Result<(), SimError> {
 }
 
 /// The `--fault-state K:KIND` injections (test builds only; empty otherwise).
+/// `--fault-sample K:KIND` (test builds).
+#[cfg(feature = "fault-injection")]
+fn sample_faults(
+    texts: &[String],
+) -> Result<Vec<(u64, plant_sim::sensors::SampleFault)>, SimError> {
+    texts
+        .iter()
+        .map(|text| {
+            let bad = || {
+                SimError::Input(format!(
+                    "--fault-sample: expected K:gyro-nan|gyro-inf|gyro-spike|dir-nan|dir-inf|dir-zero|accel-far, got `{text}`"
+                ))
+            };
+            let (k, kind) = text.split_once(':').ok_or_else(bad)?;
+            let k: u64 = k.parse().map_err(|_| bad())?;
+            let kind = plant_sim::sensors::SampleFault::parse(kind).ok_or_else(bad)?;
+            Ok((k, kind))
+        })
+        .collect()
+}
+
 fn state_faults(
     #[allow(unused_variables)] args: &RunArgs,
 ) -> Result<Vec<(u64, plant_sim::pair::StateFault)>, SimError> {

@@ -34,6 +34,66 @@ pub fn trajectory_header(n: usize, m: usize) -> Vec<String> {
     h
 }
 
+/// The sensor and estimate columns of `trajectory.csv` (after `v_i`): `gyro_i`, `dir{j}_i`
+/// for each direction, on SE(3) `acc_i` and `pos_i`, then `qhat_ij`, `bias_hat_i`, on SE(3)
+/// `xhat_i` and `vhat_i` (world frame), and `estimate_error`.
+pub fn estimate_header(n: usize, directions: usize, se3: bool) -> Vec<String> {
+    let three = |name: &str| -> Vec<String> { (0..3).map(|i| format!("{name}_{i}")).collect() };
+    let mut h: Vec<String> = three("gyro");
+    for j in 0..directions {
+        h.extend(three(&format!("dir{j}")));
+    }
+    if se3 {
+        h.extend(three("acc"));
+        h.extend(three("pos"));
+    }
+    for i in 0..n {
+        for j in 0..n {
+            h.push(format!("qhat_{i}{j}"));
+        }
+    }
+    h.extend(three("bias_hat"));
+    if se3 {
+        h.extend(three("xhat"));
+        h.extend(three("vhat"));
+    }
+    h.push("estimate_error".to_owned());
+    h
+}
+
+/// The values of [`estimate_header`]'s columns for one row (empty `pos_i` on ticks without
+/// a fix).
+fn estimate_fields(e: &crate::trajectory::EstimateRow, n: usize, rec: &mut Vec<String>) {
+    let se3 = n == 4;
+    let s = &e.samples;
+    rec.extend(s.gyro.iter().map(|x| num(*x)));
+    for d in &s.directions[..s.count] {
+        rec.extend(d.iter().map(|x| num(*x)));
+    }
+    if se3 {
+        match s.accel {
+            Some(a) => rec.extend(a.iter().map(|x| num(*x))),
+            None => rec.extend(std::iter::repeat_n(String::new(), 3)),
+        }
+        match s.position {
+            Some(p) => rec.extend(p.iter().map(|x| num(*x))),
+            None => rec.extend(std::iter::repeat_n(String::new(), 3)),
+        }
+    }
+    rec.extend(e.q_hat[..n * n].iter().map(|x| num(*x)));
+    rec.extend(e.bias_hat.iter().map(|x| num(*x)));
+    if se3 {
+        rec.extend((0..3).map(|i| num(e.q_hat[i * 4 + 3])));
+        // world velocity R̂ v̂ from the body twist's linear part
+        rec.extend((0..3).map(|i| {
+            num((0..3)
+                .map(|j| e.q_hat[i * 4 + j] * e.v_hat[3 + j])
+                .sum::<f64>())
+        }));
+    }
+    rec.push(num(e.estimate_error));
+}
+
 fn io(path: &Path) -> impl Fn(std::io::Error) -> SimError + '_ {
     move |e| SimError::Run(format!("cannot write {}: {e}", path.display()))
 }
@@ -48,6 +108,10 @@ pub fn write_trajectory_csv(traj: &Trajectory, path: &Path) -> Result<(), SimErr
     let mut w = csv::Writer::from_path(path).map_err(csv_err(path))?;
     let mut header = trajectory_header(n, m);
     let with_status = !traj.status.is_empty();
+    let directions = traj.estimator.as_ref().map(|e| e.directions);
+    if let Some(d) = directions {
+        header.extend(estimate_header(n, d, n == 4));
+    }
     if with_status {
         header.push("command_status".to_owned());
     }
@@ -69,6 +133,16 @@ pub fn write_trajectory_csv(traj: &Trajectory, path: &Path) -> Result<(), SimErr
         rec.extend(r.tau[..m].iter().map(|x| num(*x)));
         rec.extend(r.q[..n * n].iter().map(|x| num(*x)));
         rec.extend(r.v[..m].iter().map(|x| num(*x)));
+        if directions.is_some() {
+            match &r.estimate {
+                Some(e) => estimate_fields(e, n, &mut rec),
+                None => {
+                    return Err(SimError::Run(format!(
+                        "row {k} of a run with sensors has no samples"
+                    )));
+                }
+            }
+        }
         if with_status {
             rec.push(traj.status.get(k).copied().unwrap_or(0).to_string());
         }
@@ -118,6 +192,9 @@ pub struct Summary {
     pub effort: f64,
     /// First time after which attitude_error stays below 0.1 (null: not settled by T).
     pub settling_time: Option<f64>,
+    /// The sensors and the estimator (absent: none were simulated).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimator: Option<crate::estimation::EstimatorReport>,
 }
 
 impl Summary {
@@ -148,6 +225,7 @@ impl Summary {
                 .fold(0.0, f64::max),
             effort: effort(&traj.rows, traj.control_period, traj.duration),
             settling_time: settling_time(&traj.rows),
+            estimator: traj.estimator.clone(),
         }
     }
 }

@@ -101,6 +101,8 @@ pub struct PairOptions {
     pub state_faults: Vec<(u64, StateFault)>,
     /// Test only: the spawned controller publishes a NaN torque instead of command k.
     pub controller_fault_nan_torque: Option<u64>,
+    /// Test only: faults planted in the sensors' samples at these ticks.
+    pub sample_faults: Vec<(u64, crate::sensors::SampleFault)>,
     /// Set by SIGINT/SIGTERM.
     pub stop: StopFlag,
 }
@@ -305,6 +307,10 @@ struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     t0: u64,
     /// What the real-time settings did.
     rt: Realtime,
+    /// The sensors and the estimator (`None`: the law is handed the exact state).
+    estimation: Option<crate::estimation::Estimation>,
+    /// The samples and estimate of the state published last.
+    estimate: Option<crate::trajectory::EstimateRow>,
 }
 
 fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
@@ -426,6 +432,12 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             recorder: None,
             t0: 0,
             rt: Realtime::default(),
+            estimation: crate::estimation::Estimation::new(
+                &s,
+                s.control_period,
+                &opts.sample_faults,
+            )?,
+            estimate: None,
             s,
         })
     }
@@ -463,7 +475,16 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         let mut msg = self.ep.state_template();
         msg.seq = k;
         msg.t = k as f64 * self.s.control_period;
-        msg.set_state(self.plant.configuration(), &self.plant.velocity());
+        match &mut self.estimation {
+            None => msg.set_state(self.plant.configuration(), &self.plant.velocity()),
+            Some(e) => {
+                // the torque held over the last period, as the in-process simulation has it
+                let held = self.tau + self.s.disturbance_vector::<M>();
+                let (q_hat, v_hat, row) = e.measure(k, &self.plant, &held);
+                msg.set_state(&q_hat, &v_hat);
+                self.estimate = Some(row);
+            }
+        }
         if let Some(&(_, fault)) = self.opts.state_faults.iter().find(|(fk, _)| *fk == k) {
             corrupt(&mut msg, fault, self.s.group);
             log(format_args!(
@@ -632,15 +653,18 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             return;
         }
         let t = controller::real::<f64>(k as f64) * self.s.control_period;
-        self.rows.push(Row::new::<G, N, M>(
-            t,
-            self.plant.configuration(),
-            &self.plant.velocity(),
-            &self.reference.desired(),
-            &self.tau,
-            &self.cfg.inertia,
-            &self.cfg.k,
-        ));
+        self.rows.push(
+            Row::new::<G, N, M>(
+                t,
+                self.plant.configuration(),
+                &self.plant.velocity(),
+                &self.reference.desired(),
+                &self.tau,
+                &self.cfg.inertia,
+                &self.cfg.k,
+            )
+            .with_estimate(self.estimate),
+        );
         if self.realtime() {
             self.status.push(decision.code());
         }
@@ -734,7 +758,9 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         let (opts, s) = (self.opts, &self.s);
         let realtime = self.realtime();
         let cycles = self.cycles;
+        let estimator = self.estimation.as_ref().map(|e| e.report(&self.rows));
         let traj = Trajectory {
+            estimator,
             group: s.group,
             // the spacing of the rows kept (the effort sums over them)
             control_period: s.control_period * opts.record_every.max(1) as f64,

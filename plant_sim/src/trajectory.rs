@@ -34,6 +34,25 @@ pub struct Row {
     pub q: [f64; 16],
     /// Body velocity (first m entries used).
     pub v: [f64; 6],
+    /// The samples and the estimate the law was handed (`None`: the law saw the exact
+    /// state and no sensors were simulated).
+    pub estimate: Option<EstimateRow>,
+}
+
+/// What the sensors read at `t_k` and what the estimator made of it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimateRow {
+    /// The samples.
+    pub samples: crate::sensors::Samples,
+    /// The estimate `Q̂` row-major (first n² entries used; the exact `Q` when the law sees
+    /// the truth).
+    pub q_hat: [f64; 16],
+    /// The estimated body velocity `V̂` (first m entries used).
+    pub v_hat: [f64; 6],
+    /// The estimated gyro bias.
+    pub bias_hat: [f64; 3],
+    /// The attitude angle of `R̂ᵀR` (rad).
+    pub estimate_error: f64,
 }
 
 impl Row {
@@ -86,7 +105,14 @@ impl Row {
             tau,
             q: qq,
             v: vv,
+            estimate: None,
         }
+    }
+
+    /// The row with the sensors' samples and the estimate attached.
+    pub fn with_estimate(mut self, estimate: Option<EstimateRow>) -> Row {
+        self.estimate = estimate;
+        self
     }
 
     /// The row of a closed-loop sample.
@@ -121,6 +147,8 @@ pub struct Trajectory {
     /// Real-time runs: per row, 0 = fresh command, 1 = deadline missed (torque held),
     /// 2 = safe mode. Empty otherwise (and then no `command_status` column is written).
     pub status: Vec<u8>,
+    /// The estimator's report (`None`: no sensors were simulated).
+    pub estimator: Option<crate::estimation::EstimatorReport>,
 }
 
 impl Trajectory {
@@ -136,11 +164,21 @@ pub fn simulate(
     s: &Scenario,
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
 ) -> Result<Trajectory, SimError> {
-    s.group.dispatch(Simulate { s, on_step })
+    simulate_planted(s, &[], on_step)
+}
+
+/// [`simulate`] with faults planted in the sensors' samples (test builds' `--fault-sample`).
+pub fn simulate_planted(
+    s: &Scenario,
+    faults: &[(u64, crate::sensors::SampleFault)],
+    on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
+) -> Result<Trajectory, SimError> {
+    s.group.dispatch(Simulate { s, faults, on_step })
 }
 
 struct Simulate<'a> {
     s: &'a Scenario,
+    faults: &'a [(u64, crate::sensors::SampleFault)],
     on_step: &'a (dyn Fn(u64) -> Result<(), SimError> + Sync),
 }
 
@@ -148,7 +186,7 @@ impl OnGroup for Simulate<'_> {
     type Output = Result<Trajectory, SimError>;
     fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let plant = self.s.plant_body::<G, N, M>().map_err(input(self.s))?;
-        simulate_with::<G, N, M>(self.s, plant, self.on_step)
+        simulate_faulty::<G, N, M>(self.s, plant, self.faults, self.on_step)
     }
 }
 
@@ -162,6 +200,20 @@ pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     plant: RigidBody<f64, G, N, M>,
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
 ) -> Result<Trajectory, SimError> {
+    simulate_faulty::<G, N, M>(s, plant, &[], on_step)
+}
+
+/// [`simulate_with`], with faults planted in the sensors' samples at the given ticks (test
+/// builds' `--fault-sample`). With `[sensors]`, each tick samples the sensors from the true
+/// body, steps the estimator and hands the law its estimate
+/// (docs/architecture.md, "Sensors and the estimator").
+pub fn simulate_faulty<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    s: &Scenario,
+    plant: RigidBody<f64, G, N, M>,
+    faults: &[(u64, crate::sensors::SampleFault)],
+    on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
+) -> Result<Trajectory, SimError> {
+    let mut estimation = crate::estimation::Estimation::new(s, s.control_period, faults)?;
     let controller = s.controller::<G, N, M>().map_err(input(s))?;
     let reference = s.reference_source::<G, N, M>().map_err(input(s))?;
     let mut sim = ClosedLoop::new(controller, reference, plant, s.plant_substeps)
@@ -169,19 +221,28 @@ pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         .map_err(input(s))?;
     let steps = s.steps();
     let mut rows = Vec::with_capacity(steps as usize + 1);
+    let mut held = SVector::<f64, M>::zeros();
     for k in 0..=steps {
         let t = sim.time();
-        let sample = sim
-            .step()
-            .map_err(|e| SimError::Run(format!("closed loop stopped at t = {t} s: {e}")))?;
+        let (sample, estimate) = match &mut estimation {
+            None => (sim.step(), None),
+            Some(e) => {
+                let (q_hat, v_hat, row) = e.measure(k, &sim.plant, &held);
+                (sim.step_measured(&q_hat, &v_hat), Some(row))
+            }
+        };
+        let sample =
+            sample.map_err(|e| SimError::Run(format!("closed loop stopped at t = {t} s: {e}")))?;
+        held = sample.output.torque + sim.disturbance();
         let c = sim.controller.config();
-        rows.push(Row::from_sample::<G, N, M>(&sample, &c.inertia, &c.k));
+        rows.push(Row::from_sample::<G, N, M>(&sample, &c.inertia, &c.k).with_estimate(estimate));
         on_step(k)?;
     }
     Ok(Trajectory {
         group: s.group,
         control_period: s.control_period,
         duration: s.duration,
+        estimator: estimation.as_ref().map(|e| e.report(&rows)),
         rows,
         status: Vec::new(),
     })

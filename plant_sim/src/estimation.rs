@@ -1,0 +1,238 @@
+//! The plant side's estimator: the sensors ([`crate::sensors`]) sampled from the true body at
+//! each tick, the `estimator` crate's filter stepped on them, and the estimate the law is
+//! handed (docs/architecture.md, "Sensors and the estimator"). The same code runs in
+//! `plant_sim sim` and in the plant of the pair, so lockstep equals the simulation bit for
+//! bit.
+
+use crate::SimError;
+use crate::sensors::{SampleFault, Sensors};
+use crate::trajectory::{EstimateRow, Row};
+use controller::group::MatrixLieGroup;
+use controller::group::so3::{exp_so3, log_so3};
+use controller::integrator::RigidBody;
+use estimator::{ComplementaryConfig, ComplementaryFilter, PoseConfig, PoseFilter};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use scenario::{EstimatorKind, Scenario};
+use serde::Serialize;
+
+/// What the filter skipped, held and clamped (`estimator::Faults`).
+#[derive(Debug, Clone, Copy, Default, Serialize, PartialEq, Eq)]
+pub struct FaultCounts {
+    /// Non-finite gyro samples (the estimate was held).
+    pub gyro: u64,
+    /// Direction samples skipped (non-finite or of zero length).
+    pub directions: u64,
+    /// SE(3): accelerometer samples gated out as a direction (the body was accelerating).
+    pub accel_gated: u64,
+    /// SE(3): non-finite accelerometer samples.
+    pub accel: u64,
+    /// SE(3): non-finite position fixes (skipped).
+    pub position: u64,
+    /// Bias components clamped to `bias_limit`.
+    pub bias_clamped: u64,
+}
+
+impl From<&estimator::Faults> for FaultCounts {
+    fn from(f: &estimator::Faults) -> Self {
+        FaultCounts {
+            gyro: f.gyro,
+            directions: f.directions,
+            accel_gated: f.accel_gated,
+            accel: f.accel,
+            position: f.position,
+            bias_clamped: f.bias_clamped,
+        }
+    }
+}
+
+/// `summary.json` → `estimator`: the sensors, the filter, its faults and its error.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct EstimatorReport {
+    /// `truth` or `complementary`.
+    pub kind: String,
+    /// The sensors' seed.
+    pub seed: u64,
+    /// Direction sensors.
+    pub directions: usize,
+    /// What the filter skipped, held and clamped.
+    pub faults: FaultCounts,
+    /// Test builds: faults planted in the samples (`--fault-sample`).
+    pub planted_faults: u64,
+    /// The attitude angle of `R̂ᵀR` at the end (rad).
+    pub final_estimate_error: f64,
+    /// Its root mean square over the rows (rad).
+    pub rms_estimate_error: f64,
+    /// Its largest value (rad).
+    pub max_estimate_error: f64,
+}
+
+enum Filter {
+    Truth,
+    Attitude(ComplementaryFilter<f64>),
+    Pose(PoseFilter<f64>),
+}
+
+/// The sensors and the filter of one run.
+pub struct Estimation {
+    kind: EstimatorKind,
+    seed: u64,
+    sensors: Sensors,
+    filter: Filter,
+    period: f64,
+    faults: Vec<(u64, SampleFault)>,
+    planted: u64,
+}
+
+fn bad(e: estimator::EstimatorError) -> SimError {
+    SimError::Input(format!("[estimator]: {e}"))
+}
+
+impl Estimation {
+    /// The scenario's sensors and estimator at control period `period` (`None`: the
+    /// scenario simulates no sensors, and the law sees the exact state as always).
+    pub fn new(
+        s: &Scenario,
+        period: f64,
+        faults: &[(u64, SampleFault)],
+    ) -> Result<Option<Estimation>, SimError> {
+        let Some(spec) = &s.sensors else {
+            return Ok(None);
+        };
+        let e = &s.estimator;
+        let world: Vec<Vector3<f64>> = spec
+            .directions
+            .iter()
+            .map(|d| Vector3::from(d.world))
+            .collect();
+        let initial = e.initial_attitude.map(|r| exp_so3(&Vector3::from(r)));
+        let filter = match (e.kind, s.group) {
+            (EstimatorKind::Truth, _) => Filter::Truth,
+            (EstimatorKind::Complementary, controller::GroupKind::So3) => {
+                let mut cfg =
+                    ComplementaryConfig::new(e.kp, e.ki, &world, &e.weights).map_err(bad)?;
+                if let Some(l) = e.bias_limit {
+                    cfg = cfg.bias_limit(l).map_err(bad)?;
+                }
+                if let Some(r) = initial {
+                    cfg = cfg.initial_attitude(r).map_err(bad)?;
+                }
+                Filter::Attitude(ComplementaryFilter::new(cfg))
+            }
+            (EstimatorKind::Complementary, controller::GroupKind::Se3) => {
+                let accel = spec.accelerometer.unwrap_or(0.0);
+                let position = spec.position.map_or(0.0, |p| p.noise);
+                let mut cfg = PoseConfig::new(e.kp, e.ki, &world, &e.weights, accel, position)
+                    .map_err(bad)?;
+                if let Some(g) = e.accel_gate {
+                    cfg = cfg.accel_gate(g).map_err(bad)?;
+                }
+                if let Some(l) = e.bias_limit {
+                    cfg.attitude = cfg.attitude.bias_limit(l).map_err(bad)?;
+                }
+                if let Some(r) = initial {
+                    cfg.attitude = cfg.attitude.initial_attitude(r).map_err(bad)?;
+                }
+                Filter::Pose(PoseFilter::new(cfg))
+            }
+        };
+        Ok(Some(Estimation {
+            kind: e.kind,
+            seed: spec.seed,
+            sensors: Sensors::new(spec, period),
+            filter,
+            period,
+            faults: faults.to_vec(),
+            planted: 0,
+        }))
+    }
+
+    /// Tick k: samples the sensors from the true body (`held`: the torque held over the
+    /// previous period, plus the disturbance), steps the filter, and returns the state the
+    /// law is handed and the row's sensor and estimate columns.
+    pub fn measure<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &mut self,
+        k: u64,
+        body: &RigidBody<f64, G, N, M>,
+        held: &SVector<f64, M>,
+    ) -> (SMatrix<f64, N, N>, SVector<f64, M>, EstimateRow) {
+        let mut samples = self.sensors.sample(k, body, held);
+        for (_, fault) in self.faults.iter().filter(|(fk, _)| *fk == k) {
+            fault.apply(&mut samples);
+            self.planted += 1;
+        }
+        let q = *body.configuration();
+        let v = body.velocity();
+        let h = self.period;
+        let dirs = &samples.directions[..samples.count];
+        let (q_hat, v_hat, bias) = match &mut self.filter {
+            Filter::Truth => (q, v, Vector3::zeros()),
+            Filter::Attitude(f) => {
+                let e = f.step(h, &samples.gyro, dirs);
+                (
+                    SMatrix::from_fn(|i, j| e.r[(i, j)]),
+                    SVector::from_fn(|i, _| e.rate[i]),
+                    e.bias,
+                )
+            }
+            Filter::Pose(f) => {
+                let accel = samples.accel.unwrap_or_else(Vector3::zeros);
+                let e = f.step(h, &samples.gyro, dirs, &accel, samples.position.as_ref());
+                let lin = e.body_velocity();
+                (
+                    SMatrix::from_fn(|i, j| match (i, j) {
+                        (3, 3) => 1.0,
+                        (3, _) => 0.0,
+                        (_, 3) => e.x[i],
+                        _ => e.r[(i, j)],
+                    }),
+                    SVector::from_fn(|i, _| if i < 3 { e.rate[i] } else { lin[i - 3] }),
+                    e.bias,
+                )
+            }
+        };
+        let rot = |m: &SMatrix<f64, N, N>| Matrix3::from_fn(|i, j| m[(i, j)]);
+        let estimate_error = log_so3(&(rot(&q_hat).transpose() * rot(&q))).norm();
+        let mut qh = [0.0; 16];
+        let mut vh = [0.0; 6];
+        for i in 0..N {
+            for j in 0..N {
+                qh[i * N + j] = q_hat[(i, j)];
+            }
+        }
+        for i in 0..M {
+            vh[i] = v_hat[i];
+        }
+        let row = EstimateRow {
+            samples,
+            q_hat: qh,
+            v_hat: vh,
+            bias_hat: [bias[0], bias[1], bias[2]],
+            estimate_error,
+        };
+        (q_hat, v_hat, row)
+    }
+
+    /// The report for `summary.json`, with the estimate error over `rows`.
+    pub fn report(&self, rows: &[Row]) -> EstimatorReport {
+        let errors: Vec<f64> = rows
+            .iter()
+            .filter_map(|r| r.estimate.map(|e| e.estimate_error))
+            .collect();
+        let n = errors.len().max(1) as f64;
+        let faults = match &self.filter {
+            Filter::Truth => FaultCounts::default(),
+            Filter::Attitude(f) => f.faults().into(),
+            Filter::Pose(f) => f.faults().into(),
+        };
+        EstimatorReport {
+            kind: self.kind.name().to_owned(),
+            seed: self.seed,
+            directions: self.sensors.directions(),
+            faults,
+            planted_faults: self.planted,
+            final_estimate_error: errors.last().copied().unwrap_or(f64::NAN),
+            rms_estimate_error: (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt(),
+            max_estimate_error: errors.iter().copied().fold(0.0, f64::max),
+        }
+    }
+}

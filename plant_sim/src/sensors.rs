@@ -1,0 +1,184 @@
+//! The simulated board's sensors (docs/maths.md, "Sensor models"): a gyro with a drifting
+//! bias, direction sensors, and on SE(3) an accelerometer and position fixes, sampled at every
+//! control tick `t_k` from the true state, from one seeded ChaCha8 stream.
+//!
+//! The numbers are drawn in a fixed order at each tick — gyro noise (3), each direction's
+//! noise (3 each, in the list's order), the accelerometer's (3), the position fix's (3, only
+//! on a tick that takes a fix), then the bias walk (3) — so the plant of the pair and the
+//! in-process simulation draw the same numbers.
+
+use controller::group::MatrixLieGroup;
+use controller::integrator::RigidBody;
+use nalgebra::{Matrix3, Matrix6, SVector, Vector3, Vector6};
+use rand_chacha::ChaCha8Rng;
+use rand_chacha::rand_core::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+use scenario::SensorsSpec;
+use scenario::sensing::{GRAVITY, MAX_DIRECTIONS};
+
+/// One tick's samples, as the board would read them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Samples {
+    /// The gyro: body rate plus bias plus noise (rad/s).
+    pub gyro: Vector3<f64>,
+    /// Direction samples in the body frame (the first `count` used).
+    pub directions: [Vector3<f64>; MAX_DIRECTIONS],
+    /// How many directions.
+    pub count: usize,
+    /// SE(3): the body-frame specific force `Rᵀ(ẍ − g)` plus noise (m/s²).
+    pub accel: Option<Vector3<f64>>,
+    /// SE(3): a position fix, on ticks that take one.
+    pub position: Option<Vector3<f64>>,
+    /// The true gyro bias at this tick (rad/s).
+    pub bias: Vector3<f64>,
+}
+
+/// Test-build faults planted in a tick's samples (`plant_sim --fault-sample K:KIND`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleFault {
+    /// A NaN in the gyro.
+    GyroNan,
+    /// An infinite gyro entry.
+    GyroInf,
+    /// A gyro spike of 100 rad/s on every axis.
+    GyroSpike,
+    /// A NaN in the first direction.
+    DirectionNan,
+    /// An infinite entry in the first direction.
+    DirectionInf,
+    /// The first direction of zero length.
+    DirectionZero,
+    /// An accelerometer sample far from `g` (10 g straight up in the body frame).
+    AccelFar,
+}
+
+impl SampleFault {
+    /// The name on the command line.
+    pub fn parse(text: &str) -> Option<SampleFault> {
+        Some(match text {
+            "gyro-nan" => SampleFault::GyroNan,
+            "gyro-inf" => SampleFault::GyroInf,
+            "gyro-spike" => SampleFault::GyroSpike,
+            "dir-nan" => SampleFault::DirectionNan,
+            "dir-inf" => SampleFault::DirectionInf,
+            "dir-zero" => SampleFault::DirectionZero,
+            "accel-far" => SampleFault::AccelFar,
+            _ => return None,
+        })
+    }
+
+    /// Plants the fault.
+    pub fn apply(self, s: &mut Samples) {
+        match self {
+            SampleFault::GyroNan => s.gyro[1] = f64::NAN,
+            SampleFault::GyroInf => s.gyro[0] = f64::INFINITY,
+            SampleFault::GyroSpike => s.gyro += Vector3::repeat(100.0),
+            SampleFault::DirectionNan => s.directions[0][2] = f64::NAN,
+            SampleFault::DirectionInf => s.directions[0][0] = f64::NEG_INFINITY,
+            SampleFault::DirectionZero => s.directions[0] = Vector3::zeros(),
+            SampleFault::AccelFar => {
+                if let Some(a) = &mut s.accel {
+                    *a = Vector3::new(0.0, 0.0, 10.0 * GRAVITY);
+                }
+            }
+        }
+    }
+}
+
+/// The sensors of one run.
+#[derive(Debug, Clone)]
+pub struct Sensors {
+    spec: SensorsSpec,
+    rng: ChaCha8Rng,
+    bias: Vector3<f64>,
+    period: f64,
+    /// The next position fix is due at `next_fix · (1/rate_hz)`.
+    next_fix: u64,
+}
+
+impl Sensors {
+    /// The sensors of `spec`, sampled every `period` seconds.
+    pub fn new(spec: &SensorsSpec, period: f64) -> Sensors {
+        Sensors {
+            rng: ChaCha8Rng::seed_from_u64(spec.seed),
+            bias: Vector3::from(spec.gyro.bias),
+            spec: spec.clone(),
+            period,
+            next_fix: 0,
+        }
+    }
+
+    fn normal3(&mut self, sigma: f64) -> Vector3<f64> {
+        let n: [f64; 3] = std::array::from_fn(|_| StandardNormal.sample(&mut self.rng));
+        Vector3::from(n) * sigma
+    }
+
+    /// How many direction sensors.
+    pub fn directions(&self) -> usize {
+        self.spec.directions.len()
+    }
+
+    /// The samples at tick `k` from the true body. `torque` is what the plant held over the
+    /// previous period (command plus disturbance; zero at k = 0): the accelerometer at `t_k`
+    /// sees the acceleration it causes at `t_k`.
+    pub fn sample<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &mut self,
+        k: u64,
+        body: &RigidBody<f64, G, N, M>,
+        torque: &SVector<f64, M>,
+    ) -> Samples {
+        let q = body.configuration();
+        let v = body.velocity();
+        let r = Matrix3::from_fn(|i, j| q[(i, j)]);
+        let omega = Vector3::new(v[0], v[1], v[2]);
+        let h = self.period;
+        let gyro_sigma = self.spec.gyro.noise / h.sqrt();
+        let gyro = omega + self.bias + self.normal3(gyro_sigma);
+        let mut directions = [Vector3::zeros(); MAX_DIRECTIONS];
+        let specs = self.spec.directions.clone();
+        for (j, d) in specs.iter().enumerate() {
+            let body_dir = r.tr_mul(&Vector3::from(d.world)) + self.normal3(d.noise);
+            let n = body_dir.norm();
+            directions[j] = if n > 0.0 { body_dir / n } else { body_dir };
+        }
+        let accel = self.spec.accelerometer.map(|sigma| {
+            // the specific force f = Rᵀ(ẍ − g) = ω × v + v̇ − Rᵀg, with v̇ from the
+            // Euler–Poincaré equations İV = ad_Vᵀ I V + τ (the body velocity's linear part)
+            let p = body.state().p;
+            let p_dot = G::ad(&v).tr_mul(&p) + torque;
+            let (i6, p6) = (
+                Matrix6::from_fn(|i, j| body.inertia()[(i, j)]),
+                Vector6::from_fn(|i, _| p_dot[i]),
+            );
+            let v_dot = i6.lu().solve(&p6).unwrap_or_else(Vector6::zeros);
+            let lin = Vector3::new(v[3], v[4], v[5]);
+            let lin_dot = Vector3::new(v_dot[3], v_dot[4], v_dot[5]);
+            let g = Vector3::new(0.0, 0.0, -GRAVITY);
+            omega.cross(&lin) + lin_dot - r.tr_mul(&g) + self.normal3(sigma)
+        });
+        let position = match self.spec.position {
+            Some(p) if k as f64 * h + 1e-9 * h >= self.next_fix as f64 / p.rate_hz => {
+                // the fix taken at or before this tick arrives now; later ones are due at
+                // their own times
+                while self.next_fix as f64 / p.rate_hz <= k as f64 * h + 1e-9 * h {
+                    self.next_fix += 1;
+                }
+                let x = Vector3::new(q[(0, 3)], q[(1, 3)], q[(2, 3)]);
+                Some(x + self.normal3(p.noise))
+            }
+            _ => None,
+        };
+        let bias = self.bias;
+        let walk = self.spec.gyro.bias_walk * h.sqrt();
+        let step = self.normal3(walk);
+        self.bias += step;
+        Samples {
+            gyro,
+            directions,
+            count: specs.len(),
+            accel,
+            position,
+            bias,
+        }
+    }
+}

@@ -1,0 +1,240 @@
+//! The loop closed on what a board measures: simulated sensors, the complementary filter on
+//! the plant side, driven through the real binaries (docs/architecture.md, "Sensors and the
+//! estimator"). Tests run one at a time ([`serial`]).
+
+use pair_tests::{Csv, TempDir, run, serial, summary};
+use std::path::Path;
+use std::time::Duration;
+
+const LONG: Duration = Duration::from_secs(120);
+
+fn scenario(name: &str) -> String {
+    format!("{}/../scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn plant(args: &[&str]) -> (i32, String) {
+    run("plant_sim", args, LONG)
+}
+
+#[test]
+fn lockstep_with_sensors_and_the_filter_equals_the_simulation_bit_for_bit() {
+    let _g = serial();
+    let d = TempDir::new("sensors-lockstep");
+    for name in ["sensors_so3", "sensors_se3"] {
+        let file = scenario(name);
+        let (sim, pair) = (
+            d.join(&format!("{name}-sim")),
+            d.join(&format!("{name}-pair")),
+        );
+        let (code, out) = plant(&["sim", "--scenario", &file, "--out", &sim]);
+        assert_eq!(code, 0, "{out}");
+        let run_name = format!("t-{name}");
+        let (code, out) = plant(&[
+            "run",
+            "--scenario",
+            &file,
+            "--mode",
+            "lockstep",
+            "--name",
+            &run_name,
+            "--out",
+            &pair,
+        ]);
+        assert_eq!(code, 0, "{out}");
+        let a = std::fs::read(format!("{sim}/trajectory.csv")).unwrap();
+        let b = std::fs::read(format!("{pair}/trajectory.csv")).unwrap();
+        assert!(
+            a == b,
+            "{name}: the lockstep pair differs from the simulation"
+        );
+        // the estimate is what crossed the wire; the samples and the estimate are recorded
+        let csv = Csv::read(&Path::new(&sim).join("trajectory.csv"));
+        for col in [
+            "gyro_0",
+            "dir0_2",
+            "qhat_00",
+            "bias_hat_2",
+            "estimate_error",
+        ] {
+            assert!(csv.header.iter().any(|h| h == col), "{name}: no {col}");
+        }
+        if name == "sensors_se3" {
+            for col in ["acc_2", "pos_0", "xhat_1", "vhat_2"] {
+                assert!(csv.header.iter().any(|h| h == col), "{name}: no {col}");
+            }
+        }
+        let s = summary(Path::new(&sim));
+        assert_eq!(s["estimator"]["kind"], "complementary", "{s}");
+        assert_eq!(summary(Path::new(&pair))["estimator"], s["estimator"]);
+    }
+}
+
+#[test]
+fn a_real_time_run_with_sensors_replays_bit_for_bit() {
+    let _g = serial();
+    let d = TempDir::new("sensors-replay");
+    let out = d.join("run");
+    let file = scenario("sensors_so3");
+    let (code, text) = plant(&[
+        "run",
+        "--scenario",
+        &file,
+        "--duration",
+        "2",
+        "--name",
+        "t-sensors-rt",
+        "--out",
+        &out,
+    ]);
+    assert_eq!(code, 0, "{text}");
+    let s = summary(Path::new(&out));
+    let cycles = s["cycles"].as_u64().unwrap();
+    assert!(cycles >= 2000, "{s}");
+    assert_eq!(s["estimator"]["kind"], "complementary", "{s}");
+    let (code, text) = run("plant_sim", &["replay", &out], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(" 0 differ"), "{text}");
+    assert!(
+        text.contains(&format!("replayed {cycles} cycles")),
+        "{text}"
+    );
+}
+
+/// Every number of `path`'s columns except the raw samples (which record what the sensor
+/// gave, NaN included) is finite.
+fn finite_except_samples(path: &str) -> usize {
+    let csv = Csv::read(&Path::new(path).join("trajectory.csv"));
+    let raw = |h: &str| {
+        h.starts_with("gyro_")
+            || h.starts_with("dir")
+            || h.starts_with("acc_")
+            || h.starts_with("pos_")
+    };
+    let mut checked = 0;
+    for h in csv.header.iter().filter(|h| !raw(h)) {
+        for x in csv.col(h) {
+            assert!(x.is_finite(), "{path}: {h} = {x}");
+            checked += 1;
+        }
+    }
+    checked
+}
+
+#[test]
+fn bad_samples_are_counted_and_nothing_the_law_sees_or_does_is_nan() {
+    let _g = serial();
+    let d = TempDir::new("sensors-faults");
+    let so3 = d.join("so3");
+    let faults = [
+        "100:gyro-nan",
+        "101:gyro-inf",
+        "102:gyro-spike",
+        "103:dir-nan",
+        "104:dir-inf",
+        "105:dir-zero",
+        "300:gyro-nan",
+        "300:dir-zero",
+    ];
+    let mut args = vec!["sim", "--scenario"];
+    let file = scenario("sensors_so3");
+    args.push(&file);
+    args.extend(["--out", &so3]);
+    for f in &faults {
+        args.extend(["--fault-sample", f]);
+    }
+    let (code, out) = plant(&args);
+    assert_eq!(code, 0, "the run completes:\n{out}");
+    let s = summary(Path::new(&so3));
+    let f = &s["estimator"]["faults"];
+    assert_eq!(f["gyro"], 3, "{s}");
+    assert_eq!(f["directions"], 4, "{s}");
+    assert_eq!(s["estimator"]["planted_faults"], 8, "{s}");
+    assert!(finite_except_samples(&so3) > 50_000);
+    // the planted samples are in the record as they came
+    let csv = Csv::read(&Path::new(&so3).join("trajectory.csv"));
+    assert!(csv.col("gyro_1")[100].is_nan());
+    assert_eq!(csv.col("dir0_0")[105], 0.0);
+
+    // SE(3): the accelerometer far from g is gated out as a direction, a NaN one predicts
+    // without acceleration; the same run through the pair in lockstep counts the same
+    let se3 = d.join("se3");
+    let pair = d.join("se3-pair");
+    let file = scenario("sensors_se3");
+    let planted = ["50:accel-far", "51:accel-far", "52:gyro-nan", "53:dir-inf"];
+    for (cmd, dir) in [("sim", &se3), ("run", &pair)] {
+        let mut args = vec![cmd, "--scenario", &file, "--out", dir];
+        if cmd == "run" {
+            args.extend(["--mode", "lockstep", "--name", "t-sensors-faults"]);
+        }
+        for f in &planted {
+            args.extend(["--fault-sample", f]);
+        }
+        let (code, out) = plant(&args);
+        assert_eq!(code, 0, "{cmd}: {out}");
+    }
+    let s = summary(Path::new(&se3));
+    let f = &s["estimator"]["faults"];
+    assert!(f["accel_gated"].as_u64().unwrap() >= 2, "{s}");
+    assert_eq!(
+        (f["gyro"].as_u64(), f["directions"].as_u64()),
+        (Some(1), Some(1)),
+        "{s}"
+    );
+    finite_except_samples(&se3);
+    assert_eq!(summary(Path::new(&pair))["estimator"], s["estimator"]);
+    assert_eq!(
+        std::fs::read(format!("{se3}/trajectory.csv")).unwrap(),
+        std::fs::read(format!("{pair}/trajectory.csv")).unwrap()
+    );
+}
+
+#[test]
+fn bad_sensor_and_estimator_keys_exit_2_naming_the_key() {
+    let d = TempDir::new("sensors-bad");
+    let base = std::fs::read_to_string(scenario("sensors_so3")).unwrap();
+    for (from, to, needle) in [
+        ("seed = 7", "seed = -7", "key `sensors.seed`"),
+        (
+            "noise = 0.002",
+            "noise = -0.002",
+            "key `sensors.gyro.noise`",
+        ),
+        (
+            "world = [0.0, 0.0, 1.0]",
+            "world = [0.0, 0.0, 0.0]",
+            "key `sensors.directions[0].world`",
+        ),
+        (
+            "kind = \"complementary\"",
+            "kind = \"ekf\"",
+            "key `estimator.kind`",
+        ),
+        (
+            "weights = [1.0, 1.0]",
+            "weights = [1.0]",
+            "key `estimator.weights`",
+        ),
+        (
+            "bias_limit = 0.2",
+            "bias_limit = -1.0",
+            "key `estimator.bias_limit`",
+        ),
+        ("kp = 1.0", "kp = 1.0\nspeed = 3", "unknown field `speed`"),
+    ] {
+        assert!(base.contains(from), "{from}");
+        let path = d.join("bad.toml");
+        std::fs::write(&path, base.replacen(from, to, 1)).unwrap();
+        for args in [
+            vec!["sim", "--scenario", &path],
+            vec!["run", "--scenario", &path, "--name", "t-sensors-bad"],
+        ] {
+            let (code, out) = plant(&args);
+            assert_eq!(code, 2, "{to}: {out}");
+            assert!(out.contains(needle), "{to}: {out}");
+        }
+    }
+    // and the test-build flag names what it accepts
+    let (code, out) = plant(&["sim", "--fault-sample", "3:gyro-fire"]);
+    assert_eq!(code, 2, "{out}");
+    assert!(out.contains("--fault-sample: expected K:gyro-nan"), "{out}");
+}
