@@ -68,8 +68,8 @@ pub struct EstimatorReport {
 
 enum Filter {
     Truth,
-    Attitude(ComplementaryFilter<f64>),
-    Pose(PoseFilter<f64>),
+    Attitude(Box<ComplementaryFilter<f64>>),
+    Pose(Box<PoseFilter<f64>>),
 }
 
 /// The sensors and the filter of one run.
@@ -116,7 +116,7 @@ impl Estimation {
                 if let Some(r) = initial {
                     cfg = cfg.initial_attitude(r).map_err(bad)?;
                 }
-                Filter::Attitude(ComplementaryFilter::new(cfg))
+                Filter::Attitude(Box::new(ComplementaryFilter::new(cfg)))
             }
             (EstimatorKind::Complementary, controller::GroupKind::Se3) => {
                 let accel = spec.accelerometer.unwrap_or(0.0);
@@ -132,7 +132,7 @@ impl Estimation {
                 if let Some(r) = initial {
                     cfg.attitude = cfg.attitude.initial_attitude(r).map_err(bad)?;
                 }
-                Filter::Pose(PoseFilter::new(cfg))
+                Filter::Pose(Box::new(PoseFilter::new(cfg)))
             }
         };
         Ok(Some(Estimation {

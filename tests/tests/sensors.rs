@@ -1,6 +1,6 @@
 //! The loop closed on what a board measures: simulated sensors, the complementary filter on
-//! the plant side, driven through the real binaries (docs/architecture.md, "Sensors and the
-//! estimator"). Tests run one at a time ([`serial`]).
+//! the plant side, driven through the real binaries
+//! (docs/architecture.md, "Sensors and the estimator"). Tests run one at a time ([`serial`]).
 
 use pair_tests::{Csv, TempDir, run, serial, summary};
 use std::path::Path;
