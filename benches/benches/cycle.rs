@@ -142,6 +142,109 @@ fn steps<T: Real>(c: &mut Criterion, scalar: &str) {
     }
 }
 
+/// One estimator step on exact samples of a body at rest, after the filter has started (the
+/// complementary filter with two directions; the SE(3) pose filter with one direction, the
+/// accelerometer and a position fix).
+fn estimators<T: Real>(c: &mut Criterion, scalar: &str) {
+    use estimator::{ComplementaryConfig, ComplementaryFilter, PoseConfig, PoseFilter};
+    let w = [Vector3::z(), Vector3::new(1.0, 0.0, 0.2).map(real::<T>)];
+    let (q, ..) = so3_generic::<T>();
+    let y = [q.tr_mul(&w[0]), q.tr_mul(&w[1].normalize())];
+    let gyro = Vector3::new(0.02, -0.01, 0.03).map(real::<T>);
+    let f_up = q.tr_mul(&Vector3::new(0.0, 0.0, 9.81).map(real::<T>));
+    let x = Vector3::new(1.0, 2.0, 3.0).map(real::<T>);
+    let h = real::<T>(0.001);
+    let Ok(cc) = ComplementaryConfig::new(real(2.0), real(1.0), &w, &[T::one(), T::one()]) else {
+        return;
+    };
+    let Ok(pc) = PoseConfig::new(
+        real(2.0),
+        real(1.0),
+        &w[1..],
+        &[T::one(), T::one()],
+        real(0.05),
+        real(0.01),
+    ) else {
+        return;
+    };
+    let mut g = c.benchmark_group("estimator_step");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function(format!("so3/{scalar}"), |b| {
+        b.iter_batched_ref(
+            || {
+                let mut f = ComplementaryFilter::new(cc);
+                f.step(h, &gyro, &y);
+                f
+            },
+            |f| f.step(black_box(h), black_box(&gyro), black_box(&y)),
+            BatchSize::SmallInput,
+        )
+    });
+    g.bench_function(format!("se3/{scalar}"), |b| {
+        b.iter_batched_ref(
+            || {
+                let mut f = PoseFilter::new(pc);
+                f.step(h, &gyro, &y[1..], &f_up, Some(&x));
+                f
+            },
+            |f| {
+                f.step(
+                    black_box(h),
+                    black_box(&gyro),
+                    black_box(&y[1..]),
+                    black_box(&f_up),
+                    Some(&x),
+                )
+            },
+            BatchSize::SmallInput,
+        )
+    });
+    g.finish();
+}
+
+/// The plant side's whole cycle in the simulator with `sensors_so3`'s sensors and filter:
+/// sample the sensors from the true body, step the filter, integrate the body over one 1 ms
+/// period (10 RKMK4 substeps) — against the same integration alone (the exact state).
+fn plant_side(c: &mut Criterion) {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/sensors_so3.toml");
+    let Ok(s) = scenario::Scenario::from_file(std::path::Path::new(path)) else {
+        return;
+    };
+    let Ok(body) = s.plant_body::<So3, 3, 3>() else {
+        return;
+    };
+    let tau = Vector3::new(0.3, -0.2, 0.1);
+    let mut g = c.benchmark_group("plant_side_cycle");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("so3/f64/truth", |b| {
+        b.iter_batched_ref(
+            || body,
+            |p| p.advance(black_box(&tau), 0.001, 10),
+            BatchSize::SmallInput,
+        )
+    });
+    g.bench_function("so3/f64/complementary", |b| {
+        b.iter_batched_ref(
+            || {
+                let mut e = plant_sim::estimation::Estimation::new(&s, 0.001, &[])
+                    .ok()
+                    .flatten()
+                    .expect("sensors_so3 has sensors");
+                e.measure(0, &body, &tau);
+                (e, body, 1u64)
+            },
+            |(e, p, k)| {
+                let out = e.measure(*k, p, &tau);
+                p.advance(black_box(&tau), 0.001, 10);
+                *k += 1;
+                out.0
+            },
+            BatchSize::SmallInput,
+        )
+    });
+    g.finish();
+}
+
 fn baseline(c: &mut Criterion) {
     let x = so3_input::<f64>();
     let mut g = c.benchmark_group("plain_nalgebra_eqt");
@@ -156,6 +259,9 @@ fn all(c: &mut Criterion) {
     baseline(c);
     steps::<f64>(c, "f64");
     steps::<f32>(c, "f32");
+    estimators::<f64>(c, "f64");
+    estimators::<f32>(c, "f32");
+    plant_side(c);
 }
 
 criterion_group!(benches, all);

@@ -172,7 +172,7 @@ pub fn trajectory_figure(traj: &Trajectory, title: &str, stem: &Path) -> Result<
             points,
         }],
     };
-    let panels = [
+    let mut panels = vec![
         panel("Lyapunov function L", "L", series(|r| r.lyapunov)),
         panel(
             "Configuration error ‖Q_E − I‖_F",
@@ -185,5 +185,25 @@ pub fn trajectory_figure(traj: &Trajectory, title: &str, stem: &Path) -> Result<
             series(|r| r.momentum_error),
         ),
     ];
-    render(stem, title, &panels, 1, (1000, 1100))
+    if traj.estimator.is_some() {
+        // the tracking error of the true state beside the estimate's own error
+        panels.push(Panel {
+            title: "Attitude: tracking error of the true state, and estimate error ∠(R̂ᵀR)".to_owned(),
+            y_label: "rad".to_owned(),
+            lines: vec![
+                Line {
+                    label: "tracking ‖I − R_dᵀR‖_F (true state)".to_owned(),
+                    color: blue,
+                    points: series(|r| r.attitude_error),
+                },
+                Line {
+                    label: "estimate error".to_owned(),
+                    color: law_color("gt"),
+                    points: series(|r| r.estimate.map_or(f64::NAN, |e| e.estimate_error)),
+                },
+            ],
+        });
+    }
+    let height = 1100 * panels.len() as u32 / 3;
+    render(stem, title, &panels, 1, (1000, height))
 }

@@ -11,6 +11,8 @@
 //! | 4 → 5 | `Controller::compute`, SE(3) EqT (the generic law), f32 |
 //! | 6 → 7 | one controller cycle: reference `desired()`, `compute`, reference `advance()` with 1 RKMK4 substep |
 //! | 8 → 9 | the same with the seed's 10 substeps |
+//! | 10 → 11 | one complementary-filter step (`estimator`), two directions, f32 |
+//! | 12 → 13 | one pose-filter step (SE(3): one direction, the accelerometer, a position fix), f32 |
 
 use controller::Trajectory;
 use core::hint::black_box;
@@ -64,6 +66,47 @@ pub fn run() -> bool {
         icount_mark(first + 1);
         finite(r.map_or(f32::NAN, |o| o.torque.norm()));
     }
+    // the estimators, started and converged on a body at rest before the measured step
+    let w = [
+        nalgebra::Vector3::z(),
+        nalgebra::Vector3::new(1.0f32, 0.0, 0.2),
+    ];
+    let r = c.q;
+    let y = [r.tr_mul(&w[0]), r.tr_mul(&w[1].normalize())];
+    let gyro = nalgebra::Vector3::new(0.02f32, -0.01, 0.03);
+    let f_up = r.tr_mul(&nalgebra::Vector3::new(0.0, 0.0, 9.81f32));
+    let x = nalgebra::Vector3::new(1.0f32, 2.0, 3.0);
+    let (Ok(cc), Ok(pc)) = (
+        estimator::ComplementaryConfig::new(2.0f32, 1.0, &w, &[1.0, 1.0]),
+        estimator::PoseConfig::new(2.0f32, 1.0, &w[1..], &[1.0, 1.0], 0.05, 0.01),
+    ) else {
+        hprintln!("ERR icount - estimator construction failed");
+        return false;
+    };
+    let mut cf = estimator::ComplementaryFilter::new(cc);
+    let mut pf = estimator::PoseFilter::new(pc);
+    for _ in 0..10 {
+        cf.step(0.01, &gyro, &y);
+        pf.step(0.01, &gyro, &y[1..], &f_up, Some(&x));
+    }
+    let (mut cf, mut pf, y) = (black_box(cf), black_box(pf), black_box(y));
+
+    icount_mark(10);
+    let e = black_box(cf.step(black_box(0.01), black_box(&gyro), black_box(&y)));
+    icount_mark(11);
+    finite(e.r.norm() + e.rate.norm());
+
+    icount_mark(12);
+    let e = black_box(pf.step(
+        black_box(0.01),
+        black_box(&gyro),
+        black_box(&y[1..]),
+        black_box(&f_up),
+        black_box(Some(&x)),
+    ));
+    icount_mark(13);
+    finite(e.r.norm() + e.x.norm());
+
     hprintln!("ICOUNT done {}", ok);
     ok
 }

@@ -125,9 +125,44 @@ fn ipc_check() -> bool {
     ok && nan && cmd && names && round_trip
 }
 
+/// The estimators without std: the complementary filter and the pose filter converge on
+/// exact samples of a body at rest from a TRIAD start, and skip a NaN sample.
+fn estimator_check<T: Real>() -> bool {
+    use estimator::{ComplementaryConfig, ComplementaryFilter, PoseConfig, PoseFilter};
+    let w = [Vector3::z(), Vector3::new(real(1.0), real(0.0), real(0.2))];
+    let r = So3::exp(&Vector3::new(real::<T>(0.3), real(-0.4), real(0.2)));
+    let y = [r.tr_mul(&w[0]), r.tr_mul(&w[1].normalize())];
+    let b = Vector3::new(real::<T>(0.02), real(-0.01), real(0.03));
+    let Ok(cfg) = ComplementaryConfig::new(real(2.0), real(1.0), &w, &[T::one(), T::one()]) else {
+        return false;
+    };
+    let mut f = ComplementaryFilter::new(cfg);
+    let mut e = f.step(real(0.01), &b, &y);
+    for _ in 0..3000 {
+        e = f.step(real(0.01), &b, &y);
+    }
+    let nan = Vector3::new(real::<T>(f64::NAN), T::zero(), T::zero());
+    let held = f.step(real(0.01), &nan, &y) == e && f.faults().gyro == 1;
+    let attitude = (e.r - r).norm() < real(1e-3) && (e.bias - b).norm() < real(1e-3);
+    let Ok(pc) = PoseConfig::new(real(2.0), real(1.0), &w[1..], &[T::one(), T::one()], real(0.05), real(0.01)) else {
+        return false;
+    };
+    let mut p = PoseFilter::new(pc);
+    let f_up = r.tr_mul(&Vector3::new(T::zero(), T::zero(), real(9.81)));
+    let x = Vector3::new(real::<T>(1.0), real(2.0), real(3.0));
+    let mut pe = p.step(real(0.01), &b, &y[1..], &f_up, Some(&x));
+    for _ in 0..3000 {
+        pe = p.step(real(0.01), &b, &y[1..], &f_up, Some(&x));
+    }
+    let pose = (pe.x - x).norm() < real(1e-3) && (pe.r - r).norm() < real(1e-3);
+    held && attitude && pose
+}
+
 /// Runs every check; 0 when all hold.
 fn run() -> i32 {
-    let checks: [(&str, bool); 8] = [
+    let checks: [(&str, bool); 10] = [
+        ("estimator f32", estimator_check::<f32>()),
+        ("estimator f64", estimator_check::<f64>()),
         ("ipc_types messages", ipc_check()),
         ("so3 eqt f32", so3_check::<f32>(Law::Eqt)),
         ("so3 eqt f64", so3_check::<f64>(Law::Eqt)),
@@ -147,7 +182,7 @@ fn run() -> i32 {
         }
     }
     rt::write(if code == 0 {
-        b"nostd-check: controller and ipc_types run with no std, no alloc, no allocator\n"
+        b"nostd-check: controller, estimator and ipc_types run with no std, no alloc, no allocator\n"
     } else {
         b"nostd-check: FAILED\n"
     });
