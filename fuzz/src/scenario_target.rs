@@ -18,7 +18,10 @@ const CYCLES: usize = 3;
 const SUBSTEP_BUDGET: usize = 2_000;
 
 /// Hand-written valid scenarios that reach the optional keys the built-ins leave out.
-const EXTRA_SEEDS: [&str; 3] = [
+const EXTRA_SEEDS: [&str; 5] = [
+    // `[sensors]` and `[estimator]` on both groups
+    include_str!("../../scenarios/sensors_so3.toml"),
+    include_str!("../../scenarios/sensors_se3.toml"),
     r#"name = "so3_everything"
 group = "so3"
 law = "gt"

@@ -188,7 +188,8 @@ pub fn trajectory_figure(traj: &Trajectory, title: &str, stem: &Path) -> Result<
     if traj.estimator.is_some() {
         // the tracking error of the true state beside the estimate's own error
         panels.push(Panel {
-            title: "Attitude: tracking error of the true state, and estimate error ∠(R̂ᵀR)".to_owned(),
+            title: "Attitude: tracking error of the true state, and estimate error ∠(R̂ᵀR)"
+                .to_owned(),
             y_label: "rad".to_owned(),
             lines: vec![
                 Line {
