@@ -2,15 +2,20 @@
 //! Pflimlin, "Nonlinear complementary filters on the special orthogonal group", IEEE TAC
 //! 53(5), 2008 (docs/maths.md, "The complementary filter on SO(3)").
 
-use crate::{EstimatorError, Faults, MAX_DIRECTIONS, MIN_DIRECTION_NORM, all_finite, triad};
+use crate::{EstimatorError, Faults, MAX_DIRECTIONS, StateEstimate, all_finite, direction, triad};
 use controller::group::so3::exp_so3;
 use controller::{Real, real};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// Direction slots: the sensors' directions and, on SE(3), the accelerometer.
 pub(crate) const SLOTS: usize = MAX_DIRECTIONS + 1;
 
 /// Gains, directions and guards of a [`ComplementaryFilter`].
+///
+/// Build it with [`ComplementaryConfig::new`] and the builder methods, which check every
+/// value. The fields are public to be read; a configuration whose fields were written
+/// directly is checked again by [`ComplementaryConfig::check`] (and
+/// [`ComplementaryFilter::try_new`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ComplementaryConfig<T: Real> {
     /// `k_P` (1/s): how hard the directions pull the attitude.
@@ -34,6 +39,12 @@ pub struct ComplementaryConfig<T: Real> {
 impl<T: Real> ComplementaryConfig<T> {
     /// Gains `k_P`, `k_I`, world directions (normalised here) and their weights, at least two
     /// and at most [`MAX_DIRECTIONS`]; no bias limit, TRIAD start, zero initial bias.
+    ///
+    /// Errors: [`EstimatorError::BadGain`] (`"kp"`, `"ki"`: negative or not finite),
+    /// [`EstimatorError::DirectionCount`], [`EstimatorError::WeightCount`] (one weight per
+    /// direction), [`EstimatorError::BadDirection`] (shorter than
+    /// [`MIN_DIRECTION_NORM`](crate::MIN_DIRECTION_NORM), or not finite),
+    /// [`EstimatorError::BadWeight`] (not finite and positive).
     pub fn new(kp: T, ki: T, world: &[Vector3<T>], weights: &[T]) -> Result<Self, EstimatorError> {
         Self::with_slots(kp, ki, world, weights, MAX_DIRECTIONS)
     }
@@ -51,11 +62,17 @@ impl<T: Real> ComplementaryConfig<T> {
         if !ki.is_finite() || ki < T::zero() {
             return Err(EstimatorError::BadGain("ki"));
         }
-        if world.len() < 2 || world.len() > max || weights.len() != world.len() {
+        if world.len() < 2 || world.len() > max {
             return Err(EstimatorError::DirectionCount {
-                given: world.len().max(weights.len()),
+                given: world.len(),
                 min: 2,
                 max,
+            });
+        }
+        if weights.len() != world.len() {
+            return Err(EstimatorError::WeightCount {
+                expected: world.len(),
+                given: weights.len(),
             });
         }
         let mut cfg = ComplementaryConfig {
@@ -69,14 +86,13 @@ impl<T: Real> ComplementaryConfig<T> {
             initial_bias: Vector3::zeros(),
         };
         for (i, (d, w)) in world.iter().zip(weights).enumerate() {
-            let n = d.norm();
-            if !all_finite(d) || n < real(MIN_DIRECTION_NORM) {
+            let Some((unit, _)) = direction(d) else {
                 return Err(EstimatorError::BadDirection(i));
-            }
+            };
             if !w.is_finite() || *w <= T::zero() {
                 return Err(EstimatorError::BadWeight(i));
             }
-            cfg.world[i] = d / n;
+            cfg.world[i] = unit;
             cfg.weights[i] = *w;
         }
         Ok(cfg)
@@ -109,9 +125,39 @@ impl<T: Real> ComplementaryConfig<T> {
         self.initial_bias = b;
         Ok(self)
     }
+
+    /// Checks again a configuration whose public fields may have been written directly, and
+    /// normalises its world directions: the same checks as [`ComplementaryConfig::new`] and
+    /// the builder methods, with up to `MAX_DIRECTIONS + 1` directions (the SE(3) filter's
+    /// accelerometer takes the last slot).
+    pub fn check(self) -> Result<Self, EstimatorError> {
+        let n = self.count;
+        if !(2..=SLOTS).contains(&n) {
+            return Err(EstimatorError::DirectionCount {
+                given: n,
+                min: 2,
+                max: SLOTS,
+            });
+        }
+        let mut c = Self::with_slots(
+            self.kp,
+            self.ki,
+            &self.world[..n],
+            &self.weights[..n],
+            SLOTS,
+        )?;
+        if let Some(l) = self.bias_limit {
+            c = c.bias_limit(l)?;
+        }
+        if let Some(r) = self.initial_attitude {
+            c = c.initial_attitude(r)?;
+        }
+        c.initial_bias(self.initial_bias)
+    }
 }
 
-/// What the filter publishes at a tick.
+/// What the filter publishes at a tick: `Q̂ = R̂`, `V̂ = ω − b̂` ([`StateEstimate`] on
+/// SO(3)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AttitudeEstimate<T: Real> {
     /// `R̂_k` (identity until the filter has started).
@@ -123,6 +169,15 @@ pub struct AttitudeEstimate<T: Real> {
     /// False until the filter has an attitude (TRIAD needs two usable, non-parallel
     /// directions).
     pub started: bool,
+}
+
+impl<T: Real> StateEstimate<T, 3, 3> for AttitudeEstimate<T> {
+    fn q_hat(&self) -> SMatrix<T, 3, 3> {
+        self.r
+    }
+    fn v_hat(&self) -> SVector<T, 3> {
+        self.rate
+    }
 }
 
 /// The filter's state: `R̂`, `b̂`, and what it has counted.
@@ -137,8 +192,11 @@ pub struct ComplementaryFilter<T: Real> {
 pub(crate) type Directions<T> = [Option<Vector3<T>>; SLOTS];
 
 impl<T: Real> ComplementaryFilter<T> {
-    /// A filter that starts at its first step.
-    pub fn new(cfg: ComplementaryConfig<T>) -> Self {
+    /// A filter that starts at its first step. `cfg` is used as it is (from the checked
+    /// constructors it is valid; never a panic either way: a `count` beyond the capacity is
+    /// cut to it). [`ComplementaryFilter::try_new`] checks it first.
+    pub fn new(mut cfg: ComplementaryConfig<T>) -> Self {
+        cfg.count = cfg.count.min(SLOTS);
         ComplementaryFilter {
             estimate: AttitudeEstimate {
                 r: Matrix3::identity(),
@@ -149,6 +207,11 @@ impl<T: Real> ComplementaryFilter<T> {
             cfg,
             faults: Faults::default(),
         }
+    }
+
+    /// A filter on a configuration checked again first ([`ComplementaryConfig::check`]).
+    pub fn try_new(cfg: ComplementaryConfig<T>) -> Result<Self, EstimatorError> {
+        Ok(Self::new(cfg.check()?))
     }
 
     /// The configuration.
@@ -171,14 +234,11 @@ impl<T: Real> ComplementaryFilter<T> {
     }
 
     /// Checks and normalises the first `n` direction samples (`directions[i]` for world
-    /// direction `i`; missing ones count as skipped).
+    /// direction `i`; missing ones count as skipped, extra ones are ignored).
     pub(crate) fn usable(&mut self, directions: &[Vector3<T>], n: usize) -> Directions<T> {
         let mut out = [None; SLOTS];
         for (i, slot) in out.iter_mut().enumerate().take(n) {
-            *slot = directions.get(i).and_then(|y| {
-                let n = y.norm();
-                (all_finite(y) && n >= real(MIN_DIRECTION_NORM)).then(|| y / n)
-            });
+            *slot = directions.get(i).and_then(|y| direction(y).map(|(u, _)| u));
             if slot.is_none() {
                 self.faults.directions += 1;
             }
@@ -196,10 +256,22 @@ impl<T: Real> ComplementaryFilter<T> {
     /// b̂_k = b̂_{k−1} − h k_I ω_mes
     /// ```
     ///
-    /// publishing `R̂_k` and `ω_k − b̂_k`. The first step starts the filter instead (the given
-    /// attitude, or TRIAD). A direction with a non-finite entry or of zero length is skipped;
-    /// a non-finite gyro sample holds the previous estimate; both are counted. The estimate
-    /// is never non-finite.
+    /// publishing `R̂_k` and `ω_k − b̂_k`, then re-orthonormalising `R̂_k`
+    /// (docs/maths.md, "The complementary filter on SO(3)").
+    ///
+    /// The first step starts the filter instead and publishes without propagating: `R̂_0` is
+    /// the configured attitude, or TRIAD from the first two usable, non-parallel directions
+    /// (in list order), and `b̂_0` the configured initial bias. If TRIAD has no such pair the
+    /// filter has not started: it publishes the identity with `started == false` (and
+    /// `ω_k − b̂_0`) and tries again at the next call.
+    ///
+    /// Guards, each counted in [`Faults`]: a direction with a non-finite entry, a length
+    /// that overflows or shorter than [`MIN_DIRECTION_NORM`](crate::MIN_DIRECTION_NORM) (or
+    /// missing from `directions`) is skipped for this tick; a gyro sample with a non-finite
+    /// entry holds the previous estimate; so does a period `h` that is not finite and
+    /// positive, or an update that comes out non-finite; with a bias limit each bias
+    /// component is clamped to it. The estimate is never non-finite and the call never
+    /// panics.
     pub fn step(
         &mut self,
         h: T,
@@ -223,12 +295,17 @@ impl<T: Real> ComplementaryFilter<T> {
         }
         if !self.estimate.started {
             self.start(y);
-            if gyro_ok {
-                self.estimate.rate = gyro - self.estimate.bias;
+            let rate = gyro - self.estimate.bias;
+            if all_finite(&rate) {
+                self.estimate.rate = rate;
             }
             return self.estimate;
         }
-        if !gyro_ok || !h.is_finite() || h <= T::zero() {
+        if !gyro_ok {
+            return self.estimate;
+        }
+        if !h.is_finite() || h <= T::zero() {
+            self.faults.held += 1;
             return self.estimate;
         }
         let (r, b) = (self.estimate.r, self.estimate.bias);
@@ -242,25 +319,30 @@ impl<T: Real> ComplementaryFilter<T> {
         let step = (gyro - b + w_mes * self.cfg.kp) * h;
         let r_next = orthonormalise(&(r * exp_so3(&step)));
         let mut b_next = b - w_mes * (h * self.cfg.ki);
+        let mut clamped = 0;
         if let Some(l) = self.cfg.bias_limit {
             for x in b_next.iter_mut() {
                 if *x > l || *x < -l {
                     *x = x.clamp(-l, l);
-                    self.faults.bias_clamped += 1;
+                    clamped += 1;
                 }
             }
         }
-        // the samples were checked, so this holds unless they were huge; never publish less
-        if r_next.iter().all(|x| x.is_finite()) && all_finite(&b_next) {
+        let rate = gyro - b_next;
+        // the samples were checked, so this holds unless they were huge: never publish less
+        if r_next.iter().all(|x| x.is_finite()) && all_finite(&b_next) && all_finite(&rate) {
             self.estimate.r = r_next;
             self.estimate.bias = b_next;
-            self.estimate.rate = gyro - b_next;
+            self.estimate.rate = rate;
+            self.faults.bias_clamped += clamped;
+        } else {
+            self.faults.held += 1;
         }
         self.estimate
     }
 
     /// Starts from the configured attitude, or TRIAD from the first two usable,
-    /// non-parallel directions (in order).
+    /// non-parallel directions (in order; docs/maths.md, "TRIAD").
     fn start(&mut self, y: &Directions<T>) {
         if let Some(r) = self.cfg.initial_attitude {
             self.estimate.r = r;
@@ -282,8 +364,9 @@ impl<T: Real> ComplementaryFilter<T> {
     }
 }
 
-/// The nearest-by-Gram–Schmidt rotation to `r` (columns 0 and 1 orthonormalised, the third
-/// their cross product): keeps `R̂` a rotation in f32 over millions of steps.
+/// Gram–Schmidt on `r`'s first two columns, the third their cross product: a rotation within
+/// rounding of `r` when `r` is within rounding of one. Keeps `R̂` a rotation over millions of
+/// steps (docs/maths.md, "The complementary filter on SO(3)").
 pub(crate) fn orthonormalise<T: Real>(r: &Matrix3<T>) -> Matrix3<T> {
     let c0 = r.column(0).into_owned();
     let c0 = c0 / c0.norm();
@@ -291,4 +374,43 @@ pub(crate) fn orthonormalise<T: Real>(r: &Matrix3<T>) -> Matrix3<T> {
     let c1 = c1 - c0 * c0.dot(&c1);
     let c1 = c1 / c1.norm();
     Matrix3::from_columns(&[c0, c1, c0.cross(&c1)])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use controller::group::so3::exp_so3;
+
+    #[test]
+    fn orthonormalise_keeps_a_rotation_and_repairs_a_perturbed_one() {
+        let r = exp_so3(&Vector3::new(0.3, -1.2, 2.0));
+        // a rotation comes back within rounding (measured 1.0e-15)
+        let e = (orthonormalise(&r) - r).norm();
+        assert!(e < 1e-14, "{e}");
+        // a perturbed one comes back a rotation, within the perturbation
+        let p = r + Matrix3::from_fn(|i, j| 1e-4 * ((i * 3 + j) as f64 - 4.0));
+        let q = orthonormalise(&p);
+        assert!((q.transpose() * q - Matrix3::identity()).norm() < 1e-15);
+        assert!((q.determinant() - 1.0).abs() < 1e-15);
+        assert!((q - r).norm() < 1e-3);
+    }
+
+    #[test]
+    fn a_direction_is_unit_or_refused() {
+        let (u, n) = crate::direction(&Vector3::new(3.0, 0.0, 4.0)).unwrap();
+        assert_eq!((u, n), (Vector3::new(0.6, 0.0, 0.8), 5.0));
+        for bad in [
+            Vector3::zeros(),
+            Vector3::new(0.0, 1e-7, 0.0),
+            Vector3::new(f64::NAN, 1.0, 0.0),
+            Vector3::new(0.0, f64::NEG_INFINITY, 0.0),
+            Vector3::repeat(1e200),
+        ] {
+            assert!(crate::direction(&bad).is_none(), "{bad}");
+        }
+        assert!(
+            crate::direction(&Vector3::repeat(1e20f32)).is_none(),
+            "f32 overflow"
+        );
+    }
 }

@@ -10,6 +10,10 @@
 //! | [`triad`] | an attitude from two direction pairs |
 //! | [`ComplementaryFilter`] | Mahony–Hamel–Pflimlin's explicit complementary filter with gyro bias, on SO(3) |
 //! | [`PoseFilter`] | SE(3): the same filter for attitude (the accelerometer one more direction), and a linear Kalman filter for position and velocity |
+//! | [`StateEstimate`] | an estimate as the controller's `(Q̂, V̂)`: `(SMatrix<T, N, N>, SVector<T, M>)` |
+//!
+//! Bad samples never make a filter panic or publish a non-finite estimate: they are skipped
+//! or the previous estimate is held, and each is counted in [`Faults`].
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -19,8 +23,10 @@ mod pose;
 mod triad;
 
 pub use complementary::{AttitudeEstimate, ComplementaryConfig, ComplementaryFilter};
-pub use pose::{PoseConfig, PoseEstimate, PoseFilter, TranslationCovariance};
+pub use pose::{MIN_VARIANCE, PoseConfig, PoseEstimate, PoseFilter, TranslationCovariance};
 pub use triad::triad;
+
+use nalgebra::{SMatrix, SVector};
 
 /// At most this many direction sensors (on SE(3) the accelerometer comes on top).
 pub const MAX_DIRECTIONS: usize = 4;
@@ -36,7 +42,7 @@ pub const MIN_DIRECTION_NORM: f64 = 1e-6;
 pub enum EstimatorError {
     /// A gain or guard is negative, zero where it must not be, or not finite.
     BadGain(&'static str),
-    /// More directions than [`MAX_DIRECTIONS`], or fewer than the filter needs.
+    /// More world directions than [`MAX_DIRECTIONS`], or fewer than the filter needs.
     DirectionCount {
         /// Directions given.
         given: usize,
@@ -44,6 +50,14 @@ pub enum EstimatorError {
         min: usize,
         /// The most accepted.
         max: usize,
+    },
+    /// Not as many weights as the filter needs (one per world direction, and on SE(3) one
+    /// more, last, for the accelerometer).
+    WeightCount {
+        /// Weights needed.
+        expected: usize,
+        /// Weights given.
+        given: usize,
     },
     /// A world direction is zero or not finite (its index).
     BadDirection(usize),
@@ -59,6 +73,9 @@ impl core::fmt::Display for EstimatorError {
             EstimatorError::BadGain(which) => write!(f, "{which} must be finite and ≥ 0"),
             EstimatorError::DirectionCount { given, min, max } => {
                 write!(f, "{given} directions given; {min} to {max} accepted")
+            }
+            EstimatorError::WeightCount { expected, given } => {
+                write!(f, "{given} weights given; {expected} expected")
             }
             EstimatorError::BadDirection(i) => write!(f, "direction {i} is zero or not finite"),
             EstimatorError::BadWeight(i) => write!(f, "weight {i} must be finite and > 0"),
@@ -85,9 +102,35 @@ pub struct Faults {
     pub position: u64,
     /// Bias components clamped to the limit.
     pub bias_clamped: u64,
+    /// Ticks whose update was not used and the previous estimate held: the period `h` was
+    /// not finite and positive, or the update came out non-finite (samples finite but so
+    /// large that the arithmetic overflowed).
+    pub held: u64,
+}
+
+/// An estimate in the controller's form `(Q̂, V̂)` on a group of n×n matrices with an
+/// m-dimensional algebra: `SO(3)` (n = m = 3) for [`AttitudeEstimate`], `SE(3)` (n = 4,
+/// m = 6, twists ordered (ω, v) as `controller::group::Se3`) for [`PoseEstimate`].
+pub trait StateEstimate<T: controller::Real, const N: usize, const M: usize> {
+    /// `Q̂`: the estimated configuration.
+    fn q_hat(&self) -> SMatrix<T, N, N>;
+    /// `V̂`: the estimated body velocity.
+    fn v_hat(&self) -> SVector<T, M>;
+    /// `(Q̂, V̂)`.
+    fn state(&self) -> (SMatrix<T, N, N>, SVector<T, M>) {
+        (self.q_hat(), self.v_hat())
+    }
 }
 
 /// Whether every entry is finite.
 fn all_finite<T: controller::Real, const R: usize>(v: &nalgebra::SVector<T, R>) -> bool {
     v.iter().all(|x| x.is_finite())
+}
+
+/// A sample's direction `y/|y|` and length `|y|`, or `None` when it has a non-finite entry,
+/// its length overflows, or it is shorter than [`MIN_DIRECTION_NORM`].
+fn direction<T: controller::Real>(y: &nalgebra::Vector3<T>) -> Option<(nalgebra::Vector3<T>, T)> {
+    let n = y.norm();
+    (all_finite(y) && n.is_finite() && n >= controller::real(MIN_DIRECTION_NORM))
+        .then(|| (y / n, n))
 }

@@ -3,11 +3,19 @@
 //! by position fixes (docs/maths.md, "Position and velocity on SE(3)").
 
 use crate::complementary::{ComplementaryConfig, ComplementaryFilter, SLOTS};
-use crate::{EstimatorError, Faults, GRAVITY, MAX_DIRECTIONS, MIN_DIRECTION_NORM, all_finite};
+use crate::{
+    EstimatorError, Faults, GRAVITY, MAX_DIRECTIONS, StateEstimate, all_finite, direction,
+};
+use controller::group::se3::from_parts;
 use controller::{Real, real};
-use nalgebra::{Matrix2, Matrix3, Vector3};
+use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
 
 /// Gains, noise and guards of a [`PoseFilter`].
+///
+/// Build it with [`PoseConfig::new`] and the builder methods (the attitude part's builders,
+/// e.g. `cfg.attitude = cfg.attitude.bias_limit(0.1)?`), which check every value; a
+/// configuration whose fields were written directly is checked again by
+/// [`PoseConfig::check`] (and [`PoseFilter::try_new`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoseConfig<T: Real> {
     /// The attitude filter's configuration; its last direction is the accelerometer's
@@ -31,6 +39,11 @@ impl<T: Real> PoseConfig<T> {
     /// most [`MAX_DIRECTIONS`]) and their weights followed by the accelerometer's; the
     /// accelerometer's and the position fixes' noise. No gate, no bias limit, TRIAD start,
     /// initial standard deviations 1 m and 1 m/s.
+    ///
+    /// Errors: those of [`ComplementaryConfig::new`] (a world direction's index is its
+    /// place in `world`, the accelerometer's is `world.len()`), and
+    /// [`EstimatorError::BadGain`] (`"accel_noise"`, `"position_noise"`: negative or not
+    /// finite).
     pub fn new(
         kp: T,
         ki: T,
@@ -39,11 +52,17 @@ impl<T: Real> PoseConfig<T> {
         accel_noise: T,
         position_noise: T,
     ) -> Result<Self, EstimatorError> {
-        if world.is_empty() || world.len() > MAX_DIRECTIONS || weights.len() != world.len() + 1 {
+        if world.is_empty() || world.len() > MAX_DIRECTIONS {
             return Err(EstimatorError::DirectionCount {
                 given: world.len(),
                 min: 1,
                 max: MAX_DIRECTIONS,
+            });
+        }
+        if weights.len() != world.len() + 1 {
+            return Err(EstimatorError::WeightCount {
+                expected: world.len() + 1,
+                given: weights.len(),
             });
         }
         let mut all = [Vector3::zeros(); SLOTS];
@@ -77,13 +96,58 @@ impl<T: Real> PoseConfig<T> {
         self.accel_gate = Some(gate);
         Ok(self)
     }
+
+    /// The standard deviations of position (m) and velocity (m/s) at the start (finite and
+    /// positive; the position's is replaced by the fix's noise when the first call brings a
+    /// fix).
+    pub fn initial_std(mut self, position: T, velocity: T) -> Result<Self, EstimatorError> {
+        if !position.is_finite() || position <= T::zero() {
+            return Err(EstimatorError::BadGain("initial_position_std"));
+        }
+        if !velocity.is_finite() || velocity <= T::zero() {
+            return Err(EstimatorError::BadGain("initial_velocity_std"));
+        }
+        self.initial_position_std = position;
+        self.initial_velocity_std = velocity;
+        Ok(self)
+    }
+
+    /// Checks again a configuration whose public fields may have been written directly:
+    /// the same checks as [`PoseConfig::new`] and the builders, and the attitude part's last
+    /// direction must be "up", `(0, 0, 1)`.
+    pub fn check(self) -> Result<Self, EstimatorError> {
+        let attitude = self.attitude.check()?;
+        let up = attitude.count - 1;
+        if (attitude.world[up] - Vector3::z()).norm() > real(1e-12) {
+            return Err(EstimatorError::BadDirection(up));
+        }
+        for (name, x) in [
+            ("accel_noise", self.accel_noise),
+            ("position_noise", self.position_noise),
+        ] {
+            if !x.is_finite() || x < T::zero() {
+                return Err(EstimatorError::BadGain(name));
+            }
+        }
+        let mut c = PoseConfig { attitude, ..self }
+            .initial_std(self.initial_position_std, self.initial_velocity_std)?;
+        if let Some(g) = self.accel_gate {
+            c = c.accel_gate(g)?;
+        }
+        Ok(c)
+    }
 }
+
+/// The floor of the position fix's variance and of the initial variances (m², m²/s²): keeps
+/// the covariance positive definite when a noise is configured as zero.
+pub const MIN_VARIANCE: f64 = 1e-12;
 
 /// The covariance of one axis' (position, velocity), shared by the three axes (their models
 /// are the same).
 pub type TranslationCovariance<T> = Matrix2<T>;
 
-/// What the pose filter publishes at a tick.
+/// What the pose filter publishes at a tick: `Q̂ = (R̂, x̂)`, `V̂ = (ω − b̂, R̂ᵀv̂)`
+/// ([`StateEstimate`] on SE(3)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoseEstimate<T: Real> {
     /// `R̂`.
@@ -108,6 +172,26 @@ impl<T: Real> PoseEstimate<T> {
     pub fn body_velocity(&self) -> Vector3<T> {
         self.r.tr_mul(&self.v)
     }
+
+    /// `Q̂ = [[R̂, x̂], [0, 1]]`.
+    pub fn pose(&self) -> SMatrix<T, 4, 4> {
+        from_parts(&self.r, &self.x)
+    }
+
+    /// `V̂ = (ω_k − b̂_k, R̂ᵀv̂)`, ordered (ω, v) as `controller::group::Se3`'s twists.
+    pub fn twist(&self) -> SVector<T, 6> {
+        let v = self.body_velocity();
+        SVector::<T, 6>::new(self.rate[0], self.rate[1], self.rate[2], v[0], v[1], v[2])
+    }
+}
+
+impl<T: Real> StateEstimate<T, 4, 6> for PoseEstimate<T> {
+    fn q_hat(&self) -> SMatrix<T, 4, 4> {
+        self.pose()
+    }
+    fn v_hat(&self) -> SVector<T, 6> {
+        self.twist()
+    }
 }
 
 /// Attitude, bias, position and velocity from a gyro, direction sensors, an accelerometer and
@@ -121,7 +205,8 @@ pub struct PoseFilter<T: Real> {
 }
 
 impl<T: Real> PoseFilter<T> {
-    /// A filter that starts at its first step.
+    /// A filter that starts at its first step. `cfg` is used as it is (see
+    /// [`ComplementaryFilter::new`]); [`PoseFilter::try_new`] checks it first.
     pub fn new(cfg: PoseConfig<T>) -> Self {
         let attitude = ComplementaryFilter::new(cfg.attitude);
         PoseFilter {
@@ -140,15 +225,45 @@ impl<T: Real> PoseFilter<T> {
         }
     }
 
+    /// A filter on a configuration checked again first ([`PoseConfig::check`]).
+    pub fn try_new(cfg: PoseConfig<T>) -> Result<Self, EstimatorError> {
+        Ok(Self::new(cfg.check()?))
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &PoseConfig<T> {
+        &self.cfg
+    }
+
+    /// The estimate published last.
+    pub fn estimate(&self) -> &PoseEstimate<T> {
+        &self.estimate
+    }
+
     /// What it has skipped, held and clamped so far.
     pub fn faults(&self) -> &Faults {
         self.attitude.faults()
     }
 
     /// One tick (docs/maths.md, "Position and velocity on SE(3)"): the attitude filter's
-    /// step with the accelerometer as the direction "up" (unless gated or not finite), then
-    /// the Kalman filter's prediction over `h` with `a = R̂_k f_k + g` and, when a fix came,
-    /// its update. The first step starts both (the position from the fix, if one came).
+    /// step with the accelerometer as the direction "up" (unless gated or unusable), then
+    /// the Kalman filter's prediction over `h` with `a_k = R̂_{k−1} f_k + g` and, when a fix
+    /// came, its update. `R̂_{k−1}` is the attitude the filter compares tick k's samples with,
+    /// its estimate of `R(t_k)`; `R̂_k` runs one tick ahead on a rotating body
+    /// (docs/maths.md, "The complementary filter on SO(3)").
+    ///
+    /// The first call starts the translation (the position from the fix if one came, with
+    /// the fix's noise, else zero with `initial_position_std`; zero velocity with
+    /// `initial_velocity_std`) and the attitude (see [`ComplementaryFilter::step`]). Until
+    /// the attitude has started the prediction uses `a = 0`.
+    ///
+    /// Guards, each counted in [`Faults`]: an accelerometer sample with a non-finite entry
+    /// (or whose length overflows) is not a direction and the prediction uses `a = 0`
+    /// (`accel`); one shorter than [`MIN_DIRECTION_NORM`](crate::MIN_DIRECTION_NORM) (free
+    /// fall) is not a direction (`directions`) but is used for the prediction; one with
+    /// `| |f| − g | > accel_gate` is not a direction (`accel_gated`) but is used for the
+    /// prediction; a fix with a non-finite entry is skipped (`position`); if the translation
+    /// update came out non-finite it is not used (`held`). The estimate is never non-finite.
     pub fn step(
         &mut self,
         h: T,
@@ -157,22 +272,26 @@ impl<T: Real> PoseFilter<T> {
         accel: &Vector3<T>,
         position: Option<&Vector3<T>>,
     ) -> PoseEstimate<T> {
-        let n = self.cfg.attitude.count - 1;
+        let n = self.attitude.config().count.saturating_sub(1);
         let mut y = self.attitude.usable(directions, n);
-        let accel_ok = all_finite(accel);
         let g: T = real(GRAVITY);
-        let norm = accel.norm();
-        if !accel_ok || norm < real(MIN_DIRECTION_NORM) {
+        let accel_ok = all_finite(accel) && accel.norm().is_finite();
+        if !accel_ok {
             self.attitude.faults_mut().accel += 1;
-        } else if self
-            .cfg
-            .accel_gate
-            .is_some_and(|gate| (norm - g).abs() > gate)
-        {
-            self.attitude.faults_mut().accel_gated += 1;
+        } else if let Some((up, norm)) = direction(accel) {
+            if self
+                .cfg
+                .accel_gate
+                .is_some_and(|gate| (norm - g).abs() > gate)
+            {
+                self.attitude.faults_mut().accel_gated += 1;
+            } else {
+                y[n] = Some(up);
+            }
         } else {
-            y[n] = Some(accel / norm);
+            self.attitude.faults_mut().directions += 1;
         }
+        let prior = *self.attitude.estimate();
         let att = self.attitude.step_usable(h, gyro, &y);
         let fix = match position {
             Some(p) if all_finite(p) => Some(*p),
@@ -187,20 +306,36 @@ impl<T: Real> PoseFilter<T> {
                 Some(p) => (p, self.cfg.position_noise),
                 None => (Vector3::zeros(), self.cfg.initial_position_std),
             };
-            self.estimate.x = x0;
-            self.estimate.v = Vector3::zeros();
             let sv = self.cfg.initial_velocity_std;
-            self.estimate.covariance = Matrix2::new(sx * sx, T::zero(), T::zero(), sv * sv);
-            self.translation_started = true;
-        } else if h.is_finite() && h > T::zero() {
-            let a = if accel_ok {
-                att.r * accel - Vector3::z() * g
-            } else {
-                Vector3::zeros()
-            };
-            self.predict(h, &a);
+            let (vx, vv) = (
+                (sx * sx).max(real(MIN_VARIANCE)),
+                (sv * sv).max(real(MIN_VARIANCE)),
+            );
+            let p0 = Matrix2::new(vx, T::zero(), T::zero(), vv);
+            if all_finite(&x0) && p0.iter().all(|x| x.is_finite()) {
+                self.estimate.x = x0;
+                self.estimate.v = Vector3::zeros();
+                self.estimate.covariance = p0;
+                self.translation_started = true;
+            }
+        } else {
+            let before = (self.estimate.x, self.estimate.v, self.estimate.covariance);
+            if h.is_finite() && h > T::zero() {
+                let a = if accel_ok && prior.started {
+                    prior.r * accel - Vector3::z() * g
+                } else {
+                    Vector3::zeros()
+                };
+                self.predict(h, &a);
+            }
             if let Some(z) = fix {
                 self.update(&z);
+            }
+            let e = &self.estimate;
+            if !(all_finite(&e.x) && all_finite(&e.v) && e.covariance.iter().all(|x| x.is_finite()))
+            {
+                (self.estimate.x, self.estimate.v, self.estimate.covariance) = before;
+                self.attitude.faults_mut().held += 1;
             }
         }
         self.estimate.r = att.r;
@@ -210,6 +345,7 @@ impl<T: Real> PoseFilter<T> {
         self.estimate
     }
 
+    /// The prediction over `h` (docs/maths.md, "Position and velocity on SE(3)"):
     /// `x ← x + h v + h²/2 a`, `v ← v + h a`; `P ← F P Fᵀ + σ_a² G Gᵀ` with
     /// `F = [[1, h], [0, 1]]`, `G = (h²/2, h)`.
     fn predict(&mut self, h: T, a: &Vector3<T>) {
@@ -218,22 +354,23 @@ impl<T: Real> PoseFilter<T> {
         e.x += e.v * h + a * (half * h * h);
         e.v += a * h;
         let f = Matrix2::new(T::one(), h, T::zero(), T::one());
-        let gq = nalgebra::Vector2::new(half * h * h, h);
+        let gq = Vector2::new(half * h * h, h);
         let sa2 = self.cfg.accel_noise * self.cfg.accel_noise;
         e.covariance = f * e.covariance * f.transpose() + gq * gq.transpose() * sa2;
     }
 
-    /// The update with a fix `z` (`H = [1, 0]`, noise `σ_p²`, floored at 1e-12 m²), in
-    /// Joseph form so the covariance stays symmetric positive definite.
+    /// The update with a fix `z` (docs/maths.md, "Position and velocity on SE(3)"):
+    /// `H = [1, 0]`, noise `σ_p²` (floored at [`MIN_VARIANCE`]), in Joseph form and
+    /// symmetrised so the covariance stays symmetric positive definite.
     fn update(&mut self, z: &Vector3<T>) {
         let e = &mut self.estimate;
-        let rp = (self.cfg.position_noise * self.cfg.position_noise).max(real(1e-12));
+        let rp = (self.cfg.position_noise * self.cfg.position_noise).max(real(MIN_VARIANCE));
         let p = e.covariance;
         let s = p[(0, 0)] + rp;
         if !s.is_finite() || s <= T::zero() {
             return;
         }
-        let k = nalgebra::Vector2::new(p[(0, 0)] / s, p[(1, 0)] / s);
+        let k = Vector2::new(p[(0, 0)] / s, p[(1, 0)] / s);
         let innovation = z - e.x;
         e.x += innovation * k[0];
         e.v += innovation * k[1];

@@ -1,12 +1,20 @@
-//! The estimators against exact and noisy samples of a known motion (docs/maths.md,
-//! "Estimators").
+//! The estimators against exact and noisy samples of a known motion
+//! (docs/maths.md, "Estimators"). Every bound states the value measured when it was set.
+//!
+//! The true attitude is propagated the way the filter propagates (zero-order hold on the
+//! rate): `R_{k+1} = R_k exp(h ω(t_k))` with a smooth `ω(t)`. The filter's step compares the
+//! samples of tick k with `R̂_{k−1}`, so its exact fixed point is `R̂_k = R_{k+1}`, one tick
+//! ahead (docs/maths.md, "The complementary filter on SO(3)"): the tests measure the error
+//! against `R_{k+1}` (converges to rounding) and check that the error against `R_k` is
+//! exactly the lead `h|ω(t_k)|`.
 
 use controller::group::so3::{exp_so3, log_so3};
+use controller::{Real, real};
 use estimator::{
-    ComplementaryConfig, ComplementaryFilter, EstimatorError, GRAVITY, PoseConfig, PoseFilter,
-    triad,
+    ComplementaryConfig, ComplementaryFilter, EstimatorError, GRAVITY, PoseConfig, PoseEstimate,
+    PoseFilter, StateEstimate, triad,
 };
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, SMatrix, Vector3};
 use proptest::prelude::*;
 
 const H: f64 = 0.01;
@@ -21,130 +29,209 @@ fn world() -> [Vector3<f64>; 2] {
     ]
 }
 
-/// The true attitude at tick k: `R₀ exp(k h ω)` with a constant body rate (so the filter's
-/// exponential propagation is exact and the estimate can converge to the truth exactly).
-fn truth(k: usize, omega: &Vector3<f64>) -> Matrix3<f64> {
-    let r0 = exp_so3(&Vector3::new(0.3, -0.4, 0.2));
-    r0 * exp_so3(&(omega * (k as f64 * H)))
+/// A smooth body rate (rad/s), |ω| between 0.1 and 0.55.
+fn omega(t: f64) -> Vector3<f64> {
+    Vector3::new(
+        0.4 * (0.5 * t).sin(),
+        0.3 * (0.3 * t).cos(),
+        0.2 + 0.1 * (0.7 * t).sin(),
+    )
+}
+
+/// `R_0, R_1, …, R_{steps+1}`: `R_0 = exp(0.3, −0.4, 0.2)`, `R_{k+1} = R_k exp(h ω(t_k))`
+/// (`spin = false`: at rest).
+fn truth(steps: usize, spin: bool) -> Vec<Matrix3<f64>> {
+    let mut r = vec![exp_so3(&Vector3::new(0.3, -0.4, 0.2))];
+    for k in 0..=steps {
+        let w = if spin {
+            omega(k as f64 * H)
+        } else {
+            Vector3::zeros()
+        };
+        r.push(r[k] * exp_so3(&(w * H)));
+    }
+    r
 }
 
 fn angle(a: &Matrix3<f64>, b: &Matrix3<f64>) -> f64 {
     log_so3(&(a.transpose() * b)).norm()
 }
 
-/// `Σ k_i/2 |y_i − R̂ᵀd_i|² + |b − b̂|²/(2k_I)`: the filter's Lyapunov function (the bias
-/// term's factor is 1/(2k_I): docs/maths.md, "The complementary filter on SO(3)").
-fn lyapunov(r: &Matrix3<f64>, r_hat: &Matrix3<f64>, b_hat: &Vector3<f64>) -> f64 {
+/// `V = Σ k_i/2 |R_{k+1}ᵀd_i − R̂_kᵀd_i|² + |b − b̂_k|²/(2k_I)`: the filter's Lyapunov
+/// function, against the attitude the step aims at. The bias term's factor is 1/(2k_I),
+/// not 1/k_I (docs/maths.md, "The complementary filter on SO(3)").
+fn lyapunov(r_next: &Matrix3<f64>, r_hat: &Matrix3<f64>, b_hat: &Vector3<f64>) -> f64 {
     let e: f64 = world()
         .iter()
-        .map(|d| 0.5 * (r.tr_mul(d) - r_hat.tr_mul(d)).norm_squared())
+        .map(|d| 0.5 * (r_next.tr_mul(d) - r_hat.tr_mul(d)).norm_squared())
         .sum();
     e + (Vector3::from(BIAS) - b_hat).norm_squared() / (2.0 * KI)
 }
 
+#[derive(Debug)]
 struct Run {
-    attitude_error: f64,
+    /// At the end: `|log(R̂_kᵀR_{k+1})|`.
+    ahead_error: f64,
+    /// At the end: `| |log(R̂_kᵀR_k)| − h|ω(t_k)| |`: the lead is exactly one tick.
+    lead_mismatch: f64,
     bias_error: f64,
     /// Largest one-step rise of the Lyapunov function.
     worst_rise: f64,
-    /// First time after which the attitude error stays below 1e-6.
+    /// The time of the worst rise.
+    worst_rise_at: f64,
+    /// Largest `ΔV − bound`, with the bound of the discrete step at rest
+    /// `−h k_P|ω_mes|² + h²/2 (Σk_i |b̃ + k_P ω_mes|² + k_I|ω_mes|²)`: ≤ 0 up to rounding
+    /// on a body at rest (docs/maths.md, "The complementary filter on SO(3)").
+    bound_excess: f64,
+    /// From this time on the attitude error (against `R_{k+1}`) and the bias error stay
+    /// below 1e-6.
     settled: Option<f64>,
+    /// Largest `|R̂ᵀR̂ − I|`.
+    orthonormality: f64,
 }
 
-/// Noise-free samples of a body at rest (the gyro reads its bias), from an initial estimate
-/// `exp(e)·R(0)`.
-fn run(initial_error: Vector3<f64>, seconds: f64) -> Run {
-    let omega = Vector3::zeros();
-    let cfg = ComplementaryConfig::new(KP, KI, &world(), &[1.0, 1.0])
-        .unwrap()
-        .initial_attitude(exp_so3(&initial_error) * truth(0, &omega))
-        .unwrap();
-    let mut f = ComplementaryFilter::new(cfg);
-    let b = Vector3::from(BIAS);
+fn to_f64<T: Real + Into<f64>, const R: usize, const C: usize>(
+    m: &SMatrix<T, R, C>,
+) -> SMatrix<f64, R, C> {
+    m.map(|x| x.into())
+}
+
+/// Noise-free samples of the body rotating with [`omega`] (`spin`) or at rest (the gyro
+/// reads its rate plus the bias), the filter in scalar `T` started from `exp(e)·R_0`
+/// (explicitly, not TRIAD).
+fn run<T: Real + Into<f64>>(initial_error: Vector3<f64>, seconds: f64, spin: bool) -> Run {
     let steps = (seconds / H).round() as usize;
-    let (mut worst_rise, mut last_v, mut settled) = (f64::NEG_INFINITY, None::<f64>, None);
-    let mut out = (0.0, 0.0);
-    for k in 0..=steps {
-        let r = truth(k, &omega);
-        let y = world().map(|d| r.tr_mul(&d));
-        let e = f.step(H, &(omega + b), &y);
-        let v = lyapunov(&r, &e.r, &e.bias);
-        if let Some(l) = last_v {
-            worst_rise = worst_rise.max(v - l);
-        }
-        last_v = Some(v);
-        out = (angle(&e.r, &r), (e.bias - b).norm());
-
-        if out.0 >= 1e-6 {
-            settled = None;
-        } else if settled.is_none() {
-            settled = Some(k as f64 * H);
-        }
-    }
-    Run {
-        attitude_error: out.0,
-        bias_error: out.1,
-        worst_rise,
-        settled,
-    }
-}
-
-#[test]
-fn from_one_radian_noise_free_the_filter_converges_and_its_lyapunov_function_never_rises() {
-    let r = run(Vector3::new(0.6, 0.0, 0.8), 60.0);
-    eprintln!(
-        "1 rad: attitude error {:.2e}, bias error {:.2e} at 60 s; below 1e-6 from t = {:?} s; worst rise of V {:.2e}",
-        r.attitude_error, r.bias_error, r.settled, r.worst_rise
-    );
-    assert!(
-        r.attitude_error < 1e-6 && r.bias_error < 1e-6,
-        "{}",
-        r.attitude_error
-    );
-    // measured: below 1e-6 from t = 16.4 s (k_P = 2, k_I = 1, h = 10 ms)
-    assert!(r.settled.is_some_and(|t| t < 25.0), "{:?}", r.settled);
-    // dV/dt = −k_P|ω_mes|² in continuous time; the discrete step is first-order accurate,
-    // so V may rise by O(h²) per step where |ω_mes| is small and |b̃| is not. Tolerance:
-    // 0.1·h² = 1e-5 per step (measured worst 3.7e-6, at t ≈ 1.2 s)
-    assert!(r.worst_rise < 0.1 * H * H, "V rose by {}", r.worst_rise);
-}
-
-#[test]
-fn on_a_rotating_body_the_estimate_converges_to_the_next_ticks_attitude() {
-    // the step compares the samples of tick k with R̂_{k−1}: its fixed point is R̂_k = R_{k+1}
-    // (docs/maths.md, "The complementary filter on SO(3)"), one tick ahead, an error of h|ω|
-    let omega = Vector3::new(0.3, -0.2, 0.1);
-    let cfg = ComplementaryConfig::new(KP, KI, &world(), &[1.0, 1.0])
+    let r = truth(steps, spin);
+    let w: [Vector3<T>; 2] = world().map(|d| d.map(real::<T>));
+    let cfg = ComplementaryConfig::new(real::<T>(KP), real(KI), &w, &[T::one(), T::one()])
         .unwrap()
-        .initial_attitude(exp_so3(&Vector3::new(0.6, 0.0, 0.8)) * truth(0, &omega))
+        .initial_attitude((exp_so3(&initial_error) * r[0]).map(real::<T>))
         .unwrap();
     let mut f = ComplementaryFilter::new(cfg);
     let b = Vector3::from(BIAS);
-    let (mut ahead, mut now) = (0.0, 0.0);
-    for k in 0..=6000 {
-        let r = truth(k, &omega);
-        let e = f.step(H, &(omega + b), &world().map(|d| r.tr_mul(&d)));
-        ahead = angle(&e.r, &truth(k + 1, &omega));
-        now = angle(&e.r, &r);
+    let mut out = Run {
+        ahead_error: f64::NAN,
+        lead_mismatch: f64::NAN,
+        bias_error: f64::NAN,
+        worst_rise: f64::NEG_INFINITY,
+        worst_rise_at: f64::NAN,
+        bound_excess: f64::NEG_INFINITY,
+        settled: None,
+        orthonormality: 0.0,
+    };
+    let mut last = None::<(f64, Matrix3<f64>, Vector3<f64>)>;
+    for k in 0..=steps {
+        let t = k as f64 * H;
+        let y = world().map(|d| r[k].tr_mul(&d).map(real::<T>));
+        // the filter's ω_mes at this tick, from R̂_{k−1} (the weights are 1)
+        let w_mes = last.map(|(_, r_prev, _)| {
+            world()
+                .iter()
+                .map(|d| r[k].tr_mul(d).cross(&r_prev.tr_mul(d)))
+                .sum::<Vector3<f64>>()
+        });
+        let w = if spin { omega(t) } else { Vector3::zeros() };
+        let gyro = (w + b).map(real::<T>);
+        let e = f.step(real(H), &gyro, &y);
+        let (r_hat, b_hat) = (to_f64(&e.r), to_f64(&e.bias));
+        let v = lyapunov(&r[k + 1], &r_hat, &b_hat);
+        if let (Some((l, _, b_prev)), Some(m)) = (last, w_mes) {
+            if v - l > out.worst_rise {
+                out.worst_rise = v - l;
+                out.worst_rise_at = t;
+            }
+            let u = b - b_prev + m * KP;
+            let bound = -H * KP * m.norm_squared()
+                + H * H / 2.0 * (2.0 * u.norm_squared() + KI * m.norm_squared());
+            out.bound_excess = out.bound_excess.max(v - l - bound);
+        }
+        last = Some((v, r_hat, b_hat));
+        out.ahead_error = angle(&r_hat, &r[k + 1]);
+        out.lead_mismatch = (angle(&r_hat, &r[k]) - H * w.norm()).abs();
+        out.bias_error = (b_hat - b).norm();
+        out.orthonormality = out
+            .orthonormality
+            .max((r_hat.transpose() * r_hat - Matrix3::identity()).norm());
+        if out.ahead_error >= 1e-6 || out.bias_error >= 1e-6 {
+            out.settled = None;
+        } else if out.settled.is_none() {
+            out.settled = Some(t);
+        }
     }
-    eprintln!("rotating body at 60 s: {ahead:.2e} rad from R(t_k+1), {now:.3e} rad from R(t_k)");
-    assert!(ahead < 1e-6, "{ahead}");
-    assert!((now - H * omega.norm()).abs() < 1e-6, "{now}");
+    out
+}
+
+#[test]
+fn from_one_radian_it_converges_and_its_lyapunov_function_does_not_rise() {
+    for spin in [true, false] {
+        let r = run::<f64>(Vector3::new(0.6, 0.0, 0.8), 60.0, spin);
+        eprintln!("f64 from 1 rad, spin {spin}: {r:?}");
+        // measured at t = 60 s (k_P = 2, k_I = 1, h = 10 ms), rotating / at rest: attitude
+        // error (against R_{k+1}) 2.1e-15 / 2.0e-16 rad, bias error 1.5e-16 / 3.2e-15 rad/s,
+        // the lead h|ω| exact to 1.3e-15; both errors below 1e-6 from t = 23.5 s / 17.9 s
+        assert!(
+            r.ahead_error < 1e-12 && r.bias_error < 1e-12,
+            "spin {spin}: {r:?}"
+        );
+        assert!(r.lead_mismatch < 1e-12, "spin {spin}: {r:?}");
+        assert!(r.settled.is_some_and(|t| t < 30.0), "spin {spin}: {r:?}");
+        // dV/dt = −k_P|ω_mes|² in continuous time; the discrete step is first-order
+        // accurate, so V may rise by O(h²) per step where |ω_mes| is small and |b̃| is not.
+        // Measured worst rise: rotating none (6e-30, rounding), at rest 3.7e-6 = 0.037 h²
+        // (t = 1.24 s); tolerance 0.1 h².
+        assert!(r.worst_rise < 0.1 * H * H, "spin {spin}: {r:?}");
+        // At rest each step obeys ΔV ≤ −h k_P|ω_mes|² + h²/2 (Σk_i|b̃ + k_P ω_mes|² +
+        // k_I|ω_mes|²) exactly (measured excess 3.8e-27, rounding); rotating, terms of order
+        // h²|ω||b̃ + k_P ω_mes| come on top (measured excess 4.7e-28 here, 3.0e-7 = 0.003 h²
+        // at worst in the proptest below).
+        let excess = if spin { 0.01 * H * H } else { 1e-12 };
+        assert!(r.bound_excess < excess, "spin {spin}: {r:?}");
+        // measured 1.0e-15
+        assert!(r.orthonormality < 1e-14, "spin {spin}: {r:?}");
+    }
+}
+
+#[test]
+fn the_same_in_f32_within_looser_bounds() {
+    for spin in [true, false] {
+        let r = run::<f32>(Vector3::new(0.6, 0.0, 0.8), 60.0, spin);
+        eprintln!("f32 from 1 rad, spin {spin}: {r:?}");
+        // measured at t = 60 s, rotating / at rest: attitude error 2.6e-7 / 1.5e-7 rad, bias
+        // error 2.6e-7 / 1.8e-6 rad/s (f32 rounding in exp, the products and the samples),
+        // lead mismatch 1.8e-7 / 1.5e-7
+        assert!(
+            r.ahead_error < 2e-6 && r.bias_error < 1e-5,
+            "spin {spin}: {r:?}"
+        );
+        assert!(r.lead_mismatch < 2e-6, "spin {spin}: {r:?}");
+        // worst rise of V: 8.4e-14 / 3.7e-6 (as in f64); excess over the step's bound
+        // 1.2e-10 / 4.4e-9 (f32 rounding of V ≈ 1)
+        assert!(r.worst_rise < 0.1 * H * H, "spin {spin}: {r:?}");
+        assert!(r.bound_excess < 1e-7, "spin {spin}: {r:?}");
+        // R̂ stays a rotation to f32 rounding (measured 5.0e-7 / 5.3e-7)
+        assert!(r.orthonormality < 2e-6, "spin {spin}: {r:?}");
+    }
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 24, .. ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 32, .. ProptestConfig::default() })]
     #[test]
     fn from_any_initial_error_up_to_2_5_radians_it_converges(
         axis in prop::array::uniform3(-1.0f64..1.0),
         angle in 0.05f64..2.5,
+        spin in any::<bool>(),
     ) {
         let a = Vector3::from(axis);
         prop_assume!(a.norm() > 0.1);
-        let r = run(a.normalize() * angle, 60.0);
-        prop_assert!(r.attitude_error < 1e-6 && r.bias_error < 1e-6,
-            "from {angle} rad: {} rad, bias {}", r.attitude_error, r.bias_error);
-        prop_assert!(r.worst_rise < 0.1 * H * H, "V rose by {}", r.worst_rise);
+        // measured over 1000 cases: both errors below 1e-6 by t = 25.9 s at worst; worst
+        // rise of V 3.8e-5 = 0.38 h² (most cases: none); excess over the step's bound at rest
+        // 1.3e-23, rotating 3.0e-7 = 0.003 h²
+        let r = run::<f64>(a.normalize() * angle, 60.0, spin);
+        prop_assert!(r.ahead_error < 1e-10 && r.bias_error < 1e-10, "from {angle} rad: {r:?}");
+        prop_assert!(r.settled.is_some_and(|t| t < 40.0), "from {angle} rad: {r:?}");
+        prop_assert!(r.worst_rise < H * H, "from {angle} rad: {r:?}");
+        let excess = if spin { 0.01 * H * H } else { 1e-12 };
+        prop_assert!(r.bound_excess < excess, "from {angle} rad: {r:?}");
     }
 
     #[test]
@@ -157,35 +244,41 @@ proptest! {
         prop_assume!(d1.norm() > 0.1 && d2.norm() > 0.1 && d1.normalize().cross(&d2.normalize()).norm() > 0.1);
         let r = exp_so3(&Vector3::from(rv));
         let got = triad(&r.tr_mul(&d1), &r.tr_mul(&d2), &d1, &d2).unwrap();
+        // measured: at most 1.5e-15 over 1000 cases
         prop_assert!((got - r).norm() < 1e-12, "{}", (got - r).norm());
     }
 }
 
 #[test]
-fn the_same_in_f32_within_looser_bounds() {
-    let omega = Vector3::<f32>::zeros();
-    let w = world().map(|d| d.cast::<f32>());
-    let r0 = exp_so3(&Vector3::new(0.3f32, -0.4, 0.2));
-    let cfg = ComplementaryConfig::new(KP as f32, KI as f32, &w, &[1.0, 1.0])
+fn in_f32_over_a_million_steps_r_hat_stays_a_rotation_where_the_plain_product_drifts() {
+    // a fast spin, h = 1 ms: the filter against the same product without re-orthonormalising
+    let w = Vector3::new(1.0f32, 2.0, -1.5);
+    let dirs = world().map(|d| d.cast::<f32>());
+    let r0 = Matrix3::<f32>::identity();
+    let cfg = ComplementaryConfig::new(2.0f32, 1.0, &dirs, &[1.0, 1.0])
         .unwrap()
-        .initial_attitude(exp_so3(&Vector3::new(0.6f32, 0.0, 0.8)) * r0)
+        .initial_attitude(r0)
         .unwrap();
     let mut f = ComplementaryFilter::new(cfg);
-    let b = Vector3::from(BIAS).cast::<f32>();
+    let step = exp_so3(&(w * 0.001));
+    let mut plain = r0;
     let mut e = *f.estimate();
-    let mut r = r0;
-    for k in 0..=6000 {
-        r = r0 * exp_so3(&(omega * (k as f32 * H as f32)));
-        let y = w.map(|d| r.tr_mul(&d));
-        e = f.step(H as f32, &(omega + b), &y);
+    for _ in 0..1_000_000 {
+        plain *= step;
+        e = f.step(0.001, &w, &dirs.map(|d| plain.tr_mul(&d)));
     }
-    let att = log_so3(&(e.r.transpose() * r)).norm();
-    let bias = (e.bias - b).norm();
-    eprintln!("f32 at 60 s: attitude error {att:.2e}, bias error {bias:.2e}");
-    // measured 1.1e-7 and 1.8e-6: f32 rounding in exp and the products
-    assert!(att < 2e-5 && bias < 2e-5, "{att} {bias}");
-    let rtr = e.r.transpose() * e.r - Matrix3::identity();
-    assert!(rtr.norm() < 1e-6, "R̂ stays a rotation: {}", rtr.norm());
+    let drift = |r: &Matrix3<f32>| (r.transpose() * r - Matrix3::identity()).norm();
+    eprintln!(
+        "f32, 1e6 steps: plain product |RᵀR − I| = {:.1e}, filter {:.1e}",
+        drift(&plain),
+        drift(&e.r)
+    );
+    // measured: the plain product 4.4e-2, the filter 1.8e-7
+    assert!(drift(&e.r) < 1e-6, "{}", drift(&e.r));
+    assert!(
+        drift(&plain) > 1e-3,
+        "the drift the re-orthonormalisation removes"
+    );
 }
 
 #[test]
@@ -198,43 +291,88 @@ fn triad_refuses_parallel_or_non_finite_directions() {
     assert!(triad(&Vector3::zeros(), &b, &a, &b).is_none());
 }
 
+fn at_rest() -> (Matrix3<f64>, [Vector3<f64>; 2]) {
+    let r = truth(0, false)[0];
+    (r, world().map(|d| r.tr_mul(&d)))
+}
+
 fn started_filter() -> ComplementaryFilter<f64> {
     let cfg = ComplementaryConfig::new(KP, KI, &world(), &[1.0, 1.0]).unwrap();
     let mut f = ComplementaryFilter::new(cfg);
-    let r = truth(0, &Vector3::zeros());
-    let e = f.step(H, &Vector3::zeros(), &world().map(|d| r.tr_mul(&d)));
+    let (r, y) = at_rest();
+    let e = f.step(H, &Vector3::zeros(), &y);
+    // TRIAD from exact directions, published without propagating
     assert!(e.started && angle(&e.r, &r) < 1e-12, "TRIAD start");
     f
 }
 
 #[test]
+fn without_two_usable_non_parallel_directions_it_waits_and_publishes_identity() {
+    let cfg = ComplementaryConfig::new(KP, KI, &world(), &[1.0, 1.0])
+        .unwrap()
+        .initial_bias(Vector3::from(BIAS))
+        .unwrap();
+    let mut f = ComplementaryFilter::new(cfg);
+    let (r, y) = at_rest();
+    let gyro = Vector3::new(0.1, 0.2, 0.3);
+    // one usable direction, then two parallel ones: not started, identity, ω − b̂_0
+    for d in [[y[0], Vector3::new(f64::NAN, 0.0, 0.0)], [y[0], y[0] * 3.0]] {
+        let e = f.step(H, &gyro, &d);
+        assert!(!e.started);
+        assert_eq!(e.r, Matrix3::identity());
+        assert_eq!(e.rate, gyro - Vector3::from(BIAS));
+    }
+    assert_eq!(f.faults().directions, 1);
+    // the first call with two usable directions starts it (TRIAD, no propagation)
+    let e = f.step(H, &gyro, &y);
+    assert!(e.started && angle(&e.r, &r) < 1e-12);
+}
+
+#[test]
 fn bad_samples_are_skipped_or_held_and_counted_and_the_estimate_stays_finite() {
     let mut f = started_filter();
-    let r = truth(0, &Vector3::zeros());
-    let y = world().map(|d| r.tr_mul(&d));
+    let (_, y) = at_rest();
     let before = *f.estimate();
     for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
         let e = f.step(H, &Vector3::new(0.0, bad, 0.0), &y);
         assert_eq!(e, before, "a non-finite gyro holds the estimate");
     }
     assert_eq!(f.faults().gyro, 3);
+    // a period that is not finite and positive holds it too
+    for h in [0.0, -H, f64::NAN, f64::INFINITY] {
+        assert_eq!(f.step(h, &Vector3::zeros(), &y), before);
+    }
+    assert_eq!(f.faults().held, 4);
+    // a finite gyro sample so large that the update overflows: held
+    assert_eq!(f.step(H, &Vector3::repeat(1e306), &y), before);
+    assert_eq!(f.faults().held, 5);
     for bad in [
         Vector3::new(f64::NAN, 0.0, 0.0),
         Vector3::new(0.0, f64::INFINITY, 0.0),
         Vector3::zeros(),
         Vector3::new(1e-9, 0.0, 0.0),
+        Vector3::repeat(1e200), // its length overflows
     ] {
         let e = f.step(H, &Vector3::zeros(), &[bad, y[1]]);
         assert!(e.r.iter().chain(e.bias.iter()).all(|x| x.is_finite()));
     }
-    assert_eq!(f.faults().directions, 4);
+    assert_eq!(f.faults().directions, 5);
     // fewer samples than directions: the missing ones are skipped too
     f.step(H, &Vector3::zeros(), &y[..1]);
-    assert_eq!(f.faults().directions, 5);
+    assert_eq!(f.faults().directions, 6);
     // a spike moves the estimate but never makes it non-finite
     let e = f.step(H, &Vector3::repeat(1e6), &y);
     assert!(e.r.iter().all(|x| x.is_finite()) && e.rate.iter().all(|x| x.is_finite()));
     assert!((e.r.transpose() * e.r - Matrix3::identity()).norm() < 1e-9);
+    assert_eq!(f.faults().held, 5);
+
+    // f32: the update of a finite gyro of 1e30 rad/s overflows (θ² > f32::MAX): held
+    let w = world().map(|d| d.cast::<f32>());
+    let mut f =
+        ComplementaryFilter::new(ComplementaryConfig::new(2.0f32, 1.0, &w, &[1.0, 1.0]).unwrap());
+    let e = f.step(0.01, &Vector3::zeros(), &w);
+    assert_eq!(f.step(0.01, &Vector3::repeat(1e30), &w), e);
+    assert_eq!(f.faults().held, 1);
 }
 
 #[test]
@@ -244,8 +382,7 @@ fn the_bias_limit_clamps_each_component_and_counts() {
         .bias_limit(0.01)
         .unwrap();
     let mut f = ComplementaryFilter::new(cfg);
-    let r = truth(0, &Vector3::zeros());
-    let y = world().map(|d| r.tr_mul(&d));
+    let (_, y) = at_rest();
     f.step(H, &Vector3::zeros(), &y);
     // a large true bias pushes the estimate to the limit, no further
     for _ in 0..500 {
@@ -253,6 +390,7 @@ fn the_bias_limit_clamps_each_component_and_counts() {
     }
     let b = f.estimate().bias;
     assert!(b.iter().all(|x| x.abs() <= 0.01), "{b}");
+    assert!(b.iter().any(|x| x.abs() == 0.01), "{b}");
     assert!(f.faults().bias_clamped > 0);
 }
 
@@ -267,31 +405,131 @@ fn configurations_are_checked() {
         ComplementaryConfig::new(KP, f64::NAN, &w, &[1.0, 1.0]).unwrap_err(),
         EstimatorError::BadGain("ki")
     );
-    assert!(matches!(
-        ComplementaryConfig::new(KP, KI, &w[..1], &[1.0]),
-        Err(EstimatorError::DirectionCount { .. })
-    ));
-    assert!(matches!(
-        ComplementaryConfig::new(KP, KI, &w, &[1.0]),
-        Err(EstimatorError::DirectionCount { .. })
-    ));
+    assert_eq!(
+        ComplementaryConfig::new(KP, KI, &w[..1], &[1.0]).unwrap_err(),
+        EstimatorError::DirectionCount {
+            given: 1,
+            min: 2,
+            max: 4
+        }
+    );
+    assert_eq!(
+        ComplementaryConfig::new(KP, KI, &[w[0]; 5], &[1.0; 5]).unwrap_err(),
+        EstimatorError::DirectionCount {
+            given: 5,
+            min: 2,
+            max: 4
+        }
+    );
+    assert_eq!(
+        ComplementaryConfig::new(KP, KI, &w, &[1.0]).unwrap_err(),
+        EstimatorError::WeightCount {
+            expected: 2,
+            given: 1
+        }
+    );
     assert_eq!(
         ComplementaryConfig::new(KP, KI, &[w[0], Vector3::zeros()], &[1.0, 1.0]).unwrap_err(),
         EstimatorError::BadDirection(1)
     );
     assert_eq!(
+        ComplementaryConfig::new(
+            KP,
+            KI,
+            &[Vector3::new(f64::INFINITY, 0.0, 0.0), w[1]],
+            &[1.0, 1.0]
+        )
+        .unwrap_err(),
+        EstimatorError::BadDirection(0)
+    );
+    assert_eq!(
         ComplementaryConfig::new(KP, KI, &w, &[1.0, 0.0]).unwrap_err(),
         EstimatorError::BadWeight(1)
     );
-    let ok = ComplementaryConfig::new(KP, KI, &w, &[1.0, 1.0]).unwrap();
-    assert!(ok.bias_limit(0.0).is_err());
-    assert!(ok.initial_attitude(Matrix3::identity() * 2.0).is_err());
+    assert_eq!(
+        ComplementaryConfig::new(KP, KI, &w, &[f64::NAN, 1.0]).unwrap_err(),
+        EstimatorError::BadWeight(0)
+    );
+    // world directions are normalised
+    let ok = ComplementaryConfig::new(KP, KI, &[w[0] * 5.0, w[1]], &[1.0, 1.0]).unwrap();
+    assert!((ok.world[0] - w[0]).norm() < 1e-15);
+    assert_eq!(
+        ok.bias_limit(0.0).unwrap_err(),
+        EstimatorError::BadGain("bias_limit")
+    );
+    assert!(ok.bias_limit(f64::INFINITY).is_err());
+    assert_eq!(
+        ok.initial_attitude(Matrix3::identity() * 2.0).unwrap_err(),
+        EstimatorError::BadInitialState
+    );
     assert!(ok.initial_attitude(-Matrix3::identity()).is_err());
-    assert!(
-        PoseConfig::new(KP, KI, &w[..1], &[1.0], 0.1, 0.01).is_err(),
+    assert!(ok.initial_bias(Vector3::new(0.0, f64::NAN, 0.0)).is_err());
+    // fields written directly: checked again by check / try_new, and new never panics
+    let mut edited = ok;
+    edited.kp = -2.0;
+    assert_eq!(
+        ComplementaryFilter::try_new(edited).unwrap_err(),
+        EstimatorError::BadGain("kp")
+    );
+    let mut edited = ok;
+    edited.count = 9;
+    assert!(matches!(
+        edited.check(),
+        Err(EstimatorError::DirectionCount { given: 9, .. })
+    ));
+    let mut f = ComplementaryFilter::new(edited);
+    let e = f.step(H, &Vector3::zeros(), &[w[0]; 9]);
+    assert!(e.r.iter().all(|x| x.is_finite()));
+    let mut edited = ok;
+    edited.world[1] *= 3.0;
+    assert!((edited.check().unwrap().world[1] - w[1]).norm() < 1e-15);
+
+    // SE(3)
+    assert_eq!(
+        PoseConfig::new(KP, KI, &w[..1], &[1.0], 0.1, 0.01).unwrap_err(),
+        EstimatorError::WeightCount {
+            expected: 2,
+            given: 1
+        },
         "the accelerometer needs its weight"
     );
-    assert!(PoseConfig::new(KP, KI, &w[..1], &[1.0, 1.0], -0.1, 0.01).is_err());
+    assert!(matches!(
+        PoseConfig::new(KP, KI, &[], &[1.0], 0.1, 0.01),
+        Err(EstimatorError::DirectionCount { given: 0, .. })
+    ));
+    assert_eq!(
+        PoseConfig::new(KP, KI, &w[..1], &[1.0, 1.0], -0.1, 0.01).unwrap_err(),
+        EstimatorError::BadGain("accel_noise")
+    );
+    assert_eq!(
+        PoseConfig::new(KP, KI, &w[..1], &[1.0, 1.0], 0.1, f64::NAN).unwrap_err(),
+        EstimatorError::BadGain("position_noise")
+    );
+    assert_eq!(
+        PoseConfig::new(KP, KI, &w[..1], &[1.0, -1.0], 0.1, 0.01).unwrap_err(),
+        EstimatorError::BadWeight(1),
+        "the accelerometer's weight is the last"
+    );
+    let pc = PoseConfig::new(KP, KI, &w[..1], &[1.0, 1.0], 0.1, 0.01).unwrap();
+    assert_eq!(
+        pc.accel_gate(-1.0).unwrap_err(),
+        EstimatorError::BadGain("accel_gate")
+    );
+    assert_eq!(
+        pc.initial_std(0.0, 1.0).unwrap_err(),
+        EstimatorError::BadGain("initial_position_std")
+    );
+    assert_eq!(
+        pc.initial_std(1.0, f64::NAN).unwrap_err(),
+        EstimatorError::BadGain("initial_velocity_std")
+    );
+    let mut edited = pc;
+    edited.attitude.world[1] = Vector3::x();
+    assert_eq!(edited.check().unwrap_err(), EstimatorError::BadDirection(1));
+    let mut edited = pc;
+    edited.initial_velocity_std = -1.0;
+    assert!(PoseFilter::try_new(edited).is_err());
+    assert!(PoseFilter::try_new(pc).is_ok());
 }
 
 /// A small deterministic generator for the noisy tests (xorshift64* and Box–Muller).
@@ -317,24 +555,36 @@ impl Noise {
 /// force still points "up" and the accelerometer is a true direction.
 fn motion(t: f64) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
     (
-        Vector3::new(0.5 * t, -0.3 * t, t.sin()),
+        Vector3::new(2.0 + 0.5 * t, -1.0 - 0.3 * t, 0.5 + t.sin()),
         Vector3::new(0.5, -0.3, t.cos()),
         Vector3::new(0.0, 0.0, -t.sin()),
     )
 }
 
-/// Runs the pose filter on samples of [`motion`] with the given noise; calls `check` at
-/// every tick with the time, the truth and the estimate.
-fn pose_run(
+/// How a pose run goes.
+struct PoseRun {
+    /// Noise scale: 0 (exact samples, the filter still tuned for noise) or 1.
     noise: f64,
+    /// The body rotates with [`omega`] (else it is at rest).
+    spin: bool,
+    /// [`motion`] itself (a smooth acceleration), or its acceleration sampled at `t_k` and
+    /// held over `(t_{k−1}, t_k]` (as under a force held over each control period): the
+    /// truth then follows the filter's prediction model exactly.
+    held: bool,
+    /// A fix on the first tick (else the first fix comes at 50 ms, and the filter starts at
+    /// x̂ = 0, 2.3 m from the truth, with v̂ = 0, 1.2 m/s from it).
+    first_fix: bool,
+}
+
+/// Runs the pose filter on samples of [`motion`]; calls `check` at every tick with the time,
+/// the truth (position, velocity) and the estimate.
+fn pose_run(
+    how: PoseRun,
     seconds: f64,
-    mut check: impl FnMut(f64, &Vector3<f64>, &Vector3<f64>, &estimator::PoseEstimate<f64>),
+    mut check: impl FnMut(f64, &Vector3<f64>, &Vector3<f64>, &PoseEstimate<f64>),
 ) {
-    // the attitude is constant here: the attitude filter's one-tick lead on a rotating body
-    // (tested above) would bias R̂f
-    let omega = Vector3::zeros();
-    let (sa, sp, sd) = (0.05 * noise, 0.005 * noise, 0.01 * noise);
-    let cfg = PoseConfig::new(KP, KI, &world()[1..], &[1.0, 1.0], sa.max(1e-3), sp)
+    let (sa, sp, sd) = (0.05, 0.005, 0.01);
+    let cfg = PoseConfig::new(KP, KI, &world()[1..], &[1.0, 1.0], sa, sp)
         .unwrap()
         .accel_gate(3.0)
         .unwrap();
@@ -342,65 +592,125 @@ fn pose_run(
     let mut rng = Noise(0x9e37_79b9_7f4a_7c15);
     let b = Vector3::from(BIAS);
     let g = Vector3::new(0.0, 0.0, -GRAVITY);
-    for k in 0..=(seconds / H).round() as usize {
+    let steps = (seconds / H).round() as usize;
+    let r = truth(steps, how.spin);
+    let n = how.noise;
+    let (mut x, mut v, _) = motion(0.0);
+    for (k, rk) in r.iter().enumerate().take(steps + 1) {
         let t = k as f64 * H;
-        let r = truth(k, &omega);
-        let (x, v, a) = motion(t);
-        let gyro = omega + b + rng.vec3(0.002 * noise / H.sqrt());
-        let d = [(r.tr_mul(&world()[1]) + rng.vec3(sd)).normalize()];
-        let acc = r.tr_mul(&(a - g)) + rng.vec3(sa);
+        let a = if how.held {
+            let a = motion(t).2;
+            if k > 0 {
+                x += v * H + a * (H * H / 2.0);
+                v += a * H;
+            }
+            a
+        } else {
+            let m = motion(t);
+            (x, v) = (m.0, m.1);
+            m.2
+        };
+        let w = if how.spin { omega(t) } else { Vector3::zeros() };
+        let gyro = w + b + rng.vec3(n * 0.002 / H.sqrt());
+        let d = [(rk.tr_mul(&world()[1]) + rng.vec3(n * sd)).normalize()];
+        let acc = rk.tr_mul(&(a - g)) + rng.vec3(n * sa);
         // fixes at 20 Hz
-        let fix = (k % 5 == 0).then(|| x + rng.vec3(sp));
+        let fix = (k % 5 == 0 && (k > 0 || how.first_fix)).then(|| x + rng.vec3(n * sp));
         let e = f.step(H, &gyro, &d, &acc, fix.as_ref());
         check(t, &x, &v, &e);
     }
 }
 
-#[test]
-fn pose_noise_free_position_and_velocity_converge() {
-    let (mut px, mut pv, mut att) = (0.0, 0.0, 0.0);
-    pose_run(0.0, 60.0, |t, x, v, e| {
-        if t >= 59.0 {
-            px = f64::max(px, (e.x - x).norm());
-            pv = f64::max(pv, (e.v - v).norm());
+/// Noise-free: the largest position and velocity errors over the last second of 30 s, and
+/// the time from which they stay within 1 mm and 1 cm/s.
+fn pose_noise_free(spin: bool, held: bool) -> (f64, f64, Option<f64>) {
+    let (mut px, mut pv, mut settled) = (0.0, 0.0, None);
+    let how = PoseRun {
+        noise: 0.0,
+        spin,
+        held,
+        first_fix: false,
+    };
+    pose_run(how, 30.0, |t, x, v, e| {
+        let (ex, ev) = ((e.x - x).norm(), (e.v - v).norm());
+        if t >= 29.0 {
+            px = f64::max(px, ex);
+            pv = f64::max(pv, ev);
         }
-        att = e.r.norm();
+        if ex >= 1e-3 || ev >= 1e-2 {
+            settled = None;
+        } else if settled.is_none() {
+            settled = Some(t);
+        }
     });
-    eprintln!("noise-free pose over the last second: position {px:.2e} m, velocity {pv:.2e} m/s");
-    // the prediction takes the acceleration at the interval's end: O(h²) per step, corrected
-    // at every fix; measured about 1e-5 m and 1e-3 m/s
-    assert!(px < 1e-3 && pv < 1e-2, "{px} {pv}");
-    assert!(att.is_finite());
+    eprintln!(
+        "noise-free pose (spin {spin}, held {held}): position {px:.2e} m, velocity {pv:.2e} m/s \
+         over the last second; within 1 mm and 1 cm/s from t = {settled:?} s"
+    );
+    (px, pv, settled)
+}
+
+#[test]
+fn pose_noise_free_from_an_initial_error_position_and_velocity_converge() {
+    for spin in [false, true] {
+        // the acceleration held over each period: the prediction is the truth's own model,
+        // and the errors vanish. Measured at rest / rotating: 7.7e-10 / 5.4e-9 m and
+        // 1.9e-9 / 1.2e-8 m/s over the last second, within 1 mm and 1 cm/s from t = 6.05 /
+        // 6.35 s. (With R̂_k in a_k = R̂ f + g instead of R̂_{k−1}, rotating: 1.0e-2 m,
+        // 3.0e-2 m/s: R̂_k runs one tick ahead.)
+        let (px, pv, settled) = pose_noise_free(spin, true);
+        assert!(px < 1e-8 && pv < 3e-8, "spin {spin}: {px} {pv}");
+        assert!(
+            settled.is_some_and(|t| t < 10.0),
+            "spin {spin}: {settled:?}"
+        );
+        // a smooth acceleration: taking a_k over (t_{k−1}, t_k] lags by about h/2·ȧ in
+        // velocity (here h/2 = 5 mm/s per m/s³), which the fixes hold down. Measured at
+        // rest and rotating alike: 1.1e-3 m and 3.3e-3 m/s over the last second.
+        let (px, pv, _) = pose_noise_free(spin, false);
+        assert!(px < 3e-3 && pv < 1e-2, "spin {spin}: {px} {pv}");
+    }
 }
 
 #[test]
 fn pose_with_noise_the_covariance_stays_spd_and_the_errors_stay_within_three_sigma() {
-    let (mut ticks, mut outside, mut worst) = (0u32, 0u32, 0.0f64);
-    pose_run(1.0, 60.0, |t, x, _, e| {
-        let p = e.covariance;
-        assert!(
-            (p[(0, 1)] - p[(1, 0)]).abs() == 0.0 && p[(0, 0)] > 0.0 && p.determinant() > 0.0,
-            "t = {t}: {p}"
-        );
-        if t > 5.0 {
-            let sigma = p[(0, 0)].sqrt();
-            for i in 0..3 {
-                ticks += 1;
-                if (e.x[i] - x[i]).abs() > 3.0 * sigma {
-                    outside += 1;
+    for spin in [false, true] {
+        let (mut ticks, mut out_x, mut out_v, mut worst) = (0u32, 0u32, 0u32, 0.0f64);
+        let how = PoseRun {
+            noise: 1.0,
+            spin,
+            held: false,
+            first_fix: true,
+        };
+        pose_run(how, 60.0, |t, x, v, e| {
+            let p = e.covariance;
+            assert!(
+                p[(0, 1)] == p[(1, 0)] && p[(0, 0)] > 0.0 && p.determinant() > 0.0,
+                "t = {t}: {p}"
+            );
+            if t > 5.0 {
+                let (sx, sv) = (p[(0, 0)].sqrt(), p[(1, 1)].sqrt());
+                for i in 0..3 {
+                    ticks += 1;
+                    out_x += u32::from((e.x[i] - x[i]).abs() > 3.0 * sx);
+                    out_v += u32::from((e.v[i] - v[i]).abs() > 3.0 * sv);
                 }
+                worst = worst.max((e.x - x).norm());
             }
-            worst = worst.max((e.x - x).norm());
-        }
-    });
-    let share = outside as f64 / ticks as f64;
-    eprintln!(
-        "noisy pose: {share:.4} of axis-ticks outside 3σ, worst position error {worst:.3e} m"
-    );
-    // a consistent filter leaves 0.27 % outside 3σ (measured 0.53 %, worst 9.2 mm); attitude
-    // errors feed g into the prediction, so allow 5 %
-    assert!(share < 0.05, "{share}");
-    assert!(worst < 0.05, "{worst}");
+        });
+        let (sx, sv) = (out_x as f64 / ticks as f64, out_v as f64 / ticks as f64);
+        eprintln!(
+            "noisy pose (spin {spin}): outside 3σ {sx:.4} (position), {sv:.4} (velocity) of \
+             axis-ticks; worst position error {worst:.3e} m"
+        );
+        // a consistent filter leaves 0.27 % outside 3σ; here the attitude estimate's error
+        // feeds g into the prediction, and the smooth acceleration's h/2·ȧ lag, unmodelled.
+        // Measured at rest / rotating: 0.54 % / 0.22 % (position) and 2.4 % / 1.4 %
+        // (velocity) outside 3σ, worst position error 9.2 / 7.2 mm. (With R̂_k in a_k,
+        // rotating: 23 % and 34 %.)
+        assert!(sx < 0.05 && sv < 0.05, "spin {spin}: {sx} {sv}");
+        assert!(worst < 0.02, "spin {spin}: {worst}");
+    }
 }
 
 #[test]
@@ -415,17 +725,67 @@ fn pose_bad_samples_are_counted_and_the_estimate_stays_finite() {
     let start = f.step(H, &Vector3::zeros(), &d, &up, Some(&Vector3::zeros()));
     assert!(start.started);
     let nan = Vector3::new(f64::NAN, 0.0, 0.0);
+    // far from g: gated as a direction (still used for the prediction)
     f.step(H, &Vector3::zeros(), &d, &(up * 10.0), None);
     assert_eq!(f.faults().accel_gated, 1);
+    assert!(
+        f.estimate().v[2] > 0.8,
+        "predicted with 9 g up: {}",
+        f.estimate().v
+    );
+    // non-finite accelerometer and fix
+    let v = f.estimate().v;
     f.step(H, &Vector3::zeros(), &d, &nan, Some(&nan));
     assert_eq!((f.faults().accel, f.faults().position), (1, 1));
+    assert_eq!(f.estimate().v, v, "a = 0: the velocity is unchanged");
+    // free fall: no direction (counted), a = g in the prediction
+    f.step(H, &Vector3::zeros(), &d, &Vector3::zeros(), None);
+    assert_eq!(f.faults().directions, 1);
+    assert!((f.estimate().v[2] - v[2] + GRAVITY * H).abs() < 1e-12);
     let e = f.step(H, &nan, &[nan], &up, None);
-    assert_eq!((f.faults().gyro, f.faults().directions), (1, 1));
-    assert!(
-        e.r.iter()
-            .chain(e.x.iter())
-            .chain(e.v.iter())
-            .chain(e.rate.iter())
-            .all(|x| x.is_finite())
+    assert_eq!((f.faults().gyro, f.faults().directions), (1, 2));
+    // a fix so far out that the update overflows: held
+    let before = *f.estimate();
+    let e2 = f.step(
+        H,
+        &Vector3::zeros(),
+        &d,
+        &up,
+        Some(&Vector3::repeat(f64::MAX)),
     );
+    assert_eq!((e2.x, e2.v), (before.x, before.v));
+    assert_eq!(f.faults().held, 1);
+    for e in [e, e2] {
+        assert!(
+            e.r.iter()
+                .chain(e.x.iter())
+                .chain(e.v.iter())
+                .chain(e.rate.iter())
+                .all(|x| x.is_finite())
+        );
+    }
+}
+
+#[test]
+fn estimates_in_the_controllers_form() {
+    let (r, y) = at_rest();
+    let mut f = started_filter();
+    let e = f.step(H, &Vector3::new(0.1, 0.2, 0.3), &y);
+    let (q, v) = e.state();
+    assert_eq!((q, v), (e.r, e.rate));
+
+    let cfg = PoseConfig::new(KP, KI, &world()[1..], &[1.0, 1.0], 0.05, 0.005).unwrap();
+    let mut f = PoseFilter::new(cfg);
+    let f_up = r.tr_mul(&Vector3::new(0.0, 0.0, GRAVITY));
+    let x = Vector3::new(1.0, 2.0, 3.0);
+    let e = f.step(H, &Vector3::new(0.1, 0.2, 0.3), &[y[1]], &f_up, Some(&x));
+    let (q, v) = e.state();
+    assert_eq!(q.fixed_view::<3, 3>(0, 0), e.r);
+    assert_eq!(q.fixed_view::<3, 1>(0, 3), x);
+    assert_eq!(
+        q.fixed_view::<1, 4>(3, 0),
+        nalgebra::RowVector4::new(0.0, 0.0, 0.0, 1.0)
+    );
+    assert_eq!(v.fixed_rows::<3>(0), e.rate);
+    assert_eq!(v.fixed_rows::<3>(3), e.r.tr_mul(&e.v));
 }

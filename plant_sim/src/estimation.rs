@@ -30,6 +30,9 @@ pub struct FaultCounts {
     pub position: u64,
     /// Bias components clamped to `bias_limit`.
     pub bias_clamped: u64,
+    /// Steps that kept the previous estimate (a period that is not finite and positive, or
+    /// samples so large that the update overflowed).
+    pub held: u64,
 }
 
 impl From<&estimator::Faults> for FaultCounts {
@@ -41,6 +44,7 @@ impl From<&estimator::Faults> for FaultCounts {
             accel: f.accel,
             position: f.position,
             bias_clamped: f.bias_clamped,
+            held: f.held,
         }
     }
 }
