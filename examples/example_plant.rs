@@ -5,9 +5,15 @@
 //! `drive_motors` writes the actuators. It sends no scenario fingerprint, as a board would.
 //!
 //! ```text
-//! example_plant [RUN] [so3|se3] [lockstep|realtime] [SECONDS]   # eqtrack so3 lockstep 20
+//! example_plant [RUN] [so3|se3] [lockstep|realtime] [SECONDS] [truth|complementary]
+//!                                                  # eqtrack so3 lockstep 20 truth
 //! controller_node --name RUN [--builtin se3_circle]            # in another terminal
 //! ```
+//!
+//! With `complementary` (SO(3)) the plant publishes what a board would: not the body's state
+//! but the `estimator` crate's complementary filter run on its IMU — a gyro and two direction
+//! sensors, "up" `(0, 0, 1)` and "north" `(1, 0, 0)` (`k_P = 1`, `k_I = 0.3`, unit weights,
+//! TRIAD start). The simulated IMU is exact; on a board `read_imu` reads the real one.
 //! One CSV line per tick on stdout: `k, t, Q (row-major), V, τ, status` (0 fresh, 1 held,
 //! 2 safe mode).
 use controller::GroupKind;
@@ -22,6 +28,15 @@ const SUBSTEPS: usize = 10; // RKMK4 steps per period, as in the scenarios
 const MISS_LIMIT: u32 = 3; // consecutive misses before safe mode
 const TORQUE_LIMIT: f64 = 5.0; // per axis, for the safe-mode torque: what the actuators do
 const KD_SAFE: f64 = 0.5; // safe-mode damping
+/// The complementary filter's world directions: "up", then "north".
+const NORTH_UP: [Vector3<f64>; 2] = [Vector3::new(0.0, 0.0, 1.0), Vector3::new(1.0, 0.0, 0.0)];
+
+/// The complementary filter of the `complementary` variant.
+fn filter() -> estimator::ComplementaryFilter<f64> {
+    let cfg = estimator::ComplementaryConfig::new(1.0, 0.3, &NORTH_UP, &[1.0, 1.0])
+        .expect("valid gains and directions");
+    estimator::ComplementaryFilter::new(cfg)
+}
 
 /// The "hardware": a rigid body integrated over each period under the held torque.
 struct Body<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(RigidBody<f64, G, N, M>);
@@ -30,6 +45,18 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Body<G, N, M> {
     /// Attitude (pose) and gyro rates (on a board: read the IMU and the position fix).
     fn read_sensors(&self) -> (SMatrix<f64, N, N>, SVector<f64, M>) {
         (*self.0.configuration(), self.0.velocity())
+    }
+    /// The IMU: the gyro and the body-frame directions of "up" and "north" (on a board: read
+    /// them from the sensors).
+    fn read_imu(&self) -> (Vector3<f64>, [Vector3<f64>; 2]) {
+        let q = self.0.configuration();
+        let r = Matrix3::from_fn(|i, j| q[(i, j)]);
+        let v = self.0.velocity();
+        let unit = |d: Vector3<f64>| {
+            let y = r.tr_mul(&d);
+            y / y.norm()
+        };
+        (Vector3::new(v[0], v[1], v[2]), NORTH_UP.map(unit))
     }
     /// Applies the torque for one period (on a board: write the motor drivers).
     fn drive_motors(&mut self, torque: &SVector<f64, M>) {
@@ -42,6 +69,16 @@ fn main() -> std::process::ExitCode {
     let (run, group, mode) = (arg(1, "eqtrack"), arg(2, "so3"), arg(3, "lockstep"));
     let steps = (arg(4, "20").parse::<f64>().unwrap_or(20.0) / PERIOD).round() as u64;
     let realtime = mode == "realtime";
+    let estimate = match arg(5, "truth").as_str() {
+        "truth" => false,
+        "complementary" if group == "so3" => true,
+        other => {
+            eprintln!(
+                "example_plant: the 5th argument is truth or complementary (so3 only), got `{other}`"
+            );
+            return std::process::ExitCode::from(2);
+        }
+    };
     let r = |x: f64, y: f64, z: f64| Vector3::new(x, y, z);
     let result = if group == "se3" {
         let inertia = SMatrix::<f64, 6, 6>::from_diagonal(&[0.8, 1.0, 1.2, 2.0, 2.0, 2.0].into());
@@ -52,12 +89,19 @@ fn main() -> std::process::ExitCode {
             .copy_from(&r(2.0, -1.0, 1.2));
         let v0 = [1.0, -0.5, 0.3, 0.0, 0.5, -1.0].into();
         let body = Body::<Se3, 4, 6>(RigidBody::new(inertia, q0, v0).expect("a valid body"));
-        fly(&run, GroupKind::Se3, realtime, steps, body)
+        fly(&run, GroupKind::Se3, realtime, steps, body, None)
     } else {
         let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759);
         let q0 = So3::exp(&(r(0.8, 0.6, 0.0) * (std::f64::consts::PI - 0.1)));
         let body = Body::<So3, 3, 3>(RigidBody::new(inertia, q0, r(4.0, -3.0, 2.0)).expect("ok"));
-        fly(&run, GroupKind::So3, realtime, steps, body)
+        fly(
+            &run,
+            GroupKind::So3,
+            realtime,
+            steps,
+            body,
+            estimate.then(filter),
+        )
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
@@ -74,6 +118,7 @@ fn fly<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     realtime: bool,
     steps: u64,
     mut body: Body<G, N, M>,
+    mut filter: Option<estimator::ComplementaryFilter<f64>>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let mut plant = PlantEndpoint::open(PlantConfig::new(run, group, PERIOD))?;
     let mut policy = DeadlinePolicy::new(MISS_LIMIT);
@@ -83,9 +128,21 @@ fn fly<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let period_ns = (PERIOD * 1e9) as u64;
     let mut t0 = 0; // the clock starts with the controller's first answer
     for k in 0..=steps {
-        // 1. Read the sensors and publish the state.
+        // 1. Read the sensors and publish the state: the exact one, or the filter's estimate
+        //    from the IMU (SO(3): n = m = 3).
         let (q, v) = body.read_sensors();
-        plant.publish(k, &q, &v)?;
+        match &mut filter {
+            None => {
+                plant.publish(k, &q, &v)?;
+            }
+            Some(f) => {
+                let (gyro, directions) = body.read_imu();
+                let e = f.step(PERIOD, &gyro, &directions);
+                let q_hat = SMatrix::<f64, N, N>::from_fn(|i, j| e.r[(i, j)]);
+                let v_hat = SVector::<f64, M>::from_fn(|i, _| e.rate[i]);
+                plant.publish(k, &q_hat, &v_hat)?;
+            }
+        }
         // 2. Wait for the torque: until the tick ends in real time; in lockstep (and for
         //    the first command) as long as it takes, up to 10 s.
         let deadline = if realtime && k > 0 {

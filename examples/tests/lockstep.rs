@@ -9,21 +9,58 @@ use std::time::Duration;
 /// Runs the example plant against `controller_node --builtin <builtin>` for `seconds` and
 /// compares every Q, V and τ entry with `plant_sim sim`'s trajectory, bit for bit.
 fn example_matches_sim(group: &str, builtin: &str, seconds: &str, n: usize, m: usize) {
-    let _g = serial();
     let d = TempDir::new(&format!("example-{group}"));
     let sim = d.join("sim");
-    let (code, out) = run(
-        "plant_sim",
-        &["sim", "--builtin", builtin, "--out", &sim],
-        Duration::from_secs(120),
+    run_and_compare(
+        &sim,
+        group,
+        &["--builtin", builtin],
+        builtin,
+        seconds,
+        n,
+        m,
+        "truth",
     );
+}
+
+/// [`example_matches_sim`] with the simulation's scenario given and the example's estimator
+/// variant; the simulation writes to `<dir of the scenario>/sim`.
+fn example_matches_sim_with(
+    group: &str,
+    source: &[&str],
+    builtin: &str,
+    seconds: &str,
+    n: usize,
+    m: usize,
+    estimator: &str,
+) {
+    let dir = Path::new(source[1]).parent().unwrap().join("sim");
+    let sim = dir.to_str().unwrap().to_owned();
+    run_and_compare(&sim, group, source, builtin, seconds, n, m, estimator);
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_and_compare(
+    sim: &str,
+    group: &str,
+    source: &[&str],
+    builtin: &str,
+    seconds: &str,
+    n: usize,
+    m: usize,
+    estimator: &str,
+) {
+    let _g = serial();
+    let mut args = vec!["sim", "--out", sim];
+    args.extend_from_slice(source);
+    let (code, out) = run("plant_sim", &args, Duration::from_secs(120));
     assert_eq!(code, 0, "{out}");
-    let reference = Csv::read(&Path::new(&sim).join("trajectory.csv"));
+    let reference = Csv::read(&Path::new(sim).join("trajectory.csv"));
     let name = format!("t-example-{group}");
     let mut ctl = Proc::start("controller_node", &["--name", &name, "--builtin", builtin]);
     let mut plant = Proc::start_path(
         Path::new(env!("CARGO_BIN_EXE_example_plant")),
-        &[&name, group, "lockstep", seconds],
+        &[&name, group, "lockstep", seconds, estimator],
     );
     let status = plant.wait_timeout(Duration::from_secs(120));
     assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
@@ -65,4 +102,39 @@ fn the_example_plant_reproduces_the_seed_simulation_bit_for_bit() {
 #[test]
 fn the_example_plant_reproduces_the_se3_simulation_bit_for_bit() {
     example_matches_sim("se3", "se3_circle", "10", 4, 6);
+}
+
+#[test]
+fn the_example_plant_with_its_complementary_filter_reproduces_the_simulation_bit_for_bit() {
+    // the seed scenario with the example's exact IMU and filter as [sensors] and [estimator]
+    let seed = include_str!("../../scenarios/seed.toml");
+    let d = TempDir::new("example-cf");
+    let scenario = d.join("seed_cf.toml");
+    std::fs::write(
+        &scenario,
+        format!(
+            "{seed}\n[sensors]\ndirections = [ {{ world = [0.0, 0.0, 1.0] }}, {{ world = [1.0, 0.0, 0.0] }} ]\n\
+             [estimator]\nkind = \"complementary\"\nkp = 1.0\nki = 0.3\nweights = [1.0, 1.0]\n"
+        ),
+    )
+    .unwrap();
+    example_matches_sim_with(
+        "so3",
+        &["--scenario", &scenario],
+        "seed",
+        "20",
+        3,
+        3,
+        "complementary",
+    );
+    // the filter's estimate is what the controller saw: the run differs from the truth-fed one
+    let (code, out) = run(
+        "plant_sim",
+        &["sim", "--builtin", "seed", "--out", &d.join("truth")],
+        Duration::from_secs(120),
+    );
+    assert_eq!(code, 0, "{out}");
+    let truth = Csv::read(&Path::new(&d.join("truth")).join("trajectory.csv")).col("tau_0");
+    let cf = Csv::read(&Path::new(&d.join("sim")).join("trajectory.csv")).col("tau_0");
+    assert!(truth.iter().zip(&cf).any(|(a, b)| a != b));
 }
