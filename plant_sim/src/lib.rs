@@ -14,6 +14,7 @@ pub mod flight;
 pub mod floors;
 pub mod monitor;
 pub mod montecarlo;
+pub mod noise;
 pub mod output;
 pub mod pair;
 pub mod plot;

@@ -93,6 +93,9 @@ enum Command {
     Sim(SimArgs),
     /// The extended paper's Monte Carlo study over the four laws.
     Montecarlo(McArgs),
+    /// What sensor noise costs: truth-fed against filter-fed control over gyro noise levels,
+    /// with and without the gyro bias, over seeded runs (a scenario with [sensors]).
+    Noise(NoiseArgs),
     /// The plant process of the pair: talks to controller_node over iceoryx2.
     Run(RunArgs),
     /// Round trip of the real loop: iceoryx2 busy-poll, iceoryx2 event, Unix-socket baseline.
@@ -276,6 +279,31 @@ struct SimArgs {
 }
 
 #[derive(Args)]
+struct NoiseArgs {
+    /// Scenario with [sensors] and a complementary [estimator].
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "scenarios/sensors_so3.toml"
+    )]
+    scenario: PathBuf,
+    /// Gyro noise densities to compare (rad/s/√Hz), comma-separated.
+    #[arg(
+        long,
+        value_name = "LIST",
+        default_value = "0.002,0.02,0.1",
+        value_delimiter = ','
+    )]
+    gyro_noise: Vec<f64>,
+    /// Seeded runs per configuration (sensor seeds 1..=N).
+    #[arg(long, value_name = "N", default_value_t = 10)]
+    runs: usize,
+    /// Output directory; default out/noise.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+}
+
+#[derive(Args)]
 struct McArgs {
     /// Base scenario (TOML); default the built-in `montecarlo`.
     #[arg(long, value_name = "FILE")]
@@ -367,6 +395,20 @@ fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
     );
     println!(
         "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}",
+        out.display()
+    );
+    Ok(())
+}
+
+fn noise_cmd(args: NoiseArgs) -> Result<(), SimError> {
+    let base = Scenario::from_file(&args.scenario)?;
+    let out = args.out.unwrap_or_else(|| Path::new("out").join("noise"));
+    ensure_dir(&out)?;
+    let rows = plant_sim::noise::study(&base, &args.gyro_noise, args.runs)?;
+    plant_sim::noise::write(&rows, &base.name, &out)?;
+    print!("{}", plant_sim::noise::table(&rows));
+    println!(
+        "wrote {}/{{noise.csv, table.md, noise.png, noise.svg}}",
         out.display()
     );
     Ok(())
@@ -733,6 +775,7 @@ fn main() -> ExitCode {
         None => sim(SimArgs::default(), &stop),
         Some(Command::Sim(a)) => sim(a, &stop),
         Some(Command::Montecarlo(a)) => montecarlo_cmd(a, &stop),
+        Some(Command::Noise(a)) => noise_cmd(a),
         Some(Command::Run(a)) => run_cmd(a, &stop),
         Some(Command::BenchLoop(a)) => bench_loop_cmd(a, &stop),
         Some(Command::Reference(a)) => reference_cmd(a),

@@ -179,9 +179,27 @@ pub fn run_all(
     }
 }
 
+/// A run's own sensors, when the scenario has `[sensors]`: the sensor seed and the gyro bias
+/// are drawn from a ChaCha8 stream seeded with the scenario's sensor seed and the run index
+/// (so they do not depend on the thread count): each bias component from `N(0, b_i²)`, `b_i`
+/// the scenario's component, then the seed of the run's sensor stream.
+pub fn run_sensors(s: &mut Scenario, run: usize) {
+    if let Some(sp) = s.sensors.as_mut() {
+        let mut rng = ChaCha8Rng::seed_from_u64(
+            sp.seed ^ (run as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15),
+        );
+        for b in sp.gyro.bias.iter_mut() {
+            let n: f64 = StandardNormal.sample(&mut rng);
+            *b *= n;
+        }
+        sp.seed = rand_chacha::rand_core::Rng::next_u64(&mut rng);
+    }
+}
+
 fn one_run(base: &Scenario, run: usize, sample: Sample, law: Law) -> Result<RunResult, SimError> {
     let mut s = base.clone();
     s.law = law;
+    run_sensors(&mut s, run);
     let r_d0: SMatrix<f64, 3, 3> = Scenario::configuration::<3>(&s.reference);
     let w_d0 = Vector3::from_row_slice(&s.reference.velocity);
     let r0 = r_d0 * exp_so3(&Vector3::from(sample.r));

@@ -59,6 +59,7 @@ fn draw<DB: DrawingBackend>(
     title: &str,
     panels: &[Panel],
     cols: usize,
+    x_desc: &str,
 ) -> Result<(), String>
 where
     DB::ErrorType: 'static,
@@ -92,7 +93,7 @@ where
             .map_err(e)?;
         chart
             .configure_mesh()
-            .x_desc("t [s]")
+            .x_desc(x_desc)
             .y_desc(panel.y_label.as_str())
             .label_style(("sans-serif", 14))
             .axis_desc_style(("sans-serif", 16))
@@ -129,13 +130,25 @@ where
     root.present().map_err(e)
 }
 
-/// Writes `stem.png` and `stem.svg` with `panels` laid out in `cols` columns.
+/// Writes `stem.png` and `stem.svg` with `panels` laid out in `cols` columns, against time.
 pub fn render(
     stem: &Path,
     title: &str,
     panels: &[Panel],
     cols: usize,
     size: (u32, u32),
+) -> Result<(), SimError> {
+    render_against(stem, title, panels, cols, size, "t [s]")
+}
+
+/// [`render`] with another quantity on the x axis (`x_desc` labels it).
+pub fn render_against(
+    stem: &Path,
+    title: &str,
+    panels: &[Panel],
+    cols: usize,
+    size: (u32, u32),
+    x_desc: &str,
 ) -> Result<(), SimError> {
     register_font();
     let png = stem.with_extension("png");
@@ -146,6 +159,7 @@ pub fn render(
         title,
         panels,
         cols,
+        x_desc,
     )
     .map_err(|e| fail(&png, e))?;
     draw(
@@ -153,6 +167,7 @@ pub fn render(
         title,
         panels,
         cols,
+        x_desc,
     )
     .map_err(|e| fail(&svg, e))?;
     Ok(())

@@ -79,3 +79,73 @@ fn the_closed_loop_on_estimates_converges_on_so3_and_se3() {
         assert!(est < 0.05, "{name}: {est}");
     }
 }
+
+#[test]
+fn the_noise_study_degrades_with_gyro_noise_and_truth_fed_rows_do_not_see_it() {
+    let base = scenario("sensors_so3");
+    let rows = plant_sim::noise::study(&base, &[0.002, 0.1], 3).unwrap();
+    assert_eq!(rows.len(), 8, "2 noise levels × bias on/off × truth/filter");
+    let find = |noise: f64, bias: bool, est: &str| {
+        rows.iter()
+            .find(|r| r.gyro_noise == noise && r.bias == bias && r.estimator == est)
+            .unwrap()
+    };
+    for bias in [false, true] {
+        let (lo, hi) = (
+            find(0.002, bias, "complementary"),
+            find(0.1, bias, "complementary"),
+        );
+        assert!(
+            hi.rms_estimate_error > 3.0 * lo.rms_estimate_error,
+            "{lo:?} {hi:?}"
+        );
+        assert!(
+            hi.final_attitude_error > lo.final_attitude_error,
+            "{lo:?} {hi:?}"
+        );
+        // the truth-fed loop never sees the sensors
+        let (a, b) = (find(0.002, bias, "truth"), find(0.1, bias, "truth"));
+        assert_eq!(a.final_attitude_error, b.final_attitude_error);
+        assert_eq!((a.rms_estimate_error, b.rms_estimate_error), (0.0, 0.0));
+    }
+    let d = std::env::temp_dir().join(format!("noise-study-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    plant_sim::noise::write(&rows, "sensors_so3", &d).unwrap();
+    let csv = std::fs::read_to_string(d.join("noise.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 9, "{csv}");
+    assert!(d.join("noise.png").exists() && d.join("table.md").exists());
+    std::fs::remove_dir_all(&d).unwrap();
+    // a scenario without a filter is refused
+    let plain = Scenario::builtin("seed").unwrap();
+    assert!(plant_sim::noise::study(&plain, &[0.002], 1).is_err());
+}
+
+#[test]
+fn the_monte_carlo_study_gives_each_run_its_own_sensors_whatever_the_thread_count() {
+    let base = scenario("sensors_so3");
+    let (mut a, mut b, mut again) = (base.clone(), base.clone(), base.clone());
+    plant_sim::montecarlo::run_sensors(&mut a, 0);
+    plant_sim::montecarlo::run_sensors(&mut b, 1);
+    plant_sim::montecarlo::run_sensors(&mut again, 0);
+    let (sa, sb) = (a.sensors.unwrap(), b.sensors.unwrap());
+    assert_ne!(sa.seed, sb.seed);
+    assert_ne!(sa.gyro.bias, sb.gyro.bias);
+    assert_eq!(again.sensors.unwrap(), sa, "drawn from the run index alone");
+    let samples = plant_sim::montecarlo::draw_samples(4, 3);
+    let stop = link::StopFlag::never();
+    let run = |threads| {
+        plant_sim::montecarlo::run_all(
+            &base,
+            &samples,
+            &[controller::Law::Eqt],
+            Some(threads),
+            &|| {},
+            &stop,
+        )
+        .unwrap()
+    };
+    let (one, two) = (run(1), run(2));
+    assert_eq!(one, two);
+    // and the runs' sensors differ: same law and scenario, different estimates
+    assert_ne!(one[0].series[100], one[1].series[100]);
+}
