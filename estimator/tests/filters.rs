@@ -789,3 +789,54 @@ fn estimates_in_the_controllers_form() {
     assert_eq!(v.fixed_rows::<3>(0), e.rate);
     assert_eq!(v.fixed_rows::<3>(3), e.r.tr_mul(&e.v));
 }
+
+/// A sample entry: mostly ordinary numbers, sometimes NaN, ±∞, huge, tiny or zero.
+fn entry() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        6 => -20.0f64..20.0,
+        1 => Just(f64::NAN),
+        1 => Just(f64::INFINITY),
+        1 => Just(f64::NEG_INFINITY),
+        1 => Just(1e300),
+        1 => Just(-1e-300),
+        1 => Just(0.0),
+    ]
+}
+
+fn sample3() -> impl Strategy<Value = Vector3<f64>> {
+    prop::array::uniform3(entry()).prop_map(Vector3::from)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, .. ProptestConfig::default() })]
+    /// Fuzzing the samples: any sequence of gyro, direction, accelerometer and fix samples
+    /// (and periods) leaves both filters' estimates finite, `R̂` a rotation and the
+    /// covariance symmetric positive definite.
+    #[test]
+    fn any_samples_leave_the_estimates_finite(
+        ticks in prop::collection::vec(
+            (sample3(), sample3(), sample3(), sample3(), prop::option::of(sample3()), prop_oneof![8 => Just(0.01f64), 1 => Just(f64::NAN), 1 => Just(-1.0)]),
+            1..60,
+        ),
+    ) {
+        let w = world();
+        let mut cf = ComplementaryFilter::new(
+            ComplementaryConfig::new(2.0, 1.0, &w, &[1.0, 1.0]).unwrap().bias_limit(0.5).unwrap(),
+        );
+        let mut pf = PoseFilter::new(
+            PoseConfig::new(2.0, 1.0, &w[1..], &[1.0, 1.0], 0.05, 0.01).unwrap().accel_gate(2.0).unwrap(),
+        );
+        for (gyro, d0, d1, acc, fix, h) in &ticks {
+            let e = cf.step(*h, gyro, &[*d0, *d1]);
+            prop_assert!(e.r.iter().chain(e.rate.iter()).chain(e.bias.iter()).all(|x| x.is_finite()), "{e:?}");
+            prop_assert!((e.r.transpose() * e.r - Matrix3::identity()).norm() < 1e-9);
+            let p = pf.step(*h, gyro, &[*d1], acc, fix.as_ref());
+            prop_assert!(
+                p.r.iter().chain(p.x.iter()).chain(p.v.iter()).chain(p.rate.iter()).all(|x| x.is_finite()),
+                "{p:?}"
+            );
+            let c = p.covariance;
+            prop_assert!(c[(0, 1)] == c[(1, 0)] && c[(0, 0)] > 0.0 && c.determinant() > 0.0, "{c}");
+        }
+    }
+}
