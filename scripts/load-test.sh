@@ -169,10 +169,10 @@ else
 fi
 stop_hog
 
-HOG_TEXT="${HOG[*]}" python3 - "$CI_MODE" "$SECS" "$NCPU" "${ROWS[@]}" -- "${CT_ROWS[@]}" <<'PY'
+HOG_TEXT="${HOG[*]}" python3 - "$SECS" "$NCPU" "${ROWS[@]}" -- "${CT_ROWS[@]}" <<'PY'
 import json, os, re, sys
-ci, secs, ncpu = sys.argv[1] == "1", sys.argv[2], sys.argv[3]
-args = sys.argv[4:]
+secs, ncpu = sys.argv[1], sys.argv[2]
+args = sys.argv[3:]
 cut = args.index("--")
 rows, cts = args[:cut], args[cut + 1:]
 print(f"\nthe pair under stress-ng {os.environ['HOG_TEXT']} ({secs} s per case, plant_sim run starting its controller):\n")

@@ -127,6 +127,13 @@ where
         self.inertia_inv * self.state.p
     }
 
+    /// The body acceleration `V̇ = I⁻¹(ad_Vᵀ p + τ)` under the torque `τ`: the
+    /// Euler–Poincaré equations (docs/maths.md, "The objects") at the current state.
+    pub fn velocity_rate(&self, torque: &SVector<T, M>) -> SVector<T, M> {
+        let v = self.velocity();
+        self.inertia_inv * (G::ad(&v).tr_mul(&self.state.p) + torque)
+    }
+
     /// The state `(Q, p)`.
     pub fn state(&self) -> &Phase<T, N, M> {
         &self.state

@@ -86,6 +86,7 @@ impl core::fmt::Display for EstimatorError {
 
 /// What the filters skipped, held or clamped, counted since they started.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Faults {
     /// Gyro samples with a non-finite entry: the step held the previous estimate.
     pub gyro: u64,

@@ -6,53 +6,51 @@ use pair_tests::{Csv, Proc, TempDir, run, serial};
 use std::path::Path;
 use std::time::Duration;
 
-/// Runs the example plant against `controller_node --builtin <builtin>` for `seconds` and
-/// compares every Q, V and τ entry with `plant_sim sim`'s trajectory, bit for bit.
-fn example_matches_sim(group: &str, builtin: &str, seconds: &str, n: usize, m: usize) {
-    let d = TempDir::new(&format!("example-{group}"));
-    let sim = d.join("sim");
-    run_and_compare(
-        &sim,
+/// One comparison: the example plant (`group`, `estimator` variant) against
+/// `controller_node --builtin <builtin>` for `seconds`, and `plant_sim sim` of `source`.
+struct Case<'a> {
+    group: &'a str,
+    source: &'a [&'a str],
+    builtin: &'a str,
+    seconds: &'a str,
+    n: usize,
+    m: usize,
+    estimator: &'a str,
+}
+
+/// The truth-fed example on a built-in scenario.
+fn builtin<'a>(group: &'a str, builtin: &'a str, seconds: &'a str, n: usize, m: usize) -> Case<'a> {
+    Case {
         group,
-        &["--builtin", builtin],
+        source: &[],
         builtin,
         seconds,
         n,
         m,
-        "truth",
-    );
+        estimator: "truth",
+    }
 }
 
-/// [`example_matches_sim`] with the simulation's scenario given and the example's estimator
-/// variant; the simulation writes to `<dir of the scenario>/sim`.
-fn example_matches_sim_with(
-    group: &str,
-    source: &[&str],
-    builtin: &str,
-    seconds: &str,
-    n: usize,
-    m: usize,
-    estimator: &str,
-) {
-    let dir = Path::new(source[1]).parent().unwrap().join("sim");
-    let sim = dir.to_str().unwrap().to_owned();
-    run_and_compare(&sim, group, source, builtin, seconds, n, m, estimator);
-}
-
-#[allow(clippy::too_many_arguments)]
-fn run_and_compare(
-    sim: &str,
-    group: &str,
-    source: &[&str],
-    builtin: &str,
-    seconds: &str,
-    n: usize,
-    m: usize,
-    estimator: &str,
-) {
+/// Runs the case, the simulation writing to `sim`, and compares every Q, V and τ entry of the
+/// example's output with the simulation's trajectory, bit for bit.
+fn example_matches_sim(sim: &str, c: &Case) {
+    let Case {
+        group,
+        builtin,
+        seconds,
+        n,
+        m,
+        estimator,
+        ..
+    } = *c;
+    let source: Vec<&str> = if c.source.is_empty() {
+        vec!["--builtin", builtin]
+    } else {
+        c.source.to_vec()
+    };
     let _g = serial();
     let mut args = vec!["sim", "--out", sim];
-    args.extend_from_slice(source);
+    args.extend_from_slice(&source);
     let (code, out) = run("plant_sim", &args, Duration::from_secs(120));
     assert_eq!(code, 0, "{out}");
     let reference = Csv::read(&Path::new(sim).join("trajectory.csv"));
@@ -96,12 +94,14 @@ fn run_and_compare(
 
 #[test]
 fn the_example_plant_reproduces_the_seed_simulation_bit_for_bit() {
-    example_matches_sim("so3", "seed", "20", 3, 3);
+    let d = TempDir::new("example-so3");
+    example_matches_sim(&d.join("sim"), &builtin("so3", "seed", "20", 3, 3));
 }
 
 #[test]
 fn the_example_plant_reproduces_the_se3_simulation_bit_for_bit() {
-    example_matches_sim("se3", "se3_circle", "10", 4, 6);
+    let d = TempDir::new("example-se3");
+    example_matches_sim(&d.join("sim"), &builtin("se3", "se3_circle", "10", 4, 6));
 }
 
 #[test]
@@ -118,15 +118,13 @@ fn the_example_plant_with_its_complementary_filter_reproduces_the_simulation_bit
         ),
     )
     .unwrap();
-    example_matches_sim_with(
-        "so3",
-        &["--scenario", &scenario],
-        "seed",
-        "20",
-        3,
-        3,
-        "complementary",
-    );
+    let source = ["--scenario", scenario.as_str()];
+    let case = Case {
+        source: &source,
+        estimator: "complementary",
+        ..builtin("so3", "seed", "20", 3, 3)
+    };
+    example_matches_sim(&d.join("sim"), &case);
     // the filter's estimate is what the controller saw: the run differs from the truth-fed one
     let (code, out) = run(
         "plant_sim",

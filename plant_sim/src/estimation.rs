@@ -15,40 +15,6 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use scenario::{EstimatorKind, Scenario};
 use serde::Serialize;
 
-/// What the filter skipped, held and clamped (`estimator::Faults`).
-#[derive(Debug, Clone, Copy, Default, Serialize, PartialEq, Eq)]
-pub struct FaultCounts {
-    /// Non-finite gyro samples (the estimate was held).
-    pub gyro: u64,
-    /// Direction samples skipped (non-finite or of zero length).
-    pub directions: u64,
-    /// SE(3): accelerometer samples gated out as a direction (the body was accelerating).
-    pub accel_gated: u64,
-    /// SE(3): non-finite accelerometer samples.
-    pub accel: u64,
-    /// SE(3): non-finite position fixes (skipped).
-    pub position: u64,
-    /// Bias components clamped to `bias_limit`.
-    pub bias_clamped: u64,
-    /// Steps that kept the previous estimate (a period that is not finite and positive, or
-    /// samples so large that the update overflowed).
-    pub held: u64,
-}
-
-impl From<&estimator::Faults> for FaultCounts {
-    fn from(f: &estimator::Faults) -> Self {
-        FaultCounts {
-            gyro: f.gyro,
-            directions: f.directions,
-            accel_gated: f.accel_gated,
-            accel: f.accel,
-            position: f.position,
-            bias_clamped: f.bias_clamped,
-            held: f.held,
-        }
-    }
-}
-
 /// `summary.json` → `estimator`: the sensors, the filter, its faults and its error.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct EstimatorReport {
@@ -59,7 +25,7 @@ pub struct EstimatorReport {
     /// Direction sensors.
     pub directions: usize,
     /// What the filter skipped, held and clamped.
-    pub faults: FaultCounts,
+    pub faults: estimator::Faults,
     /// Test builds: faults planted in the samples (`--fault-sample`).
     pub planted_faults: u64,
     /// The attitude angle of `R̂ᵀR` at the end (rad).
@@ -224,9 +190,9 @@ impl Estimation {
             .collect();
         let n = errors.len().max(1) as f64;
         let faults = match &self.filter {
-            Filter::Truth => FaultCounts::default(),
-            Filter::Attitude(f) => f.faults().into(),
-            Filter::Pose(f) => f.faults().into(),
+            Filter::Truth => estimator::Faults::default(),
+            Filter::Attitude(f) => *f.faults(),
+            Filter::Pose(f) => *f.faults(),
         };
         EstimatorReport {
             kind: self.kind.name().to_owned(),

@@ -9,7 +9,7 @@
 
 use controller::group::MatrixLieGroup;
 use controller::integrator::RigidBody;
-use nalgebra::{Matrix3, Matrix6, SVector, Vector3, Vector6};
+use nalgebra::{Matrix3, SVector, Vector3};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -85,6 +85,12 @@ impl SampleFault {
     }
 }
 
+/// Three independent `N(0, σ²)` draws.
+fn normal3(rng: &mut ChaCha8Rng, sigma: f64) -> Vector3<f64> {
+    let n: [f64; 3] = std::array::from_fn(|_| StandardNormal.sample(rng));
+    Vector3::from(n) * sigma
+}
+
 /// The sensors of one run.
 #[derive(Debug, Clone)]
 pub struct Sensors {
@@ -108,11 +114,6 @@ impl Sensors {
         }
     }
 
-    fn normal3(&mut self, sigma: f64) -> Vector3<f64> {
-        let n: [f64; 3] = std::array::from_fn(|_| StandardNormal.sample(&mut self.rng));
-        Vector3::from(n) * sigma
-    }
-
     /// How many direction sensors.
     pub fn directions(&self) -> usize {
         self.spec.directions.len()
@@ -132,31 +133,24 @@ impl Sensors {
         let r = Matrix3::from_fn(|i, j| q[(i, j)]);
         let omega = Vector3::new(v[0], v[1], v[2]);
         let h = self.period;
-        let gyro_sigma = self.spec.gyro.noise / h.sqrt();
-        let gyro = omega + self.bias + self.normal3(gyro_sigma);
+        let Sensors { spec, rng, .. } = self;
+        let gyro = omega + self.bias + normal3(rng, spec.gyro.noise / h.sqrt());
         let mut directions = [Vector3::zeros(); MAX_DIRECTIONS];
-        let specs = self.spec.directions.clone();
-        for (j, d) in specs.iter().enumerate() {
-            let body_dir = r.tr_mul(&Vector3::from(d.world)) + self.normal3(d.noise);
+        for (y, d) in directions.iter_mut().zip(&spec.directions) {
+            let body_dir = r.tr_mul(&Vector3::from(d.world)) + normal3(rng, d.noise);
             let n = body_dir.norm();
-            directions[j] = if n > 0.0 { body_dir / n } else { body_dir };
+            *y = if n > 0.0 { body_dir / n } else { body_dir };
         }
-        let accel = self.spec.accelerometer.map(|sigma| {
+        let accel = spec.accelerometer.map(|sigma| {
             // the specific force f = Rᵀ(ẍ − g) = ω × v + v̇ − Rᵀg, with v̇ from the
-            // Euler–Poincaré equations İV = ad_Vᵀ I V + τ (the body velocity's linear part)
-            let p = body.state().p;
-            let p_dot = G::ad(&v).tr_mul(&p) + torque;
-            let (i6, p6) = (
-                Matrix6::from_fn(|i, j| body.inertia()[(i, j)]),
-                Vector6::from_fn(|i, _| p_dot[i]),
-            );
-            let v_dot = i6.lu().solve(&p6).unwrap_or_else(Vector6::zeros);
+            // Euler–Poincaré equations (the body velocity's linear part)
+            let v_dot = body.velocity_rate(torque);
             let lin = Vector3::new(v[3], v[4], v[5]);
             let lin_dot = Vector3::new(v_dot[3], v_dot[4], v_dot[5]);
             let g = Vector3::new(0.0, 0.0, -GRAVITY);
-            omega.cross(&lin) + lin_dot - r.tr_mul(&g) + self.normal3(sigma)
+            omega.cross(&lin) + lin_dot - r.tr_mul(&g) + normal3(rng, sigma)
         });
-        let position = match self.spec.position {
+        let position = match spec.position {
             Some(p) if k as f64 * h + 1e-9 * h >= self.next_fix as f64 / p.rate_hz => {
                 // the fix taken at or before this tick arrives now; later ones are due at
                 // their own times
@@ -164,18 +158,17 @@ impl Sensors {
                     self.next_fix += 1;
                 }
                 let x = Vector3::new(q[(0, 3)], q[(1, 3)], q[(2, 3)]);
-                Some(x + self.normal3(p.noise))
+                Some(x + normal3(rng, p.noise))
             }
             _ => None,
         };
         let bias = self.bias;
         let walk = self.spec.gyro.bias_walk * h.sqrt();
-        let step = self.normal3(walk);
-        self.bias += step;
+        self.bias += normal3(&mut self.rng, walk);
         Samples {
             gyro,
             directions,
-            count: specs.len(),
+            count: self.spec.directions.len(),
             accel,
             position,
             bias,

@@ -186,7 +186,7 @@ impl OnGroup for Simulate<'_> {
     type Output = Result<Trajectory, SimError>;
     fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let plant = self.s.plant_body::<G, N, M>().map_err(input(self.s))?;
-        simulate_faulty::<G, N, M>(self.s, plant, self.faults, self.on_step)
+        simulate_with_planted::<G, N, M>(self.s, plant, self.faults, self.on_step)
     }
 }
 
@@ -200,14 +200,14 @@ pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     plant: RigidBody<f64, G, N, M>,
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
 ) -> Result<Trajectory, SimError> {
-    simulate_faulty::<G, N, M>(s, plant, &[], on_step)
+    simulate_with_planted::<G, N, M>(s, plant, &[], on_step)
 }
 
 /// [`simulate_with`], with faults planted in the sensors' samples at the given ticks (test
 /// builds' `--fault-sample`). With `[sensors]`, each tick samples the sensors from the true
 /// body, steps the estimator and hands the law its estimate
 /// (docs/architecture.md, "Sensors and the estimator").
-pub fn simulate_faulty<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub fn simulate_with_planted<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     s: &Scenario,
     plant: RigidBody<f64, G, N, M>,
     faults: &[(u64, crate::sensors::SampleFault)],
