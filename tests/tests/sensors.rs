@@ -91,6 +91,8 @@ fn a_real_time_run_with_sensors_replays_bit_for_bit() {
     let cycles = s["cycles"].as_u64().unwrap();
     assert!(cycles >= 2000, "{s}");
     assert_eq!(s["estimator"]["kind"], "complementary", "{s}");
+    // sampling the sensors and stepping the filter allocate nothing on the plant's loop
+    assert_eq!(s["plant_loop_heap_allocations"].as_u64(), Some(0), "{s}");
     let (code, text) = run("plant_sim", &["replay", &out], LONG);
     assert_eq!(code, 0, "{text}");
     assert!(text.contains(" 0 differ"), "{text}");
