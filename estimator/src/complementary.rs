@@ -75,27 +75,18 @@ impl<T: Real> ComplementaryConfig<T> {
                 given: weights.len(),
             });
         }
-        let mut cfg = ComplementaryConfig {
+        let count = world.len();
+        let (world, weights) = checked_directions(world, weights, EstimatorError::BadWeight)?;
+        Ok(ComplementaryConfig {
             kp,
             ki,
-            world: [Vector3::zeros(); SLOTS],
-            weights: [T::zero(); SLOTS],
-            count: world.len(),
+            world,
+            weights,
+            count,
             bias_limit: None,
             initial_attitude: None,
             initial_bias: Vector3::zeros(),
-        };
-        for (i, (d, w)) in world.iter().zip(weights).enumerate() {
-            let Some((unit, _)) = direction(d) else {
-                return Err(EstimatorError::BadDirection(i));
-            };
-            if !w.is_finite() || *w <= T::zero() {
-                return Err(EstimatorError::BadWeight(i));
-            }
-            cfg.world[i] = unit;
-            cfg.weights[i] = *w;
-        }
-        Ok(cfg)
+        })
     }
 
     /// Clamps each bias component to `±limit` (rad/s).
@@ -233,17 +224,9 @@ impl<T: Real> ComplementaryFilter<T> {
         &self.estimate
     }
 
-    /// Checks and normalises the first `n` direction samples (`directions[i]` for world
-    /// direction `i`; missing ones count as skipped, extra ones are ignored).
+    /// Checks and normalises the first `n` direction samples (see [`usable`]).
     pub(crate) fn usable(&mut self, directions: &[Vector3<T>], n: usize) -> Directions<T> {
-        let mut out = [None; SLOTS];
-        for (i, slot) in out.iter_mut().enumerate().take(n) {
-            *slot = directions.get(i).and_then(|y| direction(y).map(|(u, _)| u));
-            if slot.is_none() {
-                self.faults.directions += 1;
-            }
-        }
-        out
+        usable(directions, n, &mut self.faults)
     }
 
     /// One tick with gyro sample `ω_k` and direction samples `y_{i,k}` (body frame, in the
@@ -341,27 +324,81 @@ impl<T: Real> ComplementaryFilter<T> {
         self.estimate
     }
 
-    /// Starts from the configured attitude, or TRIAD from the first two usable,
-    /// non-parallel directions (in order; docs/maths.md, "TRIAD").
+    /// Starts from the configured attitude, or TRIAD (see [`first_attitude`]).
     fn start(&mut self, y: &Directions<T>) {
-        if let Some(r) = self.cfg.initial_attitude {
+        let c = &self.cfg;
+        if let Some(r) = first_attitude(c.initial_attitude, &c.world, c.count, y) {
             self.estimate.r = r;
             self.estimate.started = true;
-            return;
         }
-        let n = self.cfg.count;
-        for i in 0..n {
-            for j in i + 1..n {
-                if let (Some(a), Some(b)) = (y[i], y[j])
-                    && let Some(r) = triad(&a, &b, &self.cfg.world[i], &self.cfg.world[j])
-                {
-                    self.estimate.r = orthonormalise(&r);
-                    self.estimate.started = true;
-                    return;
-                }
+    }
+}
+
+/// The unit world directions and their positive values (a filter's weights or noises), in
+/// slots: `BadDirection(i)` for a zero or non-finite direction, `bad_value(i)` for a value
+/// that is not finite and positive. `world` and `values` have the same length, at most
+/// [`SLOTS`] (the callers check both).
+pub(crate) fn checked_directions<T: Real>(
+    world: &[Vector3<T>],
+    values: &[T],
+    bad_value: fn(usize) -> EstimatorError,
+) -> Result<([Vector3<T>; SLOTS], [T; SLOTS]), EstimatorError> {
+    let mut units = [Vector3::zeros(); SLOTS];
+    let mut out = [T::zero(); SLOTS];
+    for (i, (d, w)) in world.iter().zip(values).enumerate().take(SLOTS) {
+        let Some((unit, _)) = direction(d) else {
+            return Err(EstimatorError::BadDirection(i));
+        };
+        if !w.is_finite() || *w <= T::zero() {
+            return Err(bad_value(i));
+        }
+        units[i] = unit;
+        out[i] = *w;
+    }
+    Ok((units, out))
+}
+
+/// Checks and normalises the first `n` direction samples (`directions[i]` for world
+/// direction `i`; missing ones count as skipped in `faults.directions`, extra ones are
+/// ignored).
+pub(crate) fn usable<T: Real>(
+    directions: &[Vector3<T>],
+    n: usize,
+    faults: &mut Faults,
+) -> Directions<T> {
+    let mut out = [None; SLOTS];
+    for (i, slot) in out.iter_mut().enumerate().take(n) {
+        *slot = directions.get(i).and_then(|y| direction(y).map(|(u, _)| u));
+        if slot.is_none() {
+            faults.directions += 1;
+        }
+    }
+    out
+}
+
+/// A filter's first attitude: the configured one, or TRIAD from the first two usable,
+/// non-parallel directions (in order; docs/maths.md, "TRIAD"), re-orthonormalised; `None`
+/// when there is no such pair yet.
+pub(crate) fn first_attitude<T: Real>(
+    configured: Option<Matrix3<T>>,
+    world: &[Vector3<T>; SLOTS],
+    count: usize,
+    y: &Directions<T>,
+) -> Option<Matrix3<T>> {
+    if configured.is_some() {
+        return configured;
+    }
+    let n = count.min(SLOTS);
+    for i in 0..n {
+        for j in i + 1..n {
+            if let (Some(a), Some(b)) = (y[i], y[j])
+                && let Some(r) = triad(&a, &b, &world[i], &world[j])
+            {
+                return Some(orthonormalise(&r));
             }
         }
     }
+    None
 }
 
 /// Gram–Schmidt on `r`'s first two columns, the third their cross product: a rotation within

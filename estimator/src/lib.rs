@@ -9,6 +9,7 @@
 //! |---|---|
 //! | [`triad`] | an attitude from two direction pairs |
 //! | [`ComplementaryFilter`] | Mahony–Hamel–Pflimlin's explicit complementary filter with gyro bias, on SO(3) |
+//! | [`EquivariantFilter`] | the equivariant filter (EqF) for attitude and gyro bias: a 6×6 covariance, gains from physical noise |
 //! | [`PoseFilter`] | SE(3): the same filter for attitude (the accelerometer one more direction), and a linear Kalman filter for position and velocity |
 //! | [`StateEstimate`] | an estimate as the controller's `(Q̂, V̂)`: `(SMatrix<T, N, N>, SVector<T, M>)` |
 //!
@@ -19,10 +20,12 @@
 #![warn(missing_docs)]
 
 mod complementary;
+pub mod eqf;
 mod pose;
 mod triad;
 
 pub use complementary::{AttitudeEstimate, ComplementaryConfig, ComplementaryFilter};
+pub use eqf::{EqfConfig, EquivariantFilter};
 pub use pose::{MIN_VARIANCE, PoseConfig, PoseEstimate, PoseFilter, TranslationCovariance};
 pub use triad::triad;
 
@@ -63,6 +66,8 @@ pub enum EstimatorError {
     BadDirection(usize),
     /// A weight is not finite and positive (its index).
     BadWeight(usize),
+    /// A direction's noise is not finite and positive (its index).
+    BadNoise(usize),
     /// An initial value is not finite or not a rotation.
     BadInitialState,
 }
@@ -79,6 +84,9 @@ impl core::fmt::Display for EstimatorError {
             }
             EstimatorError::BadDirection(i) => write!(f, "direction {i} is zero or not finite"),
             EstimatorError::BadWeight(i) => write!(f, "weight {i} must be finite and > 0"),
+            EstimatorError::BadNoise(i) => {
+                write!(f, "the noise of direction {i} must be finite and > 0")
+            }
             EstimatorError::BadInitialState => f.write_str("the initial state is not valid"),
         }
     }

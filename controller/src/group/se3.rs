@@ -1,7 +1,7 @@
 //! SE(3): n = 4, m = 6, twists ordered **(ω, v)** (angular first), wrenches (torque, force).
 //! `Ad_(R,x) = [[R, 0], [x×R, R]]`, `ad_(ω,v) = [[ω×, 0], [v×, ω×]]` (docs/maths.md, "Conventions").
 
-use super::so3::{exp_so3, log_so3, skew};
+use super::so3::{exp_so3, left_jacobian_so3, log_so3, skew};
 use super::{GroupKind, MatrixLieGroup};
 use crate::{Real, real};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
@@ -73,29 +73,11 @@ impl MatrixLieGroup<4, 6> for Se3 {
         )
     }
 
-    /// `exp(ω, v) = (exp(ω×), J(ω)v)` with `J = I + B ω× + C ω×²`,
-    /// `B = (1 − cosθ)/θ²`, `C = (θ − sinθ)/θ³` (series near θ = 0).
+    /// `exp(ω, v) = (exp(ω×), J(ω)v)` with `J` the left Jacobian of SO(3)
+    /// ([`left_jacobian_so3`]).
     fn exp<T: Real>(v: &SVector<T, 6>) -> SMatrix<T, 4, 4> {
         let (w, u) = split(v);
-        let theta2 = w.norm_squared();
-        let wx = skew(&w);
-        let (b, c) = if theta2 < real(1e-2) {
-            (
-                real::<T>(0.5) - theta2 / real(24.0) + theta2 * theta2 / real(720.0)
-                    - theta2 * theta2 * theta2 / real(40320.0),
-                real::<T>(1.0 / 6.0) - theta2 / real(120.0) + theta2 * theta2 / real(5040.0)
-                    - theta2 * theta2 * theta2 / real(362880.0),
-            )
-        } else {
-            let theta = theta2.sqrt();
-            let half = theta * real(0.5);
-            let s = crate::trig::sin(half) / half;
-            (
-                s * s * real(0.5),
-                (theta - crate::trig::sin(theta)) / (theta2 * theta),
-            )
-        };
-        let j = Matrix3::identity() + wx * b + wx * wx * c;
+        let j = left_jacobian_so3(&w);
         from_parts(&exp_so3(&w), &(j * u))
     }
 

@@ -47,6 +47,31 @@ pub fn exp_so3<T: Real>(w: &Vector3<T>) -> Matrix3<T> {
     Matrix3::identity() + wx * a + wx * wx * b
 }
 
+/// The left Jacobian of SO(3), `J(ω) = ∫₀¹ exp(s ω×) ds = I + B ω× + C ω×²` with
+/// `B = (1 − cosθ)/θ²`, `C = (θ − sinθ)/θ³` (series near θ = 0): the translation part of
+/// SE(3)'s exponential, and `exp(ω + δ) ≈ exp(J(ω)δ) exp(ω)` to first order in `δ`.
+pub fn left_jacobian_so3<T: Real>(w: &Vector3<T>) -> Matrix3<T> {
+    let theta2 = w.norm_squared();
+    let wx = skew(w);
+    let (b, c) = if theta2 < real(1e-2) {
+        (
+            real::<T>(0.5) - theta2 / real(24.0) + theta2 * theta2 / real(720.0)
+                - theta2 * theta2 * theta2 / real(40320.0),
+            real::<T>(1.0 / 6.0) - theta2 / real(120.0) + theta2 * theta2 / real(5040.0)
+                - theta2 * theta2 * theta2 / real(362880.0),
+        )
+    } else {
+        let theta = theta2.sqrt();
+        let half = theta * real(0.5);
+        let s = crate::trig::sin(half) / half;
+        (
+            s * s * real(0.5),
+            (theta - crate::trig::sin(theta)) / (theta2 * theta),
+        )
+    };
+    Matrix3::identity() + wx * b + wx * wx * c
+}
+
 /// The principal logarithm of a rotation, accurate near θ = 0 and near θ = π.
 ///
 /// θ comes from `atan2(|sinθ·k|, cosθ)`; for θ < 2π/3 the axis comes from the skew part,
