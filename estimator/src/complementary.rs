@@ -179,8 +179,7 @@ pub struct ComplementaryFilter<T: Real> {
     faults: Faults,
 }
 
-/// The usable, normalised samples of a tick (`None`: skipped).
-pub(crate) type Directions<T> = [Option<Vector3<T>>; SLOTS];
+pub(crate) use crate::Directions;
 
 impl<T: Real> ComplementaryFilter<T> {
     /// A filter that starts at its first step. `cfg` is used as it is (from the checked

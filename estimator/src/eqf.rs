@@ -381,6 +381,10 @@ impl<T: Real> EquivariantFilter<T> {
         &self.faults
     }
 
+    pub(crate) fn faults_mut(&mut self) -> &mut Faults {
+        &mut self.faults
+    }
+
     /// The estimate published last.
     pub fn estimate(&self) -> &AttitudeEstimate<T> {
         &self.estimate

@@ -131,6 +131,108 @@ pub trait StateEstimate<T: controller::Real, const N: usize, const M: usize> {
     }
 }
 
+/// The usable, normalised direction samples of a tick, one slot per world direction and, on
+/// SE(3), the accelerometer's "up" last (`None`: skipped).
+pub type Directions<T> = [Option<nalgebra::Vector3<T>>; MAX_DIRECTIONS + 1];
+
+/// An attitude filter's configuration, as the SE(3) [`PoseFilter`] reads it.
+pub trait AttitudeConfig<T: controller::Real>: Copy + core::fmt::Debug + PartialEq {
+    /// The filter it configures.
+    type Filter: AttitudeFilter<T, Config = Self>;
+    /// Checks the configuration again (its public fields may have been written directly).
+    fn check(self) -> Result<Self, EstimatorError>;
+    /// How many directions.
+    fn count(&self) -> usize;
+    /// World direction `i` (zero beyond the count).
+    fn world(&self, i: usize) -> nalgebra::Vector3<T>;
+    /// The bias estimate it starts from.
+    fn initial_bias(&self) -> nalgebra::Vector3<T>;
+}
+
+/// An attitude filter the SE(3) [`PoseFilter`] can drive: the [`ComplementaryFilter`] or the
+/// [`EquivariantFilter`].
+pub trait AttitudeFilter<T: controller::Real>: Copy + core::fmt::Debug + PartialEq {
+    /// Its configuration.
+    type Config: AttitudeConfig<T>;
+    /// Whether the attitude it publishes at tick k runs one tick ahead of the samples, so
+    /// that the one published at tick k − 1 is its estimate of `R(t_k)` (the complementary
+    /// filter's step: docs/maths.md, "The complementary filter on SO(3)"); false when the
+    /// one published at tick k is.
+    const LEADS: bool;
+    /// A filter that starts at its first step (the configuration used as it is).
+    fn from_config(cfg: Self::Config) -> Self;
+    /// The configuration.
+    fn config(&self) -> &Self::Config;
+    /// The estimate published last.
+    fn estimate(&self) -> &AttitudeEstimate<T>;
+    /// What it has skipped, held and clamped so far.
+    fn faults(&self) -> &Faults;
+    /// The counts, for a filter that drives it to add its own.
+    fn faults_mut(&mut self) -> &mut Faults;
+    /// One tick on samples already checked and normalised (the filter's `step` after its
+    /// check of the samples).
+    fn step_usable(
+        &mut self,
+        h: T,
+        gyro: &nalgebra::Vector3<T>,
+        y: &Directions<T>,
+    ) -> AttitudeEstimate<T>;
+}
+
+macro_rules! attitude_filter {
+    ($filter:ident, $config:ident, $leads:expr) => {
+        impl<T: controller::Real> AttitudeConfig<T> for $config<T> {
+            type Filter = $filter<T>;
+            fn check(self) -> Result<Self, EstimatorError> {
+                $config::check(self)
+            }
+            fn count(&self) -> usize {
+                self.count
+            }
+            fn world(&self, i: usize) -> nalgebra::Vector3<T> {
+                self.world
+                    .get(i)
+                    .copied()
+                    .unwrap_or_else(nalgebra::Vector3::zeros)
+            }
+            fn initial_bias(&self) -> nalgebra::Vector3<T> {
+                self.initial_bias
+            }
+        }
+
+        impl<T: controller::Real> AttitudeFilter<T> for $filter<T> {
+            type Config = $config<T>;
+            const LEADS: bool = $leads;
+            fn from_config(cfg: Self::Config) -> Self {
+                $filter::new(cfg)
+            }
+            fn config(&self) -> &Self::Config {
+                $filter::config(self)
+            }
+            fn estimate(&self) -> &AttitudeEstimate<T> {
+                $filter::estimate(self)
+            }
+            fn faults(&self) -> &Faults {
+                $filter::faults(self)
+            }
+            fn faults_mut(&mut self) -> &mut Faults {
+                $filter::faults_mut(self)
+            }
+            fn step_usable(
+                &mut self,
+                h: T,
+                gyro: &nalgebra::Vector3<T>,
+                y: &Directions<T>,
+            ) -> AttitudeEstimate<T> {
+                $filter::step_usable(self, h, gyro, y)
+            }
+        }
+    };
+}
+
+attitude_filter!(ComplementaryFilter, ComplementaryConfig, true);
+attitude_filter!(EquivariantFilter, EqfConfig, false);
+
 /// Whether every entry is finite.
 fn all_finite<T: controller::Real, const R: usize>(v: &nalgebra::SVector<T, R>) -> bool {
     v.iter().all(|x| x.is_finite())

@@ -1,10 +1,13 @@
-//! SE(3): attitude by the complementary filter (the accelerometer one more direction, "up"),
+//! SE(3): attitude by the complementary filter or the equivariant filter (the accelerometer
+//! one more direction, "up"),
 //! position and velocity by a linear Kalman filter driven by the accelerometer and corrected
 //! by position fixes (docs/maths.md, "Position and velocity on SE(3)").
 
-use crate::complementary::{ComplementaryConfig, ComplementaryFilter, SLOTS};
+use crate::complementary::{ComplementaryConfig, SLOTS, usable};
+use crate::eqf::EqfConfig;
 use crate::{
-    EstimatorError, Faults, GRAVITY, MAX_DIRECTIONS, StateEstimate, all_finite, direction,
+    AttitudeConfig, AttitudeFilter, EstimatorError, Faults, GRAVITY, MAX_DIRECTIONS, StateEstimate,
+    all_finite, direction,
 };
 use controller::group::se3::from_parts;
 use controller::{Real, real};
@@ -16,11 +19,14 @@ use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
 /// e.g. `cfg.attitude = cfg.attitude.bias_limit(0.1)?`), which check every value; a
 /// configuration whose fields were written directly is checked again by
 /// [`PoseConfig::check`] (and [`PoseFilter::try_new`]).
+///
+/// `C` is the attitude filter's configuration: [`ComplementaryConfig`] (the default,
+/// [`PoseConfig::new`]) or [`EqfConfig`] ([`PoseConfig::eqf`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PoseConfig<T: Real> {
+pub struct PoseConfig<T: Real, C = ComplementaryConfig<T>> {
     /// The attitude filter's configuration; its last direction is the accelerometer's
     /// "up", `(0, 0, 1)`.
-    pub attitude: ComplementaryConfig<T>,
+    pub attitude: C,
     /// Skip the accelerometer as a direction when `| |f| − g |` exceeds this (m/s²).
     pub accel_gate: Option<T>,
     /// The accelerometer's noise, standard deviation per sample and axis (m/s²): the
@@ -65,11 +71,68 @@ impl<T: Real> PoseConfig<T> {
                 given: weights.len(),
             });
         }
-        let mut all = [Vector3::zeros(); SLOTS];
-        all[..world.len()].copy_from_slice(world);
-        all[world.len()] = Vector3::z();
+        let all = with_up(world);
         let attitude =
             ComplementaryConfig::with_slots(kp, ki, &all[..=world.len()], weights, SLOTS)?;
+        Self::around(attitude, accel_noise, position_noise)
+    }
+}
+
+/// The world directions followed by "up", `(0, 0, 1)`, the accelerometer's.
+fn with_up<T: Real>(world: &[Vector3<T>]) -> [Vector3<T>; SLOTS] {
+    let mut all = [Vector3::zeros(); SLOTS];
+    let n = world.len().min(MAX_DIRECTIONS);
+    all[..n].copy_from_slice(&world[..n]);
+    all[n] = Vector3::z();
+    all
+}
+
+impl<T: Real> PoseConfig<T, EqfConfig<T>> {
+    /// The equivariant filter for the attitude: the gyro's noise density and bias walk; the
+    /// world directions of the direction sensors (at least one, at most [`MAX_DIRECTIONS`])
+    /// and their noises followed by the accelerometer's as a direction (unitless; its
+    /// specific-force noise over `g` is the natural value); the accelerometer's and the
+    /// position fixes' noise. Defaults as [`EqfConfig::new`] and [`PoseConfig::new`].
+    ///
+    /// Errors: those of [`EqfConfig::new`] (a world direction's index is its place in
+    /// `world`, the accelerometer's is `world.len()`), and [`EstimatorError::BadGain`]
+    /// (`"accel_noise"`, `"position_noise"`).
+    pub fn eqf(
+        gyro_noise: T,
+        bias_walk: T,
+        world: &[Vector3<T>],
+        direction_noise: &[T],
+        accel_noise: T,
+        position_noise: T,
+    ) -> Result<Self, EstimatorError> {
+        if world.is_empty() || world.len() > MAX_DIRECTIONS {
+            return Err(EstimatorError::DirectionCount {
+                given: world.len(),
+                min: 1,
+                max: MAX_DIRECTIONS,
+            });
+        }
+        if direction_noise.len() != world.len() + 1 {
+            return Err(EstimatorError::WeightCount {
+                expected: world.len() + 1,
+                given: direction_noise.len(),
+            });
+        }
+        let all = with_up(world);
+        let attitude = EqfConfig::with_slots(
+            gyro_noise,
+            bias_walk,
+            &all[..=world.len()],
+            direction_noise,
+            SLOTS,
+        )?;
+        Self::around(attitude, accel_noise, position_noise)
+    }
+}
+
+impl<T: Real, C: AttitudeConfig<T>> PoseConfig<T, C> {
+    /// The translation's defaults around an attitude configuration.
+    fn around(attitude: C, accel_noise: T, position_noise: T) -> Result<Self, EstimatorError> {
         for (name, x) in [
             ("accel_noise", accel_noise),
             ("position_noise", position_noise),
@@ -117,8 +180,8 @@ impl<T: Real> PoseConfig<T> {
     /// direction must be "up", `(0, 0, 1)`.
     pub fn check(self) -> Result<Self, EstimatorError> {
         let attitude = self.attitude.check()?;
-        let up = attitude.count - 1;
-        if (attitude.world[up] - Vector3::z()).norm() > real(1e-12) {
+        let up = attitude.count() - 1;
+        if (attitude.world(up) - Vector3::z()).norm() > real(1e-12) {
             return Err(EstimatorError::BadDirection(up));
         }
         for (name, x) in [
@@ -196,26 +259,30 @@ impl<T: Real> StateEstimate<T, 4, 6> for PoseEstimate<T> {
 
 /// Attitude, bias, position and velocity from a gyro, direction sensors, an accelerometer and
 /// position fixes.
+///
+/// `C` is the attitude filter's configuration, which names the filter:
+/// [`ComplementaryConfig`] (the default) for the [`ComplementaryFilter`](crate::ComplementaryFilter), [`EqfConfig`] for
+/// the [`EquivariantFilter`](crate::EquivariantFilter).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PoseFilter<T: Real> {
-    cfg: PoseConfig<T>,
-    attitude: ComplementaryFilter<T>,
+pub struct PoseFilter<T: Real, C: AttitudeConfig<T> = ComplementaryConfig<T>> {
+    cfg: PoseConfig<T, C>,
+    attitude: C::Filter,
     estimate: PoseEstimate<T>,
     translation_started: bool,
 }
 
-impl<T: Real> PoseFilter<T> {
+impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
     /// A filter that starts at its first step. `cfg` is used as it is (see
     /// [`ComplementaryFilter::new`]); [`PoseFilter::try_new`] checks it first.
-    pub fn new(cfg: PoseConfig<T>) -> Self {
-        let attitude = ComplementaryFilter::new(cfg.attitude);
+    pub fn new(cfg: PoseConfig<T, C>) -> Self {
+        let attitude = C::Filter::from_config(cfg.attitude);
         PoseFilter {
             estimate: PoseEstimate {
                 r: Matrix3::identity(),
                 x: Vector3::zeros(),
                 v: Vector3::zeros(),
                 rate: Vector3::zeros(),
-                bias: cfg.attitude.initial_bias,
+                bias: cfg.attitude.initial_bias(),
                 covariance: Matrix2::zeros(),
                 started: false,
             },
@@ -226,12 +293,12 @@ impl<T: Real> PoseFilter<T> {
     }
 
     /// A filter on a configuration checked again first ([`PoseConfig::check`]).
-    pub fn try_new(cfg: PoseConfig<T>) -> Result<Self, EstimatorError> {
+    pub fn try_new(cfg: PoseConfig<T, C>) -> Result<Self, EstimatorError> {
         Ok(Self::new(cfg.check()?))
     }
 
     /// The configuration.
-    pub fn config(&self) -> &PoseConfig<T> {
+    pub fn config(&self) -> &PoseConfig<T, C> {
         &self.cfg
     }
 
@@ -247,14 +314,15 @@ impl<T: Real> PoseFilter<T> {
 
     /// One tick (docs/maths.md, "Position and velocity on SE(3)"): the attitude filter's
     /// step with the accelerometer as the direction "up" (unless gated or unusable), then
-    /// the Kalman filter's prediction over `h` with `a_k = R̂_{k−1} f_k + g` and, when a fix
-    /// came, its update. `R̂_{k−1}` is the attitude the filter compares tick k's samples with,
-    /// its estimate of `R(t_k)`; `R̂_k` runs one tick ahead on a rotating body
-    /// (docs/maths.md, "The complementary filter on SO(3)").
+    /// the Kalman filter's prediction over `h` with `a_k = R̂(t_k) f_k + g` and, when a fix
+    /// came, its update. `R̂(t_k)` is the attitude filter's estimate of `R(t_k)`: for the
+    /// complementary filter `R̂_{k−1}`, the attitude it compares tick k's samples with
+    /// (its `R̂_k` runs one tick ahead on a rotating body: docs/maths.md, "The complementary
+    /// filter on SO(3)"); for the equivariant filter its new `R̂_k`.
     ///
     /// The first call starts the translation (the position from the fix if one came, with
     /// the fix's noise, else zero with `initial_position_std`; zero velocity with
-    /// `initial_velocity_std`) and the attitude (see [`ComplementaryFilter::step`]). Until
+    /// `initial_velocity_std`) and the attitude (see the attitude filter's `step`). Until
     /// the attitude has started the prediction uses `a = 0`.
     ///
     /// Guards, each counted in [`Faults`]: an accelerometer sample with a non-finite entry
@@ -272,8 +340,8 @@ impl<T: Real> PoseFilter<T> {
         accel: &Vector3<T>,
         position: Option<&Vector3<T>>,
     ) -> PoseEstimate<T> {
-        let n = self.attitude.config().count.saturating_sub(1);
-        let mut y = self.attitude.usable(directions, n);
+        let n = self.attitude.config().count().saturating_sub(1);
+        let mut y = usable(directions, n, self.attitude.faults_mut());
         let g: T = real(GRAVITY);
         let accel_ok = all_finite(accel) && accel.norm().is_finite();
         if !accel_ok {
@@ -293,6 +361,8 @@ impl<T: Real> PoseFilter<T> {
         }
         let prior = *self.attitude.estimate();
         let att = self.attitude.step_usable(h, gyro, &y);
+        // the attitude at t_k: the prior for a filter that leads by a tick, else the new one
+        let at_sample = if C::Filter::LEADS { prior } else { att };
         let fix = match position {
             Some(p) if all_finite(p) => Some(*p),
             Some(_) => {
@@ -321,8 +391,8 @@ impl<T: Real> PoseFilter<T> {
         } else {
             let before = (self.estimate.x, self.estimate.v, self.estimate.covariance);
             if h.is_finite() && h > T::zero() {
-                let a = if accel_ok && prior.started {
-                    prior.r * accel - Vector3::z() * g
+                let a = if accel_ok && at_sample.started {
+                    at_sample.r * accel - Vector3::z() * g
                 } else {
                     Vector3::zeros()
                 };
