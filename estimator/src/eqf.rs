@@ -416,7 +416,7 @@ impl<T: Real> EquivariantFilter<T> {
     /// R̂ ← R̂ exp(h(ω̄ − b̂))    Σ ← Φ Σ Φᵀ + Q_d      Φ, Q_d at ω̊ = R̂(ω̄ − b̂)
     /// for each direction: r_i = R̂ y_i − d_i,  C_i = C*(d_i, R̂ y_i)
     ///   S = C_i Σ C_iᵀ + σ_i² I,  K = Σ C_iᵀ S⁻¹,  δ ← δ + K(r_i − C_i δ),  Σ ← Σ − K C_i Σ
-    /// X̂ ← exp(δ) X̂,   Σ ← J Σ Jᵀ  (J = I + ½ ad_δ)
+    /// X̂ ← exp(δ) X̂,   Σ ← J Σ Jᵀ  (J = I + ½ ad_δ),  Σ ← (Σ + Σᵀ)/2
     /// ```
     ///
     /// publishing `R̂_k` and `ω_k − b̂_k`, after re-orthonormalising `R̂_k`.
@@ -558,10 +558,9 @@ impl<T: Real> EquivariantFilter<T> {
             let k: SMatrix<T, 6, 3> = cs.transpose() * s_inv;
             delta += k * innovation;
             sigma -= k * cs;
-            sigma = (sigma + sigma.transpose()) * real::<T>(0.5);
         }
         if delta == Vector6::zeros() {
-            self.sigma = sigma;
+            self.sigma = symmetric(&sigma);
             return;
         }
         let correction = Se3::exp(&delta);
@@ -570,8 +569,13 @@ impl<T: Real> EquivariantFilter<T> {
         e.r = a * r_hat;
         e.bias -= e.r.tr_mul(&translation(&correction));
         let j = reset_jacobian(&delta);
-        self.sigma = j * sigma * j.transpose();
+        self.sigma = symmetric(&(j * sigma * j.transpose()));
     }
+}
+
+/// `(Σ + Σᵀ)/2`: exactly symmetric (rounding leaves the products above a few ulps off).
+fn symmetric<T: Real>(s: &Matrix6<T>) -> Matrix6<T> {
+    (s + s.transpose()) * real::<T>(0.5)
 }
 
 #[cfg(test)]

@@ -810,8 +810,9 @@ fn sample3() -> impl Strategy<Value = Vector3<f64>> {
 proptest! {
     #![proptest_config(ProptestConfig { cases: 64, .. ProptestConfig::default() })]
     /// Fuzzing the samples: any sequence of gyro, direction, accelerometer and fix samples
-    /// (and periods) leaves both filters' estimates finite, `R̂` a rotation and the
-    /// covariance symmetric positive definite.
+    /// (and periods) leaves every filter's estimates finite (complementary, EqF, and the pose
+    /// filter with either), `R̂` a rotation and the covariances symmetric positive definite,
+    /// checked at every tick.
     #[test]
     fn any_samples_leave_the_estimates_finite(
         ticks in prop::collection::vec(
@@ -826,7 +827,25 @@ proptest! {
         let mut pf = PoseFilter::new(
             PoseConfig::new(2.0, 1.0, &w[1..], &[1.0, 1.0], 0.05, 0.01).unwrap().accel_gate(2.0).unwrap(),
         );
+        let mut eqf = estimator::EquivariantFilter::new(
+            estimator::EqfConfig::new(0.002, 1e-4, &w, &[0.01, 0.02]).unwrap().bias_limit(0.5).unwrap(),
+        );
+        let mut pe = PoseFilter::new(
+            PoseConfig::eqf(0.002, 1e-4, &w[1..], &[0.01, 0.01], 0.05, 0.01).unwrap().accel_gate(2.0).unwrap(),
+        );
         for (gyro, d0, d1, acc, fix, h) in &ticks {
+            let e = eqf.step(*h, gyro, &[*d0, *d1]);
+            prop_assert!(e.r.iter().chain(e.rate.iter()).chain(e.bias.iter()).all(|x| x.is_finite()), "{e:?}");
+            prop_assert!((e.r.transpose() * e.r - Matrix3::identity()).norm() < 1e-9);
+            for s in [eqf.covariance(), pe.attitude().covariance()] {
+                prop_assert!(s.iter().all(|x| x.is_finite()) && (s - s.transpose()).norm() == 0.0, "{s}");
+                prop_assert!(s.cholesky().is_some(), "not SPD: {s}");
+            }
+            let p = pe.step(*h, gyro, &[*d1], acc, fix.as_ref());
+            prop_assert!(
+                p.r.iter().chain(p.x.iter()).chain(p.v.iter()).chain(p.rate.iter()).all(|x| x.is_finite()),
+                "{p:?}"
+            );
             let e = cf.step(*h, gyro, &[*d0, *d1]);
             prop_assert!(e.r.iter().chain(e.rate.iter()).chain(e.bias.iter()).all(|x| x.is_finite()), "{e:?}");
             prop_assert!((e.r.transpose() * e.r - Matrix3::identity()).norm() < 1e-9);

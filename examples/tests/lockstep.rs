@@ -136,3 +136,26 @@ fn the_example_plant_with_its_complementary_filter_reproduces_the_simulation_bit
     let cf = Csv::read(&Path::new(&d.join("sim")).join("trajectory.csv")).col("tau_0");
     assert!(truth.iter().zip(&cf).any(|(a, b)| a != b));
 }
+
+#[test]
+fn the_example_plant_with_its_equivariant_filter_reproduces_the_simulation_bit_for_bit() {
+    // the seed scenario with the example's exact IMU and its EqF's noise model
+    let seed = include_str!("../../scenarios/seed.toml");
+    let d = TempDir::new("example-eqf");
+    let scenario = d.join("seed_eqf.toml");
+    std::fs::write(
+        &scenario,
+        format!(
+            "{seed}\n[sensors]\ndirections = [ {{ world = [0.0, 0.0, 1.0] }}, {{ world = [1.0, 0.0, 0.0] }} ]\n\
+             [estimator]\nkind = \"eqf\"\ngyro_noise = 0.002\nbias_walk = 1e-5\ndirection_noise = [0.01, 0.01]\n"
+        ),
+    )
+    .unwrap();
+    let source = ["--scenario", scenario.as_str()];
+    let case = Case {
+        source: &source,
+        estimator: "eqf",
+        ..builtin("so3", "seed", "20", 3, 3)
+    };
+    example_matches_sim(&d.join("sim"), &case);
+}

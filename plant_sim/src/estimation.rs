@@ -10,7 +10,9 @@ use crate::trajectory::{EstimateRow, Row};
 use controller::group::MatrixLieGroup;
 use controller::group::so3::{exp_so3, log_so3};
 use controller::integrator::RigidBody;
-use estimator::{ComplementaryConfig, ComplementaryFilter, PoseConfig, PoseFilter};
+use estimator::{
+    ComplementaryConfig, ComplementaryFilter, EqfConfig, EquivariantFilter, PoseConfig, PoseFilter,
+};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use scenario::{EstimatorKind, Scenario};
 use serde::Serialize;
@@ -34,12 +36,18 @@ pub struct EstimatorReport {
     pub rms_estimate_error: f64,
     /// Its largest value (rad).
     pub max_estimate_error: f64,
+    /// EqF: the normalised estimation error squared of `(R, b)` averaged over the rows
+    /// (docs/maths.md, "Consistency"); absent for the other kinds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mean_nees: Option<f64>,
 }
 
 enum Filter {
     Truth,
     Attitude(Box<ComplementaryFilter<f64>>),
     Pose(Box<PoseFilter<f64>>),
+    Eqf(Box<EquivariantFilter<f64>>),
+    PoseEqf(Box<PoseFilter<f64, EqfConfig<f64>>>),
 }
 
 /// The sensors and the filter of one run.
@@ -75,6 +83,31 @@ impl Estimation {
             .map(|d| Vector3::from(d.world))
             .collect();
         let initial = e.initial_attitude.map(|r| exp_so3(&Vector3::from(r)));
+        let accel = spec.accelerometer.unwrap_or(0.0);
+        let position = spec.position.map_or(0.0, |p| p.noise);
+        let eqf = |world: &[Vector3<f64>]| -> Result<EqfConfig<f64>, SimError> {
+            let q = e.eqf.as_ref().ok_or_else(|| {
+                SimError::Input("[estimator]: kind = \"eqf\" without its noise model".into())
+            })?;
+            let noise = q.direction_noise.get(..world.len()).ok_or_else(|| {
+                SimError::Input(format!(
+                    "[estimator]: direction_noise has {} entries, {} needed",
+                    q.direction_noise.len(),
+                    world.len()
+                ))
+            })?;
+            let mut cfg = EqfConfig::new(q.gyro_noise, q.bias_walk, world, noise)
+                .map_err(bad)?
+                .initial_std(q.initial_attitude_std, q.initial_bias_std)
+                .map_err(bad)?;
+            if let Some(l) = e.bias_limit {
+                cfg = cfg.bias_limit(l).map_err(bad)?;
+            }
+            if let Some(r) = initial {
+                cfg = cfg.initial_attitude(r).map_err(bad)?;
+            }
+            Ok(cfg)
+        };
         let filter = match (e.kind, s.group) {
             (EstimatorKind::Truth, _) => Filter::Truth,
             (EstimatorKind::Complementary, controller::GroupKind::So3) => {
@@ -89,8 +122,6 @@ impl Estimation {
                 Filter::Attitude(Box::new(ComplementaryFilter::new(cfg)))
             }
             (EstimatorKind::Complementary, controller::GroupKind::Se3) => {
-                let accel = spec.accelerometer.unwrap_or(0.0);
-                let position = spec.position.map_or(0.0, |p| p.noise);
                 let mut cfg = PoseConfig::new(e.kp, e.ki, &world, &e.weights, accel, position)
                     .map_err(bad)?;
                 if let Some(g) = e.accel_gate {
@@ -103,6 +134,28 @@ impl Estimation {
                     cfg.attitude = cfg.attitude.initial_attitude(r).map_err(bad)?;
                 }
                 Filter::Pose(Box::new(PoseFilter::new(cfg)))
+            }
+            (EstimatorKind::Eqf, controller::GroupKind::So3) => {
+                Filter::Eqf(Box::new(EquivariantFilter::new(eqf(&world)?)))
+            }
+            (EstimatorKind::Eqf, controller::GroupKind::Se3) => {
+                let mut all = world.clone();
+                all.push(Vector3::z());
+                let attitude = eqf(&all)?;
+                let mut cfg = PoseConfig::eqf(
+                    attitude.gyro_noise,
+                    attitude.bias_walk,
+                    &world,
+                    &attitude.direction_noise[..attitude.count],
+                    accel,
+                    position,
+                )
+                .map_err(bad)?;
+                cfg.attitude = attitude;
+                if let Some(g) = e.accel_gate {
+                    cfg = cfg.accel_gate(g).map_err(bad)?;
+                }
+                Filter::PoseEqf(Box::new(PoseFilter::try_new(cfg).map_err(bad)?))
             }
         };
         Ok(Some(Estimation {
@@ -134,30 +187,49 @@ impl Estimation {
         let v = body.velocity();
         let h = self.period;
         let dirs = &samples.directions[..samples.count];
-        let (q_hat, v_hat, bias) = match &mut self.filter {
-            Filter::Truth => (q, v, Vector3::zeros()),
-            Filter::Attitude(f) => {
-                let e = f.step(h, &samples.gyro, dirs);
-                (
-                    SMatrix::from_fn(|i, j| e.r[(i, j)]),
-                    SVector::from_fn(|i, _| e.rate[i]),
-                    e.bias,
-                )
-            }
+        let pose = |e: estimator::PoseEstimate<f64>| {
+            let lin = e.body_velocity();
+            (
+                SMatrix::from_fn(|i, j| match (i, j) {
+                    (3, 3) => 1.0,
+                    (3, _) => 0.0,
+                    (_, 3) => e.x[i],
+                    _ => e.r[(i, j)],
+                }),
+                SVector::from_fn(|i, _| if i < 3 { e.rate[i] } else { lin[i - 3] }),
+                e.bias,
+            )
+        };
+        let attitude = |e: estimator::AttitudeEstimate<f64>| {
+            (
+                SMatrix::from_fn(|i, j| e.r[(i, j)]),
+                SVector::from_fn(|i, _| e.rate[i]),
+                e.bias,
+            )
+        };
+        let accel = samples.accel.unwrap_or_else(Vector3::zeros);
+        let r_true = Matrix3::from_fn(|i, j| q[(i, j)]);
+        let consistency = |f: &EquivariantFilter<f64>| {
+            let s = f.covariance();
+            (
+                Some(std::array::from_fn(|i| s[(i, i)])),
+                f.nees(&r_true, &samples.bias),
+            )
+        };
+        let ((q_hat, v_hat, bias), (covariance, nees)) = match &mut self.filter {
+            Filter::Truth => ((q, v, Vector3::zeros()), (None, None)),
+            Filter::Attitude(f) => (attitude(f.step(h, &samples.gyro, dirs)), (None, None)),
             Filter::Pose(f) => {
-                let accel = samples.accel.unwrap_or_else(Vector3::zeros);
                 let e = f.step(h, &samples.gyro, dirs, &accel, samples.position.as_ref());
-                let lin = e.body_velocity();
-                (
-                    SMatrix::from_fn(|i, j| match (i, j) {
-                        (3, 3) => 1.0,
-                        (3, _) => 0.0,
-                        (_, 3) => e.x[i],
-                        _ => e.r[(i, j)],
-                    }),
-                    SVector::from_fn(|i, _| if i < 3 { e.rate[i] } else { lin[i - 3] }),
-                    e.bias,
-                )
+                (pose(e), (None, None))
+            }
+            Filter::Eqf(f) => {
+                let e = f.step(h, &samples.gyro, dirs);
+                (attitude(e), consistency(f))
+            }
+            Filter::PoseEqf(f) => {
+                let e = f.step(h, &samples.gyro, dirs, &accel, samples.position.as_ref());
+                (pose(e), consistency(f.attitude()))
             }
         };
         let rot = |m: &SMatrix<f64, N, N>| Matrix3::from_fn(|i, j| m[(i, j)]);
@@ -178,6 +250,8 @@ impl Estimation {
             v_hat: vh,
             bias_hat: [bias[0], bias[1], bias[2]],
             estimate_error,
+            covariance,
+            nees,
         };
         (q_hat, v_hat, row)
     }
@@ -193,7 +267,15 @@ impl Estimation {
             Filter::Truth => estimator::Faults::default(),
             Filter::Attitude(f) => *f.faults(),
             Filter::Pose(f) => *f.faults(),
+            Filter::Eqf(f) => *f.faults(),
+            Filter::PoseEqf(f) => *f.faults(),
         };
+        let nees: Vec<f64> = rows
+            .iter()
+            .filter_map(|r| r.estimate.and_then(|e| e.nees))
+            .collect();
+        let mean_nees = (self.kind == EstimatorKind::Eqf)
+            .then(|| nees.iter().sum::<f64>() / nees.len().max(1) as f64);
         EstimatorReport {
             kind: self.kind.name().to_owned(),
             seed: self.seed,
@@ -203,6 +285,7 @@ impl Estimation {
             final_estimate_error: errors.last().copied().unwrap_or(f64::NAN),
             rms_estimate_error: (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt(),
             max_estimate_error: errors.iter().copied().fold(0.0, f64::max),
+            mean_nees,
         }
     }
 }

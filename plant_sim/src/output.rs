@@ -36,8 +36,9 @@ pub fn trajectory_header(n: usize, m: usize) -> Vec<String> {
 
 /// The sensor and estimate columns of `trajectory.csv` (after `v_i`): `gyro_i`, `dir{j}_i`
 /// for each direction, on SE(3) `acc_i` and `pos_i`, then `qhat_ij`, `bias_hat_i`, on SE(3)
-/// `xhat_i` and `vhat_i` (world frame), and `estimate_error`.
-pub fn estimate_header(n: usize, directions: usize, se3: bool) -> Vec<String> {
+/// `xhat_i` and `vhat_i` (world frame), and `estimate_error`; for the EqF (`covariance`)
+/// then `cov_i` (the diagonal of its covariance: attitude rad², bias (rad/s)²) and `nees`.
+pub fn estimate_header(n: usize, directions: usize, se3: bool, covariance: bool) -> Vec<String> {
     let three = |name: &str| -> Vec<String> { (0..3).map(|i| format!("{name}_{i}")).collect() };
     let mut h: Vec<String> = three("gyro");
     for j in 0..directions {
@@ -58,6 +59,10 @@ pub fn estimate_header(n: usize, directions: usize, se3: bool) -> Vec<String> {
         h.extend(three("vhat"));
     }
     h.push("estimate_error".to_owned());
+    if covariance {
+        h.extend((0..6).map(|i| format!("cov_{i}")));
+        h.push("nees".to_owned());
+    }
     h
 }
 
@@ -92,6 +97,10 @@ fn estimate_fields(e: &crate::trajectory::EstimateRow, n: usize, rec: &mut Vec<S
         }));
     }
     rec.push(num(e.estimate_error));
+    if let Some(c) = e.covariance {
+        rec.extend(c.iter().map(|x| num(*x)));
+        rec.push(e.nees.map(num).unwrap_or_default());
+    }
 }
 
 fn io(path: &Path) -> impl Fn(std::io::Error) -> SimError + '_ {
@@ -109,8 +118,12 @@ pub fn write_trajectory_csv(traj: &Trajectory, path: &Path) -> Result<(), SimErr
     let mut header = trajectory_header(n, m);
     let with_status = !traj.status.is_empty();
     let directions = traj.estimator.as_ref().map(|e| e.directions);
+    let covariance = traj
+        .estimator
+        .as_ref()
+        .is_some_and(|e| e.mean_nees.is_some());
     if let Some(d) = directions {
-        header.extend(estimate_header(n, d, n == 4));
+        header.extend(estimate_header(n, d, n == 4, covariance));
     }
     if with_status {
         header.push("command_status".to_owned());

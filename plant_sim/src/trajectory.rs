@@ -53,6 +53,11 @@ pub struct EstimateRow {
     pub bias_hat: [f64; 3],
     /// The attitude angle of `R̂ᵀR` (rad).
     pub estimate_error: f64,
+    /// EqF: the diagonal of its covariance `Σ` (attitude rad², bias (rad/s)²).
+    pub covariance: Option<[f64; 6]>,
+    /// EqF: the normalised estimation error squared of the true `(R, b)`
+    /// (docs/maths.md, "Consistency").
+    pub nees: Option<f64>,
 }
 
 impl Row {

@@ -36,7 +36,7 @@ pub mod sensing;
 pub mod waypoints;
 
 pub use sensing::{
-    DirectionSpec, EstimatorKind, EstimatorSpec, GyroSpec, PositionSpec, SensorsSpec,
+    DirectionSpec, EqfSpec, EstimatorKind, EstimatorSpec, GyroSpec, PositionSpec, SensorsSpec,
 };
 
 use controller::group::MatrixLieGroup;

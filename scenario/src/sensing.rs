@@ -67,6 +67,11 @@ pub(crate) struct RawEstimator {
     bias_limit: Option<f64>,
     accel_gate: Option<f64>,
     initial_attitude: Option<Vec<f64>>,
+    gyro_noise: Option<f64>,
+    bias_walk: Option<f64>,
+    direction_noise: Option<Vec<f64>>,
+    initial_attitude_std: Option<f64>,
+    initial_bias_std: Option<f64>,
 }
 
 /// The gyro: `ω(t_k) + b_k + n`, `n ~ N(0, noise²/h)` per axis, `b_{k+1} = b_k + N(0,
@@ -121,6 +126,9 @@ pub enum EstimatorKind {
     Truth,
     /// The complementary filter (docs/maths.md, "The complementary filter on SO(3)").
     Complementary,
+    /// The equivariant filter (docs/maths.md, "The equivariant filter for attitude and gyro
+    /// bias").
+    Eqf,
 }
 
 impl EstimatorKind {
@@ -129,6 +137,7 @@ impl EstimatorKind {
         match self {
             EstimatorKind::Truth => "truth",
             EstimatorKind::Complementary => "complementary",
+            EstimatorKind::Eqf => "eqf",
         }
     }
 }
@@ -138,13 +147,15 @@ impl EstimatorKind {
 pub struct EstimatorSpec {
     /// The kind.
     pub kind: EstimatorKind,
-    /// `k_P` (1/s).
+    /// Complementary: `k_P` (1/s).
     pub kp: f64,
-    /// `k_I` (1/s²).
+    /// Complementary: `k_I` (1/s²).
     pub ki: f64,
-    /// `k_i`, one per direction in the list's order, and on SE(3) one more for the
-    /// accelerometer.
+    /// Complementary: `k_i`, one per direction in the list's order, and on SE(3) one more
+    /// for the accelerometer.
     pub weights: Vec<f64>,
+    /// EqF: the noise model and start.
+    pub eqf: Option<EqfSpec>,
     /// Clamp of each bias component (rad/s).
     pub bias_limit: Option<f64>,
     /// SE(3): skip the accelerometer as a direction when `| |f| − g |` exceeds this (m/s²).
@@ -152,6 +163,25 @@ pub struct EstimatorSpec {
     /// The initial attitude estimate (rotation vector); `None`: TRIAD from the first two
     /// direction samples.
     pub initial_attitude: Option<[f64; 3]>,
+}
+
+/// `[estimator]` with `kind = "eqf"`: the filter's noise model (physical units; each
+/// defaults to the `[sensors]` value, "matched") and its start.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EqfSpec {
+    /// The gyro's rate noise density (rad/s/√Hz); default `sensors.gyro.noise`.
+    pub gyro_noise: f64,
+    /// The gyro bias's random walk (rad/s²/√Hz); default `sensors.gyro.bias_walk`.
+    pub bias_walk: f64,
+    /// Each direction's noise (unitless), in the list's order, and on SE(3) the
+    /// accelerometer's as a direction last; default the sensors' (the accelerometer's
+    /// `noise / 9.81`). Each must be > 0.
+    pub direction_noise: Vec<f64>,
+    /// The attitude's standard deviation at the start (rad); default 0.1.
+    pub initial_attitude_std: f64,
+    /// The bias's standard deviation at the start (rad/s); default the largest component
+    /// of `sensors.gyro.bias`, or 0.05 when it is zero.
+    pub initial_bias_std: f64,
 }
 
 impl EstimatorSpec {
@@ -168,6 +198,7 @@ impl Default for EstimatorSpec {
             kp: 0.0,
             ki: 0.0,
             weights: Vec::new(),
+            eqf: None,
             bias_limit: None,
             accel_gate: None,
             initial_attitude: None,
@@ -284,34 +315,60 @@ impl Validator<'_> {
         let kind = match raw.kind.as_str() {
             "truth" => EstimatorKind::Truth,
             "complementary" => EstimatorKind::Complementary,
+            "eqf" => EstimatorKind::Eqf,
             other => {
                 return Err(self.err(
                     "estimator.kind",
-                    format!("unknown kind `{other}` (expected truth or complementary)"),
+                    format!("unknown kind `{other}` (expected truth, complementary or eqf)"),
                 ));
             }
         };
-        if kind == EstimatorKind::Truth {
-            let extra = [
-                ("kp", raw.kp.is_some()),
-                ("ki", raw.ki.is_some()),
-                ("weights", raw.weights.is_some()),
-                ("bias_limit", raw.bias_limit.is_some()),
-                ("accel_gate", raw.accel_gate.is_some()),
-                ("initial_attitude", raw.initial_attitude.is_some()),
-            ];
-            if let Some((k, _)) = extra.iter().find(|(_, given)| *given) {
-                return Err(self.err(
-                    &format!("estimator.{k}"),
-                    "kind = \"truth\" hands the law the exact state: it takes no gains",
-                ));
+        let complementary_keys = [
+            ("kp", raw.kp.is_some()),
+            ("ki", raw.ki.is_some()),
+            ("weights", raw.weights.is_some()),
+        ];
+        let eqf_keys = [
+            ("gyro_noise", raw.gyro_noise.is_some()),
+            ("bias_walk", raw.bias_walk.is_some()),
+            ("direction_noise", raw.direction_noise.is_some()),
+            ("initial_attitude_std", raw.initial_attitude_std.is_some()),
+            ("initial_bias_std", raw.initial_bias_std.is_some()),
+        ];
+        let refuse = |keys: &[(&str, bool)], why: &str| match keys.iter().find(|(_, g)| *g) {
+            Some((k, _)) => Err(self.err(&format!("estimator.{k}"), why)),
+            None => Ok(()),
+        };
+        match kind {
+            EstimatorKind::Truth => {
+                let shared = [
+                    ("bias_limit", raw.bias_limit.is_some()),
+                    ("accel_gate", raw.accel_gate.is_some()),
+                    ("initial_attitude", raw.initial_attitude.is_some()),
+                ];
+                let why = "kind = \"truth\" hands the law the exact state: it takes no gains";
+                refuse(&complementary_keys, why)?;
+                refuse(&eqf_keys, why)?;
+                refuse(&shared, why)?;
+                return Ok(EstimatorSpec::default());
             }
-            return Ok(EstimatorSpec::default());
+            EstimatorKind::Complementary => refuse(
+                &eqf_keys,
+                "a key of kind = \"eqf\" (the complementary filter takes kp, ki and weights)",
+            )?,
+            EstimatorKind::Eqf => refuse(
+                &complementary_keys,
+                "a gain of kind = \"complementary\" (the EqF's gains come from its noise \
+                 model: gyro_noise, bias_walk, direction_noise)",
+            )?,
         }
         let sensors = sensors.ok_or_else(|| {
             self.err(
                 "estimator.kind",
-                "a complementary filter needs a [sensors] table to read",
+                format!(
+                    "kind = \"{}\": a filter needs a [sensors] table to read",
+                    kind.name()
+                ),
             )
         })?;
         let accel = usize::from(group == GroupKind::Se3);
@@ -340,6 +397,10 @@ impl Validator<'_> {
                 ),
             ));
         }
+        let eqf = match kind {
+            EstimatorKind::Eqf => Some(self.eqf(raw, sensors, sources)?),
+            _ => None,
+        };
         let kp = self.non_negative("estimator.kp", raw.kp.unwrap_or(1.0))?;
         let ki = self.non_negative("estimator.ki", raw.ki.unwrap_or(0.3))?;
         let weights = match &raw.weights {
@@ -381,9 +442,90 @@ impl Validator<'_> {
             kp,
             ki,
             weights,
+            eqf,
             bias_limit,
             accel_gate,
             initial_attitude,
+        })
+    }
+}
+
+impl Validator<'_> {
+    /// The EqF's noise model and start, each key defaulting to the `[sensors]` value.
+    fn eqf(
+        &self,
+        raw: &RawEstimator,
+        sensors: &SensorsSpec,
+        sources: usize,
+    ) -> Result<EqfSpec, ScenarioError> {
+        let gyro_noise = self.non_negative(
+            "estimator.gyro_noise",
+            raw.gyro_noise.unwrap_or(sensors.gyro.noise),
+        )?;
+        let bias_walk = self.non_negative(
+            "estimator.bias_walk",
+            raw.bias_walk.unwrap_or(sensors.gyro.bias_walk),
+        )?;
+        let accel = sensors.accelerometer.map(|a| a / GRAVITY);
+        let direction_noise = match &raw.direction_noise {
+            Some(given) => {
+                let why = if accel.is_some() {
+                    "one per direction, then one for the accelerometer"
+                } else {
+                    "one per direction"
+                };
+                let v = self.vector("estimator.direction_noise", given, sources, why)?;
+                if let Some(x) = v.iter().find(|x| **x <= 0.0) {
+                    return Err(self.err(
+                        "estimator.direction_noise",
+                        format!("each must be > 0 (the filter divides by it), got {x}"),
+                    ));
+                }
+                v
+            }
+            None => {
+                let from: Vec<f64> = sensors
+                    .directions
+                    .iter()
+                    .map(|d| d.noise)
+                    .chain(accel)
+                    .collect();
+                if let Some(i) = from.iter().position(|x| *x <= 0.0) {
+                    let what = if i < sensors.directions.len() {
+                        format!("sensors.directions[{i}].noise")
+                    } else {
+                        "sensors.accelerometer.noise".to_owned()
+                    };
+                    return Err(self.err(
+                        "estimator.direction_noise",
+                        format!(
+                            "missing, and its default {what} is 0: the EqF needs each \
+                             direction's noise > 0 (give direction_noise = [...])"
+                        ),
+                    ));
+                }
+                from
+            }
+        };
+        let largest_bias = sensors.gyro.bias.iter().fold(0.0f64, |m, b| m.max(b.abs()));
+        let initial_attitude_std = self.positive(
+            "estimator.initial_attitude_std",
+            raw.initial_attitude_std.unwrap_or(0.1),
+        )?;
+        let initial_bias_std = self.positive(
+            "estimator.initial_bias_std",
+            raw.initial_bias_std.unwrap_or(if largest_bias > 0.0 {
+                largest_bias
+            } else {
+                0.05
+            }),
+        )?;
+        Ok(EqfSpec {
+            gyro_noise,
+            bias_walk,
+            direction_noise,
+            initial_attitude_std,
+            initial_bias_std,
         })
     }
 }
@@ -561,5 +703,124 @@ accel_gate = 1.0
         assert!(e.contains("needs a [sensors] table"), "{e}");
         let e = seed_with("[estimator]\nkind = \"truth\"\nkp = 1.0\n").unwrap_err();
         assert!(e.contains("key `estimator.kp`: kind = \"truth\""), "{e}");
+    }
+}
+
+#[cfg(test)]
+mod eqf_tests {
+    use crate::Scenario;
+
+    const SENSORS: &str = r#"
+[sensors]
+seed = 7
+gyro = { noise = 0.002, bias = [0.02, -0.01, 0.03], bias_walk = 1e-5 }
+directions = [ { world = [0.0, 0.0, 1.0], noise = 0.01 }, { world = [0.5, 0.0, 0.866], noise = 0.02 } ]
+"#;
+
+    fn seed_with(estimator: &str) -> Result<Scenario, String> {
+        let text = format!(
+            "{}\n{SENSORS}\n[estimator]\n{estimator}",
+            crate::BUILTINS[0].1
+        );
+        Scenario::from_toml(&text, "test.toml", "test").map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn the_eqf_defaults_to_the_sensors_noise_and_takes_overrides() {
+        let s = seed_with("kind = \"eqf\"\n").unwrap();
+        let e = s.estimator.eqf.unwrap();
+        assert_eq!((e.gyro_noise, e.bias_walk), (0.002, 1e-5));
+        assert_eq!(e.direction_noise, vec![0.01, 0.02]);
+        assert_eq!((e.initial_attitude_std, e.initial_bias_std), (0.1, 0.03));
+        let s = seed_with(
+            "kind = \"eqf\"\ngyro_noise = 0.01\nbias_walk = 0.0\ndirection_noise = [0.1, 0.2]\n\
+             initial_attitude_std = 2.5\ninitial_bias_std = 0.1\ninitial_attitude = [0.0, 0.0, 2.5]\n",
+        )
+        .unwrap();
+        let e = s.estimator.eqf.as_ref().unwrap();
+        assert_eq!((e.gyro_noise, e.bias_walk), (0.01, 0.0));
+        assert_eq!(e.direction_noise, vec![0.1, 0.2]);
+        assert_eq!((e.initial_attitude_std, e.initial_bias_std), (2.5, 0.1));
+        assert_eq!(s.estimator.initial_attitude, Some([0.0, 0.0, 2.5]));
+        // the estimator is not the controller's: the fingerprint is the seed's
+        assert_eq!(
+            s.fingerprint(),
+            Scenario::builtin("seed").unwrap().fingerprint()
+        );
+    }
+
+    #[test]
+    fn bad_eqf_values_name_the_key_and_what_is_wrong() {
+        for (text, needle) in [
+            (
+                "kind = \"eqf\"\ngyro_noise = -1.0\n",
+                "key `estimator.gyro_noise`: must be a finite number ≥ 0",
+            ),
+            (
+                "kind = \"eqf\"\nbias_walk = nan\n",
+                "key `estimator.bias_walk`",
+            ),
+            (
+                "kind = \"eqf\"\ndirection_noise = [0.1]\n",
+                "key `estimator.direction_noise`: expected 2 numbers (one per direction)",
+            ),
+            (
+                "kind = \"eqf\"\ndirection_noise = [0.1, 0.0]\n",
+                "key `estimator.direction_noise`: each must be > 0",
+            ),
+            (
+                "kind = \"eqf\"\ndirection_noise = [0.1, inf]\n",
+                "key `estimator.direction_noise`: entry 1 is not a finite number",
+            ),
+            (
+                "kind = \"eqf\"\ninitial_attitude_std = 0.0\n",
+                "key `estimator.initial_attitude_std`: must be a finite number > 0",
+            ),
+            (
+                "kind = \"eqf\"\ninitial_bias_std = -0.1\n",
+                "key `estimator.initial_bias_std`",
+            ),
+            (
+                "kind = \"eqf\"\nkp = 1.0\n",
+                "key `estimator.kp`: a gain of kind = \"complementary\"",
+            ),
+            (
+                "kind = \"complementary\"\ngyro_noise = 0.01\n",
+                "key `estimator.gyro_noise`: a key of kind = \"eqf\"",
+            ),
+            (
+                "kind = \"truth\"\ndirection_noise = [0.1, 0.1]\n",
+                "key `estimator.direction_noise`: kind = \"truth\"",
+            ),
+            (
+                "kind = \"eqf\"\ngyro_noise = \"low\"\n",
+                "invalid type: string \"low\", expected f64",
+            ),
+        ] {
+            let e = seed_with(text).unwrap_err();
+            assert!(e.contains(needle), "{text}: {e}");
+        }
+        // a noiseless direction sensor has no default: the filter divides by it
+        let text = format!(
+            "{}\n{}\n[estimator]\nkind = \"eqf\"\n",
+            crate::BUILTINS[0].1,
+            SENSORS.replace("noise = 0.02", "noise = 0.0")
+        );
+        let e = Scenario::from_toml(&text, "t.toml", "t")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("key `estimator.direction_noise`: missing, and its default sensors.directions[1].noise is 0"),
+            "{e}"
+        );
+        // no sensors, no filter
+        let text = format!("{}\n[estimator]\nkind = \"eqf\"\n", crate::BUILTINS[0].1);
+        let e = Scenario::from_toml(&text, "t.toml", "t")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("kind = \"eqf\": a filter needs a [sensors] table"),
+            "{e}"
+        );
     }
 }

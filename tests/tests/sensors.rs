@@ -1,5 +1,5 @@
-//! The loop closed on what a board measures: simulated sensors, the complementary filter on
-//! the plant side, driven through the real binaries
+//! The loop closed on what a board measures: simulated sensors, the complementary filter and
+//! the equivariant filter on the plant side, driven through the real binaries
 //! (docs/architecture.md, "Sensors and the estimator"). Tests run one at a time ([`serial`]).
 
 use pair_tests::{Csv, TempDir, run, serial, summary};
@@ -20,7 +20,7 @@ fn plant(args: &[&str]) -> (i32, String) {
 fn lockstep_with_sensors_and_the_filter_equals_the_simulation_bit_for_bit() {
     let _g = serial();
     let d = TempDir::new("sensors-lockstep");
-    for name in ["sensors_so3", "sensors_se3"] {
+    for name in ["sensors_so3", "sensors_se3", "eqf_so3", "eqf_se3"] {
         let file = scenario(name);
         let (sim, pair) = (
             d.join(&format!("{name}-sim")),
@@ -58,14 +58,26 @@ fn lockstep_with_sensors_and_the_filter_equals_the_simulation_bit_for_bit() {
         ] {
             assert!(csv.header.iter().any(|h| h == col), "{name}: no {col}");
         }
-        if name == "sensors_se3" {
+        if name.ends_with("se3") {
             for col in ["acc_2", "pos_0", "xhat_1", "vhat_2"] {
                 assert!(csv.header.iter().any(|h| h == col), "{name}: no {col}");
             }
         }
         let s = summary(Path::new(&sim));
-        assert_eq!(s["estimator"]["kind"], "complementary", "{s}");
+        let eqf = name.starts_with("eqf");
+        let kind = if eqf { "eqf" } else { "complementary" };
+        assert_eq!(s["estimator"]["kind"], kind, "{s}");
         assert_eq!(summary(Path::new(&pair))["estimator"], s["estimator"]);
+        // the EqF's covariance diagonal and NEES are recorded beside its estimate, and only
+        // for it
+        let has = |c: &str| csv.header.iter().any(|h| h == c);
+        assert_eq!(has("cov_0") && has("cov_5") && has("nees"), eqf, "{name}");
+        assert_eq!(s["estimator"].get("mean_nees").is_some(), eqf, "{s}");
+        if eqf {
+            for i in 0..6 {
+                assert!(csv.col(&format!("cov_{i}")).iter().all(|x| *x > 0.0));
+            }
+        }
     }
 }
 
@@ -73,8 +85,13 @@ fn lockstep_with_sensors_and_the_filter_equals_the_simulation_bit_for_bit() {
 fn a_real_time_run_with_sensors_replays_bit_for_bit() {
     let _g = serial();
     let d = TempDir::new("sensors-replay");
-    let out = d.join("run");
-    let file = scenario("sensors_so3");
+    for (name, kind) in [("sensors_so3", "complementary"), ("eqf_so3", "eqf")] {
+        replays(&d.join(name), name, kind);
+    }
+}
+
+fn replays(out: &str, name: &str, kind: &str) {
+    let file = scenario(name);
     let (code, text) = plant(&[
         "run",
         "--scenario",
@@ -82,18 +99,18 @@ fn a_real_time_run_with_sensors_replays_bit_for_bit() {
         "--duration",
         "2",
         "--name",
-        "t-sensors-rt",
+        &format!("t-rt-{name}"),
         "--out",
-        &out,
+        out,
     ]);
     assert_eq!(code, 0, "{text}");
-    let s = summary(Path::new(&out));
+    let s = summary(Path::new(out));
     let cycles = s["cycles"].as_u64().unwrap();
     assert!(cycles >= 2000, "{s}");
-    assert_eq!(s["estimator"]["kind"], "complementary", "{s}");
+    assert_eq!(s["estimator"]["kind"], kind, "{s}");
     // sampling the sensors and stepping the filter allocate nothing on the plant's loop
     assert_eq!(s["plant_loop_heap_allocations"].as_u64(), Some(0), "{s}");
-    let (code, text) = run("plant_sim", &["replay", &out], LONG);
+    let (code, text) = run("plant_sim", &["replay", out], LONG);
     assert_eq!(code, 0, "{text}");
     assert!(text.contains(" 0 differ"), "{text}");
     assert!(
@@ -126,7 +143,18 @@ fn finite_except_samples(path: &str) -> usize {
 fn bad_samples_are_counted_and_nothing_the_law_sees_or_does_is_nan() {
     let _g = serial();
     let d = TempDir::new("sensors-faults");
-    let so3 = d.join("so3");
+    for name in ["sensors_so3", "eqf_so3"] {
+        so3_faults(&d.join(name), name);
+    }
+
+    // SE(3): the accelerometer far from g is gated out as a direction, a NaN one predicts
+    // without acceleration; the same run through the pair in lockstep counts the same
+    for name in ["sensors_se3", "eqf_se3"] {
+        se3_faults(&d.join(name), name);
+    }
+}
+
+fn so3_faults(so3: &str, name: &str) {
     let faults = [
         "100:gyro-nan",
         "101:gyro-inf",
@@ -138,35 +166,44 @@ fn bad_samples_are_counted_and_nothing_the_law_sees_or_does_is_nan() {
         "300:dir-zero",
     ];
     let mut args = vec!["sim", "--scenario"];
-    let file = scenario("sensors_so3");
+    let file = scenario(name);
     args.push(&file);
-    args.extend(["--out", &so3]);
+    args.extend(["--out", so3]);
     for f in &faults {
         args.extend(["--fault-sample", f]);
     }
     let (code, out) = plant(&args);
     assert_eq!(code, 0, "the run completes:\n{out}");
-    let s = summary(Path::new(&so3));
+    let s = summary(Path::new(so3));
     let f = &s["estimator"]["faults"];
-    assert_eq!(f["gyro"], 3, "{s}");
-    assert_eq!(f["directions"], 4, "{s}");
-    assert_eq!(s["estimator"]["planted_faults"], 8, "{s}");
-    assert!(finite_except_samples(&so3) > 50_000);
+    assert_eq!(f["gyro"], 3, "{name}: {s}");
+    assert_eq!(f["directions"], 4, "{name}: {s}");
+    assert_eq!(s["estimator"]["planted_faults"], 8, "{name}: {s}");
+    assert!(finite_except_samples(so3) > 50_000);
     // the planted samples are in the record as they came
-    let csv = Csv::read(&Path::new(&so3).join("trajectory.csv"));
+    let csv = Csv::read(&Path::new(so3).join("trajectory.csv"));
     assert!(csv.col("gyro_1")[100].is_nan());
     assert_eq!(csv.col("dir0_0")[105], 0.0);
+    if name.starts_with("eqf") {
+        // its variances stay positive through the faults (and finite: checked above)
+        for i in 0..6 {
+            assert!(
+                csv.col(&format!("cov_{i}")).iter().all(|x| *x > 0.0),
+                "cov_{i}"
+            );
+        }
+    }
+}
 
-    // SE(3): the accelerometer far from g is gated out as a direction, a NaN one predicts
-    // without acceleration; the same run through the pair in lockstep counts the same
-    let se3 = d.join("se3");
-    let pair = d.join("se3-pair");
-    let file = scenario("sensors_se3");
+fn se3_faults(se3: &str, name: &str) {
+    let pair = format!("{se3}-pair");
+    let file = scenario(name);
     let planted = ["50:accel-far", "51:accel-far", "52:gyro-nan", "53:dir-inf"];
-    for (cmd, dir) in [("sim", &se3), ("run", &pair)] {
+    let run_name = format!("t-faults-{name}");
+    for (cmd, dir) in [("sim", se3), ("run", pair.as_str())] {
         let mut args = vec![cmd, "--scenario", &file, "--out", dir];
         if cmd == "run" {
-            args.extend(["--mode", "lockstep", "--name", "t-sensors-faults"]);
+            args.extend(["--mode", "lockstep", "--name", &run_name]);
         }
         for f in &planted {
             args.extend(["--fault-sample", f]);
@@ -174,15 +211,15 @@ fn bad_samples_are_counted_and_nothing_the_law_sees_or_does_is_nan() {
         let (code, out) = plant(&args);
         assert_eq!(code, 0, "{cmd}: {out}");
     }
-    let s = summary(Path::new(&se3));
+    let s = summary(Path::new(se3));
     let f = &s["estimator"]["faults"];
-    assert!(f["accel_gated"].as_u64().unwrap() >= 2, "{s}");
+    assert!(f["accel_gated"].as_u64().unwrap() >= 2, "{name}: {s}");
     assert_eq!(
         (f["gyro"].as_u64(), f["directions"].as_u64()),
         (Some(1), Some(1)),
-        "{s}"
+        "{name}: {s}"
     );
-    finite_except_samples(&se3);
+    finite_except_samples(se3);
     assert_eq!(summary(Path::new(&pair))["estimator"], s["estimator"]);
     assert_eq!(
         std::fs::read(format!("{se3}/trajectory.csv")).unwrap(),
