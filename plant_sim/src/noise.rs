@@ -30,16 +30,18 @@ pub struct NoiseRow {
     pub rms_estimate_error: f64,
 }
 
-/// Runs the study on `base` (which must have `[sensors]` and a complementary `[estimator]`):
-/// for each gyro noise and bias on/off, `runs` sensor seeds (1..=runs), truth-fed and
-/// filter-fed.
+/// Runs the study on `base` (which must have `[sensors]` and a filter in `[estimator]`,
+/// complementary or EqF): for each gyro noise and bias on/off, `runs` sensor seeds
+/// (1..=runs), truth-fed and filter-fed. The EqF's own gyro noise follows the study's (its
+/// noise model stays matched).
 pub fn study(base: &Scenario, noises: &[f64], runs: usize) -> Result<Vec<NoiseRow>, SimError> {
-    let (Some(_), EstimatorKind::Complementary) = (&base.sensors, base.estimator.kind) else {
+    if base.sensors.is_none() || base.estimator.kind == EstimatorKind::Truth {
         return Err(SimError::Input(format!(
-            "scenario `{}`: the noise study needs [sensors] and [estimator] kind = \"complementary\"",
+            "scenario `{}`: the noise study needs [sensors] and a filter in [estimator] \
+             (kind = \"complementary\" or \"eqf\")",
             base.name
         )));
-    };
+    }
     if runs == 0 || noises.is_empty() || noises.iter().any(|x| !x.is_finite() || *x < 0.0) {
         return Err(SimError::Input(
             "--runs must be at least 1 and --gyro-noise finite numbers ≥ 0".to_owned(),
@@ -67,6 +69,9 @@ pub fn study(base: &Scenario, noises: &[f64], runs: usize) -> Result<Vec<NoiseRo
                             sp.gyro.bias_walk = 0.0;
                         }
                     }
+                    if let Some(q) = s.estimator.eqf.as_mut() {
+                        q.gyro_noise = noise;
+                    }
                     if truth {
                         s.estimator = EstimatorSpec::default();
                     }
@@ -83,7 +88,13 @@ pub fn study(base: &Scenario, noises: &[f64], runs: usize) -> Result<Vec<NoiseRo
             Ok(NoiseRow {
                 gyro_noise: noise,
                 bias,
-                estimator: if truth { "truth" } else { "complementary" }.to_owned(),
+                estimator: if truth {
+                    EstimatorKind::Truth
+                } else {
+                    base.estimator.kind
+                }
+                .name()
+                .to_owned(),
                 runs,
                 final_attitude_error: mean(0),
                 rms_attitude_error: mean(1),
@@ -132,6 +143,10 @@ pub fn write(rows: &[NoiseRow], scenario: &str, out: &Path) -> Result<(), SimErr
     }
     std::fs::write(out.join("noise.csv"), csv).map_err(fail)?;
     std::fs::write(out.join("table.md"), table(rows)).map_err(fail)?;
+    let filter = rows
+        .iter()
+        .find(|r| r.estimator != "truth")
+        .map_or("complementary", |r| r.estimator.as_str());
     let line = |estimator: &str, bias: bool, f: fn(&NoiseRow) -> f64, label: &str, color| Line {
         label: label.to_owned(),
         color,
@@ -147,14 +162,14 @@ pub fn write(rows: &[NoiseRow], scenario: &str, out: &Path) -> Result<(), SimErr
         lines: vec![
             line("truth", true, f, "truth-fed", law_color("eqt")),
             line(
-                "complementary",
+                filter,
                 false,
                 f,
                 "filter-fed, no bias",
                 law_color("nog"),
             ),
             line(
-                "complementary",
+                filter,
                 true,
                 f,
                 "filter-fed, with bias",
