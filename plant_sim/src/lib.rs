@@ -10,6 +10,7 @@
 
 pub mod bench_loop;
 pub mod estimation;
+pub mod estimator_study;
 pub mod flight;
 pub mod floors;
 pub mod monitor;

@@ -5,6 +5,7 @@
 //! plant_sim sim [--scenario FILE | --builtin NAME] [--law L] [--out DIR]
 //! plant_sim montecarlo [--scenario FILE] [--runs N] [--seed S] [--laws eqt,gt,nog,asym]
 //!                      [--samples FILE] [--threads N] [--out DIR]
+//!                      [--estimators truth,complementary,eqf] [--initial-error RAD]
 //! plant_sim run [--scenario FILE | --builtin NAME] [--mode lockstep|realtime] [--rate-hz F]
 //!               [--wake spin|event] [--no-spawn] [--name RUN] [--out DIR] [--no-record]
 //! plant_sim replay OUT_DIR [--law L] [--scenario FILE] [--kp X[,X...]] [--kd X[,X...]]
@@ -326,6 +327,22 @@ struct McArgs {
     /// Output directory; default out/montecarlo.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// Compare estimators instead of laws (the first of --laws flies every run): truth,
+    /// complementary, eqf. Needs a scenario with [sensors] (and kind = "eqf" for eqf).
+    #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = estimator_parser)]
+    estimators: Vec<scenario::EstimatorKind>,
+    /// With --estimators: start each filter this far (rad, about an axis drawn per run)
+    /// from the true attitude instead of TRIAD, and time its convergence.
+    #[arg(long, value_name = "RAD", requires = "estimators")]
+    initial_error: Option<f64>,
+}
+
+fn estimator_parser(text: &str) -> Result<scenario::EstimatorKind, String> {
+    use scenario::EstimatorKind::*;
+    [Truth, Complementary, Eqf]
+        .into_iter()
+        .find(|k| k.name() == text)
+        .ok_or_else(|| format!("`{text}`: expected truth, complementary or eqf"))
 }
 
 fn progress(len: u64, what: &str) -> ProgressBar {
@@ -436,6 +453,10 @@ fn montecarlo_cmd(args: McArgs, stop: &StopFlag) -> Result<(), SimError> {
         .out
         .unwrap_or_else(|| Path::new("out").join("montecarlo"));
     ensure_dir(&out)?;
+    if !args.estimators.is_empty() {
+        let study = (args.estimators.as_slice(), args.initial_error, args.threads);
+        return estimator_study(&base, &samples, study, laws[0], &out, stop);
+    }
     let bar = progress((samples.len() * laws.len()) as u64, "montecarlo");
     let results = montecarlo::run_all(&base, &samples, &laws, args.threads, &|| bar.inc(1), stop)?;
     bar.finish_and_clear();
@@ -470,6 +491,55 @@ fn montecarlo_cmd(args: McArgs, stop: &StopFlag) -> Result<(), SimError> {
     print!("{}", montecarlo::table(&stats));
     println!(
         "wrote {}/{{runs.csv, mean.csv, summary.json, figure.png, figure.svg}}",
+        out.display()
+    );
+    Ok(())
+}
+
+/// `montecarlo --estimators`: the filters on the same runs.
+fn estimator_study(
+    base: &Scenario,
+    samples: &[montecarlo::Sample],
+    (estimators, initial_error, threads): (&[scenario::EstimatorKind], Option<f64>, Option<usize>),
+    law: Law,
+    out: &Path,
+    stop: &StopFlag,
+) -> Result<(), SimError> {
+    use plant_sim::estimator_study as study;
+    let bar = progress((samples.len() * estimators.len()) as u64, "estimators");
+    let results = study::run_study(
+        base,
+        samples,
+        estimators,
+        law,
+        initial_error,
+        threads,
+        &|| bar.inc(1),
+        stop,
+    )?;
+    bar.finish_and_clear();
+    if let Some(sig) = stop.requested() {
+        eprintln!(
+            "{sig}: stopped after {} of {} runs",
+            results.len(),
+            samples.len() * estimators.len()
+        );
+        return Err(SimError::Interrupted(sig));
+    }
+    let stats = study::stats(&results, estimators);
+    write_json(&stats, &out.join("summary.json"))?;
+    study::write(&results, &stats, estimators, base.control_period, out)?;
+    println!(
+        "Estimators on `{}` with {}: {} runs each, T = {} s{}",
+        base.name,
+        law.name(),
+        samples.len(),
+        base.duration,
+        initial_error.map_or(String::new(), |e| format!(", filters started {e} rad off"))
+    );
+    print!("{}", study::table(&stats));
+    println!(
+        "wrote {}/{{estimators.csv, estimators.md, nees.csv, summary.json, estimators.png, estimators.svg}}",
         out.display()
     );
     Ok(())

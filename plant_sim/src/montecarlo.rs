@@ -196,22 +196,39 @@ pub fn run_sensors(s: &mut Scenario, run: usize) {
     }
 }
 
-fn one_run(base: &Scenario, run: usize, sample: Sample, law: Law) -> Result<RunResult, SimError> {
-    let mut s = base.clone();
-    s.law = law;
-    run_sensors(&mut s, run);
-    let r_d0: SMatrix<f64, 3, 3> = Scenario::configuration::<3>(&s.reference);
-    let w_d0 = Vector3::from_row_slice(&s.reference.velocity);
-    let r0 = r_d0 * exp_so3(&Vector3::from(sample.r));
-    let w0 = w_d0 + Vector3::from(sample.w);
+/// Run `run` of the study on `s` (its sensors already the run's): the body starts at
+/// `R(0) = R_d(0)·exp(hat(r))`, `ω(0) = ω_d(0) + w` and the closed loop is simulated.
+pub fn fly(
+    s: &Scenario,
+    run: usize,
+    sample: Sample,
+) -> Result<crate::trajectory::Trajectory, SimError> {
+    let (r0, w0) = initial_state(s, sample);
     let plant = RigidBody::<f64, So3, 3, 3>::new(
         SMatrix::from_row_slice(&s.plant_inertia),
         r0,
         SVector::from(w0),
     )
     .map_err(|e| SimError::Input(format!("run {run}: {e}")))?;
-    let traj = simulate_with::<So3, 3, 3>(&s, plant, &|_| Ok(()))
-        .map_err(|e| SimError::Run(format!("run {run}, law {}: {e}", law.name())))?;
+    simulate_with::<So3, 3, 3>(s, plant, &|_| Ok(()))
+        .map_err(|e| SimError::Run(format!("run {run}, law {}: {e}", s.law.name())))
+}
+
+/// The initial attitude and rate of a sample: `R_d(0)·exp(hat(r))`, `ω_d(0) + w`.
+pub fn initial_state(s: &Scenario, sample: Sample) -> (Matrix3<f64>, Vector3<f64>) {
+    let r_d0: SMatrix<f64, 3, 3> = Scenario::configuration::<3>(&s.reference);
+    let w_d0 = Vector3::from_row_slice(&s.reference.velocity);
+    (
+        r_d0 * exp_so3(&Vector3::from(sample.r)),
+        w_d0 + Vector3::from(sample.w),
+    )
+}
+
+fn one_run(base: &Scenario, run: usize, sample: Sample, law: Law) -> Result<RunResult, SimError> {
+    let mut s = base.clone();
+    s.law = law;
+    run_sensors(&mut s, run);
+    let traj = fly(&s, run, sample)?;
     let h = traj.control_period;
     Ok(RunResult {
         run,

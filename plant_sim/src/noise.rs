@@ -161,20 +161,8 @@ pub fn write(rows: &[NoiseRow], scenario: &str, out: &Path) -> Result<(), SimErr
         y_label: "mean over runs".to_owned(),
         lines: vec![
             line("truth", true, f, "truth-fed", law_color("eqt")),
-            line(
-                filter,
-                false,
-                f,
-                "filter-fed, no bias",
-                law_color("nog"),
-            ),
-            line(
-                filter,
-                true,
-                f,
-                "filter-fed, with bias",
-                law_color("gt"),
-            ),
+            line(filter, false, f, "filter-fed, no bias", law_color("nog")),
+            line(filter, true, f, "filter-fed, with bias", law_color("gt")),
         ],
     };
     let panels = [
