@@ -292,14 +292,15 @@ for line in open(sys.argv[1], errors="replace"):
     in_mark = False
     if current is not None:
         current[sym] += 1
-if runs < 14 or len(gaps) < 13:
-    sys.exit(f"expected 14 marks, found {runs}")
+if runs < 16 or len(gaps) < 15:
+    sys.exit(f"expected 16 marks, found {runs}")
 base = sum(gaps[0].values())
 # gaps[i] lies between mark i and mark i + 1
 names = {2: "SO(3) EqT, Controller::compute, f32", 4: "SE(3) EqT (generic), Controller::compute, f32",
          6: "controller cycle, 1 reference substep", 8: "controller cycle, 10 reference substeps",
          10: "complementary filter step (estimator, 2 directions), f32",
-         12: "pose filter step (estimator, SE(3), 1 direction + accelerometer + fix), f32"}
+         12: "pose filter step (estimator, SE(3), 1 direction + accelerometer + fix), f32",
+         14: "equivariant filter step (estimator, attitude + bias, 2 directions), f32"}
 soft = re.compile(r"__aeabi_d|__adddf3|__subdf3|__muldf3|__divdf3|__fixdfsi|__floatsidf|__extendsfdf2|__truncdfsf2|compiler_builtins.*float")
 for i, name in names.items():
     g = gaps[i]

@@ -143,10 +143,13 @@ fn steps<T: Real>(c: &mut Criterion, scalar: &str) {
 }
 
 /// One estimator step on exact samples of a body at rest, after the filter has started (the
-/// complementary filter with two directions; the SE(3) pose filter with one direction, the
-/// accelerometer and a position fix).
+/// complementary filter with two directions; the equivariant filter with the same two; the
+/// SE(3) pose filter with one direction, the accelerometer and a position fix).
 fn estimators<T: Real>(c: &mut Criterion, scalar: &str) {
-    use estimator::{ComplementaryConfig, ComplementaryFilter, PoseConfig, PoseFilter};
+    use estimator::{
+        ComplementaryConfig, ComplementaryFilter, EqfConfig, EquivariantFilter, PoseConfig,
+        PoseFilter,
+    };
     let w = [Vector3::z(), Vector3::new(1.0, 0.0, 0.2).map(real::<T>)];
     let (q, ..) = so3_generic::<T>();
     let y = [q.tr_mul(&w[0]), q.tr_mul(&w[1].normalize())];
@@ -167,8 +170,22 @@ fn estimators<T: Real>(c: &mut Criterion, scalar: &str) {
     ) else {
         return;
     };
+    let Ok(ec) = EqfConfig::new(real(0.002), real(1e-5), &w, &[real(0.01), real(0.01)]) else {
+        return;
+    };
     let mut g = c.benchmark_group("estimator_step");
     g.throughput(Throughput::Elements(1));
+    g.bench_function(format!("so3_eqf/{scalar}"), |b| {
+        b.iter_batched_ref(
+            || {
+                let mut f = EquivariantFilter::new(ec);
+                f.step(h, &gyro, &y);
+                f
+            },
+            |f| f.step(black_box(h), black_box(&gyro), black_box(&y)),
+            BatchSize::SmallInput,
+        )
+    });
     g.bench_function(format!("so3/{scalar}"), |b| {
         b.iter_batched_ref(
             || {
@@ -202,7 +219,8 @@ fn estimators<T: Real>(c: &mut Criterion, scalar: &str) {
     g.finish();
 }
 
-/// The plant side's whole cycle in the simulator with `sensors_so3`'s sensors and filter:
+/// The plant side's whole cycle in the simulator with `sensors_so3`'s sensors and filter (and
+/// `eqf_so3`'s, the same sensors with the equivariant filter):
 /// sample the sensors from the true body, step the filter, integrate the body over one 1 ms
 /// period (10 RKMK4 substeps) — against the same integration alone (the exact state).
 fn plant_side(c: &mut Criterion) {
@@ -223,25 +241,31 @@ fn plant_side(c: &mut Criterion) {
             BatchSize::SmallInput,
         )
     });
-    g.bench_function("so3/f64/complementary", |b| {
-        b.iter_batched_ref(
-            || {
-                let mut e = plant_sim::estimation::Estimation::new(&s, 0.001, &[])
-                    .ok()
-                    .flatten()
-                    .expect("sensors_so3 has sensors");
-                e.measure(0, &body, &tau);
-                (e, body, 1u64)
-            },
-            |(e, p, k)| {
-                let out = e.measure(*k, p, &tau);
-                p.advance(black_box(&tau), 0.001, 10);
-                *k += 1;
-                out.0
-            },
-            BatchSize::SmallInput,
-        )
-    });
+    let eqf = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/eqf_so3.toml");
+    let Ok(eqf) = scenario::Scenario::from_file(std::path::Path::new(eqf)) else {
+        return;
+    };
+    for (name, s) in [("complementary", &s), ("eqf", &eqf)] {
+        g.bench_function(format!("so3/f64/{name}"), |b| {
+            b.iter_batched_ref(
+                || {
+                    let mut e = plant_sim::estimation::Estimation::new(s, 0.001, &[])
+                        .ok()
+                        .flatten()
+                        .expect("the scenario has sensors");
+                    e.measure(0, &body, &tau);
+                    (e, body, 1u64)
+                },
+                |(e, p, k)| {
+                    let out = e.measure(*k, p, &tau);
+                    p.advance(black_box(&tau), 0.001, 10);
+                    *k += 1;
+                    out.0
+                },
+                BatchSize::SmallInput,
+            )
+        });
+    }
     g.finish();
 }
 

@@ -8,7 +8,8 @@ use controller::group::{MatrixLieGroup, Se3};
 use controller::{Real, real};
 use estimator::eqf::{
     Matrix6, Symmetry, Vector6, act, act_input, act_output, input_matrix, lift, output_matrix,
-    process_noise, state_matrix, state_of, symmetry, symmetry_of, transition,
+    process_noise, propagate_covariance, reset_covariance, reset_jacobian, state_matrix, state_of,
+    symmetry, symmetry_of, transition,
 };
 use estimator::{EqfConfig, EquivariantFilter, EstimatorError};
 use nalgebra::{Matrix3, SMatrix, Vector3};
@@ -244,6 +245,30 @@ fn a_b_and_c_agree_with_finite_differences_of_the_error_dynamics_and_output() {
         with_star < 1e-6 && plain > 20.0 * with_star,
         "{with_star} {plain}"
     );
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 100, .. ProptestConfig::default() })]
+
+    /// The block forms the filter runs equal the dense products they stand for:
+    /// `Φ Σ Φᵀ + Q_d` and `J Σ Jᵀ`, on random symmetric positive definite `Σ`.
+    #[test]
+    fn the_block_forms_equal_the_dense_products(
+        l in prop::collection::vec(-1.0f64..1.0, 36), w in v3(), d in prop::collection::vec(-0.3f64..0.3, 6),
+    ) {
+        let l = Matrix6::from_row_slice(&l);
+        let sigma = l * l.transpose() + Matrix6::identity() * 0.1;
+        let h = 0.01;
+        let phi = transition(h, &w);
+        let dense = phi * sigma * phi.transpose() + process_noise(h, 0.003, 0.001);
+        let blocks = propagate_covariance(&sigma, h, &w, 0.003, 0.001);
+        prop_assert!((dense - blocks).norm() < 1e-12 * dense.norm(), "{}", (dense - blocks).norm());
+        let delta = Vector6::from_column_slice(&d);
+        let j = reset_jacobian(&delta);
+        let dense = j * sigma * j.transpose();
+        let blocks = reset_covariance(&sigma, &delta);
+        prop_assert!((dense - blocks).norm() < 1e-12 * dense.norm(), "{}", (dense - blocks).norm());
+    }
 }
 
 fn world() -> [Vector3<f64>; 2] {

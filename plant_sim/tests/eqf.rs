@@ -100,5 +100,8 @@ fn the_filters_fly_the_same_sensor_streams_and_the_eqf_estimates_better() {
     // the same run flown twice gives the same numbers (seeded sensors, whatever the threads)
     // (compared as text: a NaN, where a tick has no NEES, is not equal to itself)
     let again = study(&eqf_so3(), 10, &kinds, None);
-    assert!(format!("{runs:?}") == format!("{again:?}"), "a second study differs");
+    assert!(
+        format!("{runs:?}") == format!("{again:?}"),
+        "a second study differs"
+    );
 }

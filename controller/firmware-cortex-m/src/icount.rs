@@ -13,6 +13,7 @@
 //! | 8 → 9 | the same with the seed's 10 substeps |
 //! | 10 → 11 | one complementary-filter step (`estimator`), two directions, f32 |
 //! | 12 → 13 | one pose-filter step (SE(3): one direction, the accelerometer, a position fix), f32 |
+//! | 14 → 15 | one equivariant-filter step (`estimator`, attitude and gyro bias), two directions, f32 |
 
 use controller::Trajectory;
 use core::hint::black_box;
@@ -83,13 +84,19 @@ pub fn run() -> bool {
         hprintln!("ERR icount - estimator construction failed");
         return false;
     };
+    let Ok(ec) = estimator::EqfConfig::new(0.002f32, 1e-5, &w, &[0.01, 0.01]) else {
+        hprintln!("ERR icount - EqF construction failed");
+        return false;
+    };
     let mut cf = estimator::ComplementaryFilter::new(cc);
     let mut pf = estimator::PoseFilter::new(pc);
+    let mut eqf = estimator::EquivariantFilter::new(ec);
     for _ in 0..10 {
         cf.step(0.01, &gyro, &y);
         pf.step(0.01, &gyro, &y[1..], &f_up, Some(&x));
+        eqf.step(0.01, &gyro, &y);
     }
-    let (mut cf, mut pf, y) = (black_box(cf), black_box(pf), black_box(y));
+    let (mut cf, mut pf, mut eqf, y) = (black_box(cf), black_box(pf), black_box(eqf), black_box(y));
 
     icount_mark(10);
     let e = black_box(cf.step(black_box(0.01), black_box(&gyro), black_box(&y)));
@@ -106,6 +113,11 @@ pub fn run() -> bool {
     ));
     icount_mark(13);
     finite(e.r.norm() + e.x.norm());
+
+    icount_mark(14);
+    let e = black_box(eqf.step(black_box(0.01), black_box(&gyro), black_box(&y)));
+    icount_mark(15);
+    finite(e.r.norm() + e.rate.norm() + eqf.covariance().norm());
 
     hprintln!("ICOUNT done {}", ok);
     ok

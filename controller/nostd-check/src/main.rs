@@ -155,7 +155,27 @@ fn estimator_check<T: Real>() -> bool {
         pe = p.step(real(0.01), &b, &y[1..], &f_up, Some(&x));
     }
     let pose = (pe.x - x).norm() < real(1e-3) && (pe.r - r).norm() < real(1e-3);
-    held && attitude && pose
+    held && attitude && pose && eqf_check(&w, &r, &y, &b)
+}
+
+/// The equivariant filter without std: from a TRIAD start on exact samples of a body at
+/// rest it finds the attitude and the bias, keeps its covariance positive definite, and
+/// counts a NaN gyro sample.
+fn eqf_check<T: Real>(w: &[Vector3<T>; 2], r: &Matrix3<T>, y: &[Vector3<T>; 2], b: &Vector3<T>) -> bool {
+    use estimator::{EqfConfig, EquivariantFilter};
+    let Ok(cfg) = EqfConfig::new(real(0.01), real(0.01), w, &[real(0.01), real(0.01)]) else {
+        return false;
+    };
+    let mut f = EquivariantFilter::new(cfg);
+    let mut e = f.step(real(0.01), b, y);
+    for _ in 0..3000 {
+        e = f.step(real(0.01), b, y);
+    }
+    let nan = Vector3::new(real::<T>(f64::NAN), T::zero(), T::zero());
+    f.step(real(0.01), &nan, y);
+    let counted = f.faults().gyro == 1;
+    let spd = f.covariance().cholesky().is_some();
+    counted && spd && (e.r - r).norm() < real(1e-3) && (e.bias - b).norm() < real(1e-3)
 }
 
 /// Runs every check; 0 when all hold.
