@@ -1,5 +1,5 @@
-//! The equivariant filter (EqF) for attitude and gyro bias (docs/maths.md, "The equivariant
-//! filter for attitude and gyro bias"), after van Goor, Hamel and Mahony, "Equivariant Filter
+//! The equivariant filter (EqF) for attitude and gyro bias (docs/maths.md, "The equivariant filter for attitude and gyro bias"),
+//! after van Goor, Hamel and Mahony, "Equivariant Filter
 //! (EqF)", IEEE TAC 2023 (arXiv 2010.14666), with the symmetry of Fornasier, Ng, Mahony and
 //! Weiss for a biased gyro (ICRA 2022, RA-L 2022).
 //!
@@ -32,8 +32,7 @@ pub fn symmetry<T: Real>(a: &Matrix3<T>, t: &Vector3<T>) -> Symmetry<T> {
 }
 
 /// The action on the state, `φ(X, ξ) = (R A, Aᵀ(b − a))` for `X = (A, a)`, `ξ = (R, b)`: a
-/// right action, `φ(Y, φ(X, ξ)) = φ(XY, ξ)` (docs/maths.md, "The equivariant filter for
-/// attitude and gyro bias").
+/// right action, `φ(Y, φ(X, ξ)) = φ(XY, ξ)` (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn act<T: Real>(x: &Symmetry<T>, r: &Matrix3<T>, b: &Vector3<T>) -> (Matrix3<T>, Vector3<T>) {
     let a = rotation(x);
     (r * a, a.tr_mul(&(b - translation(x))))
@@ -210,8 +209,7 @@ pub fn output_matrix<T: Real>(d: &Vector3<T>, ry: &Vector3<T>) -> SMatrix<T, 3, 
 }
 
 /// The first-order reset after a correction `Δ`, `J = I + ½ ad_Δ`: the covariance of the
-/// error re-expressed about the corrected estimate is `J Σ Jᵀ` (docs/maths.md, "The
-/// equivariant filter for attitude and gyro bias").
+/// error re-expressed about the corrected estimate is `J Σ Jᵀ` (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn reset_jacobian<T: Real>(delta: &Vector6<T>) -> Matrix6<T> {
     Matrix6::identity() + Se3::ad(delta) * real::<T>(0.5)
 }
@@ -463,8 +461,7 @@ impl<T: Real> EquivariantFilter<T> {
     }
 
     /// One tick with gyro sample `ω_k` and direction samples `y_{i,k}` (body frame, in the
-    /// configuration's order), `h` the time since the last tick (docs/maths.md, "The
-    /// equivariant filter for attitude and gyro bias"):
+    /// configuration's order), `h` the time since the last tick (docs/maths.md, "The equivariant filter for attitude and gyro bias"):
     ///
     /// ```text
     /// ω̄ = (ω_{k−1} + ω_k)/2                         the gyro over the period

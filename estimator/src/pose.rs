@@ -322,8 +322,8 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
     /// the Kalman filter's prediction over `h` with `a_k = R̂(t_k) f_k + g` and, when a fix
     /// came, its update. `R̂(t_k)` is the attitude filter's estimate of `R(t_k)`: for the
     /// complementary filter `R̂_{k−1}`, the attitude it compares tick k's samples with
-    /// (its `R̂_k` runs one tick ahead on a rotating body: docs/maths.md, "The complementary
-    /// filter on SO(3)"); for the equivariant filter its new `R̂_k`.
+    /// (its `R̂_k` runs one tick ahead on a rotating body: docs/maths.md, "The complementary filter on SO(3)");
+    /// for the equivariant filter its new `R̂_k`.
     ///
     /// The first call starts the translation (the position from the fix if one came, with
     /// the fix's noise, else zero with `initial_position_std`; zero velocity with

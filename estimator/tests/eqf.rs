@@ -1,5 +1,5 @@
-//! The equivariant filter's maths and behaviour (docs/maths.md, "The equivariant filter for
-//! attitude and gyro bias"): the group, its actions and the lift on random inputs, the
+//! The equivariant filter's maths and behaviour (docs/maths.md, "The equivariant filter for attitude and gyro bias"):
+//! the group, its actions and the lift on random inputs, the
 //! linearisation against finite differences, convergence without noise, consistency with
 //! noise, bad samples. Every bound states the value measured when it was set.
 

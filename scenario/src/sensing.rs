@@ -126,8 +126,7 @@ pub enum EstimatorKind {
     Truth,
     /// The complementary filter (docs/maths.md, "The complementary filter on SO(3)").
     Complementary,
-    /// The equivariant filter (docs/maths.md, "The equivariant filter for attitude and gyro
-    /// bias").
+    /// The equivariant filter (docs/maths.md, "The equivariant filter for attitude and gyro bias").
     Eqf,
 }
 
