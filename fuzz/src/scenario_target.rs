@@ -18,10 +18,12 @@ const CYCLES: usize = 3;
 const SUBSTEP_BUDGET: usize = 2_000;
 
 /// Hand-written valid scenarios that reach the optional keys the built-ins leave out.
-const EXTRA_SEEDS: [&str; 5] = [
-    // `[sensors]` and `[estimator]` on both groups
+const EXTRA_SEEDS: [&str; 7] = [
+    // `[sensors]` and `[estimator]` on both groups, with either filter
     include_str!("../../scenarios/sensors_so3.toml"),
     include_str!("../../scenarios/sensors_se3.toml"),
+    include_str!("../../scenarios/eqf_so3.toml"),
+    include_str!("../../scenarios/eqf_se3.toml"),
     r#"name = "so3_everything"
 group = "so3"
 law = "gt"

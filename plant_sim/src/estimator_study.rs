@@ -394,14 +394,29 @@ pub fn write(
     if let Some((lo, hi)) = band {
         let t = |k: usize| k as f64 * control_period;
         let flat = |v: f64| vec![(0.0, v), (t(nees.len().saturating_sub(1)), v)];
+        // a start far off makes the first ticks' NEES thousands: drawn clipped, so the band
+        // stays readable
+        let top = 3.0 * hi;
+        let clipped = nees.iter().any(|x| *x > top);
         panels.push(Panel {
-            title: "EqF: NEES averaged over the runs, with its 95 % χ² band".to_owned(),
+            title: format!(
+                "EqF: NEES averaged over the runs, with its 95 % χ² band{}",
+                if clipped {
+                    format!(" (drawn clipped at {top:.0})")
+                } else {
+                    String::new()
+                }
+            ),
             y_label: "NEES".to_owned(),
             lines: vec![
                 Line {
                     label: "mean NEES".to_owned(),
                     color: color(EstimatorKind::Eqf),
-                    points: nees.iter().enumerate().map(|(k, x)| (t(k), *x)).collect(),
+                    points: nees
+                        .iter()
+                        .enumerate()
+                        .map(|(k, x)| (t(k), x.min(top)))
+                        .collect(),
                 },
                 Line {
                     label: format!("band {lo:.2} – {hi:.2}"),
