@@ -149,3 +149,25 @@ fn the_monte_carlo_study_gives_each_run_its_own_sensors_whatever_the_thread_coun
     // and the runs' sensors differ: same law and scenario, different estimates
     assert_ne!(one[0].series[100], one[1].series[100]);
 }
+
+#[test]
+fn the_noise_study_flies_the_eqf_too_and_keeps_its_noise_model_matched() {
+    let base = scenario("eqf_so3");
+    let rows = plant_sim::noise::study(&base, &[0.002, 0.02], 2).unwrap();
+    assert_eq!(rows.len(), 8);
+    assert!(rows.iter().any(|r| r.estimator == "eqf"), "{rows:?}");
+    for r in rows.iter().filter(|r| r.estimator == "eqf") {
+        assert!(
+            r.rms_estimate_error > 0.0 && r.rms_estimate_error < 0.05,
+            "{r:?}"
+        );
+    }
+    // the filter-fed error grows with the gyro's noise: the EqF follows the study's noise
+    let err = |n: f64| {
+        rows.iter()
+            .find(|r| r.estimator == "eqf" && r.gyro_noise == n && r.bias)
+            .unwrap()
+            .rms_estimate_error
+    };
+    assert!(err(0.02) > err(0.002), "{rows:?}");
+}

@@ -231,35 +231,72 @@ fn se3_faults(se3: &str, name: &str) {
 fn bad_sensor_and_estimator_keys_exit_2_naming_the_key() {
     let d = TempDir::new("sensors-bad");
     let base = std::fs::read_to_string(scenario("sensors_so3")).unwrap();
-    for (from, to, needle) in [
-        ("seed = 7", "seed = -7", "key `sensors.seed`"),
+    let eqf = std::fs::read_to_string(scenario("eqf_so3")).unwrap();
+    let cases = [
+        (&base, "seed = 7", "seed = -7", "key `sensors.seed`"),
         (
+            &base,
             "noise = 0.002",
             "noise = -0.002",
             "key `sensors.gyro.noise`",
         ),
         (
+            &base,
             "world = [0.0, 0.0, 1.0]",
             "world = [0.0, 0.0, 0.0]",
             "key `sensors.directions[0].world`",
         ),
         (
+            &base,
             "kind = \"complementary\"",
             "kind = \"ekf\"",
             "key `estimator.kind`",
         ),
         (
+            &base,
             "weights = [1.0, 1.0]",
             "weights = [1.0]",
             "key `estimator.weights`",
         ),
         (
+            &base,
             "bias_limit = 0.2",
             "bias_limit = -1.0",
             "key `estimator.bias_limit`",
         ),
-        ("kp = 1.0", "kp = 1.0\nspeed = 3", "unknown field `speed`"),
-    ] {
+        (
+            &base,
+            "kp = 1.0",
+            "kp = 1.0\nspeed = 3",
+            "unknown field `speed`",
+        ),
+        // the equivariant filter's keys
+        (
+            &eqf,
+            "initial_attitude_std = 0.1",
+            "initial_attitude_std = -0.1",
+            "key `estimator.initial_attitude_std`",
+        ),
+        (
+            &eqf,
+            "initial_bias_std = 0.03",
+            "initial_bias_std = 0.03\ndirection_noise = [0.01, 0.0]",
+            "key `estimator.direction_noise`: each must be > 0",
+        ),
+        (
+            &eqf,
+            "initial_bias_std = 0.03",
+            "initial_bias_std = 0.03\ngyro_noise = nan",
+            "key `estimator.gyro_noise`",
+        ),
+        (
+            &eqf,
+            "initial_bias_std = 0.03",
+            "initial_bias_std = 0.03\nkp = 1.0",
+            "key `estimator.kp`: a gain of kind = \"complementary\"",
+        ),
+    ];
+    for (base, from, to, needle) in cases {
         assert!(base.contains(from), "{from}");
         let path = d.join("bad.toml");
         std::fs::write(&path, base.replacen(from, to, 1)).unwrap();
