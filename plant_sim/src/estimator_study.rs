@@ -150,7 +150,10 @@ pub fn run_study(
                     })
                     .collect();
                 let h = t.control_period;
-                let last_above = series.iter().rposition(|x| !(x[0] < CONVERGED));
+                // NaN counts as not converged
+                let last_above = series
+                    .iter()
+                    .rposition(|x| x[0] >= CONVERGED || x[0].is_nan());
                 let convergence_time = match last_above {
                     None => Some(0.0),
                     Some(k) if k + 1 < series.len() => Some((k + 1) as f64 * h),
