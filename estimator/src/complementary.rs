@@ -7,6 +7,31 @@ use controller::group::so3::exp_so3;
 use controller::{Real, real};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
+/// The builders both attitude filters' configurations share: `bias_limit`,
+/// `initial_attitude`, `initial_bias`, each checking its value.
+macro_rules! start_builders {
+    () => {
+        /// Clamps each bias component to `±limit` (rad/s).
+        pub fn bias_limit(mut self, limit: T) -> Result<Self, EstimatorError> {
+            self.bias_limit = Some(checked_limit(limit)?);
+            Ok(self)
+        }
+
+        /// Starts from this attitude (a rotation) instead of TRIAD.
+        pub fn initial_attitude(mut self, r: Matrix3<T>) -> Result<Self, EstimatorError> {
+            self.initial_attitude = Some(checked_rotation(r)?);
+            Ok(self)
+        }
+
+        /// Starts from this bias estimate.
+        pub fn initial_bias(mut self, b: Vector3<T>) -> Result<Self, EstimatorError> {
+            self.initial_bias = checked_bias(b)?;
+            Ok(self)
+        }
+    };
+}
+pub(crate) use start_builders;
+
 /// Direction slots: the sensors' directions and, on SE(3), the accelerometer.
 pub(crate) const SLOTS: usize = MAX_DIRECTIONS + 1;
 
@@ -89,47 +114,14 @@ impl<T: Real> ComplementaryConfig<T> {
         })
     }
 
-    /// Clamps each bias component to `±limit` (rad/s).
-    pub fn bias_limit(mut self, limit: T) -> Result<Self, EstimatorError> {
-        if !limit.is_finite() || limit <= T::zero() {
-            return Err(EstimatorError::BadGain("bias_limit"));
-        }
-        self.bias_limit = Some(limit);
-        Ok(self)
-    }
-
-    /// Starts from this attitude (a rotation) instead of TRIAD.
-    pub fn initial_attitude(mut self, r: Matrix3<T>) -> Result<Self, EstimatorError> {
-        let err = (r.transpose() * r - Matrix3::identity()).norm();
-        if !r.iter().all(|x| x.is_finite()) || err > real(1e-3) || r.determinant() < T::zero() {
-            return Err(EstimatorError::BadInitialState);
-        }
-        self.initial_attitude = Some(r);
-        Ok(self)
-    }
-
-    /// Starts from this bias estimate.
-    pub fn initial_bias(mut self, b: Vector3<T>) -> Result<Self, EstimatorError> {
-        if !all_finite(&b) {
-            return Err(EstimatorError::BadInitialState);
-        }
-        self.initial_bias = b;
-        Ok(self)
-    }
+    start_builders!();
 
     /// Checks again a configuration whose public fields may have been written directly, and
     /// normalises its world directions: the same checks as [`ComplementaryConfig::new`] and
     /// the builder methods, with up to `MAX_DIRECTIONS + 1` directions (the SE(3) filter's
     /// accelerometer takes the last slot).
     pub fn check(self) -> Result<Self, EstimatorError> {
-        let n = self.count;
-        if !(2..=SLOTS).contains(&n) {
-            return Err(EstimatorError::DirectionCount {
-                given: n,
-                min: 2,
-                max: SLOTS,
-            });
-        }
+        let n = checked_count(self.count)?;
         let mut c = Self::with_slots(
             self.kp,
             self.ki,
@@ -331,6 +323,43 @@ impl<T: Real> ComplementaryFilter<T> {
             self.estimate.started = true;
         }
     }
+}
+
+/// A bias limit: finite and > 0 (`BadGain("bias_limit")`).
+pub(crate) fn checked_limit<T: Real>(limit: T) -> Result<T, EstimatorError> {
+    if !limit.is_finite() || limit <= T::zero() {
+        return Err(EstimatorError::BadGain("bias_limit"));
+    }
+    Ok(limit)
+}
+
+/// A starting attitude: finite, orthonormal within 1e-3 and proper (`BadInitialState`).
+pub(crate) fn checked_rotation<T: Real>(r: Matrix3<T>) -> Result<Matrix3<T>, EstimatorError> {
+    let err = (r.transpose() * r - Matrix3::identity()).norm();
+    if !r.iter().all(|x| x.is_finite()) || err > real(1e-3) || r.determinant() < T::zero() {
+        return Err(EstimatorError::BadInitialState);
+    }
+    Ok(r)
+}
+
+/// A starting bias: finite (`BadInitialState`).
+pub(crate) fn checked_bias<T: Real>(b: Vector3<T>) -> Result<Vector3<T>, EstimatorError> {
+    if !all_finite(&b) {
+        return Err(EstimatorError::BadInitialState);
+    }
+    Ok(b)
+}
+
+/// The slot count of a configuration checked again: 2 to [`SLOTS`].
+pub(crate) fn checked_count(n: usize) -> Result<usize, EstimatorError> {
+    if !(2..=SLOTS).contains(&n) {
+        return Err(EstimatorError::DirectionCount {
+            given: n,
+            min: 2,
+            max: SLOTS,
+        });
+    }
+    Ok(n)
 }
 
 /// The unit world directions and their positive values (a filter's weights or noises), in

@@ -10,7 +10,8 @@
 //! so that tests and readers can check each equation on its own.
 
 use crate::complementary::{
-    Directions, SLOTS, checked_directions, first_attitude, orthonormalise, usable,
+    Directions, SLOTS, checked_bias, checked_count, checked_directions, checked_limit,
+    checked_rotation, first_attitude, orthonormalise, start_builders, usable,
 };
 use crate::{AttitudeEstimate, EstimatorError, Faults, MAX_DIRECTIONS, all_finite};
 use controller::group::se3::{from_parts, rotation, translation};
@@ -324,46 +325,13 @@ impl<T: Real> EqfConfig<T> {
         Ok(self)
     }
 
-    /// Clamps each bias component to `±limit` (rad/s).
-    pub fn bias_limit(mut self, limit: T) -> Result<Self, EstimatorError> {
-        if !limit.is_finite() || limit <= T::zero() {
-            return Err(EstimatorError::BadGain("bias_limit"));
-        }
-        self.bias_limit = Some(limit);
-        Ok(self)
-    }
-
-    /// Starts from this attitude (a rotation) instead of TRIAD.
-    pub fn initial_attitude(mut self, r: Matrix3<T>) -> Result<Self, EstimatorError> {
-        let err = (r.transpose() * r - Matrix3::identity()).norm();
-        if !r.iter().all(|x| x.is_finite()) || err > real(1e-3) || r.determinant() < T::zero() {
-            return Err(EstimatorError::BadInitialState);
-        }
-        self.initial_attitude = Some(r);
-        Ok(self)
-    }
-
-    /// Starts from this bias estimate.
-    pub fn initial_bias(mut self, b: Vector3<T>) -> Result<Self, EstimatorError> {
-        if !all_finite(&b) {
-            return Err(EstimatorError::BadInitialState);
-        }
-        self.initial_bias = b;
-        Ok(self)
-    }
+    start_builders!();
 
     /// Checks again a configuration whose public fields may have been written directly, and
     /// normalises its world directions: the same checks as [`EqfConfig::new`] and the
     /// builders, with up to `MAX_DIRECTIONS + 1` directions.
     pub fn check(self) -> Result<Self, EstimatorError> {
-        let n = self.count;
-        if !(2..=SLOTS).contains(&n) {
-            return Err(EstimatorError::DirectionCount {
-                given: n,
-                min: 2,
-                max: SLOTS,
-            });
-        }
+        let n = checked_count(self.count)?;
         let mut c = Self::with_slots(
             self.gyro_noise,
             self.bias_walk,

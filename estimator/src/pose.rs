@@ -58,24 +58,31 @@ impl<T: Real> PoseConfig<T> {
         accel_noise: T,
         position_noise: T,
     ) -> Result<Self, EstimatorError> {
-        if world.is_empty() || world.len() > MAX_DIRECTIONS {
-            return Err(EstimatorError::DirectionCount {
-                given: world.len(),
-                min: 1,
-                max: MAX_DIRECTIONS,
-            });
-        }
-        if weights.len() != world.len() + 1 {
-            return Err(EstimatorError::WeightCount {
-                expected: world.len() + 1,
-                given: weights.len(),
-            });
-        }
+        counts(world.len(), weights.len())?;
         let all = with_up(world);
         let attitude =
             ComplementaryConfig::with_slots(kp, ki, &all[..=world.len()], weights, SLOTS)?;
         Self::around(attitude, accel_noise, position_noise)
     }
+}
+
+/// One to [`MAX_DIRECTIONS`] world directions, and one value (weight or noise) per direction
+/// and one more, last, for the accelerometer.
+fn counts(world: usize, values: usize) -> Result<(), EstimatorError> {
+    if world == 0 || world > MAX_DIRECTIONS {
+        return Err(EstimatorError::DirectionCount {
+            given: world,
+            min: 1,
+            max: MAX_DIRECTIONS,
+        });
+    }
+    if values != world + 1 {
+        return Err(EstimatorError::WeightCount {
+            expected: world + 1,
+            given: values,
+        });
+    }
+    Ok(())
 }
 
 /// The world directions followed by "up", `(0, 0, 1)`, the accelerometer's.
@@ -105,19 +112,7 @@ impl<T: Real> PoseConfig<T, EqfConfig<T>> {
         accel_noise: T,
         position_noise: T,
     ) -> Result<Self, EstimatorError> {
-        if world.is_empty() || world.len() > MAX_DIRECTIONS {
-            return Err(EstimatorError::DirectionCount {
-                given: world.len(),
-                min: 1,
-                max: MAX_DIRECTIONS,
-            });
-        }
-        if direction_noise.len() != world.len() + 1 {
-            return Err(EstimatorError::WeightCount {
-                expected: world.len() + 1,
-                given: direction_noise.len(),
-            });
-        }
+        counts(world.len(), direction_noise.len())?;
         let all = with_up(world);
         let attitude = EqfConfig::with_slots(
             gyro_noise,
@@ -273,7 +268,7 @@ pub struct PoseFilter<T: Real, C: AttitudeConfig<T> = ComplementaryConfig<T>> {
 
 impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
     /// A filter that starts at its first step. `cfg` is used as it is (see
-    /// [`ComplementaryFilter::new`]); [`PoseFilter::try_new`] checks it first.
+    /// [`ComplementaryFilter::new`](crate::ComplementaryFilter::new)); [`PoseFilter::try_new`] checks it first.
     pub fn new(cfg: PoseConfig<T, C>) -> Self {
         let attitude = C::Filter::from_config(cfg.attitude);
         PoseFilter {

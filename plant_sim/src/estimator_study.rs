@@ -7,7 +7,7 @@
 //! `--initial-error` the time each filter takes to converge from that attitude error.
 
 use crate::SimError;
-use crate::montecarlo::{Sample, fly, initial_state, run_sensors};
+use crate::montecarlo::{Sample, fly, in_pool, initial_state, run_sensors};
 use crate::output::num;
 use crate::plot::{Line, Panel, law_color, render};
 use controller::Law;
@@ -174,14 +174,7 @@ pub fn run_study(
             .collect::<Result<Vec<_>, SimError>>()
             .map(|runs| runs.into_iter().flatten().collect())
     };
-    match threads {
-        None => work(),
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .map_err(|e| SimError::Run(format!("cannot start {n} threads: {e}")))?
-            .install(work),
-    }
+    in_pool(threads, work)
 }
 
 /// The two-sided 95 % band of the mean of `runs` independent χ²(`dof`) variables, by the

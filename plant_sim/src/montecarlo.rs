@@ -169,6 +169,14 @@ pub fn run_all(
             .collect::<Result<Vec<_>, _>>()
             .map(|runs| runs.into_iter().flatten().collect())
     };
+    in_pool(threads, work)
+}
+
+/// Runs `work` on `threads` worker threads (`None`: rayon's global pool, one per core).
+pub fn in_pool<R: Send>(
+    threads: Option<usize>,
+    work: impl FnOnce() -> Result<R, SimError> + Send,
+) -> Result<R, SimError> {
     match threads {
         None => work(),
         Some(n) => rayon::ThreadPoolBuilder::new()
