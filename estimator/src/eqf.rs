@@ -41,7 +41,7 @@ pub fn act<T: Real>(x: &Symmetry<T>, r: &Matrix3<T>, b: &Vector3<T>) -> (Matrix3
 
 /// The action on the input `u = (ω, τ)` (the gyro sample and the bias's rate),
 /// `ψ(X, u) = (Aᵀ(ω − a), Aᵀτ)`: the system is equivariant,
-/// `dφ_X f_u(ξ) = f_{ψ(X, u)}(φ(X, ξ))`.
+/// `dφ_X f_u(ξ) = f_{ψ(X, u)}(φ(X, ξ))` (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn act_input<T: Real>(
     x: &Symmetry<T>,
     omega: &Vector3<T>,
@@ -52,13 +52,14 @@ pub fn act_input<T: Real>(
 }
 
 /// The action on a direction measurement, `ρ(X, y) = Aᵀy`: `h_i(φ(X, ξ)) = ρ(X, h_i(ξ))` for
-/// `h_i(R, b) = Rᵀd_i`.
+/// `h_i(R, b) = Rᵀd_i` (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn act_output<T: Real>(x: &Symmetry<T>, y: &Vector3<T>) -> Vector3<T> {
     rotation(x).tr_mul(y)
 }
 
 /// The lift `Λ(ξ, u) = (ω − b, b × ω − τ)`: `dφ_ξ(id)[Λ(ξ, u)] = f_u(ξ)`, the system's
-/// vector field `Ṙ = R(ω − b)×`, `ḃ = τ` (it does not depend on `R`).
+/// vector field `Ṙ = R(ω − b)×`, `ḃ = τ` (it does not depend on `R`)
+/// (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn lift<T: Real>(b: &Vector3<T>, omega: &Vector3<T>, tau: &Vector3<T>) -> Vector6<T> {
     let w = omega - b;
     let a = b.cross(omega) - tau;
@@ -78,7 +79,7 @@ pub fn symmetry_of<T: Real>(r: &Matrix3<T>, b: &Vector3<T>) -> Symmetry<T> {
 }
 
 /// The error coordinates `ε = log(X X̂⁻¹)` (normal coordinates of the group at the identity)
-/// of the true state `(R, b)` against the estimate `(R̂, b̂)`.
+/// of the true state `(R, b)` against the estimate `(R̂, b̂)` (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn error_coordinates<T: Real>(
     r: &Matrix3<T>,
     b: &Vector3<T>,
@@ -100,14 +101,15 @@ fn blocks<T: Real>(a: &Matrix3<T>, b: &Matrix3<T>, c: &Matrix3<T>, d: &Matrix3<T
 }
 
 /// The linearised error dynamics `ε̇ = A ε + B n`: `A = [[0, I], [0, ω̊×]]` with
-/// `ω̊ = R̂(ω − b̂)` the estimated angular velocity in the world frame.
+/// `ω̊ = R̂(ω − b̂)` the estimated angular velocity in the world frame
+/// (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn state_matrix<T: Real>(omega_world: &Vector3<T>) -> Matrix6<T> {
     let z = Matrix3::zeros();
     blocks(&z, &Matrix3::identity(), &z, &skew(omega_world))
 }
 
 /// `B = −diag(R̂, R̂)`: how the gyro's noise `n_ω` and the bias's walk `n_b`, `n = (n_ω, n_b)`,
-/// enter the error dynamics.
+/// enter the error dynamics (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn input_matrix<T: Real>(r_hat: &Matrix3<T>) -> Matrix6<T> {
     let z = Matrix3::zeros();
     blocks(&(-r_hat), &z, &z, &(-r_hat))
@@ -115,7 +117,7 @@ pub fn input_matrix<T: Real>(r_hat: &Matrix3<T>) -> Matrix6<T> {
 
 /// The transition over a period `h` with `ω̊` constant over it (it is: `R̂(t)(ω − b̂)` does not
 /// change along the propagation), `Φ = exp(hA) = [[I, h J(hω̊)], [0, exp(hω̊×)]]` with `J`
-/// the left Jacobian of SO(3).
+/// the left Jacobian of SO(3) (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn transition<T: Real>(h: T, omega_world: &Vector3<T>) -> Matrix6<T> {
     let w = omega_world * h;
     blocks(
@@ -130,7 +132,7 @@ pub fn transition<T: Real>(h: T, omega_world: &Vector3<T>) -> Matrix6<T> {
 /// `B Q Bᵀ = diag(σ_ω² I, σ_b² I)` (the rotations in `B` drop out) and `Φ(s)` taken as
 /// `[[I, sI], [0, I]]` inside one period: `[[σ_ω²h + σ_b²h³/3, σ_b²h²/2], [σ_b²h²/2, σ_b²h]] ⊗ I₃`.
 /// `σ_ω` is the gyro's rate noise density (rad/s/√Hz), `σ_b` its bias random walk
-/// (rad/s²/√Hz).
+/// (rad/s²/√Hz) (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn process_noise<T: Real>(h: T, gyro_noise: T, bias_walk: T) -> Matrix6<T> {
     let (q11, q12, q22) = process_noise_entries(h, gyro_noise, bias_walk);
     let i = Matrix3::<T>::identity();
@@ -163,7 +165,7 @@ fn join<T: Real>(p: &Matrix3<T>, x: &Matrix3<T>, b: &Matrix3<T>) -> Matrix6<T> {
 
 /// `Φ Σ Φᵀ + Q_d` with `Φ = [[I, F], [0, E]]` ([`transition`]) by blocks, `F = hJ(hω̊)`,
 /// `E = exp(hω̊×)`: `[[P + FXᵀ + (X + FB)Fᵀ, (X + FB)Eᵀ], [·, EBEᵀ]] + Q_d`, a third of the
-/// dense product's work.
+/// dense product's work (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn propagate_covariance<T: Real>(
     sigma: &Matrix6<T>,
     h: T,
@@ -186,7 +188,7 @@ pub fn propagate_covariance<T: Real>(
 
 /// `J Σ Jᵀ` with the reset's `J = I + ½ ad_δ = [[A, 0], [C, A]]`, `A = I + ½Ω×`, `C = ½α×`
 /// ([`reset_jacobian`]) by blocks: with `U = PCᵀ + XAᵀ`, `V = XᵀCᵀ + BAᵀ`,
-/// `[[A P Aᵀ, A U], [·, C U + A V]]`.
+/// `[[A P Aᵀ, A U], [·, C U + A V]]` (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn reset_covariance<T: Real>(sigma: &Matrix6<T>, delta: &Vector6<T>) -> Matrix6<T> {
     let half: T = real(0.5);
     let a = Matrix3::identity() + skew(&delta.fixed_rows::<3>(0).into_owned()) * half;
@@ -201,7 +203,7 @@ pub fn reset_covariance<T: Real>(sigma: &Matrix6<T>, delta: &Vector6<T>) -> Matr
 /// The output matrix of direction `d` measured as `y` (body frame), in the equivariant form
 /// of the EqF paper: `C* = [½(d + R̂y)×, 0]` (3×6), so that the innovation `R̂y − d` is
 /// `C* ε` to second order in `ε`. With `R̂y = d` (no error) it is the plain linearisation
-/// `C = [d×, 0]`.
+/// `C = [d×, 0]` (docs/maths.md, "The equivariant filter for attitude and gyro bias").
 pub fn output_matrix<T: Real>(d: &Vector3<T>, ry: &Vector3<T>) -> SMatrix<T, 3, 6> {
     let mut c = SMatrix::<T, 3, 6>::zeros();
     c.fixed_view_mut::<3, 3>(0, 0)
@@ -418,7 +420,8 @@ impl<T: Real> EquivariantFilter<T> {
     }
 
     /// The normalised estimation error squared `εᵀ Σ⁻¹ ε` of the true state `(R, b)`
-    /// against the estimate; `None` before the start or when `Σ` has no Cholesky factor.
+    /// against the estimate; `None` before the start or when `Σ` has no Cholesky factor
+    /// (docs/maths.md, "Consistency").
     pub fn nees(&self, r: &Matrix3<T>, b: &Vector3<T>) -> Option<T> {
         if !self.estimate.started {
             return None;
@@ -453,8 +456,8 @@ impl<T: Real> EquivariantFilter<T> {
     /// missing from `directions`) is skipped for this tick (`directions`); a gyro sample with a
     /// non-finite entry is not used (`gyro`): the period is propagated with the last good one
     /// and the published rate is held; a period `h` that is not finite and positive, or a
-    /// step that comes out non-finite or with a covariance that is not positive on its
-    /// diagonal, holds the previous estimate and covariance (`held`); with a bias limit each
+    /// step that comes out non-finite or with a covariance that has no Cholesky factor (not
+    /// positive definite), holds the previous estimate and covariance (`held`); with a bias limit each
     /// bias component is clamped to it (`bias_clamped`). The estimate is never non-finite
     /// and the call never panics.
     pub fn step(
@@ -516,12 +519,12 @@ impl<T: Real> EquivariantFilter<T> {
         self.estimate.r = orthonormalise(&self.estimate.r);
         let e = &self.estimate;
         let rate = if gyro_ok { gyro - e.bias } else { e.rate };
-        let positive = (0..6).all(|i| self.sigma[(i, i)] > T::zero());
+        // Σ − KCΣ is positive definite in exact arithmetic only: a Cholesky factor proves it
         if e.r.iter().all(|x| x.is_finite())
             && all_finite(&e.bias)
             && all_finite(&rate)
             && self.sigma.iter().all(|x| x.is_finite())
-            && positive
+            && self.sigma.cholesky().is_some()
         {
             self.estimate.rate = rate;
             self.faults.bias_clamped += clamped;

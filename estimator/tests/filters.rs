@@ -834,19 +834,27 @@ proptest! {
         let mut pe = PoseFilter::new(
             PoseConfig::eqf(0.002, 1e-4, &w[1..], &[0.01, 0.01], 0.05, 0.01).unwrap().accel_gate(2.0).unwrap(),
         );
+        let mut eqf32 = estimator::EquivariantFilter::new(
+            estimator::EqfConfig::new(0.002f32, 1e-4, &w.map(|d| d.cast::<f32>()), &[0.01, 0.02]).unwrap(),
+        );
         for (gyro, d0, d1, acc, fix, h) in &ticks {
             let e = eqf.step(*h, gyro, &[*d0, *d1]);
             prop_assert!(e.r.iter().chain(e.rate.iter()).chain(e.bias.iter()).all(|x| x.is_finite()), "{e:?}");
             prop_assert!((e.r.transpose() * e.r - Matrix3::identity()).norm() < 1e-9);
-            for s in [eqf.covariance(), pe.attitude().covariance()] {
-                prop_assert!(s.iter().all(|x| x.is_finite()) && (s - s.transpose()).norm() == 0.0, "{s}");
-                prop_assert!(s.cholesky().is_some(), "not SPD: {s}");
-            }
             let p = pe.step(*h, gyro, &[*d1], acc, fix.as_ref());
             prop_assert!(
                 p.r.iter().chain(p.x.iter()).chain(p.v.iter()).chain(p.rate.iter()).all(|x| x.is_finite()),
                 "{p:?}"
             );
+            for s in [eqf.covariance(), pe.attitude().covariance()] {
+                prop_assert!(s.iter().all(|x| x.is_finite()) && (s - s.transpose()).norm() == 0.0, "{s}");
+                prop_assert!(s.cholesky().is_some(), "not SPD: {s}");
+            }
+            // and in f32
+            let e = eqf32.step(*h as f32, &gyro.cast(), &[d0.cast(), d1.cast()]);
+            prop_assert!(e.r.iter().chain(e.rate.iter()).chain(e.bias.iter()).all(|x| x.is_finite()), "{e:?}");
+            let s = eqf32.covariance();
+            prop_assert!((s - s.transpose()).norm() == 0.0 && s.cholesky().is_some(), "f32 not SPD: {s}");
             let e = cf.step(*h, gyro, &[*d0, *d1]);
             prop_assert!(e.r.iter().chain(e.rate.iter()).chain(e.bias.iter()).all(|x| x.is_finite()), "{e:?}");
             prop_assert!((e.r.transpose() * e.r - Matrix3::identity()).norm() < 1e-9);

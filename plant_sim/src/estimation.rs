@@ -85,19 +85,15 @@ impl Estimation {
         let initial = e.initial_attitude.map(|r| exp_so3(&Vector3::from(r)));
         let accel = spec.accelerometer.unwrap_or(0.0);
         let position = spec.position.map_or(0.0, |p| p.noise);
-        let eqf = |world: &[Vector3<f64>]| -> Result<EqfConfig<f64>, SimError> {
-            let q = e.eqf.as_ref().ok_or_else(|| {
+        let eqf_spec = || {
+            e.eqf.as_ref().ok_or_else(|| {
                 SimError::Input("[estimator]: kind = \"eqf\" without its noise model".into())
-            })?;
-            let noise = q.direction_noise.get(..world.len()).ok_or_else(|| {
-                SimError::Input(format!(
-                    "[estimator]: direction_noise has {} entries, {} needed",
-                    q.direction_noise.len(),
-                    world.len()
-                ))
-            })?;
-            let mut cfg = EqfConfig::new(q.gyro_noise, q.bias_walk, world, noise)
-                .map_err(bad)?
+            })
+        };
+        // the start and the clamp, on either group's attitude filter
+        let eqf_start = |cfg: EqfConfig<f64>| -> Result<EqfConfig<f64>, SimError> {
+            let q = eqf_spec()?;
+            let mut cfg = cfg
                 .initial_std(q.initial_attitude_std, q.initial_bias_std)
                 .map_err(bad)?;
             if let Some(l) = e.bias_limit {
@@ -136,26 +132,27 @@ impl Estimation {
                 Filter::Pose(Box::new(PoseFilter::new(cfg)))
             }
             (EstimatorKind::Eqf, controller::GroupKind::So3) => {
-                Filter::Eqf(Box::new(EquivariantFilter::new(eqf(&world)?)))
+                let q = eqf_spec()?;
+                let cfg = EqfConfig::new(q.gyro_noise, q.bias_walk, &world, &q.direction_noise)
+                    .map_err(bad)?;
+                Filter::Eqf(Box::new(EquivariantFilter::new(eqf_start(cfg)?)))
             }
             (EstimatorKind::Eqf, controller::GroupKind::Se3) => {
-                let mut all = world.clone();
-                all.push(Vector3::z());
-                let attitude = eqf(&all)?;
+                let q = eqf_spec()?;
                 let mut cfg = PoseConfig::eqf(
-                    attitude.gyro_noise,
-                    attitude.bias_walk,
+                    q.gyro_noise,
+                    q.bias_walk,
                     &world,
-                    &attitude.direction_noise[..attitude.count],
+                    &q.direction_noise,
                     accel,
                     position,
                 )
                 .map_err(bad)?;
-                cfg.attitude = attitude;
+                cfg.attitude = eqf_start(cfg.attitude)?;
                 if let Some(g) = e.accel_gate {
                     cfg = cfg.accel_gate(g).map_err(bad)?;
                 }
-                Filter::PoseEqf(Box::new(PoseFilter::try_new(cfg).map_err(bad)?))
+                Filter::PoseEqf(Box::new(PoseFilter::new(cfg)))
             }
         };
         Ok(Some(Estimation {
@@ -275,7 +272,8 @@ impl Estimation {
             .filter_map(|r| r.estimate.and_then(|e| e.nees))
             .collect();
         let mean_nees = (self.kind == EstimatorKind::Eqf)
-            .then(|| nees.iter().sum::<f64>() / nees.len().max(1) as f64);
+            .then(|| nees.iter().sum::<f64>() / nees.len() as f64)
+            .filter(|x| x.is_finite());
         EstimatorReport {
             kind: self.kind.name().to_owned(),
             seed: self.seed,

@@ -107,12 +107,22 @@ pub fn run_study(
     on_done: &(dyn Fn() + Sync),
     stop: &link::StopFlag,
 ) -> Result<Vec<StudyRun>, SimError> {
+    if base.group != controller::GroupKind::So3 {
+        return Err(SimError::Input(format!(
+            "scenario `{}`: the Monte Carlo study is defined on so3, not {}",
+            base.name,
+            base.group.name()
+        )));
+    }
     if base.sensors.is_none() {
         return Err(SimError::Input(format!(
             "scenario `{}`: --estimators compares filters on the scenario's [sensors]; it has none",
             base.name
         )));
     }
+    let Some(first) = samples.first() else {
+        return Err(SimError::Input("no samples to fly".to_owned()));
+    };
     if let Some(e) = initial_error
         && !(e.is_finite() && e > 0.0 && e < std::f64::consts::PI)
     {
@@ -124,7 +134,7 @@ pub fn run_study(
     base.law = law;
     // every variant is checked before any runs
     for kind in estimators {
-        variant(&base, 0, samples[0], *kind, initial_error)?;
+        variant(&base, 0, *first, *kind, initial_error)?;
     }
     let jobs: Vec<(usize, EstimatorKind)> = (0..samples.len())
         .flat_map(|i| estimators.iter().map(move |k| (i, *k)))

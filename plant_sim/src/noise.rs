@@ -32,8 +32,8 @@ pub struct NoiseRow {
 
 /// Runs the study on `base` (which must have `[sensors]` and a filter in `[estimator]`,
 /// complementary or EqF): for each gyro noise and bias on/off, `runs` sensor seeds
-/// (1..=runs), truth-fed and filter-fed. The EqF's own gyro noise follows the study's (its
-/// noise model stays matched).
+/// (1..=runs), truth-fed and filter-fed. The EqF's own gyro noise follows the study's, and
+/// its bias walk is zero where the sensors' is (its noise model stays matched).
 pub fn study(base: &Scenario, noises: &[f64], runs: usize) -> Result<Vec<NoiseRow>, SimError> {
     if base.sensors.is_none() || base.estimator.kind == EstimatorKind::Truth {
         return Err(SimError::Input(format!(
@@ -71,6 +71,9 @@ pub fn study(base: &Scenario, noises: &[f64], runs: usize) -> Result<Vec<NoiseRo
                     }
                     if let Some(q) = s.estimator.eqf.as_mut() {
                         q.gyro_noise = noise;
+                        if !bias {
+                            q.bias_walk = 0.0;
+                        }
                     }
                     if truth {
                         s.estimator = EstimatorSpec::default();
