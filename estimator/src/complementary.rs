@@ -32,6 +32,37 @@ macro_rules! start_builders {
 }
 pub(crate) use start_builders;
 
+/// The accessors both attitude filters share (fields `cfg`, `faults`, `estimate`):
+/// `try_new`, `config`, `faults`, `faults_mut`, `estimate`.
+macro_rules! filter_accessors {
+    ($config:ident) => {
+        /// A filter on a configuration checked again first (`check` of its configuration).
+        pub fn try_new(cfg: $config<T>) -> Result<Self, EstimatorError> {
+            Ok(Self::new(cfg.check()?))
+        }
+
+        /// The configuration.
+        pub fn config(&self) -> &$config<T> {
+            &self.cfg
+        }
+
+        /// What it has skipped, held and clamped so far.
+        pub fn faults(&self) -> &Faults {
+            &self.faults
+        }
+
+        pub(crate) fn faults_mut(&mut self) -> &mut Faults {
+            &mut self.faults
+        }
+
+        /// The estimate published last.
+        pub fn estimate(&self) -> &AttitudeEstimate<T> {
+            &self.estimate
+        }
+    };
+}
+pub(crate) use filter_accessors;
+
 /// Direction slots: the sensors' directions and, on SE(3), the accelerometer.
 pub(crate) const SLOTS: usize = MAX_DIRECTIONS + 1;
 
@@ -191,29 +222,7 @@ impl<T: Real> ComplementaryFilter<T> {
         }
     }
 
-    /// A filter on a configuration checked again first ([`ComplementaryConfig::check`]).
-    pub fn try_new(cfg: ComplementaryConfig<T>) -> Result<Self, EstimatorError> {
-        Ok(Self::new(cfg.check()?))
-    }
-
-    /// The configuration.
-    pub fn config(&self) -> &ComplementaryConfig<T> {
-        &self.cfg
-    }
-
-    /// What it has skipped, held and clamped so far.
-    pub fn faults(&self) -> &Faults {
-        &self.faults
-    }
-
-    pub(crate) fn faults_mut(&mut self) -> &mut Faults {
-        &mut self.faults
-    }
-
-    /// The estimate published last.
-    pub fn estimate(&self) -> &AttitudeEstimate<T> {
-        &self.estimate
-    }
+    filter_accessors!(ComplementaryConfig);
 
     /// Checks and normalises the first `n` direction samples (see [`usable`]).
     pub(crate) fn usable(&mut self, directions: &[Vector3<T>], n: usize) -> Directions<T> {

@@ -11,7 +11,7 @@
 
 use crate::complementary::{
     Directions, SLOTS, checked_bias, checked_count, checked_directions, checked_limit,
-    checked_rotation, first_attitude, orthonormalise, start_builders, usable,
+    checked_rotation, filter_accessors, first_attitude, orthonormalise, start_builders, usable,
 };
 use crate::{AttitudeEstimate, EstimatorError, Faults, MAX_DIRECTIONS, all_finite};
 use controller::group::se3::{from_parts, rotation, translation};
@@ -389,29 +389,7 @@ impl<T: Real> EquivariantFilter<T> {
         }
     }
 
-    /// A filter on a configuration checked again first ([`EqfConfig::check`]).
-    pub fn try_new(cfg: EqfConfig<T>) -> Result<Self, EstimatorError> {
-        Ok(Self::new(cfg.check()?))
-    }
-
-    /// The configuration.
-    pub fn config(&self) -> &EqfConfig<T> {
-        &self.cfg
-    }
-
-    /// What it has skipped, held and clamped so far.
-    pub fn faults(&self) -> &Faults {
-        &self.faults
-    }
-
-    pub(crate) fn faults_mut(&mut self) -> &mut Faults {
-        &mut self.faults
-    }
-
-    /// The estimate published last.
-    pub fn estimate(&self) -> &AttitudeEstimate<T> {
-        &self.estimate
-    }
+    filter_accessors!(EqfConfig);
 
     /// `Σ`: the covariance of the error coordinates `ε = log(X X̂⁻¹)`, ordered
     /// (attitude, bias) as [`error_coordinates`].
