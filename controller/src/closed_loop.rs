@@ -6,6 +6,7 @@
 //! integrated → advance the reference to `t_{k+1}`.
 
 use crate::Real;
+use crate::disturbance::{Rejection, RejectionConfig};
 use crate::error::{Error, Quantity};
 use crate::group::MatrixLieGroup;
 use crate::integrator::RigidBody;
@@ -53,6 +54,10 @@ pub struct ClosedLoop<T: Real, G, const N: usize, const M: usize, R = Reference<
     /// The plant.
     pub plant: RigidBody<T, G, N, M>,
     disturbance: SVector<T, M>,
+    world_disturbance: Option<SVector<T, M>>,
+    rejection: Option<Rejection<T, M>>,
+    /// The torque applied over the last period (the law's output; zero before the first).
+    applied: SVector<T, M>,
     plant_substeps: usize,
 }
 
@@ -60,6 +65,16 @@ impl<T: Real, G, const N: usize, const M: usize, R> ClosedLoop<T, G, N, M, R> {
     /// The constant body-frame disturbance the plant receives on top of the torque.
     pub fn disturbance(&self) -> &SVector<T, M> {
         &self.disturbance
+    }
+
+    /// The wrench constant in world axes at the body's origin, if any.
+    pub fn world_disturbance(&self) -> Option<&SVector<T, M>> {
+        self.world_disturbance.as_ref()
+    }
+
+    /// The disturbance-rejection terms' state, if any run.
+    pub fn rejection(&self) -> Option<&Rejection<T, M>> {
+        self.rejection.as_ref()
     }
 }
 
@@ -84,8 +99,41 @@ where
             reference,
             plant,
             disturbance: SVector::zeros(),
+            world_disturbance: None,
+            rejection: None,
+            applied: SVector::zeros(),
             plant_substeps,
         })
+    }
+
+    /// Runs the law with the disturbance-rejection terms of `config` (docs/maths.md,
+    /// "Disturbance rejection"), fed with the torque the loop applied over each period. A
+    /// configuration with no term leaves the loop as it was.
+    pub fn with_rejection(mut self, config: RejectionConfig<T, M>) -> Result<Self, Error> {
+        self.rejection = if config.any() {
+            Some(Rejection::new(
+                config,
+                self.controller.config().torque_limit.as_ref(),
+            )?)
+        } else {
+            None
+        };
+        Ok(self)
+    }
+
+    /// Adds a wrench constant in world axes at the body's origin (rotated into the body at
+    /// every integrator stage) to what the plant receives.
+    pub fn with_world_disturbance(mut self, world: SVector<T, M>) -> Result<Self, Error> {
+        finite(Quantity::Disturbance, &world)?;
+        self.world_disturbance = Some(world);
+        Ok(self)
+    }
+
+    /// Replaces the body-frame disturbance from the next cycle on (a step disturbance).
+    pub fn set_disturbance(&mut self, disturbance: SVector<T, M>) -> Result<(), Error> {
+        finite(Quantity::Disturbance, &disturbance)?;
+        self.disturbance = disturbance;
+        Ok(())
     }
 
     /// Adds a constant body-frame disturbance torque to what the plant receives.
@@ -118,10 +166,27 @@ where
         let q = *self.plant.configuration();
         let v = self.plant.velocity();
         let desired = self.reference.desired();
-        let output = self.controller.compute(q_hat, v_hat, &desired)?;
+        let period = self.reference.period();
+        let output = match &mut self.rejection {
+            None => self.controller.compute(q_hat, v_hat, &desired)?,
+            Some(r) => self.controller.compute_rejecting(
+                r,
+                q_hat,
+                v_hat,
+                &desired,
+                &self.applied,
+                period,
+                true,
+            )?,
+        };
+        self.applied = output.torque;
         let applied = output.torque + self.disturbance;
-        self.plant
-            .advance(&applied, self.reference.period(), self.plant_substeps);
+        match &self.world_disturbance {
+            None => self.plant.advance(&applied, period, self.plant_substeps),
+            Some(w) => self
+                .plant
+                .advance_with_world(&applied, w, period, self.plant_substeps),
+        }
         self.reference.advance();
         Ok(Sample {
             t,

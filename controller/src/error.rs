@@ -29,6 +29,18 @@ pub enum Quantity {
     Period,
     /// A number of integration substeps.
     Substeps,
+    /// The disturbance observer's gain `L`.
+    ObserverGain,
+    /// The disturbance observer's clamp.
+    ObserverLimit,
+    /// The integral gain `K_I`.
+    IntegralGain,
+    /// The integral's weight `c` of the configuration error.
+    IntegralWeight,
+    /// The clamp of the integral's torque.
+    IntegralLimit,
+    /// The torque the plant applied over the last period.
+    AppliedTorque,
 }
 
 impl Quantity {
@@ -46,6 +58,12 @@ impl Quantity {
             Quantity::Disturbance => "disturbance",
             Quantity::Period => "period",
             Quantity::Substeps => "substeps",
+            Quantity::ObserverGain => "disturbance observer gain L",
+            Quantity::ObserverLimit => "disturbance observer limit",
+            Quantity::IntegralGain => "integral gain K_I",
+            Quantity::IntegralWeight => "integral weight c",
+            Quantity::IntegralLimit => "integral limit",
+            Quantity::AppliedTorque => "applied torque",
         }
     }
 }

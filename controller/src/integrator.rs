@@ -144,6 +144,27 @@ where
         &self.inertia
     }
 
+    /// Advances by `period` with the body torque held constant and a wrench `world` constant
+    /// in world axes at the body's origin (docs/maths.md, "Disturbance rejection"): the body
+    /// receives `τ + Rᵀ·world` (per 3-block), `R` the rotation at each RKMK4 stage.
+    pub fn advance_with_world(
+        &mut self,
+        torque: &SVector<T, M>,
+        world: &SVector<T, M>,
+        period: T,
+        substeps: usize,
+    ) {
+        let h = period / real(substeps as f64);
+        let inv = self.inertia_inv;
+        for _ in 0..substeps {
+            self.state = rkmk4_step::<G, T, _, N, M>(&self.state, T::zero(), h, |_, q, p| {
+                let v = inv * p;
+                let body = crate::disturbance::rotate_blocks(&G::rotation(q).transpose(), world);
+                (v, G::ad(&v).tr_mul(p) + torque + body)
+            });
+        }
+    }
+
     /// Advances by `period` with the torque held constant (zero-order hold), in `substeps`
     /// RKMK4 steps.
     pub fn advance(&mut self, torque: &SVector<T, M>, period: T, substeps: usize) {

@@ -290,6 +290,12 @@ pub struct LawOutput<T: Real, const N: usize, const M: usize> {
     pub error: Phase<T, N, M>,
     /// `V − V_d`.
     pub velocity_error: SVector<T, M>,
+    /// The disturbance observer's estimate `d̂_b` (body frame), subtracted from the law's
+    /// torque (zero without the observer; see [`crate::disturbance`]).
+    pub observer: SVector<T, M>,
+    /// The integral's torque `−K_I z` (body frame), added to the law's torque (zero without
+    /// the integral).
+    pub integral: SVector<T, M>,
 }
 
 /// A validated controller: gains and inertia are checked once, here; the per-cycle path
@@ -402,6 +408,8 @@ where
             lyapunov,
             error,
             velocity_error,
+            observer: SVector::zeros(),
+            integral: SVector::zeros(),
         })
     }
 }

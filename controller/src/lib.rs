@@ -15,6 +15,7 @@
 //! | [`group`] | the Lie groups: `hat`, `vee`, `exp`, `log`, `Ad`, `ad`, basis |
 //! | [`semidirect`] | the phase-space group `G ⋉ g*`, the actions φ and ψ, the vector field f |
 //! | [`tracking`] | tracking error, error inputs, error inertia, Lyapunov function |
+//! | [`disturbance`] | the momentum observer and the geometric integral with anti-windup |
 //! | [`law`] | the EqT law (any group), the SO(3) closed forms EqT, GT, nog, asym, the [`Controller`] |
 //! | [`reference`](mod@reference) | the [`Trajectory`] interface; the generator with cosine-series feedforward |
 //! | [`path`] | set-points, paths through waypoints, streamed pieces |
@@ -28,6 +29,7 @@
 #![warn(missing_docs)]
 
 pub mod closed_loop;
+pub mod disturbance;
 pub mod error;
 pub mod group;
 pub mod integrator;
@@ -39,6 +41,7 @@ pub mod tracking;
 pub mod trig;
 pub mod validate;
 
+pub use disturbance::{Frame, IntegralConfig, ObserverConfig, Rejection, RejectionConfig};
 pub use error::{Error, Quantity};
 pub use group::{GroupKind, MatrixLieGroup, Se3, So3};
 pub use law::{Controller, ControllerConfig, Law, LawOutput};

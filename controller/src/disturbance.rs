@@ -1,0 +1,375 @@
+//! Disturbance rejection: a momentum observer and a geometric integral term with anti-windup
+//! (docs/maths.md, "Disturbance rejection").
+//!
+//! Both terms need state between cycles and the torque the plant actually applied over the
+//! last period (after saturation, held commands or safe mode); the law itself stays a pure
+//! function. [`Rejection`] holds the state; [`Controller::compute_rejecting`] runs the law
+//! with it:
+//!
+//! ```text
+//! τ = sat(τ_law − d̂_b − K_I z)
+//! ```
+//!
+//! with `d̂_b` the observer's estimate in the body frame and `z` the integral of
+//! `(V − V_d) + c ⊙ Aᵀ grad Υ(Q_E)`. No allocation, no `std`, any scalar, both groups.
+
+use crate::Real;
+use crate::error::{Error, Quantity};
+use crate::group::MatrixLieGroup;
+use crate::law::{Controller, Desired, LawOutput, saturate};
+use crate::tracking::{lyapunov, potential_gradient};
+use crate::validate::finite;
+use nalgebra::{Matrix3, SMatrix, SVector};
+
+/// The frame in which the observer estimates the disturbance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Frame {
+    /// Body axes: constant for a centre of mass off the axis, a misaligned thruster.
+    #[default]
+    Body,
+    /// World axes, acting at the body's origin: constant for a steady wind or a gravity
+    /// mis-compensation while the body rotates.
+    World,
+}
+
+impl Frame {
+    /// `"body"` or `"world"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Frame::Body => "body",
+            Frame::World => "world",
+        }
+    }
+
+    /// Parses `"body"` or `"world"`.
+    pub fn from_name(name: &str) -> Option<Frame> {
+        [Frame::Body, Frame::World]
+            .into_iter()
+            .find(|f| f.name() == name)
+    }
+}
+
+/// The momentum observer's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObserverConfig<T: Real, const M: usize> {
+    /// The gain `L` per axis (1/s, each > 0): the estimation error decays as `exp(−L t)`.
+    pub gain: SVector<T, M>,
+    /// Optional clamp of the estimate per axis (each > 0).
+    pub limit: Option<SVector<T, M>>,
+    /// The frame of the estimate.
+    pub frame: Frame,
+}
+
+/// The integral term's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IntegralConfig<T: Real, const M: usize> {
+    /// `K_I` per axis (each > 0).
+    pub ki: SVector<T, M>,
+    /// `c` per axis (each > 0): the weight of the configuration error in the integrand.
+    pub c: SVector<T, M>,
+    /// The clamp of the integral's torque `|K_I z|` per axis (each > 0). `None`: half the
+    /// controller's torque limit, or no clamp if it has none.
+    pub limit: Option<SVector<T, M>>,
+    /// Anti-windup: no integration that deepens a saturated axis, and the clamp. Off only
+    /// to show what windup does.
+    pub anti_windup: bool,
+}
+
+/// Which terms run (both `None`: the plain law).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RejectionConfig<T: Real, const M: usize> {
+    /// The momentum observer.
+    pub observer: Option<ObserverConfig<T, M>>,
+    /// The geometric integral.
+    pub integral: Option<IntegralConfig<T, M>>,
+}
+
+impl<T: Real, const M: usize> Default for RejectionConfig<T, M> {
+    fn default() -> Self {
+        RejectionConfig {
+            observer: None,
+            integral: None,
+        }
+    }
+}
+
+impl<T: Real, const M: usize> RejectionConfig<T, M> {
+    /// Whether any term runs.
+    pub fn any(&self) -> bool {
+        self.observer.is_some() || self.integral.is_some()
+    }
+}
+
+/// What the previous cycle saw (the observer's anchor).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Anchor<T: Real, const M: usize> {
+    /// `μ_{k−1} = I V_{k−1}`.
+    mu: SVector<T, M>,
+    /// `ad_{V_{k−1}}ᵀ μ_{k−1}`.
+    gyro: SVector<T, M>,
+    /// `R_{k−1}`.
+    r: Matrix3<T>,
+}
+
+/// The state of the disturbance-rejection terms between cycles (no allocation; `Copy`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rejection<T: Real, const M: usize> {
+    config: RejectionConfig<T, M>,
+    /// The clamp of `z` per axis (`limit / K_I`), resolved against the torque limit.
+    z_max: Option<SVector<T, M>>,
+    /// The torque limit the anti-windup rule compares the applied torque with.
+    torque_limit: Option<SVector<T, M>>,
+    /// `(h, (1 − e^{−L h})/h)`: the observer's discrete gain for the period `h`.
+    gain: Option<(T, SVector<T, M>)>,
+    anchor: Option<Anchor<T, M>>,
+    /// `d̂` in the observer's frame.
+    estimate: SVector<T, M>,
+    /// `z`, body frame.
+    z: SVector<T, M>,
+}
+
+/// Rotates each 3-block of `w` by `r` (SO(3): the torque; SE(3): torque and force). With
+/// `r = Rᵀ` it takes a wrench in world axes at the body's origin to the body frame.
+pub fn rotate_blocks<T: Real, const M: usize>(r: &Matrix3<T>, w: &SVector<T, M>) -> SVector<T, M> {
+    let mut out = *w;
+    for b in 0..M / 3 {
+        let v = r * w.fixed_rows::<3>(3 * b);
+        out.fixed_rows_mut::<3>(3 * b).copy_from(&v);
+    }
+    out
+}
+
+fn positive<T: Real, const M: usize>(q: Quantity, v: &SVector<T, M>) -> Result<(), Error> {
+    finite(q, v)?;
+    if v.iter().any(|x| *x <= T::zero()) {
+        return Err(Error::NotPositive(q));
+    }
+    Ok(())
+}
+
+impl<T: Real, const M: usize> Rejection<T, M> {
+    /// Validates the settings (gains, `c`, limits: finite and > 0) against the controller's
+    /// torque limit and starts with zero estimates.
+    pub fn new(
+        config: RejectionConfig<T, M>,
+        torque_limit: Option<&SVector<T, M>>,
+    ) -> Result<Self, Error> {
+        if let Some(o) = &config.observer {
+            positive(Quantity::ObserverGain, &o.gain)?;
+            if let Some(l) = &o.limit {
+                positive(Quantity::ObserverLimit, l)?;
+            }
+        }
+        let mut z_max = None;
+        if let Some(i) = &config.integral {
+            positive(Quantity::IntegralGain, &i.ki)?;
+            positive(Quantity::IntegralWeight, &i.c)?;
+            if let Some(l) = &i.limit {
+                positive(Quantity::IntegralLimit, l)?;
+            }
+            let half: T = crate::real(0.5);
+            let limit = i.limit.or_else(|| torque_limit.map(|l| l * half));
+            if i.anti_windup {
+                z_max = limit.map(|l| l.component_div(&i.ki));
+            }
+        }
+        Ok(Rejection {
+            config,
+            z_max,
+            torque_limit: torque_limit.copied(),
+            gain: None,
+            anchor: None,
+            estimate: SVector::zeros(),
+            z: SVector::zeros(),
+        })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &RejectionConfig<T, M> {
+        &self.config
+    }
+
+    /// The observer's estimate `d̂` in its own frame (zero without an observer).
+    pub fn estimate(&self) -> &SVector<T, M> {
+        &self.estimate
+    }
+
+    /// The integral `z` (body frame; zero without the term).
+    pub fn integral_state(&self) -> &SVector<T, M> {
+        &self.z
+    }
+
+    /// The clamp of the integral's torque per axis in force (`None`: unclamped).
+    pub fn integral_limit(&self) -> Option<SVector<T, M>> {
+        let i = self.config.integral.as_ref()?;
+        self.z_max.map(|z| z.component_mul(&i.ki))
+    }
+
+    /// Forgets the anchor: the next cycle re-anchors instead of updating (the estimates and
+    /// the integral are kept). For a cycle that does not follow the last one processed.
+    pub fn reanchor(&mut self) {
+        self.anchor = None;
+    }
+
+    /// The observer's discrete gain `(1 − e^{−L h})/h` for the period `h` (cached).
+    fn discrete_gain(&mut self, gain: &SVector<T, M>, h: T) -> SVector<T, M> {
+        match self.gain {
+            Some((p, g)) if p == h => g,
+            _ => {
+                let g = gain.map(|l| (T::one() - (-(l * h)).exp()) / h);
+                self.gain = Some((h, g));
+                g
+            }
+        }
+    }
+
+    /// The momentum observer's step (docs/maths.md, "The momentum observer"):
+    ///
+    /// ```text
+    /// r_k = μ_k − μ_{k−1} − h(½(ad_{V_{k−1}}ᵀμ_{k−1} + ad_{V_k}ᵀμ_k) + τ_{k−1} + d̂_{k−1})
+    /// d̂_k = sat(d̂_{k−1} + ℓ ⊙ r_k),   ℓ = (1 − e^{−L h})/h
+    /// ```
+    ///
+    /// (world frame: `d̂_{k−1}` enters through `R̄ᵀ = ½(R_{k−1} + R_k)ᵀ` and `r_k` leaves
+    /// through `R̄`). Returns the estimate in the body frame at `t_k`.
+    fn observe(
+        &mut self,
+        mu: &SVector<T, M>,
+        gyro: &SVector<T, M>,
+        r: &Matrix3<T>,
+        applied: &SVector<T, M>,
+        h: T,
+    ) -> SVector<T, M> {
+        let Some(o) = self.config.observer else {
+            return SVector::zeros();
+        };
+        if let Some(a) = self.anchor {
+            let ell = self.discrete_gain(&o.gain, h);
+            let half: T = crate::real(0.5);
+            let base = mu - a.mu - (a.gyro + gyro) * (h * half) - applied * h;
+            self.estimate += match o.frame {
+                Frame::Body => (base - self.estimate * h).component_mul(&ell),
+                Frame::World => {
+                    let mean = (a.r + r) * half;
+                    let body = base - rotate_blocks(&mean.transpose(), &self.estimate) * h;
+                    rotate_blocks(&mean, &body).component_mul(&ell)
+                }
+            };
+            saturate(&mut self.estimate, o.limit.as_ref());
+        }
+        match o.frame {
+            Frame::Body => self.estimate,
+            Frame::World => rotate_blocks(&r.transpose(), &self.estimate),
+        }
+    }
+
+    /// The integral's step (docs/maths.md, "The geometric integral"):
+    ///
+    /// ```text
+    /// z_k = clamp(z_{k−1} + h((V − V_d) + c ⊙ Aᵀ grad Υ(Q_E)))
+    /// ```
+    ///
+    /// without the increments that deepen an axis the applied torque saturated (PX4's rule).
+    /// Returns the integral's torque `−K_I ⊙ z_k` (body frame).
+    fn integrate(
+        &mut self,
+        integrand: &SVector<T, M>,
+        applied: &SVector<T, M>,
+        h: T,
+        update: bool,
+    ) -> SVector<T, M> {
+        let Some(i) = self.config.integral else {
+            return SVector::zeros();
+        };
+        if update {
+            for a in 0..M {
+                let step = integrand[a] * h;
+                // the integral's torque moves by −K_I·step: skip it if that deepens a
+                // saturated axis
+                let deepens = i.anti_windup
+                    && self.torque_limit.is_some_and(|l| {
+                        (applied[a] >= l[a] && step < T::zero())
+                            || (applied[a] <= -l[a] && step > T::zero())
+                    });
+                if !deepens {
+                    self.z[a] += step;
+                }
+            }
+            if let Some(z_max) = &self.z_max {
+                for a in 0..M {
+                    self.z[a] = self.z[a].clamp(-z_max[a], z_max[a]);
+                }
+            }
+        }
+        -i.ki.component_mul(&self.z)
+    }
+}
+
+impl<T, G, const N: usize, const M: usize> Controller<T, G, N, M>
+where
+    T: Real,
+    G: MatrixLieGroup<N, M>,
+{
+    /// One evaluation of the law with the disturbance-rejection terms of `rejection`
+    /// (docs/maths.md, "Disturbance rejection"): the checks of [`Controller::compute`], then
+    /// the observer's and the integral's steps with `applied`, the torque the plant applied
+    /// over the last period `h`, and `τ = sat(τ_law − d̂_b − K_I z)`.
+    ///
+    /// `follows`: this state is the one right after the last one `rejection` saw (period
+    /// `h` later). When it is not (the first state, or states were skipped), the terms
+    /// re-anchor: the estimate and the integral are kept, not updated.
+    #[allow(clippy::too_many_arguments)]
+    pub fn compute_rejecting(
+        &self,
+        rejection: &mut Rejection<T, M>,
+        q: &SMatrix<T, N, N>,
+        v: &SVector<T, M>,
+        desired: &Desired<T, N, M>,
+        applied: &SVector<T, M>,
+        h: T,
+        follows: bool,
+    ) -> Result<LawOutput<T, N, M>, Error> {
+        finite(Quantity::State, q)?;
+        finite(Quantity::State, v)?;
+        finite(Quantity::Reference, &desired.q)?;
+        finite(Quantity::Reference, &desired.p)?;
+        finite(Quantity::Reference, &desired.v)?;
+        finite(Quantity::Reference, &desired.tau)?;
+        finite(Quantity::AppliedTorque, applied)?;
+        crate::validate::period(h)?;
+        let (tau, error) = self.raw_torque(q, v, desired);
+        finite(Quantity::Torque, &tau)?;
+        let update = follows && rejection.anchor.is_some();
+        if !update {
+            rejection.anchor = None;
+        }
+        let c = self.config();
+        let mu = c.inertia * v;
+        let gyro = G::ad(v).tr_mul(&mu);
+        let r = G::rotation(q);
+        let observer = rejection.observe(&mu, &gyro, &r, applied, h);
+        let velocity_error = v - desired.v;
+        let integrand = match &rejection.config.integral {
+            Some(i) => {
+                let grad = potential_gradient::<G, T, N, M>(&error.q, &c.k);
+                let eps = G::adjoint(&desired.q).tr_mul(&grad);
+                velocity_error + i.c.component_mul(&eps)
+            }
+            None => SVector::zeros(),
+        };
+        let integral = rejection.integrate(&integrand, applied, h, update);
+        rejection.anchor = Some(Anchor { mu, gyro, r });
+        let mut torque = tau - observer + integral;
+        finite(Quantity::Torque, &torque)?;
+        let saturated = saturate(&mut torque, c.torque_limit.as_ref());
+        Ok(LawOutput {
+            torque,
+            saturated,
+            lyapunov: lyapunov(&error.q, &velocity_error, &c.inertia, &c.k),
+            error,
+            velocity_error,
+            observer,
+            integral,
+        })
+    }
+}
