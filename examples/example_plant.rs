@@ -153,18 +153,18 @@ fn fly<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let mut t0 = 0; // the clock starts with the controller's first answer
     for k in 0..=steps {
         // 1. Read the sensors and publish the state: the exact one, or the filter's estimate
-        //    from the IMU (SO(3): n = m = 3).
+        //    from the IMU (SO(3): n = m = 3), with the torque applied over the last period.
         let (q, v) = body.read_sensors();
         match &mut filter {
             None => {
-                plant.publish(k, &q, &v)?;
+                plant.publish(k, &q, &v, &torque)?;
             }
             Some(f) => {
                 let (gyro, directions) = body.read_imu();
                 let (r, rate) = f.step(&gyro, &directions);
                 let q_hat = SMatrix::<f64, N, N>::from_fn(|i, j| r[(i, j)]);
                 let v_hat = SVector::<f64, M>::from_fn(|i, _| rate[i]);
-                plant.publish(k, &q_hat, &v_hat)?;
+                plant.publish(k, &q_hat, &v_hat, &torque)?;
             }
         }
         // 2. Wait for the torque: until the tick ends in real time; in lockstep (and for

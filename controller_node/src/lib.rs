@@ -14,7 +14,7 @@
 
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::path::{Path, PathReference};
-use controller::{Controller, Source, Trajectory};
+use controller::{Controller, Rejection, RejectionConfig, Source, Trajectory};
 use ipc_types::{CommandMsg, StateMsg, check_plan, name_str};
 use link::plan::PlanReader;
 use link::{
@@ -149,7 +149,8 @@ impl OnGroup for Node<'_> {
 /// saturation) with the state's configuration and body velocity, and fills the command.
 /// Allocation-free; generic over the scalar so the same cycle can be measured in f32, and
 /// over the reference source. The state must have passed `ipc_types::check_state` (its
-/// sequence number jumps by at most `MAX_SEQ_JUMP`, which bounds the catching up).
+/// sequence number jumps by at most `MAX_SEQ_JUMP`, which bounds the catching up). The plain
+/// law only: with disturbance-rejection terms, see [`Responder`].
 pub fn respond<T, G, R, const N: usize, const M: usize>(
     controller: &Controller<T, G, N, M>,
     reference: &mut R,
@@ -160,18 +161,129 @@ where
     G: MatrixLieGroup<N, M>,
     R: Trajectory<T, N, M>,
 {
+    let (q, v) = catch_up(reference, msg);
+    let out = controller.compute(&q, &v, &reference.desired())?;
+    Ok(command::<T, G, N, M>(msg.seq, &out))
+}
+
+/// Steps `reference` to the state's k and reads the state in the scalar `T`.
+fn catch_up<T, R, const N: usize, const M: usize>(
+    reference: &mut R,
+    msg: &StateMsg,
+) -> (nalgebra::SMatrix<T, N, N>, nalgebra::SVector<T, M>)
+where
+    T: controller::Real,
+    R: Trajectory<T, N, M>,
+{
     while reference.step_index() < msg.seq {
         reference.advance();
     }
-    let q = msg.configuration::<N>().map(controller::real::<T>);
-    let v = msg.velocity::<M>().map(controller::real::<T>);
-    let out = controller.compute(&q, &v, &reference.desired())?;
+    (
+        msg.configuration::<N>().map(controller::real::<T>),
+        msg.velocity::<M>().map(controller::real::<T>),
+    )
+}
+
+/// The command for state `seq` from the law's output.
+fn command<T, G, const N: usize, const M: usize>(
+    seq: u64,
+    out: &controller::LawOutput<T, N, M>,
+) -> CommandMsg
+where
+    T: controller::Real,
+    G: MatrixLieGroup<N, M>,
+{
     let mut cmd = CommandMsg::new(G::KIND);
-    cmd.seq = msg.seq;
+    cmd.seq = seq;
     let to_f64 = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap_or(f64::NAN);
     cmd.set_torque(&out.torque.map(to_f64));
     cmd.lyapunov = to_f64(out.lyapunov.total);
-    Ok(cmd)
+    for i in 0..M.min(ipc_types::MAX_M) {
+        cmd.observer[i] = to_f64(out.observer[i]);
+        cmd.integral[i] = to_f64(out.integral[i]);
+    }
+    cmd
+}
+
+/// The controller's cycle with its state between cycles: the law, the disturbance-rejection
+/// terms (docs/maths.md, "Disturbance rejection") fed with the torque each state says the
+/// plant applied, and the sequence number of the last state processed. The node and
+/// `plant_sim replay` answer states through it, so replay repeats the node bit for bit.
+#[derive(Debug, Clone)]
+pub struct Responder<T: controller::Real, G, const N: usize, const M: usize> {
+    controller: Controller<T, G, N, M>,
+    rejection: Option<Rejection<T, M>>,
+    previous: Option<u64>,
+}
+
+impl<T, G, const N: usize, const M: usize> Responder<T, G, N, M>
+where
+    T: controller::Real,
+    G: MatrixLieGroup<N, M>,
+{
+    /// A responder with the terms of `rejection` (none: the plain law).
+    pub fn new(
+        controller: Controller<T, G, N, M>,
+        rejection: RejectionConfig<T, M>,
+    ) -> Result<Self, controller::Error> {
+        let rejection = if rejection.any() {
+            Some(Rejection::new(
+                rejection,
+                controller.config().torque_limit.as_ref(),
+            )?)
+        } else {
+            None
+        };
+        Ok(Responder {
+            controller,
+            rejection,
+            previous: None,
+        })
+    }
+
+    /// The controller.
+    pub fn controller(&self) -> &Controller<T, G, N, M> {
+        &self.controller
+    }
+
+    /// The disturbance-rejection terms' state, if any run.
+    pub fn rejection(&self) -> Option<&Rejection<T, M>> {
+        self.rejection.as_ref()
+    }
+
+    /// Answers state `msg` (see [`respond`]). The terms update only when the state follows
+    /// the last one processed (`seq = previous + 1`); after a gap they re-anchor. The command
+    /// carries the estimate, the integral's torque and the previous sequence number.
+    pub fn respond<R: Trajectory<T, N, M>>(
+        &mut self,
+        reference: &mut R,
+        msg: &StateMsg,
+    ) -> Result<CommandMsg, controller::Error> {
+        let (q, v) = catch_up(reference, msg);
+        let desired = reference.desired();
+        let out = match &mut self.rejection {
+            None => self.controller.compute(&q, &v, &desired)?,
+            Some(r) => {
+                let applied = msg.applied_torque::<M>().map(controller::real::<T>);
+                let follows = self
+                    .previous
+                    .is_some_and(|p| p.checked_add(1) == Some(msg.seq));
+                self.controller.compute_rejecting(
+                    r,
+                    &q,
+                    &v,
+                    &desired,
+                    &applied,
+                    controller::real(msg.control_period),
+                    follows,
+                )?
+            }
+        };
+        let mut cmd = command::<T, G, N, M>(msg.seq, &out);
+        cmd.previous_seq = self.previous.unwrap_or(ipc_types::NO_PREVIOUS);
+        self.previous = Some(msg.seq);
+        Ok(cmd)
+    }
 }
 
 /// Logs without allocating (the arguments are formatted straight into stderr).
@@ -182,7 +294,7 @@ fn log(msg: std::fmt::Arguments) {
 /// The loop's state between cycles.
 struct Cycles<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     opts: &'a Options,
-    controller: Controller<f64, G, N, M>,
+    responder: Responder<f64, G, N, M>,
     reference: Option<Source<f64, G, N, M>>,
     /// With `--reference stream`: the plan board and what came from it.
     stream: Option<Stream>,
@@ -211,7 +323,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M
                 r
             }
         };
-        match respond(&self.controller, reference, msg) {
+        match self.responder.respond(reference, msg) {
             Ok(mut cmd) => {
                 cmd.state_received_ns = received;
                 if let Some(a) = self.baseline {
@@ -395,8 +507,9 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     allocations: &dyn Fn() -> u64,
 ) -> Result<Report, NodeError> {
     let s = &opts.scenario;
-    let controller = s
+    let responder = s
         .controller::<G, N, M>()
+        .and_then(|c| Responder::new(c, s.rejection_config()))
         .map_err(|source| NodeError::Scenario {
             scenario: s.name.clone(),
             source,
@@ -422,7 +535,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     };
     let mut cycles = Cycles {
         opts,
-        controller,
+        responder,
         reference: None,
         stream,
         cycles: 0,

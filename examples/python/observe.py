@@ -7,7 +7,8 @@
 It attaches to the run's `state` and `command` blackboards (iceoryx2 shared memory) as a
 reader. The plant and the controller do not notice it, and the services admit several
 observers. It prints one line per new state: seq, t, the attitude error |Q - I| (or the pose's
-rotation part), the torque of the command answering that state, and the Lyapunov value. The
+rotation part), the torque of the command answering that state, and the Lyapunov value (and,
+where the controller runs them, the disturbance estimate and the integral's torque). The
 message layout is ipc_types/include/eqtrack_wire.h, documented in docs/wire.md.
 
 It stops after --count states, when the plant ends the run, or after --timeout seconds.
@@ -27,7 +28,7 @@ SHUTDOWN = 2
 
 
 class StateMsg(ctypes.Structure):
-    """eqtrack::StateMsg2 (docs/wire.md)."""
+    """eqtrack::StateMsg3 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -38,6 +39,7 @@ class StateMsg(ctypes.Structure):
         ("stamp_ns", ctypes.c_uint64),
         ("q", ctypes.c_double * (MAX_N * MAX_N)),
         ("v", ctypes.c_double * MAX_M),
+        ("applied", ctypes.c_double * MAX_M),
         ("flags", ctypes.c_uint32),
         ("plant_pid", ctypes.c_uint32),
         ("fingerprint", ctypes.c_uint64),
@@ -46,11 +48,11 @@ class StateMsg(ctypes.Structure):
 
     @staticmethod
     def type_name():
-        return "eqtrack::StateMsg2"
+        return "eqtrack::StateMsg3"
 
 
 class CommandMsg(ctypes.Structure):
-    """eqtrack::CommandMsg2 (docs/wire.md)."""
+    """eqtrack::CommandMsg3 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -61,6 +63,9 @@ class CommandMsg(ctypes.Structure):
         ("compute_ns", ctypes.c_uint64),
         ("tau", ctypes.c_double * MAX_M),
         ("lyapunov", ctypes.c_double),
+        ("observer", ctypes.c_double * MAX_M),
+        ("integral", ctypes.c_double * MAX_M),
+        ("previous_seq", ctypes.c_uint64),
         ("heap_allocations", ctypes.c_uint64),
         ("flags", ctypes.c_uint32),
         ("mismatch", ctypes.c_uint32),
@@ -71,7 +76,7 @@ class CommandMsg(ctypes.Structure):
 
     @staticmethod
     def type_name():
-        return "eqtrack::CommandMsg2"
+        return "eqtrack::CommandMsg3"
 
 
 def entries(node, run, what, msg_type, timeout):
@@ -142,9 +147,15 @@ def main():
         tau = [c.tau[i] for i in range(m)] if answered else [float("nan")] * m
         lyap = c.lyapunov if answered else float("nan")
         rows.append((s.seq, s.t, err, tau, lyap))
+        # the disturbance-rejection terms, where the controller runs them
+        terms = ""
+        if answered and any(c.observer[i] != 0.0 or c.integral[i] != 0.0 for i in range(m)):
+            terms = "  dhat " + " ".join(f"{c.observer[i]:+.4e}" for i in range(m))
+            terms += "  integral " + " ".join(f"{c.integral[i]:+.4e}" for i in range(m))
         print(
             f"seq {s.seq:8d}  t {s.t:9.4f} s  |Q-I| {err:.4e}  L {lyap:.5e}  tau "
-            + " ".join(f"{x:+.4e}" for x in tau),
+            + " ".join(f"{x:+.4e}" for x in tau)
+            + terms,
             flush=True,
         )
     if not rows:

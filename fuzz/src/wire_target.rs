@@ -27,7 +27,7 @@ enum Ty {
 }
 
 /// `(name, byte offset, type, count)` of the fields of an encoded [`StateMsg`].
-const STATE_FIELDS: [(&str, usize, Ty, usize); 12] = [
+const STATE_FIELDS: [(&str, usize, Ty, usize); 13] = [
     ("version", 0, Ty::U32, 1),
     ("group", 4, Ty::U32, 1),
     ("seq", 8, Ty::U64, 1),
@@ -36,14 +36,15 @@ const STATE_FIELDS: [(&str, usize, Ty, usize); 12] = [
     ("stamp_ns", 32, Ty::U64, 1),
     ("q", 40, Ty::F64, 16),
     ("v", 168, Ty::F64, 6),
-    ("flags", 216, Ty::U32, 1),
-    ("plant_pid", 220, Ty::U32, 1),
-    ("fingerprint", 224, Ty::U64, 1),
-    ("scenario", 232, Ty::Name, 1),
+    ("applied", 216, Ty::F64, 6),
+    ("flags", 264, Ty::U32, 1),
+    ("plant_pid", 268, Ty::U32, 1),
+    ("fingerprint", 272, Ty::U64, 1),
+    ("scenario", 280, Ty::Name, 1),
 ];
 
 /// The fields of an encoded [`CommandMsg`].
-const COMMAND_FIELDS: [(&str, usize, Ty, usize); 14] = [
+const COMMAND_FIELDS: [(&str, usize, Ty, usize); 17] = [
     ("version", 0, Ty::U32, 1),
     ("group", 4, Ty::U32, 1),
     ("seq", 8, Ty::U64, 1),
@@ -52,12 +53,15 @@ const COMMAND_FIELDS: [(&str, usize, Ty, usize); 14] = [
     ("compute_ns", 32, Ty::U64, 1),
     ("tau", 40, Ty::F64, 6),
     ("lyapunov", 88, Ty::F64, 1),
-    ("heap_allocations", 96, Ty::U64, 1),
-    ("flags", 104, Ty::U32, 1),
-    ("mismatch", 108, Ty::U32, 1),
-    ("fingerprint", 112, Ty::U64, 1),
-    ("expected_period", 120, Ty::F64, 1),
-    ("scenario", 128, Ty::Name, 1),
+    ("observer", 96, Ty::F64, 6),
+    ("integral", 144, Ty::F64, 6),
+    ("previous_seq", 192, Ty::U64, 1),
+    ("heap_allocations", 200, Ty::U64, 1),
+    ("flags", 208, Ty::U32, 1),
+    ("mismatch", 212, Ty::U32, 1),
+    ("fingerprint", 216, Ty::U64, 1),
+    ("expected_period", 224, Ty::F64, 1),
+    ("scenario", 232, Ty::Name, 1),
 ];
 
 fn fields(kind: MsgKind) -> &'static [(&'static str, usize, Ty, usize)] {
@@ -130,6 +134,11 @@ impl OnGroup for Realistic<'_> {
         };
         let mut out = Vec::new();
         let mut last = StateMsg::new(G::KIND);
+        // the realistic commands carry both disturbance-rejection terms
+        let mut terms =
+            controller::Rejection::new(rejection::<M>(), c.config().torque_limit.as_ref())
+                .expect("valid terms");
+        let mut applied = nalgebra::SVector::<f64, M>::zeros();
         for k in 0..4u64 {
             let mut st = StateMsg::new(G::KIND);
             st.seq = k;
@@ -137,13 +146,23 @@ impl OnGroup for Realistic<'_> {
             st.control_period = s.control_period;
             st.stamp_ns = 5_000_000_000 + k * 10_000_000;
             st.set_state(body.configuration(), &body.velocity());
+            st.set_applied(&applied);
             st.flags = if k % 2 == 0 { flags::WAKE_EVENT } else { 0 };
             st.plant_pid = 4242;
             st.fingerprint = fp;
             st.scenario = name;
             let law = c
-                .compute(body.configuration(), &body.velocity(), &r.desired())
+                .compute_rejecting(
+                    &mut terms,
+                    body.configuration(),
+                    &body.velocity(),
+                    &r.desired(),
+                    &applied,
+                    s.control_period,
+                    true,
+                )
                 .expect("built-in law");
+            applied = law.torque;
             let mut cmd = CommandMsg::new(G::KIND);
             cmd.seq = k;
             cmd.state_received_ns = st.stamp_ns + 20_000;
@@ -151,6 +170,11 @@ impl OnGroup for Realistic<'_> {
             cmd.compute_ns = 35_000;
             cmd.set_torque(&law.torque);
             cmd.lyapunov = law.lyapunov.total;
+            for i in 0..M {
+                cmd.observer[i] = law.observer[i];
+                cmd.integral[i] = law.integral[i];
+            }
+            cmd.previous_seq = k.checked_sub(1).unwrap_or(ipc_types::NO_PREVIOUS);
             cmd.heap_allocations = k.saturating_sub(1);
             cmd.fingerprint = fp;
             cmd.scenario = name;
@@ -499,19 +523,64 @@ impl OnGroup for LawOnState<'_> {
             .reference_generator::<G, N, M>()
             .map_err(|e| stage("reference_generator()", e))?;
         r.advance();
+        let (q, v) = (self.msg.configuration::<N>(), self.msg.velocity::<M>());
         let out = c
-            .compute(
-                &self.msg.configuration::<N>(),
-                &self.msg.velocity::<M>(),
-                &r.desired(),
-            )
+            .compute(&q, &v, &r.desired())
             .map_err(|e| stage("compute()", e))?;
         assert!(
             out.torque.iter().all(|x| x.is_finite()),
             "Controller::compute returned a non-finite torque {:?}",
             out.torque.as_slice()
         );
+        // with both disturbance-rejection terms: the state twice (anchor, then update) with
+        // the torque it says was applied
+        let mut terms =
+            controller::Rejection::new(rejection::<M>(), c.config().torque_limit.as_ref())
+                .map_err(|e| stage("Rejection::new()", e))?;
+        let applied = self.msg.applied_torque::<M>();
+        for _ in 0..2 {
+            let out = c
+                .compute_rejecting(
+                    &mut terms,
+                    &q,
+                    &v,
+                    &r.desired(),
+                    &applied,
+                    s.control_period,
+                    true,
+                )
+                .map_err(|e| stage("compute_rejecting()", e))?;
+            assert!(
+                out.torque
+                    .iter()
+                    .chain(&out.observer)
+                    .chain(&out.integral)
+                    .all(|x| x.is_finite()),
+                "Controller::compute_rejecting returned a non-finite number: {:?} {:?} {:?}",
+                out.torque.as_slice(),
+                out.observer.as_slice(),
+                out.integral.as_slice()
+            );
+        }
         Ok(())
+    }
+}
+
+/// Both disturbance-rejection terms, as a scenario would give them (observer in the world
+/// frame, so the rotation enters; the integral clamped).
+fn rejection<const M: usize>() -> controller::RejectionConfig<f64, M> {
+    controller::RejectionConfig {
+        observer: Some(controller::ObserverConfig {
+            gain: nalgebra::SVector::repeat(20.0),
+            limit: Some(nalgebra::SVector::repeat(5.0)),
+            frame: controller::Frame::World,
+        }),
+        integral: Some(controller::IntegralConfig {
+            ki: nalgebra::SVector::repeat(1.0),
+            c: nalgebra::SVector::repeat(5.0),
+            limit: Some(nalgebra::SVector::repeat(0.5)),
+            anti_windup: true,
+        }),
     }
 }
 
@@ -686,8 +755,11 @@ mod tests {
         assert_eq!(read_u64(&b, 8), Some(s.seq));
         assert_eq!(read_u64(&b, 24), Some(0.25f64.to_bits()));
         assert_eq!(read_u64(&b, 168 + 5 * 8), Some((-7.5f64).to_bits()));
-        assert_eq!(read_u32(&b, 220), Some(99));
-        assert_eq!(&b[232..235], b"abc");
+        s.applied[2] = 1.25;
+        let b2 = s.to_bytes();
+        assert_eq!(read_u64(&b2, 216 + 2 * 8), Some(1.25f64.to_bits()));
+        assert_eq!(read_u32(&b, 268), Some(99));
+        assert_eq!(&b[280..283], b"abc");
         let last = STATE_FIELDS[STATE_FIELDS.len() - 1];
         assert_eq!(last.1 + width(last.2) * last.3, STATE_BYTES);
 
@@ -696,13 +768,19 @@ mod tests {
         c.lyapunov = 2.0;
         c.mismatch = 6;
         c.expected_period = 0.125;
+        c.observer[1] = -0.5;
+        c.integral[4] = 0.75;
+        c.previous_seq = 77;
         c.scenario = name_bytes("xyz");
         let b = c.to_bytes();
         assert_eq!(read_u64(&b, 40 + 5 * 8), Some(3.5f64.to_bits()));
         assert_eq!(read_u64(&b, 88), Some(2.0f64.to_bits()));
-        assert_eq!(read_u32(&b, 108), Some(6));
-        assert_eq!(read_u64(&b, 120), Some(0.125f64.to_bits()));
-        assert_eq!(&b[128..131], b"xyz");
+        assert_eq!(read_u64(&b, 96 + 8), Some((-0.5f64).to_bits()));
+        assert_eq!(read_u64(&b, 144 + 4 * 8), Some(0.75f64.to_bits()));
+        assert_eq!(read_u64(&b, 192), Some(77));
+        assert_eq!(read_u32(&b, 212), Some(6));
+        assert_eq!(read_u64(&b, 224), Some(0.125f64.to_bits()));
+        assert_eq!(&b[232..235], b"xyz");
         let last = COMMAND_FIELDS[COMMAND_FIELDS.len() - 1];
         assert_eq!(last.1 + width(last.2) * last.3, COMMAND_BYTES);
         for fs in [&STATE_FIELDS[..], &COMMAND_FIELDS[..]] {

@@ -7,8 +7,8 @@
  *
  * Each message sits in an iceoryx2 blackboard entry (key type uint32_t, keys 0..7 are the
  * writer slots) of the service `eqtrack/<run>/state`, `eqtrack/<run>/command` or
- * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg2",
- * "eqtrack::CommandMsg2", "eqtrack::PlanMsg2", "eqtrack::StatusMsg2". All numbers are little-endian on the machines eqtrack runs on.
+ * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg3",
+ * "eqtrack::CommandMsg3", "eqtrack::PlanMsg3", "eqtrack::StatusMsg3". All numbers are little-endian on the machines eqtrack runs on.
  */
 #ifndef EQTRACK_WIRE_H
 #define EQTRACK_WIRE_H
@@ -16,7 +16,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define EQTRACK_PROTOCOL_VERSION 2u
+#define EQTRACK_PROTOCOL_VERSION 3u
 #define EQTRACK_MAX_N 4        /* configuration matrices are n x n, n <= 4 */
 #define EQTRACK_MAX_M 6        /* algebra dimension m <= 6 */
 #define EQTRACK_NAME_BYTES 32  /* scenario name, UTF-8, NUL-padded */
@@ -41,6 +41,7 @@ typedef struct eqtrack_StateMsg {
     uint64_t stamp_ns;      /* CLOCK_MONOTONIC at publication */
     double q[EQTRACK_MAX_N * EQTRACK_MAX_N]; /* Q, row-major n x n in the first n*n */
     double v[EQTRACK_MAX_M]; /* body velocity V, first m (SE(3): omega then v) */
+    double applied[EQTRACK_MAX_M]; /* torque applied over [t_{k-1}, t_k), first m; 0 at k = 0 */
     uint32_t flags;         /* EQTRACK_FLAG_* */
     uint32_t plant_pid;
     uint64_t fingerprint;   /* scenario fingerprint, 0: none */
@@ -57,6 +58,9 @@ typedef struct eqtrack_CommandMsg {
     uint64_t compute_ns;        /* state received -> command published */
     double tau[EQTRACK_MAX_M];  /* torque after saturation, first m */
     double lyapunov;            /* L at t_k */
+    double observer[EQTRACK_MAX_M]; /* disturbance estimate d_hat (body), subtracted; 0: none */
+    double integral[EQTRACK_MAX_M]; /* integral torque -K_I z (body), added; 0: none */
+    uint64_t previous_seq;      /* the state processed before this one; UINT64_MAX: none */
     uint64_t heap_allocations;  /* since the controller's first cycle */
     uint32_t flags;             /* EQTRACK_FLAG_REFUSED */
     uint32_t mismatch;          /* with REFUSED: what differs (1 group, 2 period, 4 scenario) */

@@ -26,7 +26,9 @@ pub mod status;
 pub use status::{StatusMsg, status_flags};
 
 /// Bumped whenever a message layout or meaning changes.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
+/// [`CommandMsg::previous_seq`] when the controller processed no state before.
+pub const NO_PREVIOUS: u64 = u64::MAX;
 /// The largest n (configuration matrices are n×n) any supported group needs.
 pub const MAX_N: usize = 4;
 /// The largest m (algebra dimension) any supported group needs.
@@ -74,7 +76,7 @@ pub mod mismatch {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::StateMsg2")
+    type_name("eqtrack::StateMsg3")
 )]
 #[repr(C)]
 pub struct StateMsg {
@@ -94,6 +96,10 @@ pub struct StateMsg {
     pub q: [f64; MAX_N * MAX_N],
     /// Body velocity `V` in the first m entries (SE(3): ω then v).
     pub v: [f64; MAX_M],
+    /// The torque the plant applied over `[t_{k−1}, t_k)` (after saturation, held commands
+    /// or safe mode; without the disturbance), first m entries; zero at k = 0. The
+    /// disturbance-rejection terms need it.
+    pub applied: [f64; MAX_M],
     /// [`flags`] bits.
     pub flags: u32,
     /// The plant's process id (the controller's liveness check; 0: unknown).
@@ -109,7 +115,7 @@ pub struct StateMsg {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::CommandMsg2")
+    type_name("eqtrack::CommandMsg3")
 )]
 #[repr(C)]
 pub struct CommandMsg {
@@ -129,6 +135,15 @@ pub struct CommandMsg {
     pub tau: [f64; MAX_M],
     /// Lyapunov function at `t_k` (diagnostic).
     pub lyapunov: f64,
+    /// The disturbance observer's estimate `d̂` in the body frame, subtracted from the law's
+    /// torque (zeros without the observer), first m entries.
+    pub observer: [f64; MAX_M],
+    /// The integral's torque `−K_I z` in the body frame, added to the law's torque (zeros
+    /// without the integral), first m entries.
+    pub integral: [f64; MAX_M],
+    /// The sequence number of the state the controller processed before this one
+    /// ([`NO_PREVIOUS`]: none). States in between were never seen; replay skips them too.
+    pub previous_seq: u64,
     /// Heap allocations the controller made since the end of its first cycle (diagnostic).
     pub heap_allocations: u64,
     /// [`flags`] bits ([`flags::REFUSED`]).
@@ -243,6 +258,7 @@ impl StateMsg {
             stamp_ns: 0,
             q: [0.0; MAX_N * MAX_N],
             v: [0.0; MAX_M],
+            applied: [0.0; MAX_M],
             flags: 0,
             plant_pid: 0,
             fingerprint: 0,
@@ -276,6 +292,18 @@ impl StateMsg {
         SVector::from_fn(|i, _| self.v.get(i).copied().unwrap_or(f64::NAN))
     }
 
+    /// The torque applied over the last period (m entries).
+    pub fn applied_torque<const M: usize>(&self) -> SVector<f64, M> {
+        SVector::from_fn(|i, _| self.applied.get(i).copied().unwrap_or(f64::NAN))
+    }
+
+    /// Writes the torque applied over the last period.
+    pub fn set_applied<const M: usize>(&mut self, tau: &SVector<f64, M>) {
+        for i in 0..M.min(MAX_M) {
+            self.applied[i] = tau[i];
+        }
+    }
+
     /// The plant's identity carried by this state.
     pub fn identity(&self) -> Identity {
         Identity {
@@ -299,6 +327,9 @@ impl CommandMsg {
             compute_ns: 0,
             tau: [0.0; MAX_M],
             lyapunov: 0.0,
+            observer: [0.0; MAX_M],
+            integral: [0.0; MAX_M],
+            previous_seq: NO_PREVIOUS,
             heap_allocations: 0,
             flags: 0,
             mismatch: 0,
@@ -346,9 +377,10 @@ impl CommandMsg {
 
 /// Bytes of an encoded [`StateMsg`] (little-endian, field by field).
 pub const STATE_BYTES: usize =
-    4 + 4 + 8 + 8 + 8 + 8 + 8 * MAX_N * MAX_N + 8 * MAX_M + 4 + 4 + 8 + NAME_BYTES;
+    4 + 4 + 8 + 8 + 8 + 8 + 8 * MAX_N * MAX_N + 8 * MAX_M * 2 + 4 + 4 + 8 + NAME_BYTES;
 /// Bytes of an encoded [`CommandMsg`].
-pub const COMMAND_BYTES: usize = 4 + 4 + 8 * 4 + 8 * MAX_M + 8 + 8 + 4 + 4 + 8 + 8 + NAME_BYTES;
+pub const COMMAND_BYTES: usize =
+    4 + 4 + 8 * 4 + 8 * MAX_M + 8 + 8 * MAX_M * 2 + 8 + 8 + 4 + 4 + 8 + 8 + NAME_BYTES;
 
 /// Why bytes are not a message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -445,6 +477,7 @@ impl StateMsg {
         p.bytes(&self.stamp_ns.to_le_bytes());
         p.f64s(&self.q);
         p.f64s(&self.v);
+        p.f64s(&self.applied);
         p.bytes(&self.flags.to_le_bytes());
         p.bytes(&self.plant_pid.to_le_bytes());
         p.bytes(&self.fingerprint.to_le_bytes());
@@ -466,6 +499,7 @@ impl StateMsg {
         m.stamp_ns = g.u64();
         g.f64s(&mut m.q);
         g.f64s(&mut m.v);
+        g.f64s(&mut m.applied);
         m.flags = g.u32();
         m.plant_pid = g.u32();
         m.fingerprint = g.u64();
@@ -494,6 +528,9 @@ impl CommandMsg {
         }
         p.f64s(&self.tau);
         p.f64s(&[self.lyapunov]);
+        p.f64s(&self.observer);
+        p.f64s(&self.integral);
+        p.bytes(&self.previous_seq.to_le_bytes());
         p.bytes(&self.heap_allocations.to_le_bytes());
         p.bytes(&self.flags.to_le_bytes());
         p.bytes(&self.mismatch.to_le_bytes());
@@ -516,6 +553,9 @@ impl CommandMsg {
         m.compute_ns = g.u64();
         g.f64s(&mut m.tau);
         m.lyapunov = g.f64();
+        g.f64s(&mut m.observer);
+        g.f64s(&mut m.integral);
+        m.previous_seq = g.u64();
         m.heap_allocations = g.u64();
         m.flags = g.u32();
         m.mismatch = g.u32();
@@ -609,6 +649,7 @@ pub fn check_state(
     let (n, m) = own_dims(msg.group, group)?;
     if !all_finite(&msg.q[..n * n])
         || !all_finite(&msg.v[..m])
+        || !all_finite(&msg.applied[..m])
         || !msg.t.is_finite()
         || !msg.control_period.is_finite()
     {
@@ -633,7 +674,11 @@ pub fn check_command(msg: &CommandMsg, group: GroupKind, awaited: u64) -> Result
         return Err(Reject::Version);
     }
     let (_, m) = own_dims(msg.group, group)?;
-    if !all_finite(&msg.tau[..m]) || !msg.lyapunov.is_finite() {
+    if !all_finite(&msg.tau[..m])
+        || !msg.lyapunov.is_finite()
+        || !all_finite(&msg.observer[..m])
+        || !all_finite(&msg.integral[..m])
+    {
         return Err(Reject::NonFinite);
     }
     if msg.seq != awaited {
@@ -741,6 +786,10 @@ mod tests {
         s.v[2] = f64::NAN;
         assert_eq!(check_state(&s, So3, None, None), Err(Reject::NonFinite));
         s.v[2] = 0.0;
+        s.applied[1] = f64::INFINITY;
+        assert_eq!(check_state(&s, So3, None, None), Err(Reject::NonFinite));
+        s.applied[1] = 0.0;
+        s.applied[4] = f64::NAN; // beyond m = 3: ignored
         s.v[5] = f64::NAN; // beyond m = 3: ignored
         assert_eq!(check_state(&s, So3, None, None), Ok(()));
         s.control_period = 0.0;
@@ -761,6 +810,14 @@ mod tests {
         assert_eq!(check_command(&c, Se3, 4), Err(Reject::Sequence));
         c.tau[5] = f64::INFINITY;
         assert_eq!(check_command(&c, Se3, 3), Err(Reject::NonFinite));
+        c.tau[5] = 0.0;
+        c.observer[5] = f64::NAN;
+        assert_eq!(check_command(&c, Se3, 3), Err(Reject::NonFinite));
+        c.observer[5] = 0.0;
+        c.integral[0] = f64::NEG_INFINITY;
+        assert_eq!(check_command(&c, Se3, 3), Err(Reject::NonFinite));
+        c.integral[0] = 0.0;
+        assert_eq!(check_command(&c, Se3, 3), Ok(()));
     }
 
     #[test]
@@ -779,6 +836,7 @@ mod tests {
         s.t = 0.125;
         s.q[15] = -3.5;
         s.v[5] = 1e-300;
+        s.applied[4] = -0.25;
         s.flags = flags::WAKE_EVENT;
         s.plant_pid = 4242;
         s.fingerprint = 0xdead_beef_0123_4567;
@@ -793,6 +851,9 @@ mod tests {
         );
         let mut c = CommandMsg::new(So3);
         c.tau[2] = 2.5;
+        c.observer[1] = -0.125;
+        c.integral[0] = 0.5;
+        c.previous_seq = 41;
         c.heap_allocations = 9;
         c.mismatch = mismatch::SCENARIO;
         c.expected_period = 0.001;

@@ -28,7 +28,7 @@ pub const POSE_TOLERANCE: f64 = 1e-9;
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::WireSegment2")
+    type_name("eqtrack::WireSegment3")
 )]
 #[repr(C)]
 pub struct WireSegment {
@@ -47,7 +47,7 @@ pub struct WireSegment {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::PlanMsg2")
+    type_name("eqtrack::PlanMsg3")
 )]
 #[repr(C)]
 pub struct PlanMsg {

@@ -26,17 +26,18 @@
 //! let mut plant = PlantEndpoint::open(PlantConfig::new("board1", GroupKind::So3, period))?;
 //! let mut policy = DeadlinePolicy::new(3);
 //! let t0 = clock::monotonic_ns();
+//! let mut torque = Vector3::<f64>::zeros(); // what the motors apply
 //! for k in 0..1000u64 {
 //!     let (q, v) = (Matrix3::<f64>::identity(), Vector3::<f64>::zeros()); // read the sensors
-//!     plant.publish(k, &q, &v)?;
+//!     plant.publish(k, &q, &v, &torque)?;
 //!     let deadline = t0 + (k + 1) * 1_000_000;
 //!     let got = plant.wait_command(k, deadline);
 //!     let step = policy.step(k, deadline, got.as_ref().ok().map(|c| c.arrival()));
-//!     let torque: Vector3<f64> = match (step.decision, &got) {
+//!     torque = match (step.decision, &got) {
 //!         (Decision::Fresh, Ok(cmd)) => cmd.torque(),
-//!         _ => Vector3::zeros(), // hold the last torque, or the safe-mode torque
+//!         _ => torque, // hold the last torque (or apply the safe-mode torque)
 //!     };
-//!     let _ = torque; // drive the motors
+//!     // drive the motors with `torque`
 //!     clock::sleep_until(deadline);
 //! }
 //! plant.shutdown();

@@ -173,17 +173,21 @@ impl PlantEndpoint {
     }
 
     /// Publishes the state of tick `seq`: configuration `q` and body velocity `v` at
-    /// `t = seq·period`. Returns its publication stamp (CLOCK_MONOTONIC ns).
+    /// `t = seq·period`, and `applied`, the torque the actuators applied over the last
+    /// period (zero at the first tick; the controller's disturbance-rejection terms need it).
+    /// Returns its publication stamp (CLOCK_MONOTONIC ns).
     pub fn publish<const N: usize, const M: usize>(
         &mut self,
         seq: u64,
         q: &SMatrix<f64, N, N>,
         v: &SVector<f64, M>,
+        applied: &SVector<f64, M>,
     ) -> Result<u64, LinkError> {
         let mut msg = self.template;
         msg.seq = seq;
         msg.t = seq as f64 * self.config.control_period;
         msg.set_state(q, v);
+        msg.set_applied(applied);
         self.publish_message(&msg)
     }
 

@@ -125,6 +125,11 @@ pub fn write_trajectory_csv(traj: &Trajectory, path: &Path) -> Result<(), SimErr
     if let Some(d) = directions {
         header.extend(estimate_header(n, d, n == 4, covariance));
     }
+    let with_terms = traj.rows.first().is_some_and(|r| r.terms.is_some());
+    if with_terms {
+        header.extend((0..m).map(|i| format!("dhat_{i}")));
+        header.extend((0..m).map(|i| format!("integral_{i}")));
+    }
     if with_status {
         header.push("command_status".to_owned());
     }
@@ -155,6 +160,14 @@ pub fn write_trajectory_csv(traj: &Trajectory, path: &Path) -> Result<(), SimErr
                     )));
                 }
             }
+        }
+        if with_terms {
+            let t = r.terms.unwrap_or(crate::trajectory::Terms {
+                observer: [f64::NAN; 6],
+                integral: [f64::NAN; 6],
+            });
+            rec.extend(t.observer[..m].iter().map(|x| num(*x)));
+            rec.extend(t.integral[..m].iter().map(|x| num(*x)));
         }
         if with_status {
             rec.push(traj.status.get(k).copied().unwrap_or(0).to_string());

@@ -300,6 +300,9 @@ struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     /// Cycles run (rows are kept every `record_every`).
     cycles: u64,
     tau: SVector<f64, M>,
+    /// The disturbance-rejection terms of the last fresh command (`None`: the scenario has
+    /// none).
+    terms: Option<crate::trajectory::Terms>,
     published: u64,
     /// The state published last (with its stamp).
     state: StateMsg,
@@ -427,6 +430,9 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             status: Vec::with_capacity((steps / opts.record_every.max(1)) as usize + 2),
             cycles: 0,
             tau: SVector::zeros(),
+            terms: s.rejection_config::<M>().any().then(|| {
+                crate::trajectory::Terms::of(&SVector::<f64, M>::zeros(), &SVector::zeros())
+            }),
             published: 0,
             state: StateMsg::new(s.group),
             recorder: None,
@@ -475,11 +481,14 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         let mut msg = self.ep.state_template();
         msg.seq = k;
         msg.t = k as f64 * self.s.control_period;
+        // the torque applied over the last period (zero at k = 0): the rejection terms' input
+        msg.set_applied(&self.tau);
         match &mut self.estimation {
             None => msg.set_state(self.plant.configuration(), &self.plant.velocity()),
             Some(e) => {
                 // the torque held over the last period, as the in-process simulation has it
-                let held = self.tau + self.s.disturbance_vector::<M>();
+                let r = G::rotation(self.plant.configuration());
+                let held = self.tau + self.s.disturbance_wrench::<M>(k.saturating_sub(1), &r);
                 let (q_hat, v_hat, row) = e.measure(k, &self.plant, &held);
                 msg.set_state(&q_hat, &v_hat);
                 self.estimate = Some(row);
@@ -605,7 +614,15 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         let step = self.policy.step(k, deadline, arrival);
         let v = self.plant.velocity();
         self.tau = match (step.decision, &got) {
-            (Decision::Fresh, Some(c)) => c.torque(),
+            (Decision::Fresh, Some(c)) => {
+                if self.terms.is_some() {
+                    self.terms = Some(crate::trajectory::Terms {
+                        observer: c.msg.observer,
+                        integral: c.msg.integral,
+                    });
+                }
+                c.torque()
+            }
             (Decision::Safe, _) => {
                 safe_mode_torque(&self.cfg.kd, &v, self.cfg.torque_limit.as_ref())
             }
@@ -640,9 +657,12 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
 
     /// Integrates `[t_k, t_{k+1})` under the held torque and publishes state k+1.
     fn advance(&mut self, k: u64) -> Result<(), SimError> {
-        let applied = self.tau + self.s.disturbance_vector::<M>();
-        self.plant
-            .advance(&applied, self.s.control_period, self.s.plant_substeps);
+        let applied = self.tau + self.s.disturbance_at::<M>(k);
+        let (h, substeps) = (self.s.control_period, self.s.plant_substeps);
+        match self.s.world_disturbance::<M>() {
+            None => self.plant.advance(&applied, h, substeps),
+            Some(w) => self.plant.advance_with_world(&applied, &w, h, substeps),
+        }
         self.reference.advance();
         self.publish(k + 1)
     }
@@ -663,7 +683,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 &self.cfg.inertia,
                 &self.cfg.k,
             )
-            .with_estimate(self.estimate),
+            .with_estimate(self.estimate)
+            .with_terms(self.terms),
         );
         if self.realtime() {
             self.status.push(decision.code());

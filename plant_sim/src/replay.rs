@@ -89,7 +89,8 @@ pub struct ReplayReport {
     pub cycles: u64,
     /// Records with a recorded command (compared).
     pub compared: u64,
-    /// Compared commands that differ in any bit of the torque or of L.
+    /// Compared commands that differ in any bit of the torque, of L or of the
+    /// disturbance-rejection terms.
     pub differing: u64,
     /// The first of them.
     pub first: Option<Difference>,
@@ -105,13 +106,33 @@ pub struct ReplayReport {
 
 /// Replays `opts.dir`'s log.
 pub fn replay(opts: &ReplayOptions) -> Result<ReplayReport, SimError> {
+    let unseen = unseen_states(&opts.dir.join(LOG_FILE))?;
     let mut log = LogReader::open(&opts.dir.join(LOG_FILE))?;
     let s = scenario_for(opts, &log)?;
     s.group.dispatch(Replay {
         opts,
         log: &mut log,
         s: &s,
+        unseen: &unseen,
     })
+}
+
+/// The ranges of states the controller never processed, from the previous sequence number
+/// each recorded command carries (a controller stopped for a while reads only the newest
+/// state when it wakes): a stateful controller (disturbance-rejection terms) must skip
+/// them in replay as it did in the run. Sorted, disjoint, half-open `[from, to)`.
+fn unseen_states(path: &Path) -> Result<Vec<(u64, u64)>, SimError> {
+    let mut log = LogReader::open(path)?;
+    let mut ranges = Vec::new();
+    while let Some(r) = log.next_record()? {
+        if let Some((c, _)) = &r.command {
+            let from = c.previous_seq.wrapping_add(1);
+            if c.previous_seq != ipc_types::NO_PREVIOUS && from < c.seq {
+                ranges.push((from, c.seq));
+            }
+        }
+    }
+    Ok(ranges)
 }
 
 /// The scenario of the run (its stored copy, checked against the log's fingerprint) with the
@@ -186,12 +207,13 @@ struct Replay<'a> {
     opts: &'a ReplayOptions,
     log: &'a mut LogReader,
     s: &'a Scenario,
+    unseen: &'a [(u64, u64)],
 }
 
 impl OnGroup for Replay<'_> {
     type Output = Result<ReplayReport, SimError>;
     fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
-        replay_group::<G, N, M>(self.opts, self.log, self.s)
+        replay_group::<G, N, M>(self.opts, self.log, self.s, self.unseen)
     }
 }
 
@@ -208,9 +230,13 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     opts: &ReplayOptions,
     log: &mut LogReader,
     s: &Scenario,
+    unseen: &[(u64, u64)],
 ) -> Result<ReplayReport, SimError> {
     let bad = |e: controller::Error| SimError::Input(format!("scenario `{}`: {e}", s.name));
-    let controller = s.controller::<G, N, M>().map_err(bad)?;
+    let mut responder = s
+        .controller::<G, N, M>()
+        .and_then(|c| controller_node::Responder::new(c, s.rejection_config()))
+        .map_err(bad)?;
     let what_if = opts.what_if();
     let mut report = ReplayReport {
         cycles: 0,
@@ -239,6 +265,11 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             continue;
         }
         (last_seq, period) = (Some(r.state.seq), Some(r.state.control_period));
+        let seq = r.state.seq;
+        if unseen.iter().any(|(from, to)| (*from..*to).contains(&seq)) {
+            // the controller never saw this state (its command says so)
+            continue;
+        }
         // the node builds its reference on the first state, at the plant's period
         let reference = match &mut reference {
             Some(x) => x,
@@ -248,7 +279,7 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                 reference.insert(at.reference_source::<G, N, M>().map_err(bad)?)
             }
         };
-        let replayed = controller_node::respond(&controller, reference, &r.state).ok();
+        let replayed = responder.respond(reference, &r.state).ok();
         reference.advance();
         let recorded = r.command.map(|c| c.0);
         if let Some(rec) = &recorded {
@@ -274,7 +305,8 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     Ok(report)
 }
 
-/// Compares one recorded command with the replayed one, bit for bit (torque and L).
+/// Compares one recorded command with the replayed one, bit for bit (torque, L, the
+/// observer's estimate and the integral's torque).
 fn compare<const M: usize>(
     report: &mut ReplayReport,
     r: &Record,
@@ -310,8 +342,24 @@ fn compare<const M: usize>(
                 }
             }
             worst.or_else(|| {
-                (recorded.lyapunov.to_bits() != c.lyapunov.to_bits())
-                    .then(|| diff("L".to_owned(), recorded.lyapunov, c.lyapunov))
+                let terms = (0..M).flat_map(|i| {
+                    [
+                        (
+                            format!("observer[{i}]"),
+                            recorded.observer[i],
+                            c.observer[i],
+                        ),
+                        (
+                            format!("integral[{i}]"),
+                            recorded.integral[i],
+                            c.integral[i],
+                        ),
+                    ]
+                });
+                std::iter::once(("L".to_owned(), recorded.lyapunov, c.lyapunov))
+                    .chain(terms)
+                    .find(|(_, a, b)| a.to_bits() != b.to_bits())
+                    .map(|(what, a, b)| diff(what, a, b))
             })
         }
     };

@@ -37,6 +37,33 @@ pub struct Row {
     /// The samples and the estimate the law was handed (`None`: the law saw the exact
     /// state and no sensors were simulated).
     pub estimate: Option<EstimateRow>,
+    /// The disturbance-rejection terms of the command applied (`None`: the scenario has
+    /// none).
+    pub terms: Option<Terms>,
+}
+
+/// The disturbance-rejection terms of a command (body frame, first m entries used).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Terms {
+    /// The observer's estimate `d̂` (subtracted from the law's torque).
+    pub observer: [f64; 6],
+    /// The integral's torque `−K_I z` (added).
+    pub integral: [f64; 6],
+}
+
+impl Terms {
+    /// The terms from their vectors.
+    pub fn of<const M: usize>(observer: &SVector<f64, M>, integral: &SVector<f64, M>) -> Terms {
+        let mut t = Terms {
+            observer: [0.0; 6],
+            integral: [0.0; 6],
+        };
+        for i in 0..M.min(6) {
+            t.observer[i] = observer[i];
+            t.integral[i] = integral[i];
+        }
+        t
+    }
 }
 
 /// What the sensors read at `t_k` and what the estimator made of it.
@@ -111,7 +138,14 @@ impl Row {
             q: qq,
             v: vv,
             estimate: None,
+            terms: None,
         }
+    }
+
+    /// The row with the disturbance-rejection terms attached.
+    pub fn with_terms(mut self, terms: Option<Terms>) -> Row {
+        self.terms = terms;
+        self
     }
 
     /// The row with the sensors' samples and the estimate attached.
@@ -223,12 +257,21 @@ pub fn simulate_with_planted<G: MatrixLieGroup<N, M>, const N: usize, const M: u
     let reference = s.reference_source::<G, N, M>().map_err(input(s))?;
     let mut sim = ClosedLoop::new(controller, reference, plant, s.plant_substeps)
         .and_then(|l| l.with_disturbance(s.disturbance_vector()))
+        .and_then(|l| l.with_rejection(s.rejection_config()))
+        .and_then(|l| match s.world_disturbance::<M>() {
+            Some(w) => l.with_world_disturbance(w),
+            None => Ok(l),
+        })
         .map_err(input(s))?;
     let steps = s.steps();
     let mut rows = Vec::with_capacity(steps as usize + 1);
     let mut held = SVector::<f64, M>::zeros();
+    let terms = s.rejection_config::<M>().any();
     for k in 0..=steps {
         let t = sim.time();
+        if !s.disturbance_steps.is_empty() {
+            sim.set_disturbance(s.disturbance_at(k)).map_err(input(s))?;
+        }
         let (sample, estimate) = match &mut estimation {
             None => (sim.step(), None),
             Some(e) => {
@@ -238,9 +281,16 @@ pub fn simulate_with_planted<G: MatrixLieGroup<N, M>, const N: usize, const M: u
         };
         let sample =
             sample.map_err(|e| SimError::Run(format!("closed loop stopped at t = {t} s: {e}")))?;
-        held = sample.output.torque + sim.disturbance();
+        held = sample.output.torque
+            + s.disturbance_wrench::<M>(k, &G::rotation(sim.plant.configuration()));
         let c = sim.controller.config();
-        rows.push(Row::from_sample::<G, N, M>(&sample, &c.inertia, &c.k).with_estimate(estimate));
+        rows.push(
+            Row::from_sample::<G, N, M>(&sample, &c.inertia, &c.k)
+                .with_estimate(estimate)
+                .with_terms(
+                    terms.then(|| Terms::of(&sample.output.observer, &sample.output.integral)),
+                ),
+        );
         on_step(k)?;
     }
     Ok(Trajectory {

@@ -14,10 +14,14 @@
 //! inertia = [[...]]             # m×m, symmetric positive definite
 //! torque_limit = 5.0            # optional: a number for every axis, or m numbers
 //! disturbance = [0.0, 0.0, 0.0] # optional, m entries, body frame
+//! disturbance_world = [...]     # optional, m entries, world axes (see `rejection`)
+//! disturbance_steps = [{ t = 5.0, value = [...] }]   # optional (see `rejection`)
 //! [controller]
 //! inertia = [[...]]             # optional, defaults to plant.inertia
 //! kp = 0.5                      # number (times identity) or n×n matrix: K
 //! kd = 0.5                      # number (times identity) or m×m matrix: K_d
+//! disturbance_observer = { gain = 20.0 }       # optional (see `rejection`)
+//! integral = { ki = 1.0, c = 5.0 }             # optional (see `rejection`)
 //! [initial]
 //! rotation = [rx, ry, rz]       # R(0) = exp(hat(rotation))
 //! position = [x, y, z]          # se3 only
@@ -32,9 +36,11 @@
 #![warn(missing_docs)]
 
 pub mod cli;
+pub mod rejection;
 pub mod sensing;
 pub mod waypoints;
 
+pub use rejection::{IntegralSpec, ObserverSpec, RejectionSpec, StepSpec};
 pub use sensing::{
     DirectionSpec, EqfSpec, EstimatorKind, EstimatorSpec, GyroSpec, PositionSpec, SensorsSpec,
 };
@@ -137,6 +143,8 @@ struct RawPlant {
     inertia: Vec<Vec<f64>>,
     torque_limit: Option<NumberOrList>,
     disturbance: Option<Vec<f64>>,
+    disturbance_world: Option<Vec<f64>>,
+    disturbance_steps: Option<Vec<rejection::RawStep>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -145,6 +153,8 @@ struct RawController {
     inertia: Option<Vec<Vec<f64>>>,
     kp: NumberOrMatrix,
     kd: NumberOrMatrix,
+    disturbance_observer: Option<rejection::RawObserver>,
+    integral: Option<rejection::RawIntegral>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -200,7 +210,7 @@ enum NumberOrMatrix {
 
 #[derive(Debug, Deserialize)]
 #[serde(untagged)]
-enum NumberOrList {
+pub(crate) enum NumberOrList {
     Number(f64),
     List(Vec<f64>),
 }
@@ -280,12 +290,18 @@ pub struct Scenario {
     pub torque_limit: Option<Vec<f64>>,
     /// Constant body-frame disturbance (m entries).
     pub disturbance: Vec<f64>,
+    /// A wrench constant in world axes at the body's origin (m entries), if any.
+    pub disturbance_world: Option<Vec<f64>>,
+    /// Steps of the body disturbance, in time order.
+    pub disturbance_steps: Vec<StepSpec>,
     /// The controller's model inertia (m×m).
     pub model_inertia: Vec<f64>,
     /// The potential weight K (n×n).
     pub kp: Vec<f64>,
     /// The damping K_d (m×m).
     pub kd: Vec<f64>,
+    /// The controller's disturbance-rejection terms.
+    pub rejection: RejectionSpec,
     /// The plant at t = 0.
     pub initial: StateSpec,
     /// The reference at t = 0.
@@ -469,7 +485,7 @@ impl Scenario {
     /// the group, the control period and reference substeps, the model inertia, `K`, `K_d`,
     /// the torque limit, the reference's initial state and its feedforward. Not the law (a
     /// controller may override it), the duration, the name, nor the plant's own initial state,
-    /// inertia or disturbance. Two processes of a pair compare it on their first message
+    /// inertia or disturbances. The disturbance-rejection terms when there are any. Two processes of a pair compare it on their first message
     /// (docs/architecture.md, "Configuration identity").
     pub fn fingerprint(&self) -> u64 {
         let mut h = Fnv(0xcbf2_9ce4_8422_2325);
@@ -498,6 +514,28 @@ impl Scenario {
             for pose in &p.poses {
                 h.f64s(&pose.rotation);
                 h.f64s(&pose.position);
+            }
+        }
+        // only when present, so scenarios without them keep their fingerprints
+        if let Some(o) = &self.rejection.observer {
+            h.bytes(b"observer");
+            h.bytes(o.frame.name().as_bytes());
+            h.f64s(&o.gain);
+            if let Some(l) = &o.limit {
+                h.f64s(l);
+            }
+        }
+        if let Some(i) = &self.rejection.integral {
+            h.bytes(if i.anti_windup {
+                b"integral"
+            } else {
+                b"wound-up"
+            });
+            for part in [&i.ki, &i.c] {
+                h.f64s(part);
+            }
+            if let Some(l) = &i.limit {
+                h.f64s(l);
             }
         }
         h.0.max(1)
@@ -800,6 +838,20 @@ impl Validator<'_> {
             None => vec![0.0; m],
             Some(d) => self.vector("plant.disturbance", d, m, "one entry per axis")?,
         };
+        let disturbance_world = raw
+            .plant
+            .disturbance_world
+            .as_ref()
+            .map(|d| {
+                let why = if m == 6 {
+                    "world axes: torque then force"
+                } else {
+                    "world axes"
+                };
+                self.vector("plant.disturbance_world", d, m, why)
+            })
+            .transpose()?;
+        let disturbance_steps = self.steps(raw.plant.disturbance_steps.as_deref(), m)?;
         let model_inertia = match &raw.controller.inertia {
             None => plant_inertia.clone(),
             Some(rows) => {
@@ -810,6 +862,11 @@ impl Validator<'_> {
         };
         let kp = self.gain("controller.kp", &raw.controller.kp, n, "n×n for the group")?;
         let kd = self.gain("controller.kd", &raw.controller.kd, m, "m×m for the group")?;
+        let rejection = self.rejection(
+            raw.controller.disturbance_observer.as_ref(),
+            raw.controller.integral.as_ref(),
+            m,
+        )?;
         let initial = self.state("initial", &raw.initial, group, m)?;
         let (reference, feedforward, path) = self.reference(&raw.reference, group, m)?;
         let sensors = raw
@@ -832,9 +889,12 @@ impl Validator<'_> {
             plant_inertia,
             torque_limit,
             disturbance,
+            disturbance_world,
+            disturbance_steps,
             model_inertia,
             kp,
             kd,
+            rejection,
             initial,
             reference,
             feedforward,
