@@ -18,7 +18,10 @@ const CYCLES: usize = 3;
 const SUBSTEP_BUDGET: usize = 2_000;
 
 /// Hand-written valid scenarios that reach the optional keys the built-ins leave out.
-const EXTRA_SEEDS: [&str; 7] = [
+const EXTRA_SEEDS: [&str; 9] = [
+    // the disturbance-rejection terms and the world and step disturbances
+    include_str!("../../scenarios/reject_so3.toml"),
+    include_str!("../../scenarios/reject_se3.toml"),
     // `[sensors]` and `[estimator]` on both groups, with either filter
     include_str!("../../scenarios/sensors_so3.toml"),
     include_str!("../../scenarios/sensors_se3.toml"),
@@ -161,7 +164,46 @@ const STRINGS: [&str; 12] = [
 ];
 
 /// Known keys and values for [`TomlOp::SetKey`].
-const KEYS: [(&str, &[&str]); 17] = [
+const KEYS: [(&str, &[&str]); 21] = [
+    (
+        "disturbance_observer",
+        &[
+            "{ gain = 20.0 }",
+            "{ gain = 0.0 }",
+            "{ gain = 1e300, limit = 1e-300 }",
+            "{ gain = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0], frame = \"world\" }",
+            "{ gain = 5.0, frame = \"moon\" }",
+            "{ gain = 1e-300, limit = [1.0, 1.0, 1.0] }",
+        ],
+    ),
+    (
+        "integral",
+        &[
+            "{ ki = 1.0, c = 5.0 }",
+            "{ ki = 1e300, c = 1e300, limit = 1e-300 }",
+            "{ ki = 1.0, c = 5.0, anti_windup = false }",
+            "{ ki = -1.0, c = 5.0 }",
+            "{ ki = [1.0, 1.0, 1.0, 1.0, 1.0, 1.0], c = 1.0, limit = 0.1 }",
+        ],
+    ),
+    (
+        "disturbance_world",
+        &[
+            "[0.0, 0.0, 0.0]",
+            "[0.0, 0.0, 0.0, 0.5, 0.0, 0.0]",
+            "[1e300, 0.0, 0.0]",
+            "[nan, 0.0, 0.0]",
+        ],
+    ),
+    (
+        "disturbance_steps",
+        &[
+            "[{ t = 0.0, value = [0.1, 0.0, 0.0] }]",
+            "[{ t = 0.5, value = [0.0, 0.0, 0.0, 0.0, 1.0, 0.0] }, { t = 0.6, value = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0] }]",
+            "[{ t = 1.0, value = [1e308, 0.0, 0.0] }, { t = 0.5, value = [0.0, 0.0, 0.0] }]",
+            "[{ t = -0.0, value = [] }]",
+        ],
+    ),
     ("group", &["\"se3\"", "\"so3\"", "\"SE3\"", "\"x\"", "3"]),
     (
         "law",
@@ -717,27 +759,56 @@ impl OnGroup for Exercise<'_> {
         let _ = s
             .feedforward::<M>()
             .map_err(|e| stage("feedforward()", e))?;
-        let disturbance = s.disturbance_vector::<M>();
+        // the disturbance-rejection terms, fed with the torque applied, as the node runs them
+        let mut terms = controller::Rejection::new(
+            s.rejection_config::<M>(),
+            controller.config().torque_limit.as_ref(),
+        )
+        .map_err(|e| stage("Rejection::new()", e))?;
+        let mut applied = nalgebra::SVector::<f64, M>::zeros();
+        let world = s.world_disturbance::<M>();
         let most = s.plant_substeps.max(s.reference_substeps).max(1);
         let cycles = (SUBSTEP_BUDGET / most).min(CYCLES);
         for k in 0..=cycles {
             let desired = reference.desired();
-            let out = controller
-                .compute(body.configuration(), &body.velocity(), &desired)
-                .map_err(|e| stage("compute()", e))?;
+            let (q, v) = (*body.configuration(), body.velocity());
+            let out = if s.rejection_config::<M>().any() {
+                controller
+                    .compute_rejecting(
+                        &mut terms,
+                        &q,
+                        &v,
+                        &desired,
+                        &applied,
+                        s.control_period,
+                        true,
+                    )
+                    .map_err(|e| stage("compute_rejecting()", e))?
+            } else {
+                controller
+                    .compute(&q, &v, &desired)
+                    .map_err(|e| stage("compute()", e))?
+            };
             assert!(
-                out.torque.iter().all(|x| x.is_finite()),
-                "Controller::compute returned a non-finite torque {:?}",
-                out.torque.as_slice()
+                out.torque
+                    .iter()
+                    .chain(&out.observer)
+                    .chain(&out.integral)
+                    .all(|x| x.is_finite()),
+                "the controller returned a non-finite number: {:?} {:?} {:?}",
+                out.torque.as_slice(),
+                out.observer.as_slice(),
+                out.integral.as_slice()
             );
             if k == cycles {
                 break;
             }
-            body.advance(
-                &(out.torque + disturbance),
-                s.control_period,
-                s.plant_substeps,
-            );
+            applied = out.torque;
+            let total = out.torque + s.disturbance_at::<M>(k as u64);
+            match &world {
+                None => body.advance(&total, s.control_period, s.plant_substeps),
+                Some(w) => body.advance_with_world(&total, w, s.control_period, s.plant_substeps),
+            }
             reference.advance();
         }
         Ok(())

@@ -226,3 +226,244 @@ impl Scenario {
             .map(|w| SVector::from_row_slice(w))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn load(name: &str) -> Scenario {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../scenarios")
+            .join(name);
+        Scenario::from_file(&path).unwrap()
+    }
+
+    /// The seed scenario with `plant` and `controller` lines added.
+    fn seed_with(plant: &str, controller: &str) -> Result<Scenario, ScenarioError> {
+        let text = crate::BUILTINS[0]
+            .1
+            .replace("[plant]\n", &format!("[plant]\n{plant}\n"))
+            .replace("[controller]\n", &format!("[controller]\n{controller}\n"));
+        Scenario::from_toml(&text, "test", "seed")
+    }
+
+    #[test]
+    fn the_rejection_scenarios_load_with_their_terms() {
+        let s = load("reject_so3.toml");
+        let o = s.rejection.observer.as_ref().unwrap();
+        assert_eq!(
+            (o.gain.clone(), o.limit.clone(), o.frame),
+            (vec![20.0; 3], None, Frame::Body)
+        );
+        let i = s.rejection.integral.as_ref().unwrap();
+        assert_eq!(
+            (i.ki.clone(), i.c.clone(), i.anti_windup),
+            (vec![1.0; 3], vec![5.0; 3], true)
+        );
+        let c = s.rejection_config::<3>();
+        assert!(c.any());
+        assert_eq!(c.observer.unwrap().gain, SVector::<f64, 3>::repeat(20.0));
+
+        let s = load("reject_se3.toml");
+        let o = s.rejection.observer.as_ref().unwrap();
+        assert_eq!(o.frame, Frame::World);
+        assert_eq!(
+            o.limit.as_deref(),
+            Some(&[0.5, 0.5, 0.5, 2.0, 2.0, 2.0][..])
+        );
+        assert_eq!(
+            s.disturbance_world.as_deref(),
+            Some(&[0.0, 0.0, 0.0, 0.5, 0.0, 0.0][..])
+        );
+        assert_eq!(s.disturbance_steps.len(), 1);
+        // the step starts at the first tick at or after t = 6 s (tick 3000 at 2 ms)
+        let before = s.disturbance_at::<6>(2999);
+        let after = s.disturbance_at::<6>(3000);
+        assert_eq!(before, SVector::<f64, 6>::from_row_slice(&s.disturbance));
+        assert_eq!(
+            after - before,
+            SVector::<f64, 6>::from_row_slice(&[0.0, 0.0, 0.01, 0.0, 0.2, 0.0])
+        );
+        // the world wrench enters the body rotated: a quarter turn about z
+        let r = controller::group::so3::exp_so3(&nalgebra::Vector3::new(
+            0.0,
+            0.0,
+            core::f64::consts::FRAC_PI_2,
+        ));
+        let w = s.disturbance_wrench::<6>(0, &r) - before;
+        assert!(
+            (w - SVector::<f64, 6>::from_row_slice(&[0.0, 0.0, 0.0, 0.0, -0.5, 0.0])).amax()
+                < 1e-15,
+            "{w}"
+        );
+    }
+
+    #[test]
+    fn without_the_keys_nothing_changes_and_with_them_the_fingerprint_does() {
+        let seed = Scenario::builtin("seed").unwrap();
+        assert_eq!(seed.rejection, RejectionSpec::default());
+        assert!(!seed.rejection_config::<3>().any());
+        assert_eq!(seed.disturbance_world, None);
+        assert!(seed.disturbance_steps.is_empty());
+        assert_eq!(
+            seed.disturbance_at::<3>(1_000_000),
+            seed.disturbance_vector::<3>()
+        );
+        let base = seed.fingerprint();
+        let with = |c: &str| seed_with("", c).unwrap().fingerprint();
+        let observer = with("disturbance_observer = { gain = 20.0 }");
+        let world = with("disturbance_observer = { gain = 20.0, frame = \"world\" }");
+        let limited = with("disturbance_observer = { gain = 20.0, limit = 1.0 }");
+        let integral = with("integral = { ki = 1.0, c = 5.0 }");
+        let wound = with("integral = { ki = 1.0, c = 5.0, anti_windup = false }");
+        let all = [base, observer, world, limited, integral, wound];
+        for (i, a) in all.iter().enumerate() {
+            for b in &all[i + 1..] {
+                assert_ne!(a, b, "{all:x?}");
+            }
+        }
+        // the plant's disturbances are the plant's: not in the fingerprint
+        let plant = seed_with(
+            "disturbance_world = [0.1, 0.0, 0.0]\ndisturbance_steps = [{ t = 1.0, value = [0.0, 0.1, 0.0] }]",
+            "",
+        )
+        .unwrap();
+        assert_eq!(plant.fingerprint(), base);
+        // a number or one per axis
+        let per_axis = seed_with(
+            "",
+            "integral = { ki = [1.0, 2.0, 3.0], c = 5.0, limit = [0.1, 0.2, 0.3] }",
+        )
+        .unwrap();
+        let i = per_axis.rejection.integral.unwrap();
+        assert_eq!(
+            (i.ki, i.limit),
+            (vec![1.0, 2.0, 3.0], Some(vec![0.1, 0.2, 0.3]))
+        );
+    }
+
+    #[test]
+    fn bad_values_name_the_key_and_what_is_wrong() {
+        let observer = "controller.disturbance_observer";
+        for (plant, controller, needle) in [
+            (
+                "",
+                "disturbance_observer = { gain = 0.0 }",
+                format!("key `{observer}.gain`: must be a finite number > 0, got 0"),
+            ),
+            (
+                "",
+                "disturbance_observer = { gain = -1.0 }",
+                format!("key `{observer}.gain`: must be a finite number > 0"),
+            ),
+            (
+                "",
+                "disturbance_observer = { gain = nan }",
+                format!("key `{observer}.gain`"),
+            ),
+            (
+                "",
+                "disturbance_observer = { gain = [1.0, 2.0] }",
+                format!("key `{observer}.gain`: expected 3 numbers"),
+            ),
+            (
+                "",
+                "disturbance_observer = { gain = [1.0, inf, 2.0] }",
+                format!("key `{observer}.gain`: entry 1 is not a finite number"),
+            ),
+            (
+                "",
+                "disturbance_observer = { gain = 1.0, limit = 0.0 }",
+                format!("key `{observer}.limit`: must be a finite number > 0"),
+            ),
+            (
+                "",
+                "disturbance_observer = { gain = 1.0, frame = \"inertial\" }",
+                format!(
+                    "key `{observer}.frame`: unknown frame `inertial` (expected \"body\" or \"world\")"
+                ),
+            ),
+            (
+                "",
+                "disturbance_observer = { limit = 1.0 }",
+                "missing field `gain`".to_owned(),
+            ),
+            (
+                "",
+                "disturbance_observer = { gain = 1.0, gian = 2.0 }",
+                "unknown field `gian`".to_owned(),
+            ),
+            (
+                "",
+                "integral = { ki = 0.0, c = 5.0 }",
+                "key `controller.integral.ki`: must be a finite number > 0".to_owned(),
+            ),
+            (
+                "",
+                "integral = { ki = 1.0, c = -5.0 }",
+                "key `controller.integral.c`: must be a finite number > 0".to_owned(),
+            ),
+            (
+                "",
+                "integral = { ki = 1.0, c = 5.0, limit = [1.0, 1.0, 1.0, 1.0] }",
+                "key `controller.integral.limit`: expected 3 numbers".to_owned(),
+            ),
+            (
+                "",
+                "integral = { ki = 1.0 }",
+                "missing field `c`".to_owned(),
+            ),
+            (
+                "",
+                "integral = { ki = 1.0, c = 1.0, anti_windup = \"no\" }",
+                "anti_windup".to_owned(),
+            ),
+            (
+                "disturbance_world = [0.1, 0.0]",
+                "",
+                "key `plant.disturbance_world`: expected 3 numbers (world axes), got 2".to_owned(),
+            ),
+            (
+                "disturbance_world = [0.1, nan, 0.0]",
+                "",
+                "key `plant.disturbance_world`: entry 1 is not a finite number".to_owned(),
+            ),
+            (
+                "disturbance_steps = [{ t = -1.0, value = [0.0, 0.0, 0.0] }]",
+                "",
+                "key `plant.disturbance_steps[0].t`: must be a finite time ≥ 0, got -1".to_owned(),
+            ),
+            (
+                "disturbance_steps = [{ t = inf, value = [0.0, 0.0, 0.0] }]",
+                "",
+                "key `plant.disturbance_steps[0].t`".to_owned(),
+            ),
+            (
+                "disturbance_steps = [{ t = 2.0, value = [0.0, 0.0, 0.0] }, { t = 1.0, value = [0.0, 0.0, 0.0] }]",
+                "",
+                "key `plant.disturbance_steps[1].t`: times must increase: 1 follows 2".to_owned(),
+            ),
+            (
+                "disturbance_steps = [{ t = 1.0, value = [0.0, 0.0] }]",
+                "",
+                "key `plant.disturbance_steps[0].value`: expected 3 numbers".to_owned(),
+            ),
+            (
+                "disturbance_steps = [{ t = 1.0, value = [0.0, 0.0, nan] }]",
+                "",
+                "key `plant.disturbance_steps[0].value`: entry 2".to_owned(),
+            ),
+            (
+                "disturbance_steps = [{ t = 1.0 }]",
+                "",
+                "missing field `value`".to_owned(),
+            ),
+        ] {
+            match seed_with(plant, controller) {
+                Ok(_) => panic!("accepted: {plant} {controller}"),
+                Err(e) => assert!(e.to_string().contains(&needle), "{e}\n  wanted: {needle}"),
+            }
+        }
+    }
+}
