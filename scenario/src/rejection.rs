@@ -1,6 +1,6 @@
 //! Disturbances and their rejection: `[controller] disturbance_observer` and `integral`,
-//! `[plant] disturbance_world` and `disturbance_steps` (docs/maths.md, "Disturbance
-//! rejection").
+//! `[plant] disturbance_world` and `disturbance_steps`
+//! (docs/maths.md, "Disturbance rejection").
 //!
 //! ```toml
 //! [plant]
