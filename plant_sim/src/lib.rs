@@ -20,6 +20,7 @@ pub mod output;
 pub mod pair;
 pub mod plot;
 pub mod reference;
+pub mod rejection;
 pub mod replay;
 pub mod sensors;
 pub mod spawn;
