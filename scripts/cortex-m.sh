@@ -293,15 +293,19 @@ for line in open(sys.argv[1], errors="replace"):
     in_mark = False
     if current is not None:
         current[sym] += 1
-if runs < 16 or len(gaps) < 15:
-    sys.exit(f"expected 16 marks, found {runs}")
+if runs < 24 or len(gaps) < 23:
+    sys.exit(f"expected 24 marks, found {runs}")
 base = sum(gaps[0].values())
 # gaps[i] lies between mark i and mark i + 1
 names = {2: "SO(3) EqT, Controller::compute, f32", 4: "SE(3) EqT (generic), Controller::compute, f32",
          6: "controller cycle, 1 reference substep", 8: "controller cycle, 10 reference substeps",
          10: "complementary filter step (estimator, 2 directions), f32",
          12: "pose filter step (estimator, SE(3), 1 direction + accelerometer + fix), f32",
-         14: "equivariant filter step (estimator, attitude + bias, 2 directions), f32"}
+         14: "equivariant filter step (estimator, attitude + bias, 2 directions), f32",
+         16: "SO(3) EqT + momentum observer, Controller::compute_rejecting, f32",
+         18: "SO(3) EqT + geometric integral, Controller::compute_rejecting, f32",
+         20: "SO(3) EqT + observer + integral, Controller::compute_rejecting, f32",
+         22: "SO(3) EqT + momentum observer with its clamp, Controller::compute_rejecting, f32"}
 soft = re.compile(r"__aeabi_d|__adddf3|__subdf3|__muldf3|__divdf3|__fixdfsi|__floatsidf|__extendsfdf2|__truncdfsf2|compiler_builtins.*float")
 for i, name in names.items():
     g = gaps[i]
@@ -317,6 +321,12 @@ for i, limit in limits.items():
     if n > limit:
         sys.exit(f"ICOUNT {i // 2}: {n} instructions, over the limit of {limit} ({names[i]})")
     print(f"ICOUNT {i // 2} within its limit: {n} <= {limit}")
+# the observer's cost over the plain law (the same SO(3) case): at most 300 at opt-level 3
+if sys.argv[2] == "opt-level-3":
+    extra = sum(gaps[16].values()) - sum(gaps[2].values())
+    if extra > 300:
+        sys.exit(f"ICOUNT the observer costs {extra} instructions over the plain law, over the limit of 300")
+    print(f"ICOUNT the observer's extra cost within its limit: {extra} <= 300")
 PY
 }
 

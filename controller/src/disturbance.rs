@@ -107,8 +107,6 @@ struct Anchor<T: Real, const M: usize> {
     mu: SVector<T, M>,
     /// `ad_{V_{k−1}}ᵀ μ_{k−1}`.
     gyro: SVector<T, M>,
-    /// `R_{k−1}`.
-    r: Matrix3<T>,
 }
 
 /// The state of the disturbance-rejection terms between cycles (no allocation; `Copy`).
@@ -119,9 +117,12 @@ pub struct Rejection<T: Real, const M: usize> {
     z_max: Option<SVector<T, M>>,
     /// The torque limit the anti-windup rule compares the applied torque with.
     torque_limit: Option<SVector<T, M>>,
-    /// `(h, (1 − e^{−L h})/h)`: the observer's discrete gain for the period `h`.
+    /// `(h, (1 − e^{−L h})/h)`: the period last checked and the observer's discrete gain
+    /// for it.
     gain: Option<(T, SVector<T, M>)>,
     anchor: Option<Anchor<T, M>>,
+    /// `R_{k−1}`: the anchor's rotation (kept for the world frame only).
+    anchor_r: Matrix3<T>,
     /// `d̂` in the observer's frame.
     estimate: SVector<T, M>,
     /// `z`, body frame.
@@ -179,6 +180,7 @@ impl<T: Real, const M: usize> Rejection<T, M> {
             torque_limit: torque_limit.copied(),
             gain: None,
             anchor: None,
+            anchor_r: Matrix3::identity(),
             estimate: SVector::zeros(),
             z: SVector::zeros(),
         })
@@ -211,16 +213,16 @@ impl<T: Real, const M: usize> Rejection<T, M> {
         self.anchor = None;
     }
 
-    /// The observer's discrete gain `(1 − e^{−L h})/h` for the period `h` (cached).
-    fn discrete_gain(&mut self, gain: &SVector<T, M>, h: T) -> SVector<T, M> {
-        match self.gain {
-            Some((p, g)) if p == h => g,
-            _ => {
-                let g = gain.map(|l| (T::one() - (-(l * h)).exp()) / h);
-                self.gain = Some((h, g));
-                g
-            }
+    /// Checks the period `h` (finite, > 0) and caches the observer's discrete gain
+    /// `(1 − e^{−L h})/h` for it: the work is done only when `h` changes.
+    fn set_period(&mut self, h: T) -> Result<(), Error> {
+        if self.gain.is_some_and(|(p, _)| p == h) {
+            return Ok(());
         }
+        crate::validate::period(h)?;
+        let gain = self.config.observer.map_or(SVector::zeros(), |o| o.gain);
+        self.gain = Some((h, gain.map(|l| (T::one() - (-(l * h)).exp()) / h)));
+        Ok(())
     }
 
     /// The momentum observer's step (docs/maths.md, "The momentum observer"):
@@ -232,25 +234,25 @@ impl<T: Real, const M: usize> Rejection<T, M> {
     ///
     /// (world frame: `d̂_{k−1}` enters through `R̄ᵀ = ½(R_{k−1} + R_k)ᵀ` and `r_k` leaves
     /// through `R̄`). Returns the estimate in the body frame at `t_k`.
-    fn observe(
+    #[inline]
+    fn observe<G: MatrixLieGroup<N, M>, const N: usize>(
         &mut self,
         mu: &SVector<T, M>,
         gyro: &SVector<T, M>,
-        r: &Matrix3<T>,
+        q: &SMatrix<T, N, N>,
         applied: &SVector<T, M>,
         h: T,
     ) -> SVector<T, M> {
-        let Some(o) = self.config.observer else {
+        let Some(o) = &self.config.observer else {
             return SVector::zeros();
         };
-        if let Some(a) = self.anchor {
-            let ell = self.discrete_gain(&o.gain, h);
+        if let (Some(a), Some((_, ell))) = (&self.anchor, &self.gain) {
             let half: T = crate::real(0.5);
             let base = mu - a.mu - (a.gyro + gyro) * (h * half) - applied * h;
             self.estimate += match o.frame {
                 Frame::Body => (base - self.estimate * h).component_mul(&ell),
                 Frame::World => {
-                    let mean = (a.r + r) * half;
+                    let mean = (self.anchor_r + G::rotation(q)) * half;
                     let body = base - rotate_blocks(&mean.transpose(), &self.estimate) * h;
                     rotate_blocks(&mean, &body).component_mul(&ell)
                 }
@@ -259,7 +261,11 @@ impl<T: Real, const M: usize> Rejection<T, M> {
         }
         match o.frame {
             Frame::Body => self.estimate,
-            Frame::World => rotate_blocks(&r.transpose(), &self.estimate),
+            Frame::World => {
+                let r = G::rotation(q);
+                self.anchor_r = r;
+                rotate_blocks(&r.transpose(), &self.estimate)
+            }
         }
     }
 
@@ -271,6 +277,7 @@ impl<T: Real, const M: usize> Rejection<T, M> {
     ///
     /// without the increments that deepen an axis the applied torque saturated (PX4's rule).
     /// Returns the integral's torque `−K_I ⊙ z_k` (body frame).
+    #[inline]
     fn integrate(
         &mut self,
         integrand: &SVector<T, M>,
@@ -278,7 +285,7 @@ impl<T: Real, const M: usize> Rejection<T, M> {
         h: T,
         update: bool,
     ) -> SVector<T, M> {
-        let Some(i) = self.config.integral else {
+        let Some(i) = &self.config.integral else {
             return SVector::zeros();
         };
         if update {
@@ -336,7 +343,7 @@ where
         finite(Quantity::Reference, &desired.v)?;
         finite(Quantity::Reference, &desired.tau)?;
         finite(Quantity::AppliedTorque, applied)?;
-        crate::validate::period(h)?;
+        rejection.set_period(h)?;
         let (tau, error) = self.raw_torque(q, v, desired);
         finite(Quantity::Torque, &tau)?;
         let update = follows && rejection.anchor.is_some();
@@ -345,21 +352,22 @@ where
         }
         let c = self.config();
         let mu = c.inertia * v;
-        let gyro = G::ad(v).tr_mul(&mu);
-        let r = G::rotation(q);
-        let observer = rejection.observe(&mu, &gyro, &r, applied, h);
+        let gyro = G::ad_transpose_mul(v, &mu);
+        let observer = rejection.observe::<G, N>(&mu, &gyro, q, applied, h);
         let velocity_error = v - desired.v;
-        let integrand = match &rejection.config.integral {
+        let mut torque = tau - observer;
+        let integral = match &rejection.config.integral {
             Some(i) => {
                 let grad = potential_gradient::<G, T, N, M>(&error.q, &c.k);
                 let eps = G::adjoint(&desired.q).tr_mul(&grad);
-                velocity_error + i.c.component_mul(&eps)
+                let integrand = velocity_error + i.c.component_mul(&eps);
+                let integral = rejection.integrate(&integrand, applied, h, update);
+                torque += integral;
+                integral
             }
             None => SVector::zeros(),
         };
-        let integral = rejection.integrate(&integrand, applied, h, update);
-        rejection.anchor = Some(Anchor { mu, gyro, r });
-        let mut torque = tau - observer + integral;
+        rejection.anchor = Some(Anchor { mu, gyro });
         finite(Quantity::Torque, &torque)?;
         let saturated = saturate(&mut torque, c.torque_limit.as_ref());
         Ok(LawOutput {

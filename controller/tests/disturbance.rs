@@ -287,3 +287,19 @@ fn the_observer_error_decays_at_its_gain_whatever_the_law_does() {
         assert!((rate - gain).abs() < 0.01 * gain, "{rate}");
     }
 }
+
+proptest::proptest! {
+    /// The closed forms of `ad_vᵀ μ` equal the matrix product (the observer's gyroscopic term).
+    #[test]
+    fn the_closed_forms_of_ad_transpose_equal_the_matrix_product(
+        v in proptest::array::uniform6(-5.0f64..5.0),
+        mu in proptest::array::uniform6(-5.0f64..5.0),
+    ) {
+        let (v6, mu6) = (SVector::<f64, 6>::from(v), SVector::<f64, 6>::from(mu));
+        let d6 = Se3::ad_transpose_mul(&v6, &mu6) - Se3::ad(&v6).tr_mul(&mu6);
+        proptest::prop_assert!(d6.amax() < 1e-12, "{}", d6);
+        let (v3, mu3) = (v6.fixed_rows::<3>(0).into_owned(), mu6.fixed_rows::<3>(0).into_owned());
+        let d3 = So3::ad_transpose_mul(&v3, &mu3) - So3::ad(&v3).tr_mul(&mu3);
+        proptest::prop_assert!(d3.amax() < 1e-12, "{}", d3);
+    }
+}

@@ -97,6 +97,12 @@ pub trait MatrixLieGroup<const N: usize, const M: usize>:
     /// `ad_v` as the m×m matrix of `W ↦ [hat(v), hat(W)]`.
     fn ad<T: Real>(v: &SVector<T, M>) -> SMatrix<T, M, M>;
 
+    /// `ad_vᵀ μ` (the coadjoint action `ad*_v μ` in the dual coordinates), without forming
+    /// the matrix. The default is `ad(v)ᵀ μ`; groups give closed forms.
+    fn ad_transpose_mul<T: Real>(v: &SVector<T, M>, mu: &SVector<T, M>) -> SVector<T, M> {
+        Self::ad(v).tr_mul(mu)
+    }
+
     /// The attitude part `R` of `Q` (SO(3): `Q` itself; SE(3): its rotation block).
     fn rotation<T: Real>(q: &SMatrix<T, N, N>) -> nalgebra::Matrix3<T>;
 

@@ -122,6 +122,13 @@ impl MatrixLieGroup<4, 6> for Se3 {
         blocks(&wx, &skew(&u), &wx)
     }
 
+    /// With `V = (ω, v)`, `μ = (μ_ω, μ_v)`: `ad_Vᵀ μ = (μ_ω × ω + μ_v × v, μ_v × ω)`.
+    fn ad_transpose_mul<T: Real>(v: &SVector<T, 6>, mu: &SVector<T, 6>) -> SVector<T, 6> {
+        let (w, u) = split(v);
+        let (mw, mv) = split(mu);
+        join(&(mw.cross(&w) + mv.cross(&u)), &mv.cross(&w))
+    }
+
     fn frobenius_coordinates<T: Real>(x: &SMatrix<T, 4, 4>) -> SVector<T, 6> {
         SVector::<T, 6>::new(
             x[(2, 1)] - x[(1, 2)],

@@ -149,6 +149,11 @@ impl MatrixLieGroup<3, 3> for So3 {
         skew(v)
     }
 
+    /// `ad_vᵀ μ = (v×)ᵀ μ = μ × v`.
+    fn ad_transpose_mul<T: Real>(v: &SVector<T, 3>, mu: &SVector<T, 3>) -> SVector<T, 3> {
+        mu.cross(v)
+    }
+
     fn frobenius_coordinates<T: Real>(x: &SMatrix<T, 3, 3>) -> SVector<T, 3> {
         Vector3::new(
             x[(2, 1)] - x[(1, 2)],
