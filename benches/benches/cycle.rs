@@ -277,6 +277,92 @@ fn baseline(c: &mut Criterion) {
     g.finish();
 }
 
+/// The disturbance-rejection terms (docs/maths.md, "Disturbance rejection"): the four
+/// variants' configurations (none, observer, integral, both) for the SO(3) seed body.
+fn term_variants<T: Real>() -> [(&'static str, controller::RejectionConfig<T, 3>); 4] {
+    let observer = controller::ObserverConfig {
+        gain: Vector3::repeat(real(20.0)),
+        limit: None,
+        frame: controller::Frame::Body,
+    };
+    let integral = controller::IntegralConfig {
+        ki: Vector3::repeat(real(0.5)),
+        c: Vector3::repeat(real(0.2)),
+        limit: Some(Vector3::repeat(real(0.5))),
+        anti_windup: true,
+    };
+    let config = |o, i| controller::RejectionConfig {
+        observer: o,
+        integral: i,
+    };
+    [
+        ("plain", config(None, None)),
+        ("observer", config(Some(observer), None)),
+        ("integral", config(None, Some(integral))),
+        ("both", config(Some(observer), Some(integral))),
+    ]
+}
+
+/// The law with each term (`Controller::compute_rejecting` on a running cycle; `plain`:
+/// `Controller::compute`), and the controller's whole cycle with each (as the node runs it:
+/// `Responder::respond` on consecutive states, then the reference's step).
+fn terms<T: Real>(c: &mut Criterion, scalar: &str) {
+    let ctl = seed_controller::<T>(Law::Eqt);
+    let (q, v, _, d, ..) = so3_generic::<T>();
+    let applied = Vector3::new(0.1, -0.2, 0.05).map(real::<T>);
+    let h = real::<T>(0.001);
+    let mut g = c.benchmark_group("law_terms");
+    g.throughput(Throughput::Elements(1));
+    for (name, config) in term_variants::<T>() {
+        let Ok(mut terms) = controller::Rejection::new(config, None) else {
+            continue;
+        };
+        for _ in 0..2 {
+            let _ = ctl.compute_rejecting(&mut terms, &q, &v, &d, &applied, h, true);
+        }
+        g.bench_function(format!("so3/{name}/{scalar}"), |b| {
+            b.iter(|| {
+                if name == "plain" {
+                    ctl.compute(black_box(&q), black_box(&v), black_box(&d))
+                } else {
+                    ctl.compute_rejecting(
+                        &mut terms,
+                        black_box(&q),
+                        black_box(&v),
+                        black_box(&d),
+                        black_box(&applied),
+                        h,
+                        true,
+                    )
+                }
+            })
+        });
+    }
+    g.finish();
+    let mut g = c.benchmark_group("cycle_terms");
+    g.throughput(Throughput::Elements(1));
+    let (q64, v64, ..) = so3_generic::<f64>();
+    for (name, config) in term_variants::<T>() {
+        let Ok(mut responder) = controller_node::Responder::new(ctl, config) else {
+            continue;
+        };
+        let mut reference = seed_reference::<T>(1);
+        let mut msg = state_msg::<So3, 3, 3>(&q64, &v64);
+        msg.applied = [0.1, -0.2, 0.05, 0.0, 0.0, 0.0];
+        msg.control_period = 0.01;
+        g.bench_function(format!("so3/{name}/{scalar}"), |b| {
+            b.iter(|| {
+                // consecutive states: the terms update every cycle
+                msg.seq = reference.step_index();
+                let cmd = responder.respond(&mut reference, black_box(&msg));
+                reference.advance();
+                cmd
+            })
+        });
+    }
+    g.finish();
+}
+
 fn all(c: &mut Criterion) {
     laws::<f64>(c, "f64");
     laws::<f32>(c, "f32");
@@ -286,6 +372,8 @@ fn all(c: &mut Criterion) {
     estimators::<f64>(c, "f64");
     estimators::<f32>(c, "f32");
     plant_side(c);
+    terms::<f64>(c, "f64");
+    terms::<f32>(c, "f32");
 }
 
 criterion_group!(benches, all);

@@ -336,16 +336,9 @@ where
         h: T,
         follows: bool,
     ) -> Result<LawOutput<T, N, M>, Error> {
-        finite(Quantity::State, q)?;
-        finite(Quantity::State, v)?;
-        finite(Quantity::Reference, &desired.q)?;
-        finite(Quantity::Reference, &desired.p)?;
-        finite(Quantity::Reference, &desired.v)?;
-        finite(Quantity::Reference, &desired.tau)?;
+        let (tau, error) = self.checked_raw_torque(q, v, desired)?;
         finite(Quantity::AppliedTorque, applied)?;
         rejection.set_period(h)?;
-        let (tau, error) = self.raw_torque(q, v, desired);
-        finite(Quantity::Torque, &tau)?;
         let update = follows && rejection.anchor.is_some();
         if !update {
             rejection.anchor = None;

@@ -378,6 +378,25 @@ where
         safe_mode_torque(&self.config.kd, v, self.config.torque_limit.as_ref())
     }
 
+    /// [`Controller::raw_torque`] between the checks: the state and the reference finite
+    /// before, the torque finite after.
+    pub(crate) fn checked_raw_torque(
+        &self,
+        q: &SMatrix<T, N, N>,
+        v: &SVector<T, M>,
+        desired: &Desired<T, N, M>,
+    ) -> Result<(SVector<T, M>, Phase<T, N, M>), Error> {
+        finite(Quantity::State, q)?;
+        finite(Quantity::State, v)?;
+        finite(Quantity::Reference, &desired.q)?;
+        finite(Quantity::Reference, &desired.p)?;
+        finite(Quantity::Reference, &desired.v)?;
+        finite(Quantity::Reference, &desired.tau)?;
+        let (tau, error) = self.raw_torque(q, v, desired);
+        finite(Quantity::Torque, &tau)?;
+        Ok((tau, error))
+    }
+
     /// One evaluation of the law: checks the state is finite, computes the torque, saturates
     /// it, and evaluates the Lyapunov function. Never returns a non-finite torque.
     pub fn compute(
@@ -386,14 +405,7 @@ where
         v: &SVector<T, M>,
         desired: &Desired<T, N, M>,
     ) -> Result<LawOutput<T, N, M>, Error> {
-        finite(Quantity::State, q)?;
-        finite(Quantity::State, v)?;
-        finite(Quantity::Reference, &desired.q)?;
-        finite(Quantity::Reference, &desired.p)?;
-        finite(Quantity::Reference, &desired.v)?;
-        finite(Quantity::Reference, &desired.tau)?;
-        let (mut tau, error) = self.raw_torque(q, v, desired);
-        finite(Quantity::Torque, &tau)?;
+        let (mut tau, error) = self.checked_raw_torque(q, v, desired)?;
         let saturated = saturate(&mut tau, self.config.torque_limit.as_ref());
         let velocity_error = v - desired.v;
         let lyapunov = lyapunov(

@@ -193,6 +193,44 @@ pub fn run(name: &str, args: &[&str], timeout: Duration) -> (i32, String) {
     }
 }
 
+/// Flies scenario `file` with `plant_sim sim` and with the lockstep pair (run `t-<name>`)
+/// into `d`, asserts the two `trajectory.csv` are identical byte for byte, and returns the
+/// two output directories `(sim, pair)`.
+pub fn sim_equals_lockstep(d: &TempDir, name: &str, file: &str) -> (String, String) {
+    let long = Duration::from_secs(120);
+    let (sim, pair) = (
+        d.join(&format!("{name}-sim")),
+        d.join(&format!("{name}-pair")),
+    );
+    let (code, out) = run(
+        "plant_sim",
+        &["sim", "--scenario", file, "--out", &sim],
+        long,
+    );
+    assert_eq!(code, 0, "{out}");
+    let run_name = format!("t-{name}");
+    let args = [
+        "run",
+        "--scenario",
+        file,
+        "--mode",
+        "lockstep",
+        "--name",
+        &run_name,
+        "--out",
+        &pair,
+    ];
+    let (code, out) = run("plant_sim", &args, long);
+    assert_eq!(code, 0, "{out}");
+    let a = std::fs::read(format!("{sim}/trajectory.csv")).unwrap();
+    let b = std::fs::read(format!("{pair}/trajectory.csv")).unwrap();
+    assert!(
+        a == b,
+        "{name}: the lockstep pair differs from the simulation"
+    );
+    (sim, pair)
+}
+
 /// A CSV file as a header and rows of strings.
 pub struct Csv {
     /// Column names.

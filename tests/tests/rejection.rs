@@ -3,7 +3,7 @@
 //! a real-time run with a stopped controller replays bit for bit and winds nothing up, and
 //! bad keys are refused. Tests run one at a time ([`serial`]).
 
-use pair_tests::{Csv, Proc, TempDir, run, serial, summary};
+use pair_tests::{Csv, Proc, TempDir, run, serial, sim_equals_lockstep, summary};
 use std::path::Path;
 use std::time::Duration;
 
@@ -35,31 +35,7 @@ fn lockstep_with_the_observer_and_the_integral_equals_the_simulation_bit_for_bit
         ("reject_se3", scenario("reject_se3")),
         ("reject_so3_integral", integral.clone()),
     ] {
-        let (sim, pair) = (
-            d.join(&format!("{name}-sim")),
-            d.join(&format!("{name}-pair")),
-        );
-        let (code, out) = plant(&["sim", "--scenario", &file, "--out", &sim]);
-        assert_eq!(code, 0, "{out}");
-        let run_name = format!("t-{name}");
-        let (code, out) = plant(&[
-            "run",
-            "--scenario",
-            &file,
-            "--mode",
-            "lockstep",
-            "--name",
-            &run_name,
-            "--out",
-            &pair,
-        ]);
-        assert_eq!(code, 0, "{out}");
-        let a = std::fs::read(format!("{sim}/trajectory.csv")).unwrap();
-        let b = std::fs::read(format!("{pair}/trajectory.csv")).unwrap();
-        assert!(
-            a == b,
-            "{name}: the lockstep pair differs from the simulation"
-        );
+        let (sim, pair) = sim_equals_lockstep(&d, name, &file);
         // the terms crossed the wire and are recorded
         let csv = Csv::read(&Path::new(&sim).join("trajectory.csv"));
         let m = if name.ends_with("se3") { 6 } else { 3 };

@@ -2,7 +2,7 @@
 //! the equivariant filter on the plant side, driven through the real binaries
 //! (docs/architecture.md, "Sensors and the estimator"). Tests run one at a time ([`serial`]).
 
-use pair_tests::{Csv, TempDir, run, serial, summary};
+use pair_tests::{Csv, TempDir, run, serial, sim_equals_lockstep, summary};
 use std::path::Path;
 use std::time::Duration;
 
@@ -21,32 +21,7 @@ fn lockstep_with_sensors_and_the_filter_equals_the_simulation_bit_for_bit() {
     let _g = serial();
     let d = TempDir::new("sensors-lockstep");
     for name in ["sensors_so3", "sensors_se3", "eqf_so3", "eqf_se3"] {
-        let file = scenario(name);
-        let (sim, pair) = (
-            d.join(&format!("{name}-sim")),
-            d.join(&format!("{name}-pair")),
-        );
-        let (code, out) = plant(&["sim", "--scenario", &file, "--out", &sim]);
-        assert_eq!(code, 0, "{out}");
-        let run_name = format!("t-{name}");
-        let (code, out) = plant(&[
-            "run",
-            "--scenario",
-            &file,
-            "--mode",
-            "lockstep",
-            "--name",
-            &run_name,
-            "--out",
-            &pair,
-        ]);
-        assert_eq!(code, 0, "{out}");
-        let a = std::fs::read(format!("{sim}/trajectory.csv")).unwrap();
-        let b = std::fs::read(format!("{pair}/trajectory.csv")).unwrap();
-        assert!(
-            a == b,
-            "{name}: the lockstep pair differs from the simulation"
-        );
+        let (sim, pair) = sim_equals_lockstep(&d, name, &scenario(name));
         // the estimate is what crossed the wire; the samples and the estimate are recorded
         let csv = Csv::read(&Path::new(&sim).join("trajectory.csv"));
         for col in [
