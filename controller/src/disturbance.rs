@@ -250,11 +250,11 @@ impl<T: Real, const M: usize> Rejection<T, M> {
             let half: T = crate::real(0.5);
             let base = mu - a.mu - (a.gyro + gyro) * (h * half) - applied * h;
             self.estimate += match o.frame {
-                Frame::Body => (base - self.estimate * h).component_mul(&ell),
+                Frame::Body => (base - self.estimate * h).component_mul(ell),
                 Frame::World => {
                     let mean = (self.anchor_r + G::rotation(q)) * half;
                     let body = base - rotate_blocks(&mean.transpose(), &self.estimate) * h;
-                    rotate_blocks(&mean, &body).component_mul(&ell)
+                    rotate_blocks(&mean, &body).component_mul(ell)
                 }
             };
             saturate(&mut self.estimate, o.limit.as_ref());

@@ -1,4 +1,5 @@
-//! Calls the controller for SO(3) and SE(3) in f32 and f64, runs a short closed loop and uses
+//! Calls the controller for SO(3) and SE(3) in f32 and f64, runs short closed loops (one with
+//! the disturbance-rejection terms) and uses
 //! the `ipc_types` wire contract, in a binary with no std, no alloc and no global allocator. Exits 0 when every check holds.
 #![no_std]
 #![no_main]
@@ -119,7 +120,8 @@ fn ipc_check() -> bool {
     let nan = check_state(&s, So3, Some(2), None) == Err(Reject::NonFinite);
     let mut c = CommandMsg::new(Se3);
     c.seq = 3;
-    let cmd = check_command(&c, Se3, 3) == Ok(()) && check_command(&c, So3, 3) == Err(Reject::Group);
+    let cmd =
+        check_command(&c, Se3, 3) == Ok(()) && check_command(&c, So3, 3) == Err(Reject::Group);
     let round_trip = StateMsg::from_bytes(&s.to_bytes()).is_ok_and(|d| d.seq == 3);
     let names = service_names("board1").is_some_and(|n| n.state.as_str() == "eqtrack/board1/state");
     ok && nan && cmd && names && round_trip
@@ -144,7 +146,14 @@ fn estimator_check<T: Real>() -> bool {
     let nan = Vector3::new(real::<T>(f64::NAN), T::zero(), T::zero());
     let held = f.step(real(0.01), &nan, &y) == e && f.faults().gyro == 1;
     let attitude = (e.r - r).norm() < real(1e-3) && (e.bias - b).norm() < real(1e-3);
-    let Ok(pc) = PoseConfig::new(real(2.0), real(1.0), &w[1..], &[T::one(), T::one()], real(0.05), real(0.01)) else {
+    let Ok(pc) = PoseConfig::new(
+        real(2.0),
+        real(1.0),
+        &w[1..],
+        &[T::one(), T::one()],
+        real(0.05),
+        real(0.01),
+    ) else {
         return false;
     };
     let mut p = PoseFilter::new(pc);
@@ -161,7 +170,12 @@ fn estimator_check<T: Real>() -> bool {
 /// The equivariant filter without std: from a TRIAD start on exact samples of a body at
 /// rest it finds the attitude and the bias, keeps its covariance positive definite, and
 /// counts a NaN gyro sample.
-fn eqf_check<T: Real>(w: &[Vector3<T>; 2], r: &Matrix3<T>, y: &[Vector3<T>; 2], b: &Vector3<T>) -> bool {
+fn eqf_check<T: Real>(
+    w: &[Vector3<T>; 2],
+    r: &Matrix3<T>,
+    y: &[Vector3<T>; 2],
+    b: &Vector3<T>,
+) -> bool {
     use estimator::{EqfConfig, EquivariantFilter};
     let Ok(cfg) = EqfConfig::new(real(0.01), real(0.01), w, &[real(0.01), real(0.01)]) else {
         return false;
@@ -179,8 +193,61 @@ fn eqf_check<T: Real>(w: &[Vector3<T>; 2], r: &Matrix3<T>, y: &[Vector3<T>; 2], 
 }
 
 /// Runs every check; 0 when all hold.
+/// The disturbance-rejection terms without std: the seed loop under a constant body
+/// disturbance with the observer and the integral; the observer's estimate converges to the
+/// disturbance.
+fn rejection_check<T: Real>() -> bool {
+    let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759).map(real::<T>);
+    let d = Vector3::new(real::<T>(0.1), real(-0.05), real(0.08));
+    let build = || -> Result<ClosedLoop<T, So3, 3, 3>, controller::Error> {
+        let c = Controller::new(ControllerConfig {
+            law: Law::Eqt,
+            inertia,
+            k: Matrix3::identity() * real::<T>(0.5),
+            kd: Matrix3::identity() * real::<T>(0.5),
+            torque_limit: Some(Vector3::repeat(real(5.0))),
+        })?;
+        let r = Reference::new(
+            Matrix3::identity(),
+            Vector3::zeros(),
+            inertia,
+            so3_seed_feedforward(),
+            real(0.01),
+            1,
+        )?;
+        let p = RigidBody::new(inertia, Matrix3::identity(), Vector3::zeros())?;
+        ClosedLoop::new(c, r, p, 10)?
+            .with_disturbance(d)?
+            .with_rejection(controller::RejectionConfig {
+                observer: Some(controller::ObserverConfig {
+                    gain: Vector3::repeat(real(10.0)),
+                    limit: None,
+                    frame: controller::Frame::Body,
+                }),
+                integral: Some(controller::IntegralConfig {
+                    ki: Vector3::repeat(real(0.1)),
+                    c: Vector3::repeat(real(0.1)),
+                    limit: None,
+                    anti_windup: true,
+                }),
+            })
+    };
+    let Ok(mut sim) = build() else { return false };
+    let mut last = None;
+    for _ in 0..300 {
+        match sim.step() {
+            Ok(s) => last = Some(s),
+            Err(_) => return false,
+        }
+    }
+    // the observer's estimate converges to d (3 s at L = 10: e^-30)
+    last.is_some_and(|s| (s.output.observer - d).amax() < real(1e-3))
+}
+
 fn run() -> i32 {
-    let checks: [(&str, bool); 10] = [
+    let checks: [(&str, bool); 12] = [
+        ("disturbance rejection f32", rejection_check::<f32>()),
+        ("disturbance rejection f64", rejection_check::<f64>()),
         ("estimator f32", estimator_check::<f32>()),
         ("estimator f64", estimator_check::<f64>()),
         ("ipc_types messages", ipc_check()),
