@@ -28,8 +28,9 @@ use std::time::Duration;
 
 /// The file's first eight bytes.
 pub const MAGIC: [u8; 8] = *b"EQTRKLOG";
-/// The format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+/// The format version this build writes and reads (2: the records hold protocol-3
+/// messages, with the applied torque and the disturbance-rejection terms).
+pub const FORMAT_VERSION: u32 = 2;
 /// Bytes of the header.
 pub const HEADER_BYTES: usize = 192;
 /// Where a record's state message starts.
