@@ -317,6 +317,35 @@ where
     T: Real,
     G: MatrixLieGroup<N, M>,
 {
+    /// Restores the terms' state as it was before a cycle (for replay): the observer's
+    /// estimate (in its own frame), the integral `z`, and the anchor of the state `(q, v)`
+    /// processed before (`None`: no anchor, the next cycle re-anchors). The anchor is formed
+    /// exactly as [`Controller::compute_rejecting`] forms it.
+    pub fn restore_rejection(
+        &self,
+        rejection: &mut Rejection<T, M>,
+        estimate: &SVector<T, M>,
+        z: &SVector<T, M>,
+        previous: Option<(&SMatrix<T, N, N>, &SVector<T, M>)>,
+    ) {
+        rejection.estimate = *estimate;
+        rejection.z = *z;
+        rejection.anchor = previous.map(|(q, v)| {
+            let mu = self.config().inertia * v;
+            if rejection
+                .config
+                .observer
+                .is_some_and(|o| o.frame == Frame::World)
+            {
+                rejection.anchor_r = G::rotation(q);
+            }
+            Anchor {
+                gyro: G::ad_transpose_mul(v, &mu),
+                mu,
+            }
+        });
+    }
+
     /// One evaluation of the law with the disturbance-rejection terms of `rejection`
     /// (docs/maths.md, "Disturbance rejection"): the checks of [`Controller::compute`], then
     /// the observer's and the integral's steps with `applied`, the torque the plant applied

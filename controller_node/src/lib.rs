@@ -184,6 +184,11 @@ where
     )
 }
 
+/// A scalar as `f64` (NaN if it cannot be converted).
+fn to_f64<T: controller::Real>(x: T) -> f64 {
+    nalgebra::try_convert::<T, f64>(x).unwrap_or(f64::NAN)
+}
+
 /// The command for state `seq` from the law's output.
 fn command<T, G, const N: usize, const M: usize>(
     seq: u64,
@@ -195,8 +200,7 @@ where
 {
     let mut cmd = CommandMsg::new(G::KIND);
     cmd.seq = seq;
-    let to_f64 = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap_or(f64::NAN);
-    cmd.set_torque(&out.torque.map(to_f64));
+    cmd.set_torque(&out.torque.map(to_f64::<T>));
     cmd.lyapunov = to_f64(out.lyapunov.total);
     for i in 0..M.min(ipc_types::MAX_M) {
         cmd.observer[i] = to_f64(out.observer[i]);
@@ -261,6 +265,10 @@ where
     ) -> Result<CommandMsg, controller::Error> {
         let (q, v) = catch_up(reference, msg);
         let desired = reference.desired();
+        let before = self
+            .rejection
+            .as_ref()
+            .map(|r| (*r.estimate(), *r.integral_state()));
         let out = match &mut self.rejection {
             None => self.controller.compute(&q, &v, &desired)?,
             Some(r) => {
@@ -281,8 +289,40 @@ where
         };
         let mut cmd = command::<T, G, N, M>(msg.seq, &out);
         cmd.previous_seq = self.previous.unwrap_or(ipc_types::NO_PREVIOUS);
+        if let Some((estimate, z)) = before {
+            for i in 0..M.min(ipc_types::MAX_M) {
+                cmd.estimate_before[i] = to_f64(estimate[i]);
+                cmd.z_before[i] = to_f64(z[i]);
+            }
+        }
         self.previous = Some(msg.seq);
         Ok(cmd)
+    }
+
+    /// Restores the state this responder had before it answered the recorded command `cmd`
+    /// (replay): the terms from the command's `estimate_before` and `z_before`, their anchor
+    /// from `previous` (the recorded state `cmd.previous_seq`; `None` if there is none or it
+    /// is not in the record), and the previous sequence number. Without terms it only sets
+    /// the sequence number.
+    pub fn restore(&mut self, cmd: &CommandMsg, previous: Option<&StateMsg>) {
+        self.previous = (cmd.previous_seq != ipc_types::NO_PREVIOUS).then_some(cmd.previous_seq);
+        if let Some(r) = &mut self.rejection {
+            let from = |xs: &[f64; ipc_types::MAX_M]| {
+                nalgebra::SVector::<T, M>::from_fn(|i, _| controller::real::<T>(xs[i]))
+            };
+            let anchor = previous.map(|p| {
+                (
+                    p.configuration::<N>().map(controller::real::<T>),
+                    p.velocity::<M>().map(controller::real::<T>),
+                )
+            });
+            self.controller.restore_rejection(
+                r,
+                &from(&cmd.estimate_before),
+                &from(&cmd.z_before),
+                anchor.as_ref().map(|(q, v)| (q, v)),
+            );
+        }
     }
 }
 

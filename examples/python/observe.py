@@ -66,6 +66,8 @@ class CommandMsg(ctypes.Structure):
         ("observer", ctypes.c_double * MAX_M),
         ("integral", ctypes.c_double * MAX_M),
         ("previous_seq", ctypes.c_uint64),
+        ("estimate_before", ctypes.c_double * MAX_M),
+        ("z_before", ctypes.c_double * MAX_M),
         ("heap_allocations", ctypes.c_uint64),
         ("flags", ctypes.c_uint32),
         ("mismatch", ctypes.c_uint32),

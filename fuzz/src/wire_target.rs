@@ -44,7 +44,7 @@ const STATE_FIELDS: [(&str, usize, Ty, usize); 13] = [
 ];
 
 /// The fields of an encoded [`CommandMsg`].
-const COMMAND_FIELDS: [(&str, usize, Ty, usize); 17] = [
+const COMMAND_FIELDS: [(&str, usize, Ty, usize); 19] = [
     ("version", 0, Ty::U32, 1),
     ("group", 4, Ty::U32, 1),
     ("seq", 8, Ty::U64, 1),
@@ -56,12 +56,14 @@ const COMMAND_FIELDS: [(&str, usize, Ty, usize); 17] = [
     ("observer", 96, Ty::F64, 6),
     ("integral", 144, Ty::F64, 6),
     ("previous_seq", 192, Ty::U64, 1),
-    ("heap_allocations", 200, Ty::U64, 1),
-    ("flags", 208, Ty::U32, 1),
-    ("mismatch", 212, Ty::U32, 1),
-    ("fingerprint", 216, Ty::U64, 1),
-    ("expected_period", 224, Ty::F64, 1),
-    ("scenario", 232, Ty::Name, 1),
+    ("estimate_before", 200, Ty::F64, 6),
+    ("z_before", 248, Ty::F64, 6),
+    ("heap_allocations", 296, Ty::U64, 1),
+    ("flags", 304, Ty::U32, 1),
+    ("mismatch", 308, Ty::U32, 1),
+    ("fingerprint", 312, Ty::U64, 1),
+    ("expected_period", 320, Ty::F64, 1),
+    ("scenario", 328, Ty::Name, 1),
 ];
 
 fn fields(kind: MsgKind) -> &'static [(&'static str, usize, Ty, usize)] {
@@ -771,6 +773,8 @@ mod tests {
         c.observer[1] = -0.5;
         c.integral[4] = 0.75;
         c.previous_seq = 77;
+        c.estimate_before[1] = 2.5;
+        c.z_before[5] = -4.5;
         c.scenario = name_bytes("xyz");
         let b = c.to_bytes();
         assert_eq!(read_u64(&b, 40 + 5 * 8), Some(3.5f64.to_bits()));
@@ -778,9 +782,11 @@ mod tests {
         assert_eq!(read_u64(&b, 96 + 8), Some((-0.5f64).to_bits()));
         assert_eq!(read_u64(&b, 144 + 4 * 8), Some(0.75f64.to_bits()));
         assert_eq!(read_u64(&b, 192), Some(77));
-        assert_eq!(read_u32(&b, 212), Some(6));
-        assert_eq!(read_u64(&b, 224), Some(0.125f64.to_bits()));
-        assert_eq!(&b[232..235], b"xyz");
+        assert_eq!(read_u64(&b, 200 + 8), Some(2.5f64.to_bits()));
+        assert_eq!(read_u64(&b, 248 + 5 * 8), Some((-4.5f64).to_bits()));
+        assert_eq!(read_u32(&b, 308), Some(6));
+        assert_eq!(read_u64(&b, 320), Some(0.125f64.to_bits()));
+        assert_eq!(&b[328..331], b"xyz");
         let last = COMMAND_FIELDS[COMMAND_FIELDS.len() - 1];
         assert_eq!(last.1 + width(last.2) * last.3, COMMAND_BYTES);
         for fs in [&STATE_FIELDS[..], &COMMAND_FIELDS[..]] {

@@ -61,6 +61,8 @@ typedef struct eqtrack_CommandMsg {
     double observer[EQTRACK_MAX_M]; /* disturbance estimate d_hat (body), subtracted; 0: none */
     double integral[EQTRACK_MAX_M]; /* integral torque -K_I z (body), added; 0: none */
     uint64_t previous_seq;      /* the state processed before this one; UINT64_MAX: none */
+    double estimate_before[EQTRACK_MAX_M]; /* observer estimate before this update (its frame) */
+    double z_before[EQTRACK_MAX_M];        /* integral z before this update */
     uint64_t heap_allocations;  /* since the controller's first cycle */
     uint32_t flags;             /* EQTRACK_FLAG_REFUSED */
     uint32_t mismatch;          /* with REFUSED: what differs (1 group, 2 period, 4 scenario) */

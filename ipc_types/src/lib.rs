@@ -142,8 +142,14 @@ pub struct CommandMsg {
     /// without the integral), first m entries.
     pub integral: [f64; MAX_M],
     /// The sequence number of the state the controller processed before this one
-    /// ([`NO_PREVIOUS`]: none). States in between were never seen; replay skips them too.
+    /// ([`NO_PREVIOUS`]: none; states in between it never saw).
     pub previous_seq: u64,
+    /// The observer's estimate before this state updated it, in the observer's own frame
+    /// (zeros without the observer), first m entries. With `previous_seq` and the recorded
+    /// states, replay restores the terms from it and checks this command on its own.
+    pub estimate_before: [f64; MAX_M],
+    /// The integral `z` before this state updated it (zeros without the integral), first m.
+    pub z_before: [f64; MAX_M],
     /// Heap allocations the controller made since the end of its first cycle (diagnostic).
     pub heap_allocations: u64,
     /// [`flags`] bits ([`flags::REFUSED`]).
@@ -330,6 +336,8 @@ impl CommandMsg {
             observer: [0.0; MAX_M],
             integral: [0.0; MAX_M],
             previous_seq: NO_PREVIOUS,
+            estimate_before: [0.0; MAX_M],
+            z_before: [0.0; MAX_M],
             heap_allocations: 0,
             flags: 0,
             mismatch: 0,
@@ -379,8 +387,20 @@ impl CommandMsg {
 pub const STATE_BYTES: usize =
     4 + 4 + 8 + 8 + 8 + 8 + 8 * MAX_N * MAX_N + 8 * MAX_M * 2 + 4 + 4 + 8 + NAME_BYTES;
 /// Bytes of an encoded [`CommandMsg`].
-pub const COMMAND_BYTES: usize =
-    4 + 4 + 8 * 4 + 8 * MAX_M + 8 + 8 * MAX_M * 2 + 8 + 8 + 4 + 4 + 8 + 8 + NAME_BYTES;
+pub const COMMAND_BYTES: usize = 4
+    + 4
+    + 8 * 4
+    + 8 * MAX_M
+    + 8
+    + 8 * MAX_M * 2
+    + 8
+    + 8 * MAX_M * 2
+    + 8
+    + 4
+    + 4
+    + 8
+    + 8
+    + NAME_BYTES;
 
 /// Why bytes are not a message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -531,6 +551,8 @@ impl CommandMsg {
         p.f64s(&self.observer);
         p.f64s(&self.integral);
         p.bytes(&self.previous_seq.to_le_bytes());
+        p.f64s(&self.estimate_before);
+        p.f64s(&self.z_before);
         p.bytes(&self.heap_allocations.to_le_bytes());
         p.bytes(&self.flags.to_le_bytes());
         p.bytes(&self.mismatch.to_le_bytes());
@@ -556,6 +578,8 @@ impl CommandMsg {
         g.f64s(&mut m.observer);
         g.f64s(&mut m.integral);
         m.previous_seq = g.u64();
+        g.f64s(&mut m.estimate_before);
+        g.f64s(&mut m.z_before);
         m.heap_allocations = g.u64();
         m.flags = g.u32();
         m.mismatch = g.u32();
@@ -678,6 +702,8 @@ pub fn check_command(msg: &CommandMsg, group: GroupKind, awaited: u64) -> Result
         || !msg.lyapunov.is_finite()
         || !all_finite(&msg.observer[..m])
         || !all_finite(&msg.integral[..m])
+        || !all_finite(&msg.estimate_before[..m])
+        || !all_finite(&msg.z_before[..m])
     {
         return Err(Reject::NonFinite);
     }
@@ -817,6 +843,9 @@ mod tests {
         c.integral[0] = f64::NEG_INFINITY;
         assert_eq!(check_command(&c, Se3, 3), Err(Reject::NonFinite));
         c.integral[0] = 0.0;
+        c.z_before[5] = f64::NAN;
+        assert_eq!(check_command(&c, Se3, 3), Err(Reject::NonFinite));
+        c.z_before[5] = 0.0;
         assert_eq!(check_command(&c, Se3, 3), Ok(()));
     }
 
@@ -854,6 +883,8 @@ mod tests {
         c.observer[1] = -0.125;
         c.integral[0] = 0.5;
         c.previous_seq = 41;
+        c.estimate_before[3] = 0.375;
+        c.z_before[2] = -1.5;
         c.heap_allocations = 9;
         c.mismatch = mismatch::SCENARIO;
         c.expected_period = 0.001;

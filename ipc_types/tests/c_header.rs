@@ -64,6 +64,8 @@ fn rust_layout() -> Layout {
             observer,
             integral,
             previous_seq,
+            estimate_before,
+            z_before,
             heap_allocations,
             flags,
             mismatch,

@@ -29,7 +29,7 @@ use std::time::Duration;
 /// The file's first eight bytes.
 pub const MAGIC: [u8; 8] = *b"EQTRKLOG";
 /// The format version this build writes and reads (2: the records hold protocol-3
-/// messages, with the applied torque and the disturbance-rejection terms).
+/// messages, with the applied torque and the disturbance-rejection terms: 752 bytes).
 pub const FORMAT_VERSION: u32 = 2;
 /// Bytes of the header.
 pub const HEADER_BYTES: usize = 192;

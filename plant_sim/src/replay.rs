@@ -1,8 +1,8 @@
 //! `plant_sim replay OUT_DIR`: the controller, in-process, over the states a run recorded
 //! (docs/architecture.md, "The flight recorder").
 //!
-//! Each recorded state goes through `controller_node::respond` — the very cycle the
-//! controller process runs — with the scenario the run stored beside its log, the reference
+//! Each recorded state goes through `controller_node::Responder::respond` — the very cycle
+//! the controller process runs — with the scenario the run stored beside its log, the reference
 //! built at the plant's period and stepped exactly as the node steps it. The controller is
 //! deterministic, so every recorded command must come out again bit for bit: a difference is
 //! a bug (or a different build, or a corrupted log), and replay names the first cycle that
@@ -10,6 +10,12 @@
 //! states, the other controller's answers, written to `replay.csv` and a figure. (Open loop:
 //! the body would have moved differently under the other torques; the states are the
 //! recorded ones.)
+//!
+//! The disturbance-rejection terms are the controller's state between cycles. Each recorded
+//! command carries the terms' state before it (`estimate_before`, `z_before`) and the state
+//! processed before it (`previous_seq`), so replay restores them from the record and checks
+//! every command on its own, whatever states the controller skipped or answered too late to
+//! be recorded. A what-if runs its own terms over every recorded state.
 
 use crate::SimError;
 use crate::flight::{LOG_FILE, LogReader, Record};
@@ -106,33 +112,13 @@ pub struct ReplayReport {
 
 /// Replays `opts.dir`'s log.
 pub fn replay(opts: &ReplayOptions) -> Result<ReplayReport, SimError> {
-    let unseen = unseen_states(&opts.dir.join(LOG_FILE))?;
     let mut log = LogReader::open(&opts.dir.join(LOG_FILE))?;
     let s = scenario_for(opts, &log)?;
     s.group.dispatch(Replay {
         opts,
         log: &mut log,
         s: &s,
-        unseen: &unseen,
     })
-}
-
-/// The ranges of states the controller never processed, from the previous sequence number
-/// each recorded command carries (a controller stopped for a while reads only the newest
-/// state when it wakes): a stateful controller (disturbance-rejection terms) must skip
-/// them in replay as it did in the run. Sorted, disjoint, half-open `[from, to)`.
-fn unseen_states(path: &Path) -> Result<Vec<(u64, u64)>, SimError> {
-    let mut log = LogReader::open(path)?;
-    let mut ranges = Vec::new();
-    while let Some(r) = log.next_record()? {
-        if let Some((c, _)) = &r.command {
-            let from = c.previous_seq.wrapping_add(1);
-            if c.previous_seq != ipc_types::NO_PREVIOUS && from < c.seq {
-                ranges.push((from, c.seq));
-            }
-        }
-    }
-    Ok(ranges)
 }
 
 /// The scenario of the run (its stored copy, checked against the log's fingerprint) with the
@@ -207,13 +193,12 @@ struct Replay<'a> {
     opts: &'a ReplayOptions,
     log: &'a mut LogReader,
     s: &'a Scenario,
-    unseen: &'a [(u64, u64)],
 }
 
 impl OnGroup for Replay<'_> {
     type Output = Result<ReplayReport, SimError>;
     fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
-        replay_group::<G, N, M>(self.opts, self.log, self.s, self.unseen)
+        replay_group::<G, N, M>(self.opts, self.log, self.s)
     }
 }
 
@@ -230,7 +215,6 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     opts: &ReplayOptions,
     log: &mut LogReader,
     s: &Scenario,
-    unseen: &[(u64, u64)],
 ) -> Result<ReplayReport, SimError> {
     let bad = |e: controller::Error| SimError::Input(format!("scenario `{}`: {e}", s.name));
     let mut responder = s
@@ -249,6 +233,8 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         written: None,
     };
     let mut rows = Vec::new();
+    // the recorded states since the last one a command named as its previous
+    let mut states = std::collections::BTreeMap::<u64, ipc_types::StateMsg>::new();
     let mut reference = None;
     let mut next = 0u64;
     // the node's own checks on each state (sequence, period, finite numbers): what it would
@@ -265,11 +251,15 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             continue;
         }
         (last_seq, period) = (Some(r.state.seq), Some(r.state.control_period));
-        let seq = r.state.seq;
-        if unseen.iter().any(|(from, to)| (*from..*to).contains(&seq)) {
-            // the controller never saw this state (its command says so)
-            continue;
+        if let (Some((c, _)), false) = (&r.command, what_if) {
+            // the controller's state before it answered: from the command and the recorded
+            // state it processed before (states it never saw, or answered too late to be
+            // recorded, change nothing)
+            let previous = states.get(&c.previous_seq).copied();
+            responder.restore(c, previous.as_ref());
+            states.retain(|k, _| *k >= c.previous_seq);
         }
+        states.insert(r.state.seq, r.state);
         // the node builds its reference on the first state, at the plant's period
         let reference = match &mut reference {
             Some(x) => x,
