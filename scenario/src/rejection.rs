@@ -256,10 +256,19 @@ mod tests {
             (o.gain.clone(), o.limit.clone(), o.frame),
             (vec![20.0; 3], None, Frame::Body)
         );
-        let i = s.rejection.integral.as_ref().unwrap();
+        // the observer alone; the integral as the file's comment gives it
+        assert_eq!(s.rejection.integral, None);
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/reject_so3.toml");
+        let text = std::fs::read_to_string(path).unwrap().replace(
+            "disturbance_observer = { gain = 20.0 }\n",
+            "integral = { ki = 1.0, c = 5.0 }\n",
+        );
+        let with = Scenario::from_toml(&text, "test", "t").unwrap();
+        assert_eq!(with.rejection.observer, None);
+        let i = with.rejection.integral.unwrap();
         assert_eq!(
-            (i.ki.clone(), i.c.clone(), i.anti_windup),
-            (vec![1.0; 3], vec![5.0; 3], true)
+            (i.ki, i.c, i.limit, i.anti_windup),
+            (vec![1.0; 3], vec![5.0; 3], None, true)
         );
         let c = s.rejection_config::<3>();
         assert!(c.any());
