@@ -112,6 +112,12 @@ pub enum Error {
         /// The capacity.
         capacity: usize,
     },
+    /// A path through waypoints was given a non-zero velocity at its first or last waypoint
+    /// (it is held at rest before the first and after the last).
+    NotAtRest {
+        /// The waypoint index.
+        index: usize,
+    },
 }
 
 impl fmt::Display for Error {
@@ -151,6 +157,10 @@ impl fmt::Display for Error {
                 f,
                 "a path holds at most {capacity} segments ({} waypoints)",
                 capacity + 1
+            ),
+            Error::NotAtRest { index } => write!(
+                f,
+                "a path starts and ends at rest: the velocity given at waypoint {index} must be zero"
             ),
         }
     }

@@ -15,7 +15,7 @@
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::path::{Path, PathReference};
 use controller::{Controller, Rejection, RejectionConfig, Source, Trajectory};
-use ipc_types::{CommandMsg, StateMsg, check_plan, name_str};
+use ipc_types::{CommandMsg, PlanReject, StateMsg, check_plan, name_str};
 use link::plan::PlanReader;
 use link::{
     ControllerConfig, ControllerEndpoint, Incoming, LinkError, Refusal, StopFlag, StopSignal,
@@ -93,6 +93,9 @@ pub struct Report {
     pub rejected: [u64; 5],
     /// States the law refused (non-finite state), no command published.
     pub refused: u64,
+    /// With `--reference stream`: plan messages refused per [`ipc_types::PlanReject`] kind
+    /// (its discriminant), e.g. for a segment shorter than the control period.
+    pub plans_refused: [u64; PlanReject::KINDS],
     /// Heap allocations counted between the end of the first cycle and the moment the node
     /// stopped (`None` if fewer than two cycles ran), and the cycles they span.
     pub allocations_after_startup: Option<(u64, u64)>,
@@ -456,7 +459,7 @@ struct Stream {
     /// Whether any piece has come.
     started: bool,
     /// Plan messages refused, per [`ipc_types::PlanReject`] kind (its discriminant) (each kind logged once).
-    rejected: [u64; 6],
+    rejected: [u64; PlanReject::KINDS],
 }
 
 impl Stream {
@@ -466,7 +469,7 @@ impl Stream {
             high_water: f64::NEG_INFINITY,
             dry: true,
             started: false,
-            rejected: [0; 6],
+            rejected: [0; PlanReject::KINDS],
         })
     }
 
@@ -478,7 +481,7 @@ impl Stream {
     ) {
         let now = reference.time();
         while let Some(msg) = self.reader.receive() {
-            if let Err(kind) = check_plan(&msg, G::KIND) {
+            if let Err(kind) = check_plan(&msg, G::KIND, reference.period()) {
                 let i = kind as usize;
                 self.rejected[i] += 1;
                 if self.rejected[i] == 1 {
@@ -613,6 +616,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         cycles: cycles.cycles,
         rejected: ep.rejected_states(),
         refused: cycles.refused,
+        plans_refused: cycles.stream.as_ref().map_or([0; PlanReject::KINDS], |s| s.rejected),
         allocations_after_startup,
     })
 }

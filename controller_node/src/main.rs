@@ -184,8 +184,10 @@ fn finish(report: &Report, run: &str) -> ExitCode {
         Some((a, c)) => format!("heap allocations after start-up: {a} in {c} cycles"),
         None => "heap allocations after start-up: not measured (fewer than 2 cycles)".to_owned(),
     };
+    let plans: u64 = report.plans_refused.iter().sum();
+    let short = report.plans_refused[ipc_types::PlanReject::ShortLeg as usize];
     eprintln!(
-        "controller_node: exiting: {why}; {} commands, {rejected} states rejected, {} refused; {allocs}",
+        "controller_node: exiting: {why}; {} commands, {rejected} states rejected, {} refused, {plans} plan messages refused ({short} with a segment shorter than the control period); {allocs}",
         report.cycles, report.refused
     );
     exit.into()

@@ -28,7 +28,7 @@ SHUTDOWN = 2
 
 
 class StateMsg(ctypes.Structure):
-    """eqtrack::StateMsg3 (docs/wire.md)."""
+    """eqtrack::StateMsg4 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -48,11 +48,11 @@ class StateMsg(ctypes.Structure):
 
     @staticmethod
     def type_name():
-        return "eqtrack::StateMsg3"
+        return "eqtrack::StateMsg4"
 
 
 class CommandMsg(ctypes.Structure):
-    """eqtrack::CommandMsg3 (docs/wire.md)."""
+    """eqtrack::CommandMsg4 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -78,7 +78,7 @@ class CommandMsg(ctypes.Structure):
 
     @staticmethod
     def type_name():
-        return "eqtrack::CommandMsg3"
+        return "eqtrack::CommandMsg4"
 
 
 def entries(node, run, what, msg_type, timeout):

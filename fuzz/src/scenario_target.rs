@@ -731,6 +731,7 @@ pub(crate) fn controller_error_kind(e: &controller::Error) -> String {
         E::TooManyTerms { .. } => "TooManyTerms".to_owned(),
         E::NotIncreasing { .. } => "NotIncreasing".to_owned(),
         E::TooManySegments { .. } => "TooManySegments".to_owned(),
+        E::NotAtRest { .. } => "NotAtRest".to_owned(),
     }
 }
 

@@ -7,8 +7,8 @@
  *
  * Each message sits in an iceoryx2 blackboard entry (key type uint32_t, keys 0..7 are the
  * writer slots) of the service `eqtrack/<run>/state`, `eqtrack/<run>/command` or
- * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg3",
- * "eqtrack::CommandMsg3", "eqtrack::PlanMsg3", "eqtrack::StatusMsg3". All numbers are little-endian on the machines eqtrack runs on.
+ * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg4",
+ * "eqtrack::CommandMsg4", "eqtrack::PlanMsg4", "eqtrack::StatusMsg4". All numbers are little-endian on the machines eqtrack runs on.
  */
 #ifndef EQTRACK_WIRE_H
 #define EQTRACK_WIRE_H
@@ -16,7 +16,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define EQTRACK_PROTOCOL_VERSION 3u
+#define EQTRACK_PROTOCOL_VERSION 4u
 #define EQTRACK_MAX_N 4        /* configuration matrices are n x n, n <= 4 */
 #define EQTRACK_MAX_M 6        /* algebra dimension m <= 6 */
 #define EQTRACK_NAME_BYTES 32  /* scenario name, UTF-8, NUL-padded */
@@ -71,12 +71,19 @@ typedef struct eqtrack_CommandMsg {
     uint8_t scenario[EQTRACK_NAME_BYTES];
 } eqtrack_CommandMsg;
 
-/* one piece of a streamed path: geodesic from `start` at t0 by `twist`, quintic timing */
+/* eqtrack_WireSegment.shape */
+#define EQTRACK_SHAPE_REST 0u    /* geodesic from `start` by twists[0..m], quintic timing */
+#define EQTRACK_SHAPE_THROUGH 1u /* quintic Hermite: start * prod_j exp(B_j(s) v_j) */
+
+/* one piece of a streamed path */
 typedef struct eqtrack_WireSegment {
     double t0;
     double t1;
+    uint32_t shape;                              /* EQTRACK_SHAPE_REST or _THROUGH */
+    uint32_t reserved;
     double start[EQTRACK_MAX_N * EQTRACK_MAX_N]; /* row-major n x n */
-    double twist[EQTRACK_MAX_M];                 /* log(Q_start^-1 Q_end), first m */
+    double twists[5 * EQTRACK_MAX_M];            /* REST: log(Q_start^-1 Q_end), first m;
+                                                    THROUGH: v_1..v_5 at k * EQTRACK_MAX_M */
 } eqtrack_WireSegment;
 
 /* a window of consecutive segments from a planner */

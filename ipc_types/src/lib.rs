@@ -26,7 +26,7 @@ pub mod status;
 pub use status::{StatusMsg, status_flags};
 
 /// Bumped whenever a message layout or meaning changes.
-pub const PROTOCOL_VERSION: u32 = 3;
+pub const PROTOCOL_VERSION: u32 = 4;
 /// [`CommandMsg::previous_seq`] when the controller processed no state before.
 pub const NO_PREVIOUS: u64 = u64::MAX;
 /// The largest n (configuration matrices are n×n) any supported group needs.
@@ -76,7 +76,7 @@ pub mod mismatch {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::StateMsg3")
+    type_name("eqtrack::StateMsg4")
 )]
 #[repr(C)]
 pub struct StateMsg {
@@ -115,7 +115,7 @@ pub struct StateMsg {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::CommandMsg3")
+    type_name("eqtrack::CommandMsg4")
 )]
 #[repr(C)]
 pub struct CommandMsg {

@@ -1,13 +1,14 @@
 //! The streamed reference: a planner process publishes the pieces of a path ahead of time,
 //! [`PLAN_WINDOW`] segments per [`PlanMsg`], and the controller appends the ones it does not
 //! have yet to its `controller::path::Path` (docs/maths.md, "Streamed pieces"). A segment is
-//! exactly `controller::path::Segment`: start time, end time, start pose and body-frame
-//! displacement, timed by the quintic — so the controller evaluates it at any `t_k` without
-//! allocating, and a streamed path equals, bit for bit, the same path built from a file.
+//! exactly `controller::path::Segment`: start time, end time, start pose, its shape (a
+//! rest-to-rest geodesic or a through-waypoint quintic Hermite piece) and the shape's
+//! body-frame displacements — so the controller evaluates it at any `t_k` without allocating,
+//! and a streamed path equals, bit for bit, the same path built from a file.
 
 use crate::{MAX_M, MAX_N, PROTOCOL_VERSION, all_finite, own_dims};
 use controller::GroupKind;
-use controller::path::Segment;
+use controller::path::{Segment, Shape};
 #[cfg(feature = "zero-copy")]
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 #[cfg(feature = "zero-copy")]
@@ -22,13 +23,18 @@ pub const PLAN_WINDOW: usize = 8;
 /// a few ulps; anything off by more is not a pose.
 pub const POSE_TOLERANCE: f64 = 1e-9;
 
+/// [`WireSegment::shape`] of a rest-to-rest geodesic piece (`path = "stop"`).
+pub const SHAPE_REST: u32 = 0;
+/// [`WireSegment::shape`] of a through-waypoint quintic Hermite piece (`path = "through"`).
+pub const SHAPE_THROUGH: u32 = 1;
+
 /// One piece of a path on the wire (`controller::path::Segment`, padded to the largest
 /// group).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::WireSegment3")
+    type_name("eqtrack::WireSegment4")
 )]
 #[repr(C)]
 pub struct WireSegment {
@@ -36,10 +42,15 @@ pub struct WireSegment {
     pub t0: f64,
     /// End time (s, `> t0`).
     pub t1: f64,
+    /// [`SHAPE_REST`] or [`SHAPE_THROUGH`].
+    pub shape: u32,
+    /// Zero.
+    pub reserved: u32,
     /// The pose at `t0`, row-major n×n in the first n² entries.
     pub start: [f64; MAX_N * MAX_N],
-    /// `ξ = log(Q_start⁻¹ Q_end)`, first m entries.
-    pub twist: [f64; MAX_M],
+    /// [`SHAPE_REST`]: `ξ = log(Q_start⁻¹ Q_end)` in the first m entries, the rest zero.
+    /// [`SHAPE_THROUGH`]: `v_1 … v_5`, m entries each, at offsets `0, MAX_M, …, 4·MAX_M`.
+    pub twists: [f64; 5 * MAX_M],
 }
 
 /// A window of consecutive path segments from a planner.
@@ -47,7 +58,7 @@ pub struct WireSegment {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::PlanMsg3")
+    type_name("eqtrack::PlanMsg4")
 )]
 #[repr(C)]
 pub struct PlanMsg {
@@ -87,6 +98,16 @@ pub enum PlanReject {
     /// A start pose is not on the group (rotation not orthonormal within
     /// [`POSE_TOLERANCE`], or a reflection; SE(3): last row not `0 0 0 1`).
     NotOnGroup,
+    /// A segment's shape code is neither [`SHAPE_REST`] nor [`SHAPE_THROUGH`].
+    Shape,
+    /// A segment lasts less than the receiver's control period (it would move between two
+    /// ticks, so no tick sees its speed).
+    ShortLeg,
+}
+
+impl PlanReject {
+    /// How many kinds there are (for counters indexed by `kind as usize`).
+    pub const KINDS: usize = 8;
 }
 
 impl core::fmt::Display for PlanReject {
@@ -98,6 +119,8 @@ impl core::fmt::Display for PlanReject {
             PlanReject::NonFinite => "non-finite number",
             PlanReject::Times => "segment times not increasing",
             PlanReject::NotOnGroup => "a start pose is not on the group",
+            PlanReject::Shape => "unknown segment shape",
+            PlanReject::ShortLeg => "a segment is shorter than the control period",
         })
     }
 }
@@ -105,8 +128,10 @@ impl core::fmt::Display for PlanReject {
 const EMPTY_SEGMENT: WireSegment = WireSegment {
     t0: 0.0,
     t1: 0.0,
+    shape: SHAPE_REST,
+    reserved: 0,
     start: [0.0; MAX_N * MAX_N],
-    twist: [0.0; MAX_M],
+    twists: [0.0; 5 * MAX_M],
 };
 
 impl WireSegment {
@@ -120,20 +145,51 @@ impl WireSegment {
                 w.start[i * N + j] = seg.start[(i, j)];
             }
         }
-        for i in 0..M.min(MAX_M) {
-            w.twist[i] = seg.twist[i];
+        let mut put = |k: usize, v: &SVector<f64, M>| {
+            for i in 0..M.min(MAX_M) {
+                w.twists[k * MAX_M + i] = v[i];
+            }
+        };
+        match &seg.shape {
+            Shape::Rest { twist } => put(0, twist),
+            Shape::Through { v } => {
+                for (k, vk) in v.iter().enumerate() {
+                    put(k, vk);
+                }
+            }
+        }
+        if let Shape::Through { .. } = seg.shape {
+            w.shape = SHAPE_THROUGH;
         }
         w
     }
 
-    /// The segment (entries beyond the wire's are NaN, so a group the wire cannot hold never
-    /// passes [`Segment::check`]).
+    /// The segment (entries beyond the wire's are NaN, and so is an unknown shape, so neither
+    /// ever passes [`Segment::check`]).
     pub fn segment<const N: usize, const M: usize>(&self) -> Segment<f64, N, M> {
+        let twist = |k: usize| -> SVector<f64, M> {
+            SVector::from_fn(|i, _| {
+                if i < MAX_M {
+                    self.twists[k * MAX_M + i]
+                } else {
+                    f64::NAN
+                }
+            })
+        };
+        let shape = match self.shape {
+            SHAPE_REST => Shape::Rest { twist: twist(0) },
+            SHAPE_THROUGH => Shape::Through {
+                v: [twist(0), twist(1), twist(2), twist(3), twist(4)],
+            },
+            _ => Shape::Rest {
+                twist: SVector::from_element(f64::NAN),
+            },
+        };
         Segment {
             t0: self.t0,
             t1: self.t1,
             start: SMatrix::from_fn(|i, j| self.start.get(i * N + j).copied().unwrap_or(f64::NAN)),
-            twist: SVector::from_fn(|i, _| self.twist.get(i).copied().unwrap_or(f64::NAN)),
+            shape,
         }
     }
 }
@@ -179,9 +235,10 @@ fn on_group(q: &[f64], n: usize) -> bool {
     det > 0.0 && (n == 3 || (r(3, 0) == 0.0 && r(3, 1) == 0.0 && r(3, 2) == 0.0 && r(3, 3) == 1.0))
 }
 
-/// Checks a plan message against the receiver's group: version, group, count, finite
-/// numbers, increasing non-overlapping times, start poses on the group.
-pub fn check_plan(msg: &PlanMsg, group: GroupKind) -> Result<(), PlanReject> {
+/// Checks a plan message against the receiver's group and control period: version, group,
+/// count, shape codes, finite numbers, increasing non-overlapping times, every segment at
+/// least `period` long, start poses on the group.
+pub fn check_plan(msg: &PlanMsg, group: GroupKind, period: f64) -> Result<(), PlanReject> {
     if msg.version != PROTOCOL_VERSION {
         return Err(PlanReject::Version);
     }
@@ -191,15 +248,24 @@ pub fn check_plan(msg: &PlanMsg, group: GroupKind) -> Result<(), PlanReject> {
     }
     let mut end = f64::NEG_INFINITY;
     for s in msg.used() {
+        let twists = match s.shape {
+            SHAPE_REST => 1,
+            SHAPE_THROUGH => 5,
+            _ => return Err(PlanReject::Shape),
+        };
         if !(s.t0.is_finite()
             && s.t1.is_finite()
             && all_finite(&s.start[..n * n])
-            && all_finite(&s.twist[..m]))
+            && (0..twists).all(|k| all_finite(&s.twists[k * MAX_M..k * MAX_M + m])))
         {
             return Err(PlanReject::NonFinite);
         }
         if s.t1 <= s.t0 || s.t0 < end {
             return Err(PlanReject::Times);
+        }
+        // not `s.t1 - s.t0 < period`: NaN periods refuse too
+        if !(s.t1 - s.t0 >= period) {
+            return Err(PlanReject::ShortLeg);
         }
         end = s.t1;
         if !on_group(&s.start, n) {
@@ -229,6 +295,37 @@ mod tests {
         let b = Se3::exp(&Vector6::new(2.0, -0.2, 0.3, -1.0, 0.5, 0.0));
         let s = Segment::between::<Se3>(0.0, &a, 4.0, &b);
         assert_eq!(WireSegment::from_segment(&s).segment::<4, 6>(), s);
+        // through-waypoint pieces too
+        let knot = |q, v: Vector6<f64>| controller::PathSample {
+            q,
+            v,
+            v_dot: v * 0.5,
+        };
+        let s = Segment::hermite::<Se3>(
+            0.0,
+            &knot(a, Vector6::new(0.1, 0.2, 0.3, 0.4, 0.5, 0.6)),
+            4.0,
+            &knot(b, Vector6::new(-0.3, 0.2, 0.1, 0.0, 0.5, -0.6)),
+        );
+        let w = WireSegment::from_segment(&s);
+        assert_eq!(w.shape, SHAPE_THROUGH);
+        assert_eq!(w.segment::<4, 6>(), s);
+        let t = So3::exp(&Vector3::new(0.3, 0.0, 0.1));
+        let s = Segment::hermite::<So3>(
+            1.0,
+            &controller::PathSample::rest(t),
+            2.0,
+            &knot3(t),
+        );
+        assert_eq!(WireSegment::from_segment(&s).segment::<3, 3>(), s);
+    }
+
+    fn knot3(q: Matrix3<f64>) -> controller::PathSample<f64, 3, 3> {
+        controller::PathSample {
+            q: q * So3::exp(&Vector3::new(0.0, 1.0, 0.0)),
+            v: Vector3::new(0.5, -0.1, 0.0),
+            v_dot: Vector3::new(0.0, 0.2, 0.1),
+        }
     }
 
     #[test]
@@ -237,17 +334,40 @@ mod tests {
         p.count = 2;
         p.segments[0] = WireSegment::from_segment(&so3_segment(0.0, 1.0));
         p.segments[1] = WireSegment::from_segment(&so3_segment(1.0, 2.0));
-        assert_eq!(check_plan(&p, GroupKind::So3), Ok(()));
-        assert_eq!(check_plan(&p, GroupKind::Se3), Err(PlanReject::Group));
+        assert_eq!(check_plan(&p, GroupKind::So3, 0.01), Ok(()));
+        assert_eq!(check_plan(&p, GroupKind::Se3, 0.01), Err(PlanReject::Group));
+        // a leg shorter than the control period, or a period that is not a number
+        assert_eq!(check_plan(&p, GroupKind::So3, 1.0), Ok(()));
+        assert_eq!(
+            check_plan(&p, GroupKind::So3, 1.0 + 1e-9),
+            Err(PlanReject::ShortLeg)
+        );
+        assert_eq!(
+            check_plan(&p, GroupKind::So3, f64::NAN),
+            Err(PlanReject::ShortLeg)
+        );
         let bad = |f: &dyn Fn(&mut PlanMsg)| {
             let mut q = p;
             f(&mut q);
-            check_plan(&q, GroupKind::So3)
+            check_plan(&q, GroupKind::So3, 0.01)
         };
+        assert_eq!(bad(&|q| q.segments[1].shape = 2), Err(PlanReject::Shape));
+        // a through piece's later twists are checked, a rest piece's are not used
+        assert_eq!(
+            bad(&|q| {
+                q.segments[1].shape = SHAPE_THROUGH;
+                q.segments[1].twists[4 * MAX_M + 2] = f64::NAN
+            }),
+            Err(PlanReject::NonFinite)
+        );
+        assert_eq!(
+            bad(&|q| q.segments[1].twists[4 * MAX_M + 2] = f64::NAN),
+            Ok(())
+        );
         assert_eq!(bad(&|q| q.version = 0), Err(PlanReject::Version));
         assert_eq!(bad(&|q| q.count = 9), Err(PlanReject::Count));
         assert_eq!(
-            bad(&|q| q.segments[1].twist[2] = f64::NAN),
+            bad(&|q| q.segments[1].twists[2] = f64::NAN),
             Err(PlanReject::NonFinite)
         );
         assert_eq!(bad(&|q| q.segments[1].t0 = 0.5), Err(PlanReject::Times));
@@ -271,8 +391,11 @@ mod tests {
         p.count = 1;
         let a = Se3::exp(&Vector6::new(0.1, 0.2, -3.0, 1.0, 2.0, 3.0));
         p.segments[0] = WireSegment::from_segment(&Segment::between::<Se3>(0.0, &a, 1.0, &a));
-        assert_eq!(check_plan(&p, GroupKind::Se3), Ok(()));
+        assert_eq!(check_plan(&p, GroupKind::Se3, 0.01), Ok(()));
         p.segments[0].start[14] = 0.5;
-        assert_eq!(check_plan(&p, GroupKind::Se3), Err(PlanReject::NotOnGroup));
+        assert_eq!(
+            check_plan(&p, GroupKind::Se3, 0.01),
+            Err(PlanReject::NotOnGroup)
+        );
     }
 }

@@ -25,7 +25,7 @@ pub mod status_flags {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::StatusMsg3")
+    type_name("eqtrack::StatusMsg4")
 )]
 #[repr(C)]
 pub struct StatusMsg {

@@ -79,7 +79,7 @@ fn rust_layout() -> Layout {
         PlanMsg::new(So3).segments[0],
         WireSegment,
         "eqtrack_WireSegment",
-        [t0, t1, start, twist,]
+        [t0, t1, shape, reserved, start, twists,]
     );
     fields!(
         m,
@@ -227,6 +227,14 @@ fn the_header_names_the_protocol_version_and_limits() {
         ("EQTRACK_MAX_M", ipc_types::MAX_M.to_string()),
         ("EQTRACK_NAME_BYTES", ipc_types::NAME_BYTES.to_string()),
         ("EQTRACK_PLAN_WINDOW", ipc_types::PLAN_WINDOW.to_string()),
+        (
+            "EQTRACK_SHAPE_REST",
+            format!("{}u", ipc_types::plan::SHAPE_REST),
+        ),
+        (
+            "EQTRACK_SHAPE_THROUGH",
+            format!("{}u", ipc_types::plan::SHAPE_THROUGH),
+        ),
         (
             "EQTRACK_GROUP_SO3",
             format!("{}u", ipc_types::group_code(So3)),

@@ -3,14 +3,14 @@
 //! manoeuvre is checked before it is flown.
 
 use crate::SimError;
-use crate::output::{ensure_dir, num};
+use crate::output::{ensure_dir, num, write_json};
 use crate::plot::{Line, Panel, render};
 use crate::trajectory::input;
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::{Source, Trajectory};
 use nalgebra::{SMatrix, SVector};
 use plotters::style::RGBColor;
-use scenario::Scenario;
+use scenario::{PathKind, Scenario};
 use std::path::{Path, PathBuf};
 
 /// One sample of the desired trajectory.
@@ -75,8 +75,9 @@ pub fn reference_header(n: usize, m: usize) -> Vec<String> {
     h
 }
 
-/// Writes `reference.csv` and `reference.{png,svg}` into `out`; returns the CSV's path.
-pub fn write_reference(s: &Scenario, out: &Path) -> Result<PathBuf, SimError> {
+/// Writes `reference.csv`, `reference.{png,svg}` and the feasibility report
+/// `reference.json` into `out`; returns the CSV's path and the report.
+pub fn write_reference(s: &Scenario, out: &Path) -> Result<(PathBuf, Feasibility), SimError> {
     let rows = sample_reference(s)?;
     ensure_dir(out)?;
     let path = out.join("reference.csv");
@@ -96,7 +97,8 @@ pub fn write_reference(s: &Scenario, out: &Path) -> Result<PathBuf, SimError> {
     w.flush()
         .map_err(|e| SimError::Run(format!("cannot write {}: {e}", path.display())))?;
     reference_figure(s, &rows, &out.join("reference"))?;
-    Ok(path)
+    let report = write_feasibility(s, &rows, out)?;
+    Ok((path, report))
 }
 
 /// Rotation angle of `Q_d` from the identity, `V_d`, `V̇_d` and `τ_d` against time.
@@ -121,10 +123,7 @@ fn reference_figure(s: &Scenario, rows: &[ReferenceRow], stem: &Path) -> Result<
             })
             .collect(),
     };
-    let angle = |r: &ReferenceRow| {
-        let trace = r.q[0] + r.q[n + 1] + r.q[2 * n + 2];
-        ((trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos()
-    };
+    let angle = |r: &ReferenceRow| rotation_angle(&r.q, n);
     let panels = [
         Panel {
             title: "Attitude: rotation angle of R_d from the identity".to_owned(),
@@ -145,4 +144,315 @@ fn reference_figure(s: &Scenario, rows: &[ReferenceRow], stem: &Path) -> Result<
         s.group.name().to_uppercase()
     );
     render(stem, &title, &panels, 1, (1000, 1400))
+}
+
+/// A peak of a sampled quantity and the time it occurs.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Peak {
+    /// The largest value.
+    pub value: f64,
+    /// The first sample time at which it occurs (s).
+    pub t: f64,
+}
+
+impl Peak {
+    fn none() -> Peak {
+        Peak {
+            value: 0.0,
+            t: 0.0,
+        }
+    }
+
+    fn offer(&mut self, value: f64, t: f64) {
+        if value > self.value {
+            *self = Peak { value, t };
+        }
+    }
+}
+
+/// An axis whose feedforward alone exceeds the torque limit.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct LimitWarning {
+    /// The axis (0-based index of `τ_d`).
+    pub axis: usize,
+    /// Its name (`τ_x` …, SE(3) forces `f_x` …).
+    pub name: String,
+    /// The limit on the axis.
+    pub limit: f64,
+    /// The largest `|τ_d|` on the axis and when.
+    pub peak: Peak,
+    /// The first and the last sample time at which `|τ_d| > limit`.
+    pub from: f64,
+    /// See `from`.
+    pub to: f64,
+}
+
+impl std::fmt::Display for LimitWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "warning: axis {} ({}): the feedforward alone needs |{}| = {:.4} at t = {:.4} s, above the torque limit {} (exceeded from t = {:.4} s to {:.4} s): the actuators cannot fly this reference as given",
+            self.axis,
+            self.name,
+            self.name,
+            self.peak.value,
+            self.peak.t,
+            self.limit,
+            self.from,
+            self.to
+        )
+    }
+}
+
+/// What `plant_sim reference` reports before flight: peaks of the desired motion and of the
+/// feedforward per axis, on the control-period grid, against the torque limit
+/// (README.md, "Reading the feasibility report").
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Feasibility {
+    /// The scenario.
+    pub scenario: String,
+    /// `so3` or `se3`.
+    pub group: String,
+    /// The control period: the grid the peaks are taken on (s).
+    pub control_period: f64,
+    /// Peak `|ω_d|` (rad/s).
+    pub angular_speed: Peak,
+    /// Peak `|α_d| = |ω̇_d|` (rad/s²; the world-frame angular acceleration has the same norm).
+    pub angular_acceleration: Peak,
+    /// SE(3): peak speed `|v_d| = |ṗ_d|` (m/s).
+    pub speed: Option<Peak>,
+    /// SE(3): peak acceleration `|p̈_d| = |v̇_d + ω_d × v_d|` (m/s²).
+    pub acceleration: Option<Peak>,
+    /// Peak `|τ_d|` per axis.
+    pub torque: Vec<Peak>,
+    /// The scenario's per-axis torque limit, if any.
+    pub torque_limit: Option<Vec<f64>>,
+    /// Every axis whose feedforward alone exceeds the limit.
+    pub warnings: Vec<LimitWarning>,
+}
+
+/// The axis names of `τ_d` for an algebra of dimension `m`.
+fn axis_name(m: usize, i: usize) -> String {
+    const SO3: [&str; 3] = ["τ_x", "τ_y", "τ_z"];
+    const SE3: [&str; 6] = ["τ_x", "τ_y", "τ_z", "f_x", "f_y", "f_z"];
+    if m == 6 {
+        SE3[i].to_owned()
+    } else {
+        SO3.get(i).map_or_else(|| format!("τ_{i}"), |s| (*s).to_owned())
+    }
+}
+
+/// The feasibility report of sampled reference rows.
+pub fn feasibility(s: &Scenario, rows: &[ReferenceRow]) -> Feasibility {
+    let m = s.group.dims().1;
+    let norm3 = |x: &[f64]| (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+    let mut report = Feasibility {
+        scenario: s.name.clone(),
+        group: s.group.name().to_owned(),
+        control_period: s.control_period,
+        angular_speed: Peak::none(),
+        angular_acceleration: Peak::none(),
+        speed: (m == 6).then(Peak::none),
+        acceleration: (m == 6).then(Peak::none),
+        torque: vec![Peak::none(); m],
+        torque_limit: s.torque_limit.clone(),
+        warnings: Vec::new(),
+    };
+    let mut over: Vec<Option<(f64, f64)>> = vec![None; m];
+    for r in rows {
+        report.angular_speed.offer(norm3(&r.v[..3]), r.t);
+        report.angular_acceleration.offer(norm3(&r.v_dot[..3]), r.t);
+        if m == 6 {
+            let (w, v, vd) = (&r.v[..3], &r.v[3..6], &r.v_dot[3..6]);
+            let a = [
+                vd[0] + w[1] * v[2] - w[2] * v[1],
+                vd[1] + w[2] * v[0] - w[0] * v[2],
+                vd[2] + w[0] * v[1] - w[1] * v[0],
+            ];
+            if let Some(p) = report.speed.as_mut() {
+                p.offer(norm3(v), r.t);
+            }
+            if let Some(p) = report.acceleration.as_mut() {
+                p.offer(norm3(&a), r.t);
+            }
+        }
+        for i in 0..m {
+            let x = r.tau[i].abs();
+            report.torque[i].offer(x, r.t);
+            if let Some(l) = &s.torque_limit
+                && x > l[i]
+            {
+                let span = over[i].get_or_insert((r.t, r.t));
+                span.1 = r.t;
+            }
+        }
+    }
+    for (i, span) in over.iter().enumerate() {
+        if let (Some((from, to)), Some(l)) = (span, &s.torque_limit) {
+            report.warnings.push(LimitWarning {
+                axis: i,
+                name: axis_name(m, i),
+                limit: l[i],
+                peak: report.torque[i],
+                from: *from,
+                to: *to,
+            });
+        }
+    }
+    report
+}
+
+/// The report as text, one line per figure and one per warning.
+pub fn feasibility_text(f: &Feasibility) -> String {
+    let mut out = String::new();
+    let line = |out: &mut String, name: &str, p: &Peak, unit: &str| {
+        out.push_str(&format!(
+            "  peak {name:<22} {:>12.6} {unit:<8} at t = {:.4} s\n",
+            p.value, p.t
+        ));
+    };
+    out.push_str(&format!(
+        "feasibility of `{}` ({}), sampled every {} s:\n",
+        f.scenario, f.group, f.control_period
+    ));
+    line(&mut out, "|ω_d|", &f.angular_speed, "rad/s");
+    line(&mut out, "|α_d|", &f.angular_acceleration, "rad/s²");
+    if let Some(p) = &f.speed {
+        line(&mut out, "speed |v_d|", p, "m/s");
+    }
+    if let Some(p) = &f.acceleration {
+        line(&mut out, "acceleration |p̈_d|", p, "m/s²");
+    }
+    let m = f.torque.len();
+    for (i, p) in f.torque.iter().enumerate() {
+        let limit = f
+            .torque_limit
+            .as_ref()
+            .map_or_else(|| "no limit".to_owned(), |l| format!("limit {}", l[i]));
+        out.push_str(&format!(
+            "  peak |{}| (feedforward)  {:>12.6}          at t = {:.4} s ({limit})\n",
+            axis_name(m, i),
+            p.value,
+            p.t
+        ));
+    }
+    if f.warnings.is_empty() {
+        out.push_str(match &f.torque_limit {
+            Some(_) => "  the feedforward stays within the torque limit on every axis\n",
+            None => "  no torque limit in the scenario: nothing to compare with\n",
+        });
+    }
+    for w in &f.warnings {
+        out.push_str(&format!("{w}\n"));
+    }
+    out
+}
+
+/// Writes `reference.json` (the [`Feasibility`] report) into `out`; returns the report.
+pub fn write_feasibility(
+    s: &Scenario,
+    rows: &[ReferenceRow],
+    out: &Path,
+) -> Result<Feasibility, SimError> {
+    let report = feasibility(s, rows);
+    write_json(&report, &out.join("reference.json"))?;
+    Ok(report)
+}
+
+/// The scenario with its waypoints flown the other way: `kind` replaces the path kind (a
+/// stop path drops the given velocities, which only a through-path honours).
+pub fn with_path_kind(s: &Scenario, kind: PathKind) -> Result<Scenario, SimError> {
+    let mut other = s.clone();
+    let Some(p) = other.path.as_mut().filter(|p| p.times.len() > 1) else {
+        return Err(SimError::Input(format!(
+            "scenario `{}` has no `[reference] waypoints` to fly two ways",
+            s.name
+        )));
+    };
+    p.kind = kind;
+    if kind == PathKind::Stop {
+        p.velocities.iter_mut().for_each(|v| *v = None);
+    }
+    Ok(other)
+}
+
+/// What `--compare-paths` found: peaks of each way of flying the waypoints.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct PathComparison {
+    /// `stop` then `through`: the feasibility report of each.
+    pub reports: Vec<(String, Feasibility)>,
+    /// Largest closed-loop attitude error `‖I − R_dᵀR‖_F` after the first waypoint, per way.
+    pub tracking: Vec<(String, f64)>,
+}
+
+/// Flies the scenario's waypoints both ways (`path = "stop"` and `"through"`): the desired
+/// attitude angle, `|ω_d|`, `|τ_d|` and the closed loop's attitude error of each, drawn in
+/// `paths.{png,svg}` and summarised in `paths.json` in `out`.
+pub fn compare_paths(s: &Scenario, out: &Path) -> Result<PathComparison, SimError> {
+    const STOP: RGBColor = RGBColor(31, 119, 180);
+    const THROUGH: RGBColor = RGBColor(214, 39, 40);
+    ensure_dir(out)?;
+    let ways = [
+        ("stop", PathKind::Stop, STOP),
+        ("through", PathKind::Through, THROUGH),
+    ];
+    let start = s.path.as_ref().map_or(0.0, |p| p.times[0]);
+    let mut panels: Vec<Panel> = [
+        ("Desired attitude: rotation angle of R_d from the identity", "angle (rad)"),
+        ("Desired angular speed |ω_d|", "|ω_d| (rad/s)"),
+        ("Feedforward |τ_d| (torque part)", "|τ_d|"),
+        ("Flown: attitude error ‖I − R_dᵀR‖_F", "error"),
+    ]
+    .iter()
+    .map(|(title, y)| Panel {
+        title: (*title).to_owned(),
+        y_label: (*y).to_owned(),
+        lines: Vec::new(),
+    })
+    .collect();
+    let mut result = PathComparison {
+        reports: Vec::new(),
+        tracking: Vec::new(),
+    };
+    let n = s.group.dims().0;
+    let norm3 = |x: &[f64]| (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+    for (name, kind, color) in ways {
+        let way = with_path_kind(s, kind)?;
+        let rows = sample_reference(&way)?;
+        let flown = crate::trajectory::simulate(&way, &|_| Ok(()))?;
+        let line = |f: &dyn Fn(&ReferenceRow) -> f64| Line {
+            label: name.to_owned(),
+            color,
+            points: rows.iter().map(|r| (r.t, f(r))).collect(),
+        };
+        panels[0].lines.push(line(&|r| rotation_angle(&r.q, n)));
+        panels[1].lines.push(line(&|r| norm3(&r.v)));
+        panels[2].lines.push(line(&|r| norm3(&r.tau)));
+        panels[3].lines.push(Line {
+            label: name.to_owned(),
+            color,
+            points: flown.rows.iter().map(|r| (r.t, r.attitude_error)).collect(),
+        });
+        let worst = flown
+            .rows
+            .iter()
+            .filter(|r| r.t >= start)
+            .map(|r| r.attitude_error)
+            .fold(0.0f64, f64::max);
+        result.tracking.push((name.to_owned(), worst));
+        result.reports.push((name.to_owned(), feasibility(&way, &rows)));
+    }
+    let title = format!(
+        "{} — the waypoints flown two ways: stop at each, or through them",
+        s.name
+    );
+    render(&out.join("paths"), &title, &panels, 1, (1000, 1400))?;
+    write_json(&result, &out.join("paths.json"))?;
+    Ok(result)
+}
+
+/// The rotation angle of the rotation block of a row-major n×n pose.
+fn rotation_angle(q: &[f64], n: usize) -> f64 {
+    let trace = q[0] + q[n + 1] + q[2 * n + 2];
+    ((trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos()
 }

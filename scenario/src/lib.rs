@@ -173,6 +173,7 @@ struct RawReference {
     velocity: Option<Vec<f64>>,
     torque: Option<Vec<RawAxis>>,
     waypoints: Option<String>,
+    path: Option<String>,
     setpoint: Option<RawPose>,
 }
 
@@ -256,15 +257,41 @@ pub struct Pose {
     pub position: [f64; 3],
 }
 
+/// How a path treats its interior waypoints (`[reference] path`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PathKind {
+    /// `"stop"` (the default): rest-to-rest geodesic legs, at rest at every waypoint.
+    #[default]
+    Stop,
+    /// `"through"`: C² quintic Hermite legs that fly through the interior waypoints.
+    Through,
+}
+
+impl PathKind {
+    /// The scenario's name of the kind.
+    pub fn name(self) -> &'static str {
+        match self {
+            PathKind::Stop => "stop",
+            PathKind::Through => "through",
+        }
+    }
+}
+
 /// A reference given as poses at times: a set-point (one pose) or a path through waypoints.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PathSpec {
     /// Where it came from: the waypoint file, or `setpoint`.
     pub file: String,
+    /// Stop at every waypoint, or fly through them.
+    pub kind: PathKind,
     /// Waypoint times, strictly increasing.
     pub times: Vec<f64>,
     /// Waypoint poses.
     pub poses: Vec<Pose>,
+    /// The body velocity given at each waypoint (m entries), `None`: chosen.
+    pub velocities: Vec<Option<Vec<f64>>>,
+    /// The file line of each waypoint (0 for a set-point).
+    pub lines: Vec<u64>,
 }
 
 /// A validated scenario. Matrices are row-major; dimensions match the group.
@@ -443,7 +470,20 @@ impl Scenario {
             .iter()
             .map(|p| Self::pose::<N>(p.rotation, p.position))
             .collect();
-        Some(GroupPath::through(&spec.times, &poses))
+        Some(match spec.kind {
+            PathKind::Stop => GroupPath::through(&spec.times, &poses),
+            PathKind::Through => {
+                let given: Vec<Option<SVector<f64, M>>> = spec
+                    .velocities
+                    .iter()
+                    .map(|v| {
+                        v.as_ref()
+                            .map(|v| SVector::from_fn(|i, _| v.get(i).copied().unwrap_or(f64::NAN)))
+                    })
+                    .collect();
+                GroupPath::flying(&spec.times, &poses, &given)
+            }
+        })
     }
 
     /// The desired trajectory, whichever its kind: the feedforward series integrated, or the
@@ -514,6 +554,16 @@ impl Scenario {
             for pose in &p.poses {
                 h.f64s(&pose.rotation);
                 h.f64s(&pose.position);
+            }
+            // only for a through-path, so stop paths keep their fingerprints
+            if p.kind == PathKind::Through {
+                h.bytes(b"through");
+                for v in &p.velocities {
+                    match v {
+                        Some(v) => h.f64s(v),
+                        None => h.bytes(b"chosen"),
+                    }
+                }
             }
         }
         // only when present, so scenarios without them keep their fingerprints
@@ -868,7 +918,8 @@ impl Validator<'_> {
             m,
         )?;
         let initial = self.state("initial", &raw.initial, group, m)?;
-        let (reference, feedforward, path) = self.reference(&raw.reference, group, m)?;
+        let (reference, feedforward, path) =
+            self.reference(&raw.reference, group, m, raw.control_period)?;
         let sensors = raw
             .sensors
             .as_ref()
@@ -911,6 +962,7 @@ impl Validator<'_> {
         raw: &RawReference,
         group: GroupKind,
         m: usize,
+        period: f64,
     ) -> Result<(StateSpec, Vec<Axis>, Option<PathSpec>), ScenarioError> {
         let series = raw.rotation.is_some()
             || raw.velocity.is_some()
@@ -931,11 +983,30 @@ impl Validator<'_> {
             };
             m
         ];
+        let kind = match raw.path.as_deref() {
+            None | Some("stop") => PathKind::Stop,
+            Some("through") => PathKind::Through,
+            Some(other) => {
+                return Err(self.err(
+                    "reference.path",
+                    format!("unknown path kind `{other}` (expected \"stop\" or \"through\")"),
+                ));
+            }
+        };
+        if raw.path.is_some() && raw.waypoints.is_none() {
+            return Err(self.err(
+                "reference.path",
+                "applies to `waypoints = \"FILE.csv\"` only (a set-point or a feedforward series has no waypoints to pass)",
+            ));
+        }
         let path = if let Some(file) = &raw.waypoints {
             let full = self
                 .base
                 .map_or_else(|| Path::new(file).to_path_buf(), |b| b.join(file));
-            waypoints::read(&full, group)?
+            let mut spec = waypoints::read(&full, group)?;
+            spec.kind = kind;
+            waypoints::check_legs(&spec, group, period)?;
+            spec
         } else if let Some(sp) = &raw.setpoint {
             let st = self.state_parts(
                 "reference.setpoint",
@@ -947,11 +1018,14 @@ impl Validator<'_> {
             )?;
             PathSpec {
                 file: "setpoint".to_owned(),
+                kind: PathKind::Stop,
                 times: vec![0.0],
                 poses: vec![Pose {
                     rotation: st.rotation,
                     position: st.position,
                 }],
+                velocities: vec![None],
+                lines: vec![0],
             }
         } else {
             let missing = |k: &str| self.err(&format!("reference.{k}"), "missing");

@@ -1,8 +1,10 @@
 //! Waypoint files: `t,rx,ry,rz` (SO(3)) or `t,rx,ry,rz,x,y,z` (SE(3)), one waypoint per line,
-//! `(rx, ry, rz)` the rotation vector (`R = exp(hat(r))`), `(x, y, z)` the position. Every
-//! error names the file, the line and the column.
+//! `(rx, ry, rz)` the rotation vector (`R = exp(hat(r))`), `(x, y, z)` the position, and
+//! optionally the body velocity at the waypoint: `wx,wy,wz` (SO(3)) or `wx,wy,wz,vx,vy,vz`
+//! (SE(3), angular then linear, body frame), for `path = "through"`; a line leaves them empty
+//! to have them chosen. Every error names the file, the line and the column.
 
-use crate::{PathSpec, Pose, ScenarioError};
+use crate::{PathKind, PathSpec, Pose, ScenarioError};
 use controller::GroupKind;
 use controller::path::MAX_SEGMENTS;
 use std::io::Read;
@@ -19,6 +21,14 @@ pub fn header(group: GroupKind) -> &'static [&'static str] {
     match group {
         GroupKind::So3 => &["t", "rx", "ry", "rz"],
         GroupKind::Se3 => &["t", "rx", "ry", "rz", "x", "y", "z"],
+    }
+}
+
+/// The optional velocity columns of a group's waypoint file.
+pub fn velocity_header(group: GroupKind) -> &'static [&'static str] {
+    match group {
+        GroupKind::So3 => &["wx", "wy", "wz"],
+        GroupKind::Se3 => &["wx", "wy", "wz", "vx", "vy", "vz"],
     }
 }
 
@@ -82,17 +92,49 @@ pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, Scena
             }
         }
     }
-    if head.len() > want.len() {
-        return Err(err(
-            1,
-            want.len(),
-            format!("header must be `{}` for {}", want.join(","), group.name()),
-        ));
-    }
+    let speeds = velocity_header(group);
+    let full: Vec<&str> = want.iter().chain(speeds).copied().collect();
+    let expected = format!(
+        "header must be `{}` for {}, optionally followed by `{}`",
+        want.join(","),
+        group.name(),
+        speeds.join(",")
+    );
+    let columns = if head.len() == want.len() {
+        want.len()
+    } else {
+        for (i, name) in full.iter().enumerate().skip(want.len()) {
+            match head.get(i) {
+                Some(h) if h == *name => {}
+                found => {
+                    return Err(err(
+                        1,
+                        i,
+                        format!("{expected}, found `{}`", found.unwrap_or("")),
+                    ));
+                }
+            }
+        }
+        if head.len() > full.len() {
+            return Err(err(1, full.len(), expected));
+        }
+        full.len()
+    };
+    let named = |column: usize| full.get(column).copied().unwrap_or("(extra)").to_owned();
+    let err = |line: u64, column: usize, message: String| ScenarioError::Waypoints {
+        file: file.to_owned(),
+        line,
+        column: column + 1,
+        name: named(column),
+        message,
+    };
     let mut spec = PathSpec {
         file: file.to_owned(),
+        kind: PathKind::Stop,
         times: Vec::new(),
         poses: Vec::new(),
+        velocities: Vec::new(),
+        lines: Vec::new(),
     };
     for record in reader.records() {
         let record = record.map_err(|e| {
@@ -100,11 +142,11 @@ pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, Scena
             err(line, 0, format!("unreadable line: {e}"))
         })?;
         let line = record.position().map_or(0, |p| p.line());
-        if record.len() != want.len() {
+        if record.len() != columns {
             return Err(err(
                 line,
-                record.len().min(want.len()),
-                format!("expected {} values, found {}", want.len(), record.len()),
+                record.len().min(columns),
+                format!("expected {columns} values, found {}", record.len()),
             ));
         }
         if spec.times.len() == MAX_WAYPOINTS {
@@ -114,16 +156,39 @@ pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, Scena
                 format!("too many waypoints: at most {MAX_WAYPOINTS}"),
             ));
         }
-        let mut x = [0.0; 7];
-        for (i, field) in record.iter().enumerate() {
+        let number = |i: usize, field: &str| -> Result<f64, ScenarioError> {
             let v: f64 = field
                 .parse()
                 .map_err(|_| err(line, i, format!("`{field}` is not a number")))?;
             if !v.is_finite() {
                 return Err(err(line, i, format!("`{field}` is not a finite number")));
             }
-            x[i] = v;
+            Ok(v)
+        };
+        let mut x = [0.0; 7];
+        for (i, field) in record.iter().enumerate().take(want.len()) {
+            x[i] = number(i, field)?;
         }
+        // the velocity: every field empty (chosen) or every field a number (given)
+        let given: Vec<&str> = record.iter().skip(want.len()).collect();
+        let velocity = if given.iter().all(|f| f.is_empty()) {
+            None
+        } else if let Some(j) = given.iter().position(|f| f.is_empty()) {
+            return Err(err(
+                line,
+                want.len() + j,
+                format!(
+                    "empty while other velocity columns of the line are given: give all of `{}` or none",
+                    speeds.join(",")
+                ),
+            ));
+        } else {
+            let mut v = Vec::with_capacity(given.len());
+            for (j, field) in given.iter().enumerate() {
+                v.push(number(want.len() + j, field)?);
+            }
+            Some(v)
+        };
         if let Some(last) = spec.times.last()
             && x[0] <= *last
         {
@@ -138,6 +203,8 @@ pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, Scena
             rotation: [x[1], x[2], x[3]],
             position: [x[4], x[5], x[6]],
         });
+        spec.velocities.push(velocity);
+        spec.lines.push(line);
     }
     if spec.times.is_empty() {
         return Err(err(
@@ -147,6 +214,65 @@ pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, Scena
         ));
     }
     Ok(spec)
+}
+
+/// Checks a read waypoint file against the scenario: every leg at least one control period
+/// long (a shorter leg moves between two ticks, so no sample shows its speed), and velocities
+/// only where they are honoured — with `path = "through"`, and zero at the first and last
+/// waypoint (the path is at rest before and after). Errors name the file, the line and the
+/// column.
+pub fn check_legs(spec: &PathSpec, group: GroupKind, period: f64) -> Result<(), ScenarioError> {
+    let err = |i: usize, column: usize, name: &str, message: String| ScenarioError::Waypoints {
+        file: spec.file.clone(),
+        line: spec.lines.get(i).copied().unwrap_or(0),
+        column: column + 1,
+        name: name.to_owned(),
+        message,
+    };
+    for i in 1..spec.times.len() {
+        let leg = spec.times[i] - spec.times[i - 1];
+        if leg < period {
+            return Err(err(
+                i,
+                0,
+                "t",
+                format!(
+                    "the leg from t = {} s to t = {} s lasts {leg:e} s, shorter than the control period {period} s: it would move between two control ticks, so no tick sees its speed",
+                    spec.times[i - 1],
+                    spec.times[i]
+                ),
+            ));
+        }
+    }
+    let first = header(group).len();
+    let names = velocity_header(group);
+    let last = spec.times.len().saturating_sub(1);
+    for (i, v) in spec.velocities.iter().enumerate() {
+        let Some(v) = v else { continue };
+        if spec.kind == PathKind::Stop {
+            return Err(err(
+                i,
+                first,
+                names[0],
+                "a velocity is honoured only with `path = \"through\"` in [reference] (a stop path is at rest at every waypoint)".to_owned(),
+            ));
+        }
+        if (i == 0 || i == last)
+            && let Some(j) = v.iter().position(|x| *x != 0.0)
+        {
+            return Err(err(
+                i,
+                first + j,
+                names[j],
+                format!(
+                    "the {} waypoint must be at rest (the path is held at rest {} it): give 0 or leave it empty",
+                    if i == 0 { "first" } else { "last" },
+                    if i == 0 { "before" } else { "after" }
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
