@@ -100,15 +100,22 @@ pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, Scena
         group.name(),
         speeds.join(",")
     );
+    let named = |column: usize| full.get(column).copied().unwrap_or("(extra)").to_owned();
     let columns = if head.len() == want.len() {
         want.len()
     } else {
+        let header_err = |column: usize, message: String| ScenarioError::Waypoints {
+            file: file.to_owned(),
+            line: 1,
+            column: column + 1,
+            name: named(column),
+            message,
+        };
         for (i, name) in full.iter().enumerate().skip(want.len()) {
             match head.get(i) {
                 Some(h) if h == *name => {}
                 found => {
-                    return Err(err(
-                        1,
+                    return Err(header_err(
                         i,
                         format!("{expected}, found `{}`", found.unwrap_or("")),
                     ));
@@ -116,11 +123,10 @@ pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, Scena
             }
         }
         if head.len() > full.len() {
-            return Err(err(1, full.len(), expected));
+            return Err(header_err(full.len(), expected));
         }
         full.len()
     };
-    let named = |column: usize| full.get(column).copied().unwrap_or("(extra)").to_owned();
     let err = |line: u64, column: usize, message: String| ScenarioError::Waypoints {
         file: file.to_owned(),
         line,

@@ -71,12 +71,35 @@ fn streamed_lockstep(scenario: &str, run_name: &str, out: &str) -> String {
     ctl.output()
 }
 
+/// `slew_{group}.toml` flown through its waypoints (`path = "through"`), written into `d`.
+fn through_scenario(d: &TempDir, group: &str) -> String {
+    let name = format!("slew_{group}");
+    let toml = std::fs::read_to_string(format!("{}/{name}.toml", scenarios())).unwrap();
+    let line = format!("waypoints = \"{name}.csv\"");
+    assert!(toml.contains(&line), "the template changed");
+    let toml = toml.replace(
+        &line,
+        &format!(
+            "waypoints = {:?}\npath = \"through\"",
+            format!("{}/{name}.csv", scenarios())
+        ),
+    );
+    let path = d.join(&format!("{name}_through.toml"));
+    std::fs::write(&path, toml).unwrap();
+    path
+}
+
 #[test]
 fn a_streamed_lockstep_run_equals_the_same_waypoints_from_the_file_bit_for_bit() {
     let _g = serial();
     let d = TempDir::new("stream-lock");
-    for group in ["so3", "se3"] {
-        let scenario = format!("{}/slew_{group}.toml", scenarios());
+    let cases = ["so3", "se3"].into_iter().flat_map(|group| {
+        [
+            (group.to_owned(), format!("{}/slew_{group}.toml", scenarios())),
+            (format!("{group}-through"), through_scenario(&d, group)),
+        ]
+    });
+    for (group, scenario) in cases {
         let (file, streamed) = (
             d.join(&format!("{group}-file")),
             d.join(&format!("{group}-stream")),
@@ -334,6 +357,111 @@ fn killing_the_planner_holds_the_last_pose_and_a_new_planner_resumes() {
     );
     assert!(err([0.3, 0.3, 0.0]) < 1e-2, "{}", err([0.3, 0.3, 0.0]));
     assert!((held_pose.transpose() * q_end - Matrix3::identity()).norm() > 0.5);
+}
+
+/// A planner streaming legs shorter than the controller's control period: the controller
+/// refuses the plan message, counts it, says why, and holds its initial reference pose.
+#[test]
+fn a_streamed_leg_shorter_than_the_control_period_is_refused_and_counted() {
+    let _g = serial();
+    let d = TempDir::new("stream-short");
+    // the planner's scenario: period 1 ms, its last leg 5 ms long (valid for it), so every
+    // window it publishes holds that leg
+    std::fs::write(
+        d.join("short.csv"),
+        "t,rx,ry,rz\n0.5,0,0,0\n1.5,0,0.3,0.2\n1.505,0,0.3,0.4\n",
+    )
+    .unwrap();
+    let base = std::fs::read_to_string(format!("{}/slew_so3.toml", scenarios())).unwrap();
+    let planner_toml = base
+        .replace("control_period = 0.01", "control_period = 0.001")
+        .replace("slew_so3.csv", "short.csv");
+    assert!(planner_toml.contains("control_period = 0.001"));
+    let planner_scenario = d.join("planner.toml");
+    std::fs::write(&planner_scenario, planner_toml).unwrap();
+    // the pair's scenario: period 10 ms, its own (set-point) reference
+    let pair_toml = base
+        .replace("duration = 16.0", "duration = 2.0")
+        .replace("rotation = [0.3, -0.3, 0.2]", "rotation = [0.0, 0.0, 0.0]")
+        .replace(
+            "waypoints = \"slew_so3.csv\"",
+            "setpoint = { rotation = [0.0, 0.0, 0.0] }",
+        );
+    let pair_scenario = d.join("pair.toml");
+    std::fs::write(&pair_scenario, pair_toml).unwrap();
+    let mut planner = Proc::start(
+        "planner",
+        &[
+            "--scenario",
+            &planner_scenario,
+            "--name",
+            "t-stream-short",
+            "--horizon",
+            "1000",
+        ],
+    );
+    assert!(
+        planner.wait_for_line("published pieces", Duration::from_secs(20)),
+        "{}",
+        planner.output()
+    );
+    let mut ctl = Proc::start(
+        "controller_node",
+        &[
+            "--scenario",
+            &pair_scenario,
+            "--name",
+            "t-stream-short",
+            "--reference",
+            "stream",
+        ],
+    );
+    let out = d.join("run");
+    let (code, plant_out) = run(
+        "plant_sim",
+        &[
+            "run",
+            "--scenario",
+            &pair_scenario,
+            "--mode",
+            "lockstep",
+            "--no-spawn",
+            "--name",
+            "t-stream-short",
+            "--out",
+            &out,
+        ],
+        LONG,
+    );
+    assert_eq!(code, 0, "{plant_out}");
+    for p in [&mut ctl, &mut planner] {
+        let status = p.wait_timeout(Duration::from_secs(5));
+        assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", p.output());
+    }
+    let log = ctl.output();
+    assert!(
+        log.contains("(a segment is shorter than the control period)"),
+        "{log}"
+    );
+    let counted = |what: &str| -> Option<u64> {
+        let at = log.find(what)?;
+        log[..at].rsplit(' ').nth(1)?.parse().ok()
+    };
+    let refused = counted("plan messages refused (");
+    let short = log
+        .split("plan messages refused (")
+        .nth(1)
+        .and_then(|r| r.split(' ').next()?.parse::<u64>().ok());
+    assert!(
+        refused.is_some_and(|n| n >= 1) && short == refused,
+        "the refusals are counted, all for the short leg:\n{log}"
+    );
+    assert!(!log.contains("stream started"), "{log}");
+    // nothing streamed was used: the body stays at the held pose (the identity, where it
+    // starts at rest), not on its way to the streamed waypoints
+    let csv = Csv::read(&Path::new(&out).join("trajectory.csv"));
+    let worst = csv.col("attitude_error").iter().fold(0.0f64, |a, b| a.max(*b));
+    assert!(worst < 1e-12, "moved: attitude error {worst:e}");
 }
 
 #[test]
