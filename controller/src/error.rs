@@ -118,6 +118,12 @@ pub enum Error {
         /// The waypoint index.
         index: usize,
     },
+    /// A leg built through waypoints does not reach its end waypoint in floating point (its
+    /// numbers — a huge velocity, position or time — leave too few digits).
+    MissesWaypoint {
+        /// The waypoint index.
+        index: usize,
+    },
 }
 
 impl fmt::Display for Error {
@@ -161,6 +167,10 @@ impl fmt::Display for Error {
             Error::NotAtRest { index } => write!(
                 f,
                 "a path starts and ends at rest: the velocity given at waypoint {index} must be zero"
+            ),
+            Error::MissesWaypoint { index } => write!(
+                f,
+                "the leg to waypoint {index} does not reach it in floating point: its velocities, positions or times are too large for the numbers to keep their digits"
             ),
         }
     }

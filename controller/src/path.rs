@@ -482,7 +482,9 @@ where
     /// [`waypoint_motion`]. At rest at `poses[0]` until `times[0]` and at the last pose after
     /// the last time. With two waypoints (nothing in between: at rest at both ends, zero
     /// acceleration) it is [`Path::through`]'s path up to rounding
-    /// (docs/maths.md, "Paths that fly through their waypoints").
+    /// (docs/maths.md, "Paths that fly through their waypoints"). A leg whose end misses its
+    /// waypoint by more than `√ε` relative to the pose (numbers too large to keep their digits)
+    /// is refused ([`Error::MissesWaypoint`]).
     pub fn flying(
         times: &[T],
         poses: &[SMatrix<T, N, N>],
@@ -505,12 +507,18 @@ where
             v: velocity[i],
             v_dot: acceleration[i],
         };
+        // how far a leg's end may be from its waypoint: √ε relative to the pose's size
+        let tolerance = T::default_epsilon().sqrt();
         for i in 1..poses.len() {
             let seg = Segment::hermite::<G>(times[i - 1], &knot(i - 1), times[i], &knot(i));
             path.push(seg).map_err(|e| match e {
                 Error::NotPositive(_) => Error::NotIncreasing { index: i },
                 other => other,
             })?;
+            let miss = (seg.end::<G>() - poses[i]).norm();
+            if !(miss <= tolerance * poses[i].norm().max(T::one())) {
+                return Err(Error::MissesWaypoint { index: i });
+            }
         }
         Ok(path)
     }

@@ -1,7 +1,7 @@
 //! A fuzz harness for the project's untrusted input, on stable Rust (no libFuzzer, no
 //! nightly): deterministic, seeded, mutation-based.
 //!
-//! Two targets ([`Target`]):
+//! Three targets ([`Target`]):
 //!
 //! * **scenario** — TOML text through [`scenario::Scenario::from_toml`] (parser and
 //!   validator); an accepted scenario then goes through what the processes do with it: its
@@ -15,6 +15,12 @@
 //!   identity helpers, and what each side does with an accepted message (the law evaluated on
 //!   a state, a command's torque integrated by the plant). Seeds: realistic messages of both
 //!   groups from a few cycles of the built-in scenarios' closed loops.
+//! * **path** — waypoint-file text through `scenario::waypoints::parse` and `check_legs` on
+//!   the group its header names and both path kinds (`stop`, `through`); an accepted path is built, sampled
+//!   and handed to the law, and its segments are streamed as plan messages with one wire
+//!   field (`shape`, `t0`, `t1`, `start`, `twists`) overwritten, checked by `check_plan` and,
+//!   when accepted, evaluated as the controller does. Seeds: the shipped slews and
+//!   through-path files with velocity columns.
 //!
 //! Each case is one corpus item with 1–8 random mutations (byte-level: bit flips, byte
 //! overwrite, insert, delete, truncation, chunk duplication, splicing; TOML: number and string
@@ -36,6 +42,7 @@
 
 mod mutate;
 mod rng;
+mod path_target;
 mod scenario_target;
 mod wire_target;
 
@@ -57,17 +64,20 @@ pub enum Target {
     Scenario,
     /// Wire messages: decoder, receiver checks, identities.
     Wire,
+    /// Waypoint files and the streamed segments of the paths through them.
+    Path,
 }
 
 impl Target {
-    /// Both targets.
-    pub const ALL: [Target; 2] = [Target::Scenario, Target::Wire];
+    /// Every target.
+    pub const ALL: [Target; 3] = [Target::Scenario, Target::Wire, Target::Path];
 
-    /// Lower-case name (`"scenario"`, `"wire"`), as on the command line.
+    /// Lower-case name (`"scenario"`, `"wire"`, `"path"`), as on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Target::Scenario => "scenario",
             Target::Wire => "wire",
+            Target::Path => "path",
         }
     }
 }
@@ -119,13 +129,15 @@ pub enum Case {
     Scenario(Vec<u8>),
     /// A wire message and its receiver.
     Wire(WireCase),
+    /// Waypoint-file text (bytes: the checker replaces invalid UTF-8).
+    Path(Vec<u8>),
 }
 
 impl Case {
     /// The raw input bytes (TOML text, or the message bytes).
     pub fn bytes(&self) -> &[u8] {
         match self {
-            Case::Scenario(b) => b,
+            Case::Scenario(b) | Case::Path(b) => b,
             Case::Wire(w) => &w.bytes,
         }
     }
@@ -133,7 +145,7 @@ impl Case {
     /// What besides the bytes defines the case (the wire receiver), for reports.
     pub fn context(&self) -> String {
         match self {
-            Case::Scenario(_) => String::new(),
+            Case::Scenario(_) | Case::Path(_) => String::new(),
             Case::Wire(w) => format!("{:?} message, receiver {:?}", w.kind, w.receiver),
         }
     }
@@ -203,7 +215,9 @@ impl fmt::Display for Finding {
             writeln!(f, "  {context}")?;
         }
         match &self.input {
-            Case::Scenario(b) => write!(f, "  input:\n{}", String::from_utf8_lossy(b)),
+            Case::Scenario(b) | Case::Path(b) => {
+                write!(f, "  input:\n{}", String::from_utf8_lossy(b))
+            }
             Case::Wire(w) => write!(f, "  input ({} bytes): {}", w.bytes.len(), hex(&w.bytes)),
         }
     }
@@ -392,6 +406,7 @@ pub fn run_case<I: ?Sized, F: FnOnce(&I) -> Outcome>(
 pub fn check(case: &Case) -> Outcome {
     match case {
         Case::Scenario(bytes) => scenario_target::check(bytes),
+        Case::Path(bytes) => path_target::check(bytes),
         Case::Wire(w) => wire_target::check(w),
     }
 }
@@ -401,6 +416,7 @@ pub struct Generator {
     target: Target,
     streams: rng::Streams,
     scenarios: Option<scenario_target::Corpus>,
+    paths: Option<path_target::Corpus>,
     wire: Option<wire_target::Corpus>,
 }
 
@@ -411,6 +427,7 @@ impl Generator {
             target,
             streams: rng::Streams::new(seed),
             scenarios: (target == Target::Scenario).then(scenario_target::Corpus::new),
+            paths: (target == Target::Path).then(path_target::Corpus::new),
             wire: (target == Target::Wire).then(wire_target::Corpus::new),
         }
     }
@@ -418,9 +435,10 @@ impl Generator {
     /// Case `case` (depends only on the target, the seed and `case`).
     pub fn case(&self, case: u64) -> Case {
         let mut g = self.streams.case(case);
-        match (&self.scenarios, &self.wire) {
-            (Some(c), _) => Case::Scenario(c.generate(&mut g)),
-            (_, Some(c)) => Case::Wire(c.generate(&mut g)),
+        match (&self.scenarios, &self.wire, &self.paths) {
+            (Some(c), _, _) => Case::Scenario(c.generate(&mut g)),
+            (_, Some(c), _) => Case::Wire(c.generate(&mut g)),
+            (_, _, Some(c)) => Case::Path(c.generate(&mut g)),
             _ => unreachable!("a generator has the corpus of its target"),
         }
     }

@@ -1,8 +1,8 @@
-//! `fuzz`: runs the stable-Rust fuzz harness on the scenario and wire targets, prints a report
+//! `fuzz`: runs the stable-Rust fuzz harness on the scenario, wire and path targets, prints a report
 //! per target, and exits 1 if any case panicked.
 //!
 //! ```text
-//! fuzz [--target scenario|wire|all] [--cases N] [--seed S] [--save]
+//! fuzz [--target scenario|wire|path|all] [--cases N] [--seed S] [--save]
 //! fuzz --target wire --seed S --case I     # replay one case, panics not caught
 //! ```
 #![forbid(unsafe_code)]
@@ -22,7 +22,9 @@ enum Which {
     Scenario,
     /// Wire messages.
     Wire,
-    /// Both.
+    /// Waypoint files and streamed path segments.
+    Path,
+    /// Every target.
     All,
 }
 
@@ -55,6 +57,7 @@ fn targets(which: Which) -> Vec<Target> {
     match which {
         Which::Scenario => vec![Target::Scenario],
         Which::Wire => vec![Target::Wire],
+        Which::Path => vec![Target::Path],
         Which::All => Target::ALL.to_vec(),
     }
 }
@@ -70,7 +73,9 @@ fn main() -> ExitCode {
                 println!("  {context}");
             }
             match &input {
-                fuzz::Case::Scenario(b) => println!("  input:\n{}", String::from_utf8_lossy(b)),
+                fuzz::Case::Scenario(b) | fuzz::Case::Path(b) => {
+                    println!("  input:\n{}", String::from_utf8_lossy(b))
+                }
                 fuzz::Case::Wire(w) => {
                     let hex: String = w.bytes.iter().map(|b| format!("{b:02x}")).collect();
                     println!("  input ({} bytes): {hex}", w.bytes.len())

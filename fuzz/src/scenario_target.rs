@@ -114,7 +114,7 @@ velocity = [0.0, 0.0, 0.0]
 ];
 
 /// What replaces a number token.
-const INTERESTING: [&str; 30] = [
+pub(crate) const INTERESTING: [&str; 30] = [
     "nan",
     "inf",
     "-inf",
@@ -164,7 +164,8 @@ const STRINGS: [&str; 12] = [
 ];
 
 /// Known keys and values for [`TomlOp::SetKey`].
-const KEYS: [(&str, &[&str]); 21] = [
+const KEYS: [(&str, &[&str]); 22] = [
+    ("path", &["\"stop\"", "\"through\"", "\"curvy\"", "3"]),
     (
         "disturbance_observer",
         &[
@@ -441,7 +442,7 @@ fn token_soup(g: &mut Gen) -> Vec<u8> {
 }
 
 /// A random numeric literal of varied magnitude and form.
-fn random_number(g: &mut Gen) -> String {
+pub(crate) fn random_number(g: &mut Gen) -> String {
     match g.below(6) {
         0 => format!("{}", g.below(15) as i64 - 2),
         1 => format!("{:.3}", (g.u64() % 20_000) as f64 / 1000.0 - 10.0),
@@ -464,7 +465,7 @@ fn is_token_byte(b: u8) -> bool {
 }
 
 /// The spans of number-like tokens (digits first, or a sign then a digit, `.`, `i` or `n`).
-fn number_spans(data: &[u8]) -> Vec<(usize, usize)> {
+pub(crate) fn number_spans(data: &[u8]) -> Vec<(usize, usize)> {
     let mut spans = Vec::new();
     let mut i = 0;
     while i < data.len() {
@@ -509,11 +510,11 @@ fn string_spans(data: &[u8]) -> Vec<(usize, usize)> {
     spans
 }
 
-fn split_lines(data: &[u8]) -> Vec<Vec<u8>> {
+pub(crate) fn split_lines(data: &[u8]) -> Vec<Vec<u8>> {
     data.split(|b| *b == b'\n').map(<[u8]>::to_vec).collect()
 }
 
-fn join_lines(lines: &[Vec<u8>]) -> Vec<u8> {
+pub(crate) fn join_lines(lines: &[Vec<u8>]) -> Vec<u8> {
     lines.join(&b'\n')
 }
 
@@ -732,6 +733,7 @@ pub(crate) fn controller_error_kind(e: &controller::Error) -> String {
         E::NotIncreasing { .. } => "NotIncreasing".to_owned(),
         E::TooManySegments { .. } => "TooManySegments".to_owned(),
         E::NotAtRest { .. } => "NotAtRest".to_owned(),
+        E::MissesWaypoint { .. } => "MissesWaypoint".to_owned(),
     }
 }
 

@@ -98,3 +98,25 @@ fn a_planted_bug_is_caught() {
     // the same case without the planted bug is an ordinary rejection
     assert!(matches!(fuzz::check(&f.input), Outcome::Rejected(_)));
 }
+
+#[test]
+fn waypoint_files_and_streamed_segments_never_panic() {
+    let r = fuzz::run(Target::Path, CASES / 4, SEED);
+    eprintln!("{r}");
+    assert!(r.passed(), "the fuzz run found panics:\n{r}");
+    assert!(
+        r.accepted * 20 >= r.cases,
+        "fewer than 5 % of the waypoint files accepted\n{r}"
+    );
+    // the checks of the new inputs are reached: velocity columns, short legs
+    for kind in [
+        "Waypoints(t): the leg from",
+        "Waypoints(wx)",
+        "Waypoints(t): times must increase",
+    ] {
+        assert!(
+            r.rejected.keys().any(|k| k.starts_with(kind)),
+            "no `{kind}` rejection\n{r}"
+        );
+    }
+}

@@ -949,7 +949,7 @@ fn reference_cmd(args: ReferenceArgs) -> Result<(), SimError> {
         for ((way, f), (_, flown)) in c.reports.iter().zip(&c.tracking) {
             let tau = f.torque.iter().map(|p| p.value).fold(0.0f64, f64::max);
             println!(
-                "  {way:<8} peak |ω_d| {:.4} rad/s at t = {:.2} s, peak |τ_d| on an axis {tau:.4}, flown: largest attitude error after the first waypoint {flown:.3e}",
+                "  {way:<8} peak |ω_d| {:.4} rad/s at t = {:.2} s, peak |τ_d| on an axis {tau:.4}, flown: largest attitude error from the second waypoint on {flown:.3e}",
                 f.angular_speed.value, f.angular_speed.t
             );
         }

@@ -302,49 +302,44 @@ pub fn feasibility(s: &Scenario, rows: &[ReferenceRow]) -> Feasibility {
     report
 }
 
-/// The report as text, one line per figure and one per warning.
+/// The report as text, one line per figure (the warnings are [`LimitWarning`]'s `Display`).
 pub fn feasibility_text(f: &Feasibility) -> String {
-    let mut out = String::new();
-    let line = |out: &mut String, name: &str, p: &Peak, unit: &str| {
+    let mut out = format!(
+        "feasibility of `{}` ({}), sampled every {} s:\n",
+        f.scenario, f.group, f.control_period
+    );
+    let mut line = |name: &str, p: &Peak, unit: &str, note: &str| {
         out.push_str(&format!(
-            "  peak {name:<22} {:>12.6} {unit:<8} at t = {:.4} s\n",
+            "  peak {name:<24} {:>12.6} {unit:<7} at t = {:.4} s{note}\n",
             p.value, p.t
         ));
     };
-    out.push_str(&format!(
-        "feasibility of `{}` ({}), sampled every {} s:\n",
-        f.scenario, f.group, f.control_period
-    ));
-    line(&mut out, "|ω_d|", &f.angular_speed, "rad/s");
-    line(&mut out, "|α_d|", &f.angular_acceleration, "rad/s²");
+    line("|ω_d|", &f.angular_speed, "rad/s", "");
+    line("|α_d|", &f.angular_acceleration, "rad/s²", "");
     if let Some(p) = &f.speed {
-        line(&mut out, "speed |v_d|", p, "m/s");
+        line("speed |v_d|", p, "m/s", "");
     }
     if let Some(p) = &f.acceleration {
-        line(&mut out, "acceleration |p̈_d|", p, "m/s²");
+        line("acceleration |p̈_d|", p, "m/s²", "");
     }
     let m = f.torque.len();
     for (i, p) in f.torque.iter().enumerate() {
         let limit = f
             .torque_limit
             .as_ref()
-            .map_or_else(|| "no limit".to_owned(), |l| format!("limit {}", l[i]));
-        out.push_str(&format!(
-            "  peak |{}| (feedforward)  {:>12.6}          at t = {:.4} s ({limit})\n",
-            axis_name(m, i),
-            p.value,
-            p.t
-        ));
+            .map_or_else(|| " (no limit)".to_owned(), |l| format!(" (limit {})", l[i]));
+        line(
+            &format!("|{}| (feedforward)", axis_name(m, i)),
+            p,
+            "",
+            &limit,
+        );
     }
-    if f.warnings.is_empty() {
-        out.push_str(match &f.torque_limit {
-            Some(_) => "  the feedforward stays within the torque limit on every axis\n",
-            None => "  no torque limit in the scenario: nothing to compare with\n",
-        });
-    }
-    for w in &f.warnings {
-        out.push_str(&format!("{w}\n"));
-    }
+    out.push_str(match (&f.torque_limit, f.warnings.len()) {
+        (None, _) => "  no torque limit in the scenario: nothing to compare with\n".to_owned(),
+        (Some(_), 0) => "  the feedforward stays within the torque limit on every axis\n".to_owned(),
+        (Some(_), n) => format!("  the feedforward alone exceeds the torque limit on {n} axis/axes (warnings on stderr)\n"),
+    });
     out
 }
 
@@ -381,7 +376,8 @@ pub fn with_path_kind(s: &Scenario, kind: PathKind) -> Result<Scenario, SimError
 pub struct PathComparison {
     /// `stop` then `through`: the feasibility report of each.
     pub reports: Vec<(String, Feasibility)>,
-    /// Largest closed-loop attitude error `‖I − R_dᵀR‖_F` after the first waypoint, per way.
+    /// Largest closed-loop attitude error `‖I − R_dᵀR‖_F` from the second waypoint's time on
+    /// (after the start's transient), per way.
     pub tracking: Vec<(String, f64)>,
 }
 
@@ -396,12 +392,20 @@ pub fn compare_paths(s: &Scenario, out: &Path) -> Result<PathComparison, SimErro
         ("stop", PathKind::Stop, STOP),
         ("through", PathKind::Through, THROUGH),
     ];
-    let start = s.path.as_ref().map_or(0.0, |p| p.times[0]);
+    // the flown error once the initial transient is over: from the second waypoint on
+    let start = s
+        .path
+        .as_ref()
+        .and_then(|p| p.times.get(1).copied())
+        .unwrap_or(0.0);
     let mut panels: Vec<Panel> = [
         ("Desired attitude: rotation angle of R_d from the identity", "angle (rad)"),
         ("Desired angular speed |ω_d|", "|ω_d| (rad/s)"),
         ("Feedforward |τ_d| (torque part)", "|τ_d|"),
-        ("Flown: attitude error ‖I − R_dᵀR‖_F", "error"),
+        (
+            "Flown (the scenario's start): attitude error ‖I − R_dᵀR‖_F from the second waypoint on",
+            "error",
+        ),
     ]
     .iter()
     .map(|(title, y)| Panel {
@@ -431,7 +435,12 @@ pub fn compare_paths(s: &Scenario, out: &Path) -> Result<PathComparison, SimErro
         panels[3].lines.push(Line {
             label: name.to_owned(),
             color,
-            points: flown.rows.iter().map(|r| (r.t, r.attitude_error)).collect(),
+            points: flown
+                .rows
+                .iter()
+                .filter(|r| r.t >= start)
+                .map(|r| (r.t, r.attitude_error))
+                .collect(),
         });
         let worst = flown
             .rows

@@ -229,3 +229,185 @@ fn bad_waypoint_files_name_file_line_and_column() {
         );
     }
 }
+
+/// `slew_{group}` with `path = "through"` (and `extra` lines replaced in the scenario), its
+/// waypoints from `csv` (default: the shipped file), written into a fresh directory.
+fn through_scenario(group: &str, tag: &str, csv: Option<&str>, edits: &[(&str, &str)]) -> PathBuf {
+    let d = temp(tag);
+    let name = format!("slew_{group}");
+    let mut toml = std::fs::read_to_string(repo(&format!("scenarios/{name}.toml"))).unwrap();
+    let waypoints = match csv {
+        Some(text) => {
+            std::fs::write(d.join("w.csv"), text).unwrap();
+            "w.csv".to_owned()
+        }
+        None => repo(&format!("scenarios/{name}.csv")).display().to_string(),
+    };
+    let line = format!("waypoints = \"{name}.csv\"");
+    assert!(toml.contains(&line));
+    toml = toml.replace(&line, &format!("waypoints = {waypoints:?}\npath = \"through\""));
+    for (from, to) in edits {
+        assert!(toml.contains(from), "template changed: {from}");
+        toml = toml.replace(from, to);
+    }
+    let file = d.join("s.toml");
+    std::fs::write(&file, toml).unwrap();
+    file
+}
+
+#[test]
+fn a_through_path_reference_satisfies_the_feedforward_and_never_stops_inside() {
+    for group in ["so3", "se3"] {
+        let file = through_scenario(group, &format!("tau-{group}"), None, &[]);
+        let out = file.parent().unwrap().join("out");
+        let o = run(&[
+            "reference",
+            "--scenario",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        assert!(text(&o).contains("path = \"through\""), "{}", text(&o));
+        let (h, rows) = read_csv(&out.join("reference.csv"));
+        let m = if group == "so3" { 3 } else { 6 };
+        let v = cols(&h, &rows, "vd", m);
+        // moving at every interior waypoint (t = 4, 7, 10 s: rows 400, 700, 1000)
+        for k in [400, 700, 1000] {
+            let speed: f64 = v[k].iter().map(|x| x * x).sum::<f64>().sqrt();
+            assert!(speed > 0.05, "{group}: |V_d| = {speed} at row {k}");
+        }
+        // the feedforward: checked against the model's own algebra by the library test; here
+        // `I V̇_d − ad_{V_d}ᵀ I V_d` recomputed from the CSV's columns on SO(3)
+        if group == "so3" {
+            let (a, tau) = (cols(&h, &rows, "vd_dot", 3), cols(&h, &rows, "tau_d", 3));
+            let j = [[0.824, 0.0, 0.12], [0.0, 1.135, 0.0], [0.12, 0.0, 1.759]];
+            let mul = |x: &[f64]| -> [f64; 3] {
+                std::array::from_fn(|r| (0..3).map(|c| j[r][c] * x[c]).sum())
+            };
+            let mut worst = 0.0f64;
+            for k in 0..rows.len() {
+                let (jw, jwd) = (mul(&v[k]), mul(&a[k]));
+                let w = &v[k];
+                let c = [
+                    jw[1] * w[2] - jw[2] * w[1],
+                    jw[2] * w[0] - jw[0] * w[2],
+                    jw[0] * w[1] - jw[1] * w[0],
+                ];
+                for i in 0..3 {
+                    worst = worst.max((tau[k][i] - (jwd[i] - c[i])).abs());
+                }
+            }
+            eprintln!("slew_so3 through: |τ_d − (I V̇_d − ad_Vᵀ I V_d)| ≤ {worst:e}");
+            assert!(worst < 1e-12, "{worst:e}");
+        }
+        // the report exists and, with the 5 N·m limit, has no warning
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("reference.json")).unwrap())
+                .unwrap();
+        assert_eq!(json["warnings"].as_array().map(Vec::len), Some(0), "{json}");
+        assert!(json["angular_speed"]["value"].as_f64().unwrap() > 0.3);
+        assert_eq!(json["speed"].is_null(), group == "so3");
+    }
+}
+
+/// One turn of `a` rad about z in `span` s, at rest at both ends: the quintic's peak
+/// acceleration `a·10/(√3·span²)` at `σ = (3 − √3)/6`, and `τ_z = J_zz·α` there (about one
+/// axis, `ω × Jω = 0` when J has z as a principal axis).
+#[test]
+fn the_feasibility_report_warns_on_the_right_axis_at_the_right_time() {
+    // 1.5 rad about z between t = 1 and t = 2: peak α = 1.5·5.7735 = 8.66 rad/s² at
+    // t = 1 + 0.2113 s; with J_zz = 1.759 the feedforward peaks at 15.2 N·m on z, x and y
+    // need nothing (J's off-diagonal 0.12 couples x: τ_x = 0.12·α = 1.04 N·m).
+    let csv = "t,rx,ry,rz\n1,0,0,0\n2,0,0,1.5\n";
+    let strict_fail = |limit: &str, tag: &str| {
+        let file = through_scenario(
+            "so3",
+            tag,
+            Some(csv),
+            &[("torque_limit = 5.0", limit), ("duration = 16.0", "duration = 3.0")],
+        );
+        let out = file.parent().unwrap().join("out");
+        let args = |strict: bool| {
+            let mut a = vec![
+                "reference".to_owned(),
+                "--scenario".to_owned(),
+                file.display().to_string(),
+                "--out".to_owned(),
+                out.display().to_string(),
+            ];
+            if strict {
+                a.push("--strict".to_owned());
+            }
+            a
+        };
+        let plain = Command::new(env!("CARGO_BIN_EXE_plant_sim"))
+            .args(args(false))
+            .output()
+            .unwrap();
+        let strict = Command::new(env!("CARGO_BIN_EXE_plant_sim"))
+            .args(args(true))
+            .output()
+            .unwrap();
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("reference.json")).unwrap())
+                .unwrap();
+        (plain, strict, json)
+    };
+    let (plain, strict, json) = strict_fail("torque_limit = 10.0", "tight");
+    let t = text(&plain);
+    assert_eq!(plain.status.code(), Some(0), "a warning, not a refusal: {t}");
+    assert_eq!(strict.status.code(), Some(1), "{}", text(&strict));
+    assert!(text(&strict).contains("--strict"), "{}", text(&strict));
+    let warnings = json["warnings"].as_array().unwrap();
+    assert_eq!(warnings.len(), 1, "{json}");
+    let w = &warnings[0];
+    assert_eq!(w["axis"], 2, "{json}");
+    assert_eq!(w["limit"], 10.0);
+    let alpha = 1.5 * 10.0 / 3f64.sqrt();
+    let want_t = 1.0 + (3.0 - 3f64.sqrt()) / 6.0;
+    let peak = w["peak"]["value"].as_f64().unwrap();
+    let at = w["peak"]["t"].as_f64().unwrap();
+    eprintln!("warning: axis 2 peak {peak} at t = {at} (analytic {} at {want_t})", 1.759 * alpha);
+    assert!((at - want_t).abs() <= 0.01, "peak at {at}, want {want_t} within one period");
+    assert!((peak - 1.759 * alpha).abs() < 0.01 * 1.759 * alpha, "{peak}");
+    // the message names the axis, the time and both numbers
+    assert!(
+        t.contains("warning: axis 2 (τ_z): the feedforward alone needs |τ_z| = ")
+            && t.contains(&format!("at t = {at:.4} s, above the torque limit 10")),
+        "{t}"
+    );
+    // a feasible limit: no warning, exit 0 even with --strict
+    let (plain, strict, json) = strict_fail("torque_limit = 20.0", "loose");
+    assert_eq!(plain.status.code(), Some(0), "{}", text(&plain));
+    assert_eq!(strict.status.code(), Some(0), "{}", text(&strict));
+    assert!(!text(&plain).contains("warning"), "{}", text(&plain));
+    assert_eq!(json["warnings"].as_array().map(Vec::len), Some(0));
+}
+
+#[test]
+fn compare_paths_flies_the_waypoints_both_ways() {
+    let out = temp("compare");
+    let o = run(&[
+        "reference",
+        "--scenario",
+        repo("scenarios/slew_so3.toml").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--compare-paths",
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(out.join("paths.png").exists() && out.join("paths.svg").exists());
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("paths.json")).unwrap()).unwrap();
+    let speed = |i: usize| json["reports"][i][1]["angular_speed"]["value"].as_f64().unwrap();
+    eprintln!("peak |ω_d|: stop {}, through {}", speed(0), speed(1));
+    assert_eq!(json["reports"][0][0], "stop");
+    assert_eq!(json["reports"][1][0], "through");
+    // flying through needs less peak speed than stopping at every waypoint
+    assert!(speed(1) < speed(0), "{json}");
+    let o = run(&["reference", "--builtin", "seed", "--out", out.to_str().unwrap(), "--compare-paths"]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("has no `[reference] waypoints`"), "{}", text(&o));
+}

@@ -294,6 +294,32 @@ pub struct PathSpec {
     pub lines: Vec<u64>,
 }
 
+/// The path of a [`PathSpec`] on its group: the stop path (`Path::through`) or the
+/// through-path (`Path::flying`, with the velocities given).
+pub fn build_path<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    spec: &PathSpec,
+) -> Result<GroupPath<f64, G, N, M>, controller::Error> {
+    let poses: Vec<SMatrix<f64, N, N>> = spec
+        .poses
+        .iter()
+        .map(|p| Scenario::pose::<N>(p.rotation, p.position))
+        .collect();
+    match spec.kind {
+        PathKind::Stop => GroupPath::through(&spec.times, &poses),
+        PathKind::Through => {
+            let given: Vec<Option<SVector<f64, M>>> = spec
+                .velocities
+                .iter()
+                .map(|v| {
+                    v.as_ref()
+                        .map(|v| SVector::from_fn(|i, _| v.get(i).copied().unwrap_or(f64::NAN)))
+                })
+                .collect();
+            GroupPath::flying(&spec.times, &poses, &given)
+        }
+    }
+}
+
 /// A validated scenario. Matrices are row-major; dimensions match the group.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
@@ -464,26 +490,7 @@ impl Scenario {
     pub fn path<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         &self,
     ) -> Option<Result<GroupPath<f64, G, N, M>, controller::Error>> {
-        let spec = self.path.as_ref()?;
-        let poses: Vec<SMatrix<f64, N, N>> = spec
-            .poses
-            .iter()
-            .map(|p| Self::pose::<N>(p.rotation, p.position))
-            .collect();
-        Some(match spec.kind {
-            PathKind::Stop => GroupPath::through(&spec.times, &poses),
-            PathKind::Through => {
-                let given: Vec<Option<SVector<f64, M>>> = spec
-                    .velocities
-                    .iter()
-                    .map(|v| {
-                        v.as_ref()
-                            .map(|v| SVector::from_fn(|i, _| v.get(i).copied().unwrap_or(f64::NAN)))
-                    })
-                    .collect();
-                GroupPath::flying(&spec.times, &poses, &given)
-            }
-        })
+        self.path.as_ref().map(build_path::<G, N, M>)
     }
 
     /// The desired trajectory, whichever its kind: the feedforward series integrated, or the

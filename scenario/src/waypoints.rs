@@ -5,6 +5,7 @@
 //! to have them chosen. Every error names the file, the line and the column.
 
 use crate::{PathKind, PathSpec, Pose, ScenarioError};
+use controller::group::{MatrixLieGroup, OnGroup};
 use controller::GroupKind;
 use controller::path::MAX_SEGMENTS;
 use std::io::Read;
@@ -225,8 +226,9 @@ pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, Scena
 /// Checks a read waypoint file against the scenario: every leg at least one control period
 /// long (a shorter leg moves between two ticks, so no sample shows its speed), and velocities
 /// only where they are honoured — with `path = "through"`, and zero at the first and last
-/// waypoint (the path is at rest before and after). Errors name the file, the line and the
-/// column.
+/// waypoint (the path is at rest before and after) — and the path built once on the group
+/// (a leg that misses its waypoint in floating point is refused). Errors name the file, the
+/// line and the column.
 pub fn check_legs(spec: &PathSpec, group: GroupKind, period: f64) -> Result<(), ScenarioError> {
     let err = |i: usize, column: usize, name: &str, message: String| ScenarioError::Waypoints {
         file: spec.file.clone(),
@@ -278,7 +280,57 @@ pub fn check_legs(spec: &PathSpec, group: GroupKind, period: f64) -> Result<(), 
             ));
         }
     }
-    Ok(())
+    group.dispatch(Build(spec))
+}
+
+/// Builds the path once, so what only the construction finds (a leg that misses its waypoint
+/// in floating point) is refused at load time, naming the waypoint's line.
+struct Build<'a>(&'a PathSpec);
+
+impl OnGroup for Build<'_> {
+    type Output = Result<(), ScenarioError>;
+    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+        let spec = self.0;
+        let path = crate::build_path::<G, N, M>(spec).map_err(|e| {
+            let index = match e {
+                controller::Error::NotIncreasing { index }
+                | controller::Error::NotAtRest { index }
+                | controller::Error::MissesWaypoint { index } => index,
+                _ => 0,
+            };
+            ScenarioError::Waypoints {
+                file: spec.file.clone(),
+                line: spec.lines.get(index).copied().unwrap_or(0),
+                column: 1,
+                name: "t".to_owned(),
+                message: e.to_string(),
+            }
+        })?;
+        // every leg finite along its way, not only at its ends (sixteen samples per leg)
+        for (i, seg) in path.segments().enumerate() {
+            for k in 0..=16 {
+                let t = seg.t0 + (seg.t1 - seg.t0) * f64::from(k) / 16.0;
+                let s = seg.sample::<G>(t);
+                // squares finite too: the law's energies square the velocity
+                let finite = s.q.iter().all(|x| x.is_finite())
+                    && s.v.norm_squared().is_finite()
+                    && s.v_dot.norm_squared().is_finite();
+                if !finite {
+                    return Err(ScenarioError::Waypoints {
+                        file: spec.file.clone(),
+                        line: spec.lines.get(i + 1).copied().unwrap_or(0),
+                        column: 1,
+                        name: "t".to_owned(),
+                        message: format!(
+                            "the path between t = {} s and t = {} s is not finite at t = {t} s: a velocity, position or time is too large",
+                            seg.t0, seg.t1
+                        ),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]

@@ -69,7 +69,15 @@ fn path_kind_and_velocity_columns_are_read() {
 
 #[test]
 fn bad_path_keys_and_velocity_columns_are_refused_naming_where() {
-    let cases: [(&str, &str, &str, Option<&str>, &str); 12] = [
+    let cases: [(&str, &str, &str, Option<&str>, &str); 13] = [
+        // a velocity so large that the path overflows along the leg
+        (
+            "se3",
+            "huge",
+            "path = \"through\"",
+            Some("t,rx,ry,rz,x,y,z,wx,wy,wz,vx,vy,vz\n0,0,0,0,0,0,0,,,,,,\n1,0,0,1.5,1,0,0,0,0,0.5,1,0,1e168\n2,0,0,3,2,1,0,,,,,,\n"),
+            "w.csv: line 3, column 1 (`t`): the path between t = 0 s and t = 1 s is not finite",
+        ),
         ("so3", "kind", "path = \"curvy\"", None, "key `reference.path`: unknown path kind `curvy`"),
         ("so3", "number", "path = 3", None, "path"),
         (
