@@ -335,7 +335,8 @@ pub fn waypoint_motion<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M
         }
     }
     for i in 1..n {
-        if !(times[i] > times[i - 1]) {
+        // NaN times are refused too
+        if times[i].partial_cmp(&times[i - 1]) != Some(core::cmp::Ordering::Greater) {
             return Err(Error::NotIncreasing { index: i });
         }
     }
@@ -350,13 +351,8 @@ pub fn waypoint_motion<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M
         slope[i] = xi / span[i];
         hold[i] = xi.iter().all(|x| *x == T::zero());
     }
-    let fixed = |i: usize| {
-        i == 0
-            || i + 1 == n
-            || given[i].is_some()
-            || hold[i]
-            || (i > 0 && hold[i - 1])
-    };
+    let fixed =
+        |i: usize| i == 0 || i + 1 == n || given[i].is_some() || hold[i] || (i > 0 && hold[i - 1]);
     let three = real::<T>(3.0);
     let two = real::<T>(2.0);
     for i in 0..n {
@@ -388,10 +384,7 @@ pub fn waypoint_motion<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M
                 let (denominator, carried) = if i == a + 1 {
                     (diag, rhs)
                 } else {
-                    (
-                        diag - lower * c_prime[i - 1],
-                        rhs - d_prime[i - 1] * lower,
-                    )
+                    (diag - lower * c_prime[i - 1], rhs - d_prime[i - 1] * lower)
                 };
                 c_prime[i] = if i == b - 1 {
                     T::zero()
@@ -415,8 +408,8 @@ pub fn waypoint_motion<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M
         } else {
             // the cubic on each side: p''(t_i⁺) from leg i, p''(t_i⁻) from leg i − 1
             let right = (slope[i] * six - velocity[i] * four - velocity[i + 1] * two) / span[i];
-            let left = (velocity[i - 1] * two + velocity[i] * four - slope[i - 1] * six)
-                / span[i - 1];
+            let left =
+                (velocity[i - 1] * two + velocity[i] * four - slope[i - 1] * six) / span[i - 1];
             (right + left) / two
         };
     }
@@ -516,7 +509,12 @@ where
                 other => other,
             })?;
             let miss = (seg.end::<G>() - poses[i]).norm();
-            if !(miss <= tolerance * poses[i].norm().max(T::one())) {
+            // a NaN miss is refused too
+            let bound = tolerance * poses[i].norm().max(T::one());
+            if miss
+                .partial_cmp(&bound)
+                .is_none_or(|o| o == core::cmp::Ordering::Greater)
+            {
                 return Err(Error::MissesWaypoint { index: i });
             }
         }

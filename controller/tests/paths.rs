@@ -406,7 +406,9 @@ fn zero_waypoint_velocities_and_accelerations_give_the_rest_to_rest_path() {
 fn scalar_profile(times: &[f64], angles: &[f64], t: f64) -> (f64, f64, f64) {
     let n = times.len();
     let h: Vec<f64> = (0..n - 1).map(|i| times[i + 1] - times[i]).collect();
-    let d: Vec<f64> = (0..n - 1).map(|i| (angles[i + 1] - angles[i]) / h[i]).collect();
+    let d: Vec<f64> = (0..n - 1)
+        .map(|i| (angles[i + 1] - angles[i]) / h[i])
+        .collect();
     // A m = b for all slopes, the end slopes pinned to zero
     let mut a = vec![vec![0.0; n + 1]; n];
     a[0][0] = 1.0;
@@ -422,11 +424,12 @@ fn scalar_profile(times: &[f64], angles: &[f64], t: f64) -> (f64, f64, f64) {
             .max_by(|x, y| a[*x][c].abs().total_cmp(&a[*y][c].abs()))
             .unwrap();
         a.swap(c, p);
-        for r in 0..n {
+        let pivot = a[c].clone();
+        for (r, row) in a.iter_mut().enumerate() {
             if r != c {
-                let f = a[r][c] / a[c][c];
-                for k in c..=n {
-                    a[r][k] -= f * a[c][k];
+                let f = row[c] / pivot[c];
+                for (x, p) in row.iter_mut().zip(&pivot).skip(c) {
+                    *x -= f * p;
                 }
             }
         }
@@ -520,7 +523,10 @@ fn given_velocities_are_honoured_and_holds_rest() {
     let path = flying::<So3, f64, 3, 3>(&times, &r);
     for k in 0..=10 {
         let s = path.sample(1.0 + k as f64 / 10.0);
-        assert!((s.q - r[1]).norm() < 1e-12 && s.v.norm() < 1e-12, "moves in the hold");
+        assert!(
+            (s.q - r[1]).norm() < 1e-12 && s.v.norm() < 1e-12,
+            "moves in the hold"
+        );
     }
     assert!(path.sample(0.5).v.norm() > 0.1 && path.sample(2.5).v.norm() > 0.1);
     // a moving first or last waypoint is refused

@@ -485,8 +485,24 @@ impl Stream {
                 let i = kind as usize;
                 self.rejected[i] += 1;
                 if self.rejected[i] == 1 {
+                    // a short leg: say which (its index in the planner's path and its times)
+                    let period = reference.period();
+                    let which = msg
+                        .used()
+                        .iter()
+                        .enumerate()
+                        .find(|(_, w)| kind == PlanReject::ShortLeg && w.t1 - w.t0 < period)
+                        .map_or(String::new(), |(j, w)| {
+                            format!(
+                                ": piece {} from t = {} s to t = {} s lasts {:e} s, less than the control period {period} s",
+                                msg.first_index as usize + j,
+                                w.t0,
+                                w.t1,
+                                w.t1 - w.t0
+                            )
+                        });
                     log(format_args!(
-                        "refused a plan message from pid {} ({kind}); its pieces are not used. Further refusals of this kind are counted, not logged",
+                        "refused a plan message from pid {} ({kind}{which}); its pieces are not used. Further refusals of this kind are counted, not logged",
                         msg.planner_pid
                     ));
                 }
@@ -616,7 +632,10 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         cycles: cycles.cycles,
         rejected: ep.rejected_states(),
         refused: cycles.refused,
-        plans_refused: cycles.stream.as_ref().map_or([0; PlanReject::KINDS], |s| s.rejected),
+        plans_refused: cycles
+            .stream
+            .as_ref()
+            .map_or([0; PlanReject::KINDS], |s| s.rejected),
         allocations_after_startup,
     })
 }

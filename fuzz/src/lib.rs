@@ -41,8 +41,8 @@
 #![warn(missing_docs)]
 
 mod mutate;
-mod rng;
 mod path_target;
+mod rng;
 mod scenario_target;
 mod wire_target;
 

@@ -216,14 +216,15 @@ impl OnGroup for Exercise<'_> {
                 crate::scenario_target::controller_error_kind(&e)
             )
         })?;
-        let controller = controller::Controller::<f64, G, N, M>::new(controller::ControllerConfig {
-            law: Law::Eqt,
-            inertia: SMatrix::identity(),
-            k: SMatrix::identity(),
-            kd: SMatrix::identity(),
-            torque_limit: None,
-        })
-        .expect("a valid configuration");
+        let controller =
+            controller::Controller::<f64, G, N, M>::new(controller::ControllerConfig {
+                law: Law::Eqt,
+                inertia: SMatrix::identity(),
+                k: SMatrix::identity(),
+                kd: SMatrix::identity(),
+                torque_limit: None,
+            })
+            .expect("a valid configuration");
         // through every waypoint when the numbers are moderate (a leg between huge positions
         // or times keeps only the digits the largest number leaves)
         let scale = poses.iter().map(|q| q.norm()).fold(1.0f64, f64::max);

@@ -263,8 +263,8 @@ pub fn check_plan(msg: &PlanMsg, group: GroupKind, period: f64) -> Result<(), Pl
         if s.t1 <= s.t0 || s.t0 < end {
             return Err(PlanReject::Times);
         }
-        // not `s.t1 - s.t0 < period`: NaN periods refuse too
-        if !(s.t1 - s.t0 >= period) {
+        // the times are finite here; a NaN period refuses too
+        if s.t1 - s.t0 < period || period.is_nan() {
             return Err(PlanReject::ShortLeg);
         }
         end = s.t1;
@@ -311,12 +311,7 @@ mod tests {
         assert_eq!(w.shape, SHAPE_THROUGH);
         assert_eq!(w.segment::<4, 6>(), s);
         let t = So3::exp(&Vector3::new(0.3, 0.0, 0.1));
-        let s = Segment::hermite::<So3>(
-            1.0,
-            &controller::PathSample::rest(t),
-            2.0,
-            &knot3(t),
-        );
+        let s = Segment::hermite::<So3>(1.0, &controller::PathSample::rest(t), 2.0, &knot3(t));
         assert_eq!(WireSegment::from_segment(&s).segment::<3, 3>(), s);
     }
 

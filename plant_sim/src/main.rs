@@ -953,7 +953,10 @@ fn reference_cmd(args: ReferenceArgs) -> Result<(), SimError> {
                 f.angular_speed.value, f.angular_speed.t
             );
         }
-        println!("wrote {0}/paths.{{png,svg}} and {0}/paths.json", out.display());
+        println!(
+            "wrote {0}/paths.{{png,svg}} and {0}/paths.json",
+            out.display()
+        );
     }
     if args.strict && !report.warnings.is_empty() {
         return Err(SimError::Run(format!(

@@ -157,10 +157,7 @@ pub struct Peak {
 
 impl Peak {
     fn none() -> Peak {
-        Peak {
-            value: 0.0,
-            t: 0.0,
-        }
+        Peak { value: 0.0, t: 0.0 }
     }
 
     fn offer(&mut self, value: f64, t: f64) {
@@ -238,7 +235,8 @@ fn axis_name(m: usize, i: usize) -> String {
     if m == 6 {
         SE3[i].to_owned()
     } else {
-        SO3.get(i).map_or_else(|| format!("τ_{i}"), |s| (*s).to_owned())
+        SO3.get(i)
+            .map_or_else(|| format!("τ_{i}"), |s| (*s).to_owned())
     }
 }
 
@@ -324,10 +322,10 @@ pub fn feasibility_text(f: &Feasibility) -> String {
     }
     let m = f.torque.len();
     for (i, p) in f.torque.iter().enumerate() {
-        let limit = f
-            .torque_limit
-            .as_ref()
-            .map_or_else(|| " (no limit)".to_owned(), |l| format!(" (limit {})", l[i]));
+        let limit = f.torque_limit.as_ref().map_or_else(
+            || " (no limit)".to_owned(),
+            |l| format!(" (limit {})", l[i]),
+        );
         line(
             &format!("|{}| (feedforward)", axis_name(m, i)),
             p,
@@ -335,7 +333,7 @@ pub fn feasibility_text(f: &Feasibility) -> String {
             &limit,
         );
     }
-    out.push_str(match (&f.torque_limit, f.warnings.len()) {
+    out.push_str(&match (&f.torque_limit, f.warnings.len()) {
         (None, _) => "  no torque limit in the scenario: nothing to compare with\n".to_owned(),
         (Some(_), 0) => "  the feedforward stays within the torque limit on every axis\n".to_owned(),
         (Some(_), n) => format!("  the feedforward alone exceeds the torque limit on {n} axis/axes (warnings on stderr)\n"),
@@ -449,7 +447,9 @@ pub fn compare_paths(s: &Scenario, out: &Path) -> Result<PathComparison, SimErro
             .map(|r| r.attitude_error)
             .fold(0.0f64, f64::max);
         result.tracking.push((name.to_owned(), worst));
-        result.reports.push((name.to_owned(), feasibility(&way, &rows)));
+        result
+            .reports
+            .push((name.to_owned(), feasibility(&way, &rows)));
     }
     let title = format!(
         "{} — the waypoints flown two ways: stop at each, or through them",

@@ -245,7 +245,10 @@ fn through_scenario(group: &str, tag: &str, csv: Option<&str>, edits: &[(&str, &
     };
     let line = format!("waypoints = \"{name}.csv\"");
     assert!(toml.contains(&line));
-    toml = toml.replace(&line, &format!("waypoints = {waypoints:?}\npath = \"through\""));
+    toml = toml.replace(
+        &line,
+        &format!("waypoints = {waypoints:?}\npath = \"through\""),
+    );
     for (from, to) in edits {
         assert!(toml.contains(from), "template changed: {from}");
         toml = toml.replace(from, to);
@@ -325,7 +328,10 @@ fn the_feasibility_report_warns_on_the_right_axis_at_the_right_time() {
             "so3",
             tag,
             Some(csv),
-            &[("torque_limit = 5.0", limit), ("duration = 16.0", "duration = 3.0")],
+            &[
+                ("torque_limit = 5.0", limit),
+                ("duration = 16.0", "duration = 3.0"),
+            ],
         );
         let out = file.parent().unwrap().join("out");
         let args = |strict: bool| {
@@ -356,7 +362,11 @@ fn the_feasibility_report_warns_on_the_right_axis_at_the_right_time() {
     };
     let (plain, strict, json) = strict_fail("torque_limit = 10.0", "tight");
     let t = text(&plain);
-    assert_eq!(plain.status.code(), Some(0), "a warning, not a refusal: {t}");
+    assert_eq!(
+        plain.status.code(),
+        Some(0),
+        "a warning, not a refusal: {t}"
+    );
     assert_eq!(strict.status.code(), Some(1), "{}", text(&strict));
     assert!(text(&strict).contains("--strict"), "{}", text(&strict));
     let warnings = json["warnings"].as_array().unwrap();
@@ -368,9 +378,18 @@ fn the_feasibility_report_warns_on_the_right_axis_at_the_right_time() {
     let want_t = 1.0 + (3.0 - 3f64.sqrt()) / 6.0;
     let peak = w["peak"]["value"].as_f64().unwrap();
     let at = w["peak"]["t"].as_f64().unwrap();
-    eprintln!("warning: axis 2 peak {peak} at t = {at} (analytic {} at {want_t})", 1.759 * alpha);
-    assert!((at - want_t).abs() <= 0.01, "peak at {at}, want {want_t} within one period");
-    assert!((peak - 1.759 * alpha).abs() < 0.01 * 1.759 * alpha, "{peak}");
+    eprintln!(
+        "warning: axis 2 peak {peak} at t = {at} (analytic {} at {want_t})",
+        1.759 * alpha
+    );
+    assert!(
+        (at - want_t).abs() <= 0.01,
+        "peak at {at}, want {want_t} within one period"
+    );
+    assert!(
+        (peak - 1.759 * alpha).abs() < 0.01 * 1.759 * alpha,
+        "{peak}"
+    );
     // the message names the axis, the time and both numbers
     assert!(
         t.contains("warning: axis 2 (τ_z): the feedforward alone needs |τ_z| = ")
@@ -401,13 +420,28 @@ fn compare_paths_flies_the_waypoints_both_ways() {
     assert!(out.join("paths.png").exists() && out.join("paths.svg").exists());
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("paths.json")).unwrap()).unwrap();
-    let speed = |i: usize| json["reports"][i][1]["angular_speed"]["value"].as_f64().unwrap();
+    let speed = |i: usize| {
+        json["reports"][i][1]["angular_speed"]["value"]
+            .as_f64()
+            .unwrap()
+    };
     eprintln!("peak |ω_d|: stop {}, through {}", speed(0), speed(1));
     assert_eq!(json["reports"][0][0], "stop");
     assert_eq!(json["reports"][1][0], "through");
     // flying through needs less peak speed than stopping at every waypoint
     assert!(speed(1) < speed(0), "{json}");
-    let o = run(&["reference", "--builtin", "seed", "--out", out.to_str().unwrap(), "--compare-paths"]);
+    let o = run(&[
+        "reference",
+        "--builtin",
+        "seed",
+        "--out",
+        out.to_str().unwrap(),
+        "--compare-paths",
+    ]);
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
-    assert!(text(&o).contains("has no `[reference] waypoints`"), "{}", text(&o));
+    assert!(
+        text(&o).contains("has no `[reference] waypoints`"),
+        "{}",
+        text(&o)
+    );
 }

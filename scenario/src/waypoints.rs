@@ -5,8 +5,8 @@
 //! to have them chosen. Every error names the file, the line and the column.
 
 use crate::{PathKind, PathSpec, Pose, ScenarioError};
-use controller::group::{MatrixLieGroup, OnGroup};
 use controller::GroupKind;
+use controller::group::{MatrixLieGroup, OnGroup};
 use controller::path::MAX_SEGMENTS;
 use std::io::Read;
 use std::path::Path;

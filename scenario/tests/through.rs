@@ -20,9 +20,7 @@ fn load(group: &str, tag: &str, extra: &str, csv: Option<&str>) -> Result<Scenar
             std::fs::write(dir.join("w.csv"), text).unwrap();
             "w.csv".to_owned()
         }
-        None => repo(&format!("scenarios/{name}.csv"))
-            .display()
-            .to_string(),
+        None => repo(&format!("scenarios/{name}.csv")).display().to_string(),
     };
     let toml = toml.replace(
         &format!("waypoints = \"{name}.csv\""),
@@ -43,7 +41,15 @@ fn path_kind_and_velocity_columns_are_read() {
     assert_eq!(explicit, stop);
     let through = load("so3", "through", "path = \"through\"", None).unwrap();
     assert_eq!(through.path.as_ref().unwrap().kind, PathKind::Through);
-    assert!(through.path.as_ref().unwrap().velocities.iter().all(Option::is_none));
+    assert!(
+        through
+            .path
+            .as_ref()
+            .unwrap()
+            .velocities
+            .iter()
+            .all(Option::is_none)
+    );
     let csv = "t,rx,ry,rz,wx,wy,wz\n0,0,0,0,,,\n2,1,0,0,0.5,-0.25,0\n4,1,1,0,,,\n6,0,0,0,0,0,0\n";
     let s = load("so3", "given", "path = \"through\"", Some(csv)).unwrap();
     let p = s.path.as_ref().unwrap();
@@ -52,12 +58,12 @@ fn path_kind_and_velocity_columns_are_read() {
     assert_eq!(p.velocities[3], Some(vec![0.0; 3]));
     assert_eq!(p.lines, vec![2, 3, 4, 5]);
     // the velocity given is the path's velocity at the waypoint
-    let path = s
-        .path::<controller::So3, 3, 3>()
-        .unwrap()
-        .unwrap();
+    let path = s.path::<controller::So3, 3, 3>().unwrap().unwrap();
     let v = path.sample(2.0).v;
-    assert!((v - nalgebra::Vector3::new(0.5, -0.25, 0.0)).norm() < 1e-12, "{v}");
+    assert!(
+        (v - nalgebra::Vector3::new(0.5, -0.25, 0.0)).norm() < 1e-12,
+        "{v}"
+    );
     // SE(3): six velocity columns, angular then linear
     let csv = "t,rx,ry,rz,x,y,z,wx,wy,wz,vx,vy,vz\n0,0,0,0,0,0,0,,,,,,\n2,0,0,1,1,0,0,0,0,0.5,1,0,0\n4,0,0,0,2,0,0,,,,,,\n";
     let s = load("se3", "se3", "path = \"through\"", Some(csv)).unwrap();
@@ -75,10 +81,18 @@ fn bad_path_keys_and_velocity_columns_are_refused_naming_where() {
             "se3",
             "huge",
             "path = \"through\"",
-            Some("t,rx,ry,rz,x,y,z,wx,wy,wz,vx,vy,vz\n0,0,0,0,0,0,0,,,,,,\n1,0,0,1.5,1,0,0,0,0,0.5,1,0,1e168\n2,0,0,3,2,1,0,,,,,,\n"),
+            Some(
+                "t,rx,ry,rz,x,y,z,wx,wy,wz,vx,vy,vz\n0,0,0,0,0,0,0,,,,,,\n1,0,0,1.5,1,0,0,0,0,0.5,1,0,1e168\n2,0,0,3,2,1,0,,,,,,\n",
+            ),
             "w.csv: line 3, column 1 (`t`): the path between t = 0 s and t = 1 s is not finite",
         ),
-        ("so3", "kind", "path = \"curvy\"", None, "key `reference.path`: unknown path kind `curvy`"),
+        (
+            "so3",
+            "kind",
+            "path = \"curvy\"",
+            None,
+            "key `reference.path`: unknown path kind `curvy`",
+        ),
         ("so3", "number", "path = 3", None, "path"),
         (
             "so3",
@@ -163,7 +177,9 @@ fn bad_path_keys_and_velocity_columns_are_refused_naming_where() {
         "{}[reference]\nsetpoint = {{ rotation = [0.0, 0.0, 1.0] }}\npath = \"through\"\n",
         &seed[..at]
     );
-    let e = Scenario::from_toml(&text, "sp", "sp").unwrap_err().to_string();
+    let e = Scenario::from_toml(&text, "sp", "sp")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("key `reference.path`: applies to"), "{e}");
 }
 

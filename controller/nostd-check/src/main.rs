@@ -1,5 +1,5 @@
 //! Calls the controller for SO(3) and SE(3) in f32 and f64, runs short closed loops (one with
-//! the disturbance-rejection terms) and uses
+//! the disturbance-rejection terms), builds a through-waypoint path and uses
 //! the `ipc_types` wire contract, in a binary with no std, no alloc and no global allocator. Exits 0 when every check holds.
 #![no_std]
 #![no_main]
@@ -244,8 +244,43 @@ fn rejection_check<T: Real>() -> bool {
     last.is_some_and(|s| (s.output.observer - d).amax() < real(1e-3))
 }
 
+/// A through-waypoint path on SE(3) (`Path::flying`, fixed capacity, no allocation): it
+/// passes its waypoints and does not stop at the interior one.
+fn through_path_check<T: Real>() -> bool {
+    use controller::path::Path;
+    let twist = |a: f64, b: f64, c: f64, x: f64| {
+        SVector::<T, 6>::from_column_slice(&[
+            real(a),
+            real(b),
+            real(c),
+            real(x),
+            real(0.5),
+            real(0.0),
+        ])
+    };
+    let times = [real::<T>(0.0), real(1.0), real(2.5)];
+    let poses = [
+        Se3::identity::<T>(),
+        Se3::exp(&twist(0.3, -0.2, 1.5, 1.0)),
+        Se3::exp(&twist(0.0, 1.0, 3.0, 2.0)),
+    ];
+    let given = [None, None, None];
+    let Ok(path) = Path::<T, Se3, 4, 6>::flying(&times, &poses, &given) else {
+        return false;
+    };
+    let tolerance = real::<T>(1e-4);
+    let through = times
+        .iter()
+        .zip(&poses)
+        .all(|(t, q)| (path.sample(*t).q - q).amax() < tolerance);
+    let moving = path.sample(times[1]).v.amax() > real(0.1);
+    through && moving && path.segments().count() == 2
+}
+
 fn run() -> i32 {
-    let checks: [(&str, bool); 12] = [
+    let checks: [(&str, bool); 14] = [
+        ("through-waypoint path f32", through_path_check::<f32>()),
+        ("through-waypoint path f64", through_path_check::<f64>()),
         ("disturbance rejection f32", rejection_check::<f32>()),
         ("disturbance rejection f64", rejection_check::<f64>()),
         ("estimator f32", estimator_check::<f32>()),
