@@ -2,7 +2,10 @@
 //! waypoint at its time, at rest at both ends, `V_d` and `V̇_d` equal to finite differences of
 //! `Q_d` and `V_d`, `V̇_d` continuous across every knot, and the feedforward `τ_d` driving the
 //! Euler–Poincaré equations along the path — on SO(3) and SE(3), in f64 and f32, with more
-//! than π of rotation between two waypoints.
+//! than π of rotation between two waypoints. The same for paths that fly through their
+//! waypoints (`Path::flying`), and their own properties: C² knots, moving at every interior
+//! waypoint, the rest-to-rest path as the zero-data case, the scalar spline profile about one
+//! axis, given velocities honoured.
 
 mod common;
 
@@ -310,8 +313,8 @@ fn a_set_point_holds_its_pose_with_no_feedforward() {
     let _ = Vector3::<f64>::zeros();
 }
 
-// ---- paths that fly through their waypoints (docs/maths.md, "Paths that fly through their
-// waypoints") ----
+// ---- paths that fly through their waypoints ----
+// docs/maths.md, "Paths that fly through their waypoints"
 
 /// The path of `path = "through"` with every velocity chosen.
 fn flying<G: MatrixLieGroup<N, M>, T: Real, const N: usize, const M: usize>(
