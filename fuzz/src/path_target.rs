@@ -198,19 +198,7 @@ impl OnGroup for Exercise<'_> {
             .iter()
             .map(|p| Scenario::pose::<N>(p.rotation, p.position))
             .collect();
-        let given: Vec<Option<SVector<f64, M>>> = spec
-            .velocities
-            .iter()
-            .map(|v| {
-                v.as_ref()
-                    .map(|v| SVector::from_fn(|i, _| v.get(i).copied().unwrap_or(f64::NAN)))
-            })
-            .collect();
-        let path = match spec.kind {
-            PathKind::Stop => Path::<f64, G, N, M>::through(&spec.times, &poses),
-            PathKind::Through => Path::<f64, G, N, M>::flying(&spec.times, &poses, &given),
-        }
-        .map_err(|e| {
+        let path = scenario::build_path::<G, N, M>(spec).map_err(|e| {
             format!(
                 "Path: {}",
                 crate::scenario_target::controller_error_kind(&e)

@@ -20,11 +20,16 @@ fn scenarios() -> String {
 /// The lockstep pair with its reference streamed by a planner whose horizon covers the whole
 /// path (lockstep runs faster than real time), written to `out`; the controller's output.
 fn streamed_lockstep(scenario: &str, run_name: &str, out: &str) -> String {
+    streamed_lockstep_from(scenario, scenario, run_name, out)
+}
+
+/// [`streamed_lockstep`] with the planner on its own scenario (its waypoints and period).
+fn streamed_lockstep_from(planned: &str, scenario: &str, run_name: &str, out: &str) -> String {
     let mut planner = Proc::start(
         "planner",
         &[
             "--scenario",
-            scenario,
+            planned,
             "--name",
             run_name,
             "--horizon",
@@ -392,60 +397,8 @@ fn a_streamed_leg_shorter_than_the_control_period_is_refused_and_counted() {
         );
     let pair_scenario = d.join("pair.toml");
     std::fs::write(&pair_scenario, pair_toml).unwrap();
-    let mut planner = Proc::start(
-        "planner",
-        &[
-            "--scenario",
-            &planner_scenario,
-            "--name",
-            "t-stream-short",
-            "--horizon",
-            "1000",
-        ],
-    );
-    assert!(
-        planner.wait_for_line("published pieces", Duration::from_secs(20)),
-        "{}",
-        planner.output()
-    );
-    let mut ctl = Proc::start(
-        "controller_node",
-        &[
-            "--scenario",
-            &pair_scenario,
-            "--name",
-            "t-stream-short",
-            "--reference",
-            "stream",
-        ],
-    );
     let out = d.join("run");
-    let (code, plant_out) = run(
-        "plant_sim",
-        &[
-            "run",
-            "--scenario",
-            &pair_scenario,
-            "--mode",
-            "lockstep",
-            "--no-spawn",
-            "--name",
-            "t-stream-short",
-            "--out",
-            &out,
-        ],
-        LONG,
-    );
-    assert_eq!(code, 0, "{plant_out}");
-    for p in [&mut ctl, &mut planner] {
-        let status = p.wait_timeout(Duration::from_secs(5));
-        assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", p.output());
-    }
-    let log = ctl.output();
-    assert!(
-        log.contains("(a segment is shorter than the control period: piece 1 from t = 1.5 s to t = 1.505 s lasts"),
-        "the refusal names the piece and its times:\n{log}"
-    );
+    let log = streamed_lockstep_from(&planner_scenario, &pair_scenario, "t-stream-short", &out);
     let counted = |what: &str| -> Option<u64> {
         let at = log.find(what)?;
         log[..at].rsplit(' ').nth(1)?.parse().ok()
