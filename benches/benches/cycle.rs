@@ -3,9 +3,9 @@
 //! `cargo bench -p benches` (full) or `cargo bench -p benches -- --quick`.
 
 use benches::*;
-use controller::group::{Se3, So3};
+use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::law::{eqt, so3};
-use controller::{Law, Real, real};
+use controller::{Law, Real, Source, Trajectory, real};
 use controller_node::respond;
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::{SVector, Vector3};
@@ -363,6 +363,65 @@ fn terms<T: Real>(c: &mut Criterion, scalar: &str) {
     g.finish();
 }
 
+/// One sample of a waypoint path inside a leg (`path_sample`: `Path::sample`, what the
+/// controller evaluates every cycle), and the controller's whole cycle tracking it
+/// (`cycle_path`: `respond` then the reference's step, as `cycle` with the feedforward
+/// series): the shipped slews flown `stop` (one exponential per sample) and `through` (five
+/// exponentials and adjoints, Sommer et al.'s recursion), at t = 5.5 s (inside the second leg).
+fn paths(c: &mut Criterion) {
+    fn group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        c: &mut Criterion,
+        name: &str,
+        file: &str,
+        q: &nalgebra::SMatrix<f64, N, N>,
+        v: &SVector<f64, M>,
+    ) {
+        let at = format!("{}/../scenarios/{file}", env!("CARGO_MANIFEST_DIR"));
+        let Ok(stop) = scenario::Scenario::from_file(std::path::Path::new(&at)) else {
+            return;
+        };
+        let mut through = stop.clone();
+        if let Some(p) = through.path.as_mut() {
+            p.kind = scenario::PathKind::Through;
+        }
+        let msg = state_msg::<G, N, M>(q, v);
+        for (kind, s) in [("stop", &stop), ("through", &through)] {
+            let (Some(Ok(path)), Ok(ctl)) = (s.path::<G, N, M>(), s.controller::<G, N, M>()) else {
+                continue;
+            };
+            c.benchmark_group("path_sample")
+                .bench_function(format!("{name}/{kind}/f64"), |b| {
+                    b.iter(|| path.sample(black_box(5.5)))
+                });
+            let Ok(Source::Path(start)) = s.reference_source::<G, N, M>() else {
+                continue;
+            };
+            let mut start = start;
+            while start.time() < 5.5 {
+                start.advance();
+            }
+            let mut g = c.benchmark_group("cycle_path");
+            g.throughput(Throughput::Elements(1));
+            g.bench_function(format!("{name}/{kind}/f64"), |b| {
+                b.iter_batched_ref(
+                    || start.clone(),
+                    |r| {
+                        let cmd = respond(&ctl, r, black_box(&msg));
+                        r.advance();
+                        cmd
+                    },
+                    BatchSize::SmallInput,
+                )
+            });
+            g.finish();
+        }
+    }
+    let (q, v, ..) = so3_generic::<f64>();
+    group::<So3, 3, 3>(c, "so3", "slew_so3.toml", &q, &v);
+    let (q, v, ..) = se3_generic::<f64>();
+    group::<Se3, 4, 6>(c, "se3", "slew_se3.toml", &q, &v);
+}
+
 fn all(c: &mut Criterion) {
     laws::<f64>(c, "f64");
     laws::<f32>(c, "f32");
@@ -374,6 +433,7 @@ fn all(c: &mut Criterion) {
     plant_side(c);
     terms::<f64>(c, "f64");
     terms::<f32>(c, "f32");
+    paths(c);
 }
 
 criterion_group!(benches, all);
