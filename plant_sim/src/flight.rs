@@ -28,8 +28,10 @@ use std::time::Duration;
 
 /// The file's first eight bytes.
 pub const MAGIC: [u8; 8] = *b"EQTRKLOG";
-/// The format version this build writes and reads (2: the records hold protocol-3
-/// messages, with the applied torque and the disturbance-rejection terms: 752 bytes).
+/// The format version this build writes and reads (2: the records hold the state and command
+/// messages of protocol 3, with the applied torque and the disturbance-rejection terms: 752
+/// bytes; protocol 4 changed only the plan message, which the log does not hold, so its
+/// records are the same).
 pub const FORMAT_VERSION: u32 = 2;
 /// Bytes of the header.
 pub const HEADER_BYTES: usize = 192;
