@@ -2,8 +2,10 @@
 //! board), `ipc_types` (the plan message), `scenario` (the waypoint file) and `controller`
 //! (the path): it streams a
 //! scenario's path through waypoints to a `controller_node --reference stream` of the same
-//! run while the pair runs. A planner that decides on the fly builds its segments the same
-//! way (`controller::path::Segment::between`) and publishes them the same way.
+//! run while the pair runs — a stop path's legs or, with `path = "through"`, a through-path's.
+//! A planner that decides on the fly builds its segments the same way
+//! (`controller::path::Segment::between`, or `Segment::hermite` from the pose, body velocity
+//! and acceleration at both ends) and publishes them the same way.
 //!
 //! ```text
 //! planner --scenario scenarios/slew_so3.toml --name RUN [--horizon 2]
