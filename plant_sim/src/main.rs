@@ -12,6 +12,7 @@
 //! plant_sim monitor [--name RUN] [--plain]
 //! plant_sim bench-loop [--rates LIST] [--duration S] [--cyclictest PATH]
 //! plant_sim reference [--scenario FILE | --builtin NAME] [--out DIR] [--strict] [--compare-paths]
+//! plant_sim export OUT_DIR [--format mcap|jsonl] [--out FILE] [--compress]
 //! ```
 //! Exit codes: 0 done, 2 bad input (with a message naming the key and what is wrong),
 //! 1 the run could not complete.
@@ -109,6 +110,10 @@ enum Command {
     /// The scenario's desired trajectory sampled at its control period: reference.csv and a
     /// figure (check a manoeuvre before flying it).
     Reference(ReferenceArgs),
+    /// Export a run's flight recording (OUT_DIR/messages.log) to MCAP for Foxglove,
+    /// PlotJuggler or Rerun: OUT_DIR/run.mcap. Offline; runs `eqtrack-export` from this
+    /// binary's directory (the plant process itself never links an MCAP writer).
+    Export(ExportArgs),
     /// Run the controller in-process over a recorded run's states (OUT_DIR/messages.log) and
     /// compare every command with the recorded one, bit for bit: exit 0 when all are
     /// identical, 1 naming the first that differs. With --law, --scenario, --kp or --kd: a
@@ -181,6 +186,22 @@ struct ReferenceArgs {
     /// and paths.json.
     #[arg(long)]
     compare_paths: bool,
+}
+
+#[derive(Args)]
+struct ExportArgs {
+    /// The run's output directory (holding messages.log).
+    #[arg(value_name = "OUT_DIR")]
+    dir: PathBuf,
+    /// `mcap` (default), or `jsonl`: one JSON object per message, the same messages.
+    #[arg(long, value_name = "FORMAT", default_value = "mcap", value_parser = ["mcap", "jsonl"])]
+    format: String,
+    /// The output file (default: OUT_DIR/run.mcap).
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    /// zstd-compress the MCAP chunks (eqtrack-export built with its `zstd` feature).
+    #[arg(long)]
+    compress: bool,
 }
 
 #[derive(Args)]
@@ -967,6 +988,37 @@ fn reference_cmd(args: ReferenceArgs) -> Result<(), SimError> {
     Ok(())
 }
 
+/// Runs `eqtrack-export` (beside this binary) with the same arguments; its exit status.
+fn export_cmd(args: ExportArgs) -> Result<(), SimError> {
+    let exe = std::env::current_exe()
+        .map_err(|e| SimError::Run(format!("cannot locate plant_sim: {e}")))?;
+    let path = exe.with_file_name("eqtrack-export");
+    if !path.exists() {
+        return Err(SimError::Run(format!(
+            "{} not found: build it (cargo build --release --workspace)",
+            path.display()
+        )));
+    }
+    let mut cmd = std::process::Command::new(&path);
+    cmd.arg(&args.dir).args(["--format", &args.format]);
+    if let Some(out) = &args.out {
+        cmd.arg("--out").arg(out);
+    }
+    if args.compress {
+        cmd.arg("--compress");
+    }
+    let status = cmd
+        .status()
+        .map_err(|e| SimError::Run(format!("cannot start {}: {e}", path.display())))?;
+    match status.code() {
+        Some(0) => Ok(()),
+        Some(2) => Err(SimError::Input(
+            "the export refused its input (above)".to_owned(),
+        )),
+        _ => Err(SimError::Run(format!("eqtrack-export: {status}"))),
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let stop = match StopFlag::install() {
@@ -985,6 +1037,7 @@ fn main() -> ExitCode {
         Some(Command::Run(a)) => run_cmd(a, &stop),
         Some(Command::BenchLoop(a)) => bench_loop_cmd(a, &stop),
         Some(Command::Reference(a)) => reference_cmd(a),
+        Some(Command::Export(a)) => export_cmd(a),
         Some(Command::Replay(a)) => replay_cmd(a),
         Some(Command::Monitor(a)) => monitor_cmd(a, &stop),
     };
