@@ -254,16 +254,29 @@ impl View {
         ]
     }
 
-    /// The sparkline's bars: log10(L) mapped onto 0..=100 over the history's range.
-    fn bars(&self) -> (Vec<u64>, f64, f64) {
-        let logs: Vec<f64> = self.history.iter().map(|l| l.max(1e-300).log10()).collect();
+    /// The sparkline's bars for a panel `width` columns wide: log10(L) mapped onto 1..=100
+    /// over the shown range, exactly `width` bars once there is any history. With more
+    /// values than columns the newest `width` are shown; with fewer, each value is stretched
+    /// over several columns, so the history always fills the panel's width.
+    fn bars(&self, width: usize) -> (Vec<u64>, f64, f64) {
+        let shown = self.history.len().min(width);
+        let logs: Vec<f64> = self
+            .history
+            .iter()
+            .skip(self.history.len() - shown)
+            .map(|l| l.max(1e-300).log10())
+            .collect();
         let lo = logs.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = logs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let span = (hi - lo).max(1e-9);
-        let bars = logs
-            .iter()
-            .map(|x| 1 + ((x - lo) / span * 99.0).round() as u64)
-            .collect();
+        let bar = |x: f64| 1 + ((x - lo) / span * 99.0).round() as u64;
+        let bars = if logs.is_empty() {
+            Vec::new()
+        } else {
+            (0..width)
+                .map(|c| bar(logs[c * logs.len() / width]))
+                .collect()
+        };
         (bars, lo, hi)
     }
 }
@@ -394,13 +407,14 @@ fn draw(f: &mut ratatui::Frame, view: &View) {
         Paragraph::new(lines.join("\n")).block(Block::default().borders(Borders::ALL).title(title)),
         top,
     );
-    let (bars, lo, hi) = view.bars();
+    // the panel's inside: its width less the two border columns
+    let (bars, lo, hi) = view.bars(usize::from(spark.width.saturating_sub(2)));
     let title = if bars.is_empty() {
         " Lyapunov value L (log scale): no command yet ".to_owned()
     } else {
         format!(
             " Lyapunov value L, log scale, last {} updates: 1e{lo:.1} .. 1e{hi:.1} ",
-            bars.len()
+            view.history.len().min(bars.len())
         )
     };
     f.render_widget(
@@ -416,4 +430,38 @@ fn draw(f: &mut ratatui::Frame, view: &View) {
         _ => "q: quit",
     };
     f.render_widget(Paragraph::new(state), help);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn view(values: impl Iterator<Item = f64>) -> View {
+        View {
+            run: "t".to_owned(),
+            status: None,
+            history: values.collect(),
+            end: None,
+        }
+    }
+
+    #[test]
+    fn the_history_fills_the_panel_width_whatever_its_length() {
+        // 30 values in a 106-column panel: stretched over all of it, oldest left, newest right
+        let v = view((0..30).map(|i| 10f64.powi(-i)));
+        let (bars, lo, hi) = v.bars(106);
+        assert_eq!(bars.len(), 106);
+        assert_eq!((bars[0], bars[105]), (100, 1));
+        assert!(bars.windows(2).all(|w| w[0] >= w[1]), "{bars:?}");
+        assert_eq!((lo, hi), (-29.0, 0.0));
+        // 240 values: the newest 106, one per column
+        let v = view((0..240).map(|i| 10f64.powi(-i)));
+        let (bars, lo, hi) = v.bars(106);
+        assert_eq!(bars.len(), 106);
+        assert_eq!((lo, hi), (-239.0, -134.0));
+        assert_eq!((bars[0], bars[105]), (100, 1));
+        // none yet, or no room
+        assert!(view(std::iter::empty()).bars(106).0.is_empty());
+        assert!(view((0..5).map(f64::from)).bars(0).0.is_empty());
+    }
 }
