@@ -166,7 +166,11 @@ where
 {
     let (q, v) = catch_up(reference, msg);
     let out = controller.compute(&q, &v, &reference.desired())?;
-    Ok(command::<T, G, N, M>(msg.seq, &out))
+    Ok(command::<T, G, N, M>(
+        msg.seq,
+        &out,
+        controller.config().law,
+    ))
 }
 
 /// Steps `reference` to the state's k and reads the state in the scalar `T`.
@@ -192,10 +196,11 @@ fn to_f64<T: controller::Real>(x: T) -> f64 {
     nalgebra::try_convert::<T, f64>(x).unwrap_or(f64::NAN)
 }
 
-/// The command for state `seq` from the law's output.
+/// The command for state `seq` from the law's output, naming the law that computed it.
 fn command<T, G, const N: usize, const M: usize>(
     seq: u64,
     out: &controller::LawOutput<T, N, M>,
+    law: controller::Law,
 ) -> CommandMsg
 where
     T: controller::Real,
@@ -203,6 +208,7 @@ where
 {
     let mut cmd = CommandMsg::new(G::KIND);
     cmd.seq = seq;
+    cmd.law = ipc_types::law_code(law);
     cmd.set_torque(&out.torque.map(to_f64::<T>));
     cmd.lyapunov = to_f64(out.lyapunov.total);
     for i in 0..M.min(ipc_types::MAX_M) {
@@ -290,7 +296,7 @@ where
                 )?
             }
         };
-        let mut cmd = command::<T, G, N, M>(msg.seq, &out);
+        let mut cmd = command::<T, G, N, M>(msg.seq, &out, self.controller.config().law);
         cmd.previous_seq = self.previous.unwrap_or(ipc_types::NO_PREVIOUS);
         if let Some((estimate, z)) = before {
             for i in 0..M.min(ipc_types::MAX_M) {

@@ -28,7 +28,7 @@ SHUTDOWN = 2
 
 
 class StateMsg(ctypes.Structure):
-    """eqtrack::StateMsg4 (docs/wire.md)."""
+    """eqtrack::StateMsg5 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -48,11 +48,11 @@ class StateMsg(ctypes.Structure):
 
     @staticmethod
     def type_name():
-        return "eqtrack::StateMsg4"
+        return "eqtrack::StateMsg5"
 
 
 class CommandMsg(ctypes.Structure):
-    """eqtrack::CommandMsg4 (docs/wire.md)."""
+    """eqtrack::CommandMsg5 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -74,11 +74,13 @@ class CommandMsg(ctypes.Structure):
         ("fingerprint", ctypes.c_uint64),
         ("expected_period", ctypes.c_double),
         ("scenario", ctypes.c_uint8 * NAME_BYTES),
+        ("law", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
     ]
 
     @staticmethod
     def type_name():
-        return "eqtrack::CommandMsg4"
+        return "eqtrack::CommandMsg5"
 
 
 def entries(node, run, what, msg_type, timeout):

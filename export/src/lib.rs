@@ -1,5 +1,5 @@
-//! Offline export of a flight recording (`messages.log`, docs/architecture.md, "The flight
-//! recorder") to MCAP, the log format Foxglove, PlotJuggler and Rerun open directly
+//! Offline export of a flight recording (`messages.log`; docs/architecture.md, "The flight recorder")
+//! to MCAP, the log format Foxglove, PlotJuggler and Rerun open directly
 //! (docs/architecture.md, "Exporting a run to MCAP").
 //!
 //! Every record becomes up to four messages, one per channel, all stamped with the cycle's
@@ -224,6 +224,14 @@ pub fn messages(r: &Record, n: usize, m: usize, terms: bool) -> Vec<Message> {
                 ("lyapunov", Value::F64(c.lyapunov)),
                 ("heap_allocations", Value::U64(c.heap_allocations)),
                 ("flags", Value::U32(c.flags)),
+                (
+                    "law",
+                    Value::Str(
+                        ipc_types::law_from_code(c.law)
+                            .map_or("", |l| l.name())
+                            .to_owned(),
+                    ),
+                ),
             ],
         });
         if terms {

@@ -7,8 +7,8 @@
  *
  * Each message sits in an iceoryx2 blackboard entry (key type uint32_t, keys 0..7 are the
  * writer slots) of the service `eqtrack/<run>/state`, `eqtrack/<run>/command` or
- * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg4",
- * "eqtrack::CommandMsg4", "eqtrack::PlanMsg4", "eqtrack::StatusMsg4". All numbers are little-endian on the machines eqtrack runs on.
+ * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg5",
+ * "eqtrack::CommandMsg5", "eqtrack::PlanMsg4", "eqtrack::StatusMsg4". All numbers are little-endian on the machines eqtrack runs on.
  */
 #ifndef EQTRACK_WIRE_H
 #define EQTRACK_WIRE_H
@@ -16,7 +16,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define EQTRACK_PROTOCOL_VERSION 4u
+#define EQTRACK_PROTOCOL_VERSION 5u
 #define EQTRACK_MAX_N 4        /* configuration matrices are n x n, n <= 4 */
 #define EQTRACK_MAX_M 6        /* algebra dimension m <= 6 */
 #define EQTRACK_NAME_BYTES 32  /* scenario name, UTF-8, NUL-padded */
@@ -69,6 +69,8 @@ typedef struct eqtrack_CommandMsg {
     uint64_t fingerprint;
     double expected_period;     /* 0: the controller follows the plant */
     uint8_t scenario[EQTRACK_NAME_BYTES];
+    uint32_t law;               /* 1 eqt, 2 gt, 3 nog, 4 asym; 0: not said */
+    uint32_t reserved;
 } eqtrack_CommandMsg;
 
 /* eqtrack_WireSegment.shape */

@@ -12,7 +12,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-use controller::GroupKind;
+use controller::{GroupKind, Law};
 use core::fmt::Write;
 #[cfg(feature = "zero-copy")]
 use iceoryx2_bb_derive_macros::ZeroCopySend;
@@ -26,7 +26,7 @@ pub mod status;
 pub use status::{StatusMsg, status_flags};
 
 /// Bumped whenever a message layout or meaning changes.
-pub const PROTOCOL_VERSION: u32 = 4;
+pub const PROTOCOL_VERSION: u32 = 5;
 /// [`CommandMsg::previous_seq`] when the controller processed no state before.
 pub const NO_PREVIOUS: u64 = u64::MAX;
 /// The largest n (configuration matrices are n×n) any supported group needs.
@@ -76,7 +76,7 @@ pub mod mismatch {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::StateMsg4")
+    type_name("eqtrack::StateMsg5")
 )]
 #[repr(C)]
 pub struct StateMsg {
@@ -115,7 +115,7 @@ pub struct StateMsg {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::CommandMsg4")
+    type_name("eqtrack::CommandMsg5")
 )]
 #[repr(C)]
 pub struct CommandMsg {
@@ -162,6 +162,26 @@ pub struct CommandMsg {
     pub expected_period: f64,
     /// The controller's scenario name, UTF-8, NUL-padded.
     pub scenario: [u8; NAME_BYTES],
+    /// The law that computed `tau` ([`law_code`]; 0: not said): a controller started by hand
+    /// may run another law than the scenario's, and replay must know which.
+    pub law: u32,
+    /// Zero.
+    pub reserved: u32,
+}
+
+/// The wire code of a law in [`CommandMsg::law`]: 1 eqt, 2 gt, 3 nog, 4 asym.
+pub fn law_code(law: Law) -> u32 {
+    match law {
+        Law::Eqt => 1,
+        Law::Gt => 2,
+        Law::Nog => 3,
+        Law::Asym => 4,
+    }
+}
+
+/// The law of a wire code (`None`: 0 or unknown).
+pub fn law_from_code(code: u32) -> Option<Law> {
+    Law::ALL.into_iter().find(|l| law_code(*l) == code)
 }
 
 /// What one side runs: compared once, on the first state, to catch two processes started with
@@ -343,6 +363,8 @@ impl CommandMsg {
             mismatch: 0,
             fingerprint: 0,
             expected_period: 0.0,
+            law: 0,
+            reserved: 0,
             scenario: [0; NAME_BYTES],
         }
     }
@@ -400,7 +422,9 @@ pub const COMMAND_BYTES: usize = 4
     + 4
     + 8
     + 8
-    + NAME_BYTES;
+    + NAME_BYTES
+    + 4
+    + 4;
 
 /// Why bytes are not a message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -559,6 +583,8 @@ impl CommandMsg {
         p.bytes(&self.fingerprint.to_le_bytes());
         p.f64s(&[self.expected_period]);
         p.bytes(&self.scenario);
+        p.bytes(&self.law.to_le_bytes());
+        p.bytes(&self.reserved.to_le_bytes());
         buf
     }
 
@@ -586,6 +612,8 @@ impl CommandMsg {
         m.fingerprint = g.u64();
         m.expected_period = g.f64();
         m.scenario = g.take();
+        m.law = g.u32();
+        m.reserved = g.u32();
         Ok(m)
     }
 }
@@ -888,8 +916,22 @@ mod tests {
         c.heap_allocations = 9;
         c.mismatch = mismatch::SCENARIO;
         c.expected_period = 0.001;
+        c.law = law_code(Law::Gt);
         assert_eq!(CommandMsg::from_bytes(&c.to_bytes()), Ok(c));
+        assert_eq!(
+            u32::from_le_bytes(c.to_bytes()[360..364].try_into().unwrap()),
+            2
+        );
         assert!(CommandMsg::from_bytes(&[0u8; COMMAND_BYTES + 1]).is_err());
+    }
+
+    #[test]
+    fn law_codes_round_trip_and_zero_says_nothing() {
+        for law in Law::ALL {
+            assert_eq!(law_from_code(law_code(law)), Some(law));
+        }
+        assert_eq!(law_from_code(0), None);
+        assert_eq!(law_from_code(5), None);
     }
 
     #[test]

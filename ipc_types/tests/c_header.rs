@@ -72,6 +72,8 @@ fn rust_layout() -> Layout {
             fingerprint,
             expected_period,
             scenario,
+            law,
+            reserved,
         ]
     );
     fields!(

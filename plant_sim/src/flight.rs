@@ -28,11 +28,11 @@ use std::time::Duration;
 
 /// The file's first eight bytes.
 pub const MAGIC: [u8; 8] = *b"EQTRKLOG";
-/// The format version this build writes and reads (2: the records hold the state and command
-/// messages of protocol 3, with the applied torque and the disturbance-rejection terms: 752
-/// bytes; protocol 4 changed only the plan message, which the log does not hold, so its
-/// records are the same).
-pub const FORMAT_VERSION: u32 = 2;
+/// The format version this build writes and reads (3: the records hold the state and command
+/// messages of protocol 5, whose command names the law that computed it: 760 bytes. 2: the
+/// messages of protocols 3 and 4, 752 bytes; 1: before protocol 3. Other versions are
+/// refused, naming both).
+pub const FORMAT_VERSION: u32 = 3;
 /// Bytes of the header.
 pub const HEADER_BYTES: usize = 192;
 /// Where a record's state message starts.

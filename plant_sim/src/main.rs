@@ -785,6 +785,13 @@ fn replay_cmd(args: ReplayArgs) -> Result<(), SimError> {
             r.missing
         );
     }
+    if !r.recorded_laws.is_empty() {
+        let names: Vec<&str> = r.recorded_laws.iter().map(|l| l.name()).collect();
+        println!(
+            "note: the recorded commands were computed by {} (a controller started with another law than the scenario's): each state was replayed with the law its command names",
+            names.join(", ")
+        );
+    }
     println!(
         "replayed {} cycles of {}: {} commands compared, {} differ{}",
         r.cycles,

@@ -108,6 +108,10 @@ pub struct ReplayReport {
     pub trailing_bytes: u64,
     /// What-if: `replay.csv` and the figure written.
     pub written: Option<PathBuf>,
+    /// The laws the recorded commands name, when one differs from the scenario's (a
+    /// controller started by hand with `--law`): replay answered each state with the law
+    /// its recorded command names.
+    pub recorded_laws: Vec<Law>,
 }
 
 /// Replays `opts.dir`'s log.
@@ -217,10 +221,25 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     s: &Scenario,
 ) -> Result<ReplayReport, SimError> {
     let bad = |e: controller::Error| SimError::Input(format!("scenario `{}`: {e}", s.name));
-    let mut responder = s
-        .controller::<G, N, M>()
-        .and_then(|c| controller_node::Responder::new(c, s.rejection_config()))
-        .map_err(bad)?;
+    let responder_for = |law: Law| -> Result<_, SimError> {
+        let with = if law == s.law {
+            s.clone()
+        } else {
+            s.clone().with_law(law).map_err(|e| {
+                SimError::Input(format!(
+                    "the recorded commands name law {}: {e}",
+                    law.name()
+                ))
+            })?
+        };
+        with.controller::<G, N, M>()
+            .and_then(|c| controller_node::Responder::new(c, with.rejection_config()))
+            .map_err(bad)
+    };
+    // one responder per law the recorded commands name (protocol 5 commands say which law
+    // computed them); a what-if answers every state with its own law
+    let mut responders = vec![(s.law, responder_for(s.law)?)];
+    let mut law = s.law;
     let what_if = opts.what_if();
     let mut report = ReplayReport {
         cycles: 0,
@@ -231,6 +250,7 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         missing: 0,
         trailing_bytes: log.trailing_bytes,
         written: None,
+        recorded_laws: Vec::new(),
     };
     let mut rows = Vec::new();
     // the recorded states since the last one a command named as its previous
@@ -251,6 +271,22 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             continue;
         }
         (last_seq, period) = (Some(r.state.seq), Some(r.state.control_period));
+        if let (Some((c, _)), false) = (&r.command, what_if)
+            && let Some(named) = ipc_types::law_from_code(c.law)
+        {
+            law = named;
+            if !report.recorded_laws.contains(&named) {
+                report.recorded_laws.push(named);
+            }
+        }
+        let at = match responders.iter().position(|(l, _)| *l == law) {
+            Some(i) => i,
+            None => {
+                responders.push((law, responder_for(law)?));
+                responders.len() - 1
+            }
+        };
+        let responder = &mut responders[at].1;
         if let (Some((c, _)), false) = (&r.command, what_if) {
             // the controller's state before it answered: from the command and the recorded
             // state it processed before (states it never saw, or answered too late to be
@@ -284,6 +320,9 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                 replayed,
             });
         }
+    }
+    if report.recorded_laws == [s.law] {
+        report.recorded_laws.clear();
     }
     if what_if {
         let out = opts.out.clone().unwrap_or_else(|| opts.dir.clone());

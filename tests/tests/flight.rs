@@ -396,3 +396,48 @@ fn the_monitor_shows_the_live_loop_in_a_terminal_and_quits_on_q() {
         "the monitor did not exit when the run ended"
     );
 }
+
+/// A controller started by hand with another law than the scenario's (`controller_node --law
+/// gt` against the seed's EqT): its commands name the law (protocol 5), so replay answers each
+/// state with it and finds nothing different; with the law bytes rewritten to EqT, replay
+/// differs — the recorded law is what makes it pass.
+#[test]
+fn a_run_answered_by_a_hand_started_controller_with_another_law_replays_bit_for_bit() {
+    let _g = serial();
+    let d = TempDir::new("flight-law");
+    let out = d.join("gt");
+    let mut ctl = Proc::start(
+        "controller_node",
+        &["--name", "t-flight-law", "--law", "gt"],
+    );
+    lockstep_run("t-flight-law", &out, "2", &["--no-spawn"]);
+    let status = ctl.wait_timeout(Duration::from_secs(10));
+    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", ctl.output());
+    let (records, log) = read_log(&out);
+    assert_eq!(log.header.law, "eqt", "the plant's scenario says EqT");
+    assert!(
+        records
+            .iter()
+            .filter_map(|r| r.command.as_ref())
+            .all(|(c, _)| ipc_types::law_from_code(c.law) == Some(controller::Law::Gt)),
+        "every command names GT"
+    );
+    let (code, text) = replay(&[&out]);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(" 0 differ"), "{text}");
+    assert!(text.contains("computed by gt"), "{text}");
+    // the law bytes rewritten to EqT: replay answers with EqT, and the commands differ
+    let path = Path::new(&out).join(LOG_FILE);
+    let mut bytes = std::fs::read(&path).unwrap();
+    let at = plant_sim::flight::RECORD_COMMAND_OFFSET + 360;
+    for k in 0..records.len() {
+        let base = HEADER_BYTES + k * RECORD_BYTES;
+        if bytes[base + 9] != 0 {
+            bytes[base + at..base + at + 4].copy_from_slice(&1u32.to_le_bytes());
+        }
+    }
+    std::fs::write(&path, bytes).unwrap();
+    let (code, text) = replay(&[&out]);
+    assert_eq!(code, 1, "{text}");
+    assert!(!text.contains(" 0 differ"), "{text}");
+}
