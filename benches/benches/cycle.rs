@@ -11,6 +11,30 @@ use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_mai
 use nalgebra::{SVector, Vector3};
 use std::hint::black_box;
 
+/// The controller's whole cycle without IPC, as controller_node runs it: `respond` to the
+/// state message (the reference's desired state, the law, the command), then the reference's
+/// step to the next period; a fresh reference from `setup` per batch.
+fn controller_cycle<T, G, R, const N: usize, const M: usize>(
+    b: &mut criterion::Bencher,
+    ctl: &controller::Controller<T, G, N, M>,
+    msg: &ipc_types::StateMsg,
+    setup: impl FnMut() -> R,
+) where
+    T: Real,
+    G: MatrixLieGroup<N, M>,
+    R: Trajectory<T, N, M>,
+{
+    b.iter_batched_ref(
+        setup,
+        |r| {
+            let cmd = respond(ctl, r, black_box(msg));
+            r.advance();
+            cmd
+        },
+        BatchSize::SmallInput,
+    )
+}
+
 /// A closed-form SO(3) law.
 type ClosedForm<T> = fn(&so3::So3LawInput<T>) -> Vector3<T>;
 
@@ -114,29 +138,13 @@ fn steps<T: Real>(c: &mut Criterion, scalar: &str) {
         let (q, v, ..) = so3_generic::<f64>();
         let msg = state_msg::<So3, 3, 3>(&q, &v);
         g.bench_function(format!("so3/{scalar}"), |b| {
-            b.iter_batched_ref(
-                || seed_reference::<T>(sub),
-                |r| {
-                    let cmd = respond(&ctl, r, black_box(&msg));
-                    r.advance();
-                    cmd
-                },
-                BatchSize::SmallInput,
-            )
+            controller_cycle(b, &ctl, &msg, || seed_reference::<T>(sub))
         });
         let ctl = se3_controller::<T>();
         let (q, v, ..) = se3_generic::<f64>();
         let msg = state_msg::<Se3, 4, 6>(&q, &v);
         g.bench_function(format!("se3/{scalar}"), |b| {
-            b.iter_batched_ref(
-                || se3_reference::<T>(sub),
-                |r| {
-                    let cmd = respond(&ctl, r, black_box(&msg));
-                    r.advance();
-                    cmd
-                },
-                BatchSize::SmallInput,
-            )
+            controller_cycle(b, &ctl, &msg, || se3_reference::<T>(sub))
         });
         g.finish();
     }
@@ -403,15 +411,7 @@ fn paths(c: &mut Criterion) {
             let mut g = c.benchmark_group("cycle_path");
             g.throughput(Throughput::Elements(1));
             g.bench_function(format!("{name}/{kind}/f64"), |b| {
-                b.iter_batched_ref(
-                    || start.clone(),
-                    |r| {
-                        let cmd = respond(&ctl, r, black_box(&msg));
-                        r.advance();
-                        cmd
-                    },
-                    BatchSize::SmallInput,
-                )
+                controller_cycle(b, &ctl, &msg, || start.clone())
             });
             g.finish();
         }

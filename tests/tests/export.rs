@@ -54,6 +54,24 @@ fn read_mcap(path: &Path) -> ReadBack {
     }
 }
 
+/// A lockstep run of `plant_sim run` for `seconds` into `out`, with `extra` arguments.
+fn lockstep(name: &str, out: &str, seconds: &str, extra: &[&str]) {
+    let mut args = vec![
+        "run",
+        "--mode",
+        "lockstep",
+        "--duration",
+        seconds,
+        "--name",
+        name,
+        "--out",
+        out,
+    ];
+    args.extend_from_slice(extra);
+    let (code, text) = run("plant_sim", &args, LONG);
+    assert_eq!(code, 0, "{text}");
+}
+
 fn records(dir: &str) -> u64 {
     LogReader::open(&Path::new(dir).join(LOG_FILE))
         .unwrap()
@@ -66,24 +84,12 @@ fn a_run_exports_to_mcap_with_one_message_per_channel_and_cycle() {
     let d = TempDir::new("export");
     // the observer's scenario, so the terms channel is there too
     let out = d.join("lock");
-    let (code, text) = run(
-        "plant_sim",
-        &[
-            "run",
-            "--scenario",
-            &scenario("reject_so3"),
-            "--mode",
-            "lockstep",
-            "--duration",
-            "2",
-            "--name",
-            "t-export",
-            "--out",
-            &out,
-        ],
-        LONG,
+    lockstep(
+        "t-export",
+        &out,
+        "2",
+        &["--scenario", &scenario("reject_so3")],
     );
-    assert_eq!(code, 0, "{text}");
     let (code, text) = run("plant_sim", &["export", &out], LONG);
     assert_eq!(code, 0, "{text}");
     let n = records(&out);
@@ -113,22 +119,7 @@ fn a_run_exports_to_mcap_with_one_message_per_channel_and_cycle() {
     assert_eq!(lines.lines().count() as u64, 4 * n);
     // the seed has no terms: no terms channel
     let out = d.join("seed");
-    let (code, text) = run(
-        "plant_sim",
-        &[
-            "run",
-            "--mode",
-            "lockstep",
-            "--duration",
-            "1",
-            "--name",
-            "t-export-seed",
-            "--out",
-            &out,
-        ],
-        LONG,
-    );
-    assert_eq!(code, 0, "{text}");
+    lockstep("t-export-seed", &out, "1", &[]);
     let (code, text) = run("plant_sim", &["export", &out], LONG);
     assert_eq!(code, 0, "{text}");
     let topics = read_mcap(&Path::new(&out).join("run.mcap")).topics;
@@ -185,22 +176,7 @@ fn a_log_of_another_format_version_is_refused_with_both_versions_named() {
     let _g = serial();
     let d = TempDir::new("export-old");
     let out = d.join("run");
-    let (code, text) = run(
-        "plant_sim",
-        &[
-            "run",
-            "--mode",
-            "lockstep",
-            "--duration",
-            "0.2",
-            "--name",
-            "t-export-old",
-            "--out",
-            &out,
-        ],
-        LONG,
-    );
-    assert_eq!(code, 0, "{text}");
+    lockstep("t-export-old", &out, "0.2", &[]);
     let path = Path::new(&out).join(LOG_FILE);
     let mut bytes = std::fs::read(&path).unwrap();
     bytes[8..12].copy_from_slice(&1u32.to_le_bytes());
