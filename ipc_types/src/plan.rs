@@ -150,17 +150,19 @@ impl WireSegment {
                 w.twists[k * MAX_M + i] = v[i];
             }
         };
-        match &seg.shape {
-            Shape::Rest { twist } => put(0, twist),
+        let shape = match &seg.shape {
+            Shape::Rest { twist } => {
+                put(0, twist);
+                SHAPE_REST
+            }
             Shape::Through { v } => {
                 for (k, vk) in v.iter().enumerate() {
                     put(k, vk);
                 }
+                SHAPE_THROUGH
             }
-        }
-        if let Shape::Through { .. } = seg.shape {
-            w.shape = SHAPE_THROUGH;
-        }
+        };
+        w.shape = shape;
         w
     }
 
