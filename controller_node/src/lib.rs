@@ -15,7 +15,7 @@
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::path::{Path, PathReference};
 use controller::{Controller, Rejection, RejectionConfig, Source, Trajectory};
-use ipc_types::{CommandMsg, PlanReject, StateMsg, check_plan, name_str};
+use ipc_types::{CommandMsg, PlanMsg, PlanReject, StateMsg, check_plan, flags, name_str};
 use link::plan::PlanReader;
 use link::{
     ControllerConfig, ControllerEndpoint, Incoming, LinkError, Refusal, StopFlag, StopSignal,
@@ -375,6 +375,9 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M
         match self.responder.respond(reference, msg) {
             Ok(mut cmd) => {
                 cmd.state_received_ns = received;
+                if let Some(stream) = &self.stream {
+                    stream.intake.stamp(&mut cmd);
+                }
                 if let Some(a) = self.baseline {
                     cmd.heap_allocations = allocations().saturating_sub(a);
                 }
@@ -436,30 +439,96 @@ fn first_reference<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         scenario: s.name.clone(),
         source,
     };
-    let own = s.reference_source::<G, N, M>().map_err(bad)?;
     if opts.reference == ReferenceMode::Scenario {
-        return Ok(own);
+        return s.reference_source::<G, N, M>().map_err(bad);
     }
-    // streamed: start at rest at the pose the scenario's reference starts from
-    let start = own.desired().q;
-    let held = PathReference::new(
-        Path::hold(start).map_err(bad)?,
-        nalgebra::SMatrix::from_row_slice(&s.model_inertia),
-        s.control_period,
-    )
-    .map_err(bad)?;
     log(format_args!(
         "reference: streamed on `eqtrack/{}/plan`; holding the scenario's initial reference pose until a planner's pieces arrive",
         opts.run
     ));
+    streamed_reference(&s).map_err(bad)
+}
+
+/// The reference a streamed run starts from (docs/maths.md, "Streamed pieces"): a path that
+/// holds, at rest, the pose the scenario's own reference starts from, at the scenario's
+/// control period, until plan messages append pieces ([`PlanIntake::take`]). The node and
+/// `plant_sim replay` start from it.
+pub fn streamed_reference<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    s: &Scenario,
+) -> Result<Source<f64, G, N, M>, controller::Error> {
+    let start = s.reference_source::<G, N, M>()?.desired().q;
+    let held = PathReference::new(
+        Path::hold(start)?,
+        nalgebra::SMatrix::from_row_slice(&s.model_inertia),
+        s.control_period,
+    )?;
     Ok(Source::Path(held))
+}
+
+/// What a streamed reference has taken from the plan board: the pieces appended so far and
+/// the messages taken. The node and `plant_sim replay` append pieces through it, so replay
+/// repeats the node's path bit for bit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlanIntake {
+    /// The end time of the last segment appended (pieces that start earlier are old).
+    high_water: f64,
+    /// Plan messages taken (accepted or refused).
+    pub received: u32,
+    /// `(planner pid, seq)` of the last message taken (`(0, 0)`: none).
+    pub last: (u32, u64),
+}
+
+impl Default for PlanIntake {
+    fn default() -> Self {
+        PlanIntake {
+            high_water: f64::NEG_INFINITY,
+            received: 0,
+            last: (0, 0),
+        }
+    }
+}
+
+impl PlanIntake {
+    /// Takes plan message `msg`: checks it ([`check_plan`] at the reference's period) and
+    /// appends its pieces that start no earlier than the last piece appended ends and end no
+    /// earlier than the reference's time. Allocation-free.
+    pub fn take<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &mut self,
+        msg: &PlanMsg,
+        reference: &mut PathReference<f64, G, N, M>,
+    ) -> Result<(), PlanReject> {
+        self.received = self.received.wrapping_add(1);
+        self.last = (msg.planner_pid, msg.seq);
+        check_plan(msg, G::KIND, reference.period())?;
+        let now = reference.time();
+        for w in msg.used() {
+            let seg = w.segment::<N, M>();
+            if seg.t0 < self.high_water || seg.t1 < now {
+                continue;
+            }
+            if reference.path_mut().push(seg).is_err() {
+                // full: the planner republishes the window as time moves on
+                break;
+            }
+            self.high_water = seg.t1;
+        }
+        Ok(())
+    }
+
+    /// Writes what was taken into a command ([`flags::STREAMED`], `plans_received`,
+    /// `plan_seq`, `plan_pid`).
+    pub fn stamp(&self, cmd: &mut CommandMsg) {
+        cmd.flags |= flags::STREAMED;
+        cmd.plans_received = self.received;
+        (cmd.plan_pid, cmd.plan_seq) = self.last;
+    }
 }
 
 /// The streamed reference's bookkeeping: which pieces the path has, and whether it ran dry.
 struct Stream {
     reader: PlanReader,
-    /// The end time of the last segment appended (pieces that start earlier are old).
-    high_water: f64,
+    /// The pieces and messages taken.
+    intake: PlanIntake,
     /// No piece covers `t_k` or lies ahead of it (at the start: none came yet).
     dry: bool,
     /// Whether any piece has come.
@@ -472,7 +541,7 @@ impl Stream {
     fn open(run: &str) -> Result<Stream, NodeError> {
         Ok(Stream {
             reader: PlanReader::open(run)?,
-            high_water: f64::NEG_INFINITY,
+            intake: PlanIntake::default(),
             dry: true,
             started: false,
             rejected: [0; PlanReject::KINDS],
@@ -485,9 +554,8 @@ impl Stream {
         &mut self,
         reference: &mut PathReference<f64, G, N, M>,
     ) {
-        let now = reference.time();
         while let Some(msg) = self.reader.receive() {
-            if let Err(kind) = check_plan(&msg, G::KIND, reference.period()) {
+            if let Err(kind) = self.intake.take(&msg, reference) {
                 let i = kind as usize;
                 self.rejected[i] += 1;
                 if self.rejected[i] == 1 {
@@ -512,18 +580,6 @@ impl Stream {
                         msg.planner_pid
                     ));
                 }
-                continue;
-            }
-            for w in msg.used() {
-                let seg = w.segment::<N, M>();
-                if seg.t0 < self.high_water || seg.t1 < now {
-                    continue;
-                }
-                if reference.path_mut().push(seg).is_err() {
-                    // full: the planner republishes the window as time moves on
-                    break;
-                }
-                self.high_water = seg.t1;
             }
         }
     }

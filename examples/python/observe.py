@@ -28,7 +28,7 @@ SHUTDOWN = 2
 
 
 class StateMsg(ctypes.Structure):
-    """eqtrack::StateMsg5 (docs/wire.md)."""
+    """eqtrack::StateMsg6 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -48,11 +48,11 @@ class StateMsg(ctypes.Structure):
 
     @staticmethod
     def type_name():
-        return "eqtrack::StateMsg5"
+        return "eqtrack::StateMsg6"
 
 
 class CommandMsg(ctypes.Structure):
-    """eqtrack::CommandMsg5 (docs/wire.md)."""
+    """eqtrack::CommandMsg6 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -75,12 +75,15 @@ class CommandMsg(ctypes.Structure):
         ("expected_period", ctypes.c_double),
         ("scenario", ctypes.c_uint8 * NAME_BYTES),
         ("law", ctypes.c_uint32),
+        ("plans_received", ctypes.c_uint32),
+        ("plan_seq", ctypes.c_uint64),
+        ("plan_pid", ctypes.c_uint32),
         ("reserved", ctypes.c_uint32),
     ]
 
     @staticmethod
     def type_name():
-        return "eqtrack::CommandMsg5"
+        return "eqtrack::CommandMsg6"
 
 
 def entries(node, run, what, msg_type, timeout):

@@ -25,7 +25,7 @@
 #![forbid(unsafe_code)]
 
 use ipc_types::{CommandMsg, StateMsg, group_kind};
-use plant_sim::flight::{Header, LogReader, Record};
+use plant_sim::recorder::{Header, LogReader, Record};
 use std::collections::BTreeMap;
 use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
@@ -335,7 +335,7 @@ fn metadata(h: &Header, records: u64) -> BTreeMap<String, String> {
         ("records", records.to_string()),
         (
             "flight_recorder_format",
-            plant_sim::flight::FORMAT_VERSION.to_string(),
+            plant_sim::recorder::FORMAT_VERSION.to_string(),
         ),
     ] {
         m.insert(k.to_owned(), v);

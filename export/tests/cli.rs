@@ -5,7 +5,7 @@
 
 use ipc_types::{CommandMsg, MAX_M, StateMsg, group_code};
 use link::Decision;
-use plant_sim::flight::{Header, Record};
+use plant_sim::recorder::{Header, Record};
 use std::path::Path;
 use std::process::Command;
 
@@ -39,6 +39,7 @@ fn write_log(dir: &Path) {
         scenario: "made".to_owned(),
         law: "eqt".to_owned(),
         plant_pid: 1,
+        sensors: false,
     };
     let mut bytes = header.to_bytes().to_vec();
     for k in 0..3u64 {
@@ -66,6 +67,7 @@ fn write_log(dir: &Path) {
             applied: [0.125; MAX_M],
             state,
             command,
+            sensors: None,
         };
         bytes.extend_from_slice(&r.to_bytes());
     }

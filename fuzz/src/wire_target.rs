@@ -44,7 +44,7 @@ const STATE_FIELDS: [(&str, usize, Ty, usize); 13] = [
 ];
 
 /// The fields of an encoded [`CommandMsg`].
-const COMMAND_FIELDS: [(&str, usize, Ty, usize); 21] = [
+const COMMAND_FIELDS: [(&str, usize, Ty, usize); 24] = [
     ("version", 0, Ty::U32, 1),
     ("group", 4, Ty::U32, 1),
     ("seq", 8, Ty::U64, 1),
@@ -65,7 +65,10 @@ const COMMAND_FIELDS: [(&str, usize, Ty, usize); 21] = [
     ("expected_period", 320, Ty::F64, 1),
     ("scenario", 328, Ty::Name, 1),
     ("law", 360, Ty::U32, 1),
-    ("reserved", 364, Ty::U32, 1),
+    ("plans_received", 364, Ty::U32, 1),
+    ("plan_seq", 368, Ty::U64, 1),
+    ("plan_pid", 376, Ty::U32, 1),
+    ("reserved", 380, Ty::U32, 1),
 ];
 
 fn fields(kind: MsgKind) -> &'static [(&'static str, usize, Ty, usize)] {

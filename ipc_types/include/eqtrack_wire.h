@@ -7,8 +7,8 @@
  *
  * Each message sits in an iceoryx2 blackboard entry (key type uint32_t, keys 0..7 are the
  * writer slots) of the service `eqtrack/<run>/state`, `eqtrack/<run>/command` or
- * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg5",
- * "eqtrack::CommandMsg5", "eqtrack::PlanMsg4", "eqtrack::StatusMsg4". All numbers are little-endian on the machines eqtrack runs on.
+ * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg6",
+ * "eqtrack::CommandMsg6", "eqtrack::PlanMsg4", "eqtrack::StatusMsg4". All numbers are little-endian on the machines eqtrack runs on.
  */
 #ifndef EQTRACK_WIRE_H
 #define EQTRACK_WIRE_H
@@ -16,7 +16,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define EQTRACK_PROTOCOL_VERSION 5u
+#define EQTRACK_PROTOCOL_VERSION 6u
 #define EQTRACK_MAX_N 4        /* configuration matrices are n x n, n <= 4 */
 #define EQTRACK_MAX_M 6        /* algebra dimension m <= 6 */
 #define EQTRACK_NAME_BYTES 32  /* scenario name, UTF-8, NUL-padded */
@@ -30,6 +30,7 @@
 #define EQTRACK_FLAG_WAKE_EVENT 1u
 #define EQTRACK_FLAG_SHUTDOWN 2u
 #define EQTRACK_FLAG_REFUSED 4u
+#define EQTRACK_FLAG_STREAMED 8u  /* CommandMsg: the controller tracks a streamed reference */
 
 /* the plant's state at t_k */
 typedef struct eqtrack_StateMsg {
@@ -64,12 +65,15 @@ typedef struct eqtrack_CommandMsg {
     double estimate_before[EQTRACK_MAX_M]; /* observer estimate before this update (its frame) */
     double z_before[EQTRACK_MAX_M];        /* integral z before this update */
     uint64_t heap_allocations;  /* since the controller's first cycle */
-    uint32_t flags;             /* EQTRACK_FLAG_REFUSED */
+    uint32_t flags;             /* EQTRACK_FLAG_REFUSED, EQTRACK_FLAG_STREAMED */
     uint32_t mismatch;          /* with REFUSED: what differs (1 group, 2 period, 4 scenario) */
     uint64_t fingerprint;
     double expected_period;     /* 0: the controller follows the plant */
     uint8_t scenario[EQTRACK_NAME_BYTES];
     uint32_t law;               /* 1 eqt, 2 gt, 3 nog, 4 asym; 0: not said */
+    uint32_t plans_received;    /* streamed reference: plan messages taken before this answer */
+    uint64_t plan_seq;          /* the last of them: its seq (0: none) */
+    uint32_t plan_pid;          /* and its planner's pid (0: none) */
     uint32_t reserved;
 } eqtrack_CommandMsg;
 

@@ -21,12 +21,12 @@ use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 use nalgebra::{SMatrix, SVector};
 
 pub mod plan;
-pub use plan::{PLAN_WINDOW, PlanMsg, PlanReject, WireSegment, check_plan};
+pub use plan::{PLAN_BYTES, PLAN_WINDOW, PlanMsg, PlanReject, WireSegment, check_plan};
 pub mod status;
 pub use status::{StatusMsg, status_flags};
 
 /// Bumped whenever a message layout or meaning changes.
-pub const PROTOCOL_VERSION: u32 = 5;
+pub const PROTOCOL_VERSION: u32 = 6;
 /// [`CommandMsg::previous_seq`] when the controller processed no state before.
 pub const NO_PREVIOUS: u64 = u64::MAX;
 /// The largest n (configuration matrices are n×n) any supported group needs.
@@ -58,6 +58,9 @@ pub mod flags {
     /// [`CommandMsg::flags`]: the controller refuses the run (configuration mismatch, see
     /// [`CommandMsg::mismatch`]); the plant stops.
     pub const REFUSED: u32 = 4;
+    /// [`CommandMsg::flags`]: the controller tracks a streamed reference (`--reference
+    /// stream`); [`CommandMsg::plans_received`] says what it had taken from the plan board.
+    pub const STREAMED: u32 = 8;
 }
 
 /// Bits of [`CommandMsg::mismatch`]: what differs between the two sides' settings.
@@ -76,7 +79,7 @@ pub mod mismatch {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::StateMsg5")
+    type_name("eqtrack::StateMsg6")
 )]
 #[repr(C)]
 pub struct StateMsg {
@@ -115,7 +118,7 @@ pub struct StateMsg {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::CommandMsg5")
+    type_name("eqtrack::CommandMsg6")
 )]
 #[repr(C)]
 pub struct CommandMsg {
@@ -165,6 +168,14 @@ pub struct CommandMsg {
     /// The law that computed `tau` ([`law_code`]; 0: not said): a controller started by hand
     /// may run another law than the scenario's, and replay must know which.
     pub law: u32,
+    /// With a streamed reference ([`flags::STREAMED`]): how many plan messages the controller
+    /// had taken from the plan board (accepted or refused) before it answered this state.
+    pub plans_received: u32,
+    /// The sequence number of the last of them (0: none).
+    pub plan_seq: u64,
+    /// Its planner's process id (0: none). With `plans_received`, what replay needs to
+    /// apply the recorded plan messages at the cycles the controller took them.
+    pub plan_pid: u32,
     /// Zero.
     pub reserved: u32,
 }
@@ -364,6 +375,9 @@ impl CommandMsg {
             fingerprint: 0,
             expected_period: 0.0,
             law: 0,
+            plans_received: 0,
+            plan_seq: 0,
+            plan_pid: 0,
             reserved: 0,
             scenario: [0; NAME_BYTES],
         }
@@ -424,6 +438,9 @@ pub const COMMAND_BYTES: usize = 4
     + 8
     + NAME_BYTES
     + 4
+    + 4
+    + 8
+    + 4
     + 4;
 
 /// Why bytes are not a message.
@@ -449,17 +466,17 @@ impl core::fmt::Display for DecodeError {
 }
 
 /// Writes fields into a byte buffer in order.
-struct Put<'a> {
-    buf: &'a mut [u8],
-    at: usize,
+pub(crate) struct Put<'a> {
+    pub(crate) buf: &'a mut [u8],
+    pub(crate) at: usize,
 }
 
 impl Put<'_> {
-    fn bytes(&mut self, b: &[u8]) {
+    pub(crate) fn bytes(&mut self, b: &[u8]) {
         self.buf[self.at..self.at + b.len()].copy_from_slice(b);
         self.at += b.len();
     }
-    fn f64s(&mut self, xs: &[f64]) {
+    pub(crate) fn f64s(&mut self, xs: &[f64]) {
         for x in xs {
             self.bytes(&x.to_le_bytes());
         }
@@ -467,35 +484,35 @@ impl Put<'_> {
 }
 
 /// Reads fields back in the same order (the length was checked first).
-struct Get<'a> {
-    buf: &'a [u8],
-    at: usize,
+pub(crate) struct Get<'a> {
+    pub(crate) buf: &'a [u8],
+    pub(crate) at: usize,
 }
 
 impl Get<'_> {
-    fn take<const K: usize>(&mut self) -> [u8; K] {
+    pub(crate) fn take<const K: usize>(&mut self) -> [u8; K] {
         let mut b = [0u8; K];
         b.copy_from_slice(&self.buf[self.at..self.at + K]);
         self.at += K;
         b
     }
-    fn u32(&mut self) -> u32 {
+    pub(crate) fn u32(&mut self) -> u32 {
         u32::from_le_bytes(self.take())
     }
-    fn u64(&mut self) -> u64 {
+    pub(crate) fn u64(&mut self) -> u64 {
         u64::from_le_bytes(self.take())
     }
-    fn f64(&mut self) -> f64 {
+    pub(crate) fn f64(&mut self) -> f64 {
         f64::from_le_bytes(self.take())
     }
-    fn f64s(&mut self, xs: &mut [f64]) {
+    pub(crate) fn f64s(&mut self, xs: &mut [f64]) {
         for x in xs {
             *x = self.f64();
         }
     }
 }
 
-fn length(buf: &[u8], expected: usize) -> Result<(), DecodeError> {
+pub(crate) fn length(buf: &[u8], expected: usize) -> Result<(), DecodeError> {
     if buf.len() == expected {
         Ok(())
     } else {
@@ -584,6 +601,9 @@ impl CommandMsg {
         p.f64s(&[self.expected_period]);
         p.bytes(&self.scenario);
         p.bytes(&self.law.to_le_bytes());
+        p.bytes(&self.plans_received.to_le_bytes());
+        p.bytes(&self.plan_seq.to_le_bytes());
+        p.bytes(&self.plan_pid.to_le_bytes());
         p.bytes(&self.reserved.to_le_bytes());
         buf
     }
@@ -613,6 +633,9 @@ impl CommandMsg {
         m.expected_period = g.f64();
         m.scenario = g.take();
         m.law = g.u32();
+        m.plans_received = g.u32();
+        m.plan_seq = g.u64();
+        m.plan_pid = g.u32();
         m.reserved = g.u32();
         Ok(m)
     }
@@ -917,7 +940,14 @@ mod tests {
         c.mismatch = mismatch::SCENARIO;
         c.expected_period = 0.001;
         c.law = law_code(Law::Gt);
+        c.plans_received = 3;
+        c.plan_seq = 41;
+        c.plan_pid = 77;
         assert_eq!(CommandMsg::from_bytes(&c.to_bytes()), Ok(c));
+        let b = c.to_bytes();
+        assert_eq!(u32::from_le_bytes(b[364..368].try_into().unwrap()), 3);
+        assert_eq!(u64::from_le_bytes(b[368..376].try_into().unwrap()), 41);
+        assert_eq!(u32::from_le_bytes(b[376..380].try_into().unwrap()), 77);
         assert_eq!(
             u32::from_le_bytes(c.to_bytes()[360..364].try_into().unwrap()),
             2

@@ -6,7 +6,7 @@
 //! body-frame displacements — so the controller evaluates it at any `t_k` without allocating,
 //! and a streamed path equals, bit for bit, the same path built from a file.
 
-use crate::{MAX_M, MAX_N, PROTOCOL_VERSION, all_finite, own_dims};
+use crate::{DecodeError, Get, MAX_M, MAX_N, PROTOCOL_VERSION, Put, all_finite, length, own_dims};
 use controller::GroupKind;
 use controller::path::{Segment, Shape};
 #[cfg(feature = "zero-copy")]
@@ -22,6 +22,12 @@ pub const PLAN_WINDOW: usize = 8;
 /// `RᵀR − I`) and still be accepted: a pose written from a rotation matrix in f64 is within
 /// a few ulps; anything off by more is not a pose.
 pub const POSE_TOLERANCE: f64 = 1e-9;
+
+/// Bytes of an encoded [`WireSegment`].
+pub const SEGMENT_BYTES: usize = 8 + 8 + 4 + 4 + 8 * MAX_N * MAX_N + 8 * 5 * MAX_M;
+/// Bytes of an encoded [`PlanMsg`] (little-endian, field by field, as the flight recorder
+/// keeps it).
+pub const PLAN_BYTES: usize = 4 + 4 + 8 + 8 + 4 + 4 + 4 + 4 + PLAN_WINDOW * SEGMENT_BYTES;
 
 /// [`WireSegment::shape`] of a rest-to-rest geodesic piece (`path = "stop"`).
 pub const SHAPE_REST: u32 = 0;
@@ -218,6 +224,57 @@ impl PlanMsg {
     }
 }
 
+impl PlanMsg {
+    /// Little-endian encoding, field by field (the flight recorder keeps plan messages so).
+    pub fn to_bytes(&self) -> [u8; PLAN_BYTES] {
+        let mut buf = [0u8; PLAN_BYTES];
+        let mut p = Put {
+            buf: &mut buf,
+            at: 0,
+        };
+        p.bytes(&self.version.to_le_bytes());
+        p.bytes(&self.group.to_le_bytes());
+        p.bytes(&self.seq.to_le_bytes());
+        p.bytes(&self.stamp_ns.to_le_bytes());
+        p.bytes(&self.first_index.to_le_bytes());
+        p.bytes(&self.count.to_le_bytes());
+        p.bytes(&self.planner_pid.to_le_bytes());
+        p.bytes(&self.reserved.to_le_bytes());
+        for w in &self.segments {
+            p.f64s(&[w.t0, w.t1]);
+            p.bytes(&w.shape.to_le_bytes());
+            p.bytes(&w.reserved.to_le_bytes());
+            p.f64s(&w.start);
+            p.f64s(&w.twists);
+        }
+        buf
+    }
+
+    /// Decodes [`PlanMsg::to_bytes`]'s output (unchecked: pass it through [`check_plan`]).
+    pub fn from_bytes(buf: &[u8]) -> Result<Self, DecodeError> {
+        length(buf, PLAN_BYTES)?;
+        let mut g = Get { buf, at: 0 };
+        let mut m = PlanMsg::new(GroupKind::So3);
+        m.version = g.u32();
+        m.group = g.u32();
+        m.seq = g.u64();
+        m.stamp_ns = g.u64();
+        m.first_index = g.u32();
+        m.count = g.u32();
+        m.planner_pid = g.u32();
+        m.reserved = g.u32();
+        for w in &mut m.segments {
+            w.t0 = g.f64();
+            w.t1 = g.f64();
+            w.shape = g.u32();
+            w.reserved = g.u32();
+            g.f64s(&mut w.start);
+            g.f64s(&mut w.twists);
+        }
+        Ok(m)
+    }
+}
+
 /// Whether the top-left 3×3 block of the row-major n×n `q` is a rotation, and (n = 4) the
 /// last row is `0 0 0 1`.
 fn on_group(q: &[f64], n: usize) -> bool {
@@ -323,6 +380,27 @@ mod tests {
             v: Vector3::new(0.5, -0.1, 0.0),
             v_dot: Vector3::new(0.0, 0.2, 0.1),
         }
+    }
+
+    #[test]
+    fn plan_messages_round_trip_through_their_bytes() {
+        let mut m = PlanMsg::new(GroupKind::So3);
+        m.seq = 12;
+        m.stamp_ns = 34;
+        m.planner_pid = 56;
+        m.first_index = 2;
+        m.count = 1;
+        m.segments[0] = WireSegment::from_segment(&so3_segment(0.5, 1.5));
+        m.segments[3].twists[29] = f64::NAN;
+        let b = m.to_bytes();
+        let back = PlanMsg::from_bytes(&b).unwrap();
+        assert_eq!(back.to_bytes(), b);
+        assert_eq!(
+            (back.seq, back.planner_pid, back.segments[0]),
+            (12, 56, m.segments[0])
+        );
+        assert!(back.segments[3].twists[29].is_nan());
+        assert!(PlanMsg::from_bytes(&b[1..]).is_err());
     }
 
     #[test]

@@ -73,6 +73,9 @@ fn rust_layout() -> Layout {
             expected_period,
             scenario,
             law,
+            plans_received,
+            plan_seq,
+            plan_pid,
             reserved,
         ]
     );
@@ -256,6 +259,10 @@ fn the_header_names_the_protocol_version_and_limits() {
         (
             "EQTRACK_FLAG_REFUSED",
             format!("{}u", ipc_types::flags::REFUSED),
+        ),
+        (
+            "EQTRACK_FLAG_STREAMED",
+            format!("{}u", ipc_types::flags::STREAMED),
         ),
         (
             "EQTRACK_STATUS_SAFE_MODE",

@@ -112,7 +112,20 @@ impl PlanReader {
     /// Opens the plan board of run `run` for reading (a planner may come before or after).
     pub fn open(run: &str) -> Result<PlanReader, LinkError> {
         let names = check_run_name(run)?;
-        let node = create_node(&names.controller_node)?;
+        Self::open_as(run, &names.controller_node)
+    }
+
+    /// Opens the plan board of run `run` for the plant's flight recorder, which keeps every
+    /// plan message it sees so that a streamed run replays (its own node, beside the
+    /// controller's reader).
+    pub fn for_recorder(run: &str) -> Result<PlanReader, LinkError> {
+        let names = check_run_name(run)?;
+        Self::open_as(run, &names.recorder_node)
+    }
+
+    fn open_as(run: &str, node_name: &str) -> Result<PlanReader, LinkError> {
+        let names = check_run_name(run)?;
+        let node = create_node(node_name)?;
         let service = board(&node, &names.plan, empty_plan())?;
         let reader = service
             .reader_builder()

@@ -180,8 +180,19 @@ impl Estimation {
             fault.apply(&mut samples);
             self.planted += 1;
         }
-        let q = *body.configuration();
-        let v = body.velocity();
+        self.estimate(samples, body.configuration(), &body.velocity())
+    }
+
+    /// Steps the filter on one tick's `samples` (drawn from the true state `(q, v)`) and
+    /// returns the state the law is handed and the row's sensor and estimate columns.
+    /// `plant_sim replay` steps the run's filter through it over the recorded samples.
+    pub fn estimate<const N: usize, const M: usize>(
+        &mut self,
+        samples: crate::sensors::Samples,
+        q: &SMatrix<f64, N, N>,
+        v: &SVector<f64, M>,
+    ) -> (SMatrix<f64, N, N>, SVector<f64, M>, EstimateRow) {
+        let (q, v) = (*q, *v);
         let h = self.period;
         let dirs = &samples.directions[..samples.count];
         let pose = |e: estimator::PoseEstimate<f64>| {

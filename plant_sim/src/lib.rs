@@ -4,24 +4,23 @@
 //! * [`output`]: `trajectory.csv` and `summary.json`;
 //! * [`plot`]: the figures (PNG and SVG);
 //! * [`montecarlo`]: the extended paper's Monte Carlo study;
-//! * [`reference`](mod@reference): the desired trajectory sampled for inspection.
+//! * [`reference`](mod@reference): the desired trajectory sampled for inspection;
+//! * [`recorder`]: the flight recorder — its formats, writer, reader, replay and live status.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod bench_loop;
 pub mod estimation;
 pub mod estimator_study;
-pub mod flight;
 pub mod floors;
-pub mod monitor;
 pub mod montecarlo;
 pub mod noise;
 pub mod output;
 pub mod pair;
 pub mod plot;
+pub mod recorder;
 pub mod reference;
 pub mod rejection;
-pub mod replay;
 pub mod sensors;
 pub mod spawn;
 pub mod trajectory;

@@ -763,7 +763,7 @@ fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
 /// `plant_sim replay`: prints what the replay found; a difference outside a what-if is an
 /// error (exit 1).
 fn replay_cmd(args: ReplayArgs) -> Result<(), SimError> {
-    use plant_sim::replay::{ReplayOptions, replay};
+    use plant_sim::recorder::replay::{ReplayOptions, replay};
     let opts = ReplayOptions {
         dir: args.dir,
         law: args.law,
@@ -808,6 +808,29 @@ fn replay_cmd(args: ReplayArgs) -> Result<(), SimError> {
             d.describe()
         );
     }
+    if let Some(n) = r.plans_taken {
+        println!(
+            "streamed reference: {n} recorded plan messages handed to the controller at the cycles it took them"
+        );
+    }
+    if let Some(e) = &r.estimator {
+        println!(
+            "estimator: {} estimates checked, {} differ{}",
+            e.compared,
+            e.differing,
+            e.stopped_at.map_or(String::new(), |k| format!(
+                " (not checked from cycle {k} on: the log has a gap there)"
+            ))
+        );
+        if let Some(d) = &e.first {
+            println!(
+                "first estimate difference: cycle {} (t = {:.6} s): {}",
+                d.cycle,
+                d.t,
+                d.describe()
+            );
+        }
+    }
     if let Some(dir) = &r.written {
         println!(
             "largest torque difference {:e}; wrote {}/{{replay.csv, replay.png, replay.svg}}",
@@ -823,12 +846,25 @@ fn replay_cmd(args: ReplayArgs) -> Result<(), SimError> {
             d.cycle,
             d.describe()
         ))),
-        _ => Ok(()),
+        _ => match r
+            .estimator
+            .as_ref()
+            .and_then(|e| e.first.as_ref().map(|d| (e, d)))
+        {
+            Some((e, d)) => Err(SimError::Run(format!(
+                "the replayed estimator differs from the recording: {} of {} estimates, first at cycle {} ({})",
+                e.differing,
+                e.compared,
+                d.cycle,
+                d.describe()
+            ))),
+            None => Ok(()),
+        },
     }
 }
 
 fn monitor_cmd(args: MonitorArgs, stop: &StopFlag) -> Result<(), SimError> {
-    use plant_sim::monitor::{MonitorEnd, MonitorOptions, monitor};
+    use plant_sim::recorder::monitor::{MonitorEnd, MonitorOptions, monitor};
     let end = monitor(&MonitorOptions {
         run: args.name.clone(),
         wait: args.wait,

@@ -12,9 +12,9 @@
 //! summary says `"interrupted": true` (docs/architecture.md, "Stopping a run").
 
 use crate::SimError;
-use crate::flight::{Header, Record, Recorder, RecordingReport};
 use crate::output::{Summary, ensure_dir, write_json, write_trajectory_csv};
 use crate::plot::trajectory_figure;
+use crate::recorder::{Header, Record, Recorder, RecordingReport};
 use crate::spawn::Spawned;
 use crate::trajectory::{Row, Trajectory, input};
 use controller::Trajectory as _;
@@ -314,6 +314,8 @@ struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     estimation: Option<crate::estimation::Estimation>,
     /// The samples and estimate of the state published last.
     estimate: Option<crate::trajectory::EstimateRow>,
+    /// The same, with the true state, for the flight recorder.
+    sensor_record: Option<crate::recorder::SensorRecord>,
 }
 
 fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
@@ -444,6 +446,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 &opts.sample_faults,
             )?,
             estimate: None,
+            sensor_record: None,
             s,
         })
     }
@@ -469,10 +472,31 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             scenario: self.s.name.clone(),
             law: self.s.law.name().to_owned(),
             plant_pid: std::process::id(),
+            sensors: self.estimation.is_some(),
         };
         let capacity = ((0.5 / self.s.control_period) as usize).clamp(4096, 1 << 16);
-        let sink = crate::monitor::status_sink(&opts.run, &header);
-        self.recorder = Some(Recorder::start(&opts.out, &header, capacity, Some(sink))?);
+        let sink = crate::recorder::monitor::status_sink(&opts.run, &header);
+        // the plan board, read on the recorder's thread: a controller started with
+        // `--reference stream` takes its pieces from it, and replay needs them
+        let run = opts.run.clone();
+        let plans: crate::recorder::PlanSourceFactory = Box::new(move || {
+            match link::plan::PlanReader::for_recorder(&run) {
+                Ok(mut r) => Some(Box::new(move || r.receive()) as crate::recorder::PlanSource),
+                Err(e) => {
+                    log(format_args!(
+                        "warning: the flight recorder cannot read the plan board ({e}): a streamed run will not replay"
+                    ));
+                    None
+                }
+            }
+        });
+        self.recorder = Some(Recorder::start(
+            &opts.out,
+            &header,
+            capacity,
+            Some(sink),
+            Some(plans),
+        )?);
         Ok(())
     }
 
@@ -491,6 +515,19 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 let held = self.tau + self.s.disturbance_wrench::<M>(k.saturating_sub(1), &r);
                 let (q_hat, v_hat, row) = e.measure(k, &self.plant, &held);
                 msg.set_state(&q_hat, &v_hat);
+                if self.recorder.is_some() {
+                    let mut truth = StateMsg::new(self.s.group);
+                    truth.set_state(self.plant.configuration(), &self.plant.velocity());
+                    self.sensor_record = Some(crate::recorder::SensorRecord {
+                        samples: row.samples,
+                        q_true: truth.q,
+                        v_true: truth.v,
+                        bias_hat: row.bias_hat,
+                        estimate_error: row.estimate_error,
+                        covariance: row.covariance,
+                        nees: row.nees,
+                    });
+                }
                 self.estimate = Some(row);
             }
         }
@@ -642,6 +679,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 applied,
                 state: self.state,
                 command: got.map(|c| (c.msg, c.received_ns)),
+                sensors: self.sensor_record,
             });
         }
         if self.realtime() {

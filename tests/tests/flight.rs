@@ -2,7 +2,7 @@
 //! real processes. Tests run one at a time ([`serial`]).
 
 use pair_tests::{Proc, TempDir, bin, run, serial, summary};
-use plant_sim::flight::{
+use plant_sim::recorder::{
     HEADER_BYTES, LOG_FILE, LogReader, RECORD_BYTES, RECORD_STATE_OFFSET, torque_byte_offset,
 };
 use std::path::Path;
@@ -34,7 +34,7 @@ fn copy_dir(from: &str, to: &str) {
 }
 
 /// (records, decisions seen) of a log.
-fn read_log(dir: &str) -> (Vec<plant_sim::flight::Record>, LogReader) {
+fn read_log(dir: &str) -> (Vec<plant_sim::recorder::Record>, LogReader) {
     let mut log = LogReader::open(&Path::new(dir).join(LOG_FILE)).unwrap();
     let mut records = Vec::new();
     while let Some(r) = log.next_record().unwrap() {
@@ -429,7 +429,7 @@ fn a_run_answered_by_a_hand_started_controller_with_another_law_replays_bit_for_
     // the law bytes rewritten to EqT: replay answers with EqT, and the commands differ
     let path = Path::new(&out).join(LOG_FILE);
     let mut bytes = std::fs::read(&path).unwrap();
-    let at = plant_sim::flight::RECORD_COMMAND_OFFSET + 360;
+    let at = plant_sim::recorder::RECORD_COMMAND_OFFSET + 360;
     for k in 0..records.len() {
         let base = HEADER_BYTES + k * RECORD_BYTES;
         if bytes[base + 9] != 0 {

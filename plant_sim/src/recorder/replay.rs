@@ -16,14 +16,28 @@
 //! processed before it (`previous_seq`), so replay restores them from the record and checks
 //! every command on its own, whatever states the controller skipped or answered too late to
 //! be recorded. A what-if runs its own terms over every recorded state.
+//!
+//! A streamed run (its commands carry `STREAMED`) starts from the streamed reference's held
+//! pose, and each recorded command says how many plan messages the controller had taken and
+//! which was the last: replay hands the recorded plan messages (`plans.log`) to the same
+//! `controller_node::PlanIntake` at the cycle they were taken, before it moves the reference
+//! on, as the node does. A command naming a message the recorder never saw is a log replay
+//! cannot check, and it says so.
+//!
+//! A run with sensors recorded each tick's samples and true state: replay steps a fresh copy
+//! of the run's estimator over the recorded samples and checks that it publishes the
+//! recorded estimate (`Q̂`, `V̂` in the state message, the bias) bit for bit, up to the first
+//! gap in the log (the filter's state after a gap is not in the record).
 
+use super::{LOG_FILE, LogReader, PlanEntry, Record, read_plans};
 use crate::SimError;
-use crate::flight::{LOG_FILE, LogReader, Record};
 use crate::output::ensure_dir;
 use crate::plot::{Line, Panel, law_color, render};
+use controller::Source;
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::{Law, Trajectory as _};
-use ipc_types::{CommandMsg, MAX_M, group_code};
+use controller_node::PlanIntake;
+use ipc_types::{CommandMsg, MAX_M, StateMsg, flags, group_code};
 use link::Decision;
 use scenario::Scenario;
 use std::path::{Path, PathBuf};
@@ -112,17 +126,56 @@ pub struct ReplayReport {
     /// controller started by hand with `--law`): replay answered each state with the law
     /// its recorded command names.
     pub recorded_laws: Vec<Law>,
+    /// A streamed run: the plan messages replay handed to the controller (`None`: not a
+    /// streamed run).
+    pub plans_taken: Option<u64>,
+    /// A run with sensors: the estimates checked (the estimator stepped over the recorded
+    /// samples), how many differ in any bit, the first difference, and the cycle of the
+    /// first gap in the log, after which the estimator cannot be checked.
+    pub estimator: Option<EstimatorCheck>,
+}
+
+/// What replaying the estimator found.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct EstimatorCheck {
+    /// Estimates checked.
+    pub compared: u64,
+    /// Estimates that differ in any bit of `Q̂`, `V̂` or the bias.
+    pub differing: u64,
+    /// The first of them.
+    pub first: Option<Difference>,
+    /// The cycle of the first gap in the log (the rest is not checked).
+    pub stopped_at: Option<u64>,
 }
 
 /// Replays `opts.dir`'s log.
 pub fn replay(opts: &ReplayOptions) -> Result<ReplayReport, SimError> {
-    let mut log = LogReader::open(&opts.dir.join(LOG_FILE))?;
+    let path = opts.dir.join(LOG_FILE);
+    let streamed = first_command(&path)?.is_some_and(|c| c.flags & flags::STREAMED != 0);
+    let plans = if streamed {
+        Some(read_plans(&opts.dir)?)
+    } else {
+        None
+    };
+    let mut log = LogReader::open(&path)?;
     let s = scenario_for(opts, &log)?;
     s.group.dispatch(Replay {
         opts,
         log: &mut log,
         s: &s,
+        plans: plans.as_deref(),
     })
+}
+
+/// The first recorded command of the log at `path`.
+fn first_command(path: &Path) -> Result<Option<CommandMsg>, SimError> {
+    let mut log = LogReader::open(path)?;
+    while let Some(r) = log.next_record()? {
+        if let Some((c, _)) = r.command {
+            return Ok(Some(c));
+        }
+    }
+    Ok(None)
 }
 
 /// The scenario of the run (its stored copy, checked against the log's fingerprint) with the
@@ -197,12 +250,13 @@ struct Replay<'a> {
     opts: &'a ReplayOptions,
     log: &'a mut LogReader,
     s: &'a Scenario,
+    plans: Option<&'a [PlanEntry]>,
 }
 
 impl OnGroup for Replay<'_> {
     type Output = Result<ReplayReport, SimError>;
     fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
-        replay_group::<G, N, M>(self.opts, self.log, self.s)
+        replay_group::<G, N, M>(self.opts, self.log, self.s, self.plans)
     }
 }
 
@@ -215,10 +269,58 @@ struct Row {
     replayed: Option<CommandMsg>,
 }
 
+/// The recorded plan messages handed to a streamed run's reference, as the node took them.
+struct Plans<'a> {
+    entries: &'a [PlanEntry],
+    intake: PlanIntake,
+    /// Entries before this one were handed over (or passed by).
+    next: usize,
+    taken: u64,
+}
+
+impl Plans<'_> {
+    /// Before state k is answered (the reference still at the previous state's time, as
+    /// the node pulls after answering): hands over what the controller had taken by the
+    /// time it answered, as recorded command `c` says.
+    fn catch_up<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &mut self,
+        c: &CommandMsg,
+        cycle: u64,
+        reference: &mut Source<f64, G, N, M>,
+    ) -> Result<(), SimError> {
+        if c.plans_received == self.intake.received {
+            return Ok(());
+        }
+        let Source::Path(path) = reference else {
+            return Ok(());
+        };
+        let named = (c.plan_pid, c.plan_seq);
+        let Some(j) = (self.next..self.entries.len())
+            .find(|&i| (self.entries[i].msg.planner_pid, self.entries[i].msg.seq) == named)
+        else {
+            return Err(SimError::Input(format!(
+                "cycle {cycle}: the controller had taken plan message seq {} from planner pid {}, which plans.log does not hold (the recorder did not see it on the plan board): this streamed run cannot be checked",
+                c.plan_seq, c.plan_pid
+            )));
+        };
+        // the messages taken since the last command: the last `new` seen up to the named one
+        let new = c.plans_received.wrapping_sub(self.intake.received) as usize;
+        for e in &self.entries[(j + 1).saturating_sub(new).max(self.next)..=j] {
+            // a refused message counts as taken; the node refuses it the same way
+            let _ = self.intake.take(&e.msg, path);
+            self.taken += 1;
+        }
+        self.intake.received = c.plans_received;
+        self.next = j + 1;
+        Ok(())
+    }
+}
+
 fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     opts: &ReplayOptions,
     log: &mut LogReader,
     s: &Scenario,
+    plans: Option<&[PlanEntry]>,
 ) -> Result<ReplayReport, SimError> {
     let bad = |e: controller::Error| SimError::Input(format!("scenario `{}`: {e}", s.name));
     let responder_for = |law: Law| -> Result<_, SimError> {
@@ -251,7 +353,27 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         trailing_bytes: log.trailing_bytes,
         written: None,
         recorded_laws: Vec::new(),
+        plans_taken: None,
+        estimator: None,
     };
+    let mut plans = plans.map(|entries| Plans {
+        entries,
+        intake: PlanIntake::default(),
+        next: 0,
+        taken: 0,
+    });
+    // the run's estimator, fresh, at the run's period: stepped over the recorded samples
+    let mut estimation = match (log.header.sensors, what_if) {
+        (true, false) => {
+            let mut at = s.clone();
+            at.control_period = log.header.control_period;
+            crate::estimation::Estimation::new(&at, at.control_period, &[])?
+        }
+        _ => None,
+    };
+    if estimation.is_some() {
+        report.estimator = Some(EstimatorCheck::default());
+    }
     let mut rows = Vec::new();
     // the recorded states since the last one a command named as its previous
     let mut states = std::collections::BTreeMap::<u64, ipc_types::StateMsg>::new();
@@ -263,6 +385,15 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     while let Some(r) = log.next_record()? {
         report.cycles += 1;
         report.missing += r.cycle.saturating_sub(next);
+        if let (Some(e), Some(check)) = (&mut estimation, &mut report.estimator) {
+            match (&r.sensors, r.cycle == next) {
+                (Some(sr), true) => check_estimate::<N, M>(e, sr, &r, check),
+                _ => {
+                    check.stopped_at = Some(r.cycle);
+                    estimation = None;
+                }
+            }
+        }
         next = r.cycle + 1;
         if ipc_types::check_state(&r.state, G::KIND, last_seq, period).is_err() {
             if let Some((rec, _)) = &r.command {
@@ -296,17 +427,28 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             states.retain(|k, _| *k >= c.previous_seq);
         }
         states.insert(r.state.seq, r.state);
-        // the node builds its reference on the first state, at the plant's period
-        let reference = match &mut reference {
-            Some(x) => x,
+        // the node builds its reference on the first state, at the plant's period (a
+        // streamed one holds the start pose until pieces come); it moves it on after each
+        // answer, after taking the plan messages that came (replay: before the next answer)
+        let (reference, fresh) = match &mut reference {
+            Some(x) => (x, false),
             None => {
                 let mut at = s.clone();
                 at.control_period = r.state.control_period;
-                reference.insert(at.reference_source::<G, N, M>().map_err(bad)?)
+                let built = match plans {
+                    Some(_) => controller_node::streamed_reference::<G, N, M>(&at),
+                    None => at.reference_source::<G, N, M>(),
+                };
+                (reference.insert(built.map_err(bad)?), true)
             }
         };
+        if let (Some(p), Some((c, _))) = (&mut plans, &r.command) {
+            p.catch_up(c, r.cycle, reference)?;
+        }
+        if !fresh {
+            reference.advance();
+        }
         let replayed = responder.respond(reference, &r.state).ok();
-        reference.advance();
         let recorded = r.command.map(|c| c.0);
         if let Some(rec) = &recorded {
             compare::<M>(&mut report, &r, rec, replayed.as_ref());
@@ -321,6 +463,7 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             });
         }
     }
+    report.plans_taken = plans.map(|p| p.taken);
     if report.recorded_laws == [s.law] {
         report.recorded_laws.clear();
     }
@@ -332,6 +475,56 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         report.written = Some(out);
     }
     Ok(report)
+}
+
+/// Steps the estimator over record `r`'s samples and compares what it publishes with the
+/// recorded state message's `Q̂`, `V̂` and the recorded bias, bit for bit.
+fn check_estimate<const N: usize, const M: usize>(
+    e: &mut crate::estimation::Estimation,
+    sr: &super::SensorRecord,
+    r: &Record,
+    check: &mut EstimatorCheck,
+) {
+    let truth = StateMsg {
+        q: sr.q_true,
+        v: sr.v_true,
+        ..r.state
+    };
+    let (q_hat, v_hat, row) = e.estimate::<N, M>(
+        sr.samples,
+        &truth.configuration::<N>(),
+        &truth.velocity::<M>(),
+    );
+    let mut published = r.state;
+    published.set_state(&q_hat, &v_hat);
+    check.compared += 1;
+    let pairs = (0..N * N)
+        .map(|i| (format!("estimate Q̂[{i}]"), r.state.q[i], published.q[i]))
+        .chain((0..M).map(|i| (format!("estimate V̂[{i}]"), r.state.v[i], published.v[i])))
+        .chain((0..3).map(|i| {
+            (
+                format!("estimated bias[{i}]"),
+                sr.bias_hat[i],
+                row.bias_hat[i],
+            )
+        }));
+    let mut found = None;
+    for (what, a, b) in pairs {
+        if a.to_bits() != b.to_bits() {
+            found = Some(Difference {
+                cycle: r.cycle,
+                t: r.state.t,
+                what,
+                recorded: a,
+                replayed: b,
+            });
+            break;
+        }
+    }
+    if let Some(d) = found {
+        check.differing += 1;
+        check.first.get_or_insert(d);
+    }
 }
 
 /// Compares one recorded command with the replayed one, bit for bit (torque, L, the

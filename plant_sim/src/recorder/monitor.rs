@@ -9,8 +9,8 @@
 //!   boards, so it cannot change the loop's timing. It exits when the run ends, on `q`, Esc
 //!   or Ctrl-C, and on SIGINT/SIGTERM.
 
+use super::{Header, Record, SinkFactory, StatusSink};
 use crate::SimError;
-use crate::flight::{Header, Record, SinkFactory, StatusSink};
 use ipc_types::{StatusMsg, group_kind, name_str, status_flags};
 use link::status::{StatusReader, StatusWriter};
 use link::{Decision, StopFlag, clock};
