@@ -22,6 +22,22 @@ fn lockstep_with_sensors_and_the_filter_equals_the_simulation_bit_for_bit() {
     let d = TempDir::new("sensors-lockstep");
     for name in ["sensors_so3", "sensors_se3", "eqf_so3", "eqf_se3"] {
         let (sim, pair) = sim_equals_lockstep(&d, name, &scenario(name));
+        // the pair's log holds the samples: replay steps the estimator over them and gets the
+        // published estimates back bit for bit
+        let (code, text) = run("plant_sim", &["replay", &pair], LONG);
+        assert_eq!(code, 0, "{name}: {text}");
+        assert!(text.contains(" 0 differ\n"), "{name}: {text}");
+        let checked = text
+            .lines()
+            .find_map(|l| l.strip_prefix("estimator: "))
+            .unwrap_or_else(|| panic!("{name}: no estimator check in {text}"));
+        assert!(
+            checked.starts_with(&format!(
+                "{} estimates checked, 0 differ",
+                summary(Path::new(&pair))["cycles"]
+            )),
+            "{name}: {text}"
+        );
         // the estimate is what crossed the wire; the samples and the estimate are recorded
         let csv = Csv::read(&Path::new(&sim).join("trajectory.csv"));
         for col in [
@@ -92,6 +108,37 @@ fn replays(out: &str, name: &str, kind: &str) {
         text.contains(&format!("replayed {cycles} cycles")),
         "{text}"
     );
+    assert!(
+        text.contains(&format!("estimator: {cycles} estimates checked, 0 differ")),
+        "every estimate of the run is checked: {text}"
+    );
+    // one gyro sample nudged by one part in 10^12 in a copy of the log: the replayed
+    // estimator publishes another estimate from that cycle on, and replay says where
+    let planted = format!("{out}-planted");
+    std::fs::create_dir_all(&planted).unwrap();
+    std::fs::copy(
+        format!("{out}/scenario.toml"),
+        format!("{planted}/scenario.toml"),
+    )
+    .unwrap();
+    let mut log = std::fs::read(format!("{out}/messages.log")).unwrap();
+    let header = plant_sim::recorder::Header::from_bytes(&log).unwrap();
+    assert!(header.sensors);
+    let k = 1000;
+    let at = plant_sim::recorder::HEADER_BYTES
+        + k * header.record_bytes()
+        + plant_sim::recorder::RECORD_BYTES
+        + 8;
+    let gyro = f64::from_le_bytes(log[at..at + 8].try_into().unwrap());
+    log[at..at + 8].copy_from_slice(&(gyro * (1.0 + 1e-12) + 1e-15).to_le_bytes());
+    std::fs::write(format!("{planted}/messages.log"), log).unwrap();
+    let (code, text) = run("plant_sim", &["replay", &planted], LONG);
+    assert_eq!(code, 1, "{text}");
+    assert!(
+        text.contains(&format!("first estimate difference: cycle {k} ")),
+        "{text}"
+    );
+    assert!(text.contains("replayed estimator differs"), "{text}");
 }
 
 /// Every number of `path`'s columns except the raw samples (which record what the sensor

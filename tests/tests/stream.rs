@@ -365,6 +365,77 @@ fn killing_the_planner_holds_the_last_pose_and_a_new_planner_resumes() {
     );
     assert!(err([0.3, 0.3, 0.0]) < 1e-2, "{}", err([0.3, 0.3, 0.0]));
     assert!((held_pose.transpose() * q_end - Matrix3::identity()).norm() > 0.5);
+
+    // The run replays bit for bit: the recorder kept both planners' messages, and each
+    // command says which the controller had taken.
+    let (code, text) = run("plant_sim", &["replay", &out], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(" 0 differ\n"), "{text}");
+    let taken = text
+        .lines()
+        .find_map(|l| l.strip_prefix("streamed reference: "))
+        .and_then(|l| l.split(' ').next()?.parse::<u64>().ok())
+        .unwrap_or_else(|| panic!("no streamed-reference line: {text}"));
+    assert!(
+        taken >= 2,
+        "both planners' messages are handed over: {text}"
+    );
+}
+
+/// A streamed run replays bit for bit from its recorded plan messages; a plan message
+/// changed in the record makes replay fail at the first cycle that uses the change, and a
+/// record without the plan messages is refused, naming the cycle that needs one.
+#[test]
+fn a_streamed_run_replays_and_a_changed_plan_message_is_caught_at_its_cycle() {
+    use plant_sim::recorder::{PLANS_FILE, format::plans_header, read_plans};
+    let _g = serial();
+    let d = TempDir::new("stream-replay");
+    let scenario = format!("{}/slew_so3.toml", scenarios());
+    let out = d.join("run");
+    streamed_lockstep(&scenario, "t-stream-replay", &out);
+    let (code, text) = run("plant_sim", &["replay", &out], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(" 0 differ\n"), "{text}");
+    assert!(text.contains("streamed reference: "), "{text}");
+
+    // the first message holds every piece (the planner's horizon covers the path): nudge
+    // the third piece's first displacement; it starts at t0, so cycle t0/period + 1 is the
+    // first whose torque changes
+    let plans = read_plans(Path::new(&out)).unwrap();
+    assert!(!plans.is_empty());
+    let mut changed = plans.clone();
+    let seg = &mut changed[0].msg.segments[2];
+    assert!(seg.twists[0] != 0.0, "{seg:?}");
+    seg.twists[0] *= 1.0 + 1e-9;
+    let t0 = seg.t0;
+    let planted = d.join("planted");
+    std::fs::create_dir_all(&planted).unwrap();
+    for f in ["messages.log", "scenario.toml", "waypoints.csv"] {
+        std::fs::copy(format!("{out}/{f}"), format!("{planted}/{f}")).unwrap();
+    }
+    let mut bytes = plans_header().to_vec();
+    for e in &changed {
+        bytes.extend_from_slice(&e.to_bytes());
+    }
+    std::fs::write(format!("{planted}/{PLANS_FILE}"), bytes).unwrap();
+    let (code, text) = run("plant_sim", &["replay", &planted], LONG);
+    assert_eq!(code, 1, "{text}");
+    let s = Scenario::from_file(Path::new(&scenario)).unwrap();
+    let cycle = (t0 / s.control_period).round() as u64 + 1;
+    assert!(
+        text.contains(&format!("first difference: cycle {cycle} ")),
+        "the change shows at cycle {cycle}: {text}"
+    );
+
+    // without plans.log the streamed run cannot be checked: an error naming the cycle
+    std::fs::remove_file(format!("{planted}/{PLANS_FILE}")).unwrap();
+    let (code, text) = run("plant_sim", &["replay", &planted], LONG);
+    assert_eq!(code, 2, "{text}");
+    assert!(
+        text.contains("cycle 0: the controller had taken plan message seq 1")
+            && text.contains("cannot be checked"),
+        "{text}"
+    );
 }
 
 /// A planner streaming legs shorter than the controller's control period: the controller

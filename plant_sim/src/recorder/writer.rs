@@ -97,17 +97,23 @@ impl Recorder {
         let shown = path.display().to_string();
         let record_bytes = header.record_bytes();
         let plans_path = dir.join(PLANS_FILE);
+        let (ready_tx, ready) = sync_channel::<()>(1);
         let thread = std::thread::Builder::new()
             .name("recorder".to_owned())
             .spawn(move || {
                 let mut sink = sink.and_then(|make| make());
-                let plans = plans.and_then(|make| make()).map(|source| Plans {
+                let mut plans = plans.and_then(|make| make()).map(|source| Plans {
                     source,
                     path: plans_path,
                     out: None,
                     written: 0,
                     error: None,
                 });
+                // what is on the plan board before the run starts is kept too
+                if let Some(p) = plans.as_mut() {
+                    p.poll(None);
+                }
+                let _ = ready_tx.send(());
                 let mut w = write_loop(&rx, out, record_bytes, sink.as_deref_mut(), plans);
                 if let Some(s) = sink.as_deref_mut() {
                     s.end();
@@ -116,6 +122,9 @@ impl Recorder {
                 w
             })
             .map_err(|e| SimError::Run(format!("cannot start the recorder thread: {e}")))?;
+        // the run starts once the recorder reads its boards: a plan message published
+        // before the first state is in the record whatever the planner does next
+        let _ = ready.recv_timeout(Duration::from_secs(10));
         Ok(Recorder {
             tx: Some(tx),
             dropped: 0,
