@@ -8,8 +8,9 @@
 #   (b) Node: `@mcap/core`, `@foxglove/rosmsg` and `@foxglove/rosmsg2-serialization`, the
 #       libraries Foxglove's app decodes with (scripts/mcap/check_mcap.mjs): the same counts
 #       and a sample of values.
-# The run is the observer's set-point (`scenarios/reject_so3.toml`, 4 s in lockstep), so
-# every channel, the disturbance terms included, is there.
+# Three runs, so every channel is there: the observer's set-point (`scenarios/reject_so3.toml`,
+# 4 s in lockstep: the disturbance terms), the SE(3) equivariant filter (`eqf_se3.toml`, 2 s:
+# sensor samples and estimates) and `slew_so3.toml` streamed by the planner (plan messages).
 #
 #   scripts/mcap-readers.sh
 #
@@ -32,17 +33,36 @@ mkdir -p "$CACHE" "$OUT" "$NODE"
 TARGET=$(cd "$REPO" && cargo metadata --format-version 1 --no-deps |
 	python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
 BIN=$TARGET/debug
-[[ -x $BIN/plant_sim && -x $BIN/controller_node && -x $BIN/eqtrack-export ]] ||
-	(cd "$REPO" && cargo build --locked -p plant_sim -p controller_node -p export >"$OUT/build.log" 2>&1) ||
-	die "cannot build plant_sim, controller_node and eqtrack-export (log: $OUT/build.log)"
+[[ -x $BIN/plant_sim && -x $BIN/controller_node && -x $BIN/eqtrack-export && -x $BIN/planner ]] ||
+	(cd "$REPO" && cargo build --locked -p plant_sim -p controller_node -p export -p examples >"$OUT/build.log" 2>&1) ||
+	die "cannot build plant_sim, controller_node, planner and eqtrack-export (log: $OUT/build.log)"
 
-rm -rf "$OUT/run"
+# export DIR to run.mcap and run.jsonl
+export_run() {
+	"$BIN/plant_sim" export "$1" || die "export of $1 to MCAP failed"
+	"$BIN/plant_sim" export "$1" --format jsonl >/dev/null || die "export of $1 to JSONL failed"
+}
+RUNS=()
+rm -rf "$OUT/run" "$OUT/eqf" "$OUT/stream"
 "$BIN/plant_sim" run --scenario "$REPO/scenarios/reject_so3.toml" --mode lockstep --duration 4 \
 	--name "mcap-$$" --out "$OUT/run" >"$OUT/plant.log" 2>&1 || die "the run failed: $(tail -3 "$OUT/plant.log")"
-"$BIN/plant_sim" export "$OUT/run" || die "export to MCAP failed"
-"$BIN/plant_sim" export "$OUT/run" --format jsonl >/dev/null || die "export to JSONL failed"
-MCAP=$OUT/run/run.mcap
-JSONL=$OUT/run/run.jsonl
+RUNS+=("$OUT/run")
+"$BIN/plant_sim" run --scenario "$REPO/scenarios/eqf_se3.toml" --mode lockstep --duration 2 \
+	--name "mcap-eqf-$$" --out "$OUT/eqf" >"$OUT/plant-eqf.log" 2>&1 || die "the EqF run failed: $(tail -3 "$OUT/plant-eqf.log")"
+RUNS+=("$OUT/eqf")
+# streamed: the planner publishes the whole path, the controller takes it from the plan board
+SLEW=$REPO/scenarios/slew_so3.toml
+"$BIN/planner" --scenario "$SLEW" --name "mcap-st-$$" --horizon 1000 >"$OUT/planner.log" 2>&1 &
+PLANNER=$!
+for _ in $(seq 100); do grep -q "published pieces" "$OUT/planner.log" && break; sleep 0.1; done
+"$BIN/controller_node" --scenario "$SLEW" --name "mcap-st-$$" --reference stream >"$OUT/ctl.log" 2>&1 &
+CTL=$!
+"$BIN/plant_sim" run --scenario "$SLEW" --mode lockstep --no-spawn --name "mcap-st-$$" --out "$OUT/stream" \
+	>"$OUT/plant-stream.log" 2>&1 || { kill $PLANNER $CTL 2>/dev/null; die "the streamed run failed: $(tail -3 "$OUT/plant-stream.log")"; }
+wait $PLANNER $CTL || die "the planner or the controller failed: $(tail -2 "$OUT/planner.log" "$OUT/ctl.log")"
+[[ -s $OUT/stream/plans.log ]] || die "the streamed run recorded no plan messages"
+RUNS+=("$OUT/stream")
+for run in "${RUNS[@]}"; do export_run "$run"; done
 
 # (a) Python
 if ! "$VENV/bin/python" -c "import mcap, mcap_ros2" 2>/dev/null; then
@@ -54,7 +74,10 @@ if ! "$VENV/bin/python" -c "import mcap, mcap_ros2" 2>/dev/null; then
 	fi
 fi
 if "$VENV/bin/python" -c "import mcap, mcap_ros2" 2>/dev/null; then
-	"$VENV/bin/python" "$REPO/scripts/mcap/check_mcap.py" "$MCAP" "$JSONL" || die "the Python reader disagrees"
+	for run in "${RUNS[@]}"; do
+		"$VENV/bin/python" "$REPO/scripts/mcap/check_mcap.py" "$run/run.mcap" "$run/run.jsonl" ||
+			die "the Python reader disagrees on $run"
+	done
 fi
 
 # (b) Node
@@ -69,7 +92,9 @@ else
 	fi
 	if [[ -d $NODE/node_modules/@foxglove/rosmsg2-serialization ]]; then
 		cp "$REPO/scripts/mcap/check_mcap.mjs" "$NODE/check_mcap.mjs"
-		(cd "$NODE" && node check_mcap.mjs "$MCAP" "$JSONL") || die "the Node reader disagrees"
+		for run in "${RUNS[@]}"; do
+			(cd "$NODE" && node check_mcap.mjs "$run/run.mcap" "$run/run.jsonl") || die "the Node reader disagrees on $run"
+		done
 	fi
 fi
 echo "mcap-readers: PASS"

@@ -2,7 +2,7 @@
 //! to MCAP, the log format Foxglove, PlotJuggler and Rerun open directly
 //! (docs/architecture.md, "Exporting a run to MCAP").
 //!
-//! Every record becomes up to four messages, one per channel, all stamped with the cycle's
+//! Every record becomes up to six messages, one per channel, all stamped with the cycle's
 //! sample time `t_k` in ns (`log_time` = `publish_time`) and the cycle index as `sequence`:
 //!
 //! | topic | schema | what |
@@ -11,6 +11,9 @@
 //! | `/eqtrack/command` | `eqtrack_msgs/msg/Command` | the command that answered it, if one came in time |
 //! | `/eqtrack/cycle` | `eqtrack_msgs/msg/Cycle` | the plant's decision and timing |
 //! | `/eqtrack/terms` | `eqtrack_msgs/msg/Terms` | the disturbance-rejection terms, when the run has them |
+//! | `/eqtrack/sensors` | `eqtrack_msgs/msg/Sensors` | the tick's sensor samples and the true state, in a run with sensors |
+//! | `/eqtrack/estimate` | `eqtrack_msgs/msg/Estimate` | what the estimator published (the state's `Q̂`, `V̂`) and said, in a run with sensors |
+//! | `/eqtrack/plan` | `eqtrack_msgs/msg/Plan` | each plan message of a streamed run (`plans.log`), at the cycle the controller took it |
 //!
 //! Messages use the `ros2msg` schema encoding and the `cdr` message encoding (little-endian
 //! XCDR1, as ROS 2 writes it), which Foxglove, PlotJuggler's built-in ROS parser and Rerun
@@ -25,8 +28,8 @@
 #![forbid(unsafe_code)]
 
 use ipc_types::{CommandMsg, StateMsg, group_kind};
-use plant_sim::recorder::{Header, LogReader, Record};
-use std::collections::BTreeMap;
+use plant_sim::recorder::{Header, LogReader, PlanEntry, Record, read_plans};
+use std::collections::{BTreeMap, HashMap};
 use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
 
@@ -47,6 +50,8 @@ pub enum Value {
     Str(String),
     /// `float64[]` (an unbounded sequence).
     F64s(Vec<f64>),
+    /// `uint32[]` (an unbounded sequence).
+    U32s(Vec<u32>),
 }
 
 impl Value {
@@ -60,6 +65,7 @@ impl Value {
             Value::Bool(_) => "bool",
             Value::Str(_) => "string",
             Value::F64s(_) => "float64[]",
+            Value::U32s(_) => "uint32[]",
         }
     }
 
@@ -83,6 +89,7 @@ impl Value {
             Value::Bool(x) => (*x).into(),
             Value::Str(x) => x.clone().into(),
             Value::F64s(xs) => xs.iter().map(|x| num(*x)).collect(),
+            Value::U32s(xs) => xs.clone().into(),
         }
     }
 }
@@ -148,6 +155,13 @@ impl Message {
                     if !xs.is_empty() {
                         align(&mut out, 8);
                     }
+                    for x in xs {
+                        out.extend_from_slice(&x.to_le_bytes());
+                    }
+                }
+                Value::U32s(xs) => {
+                    align(&mut out, 4);
+                    out.extend_from_slice(&(xs.len() as u32).to_le_bytes());
                     for x in xs {
                         out.extend_from_slice(&x.to_le_bytes());
                     }
@@ -246,7 +260,77 @@ pub fn messages(r: &Record, n: usize, m: usize, terms: bool) -> Vec<Message> {
             });
         }
     }
+    if let Some(x) = &r.sensors {
+        let sm = &x.samples;
+        out.push(Message {
+            schema: "eqtrack_msgs/msg/Sensors",
+            topic: "/eqtrack/sensors",
+            fields: vec![
+                ("cycle", Value::U64(r.cycle)),
+                ("gyro", Value::F64s(sm.gyro.as_slice().to_vec())),
+                (
+                    "directions",
+                    Value::F64s(
+                        sm.directions[..sm.count.min(sm.directions.len())]
+                            .iter()
+                            .flat_map(|d| d.as_slice().to_vec())
+                            .collect(),
+                    ),
+                ),
+                (
+                    "accel",
+                    Value::F64s(sm.accel.iter().flat_map(|a| a.iter().copied()).collect()),
+                ),
+                (
+                    "position",
+                    Value::F64s(sm.position.iter().flat_map(|p| p.iter().copied()).collect()),
+                ),
+                ("true_bias", Value::F64s(sm.bias.as_slice().to_vec())),
+                ("true_q", Value::F64s(x.q_true[..n * n].to_vec())),
+                ("true_v", Value::F64s(x.v_true[..m].to_vec())),
+            ],
+        });
+        out.push(Message {
+            schema: "eqtrack_msgs/msg/Estimate",
+            topic: "/eqtrack/estimate",
+            fields: vec![
+                ("cycle", Value::U64(r.cycle)),
+                ("q_hat", Value::F64s(s.q[..n * n].to_vec())),
+                ("v_hat", Value::F64s(s.v[..m].to_vec())),
+                ("bias_hat", Value::F64s(x.bias_hat.to_vec())),
+                ("estimate_error", Value::F64(x.estimate_error)),
+                (
+                    "covariance",
+                    Value::F64s(x.covariance.map_or(Vec::new(), |c| c.to_vec())),
+                ),
+                ("nees", Value::F64(x.nees.unwrap_or(f64::NAN))),
+            ],
+        });
+    }
     out
+}
+
+/// The message of a recorded plan message: `cycle` is the cycle the controller took it in
+/// (the first whose command names it), or, if no command names it, the cycle after the one
+/// the recorder had reached when it saw it (`taken` false).
+pub fn plan_message(e: &PlanEntry, cycle: u64, taken: bool) -> Message {
+    let msg = &e.msg;
+    let used = msg.used();
+    Message {
+        schema: "eqtrack_msgs/msg/Plan",
+        topic: "/eqtrack/plan",
+        fields: vec![
+            ("cycle", Value::U64(cycle)),
+            ("taken", Value::Bool(taken)),
+            ("planner_pid", Value::U32(msg.planner_pid)),
+            ("seq", Value::U64(msg.seq)),
+            ("stamp_ns", Value::U64(msg.stamp_ns)),
+            ("first_index", Value::U32(msg.first_index)),
+            ("t0", Value::F64s(used.iter().map(|w| w.t0).collect())),
+            ("t1", Value::F64s(used.iter().map(|w| w.t1).collect())),
+            ("shape", Value::U32s(used.iter().map(|w| w.shape).collect())),
+        ],
+    }
 }
 
 /// The sample time of a record in ns (`log_time` and `publish_time`): `t_k` rounded, never
@@ -299,20 +383,78 @@ impl std::fmt::Display for ExportError {
 
 impl std::error::Error for ExportError {}
 
-/// Whether any recorded command carries a non-zero disturbance-rejection term (one pass).
-fn has_terms(log: &Path) -> Result<bool, ExportError> {
+/// What one pass over the log finds first: whether any recorded command carries a non-zero
+/// disturbance-rejection term, and the cycle in which the controller first named each plan
+/// message `(planner pid, seq)` as the last it had taken.
+fn survey(log: &Path) -> Result<(bool, HashMap<(u32, u64), u64>), ExportError> {
     let mut reader = LogReader::open(log).map_err(|e| ExportError::Input(e.to_string()))?;
+    let (mut terms, mut taken) = (false, HashMap::new());
     while let Some(r) = reader
         .next_record()
         .map_err(|e| ExportError::Input(e.to_string()))?
     {
-        if let Some((c, _)) = &r.command
-            && c.observer.iter().chain(&c.integral).any(|x| *x != 0.0)
-        {
-            return Ok(true);
+        if let Some((c, _)) = &r.command {
+            terms |= c.observer.iter().chain(&c.integral).any(|x| *x != 0.0);
+            if c.flags & ipc_types::flags::STREAMED != 0 && c.plans_received > 0 {
+                taken.entry((c.plan_pid, c.plan_seq)).or_insert(r.cycle);
+            }
         }
     }
-    Ok(false)
+    Ok((terms, taken))
+}
+
+/// Every message of the export in order: before each record's own messages, the plan
+/// messages taken in (or seen by) its cycle, all at its time. `f(log_time, sequence,
+/// message)`.
+fn walk(
+    log: &Path,
+    reader: &mut LogReader,
+    dims: (usize, usize),
+    done: &mut Exported,
+    f: &mut dyn FnMut(u64, u64, &Message) -> Result<(), ExportError>,
+) -> Result<(), ExportError> {
+    let (terms, taken) = survey(log)?;
+    let plans = match log.parent() {
+        Some(dir) => read_plans(dir).map_err(|e| ExportError::Input(e.to_string()))?,
+        None => Vec::new(),
+    };
+    let mut plans: Vec<(u64, bool, &PlanEntry)> = plans
+        .iter()
+        .map(|e| match taken.get(&(e.msg.planner_pid, e.msg.seq)) {
+            Some(k) => (*k, true, e),
+            None => (e.seen_after.wrapping_add(1), false, e),
+        })
+        .collect();
+    plans.sort_by_key(|p| p.0);
+    let mut next_plan = 0;
+    let mut last_time = 0;
+    let emit = |f: &mut dyn FnMut(u64, u64, &Message) -> Result<(), ExportError>,
+                    done: &mut Exported,
+                    time: u64,
+                    seq: u64,
+                    msg: &Message| {
+        *done.messages.entry(msg.topic).or_default() += 1;
+        f(time, seq, msg)
+    };
+    while let Some(r) = reader
+        .next_record()
+        .map_err(|e| ExportError::Input(e.to_string()))?
+    {
+        let time = log_time(&r);
+        while let Some((k, taken, e)) = plans.get(next_plan).filter(|p| p.0 <= r.cycle) {
+            emit(f, done, time, *k, &plan_message(e, *k, *taken))?;
+            next_plan += 1;
+        }
+        for msg in messages(&r, dims.0, dims.1, terms) {
+            emit(f, done, time, r.cycle, &msg)?;
+        }
+        last_time = time;
+        done.records += 1;
+    }
+    for (k, taken, e) in &plans[next_plan..] {
+        emit(f, done, last_time, *k, &plan_message(e, *k, *taken))?;
+    }
+    Ok(())
 }
 
 /// The header as an MCAP metadata map.
@@ -351,7 +493,6 @@ pub fn export(
     format: Format,
     compress: bool,
 ) -> Result<Exported, ExportError> {
-    let terms = has_terms(log)?;
     let mut reader = LogReader::open(log).map_err(|e| ExportError::Input(e.to_string()))?;
     let (n, m) = group_kind(reader.header.group)
         .map(|g| g.dims())
@@ -375,40 +516,30 @@ pub fn export(
     let mut writer = BufWriter::with_capacity(1 << 20, file);
     match format {
         Format::Jsonl => {
-            while let Some(r) = reader
-                .next_record()
-                .map_err(|e| ExportError::Input(e.to_string()))?
-            {
-                for msg in messages(&r, n, m, terms) {
-                    let line = serde_json::json!({
-                        "topic": msg.topic,
-                        "schema": msg.schema,
-                        "log_time": log_time(&r),
-                        "sequence": r.cycle,
-                        "fields": msg.json_fields(),
-                    });
-                    writeln!(writer, "{line}").map_err(|e| out_err(&e))?;
-                    *done.messages.entry(msg.topic).or_default() += 1;
-                }
-                done.records += 1;
-            }
+            walk(log, &mut reader, (n, m), &mut done, &mut |time, seq, msg| {
+                let line = serde_json::json!({
+                    "topic": msg.topic,
+                    "schema": msg.schema,
+                    "log_time": time,
+                    "sequence": seq,
+                    "fields": msg.json_fields(),
+                });
+                writeln!(writer, "{line}").map_err(|e| out_err(&e))
+            })?;
             writer.flush().map_err(|e| out_err(&e))?;
         }
         Format::Mcap => {
-            write_mcap(&mut reader, log, writer, n, m, terms, compress, &mut done)?;
+            write_mcap(&mut reader, log, writer, (n, m), compress, &mut done)?;
         }
     }
     Ok(done)
 }
 
-#[allow(clippy::too_many_arguments)]
 fn write_mcap<W: Write + Seek>(
     reader: &mut LogReader,
     log: &Path,
     sink: W,
-    n: usize,
-    m: usize,
-    terms: bool,
+    dims: (usize, usize),
     compress: bool,
     done: &mut Exported,
 ) -> Result<(), ExportError> {
@@ -435,39 +566,31 @@ fn write_mcap<W: Write + Seek>(
     // channels are made on first use, from the first message's fields
     let mut channels: BTreeMap<&'static str, u16> = BTreeMap::new();
     let header = reader.header.clone();
-    while let Some(r) = reader
-        .next_record()
-        .map_err(|e| ExportError::Input(e.to_string()))?
-    {
-        let time = log_time(&r);
-        for msg in messages(&r, n, m, terms) {
-            let id = match channels.get(msg.topic) {
-                Some(id) => *id,
-                None => {
-                    let schema = w
-                        .add_schema(msg.schema, "ros2msg", msg.schema_text().as_bytes())
-                        .map_err(mcap_err)?;
-                    let id = w
-                        .add_channel(schema, msg.topic, "cdr", &BTreeMap::new())
-                        .map_err(mcap_err)?;
-                    channels.insert(msg.topic, id);
-                    id
-                }
-            };
-            w.write_to_known_channel(
-                &mcap::records::MessageHeader {
-                    channel_id: id,
-                    sequence: r.cycle as u32,
-                    log_time: time,
-                    publish_time: time,
-                },
-                &msg.cdr(),
-            )
-            .map_err(mcap_err)?;
-            *done.messages.entry(msg.topic).or_default() += 1;
-        }
-        done.records += 1;
-    }
+    walk(log, reader, dims, done, &mut |time, seq, msg| {
+        let id = match channels.get(msg.topic) {
+            Some(id) => *id,
+            None => {
+                let schema = w
+                    .add_schema(msg.schema, "ros2msg", msg.schema_text().as_bytes())
+                    .map_err(mcap_err)?;
+                let id = w
+                    .add_channel(schema, msg.topic, "cdr", &BTreeMap::new())
+                    .map_err(mcap_err)?;
+                channels.insert(msg.topic, id);
+                id
+            }
+        };
+        w.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: id,
+                sequence: seq as u32,
+                log_time: time,
+                publish_time: time,
+            },
+            &msg.cdr(),
+        )
+        .map_err(mcap_err)
+    })?;
     w.write_metadata(&mcap::records::Metadata {
         name: "eqtrack".to_owned(),
         metadata: metadata(&header, done.records),

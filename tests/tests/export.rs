@@ -127,6 +127,55 @@ fn a_run_exports_to_mcap_with_one_message_per_channel_and_cycle() {
 }
 
 #[test]
+fn a_run_with_sensors_exports_its_samples_and_estimates() {
+    let _g = serial();
+    let d = TempDir::new("export-sensors");
+    let out = d.join("eqf");
+    lockstep(
+        "t-export-eqf",
+        &out,
+        "1",
+        &["--scenario", &scenario("eqf_se3")],
+    );
+    let (code, text) = run("plant_sim", &["export", &out], LONG);
+    assert_eq!(code, 0, "{text}");
+    let n = records(&out);
+    let topics = read_mcap(&Path::new(&out).join("run.mcap")).topics;
+    for topic in ["/eqtrack/sensors", "/eqtrack/estimate", "/eqtrack/state"] {
+        assert_eq!(topics.get(topic), Some(&n), "{topic}: {topics:?}");
+    }
+    assert!(!topics.contains_key("/eqtrack/plan"), "{topics:?}");
+    // the estimate channel holds what crossed the wire (the state's Q̂) and the EqF's
+    // covariance; the sensor channel the samples (SE(3): accelerometer, position fixes)
+    let (code, text) = run("plant_sim", &["export", &out, "--format", "jsonl"], LONG);
+    assert_eq!(code, 0, "{text}");
+    let lines: Vec<serde_json::Value> =
+        std::fs::read_to_string(Path::new(&out).join("run.jsonl"))
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+    let at = |topic: &str, cycle: u64| {
+        lines
+            .iter()
+            .find(|l| l["topic"] == topic && l["sequence"] == cycle)
+            .unwrap_or_else(|| panic!("no {topic} at cycle {cycle}"))["fields"]
+            .clone()
+    };
+    let (state, estimate, sensors) = (
+        at("/eqtrack/state", 50),
+        at("/eqtrack/estimate", 50),
+        at("/eqtrack/sensors", 50),
+    );
+    assert_eq!(estimate["q_hat"], state["q"]);
+    assert_eq!(estimate["covariance"].as_array().map(Vec::len), Some(6));
+    assert_eq!(sensors["gyro"].as_array().map(Vec::len), Some(3));
+    assert_eq!(sensors["accel"].as_array().map(Vec::len), Some(3));
+    assert_eq!(sensors["true_q"].as_array().map(Vec::len), Some(16));
+    assert_ne!(sensors["true_q"], state["q"], "the estimate is not the truth");
+}
+
+#[test]
 fn a_killed_runs_log_exports_up_to_its_last_whole_record() {
     let _g = serial();
     let d = TempDir::new("export-kill");

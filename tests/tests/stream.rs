@@ -397,6 +397,24 @@ fn a_streamed_run_replays_and_a_changed_plan_message_is_caught_at_its_cycle() {
     assert_eq!(code, 0, "{text}");
     assert!(text.contains(" 0 differ\n"), "{text}");
     assert!(text.contains("streamed reference: "), "{text}");
+    // the export has a plan channel: each recorded message, at the cycle the controller
+    // took it (the first, before the first answer: cycle 0)
+    let (code, text) = run("plant_sim", &["export", &out, "--format", "jsonl"], LONG);
+    assert_eq!(code, 0, "{text}");
+    let plan_lines: Vec<serde_json::Value> = std::fs::read_to_string(format!("{out}/run.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|l| l["topic"] == "/eqtrack/plan")
+        .collect();
+    assert_eq!(
+        plan_lines.len(),
+        read_plans(Path::new(&out)).unwrap().len(),
+        "{plan_lines:?}"
+    );
+    assert_eq!(plan_lines[0]["sequence"], 0);
+    assert_eq!(plan_lines[0]["fields"]["seq"], 1);
+    assert_eq!(plan_lines[0]["fields"]["taken"], true);
 
     // the first message holds every piece (the planner's horizon covers the path): nudge
     // the third piece's first displacement; it starts at t0, so cycle t0/period + 1 is the
