@@ -429,10 +429,10 @@ fn walk(
     let mut next_plan = 0;
     let mut last_time = 0;
     let emit = |f: &mut dyn FnMut(u64, u64, &Message) -> Result<(), ExportError>,
-                    done: &mut Exported,
-                    time: u64,
-                    seq: u64,
-                    msg: &Message| {
+                done: &mut Exported,
+                time: u64,
+                seq: u64,
+                msg: &Message| {
         *done.messages.entry(msg.topic).or_default() += 1;
         f(time, seq, msg)
     };
@@ -516,16 +516,22 @@ pub fn export(
     let mut writer = BufWriter::with_capacity(1 << 20, file);
     match format {
         Format::Jsonl => {
-            walk(log, &mut reader, (n, m), &mut done, &mut |time, seq, msg| {
-                let line = serde_json::json!({
-                    "topic": msg.topic,
-                    "schema": msg.schema,
-                    "log_time": time,
-                    "sequence": seq,
-                    "fields": msg.json_fields(),
-                });
-                writeln!(writer, "{line}").map_err(|e| out_err(&e))
-            })?;
+            walk(
+                log,
+                &mut reader,
+                (n, m),
+                &mut done,
+                &mut |time, seq, msg| {
+                    let line = serde_json::json!({
+                        "topic": msg.topic,
+                        "schema": msg.schema,
+                        "log_time": time,
+                        "sequence": seq,
+                        "fields": msg.json_fields(),
+                    });
+                    writeln!(writer, "{line}").map_err(|e| out_err(&e))
+                },
+            )?;
             writer.flush().map_err(|e| out_err(&e))?;
         }
         Format::Mcap => {

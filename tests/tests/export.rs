@@ -149,12 +149,11 @@ fn a_run_with_sensors_exports_its_samples_and_estimates() {
     // covariance; the sensor channel the samples (SE(3): accelerometer, position fixes)
     let (code, text) = run("plant_sim", &["export", &out, "--format", "jsonl"], LONG);
     assert_eq!(code, 0, "{text}");
-    let lines: Vec<serde_json::Value> =
-        std::fs::read_to_string(Path::new(&out).join("run.jsonl"))
-            .unwrap()
-            .lines()
-            .map(|l| serde_json::from_str(l).unwrap())
-            .collect();
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(Path::new(&out).join("run.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
     let at = |topic: &str, cycle: u64| {
         lines
             .iter()
@@ -172,7 +171,10 @@ fn a_run_with_sensors_exports_its_samples_and_estimates() {
     assert_eq!(sensors["gyro"].as_array().map(Vec::len), Some(3));
     assert_eq!(sensors["accel"].as_array().map(Vec::len), Some(3));
     assert_eq!(sensors["true_q"].as_array().map(Vec::len), Some(16));
-    assert_ne!(sensors["true_q"], state["q"], "the estimate is not the truth");
+    assert_ne!(
+        sensors["true_q"], state["q"],
+        "the estimate is not the truth"
+    );
 }
 
 #[test]

@@ -25,7 +25,7 @@ use crate::sensors::Samples;
 /// The file's first eight bytes.
 pub const MAGIC: [u8; 8] = *b"EQTRKLOG";
 /// The format version this build writes and reads (4: protocol 6's messages, whose command
-/// says which plan messages a streamed controller had taken, 784-byte records, and in a run
+/// says which plan messages a streamed controller had taken, 776-byte records, and in a run
 /// with sensors a [`SENSOR_BYTES`] sensor block after each; 3: protocol 5, 760 bytes; 2:
 /// protocols 3 and 4, 752 bytes; 1: before protocol 3. Other versions are refused, naming
 /// both).
