@@ -383,10 +383,13 @@ impl std::fmt::Display for ExportError {
 
 impl std::error::Error for ExportError {}
 
+/// The cycle in which the controller first named each plan message `(planner pid, seq)`.
+type TakenAt = HashMap<(u32, u64), u64>;
+
 /// What one pass over the log finds first: whether any recorded command carries a non-zero
 /// disturbance-rejection term, and the cycle in which the controller first named each plan
 /// message `(planner pid, seq)` as the last it had taken.
-fn survey(log: &Path) -> Result<(bool, HashMap<(u32, u64), u64>), ExportError> {
+fn survey(log: &Path) -> Result<(bool, TakenAt), ExportError> {
     let mut reader = LogReader::open(log).map_err(|e| ExportError::Input(e.to_string()))?;
     let (mut terms, mut taken) = (false, HashMap::new());
     while let Some(r) = reader

@@ -1,7 +1,7 @@
 //! A fuzz harness for the project's untrusted input, on stable Rust (no libFuzzer, no
 //! nightly): deterministic, seeded, mutation-based.
 //!
-//! Three targets ([`Target`]):
+//! Four targets ([`Target`]):
 //!
 //! * **scenario** — TOML text through [`scenario::Scenario::from_toml`] (parser and
 //!   validator); an accepted scenario then goes through what the processes do with it: its
@@ -21,6 +21,12 @@
 //!   field (`shape`, `t0`, `t1`, `start`, `twists`) overwritten, checked by `check_plan` and,
 //!   when accepted, evaluated as the controller does. Seeds: the shipped slews and
 //!   through-path files with velocity columns.
+//! * **recording** — what replay and export read back from a flight recording: a record of a
+//!   run with sensors (with its sensor block) through `Record::from_bytes`, its samples
+//!   through both groups' estimators as replay steps them, and a `plans.log` entry through
+//!   `PlanEntry::from_bytes` and `controller_node::PlanIntake::take` on a streamed
+//!   reference, its pieces handed to the law. Seeds: the first ticks of the two sensor
+//!   scenarios, the slews' plan messages.
 //!
 //! Each case is one corpus item with 1–8 random mutations (byte-level: bit flips, byte
 //! overwrite, insert, delete, truncation, chunk duplication, splicing; TOML: number and string
@@ -42,6 +48,7 @@
 
 mod mutate;
 mod path_target;
+mod recording_target;
 mod rng;
 mod scenario_target;
 mod wire_target;
@@ -66,11 +73,18 @@ pub enum Target {
     Wire,
     /// Waypoint files and the streamed segments of the paths through them.
     Path,
+    /// Flight recordings: records with their sensor blocks, plan entries.
+    Recording,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 3] = [Target::Scenario, Target::Wire, Target::Path];
+    pub const ALL: [Target; 4] = [
+        Target::Scenario,
+        Target::Wire,
+        Target::Path,
+        Target::Recording,
+    ];
 
     /// Lower-case name (`"scenario"`, `"wire"`, `"path"`), as on the command line.
     pub fn name(self) -> &'static str {
@@ -78,6 +92,7 @@ impl Target {
             Target::Scenario => "scenario",
             Target::Wire => "wire",
             Target::Path => "path",
+            Target::Recording => "recording",
         }
     }
 }
@@ -131,13 +146,15 @@ pub enum Case {
     Wire(WireCase),
     /// Waypoint-file text (bytes: the checker replaces invalid UTF-8).
     Path(Vec<u8>),
+    /// A record of a run with sensors followed by a `plans.log` entry.
+    Recording(Vec<u8>),
 }
 
 impl Case {
     /// The raw input bytes (TOML text, or the message bytes).
     pub fn bytes(&self) -> &[u8] {
         match self {
-            Case::Scenario(b) | Case::Path(b) => b,
+            Case::Scenario(b) | Case::Path(b) | Case::Recording(b) => b,
             Case::Wire(w) => &w.bytes,
         }
     }
@@ -145,7 +162,7 @@ impl Case {
     /// What besides the bytes defines the case (the wire receiver), for reports.
     pub fn context(&self) -> String {
         match self {
-            Case::Scenario(_) | Case::Path(_) => String::new(),
+            Case::Scenario(_) | Case::Path(_) | Case::Recording(_) => String::new(),
             Case::Wire(w) => format!("{:?} message, receiver {:?}", w.kind, w.receiver),
         }
     }
@@ -219,6 +236,7 @@ impl fmt::Display for Finding {
                 write!(f, "  input:\n{}", String::from_utf8_lossy(b))
             }
             Case::Wire(w) => write!(f, "  input ({} bytes): {}", w.bytes.len(), hex(&w.bytes)),
+            Case::Recording(b) => write!(f, "  input ({} bytes): {}", b.len(), hex(b)),
         }
     }
 }
@@ -408,6 +426,7 @@ pub fn check(case: &Case) -> Outcome {
         Case::Scenario(bytes) => scenario_target::check(bytes),
         Case::Path(bytes) => path_target::check(bytes),
         Case::Wire(w) => wire_target::check(w),
+        Case::Recording(bytes) => recording_target::check(bytes),
     }
 }
 
@@ -418,6 +437,7 @@ pub struct Generator {
     scenarios: Option<scenario_target::Corpus>,
     paths: Option<path_target::Corpus>,
     wire: Option<wire_target::Corpus>,
+    recordings: Option<recording_target::Corpus>,
 }
 
 impl Generator {
@@ -429,16 +449,18 @@ impl Generator {
             scenarios: (target == Target::Scenario).then(scenario_target::Corpus::new),
             paths: (target == Target::Path).then(path_target::Corpus::new),
             wire: (target == Target::Wire).then(wire_target::Corpus::new),
+            recordings: (target == Target::Recording).then(recording_target::Corpus::new),
         }
     }
 
     /// Case `case` (depends only on the target, the seed and `case`).
     pub fn case(&self, case: u64) -> Case {
         let mut g = self.streams.case(case);
-        match (&self.scenarios, &self.wire, &self.paths) {
-            (Some(c), _, _) => Case::Scenario(c.generate(&mut g)),
-            (_, Some(c), _) => Case::Wire(c.generate(&mut g)),
-            (_, _, Some(c)) => Case::Path(c.generate(&mut g)),
+        match (&self.scenarios, &self.wire, &self.paths, &self.recordings) {
+            (Some(c), _, _, _) => Case::Scenario(c.generate(&mut g)),
+            (_, Some(c), _, _) => Case::Wire(c.generate(&mut g)),
+            (_, _, Some(c), _) => Case::Path(c.generate(&mut g)),
+            (_, _, _, Some(c)) => Case::Recording(c.generate(&mut g)),
             _ => unreachable!("a generator has the corpus of its target"),
         }
     }

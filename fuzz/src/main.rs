@@ -2,7 +2,7 @@
 //! per target, and exits 1 if any case panicked.
 //!
 //! ```text
-//! fuzz [--target scenario|wire|path|all] [--cases N] [--seed S] [--save]
+//! fuzz [--target scenario|wire|path|recording|all] [--cases N] [--seed S] [--save]
 //! fuzz --target wire --seed S --case I     # replay one case, panics not caught
 //! ```
 #![forbid(unsafe_code)]
@@ -24,6 +24,8 @@ enum Which {
     Wire,
     /// Waypoint files and streamed path segments.
     Path,
+    /// Flight recordings: records with sensor blocks, plan entries.
+    Recording,
     /// Every target.
     All,
 }
@@ -58,6 +60,7 @@ fn targets(which: Which) -> Vec<Target> {
         Which::Scenario => vec![Target::Scenario],
         Which::Wire => vec![Target::Wire],
         Which::Path => vec![Target::Path],
+        Which::Recording => vec![Target::Recording],
         Which::All => Target::ALL.to_vec(),
     }
 }
@@ -76,9 +79,9 @@ fn main() -> ExitCode {
                 fuzz::Case::Scenario(b) | fuzz::Case::Path(b) => {
                     println!("  input:\n{}", String::from_utf8_lossy(b))
                 }
-                fuzz::Case::Wire(w) => {
-                    let hex: String = w.bytes.iter().map(|b| format!("{b:02x}")).collect();
-                    println!("  input ({} bytes): {hex}", w.bytes.len())
+                fuzz::Case::Wire(fuzz::WireCase { bytes, .. }) | fuzz::Case::Recording(bytes) => {
+                    let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
+                    println!("  input ({} bytes): {hex}", bytes.len())
                 }
             }
             match outcome {

@@ -71,6 +71,26 @@ fn wire_inputs_never_panic() {
     }
 }
 
+#[test]
+fn recording_inputs_never_panic() {
+    let r = fuzz::run(Target::Recording, CASES, SEED);
+    assert_sound(&r, 8);
+    // the record's decoder, the plan entry's, and the intake's checks are all reached
+    for kind in [
+        "Record::from_bytes: sensor",
+        "Record::from_bytes: decision",
+        "PlanEntry::from_bytes",
+        "PlanIntake::take: NonFinite",
+        "PlanIntake::take: Group",
+        "PlanIntake::take: NotOnGroup",
+    ] {
+        assert!(
+            r.rejected.keys().any(|k| k.starts_with(kind)),
+            "{kind} never seen\n{r}"
+        );
+    }
+}
+
 /// A bug planted in the checked code (a panic on a NaN control period in an accepted-length
 /// state, deep in the generated inputs) is caught: the run fails, the finding names the
 /// planted panic and its location, and its input regenerates from (seed, case).
