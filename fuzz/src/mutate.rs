@@ -24,7 +24,6 @@ pub(crate) enum ByteOp {
     Splice,
 }
 
-#[cfg(test)]
 impl ByteOp {
     /// Every byte-level mutation.
     pub(crate) const ALL: [ByteOp; 7] = [

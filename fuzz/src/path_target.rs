@@ -31,8 +31,8 @@ const SEEDS: [&str; 6] = [
     "t,rx,ry,rz,x,y,z\n0,0,0,0,0,0,0\n0.01,0,0,0,0,0,0\n0.02,3.14159,0,0,1e3,0,0\n",
 ];
 
-/// Values one wire field is overwritten with.
-const FIELD_VALUES: [f64; 12] = [
+/// Values one wire field is overwritten with (the recording target's floats too).
+pub(crate) const FIELD_VALUES: [f64; 12] = [
     f64::NAN,
     f64::INFINITY,
     f64::NEG_INFINITY,
@@ -170,21 +170,32 @@ struct Exercise<'a> {
     hash: u64,
 }
 
-impl Exercise<'_> {
-    /// The law on a desired sample from the identity at rest: a finite torque or an error.
-    fn law<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
-        controller: &controller::Controller<f64, G, N, M>,
-        sample: &controller::PathSample<f64, N, M>,
-    ) {
-        let inertia = SMatrix::<f64, M, M>::identity();
-        let desired = sample.desired::<G>(&inertia);
-        if let Ok(out) = controller.compute(&G::identity(), &SVector::zeros(), &desired) {
-            assert!(
-                out.torque.iter().all(|x| x.is_finite()),
-                "a NaN torque from a path sample: {:?}",
-                out.torque.as_slice()
-            );
-        }
+/// The EqT law with unit inertia and gains: what the fuzzed paths' samples are handed to.
+pub(crate) fn unit_controller<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>()
+-> controller::Controller<f64, G, N, M> {
+    controller::Controller::<f64, G, N, M>::new(controller::ControllerConfig {
+        law: Law::Eqt,
+        inertia: SMatrix::identity(),
+        k: SMatrix::identity(),
+        kd: SMatrix::identity(),
+        torque_limit: None,
+    })
+    .expect("a valid configuration")
+}
+
+/// The law on a desired sample from the identity at rest: a finite torque or an error.
+pub(crate) fn law_on<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    controller: &controller::Controller<f64, G, N, M>,
+    sample: &controller::PathSample<f64, N, M>,
+) {
+    let inertia = SMatrix::<f64, M, M>::identity();
+    let desired = sample.desired::<G>(&inertia);
+    if let Ok(out) = controller.compute(&G::identity(), &SVector::zeros(), &desired) {
+        assert!(
+            out.torque.iter().all(|x| x.is_finite()),
+            "a NaN torque from a path sample: {:?}",
+            out.torque.as_slice()
+        );
     }
 }
 
@@ -204,15 +215,7 @@ impl OnGroup for Exercise<'_> {
                 crate::scenario_target::controller_error_kind(&e)
             )
         })?;
-        let controller =
-            controller::Controller::<f64, G, N, M>::new(controller::ControllerConfig {
-                law: Law::Eqt,
-                inertia: SMatrix::identity(),
-                k: SMatrix::identity(),
-                kd: SMatrix::identity(),
-                torque_limit: None,
-            })
-            .expect("a valid configuration");
+        let controller = unit_controller::<G, N, M>();
         // through every waypoint when the numbers are moderate (a leg between huge positions
         // or times keeps only the digits the largest number leaves)
         let scale = poses.iter().map(|q| q.norm()).fold(1.0f64, f64::max);
@@ -226,12 +229,12 @@ impl OnGroup for Exercise<'_> {
                     (s.q - q).norm()
                 );
             }
-            Self::law(&controller, &s);
+            law_on(&controller, &s);
         }
         let (t0, t1) = (spec.times[0], spec.times[spec.times.len() - 1]);
         for k in 0..=16 {
             let s = path.sample(t0 - 1.0 + (t1 - t0 + 2.0) * f64::from(k) / 16.0);
-            Self::law(&controller, &s);
+            law_on(&controller, &s);
         }
         // streamed: every window the planner would publish is accepted as it is
         let pieces: Vec<WireSegment> = path.segments().map(WireSegment::from_segment).collect();
@@ -274,7 +277,7 @@ impl OnGroup for Exercise<'_> {
             }
             for w in msg.used() {
                 for t in [w.t0, 0.5 * (w.t0 + w.t1), w.t1] {
-                    Self::law(&controller, &streamed.sample(t));
+                    law_on(&controller, &streamed.sample(t));
                 }
             }
         }

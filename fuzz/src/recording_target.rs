@@ -12,12 +12,13 @@
 
 use crate::Outcome;
 use crate::mutate::{ByteOp, MAX_INPUT, byte_op};
+use crate::path_target::{FIELD_VALUES, law_on, unit_controller};
 use crate::rng::Gen;
 use controller::group::OnGroup;
-use controller::{GroupKind, Law, MatrixLieGroup, Source, Trajectory};
+use controller::{GroupKind, MatrixLieGroup, Source, Trajectory};
 use controller_node::PlanIntake;
 use ipc_types::{CommandMsg, MAX_M, PLAN_WINDOW, PlanMsg, StateMsg, WireSegment};
-use nalgebra::{SMatrix, SVector};
+use nalgebra::SVector;
 use plant_sim::estimation::Estimation;
 use plant_sim::recorder::{PlanEntry, RECORD_BYTES, Record, SENSOR_BYTES, SensorRecord};
 use scenario::{PathKind, Scenario};
@@ -26,24 +27,6 @@ use std::sync::OnceLock;
 
 /// Bytes of the record part of an input (the record and its sensor block).
 const RECORD_PART: usize = RECORD_BYTES + SENSOR_BYTES;
-
-/// Values an f64 field is overwritten with.
-const FIELD_VALUES: [f64; 14] = [
-    f64::NAN,
-    f64::INFINITY,
-    f64::NEG_INFINITY,
-    0.0,
-    -0.0,
-    1e308,
-    -1e308,
-    1e-308,
-    5e-324,
-    1e-9,
-    -1.0,
-    2.0,
-    1e6,
-    9.81,
-];
 
 /// The scenarios the inputs are checked with: the two sensor scenarios' estimators, the two
 /// slews' streamed references.
@@ -108,15 +91,7 @@ impl OnGroup for SeedRecords<'_> {
                 applied: [0.0; MAX_M],
                 state,
                 command: Some((cmd, k * 1_000_000 + 5)),
-                sensors: Some(SensorRecord {
-                    samples: row.samples,
-                    q_true: truth.q,
-                    v_true: truth.v,
-                    bias_hat: row.bias_hat,
-                    estimate_error: row.estimate_error,
-                    covariance: row.covariance,
-                    nees: row.nees,
-                }),
+                sensors: Some(SensorRecord::new(&row, &truth)),
             };
             let mut b = vec![0u8; RECORD_PART];
             r.write_into(&mut b);
@@ -229,15 +204,7 @@ impl Corpus {
                     } else {
                         g.pick(&self.plans)
                     };
-                    let op = *g.pick(&[
-                        ByteOp::BitFlip,
-                        ByteOp::Overwrite,
-                        ByteOp::Insert,
-                        ByteOp::Delete,
-                        ByteOp::Truncate,
-                        ByteOp::DuplicateChunk,
-                        ByteOp::Splice,
-                    ]);
+                    let op = *g.pick(&ByteOp::ALL);
                     byte_op(g, op, &mut data, other);
                 }
             }
@@ -304,28 +271,14 @@ impl OnGroup for Intake<'_> {
             .map_err(|e| format!("PlanIntake::take: {e:?}"))?;
         assert_eq!(intake.received, 1);
         assert_eq!(intake.last, (self.msg.planner_pid, self.msg.seq));
-        let controller =
-            controller::Controller::<f64, G, N, M>::new(controller::ControllerConfig {
-                law: Law::Eqt,
-                inertia: SMatrix::identity(),
-                k: SMatrix::identity(),
-                kd: SMatrix::identity(),
-                torque_limit: None,
-            })
-            .expect("a valid configuration");
+        let controller = unit_controller::<G, N, M>();
         let times: Vec<f64> = path
             .path()
             .segments()
             .flat_map(|seg| [seg.t0, 0.5 * (seg.t0 + seg.t1), seg.t1])
             .collect();
         for t in times {
-            let desired = path.path().sample(t).desired::<G>(&SMatrix::identity());
-            if let Ok(out) = controller.compute(&G::identity(), &SVector::zeros(), &desired) {
-                assert!(
-                    out.torque.iter().all(|x| x.is_finite()),
-                    "a NaN torque from a recorded plan message's piece at t = {t}"
-                );
-            }
+            law_on(&controller, &path.path().sample(t));
         }
         // the reference moves on as in a run
         for _ in 0..3 {

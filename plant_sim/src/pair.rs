@@ -518,15 +518,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 if self.recorder.is_some() {
                     let mut truth = StateMsg::new(self.s.group);
                     truth.set_state(self.plant.configuration(), &self.plant.velocity());
-                    self.sensor_record = Some(crate::recorder::SensorRecord {
-                        samples: row.samples,
-                        q_true: truth.q,
-                        v_true: truth.v,
-                        bias_hat: row.bias_hat,
-                        estimate_error: row.estimate_error,
-                        covariance: row.covariance,
-                        nees: row.nees,
-                    });
+                    self.sensor_record = Some(crate::recorder::SensorRecord::new(&row, &truth));
                 }
                 self.estimate = Some(row);
             }

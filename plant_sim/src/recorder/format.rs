@@ -198,6 +198,20 @@ pub struct SensorRecord {
 }
 
 impl SensorRecord {
+    /// The block of a tick: the estimator's row (samples and what it said) and the true
+    /// state the samples were drawn from (`truth`'s `q` and `v`).
+    pub fn new(row: &crate::trajectory::EstimateRow, truth: &StateMsg) -> SensorRecord {
+        SensorRecord {
+            samples: row.samples,
+            q_true: truth.q,
+            v_true: truth.v,
+            bias_hat: row.bias_hat,
+            estimate_error: row.estimate_error,
+            covariance: row.covariance,
+            nees: row.nees,
+        }
+    }
+
     /// The block's bytes.
     pub fn to_bytes(&self) -> [u8; SENSOR_BYTES] {
         let mut b = [0u8; SENSOR_BYTES];

@@ -328,6 +328,24 @@ mod tests {
         f64::from_le_bytes(b[at..at + 8].try_into().unwrap())
     }
 
+    /// The header of a lockstep run of group `group`.
+    fn lockstep_header(group: u32, sensors: bool) -> Header {
+        Header {
+            group,
+            control_period: 0.001,
+            rate_hz: 0.0,
+            realtime: false,
+            event_wake: true,
+            miss_limit: 3,
+            fingerprint: 1,
+            run: "x".into(),
+            scenario: "y".into(),
+            law: "eqt".into(),
+            plant_pid: 1,
+            sensors,
+        }
+    }
+
     fn sensors(k: u64) -> SensorRecord {
         SensorRecord {
             samples: Samples {
@@ -453,20 +471,7 @@ mod tests {
     fn the_writer_drains_everything_and_a_cut_log_reads_to_its_last_whole_record() {
         let dir = std::env::temp_dir().join(format!("eqtrack-flight-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let h = Header {
-            group: 2,
-            control_period: 0.001,
-            rate_hz: 0.0,
-            realtime: false,
-            event_wake: true,
-            miss_limit: 3,
-            fingerprint: 1,
-            run: "x".into(),
-            scenario: "y".into(),
-            law: "eqt".into(),
-            plant_pid: 1,
-            sensors: false,
-        };
+        let h = lockstep_header(2, false);
         // a small channel: the loop outpaces the writer, pushes are dropped and counted
         let mut rec = Recorder::start(&dir, &h, 4, None, None).unwrap();
         let mut pushed = 0;
@@ -513,20 +518,7 @@ mod tests {
     fn plan_messages_seen_on_the_board_are_written_to_plans_log_and_read_back() {
         let dir = std::env::temp_dir().join(format!("eqtrack-plans-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let h = Header {
-            group: 1,
-            control_period: 0.001,
-            rate_hz: 0.0,
-            realtime: false,
-            event_wake: true,
-            miss_limit: 3,
-            fingerprint: 1,
-            run: "x".into(),
-            scenario: "y".into(),
-            law: "eqt".into(),
-            plant_pid: 1,
-            sensors: true,
-        };
+        let h = lockstep_header(1, true);
         // a board that shows five messages, one per poll, then nothing
         let board: PlanSourceFactory = Box::new(|| {
             let mut next = 0u64;
