@@ -8,21 +8,30 @@
 #   (b) Node: `@mcap/core`, `@foxglove/rosmsg` and `@foxglove/rosmsg2-serialization`, the
 #       libraries Foxglove's app decodes with (scripts/mcap/check_mcap.mjs): the same counts
 #       and a sample of values.
-# Three runs, so every channel is there: the observer's set-point (`scenarios/reject_so3.toml`,
+# The Python reader also reads each messages.log itself with `struct` and the documented
+# layout, and checks the state, cycle and command channels against it record by record; the
+# README's figure script (scripts/mcap/plot_mcap.py) then draws the first run from its MCAP.
+# Four runs, so every channel is there: the observer's set-point (`scenarios/reject_so3.toml`,
 # 4 s in lockstep: the disturbance terms), the SE(3) equivariant filter (`eqf_se3.toml`, 2 s:
-# sensor samples and estimates) and `slew_so3.toml` streamed by the planner (plan messages).
+# sensor samples, estimates, covariance), the complementary filter (`sensors_so3.toml`, 2 s:
+# its NEES is NaN in every estimate message) and `slew_so3.toml` streamed by the planner
+# (plan messages).
 #
 #   scripts/mcap-readers.sh
 #
-# Packages are cached in <repo>/.toolchain/{mcap-venv,mcap-node} (TOOLCHAIN_CACHE
-# overrides). Each reader prints one `SKIPPED: <reason>` line where its packages cannot be
-# installed, and the other still runs. Exit 1 on any disagreement.
+# The packages are pinned (PY_PACKAGES, NODE_PACKAGES below) and cached in
+# <repo>/.toolchain/{mcap-venv,mcap-node} (TOOLCHAIN_CACHE overrides); a cache of other
+# versions is installed anew. Each reader prints one `SKIPPED: <reason>` line where its
+# packages cannot be installed, and the other still runs; packages that install but do not
+# import fail the script. Exit 1 on any disagreement.
 set -euo pipefail
 REPO=$(cd -- "$(dirname -- "${BASH_SOURCE[0]}")/.." && pwd)
 CACHE=${TOOLCHAIN_CACHE:-$REPO/.toolchain}
 VENV=$CACHE/mcap-venv
 NODE=$CACHE/mcap-node
 OUT=$CACHE/mcap-readers
+PY_PACKAGES="mcap==1.6.0 mcap-ros2-support==0.6.0 matplotlib==3.11.2"
+NODE_PACKAGES="@mcap/core@2.2.2 @foxglove/rosmsg@5.0.5 @foxglove/rosmsg2-serialization@3.1.0"
 die() {
 	echo "mcap-readers: FAIL: $*" >&2
 	exit 1
@@ -43,13 +52,16 @@ export_run() {
 	"$BIN/plant_sim" export "$1" --format jsonl >/dev/null || die "export of $1 to JSONL failed"
 }
 RUNS=()
-rm -rf "$OUT/run" "$OUT/eqf" "$OUT/stream"
+rm -rf "$OUT/run" "$OUT/eqf" "$OUT/cf" "$OUT/stream"
 "$BIN/plant_sim" run --scenario "$REPO/scenarios/reject_so3.toml" --mode lockstep --duration 4 \
 	--name "mcap-$$" --out "$OUT/run" >"$OUT/plant.log" 2>&1 || die "the run failed: $(tail -3 "$OUT/plant.log")"
 RUNS+=("$OUT/run")
 "$BIN/plant_sim" run --scenario "$REPO/scenarios/eqf_se3.toml" --mode lockstep --duration 2 \
 	--name "mcap-eqf-$$" --out "$OUT/eqf" >"$OUT/plant-eqf.log" 2>&1 || die "the EqF run failed: $(tail -3 "$OUT/plant-eqf.log")"
 RUNS+=("$OUT/eqf")
+"$BIN/plant_sim" run --scenario "$REPO/scenarios/sensors_so3.toml" --mode lockstep --duration 2 \
+	--name "mcap-cf-$$" --out "$OUT/cf" >"$OUT/plant-cf.log" 2>&1 || die "the complementary-filter run failed: $(tail -3 "$OUT/plant-cf.log")"
+RUNS+=("$OUT/cf")
 # streamed: the planner publishes the whole path, the controller takes it from the plan board
 SLEW=$REPO/scenarios/slew_so3.toml
 "$BIN/planner" --scenario "$SLEW" --name "mcap-st-$$" --horizon 1000 >"$OUT/planner.log" 2>&1 &
@@ -59,38 +71,59 @@ for _ in $(seq 100); do grep -q "published pieces" "$OUT/planner.log" && break; 
 CTL=$!
 "$BIN/plant_sim" run --scenario "$SLEW" --mode lockstep --no-spawn --name "mcap-st-$$" --out "$OUT/stream" \
 	>"$OUT/plant-stream.log" 2>&1 || { kill $PLANNER $CTL 2>/dev/null; die "the streamed run failed: $(tail -3 "$OUT/plant-stream.log")"; }
-wait $PLANNER $CTL || die "the planner or the controller failed: $(tail -2 "$OUT/planner.log" "$OUT/ctl.log")"
+wait $PLANNER || die "the planner failed: $(tail -2 "$OUT/planner.log")"
+wait $CTL || die "the controller failed: $(tail -2 "$OUT/ctl.log")"
 [[ -s $OUT/stream/plans.log ]] || die "the streamed run recorded no plan messages"
 RUNS+=("$OUT/stream")
 for run in "${RUNS[@]}"; do export_run "$run"; done
 
 # (a) Python
-if ! "$VENV/bin/python" -c "import mcap, mcap_ros2" 2>/dev/null; then
+python_ready=0
+if [[ $(cat "$VENV/.pinned" 2>/dev/null) == "$PY_PACKAGES" ]]; then
+	python_ready=1
+else
 	rm -rf "$VENV"
 	if ! python3 -m venv "$VENV" >"$OUT/venv.log" 2>&1; then
 		echo "SKIPPED: python3 -m venv failed: $(tail -1 "$OUT/venv.log")"
-	elif ! "$VENV/bin/pip" install -q mcap mcap-ros2-support >"$OUT/pip.log" 2>&1; then
-		echo "SKIPPED: pip could not install mcap and mcap-ros2-support: $(grep -m1 -E 'ERROR' "$OUT/pip.log" || tail -1 "$OUT/pip.log")"
+	elif ! "$VENV/bin/pip" install -q $PY_PACKAGES >"$OUT/pip.log" 2>&1; then
+		echo "SKIPPED: pip could not install $PY_PACKAGES: $(grep -m1 -E 'ERROR' "$OUT/pip.log" || tail -1 "$OUT/pip.log")"
+	else
+		echo "$PY_PACKAGES" >"$VENV/.pinned"
+		python_ready=1
 	fi
 fi
-if "$VENV/bin/python" -c "import mcap, mcap_ros2" 2>/dev/null; then
+if ((python_ready)); then
+	"$VENV/bin/python" -c "import mcap, mcap_ros2" || die "$PY_PACKAGES installed but do not import"
 	for run in "${RUNS[@]}"; do
-		"$VENV/bin/python" "$REPO/scripts/mcap/check_mcap.py" "$run/run.mcap" "$run/run.jsonl" ||
+		"$VENV/bin/python" "$REPO/scripts/mcap/check_mcap.py" "$run/run.mcap" "$run/run.jsonl" "$run/messages.log" ||
 			die "the Python reader disagrees on $run"
 	done
+	# the README's figure script, on the first run: it draws from the MCAP alone
+	rm -f "$OUT/figure.png"
+	"$VENV/bin/python" "$REPO/scripts/mcap/plot_mcap.py" "${RUNS[0]}/run.mcap" "$OUT/figure.png" ||
+		die "scripts/mcap/plot_mcap.py failed on ${RUNS[0]}/run.mcap"
+	[[ -s $OUT/figure.png ]] || die "scripts/mcap/plot_mcap.py wrote no figure"
+	echo "python plot_mcap.py drew $OUT/figure.png from ${RUNS[0]}/run.mcap"
 fi
 
 # (b) Node
 if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
 	echo "SKIPPED: node and npm are not installed"
 else
-	if [[ ! -d $NODE/node_modules/@foxglove/rosmsg2-serialization ]]; then
-		(cd "$NODE" && { [[ -f package.json ]] || npm init -y >/dev/null 2>&1; } &&
-			npm install --silent --no-audit --no-fund @mcap/core @foxglove/rosmsg @foxglove/rosmsg2-serialization \
-				>"$OUT/npm.log" 2>&1) ||
-			echo "SKIPPED: npm could not install @mcap/core and @foxglove/rosmsg2-serialization: $(tail -1 "$OUT/npm.log")"
+	node_ready=0
+	if [[ $(cat "$NODE/.pinned" 2>/dev/null) == "$NODE_PACKAGES" ]]; then
+		node_ready=1
+	else
+		rm -rf "$NODE/node_modules" "$NODE/package.json" "$NODE/package-lock.json"
+		if (cd "$NODE" && npm init -y >/dev/null 2>&1 &&
+			npm install --silent --no-audit --no-fund $NODE_PACKAGES >"$OUT/npm.log" 2>&1); then
+			echo "$NODE_PACKAGES" >"$NODE/.pinned"
+			node_ready=1
+		else
+			echo "SKIPPED: npm could not install $NODE_PACKAGES: $(tail -1 "$OUT/npm.log")"
+		fi
 	fi
-	if [[ -d $NODE/node_modules/@foxglove/rosmsg2-serialization ]]; then
+	if ((node_ready)); then
 		cp "$REPO/scripts/mcap/check_mcap.mjs" "$NODE/check_mcap.mjs"
 		for run in "${RUNS[@]}"; do
 			(cd "$NODE" && node check_mcap.mjs "$run/run.mcap" "$run/run.jsonl") || die "the Node reader disagrees on $run"

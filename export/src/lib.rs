@@ -312,10 +312,19 @@ pub fn messages(r: &Record, n: usize, m: usize, terms: bool) -> Vec<Message> {
 
 /// The message of a recorded plan message: `cycle` is the cycle the controller took it in
 /// (the first whose command names it), or, if no command names it, the cycle after the one
-/// the recorder had reached when it saw it (`taken` false).
-pub fn plan_message(e: &PlanEntry, cycle: u64, taken: bool) -> Message {
+/// the recorder had reached when it saw it (`taken` false). Each piece's geometry follows its
+/// times and shape, for a group with `n`×`n` configurations and `m`-vectors: `start`, its
+/// pose at `t0` (n² entries, row-major), and `twists`, 5·m entries (`ξ` and four zero twists
+/// for a stop piece, `v_1 … v_5` for a through piece; docs/wire.md, "`PlanMsg` (3 176 bytes): a window of path segments from a planner").
+pub fn plan_message(e: &PlanEntry, cycle: u64, taken: bool, n: usize, m: usize) -> Message {
     let msg = &e.msg;
     let used = msg.used();
+    let twists = used
+        .iter()
+        .flat_map(|w| {
+            (0..5).flat_map(move |k| w.twists[k * ipc_types::MAX_M..][..m].iter().copied())
+        })
+        .collect();
     Message {
         schema: "eqtrack_msgs/msg/Plan",
         topic: "/eqtrack/plan",
@@ -329,6 +338,15 @@ pub fn plan_message(e: &PlanEntry, cycle: u64, taken: bool) -> Message {
             ("t0", Value::F64s(used.iter().map(|w| w.t0).collect())),
             ("t1", Value::F64s(used.iter().map(|w| w.t1).collect())),
             ("shape", Value::U32s(used.iter().map(|w| w.shape).collect())),
+            (
+                "start",
+                Value::F64s(
+                    used.iter()
+                        .flat_map(|w| w.start[..n * n].to_vec())
+                        .collect(),
+                ),
+            ),
+            ("twists", Value::F64s(twists)),
         ],
     }
 }
@@ -445,7 +463,13 @@ fn walk(
     {
         let time = log_time(&r);
         while let Some((k, taken, e)) = plans.get(next_plan).filter(|p| p.0 <= r.cycle) {
-            emit(f, done, time, *k, &plan_message(e, *k, *taken))?;
+            emit(
+                f,
+                done,
+                time,
+                *k,
+                &plan_message(e, *k, *taken, dims.0, dims.1),
+            )?;
             next_plan += 1;
         }
         for msg in messages(&r, dims.0, dims.1, terms) {
@@ -455,7 +479,13 @@ fn walk(
         done.records += 1;
     }
     for (k, taken, e) in &plans[next_plan..] {
-        emit(f, done, last_time, *k, &plan_message(e, *k, *taken))?;
+        emit(
+            f,
+            done,
+            last_time,
+            *k,
+            &plan_message(e, *k, *taken, dims.0, dims.1),
+        )?;
     }
     Ok(())
 }
@@ -506,6 +536,11 @@ pub fn export(
                 reader.header.group
             ))
         })?;
+    // refused before the output file is created
+    let compression = match format {
+        Format::Mcap => compression(compress)?,
+        Format::Jsonl => None,
+    };
     let file = std::fs::File::create(out)
         .map_err(|e| ExportError::Output(format!("cannot create {}: {e}", out.display())))?;
     let out_err = |e: &dyn std::fmt::Display| {
@@ -538,10 +573,27 @@ pub fn export(
             writer.flush().map_err(|e| out_err(&e))?;
         }
         Format::Mcap => {
-            write_mcap(&mut reader, log, writer, (n, m), compress, &mut done)?;
+            write_mcap(&mut reader, log, writer, (n, m), compression, &mut done)?;
         }
     }
     Ok(done)
+}
+
+/// The chunks' compression: zstd with `compress`, which needs the `zstd` feature.
+fn compression(compress: bool) -> Result<Option<mcap::Compression>, ExportError> {
+    if !compress {
+        return Ok(None);
+    }
+    #[cfg(feature = "zstd")]
+    {
+        Ok(Some(mcap::Compression::Zstd))
+    }
+    #[cfg(not(feature = "zstd"))]
+    {
+        Err(ExportError::Input(
+            "--compress needs eqtrack-export built with the `zstd` feature (cargo build -p export --features zstd)".to_owned(),
+        ))
+    }
 }
 
 fn write_mcap<W: Write + Seek>(
@@ -549,24 +601,10 @@ fn write_mcap<W: Write + Seek>(
     log: &Path,
     sink: W,
     dims: (usize, usize),
-    compress: bool,
+    compression: Option<mcap::Compression>,
     done: &mut Exported,
 ) -> Result<(), ExportError> {
     let mcap_err = |e: mcap::McapError| ExportError::Output(format!("MCAP: {e}"));
-    let compression = if compress {
-        #[cfg(feature = "zstd")]
-        {
-            Some(mcap::Compression::Zstd)
-        }
-        #[cfg(not(feature = "zstd"))]
-        {
-            return Err(ExportError::Input(
-                "--compress needs eqtrack-export built with the `zstd` feature (cargo build -p export --features zstd)".to_owned(),
-            ));
-        }
-    } else {
-        None
-    };
     let mut w = mcap::WriteOptions::new()
         .compression(compression)
         .profile("ros2")

@@ -118,3 +118,53 @@ fn a_hand_made_log_exports_each_channel_and_nan_stays_nan() {
     assert!(text.contains("cannot open"), "{text}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--out` writes where it is told (and only there); `--compress` writes zstd chunks that the
+/// `mcap` crate reads back when the binary has the `zstd` feature, and is refused naming the
+/// feature when it has not.
+#[test]
+fn out_names_the_file_and_compress_needs_the_zstd_feature() {
+    let dir = std::env::temp_dir().join(format!("eqtrack-export-out-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    write_log(&dir);
+    let d = dir.to_str().unwrap();
+    let elsewhere = dir.join("elsewhere.mcap");
+    let (code, text) = export(&[d, "--out", elsewhere.to_str().unwrap()]);
+    assert_eq!(code, 0, "{text}");
+    assert!(!dir.join("run.mcap").exists(), "--out writes no run.mcap");
+    let plain = std::fs::read(&elsewhere).unwrap();
+    assert_eq!(mcap::MessageStream::new(&plain).unwrap().count(), 8);
+
+    let packed = dir.join("packed.mcap");
+    let (code, text) = export(&[d, "--compress", "--out", packed.to_str().unwrap()]);
+    if cfg!(feature = "zstd") {
+        assert_eq!(code, 0, "{text}");
+        let bytes = std::fs::read(&packed).unwrap();
+        let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+        assert!(
+            summary
+                .chunk_indexes
+                .iter()
+                .all(|c| c.compression == "zstd"),
+            "{:?}",
+            summary.chunk_indexes
+        );
+        let read: Vec<_> = mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .map(|m| m.unwrap().data.into_owned())
+            .collect();
+        let plain: Vec<_> = mcap::MessageStream::new(&plain)
+            .unwrap()
+            .map(|m| m.unwrap().data.into_owned())
+            .collect();
+        assert_eq!(read, plain, "the same messages, compressed");
+    } else {
+        assert_eq!(code, 2, "{text}");
+        assert!(
+            text.contains("--compress needs eqtrack-export built with the `zstd` feature"),
+            "{text}"
+        );
+        assert!(!packed.exists(), "a refused export creates no file");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -5,7 +5,8 @@
 //     node check_mcap.mjs RUN.mcap RUN.jsonl
 //
 // CRCs are validated; every message is decoded with its channel's ros2msg schema; the counts
-// per topic equal the JSONL's, log_time never decreases, and a sample of messages (every
+// per topic equal the JSONL's, log_time never decreases and equals publish_time, each
+// sequence is the JSONL's cycle index, and a sample of messages (every
 // 97th, and the first and last) equals the JSONL field by field (NaN as NaN). Exits 1 on the
 // first disagreement.
 import { readFileSync } from "node:fs";
@@ -62,6 +63,8 @@ for (let record; (record = reader.nextRecord()); ) {
     if (record.logTime < lastTime) fail(`${where}: log_time decreases`);
     lastTime = record.logTime;
     if (record.logTime !== BigInt(want.log_time)) fail(`${where}: log_time ${record.logTime}, expected ${want.log_time}`);
+    if (record.publishTime !== record.logTime) fail(`${where}: publish_time ${record.publishTime}, log_time ${record.logTime}`);
+    if (record.sequence !== Number(BigInt(want.sequence) % 2n ** 32n)) fail(`${where}: sequence ${record.sequence}, expected ${want.sequence}`);
     counts[ch.topic] = (counts[ch.topic] ?? 0) + 1;
     if (index % 97 === 0 || index === expected.length - 1) {
       for (const [name, value] of Object.entries(want.fields)) {

@@ -2,16 +2,89 @@
 (readers no one in this project wrote) and checks it against the project's own reading of
 the same messages.log (`eqtrack-export --format jsonl`):
 
-    python check_mcap.py RUN.mcap RUN.jsonl
+    python check_mcap.py RUN.mcap RUN.jsonl [messages.log]
 
 CRCs are validated; every message is decoded; the message count equals the JSONL's; log_time
-never decreases; every decoded field equals the JSONL's value (NaN as NaN). Prints a summary
-and exits 1 on the first disagreement.
+never decreases; every decoded field equals the JSONL's value (NaN as NaN). With the run's
+messages.log, this script also reads the log itself, with `struct` and the layout that
+docs/architecture.md ("The flight recorder") and docs/wire.md document, without the project's
+code: the state and cycle channels hold one message per whole record, the command channel one
+per record that has a command, and their cycle, time, configuration, velocity, decision,
+misses, deadline, arrival time, applied torque, `tau` and Lyapunov value equal the log's bytes.
+Prints a summary and exits 1 on the first disagreement.
 """
 
 import json
 import math
+import os
+import struct
 import sys
+
+# the flight recorder's layout (format 4) and the wire messages' (protocol 6)
+LOG_MAGIC = b"EQTRKLOG"
+STATE_AT, COMMAND_AT = 80, 392
+GROUP_DIMS = {1: (3, 3), 2: (4, 6)}
+
+
+def read_log(path):
+    """The records of a messages.log, read with the documented offsets only: a list of
+    dicts with the fields this script compares."""
+    with open(path, "rb") as f:
+        data = f.read()
+    if data[:8] != LOG_MAGIC:
+        sys.exit(f"{path}: not a flight recording")
+    version, header_bytes, record_bytes, group = struct.unpack_from("<IIII", data, 8)
+    if version != 4:
+        sys.exit(f"{path}: format version {version}; this check reads 4")
+    n, m = GROUP_DIMS[group]
+    records = []
+    for at in range(header_bytes, len(data) - record_bytes + 1, record_bytes):
+        cycle, decision, has_command = struct.unpack_from("<QBB", data, at)
+        misses, deadline, received = struct.unpack_from("<IQQ", data, at + 12)
+        applied = list(struct.unpack_from(f"<{m}d", data, at + 32))
+        s = at + STATE_AT
+        rec = {
+            "cycle": cycle,
+            "decision": decision,
+            "misses_in_row": misses,
+            "deadline_ns": deadline,
+            "has_command": bool(has_command),
+            "received_ns": received,
+            "applied": applied,
+            "t": struct.unpack_from("<d", data, s + 16)[0],
+            "q": list(struct.unpack_from(f"<{n * n}d", data, s + 40)),
+            "v": list(struct.unpack_from(f"<{m}d", data, s + 168)),
+            "applied_before": list(struct.unpack_from(f"<{m}d", data, s + 216)),
+        }
+        if has_command:
+            c = at + COMMAND_AT
+            rec["seq"] = struct.unpack_from("<Q", data, c + 8)[0]
+            rec["tau"] = list(struct.unpack_from(f"<{m}d", data, c + 40))
+            rec["lyapunov"] = struct.unpack_from("<d", data, c + 88)[0]
+        records.append(rec)
+    return records
+
+
+def check_against_log(log_path, by_topic):
+    """Every state, cycle and command message against the log's own bytes."""
+    records = read_log(log_path)
+    commands = [r for r in records if r["has_command"]]
+    for topic, want in (("/eqtrack/state", records), ("/eqtrack/cycle", records), ("/eqtrack/command", commands)):
+        got = by_topic.get(topic, [])
+        if len(got) != len(want):
+            sys.exit(f"{topic}: {len(got)} messages, but {log_path} holds {len(want)} whole records for it")
+    fields = {
+        "/eqtrack/state": ("cycle", "t", "q", "v", "applied_before"),
+        "/eqtrack/cycle": ("cycle", "decision", "misses_in_row", "deadline_ns", "has_command", "received_ns", "applied"),
+        "/eqtrack/command": ("cycle", "seq", "tau", "lyapunov"),
+    }
+    for topic, want in (("/eqtrack/state", records), ("/eqtrack/cycle", records), ("/eqtrack/command", commands)):
+        for decoded, rec in zip(by_topic[topic] if want else [], want):
+            for name in fields[topic]:
+                got, value = getattr(decoded, name), rec[name]
+                if not same(got, value):
+                    sys.exit(f"{topic} cycle {rec['cycle']}: field {name} = {got!r}, but messages.log holds {value!r}")
+    return len(records), len(commands)
 
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -22,7 +95,7 @@ def same(decoded, want):
     if isinstance(want, list):
         decoded = list(decoded)
         return len(decoded) == len(want) and all(same(d, w) for d, w in zip(decoded, want))
-    if want == "NaN":
+    if want == "NaN" or (isinstance(want, float) and math.isnan(want)):
         return isinstance(decoded, float) and math.isnan(decoded)
     if want in ("inf", "-inf"):
         return decoded == float(want)
@@ -33,12 +106,13 @@ def same(decoded, want):
     return decoded == want
 
 
-def main(mcap_path, jsonl_path):
+def main(mcap_path, jsonl_path, log_path=None):
     with open(jsonl_path) as f:
         expected = [json.loads(line) for line in f]
     count = 0
     last_time = -1
     topics = {}
+    by_topic = {}
     with open(mcap_path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()], validate_crcs=True)
         summary = reader.get_summary()
@@ -64,6 +138,8 @@ def main(mcap_path, jsonl_path):
                 if not same(got, value):
                     sys.exit(f"{where}: field {name} = {got!r}, expected {value!r}")
             topics[channel.topic] = topics.get(channel.topic, 0) + 1
+            if log_path is not None and channel.topic in ("/eqtrack/state", "/eqtrack/cycle", "/eqtrack/command"):
+                by_topic.setdefault(channel.topic, []).append(decoded)
             count += 1
     if count != len(expected):
         sys.exit(f"{count} messages in the MCAP, {len(expected)} in the JSONL")
@@ -72,12 +148,21 @@ def main(mcap_path, jsonl_path):
             sys.exit(f"statistics say {summary.statistics.message_count} messages, read {count}")
     if "eqtrack" not in metadata or "fingerprint" not in metadata["eqtrack"]:
         sys.exit(f"no eqtrack metadata record with the header: {metadata}")
+    against_log = ""
+    if log_path is not None:
+        records, commands = check_against_log(log_path, by_topic)
+        against_log = (
+            f"; {records} records and {commands} commands of {os.path.basename(log_path)}, read with struct, "
+            "equal to the state, cycle and command channels"
+        )
     print(
-        f"python mcap {count} messages decoded with CRCs checked, all equal to the project's reading; "
+        f"python mcap {count} messages decoded with CRCs checked, all equal to the project's reading{against_log}; "
         f"per topic {topics}; metadata run={metadata['eqtrack'].get('run')} "
         f"scenario={metadata['eqtrack'].get('scenario')}; attachments {attachments}"
     )
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2])
+    if len(sys.argv) not in (3, 4):
+        sys.exit(__doc__)
+    main(*sys.argv[1:])

@@ -415,6 +415,35 @@ fn a_streamed_run_replays_and_a_changed_plan_message_is_caught_at_its_cycle() {
     assert_eq!(plan_lines[0]["sequence"], 0);
     assert_eq!(plan_lines[0]["fields"]["seq"], 1);
     assert_eq!(plan_lines[0]["fields"]["taken"], true);
+    // each piece's geometry: its start pose (9 entries on SO(3)) and five twists of 3, bit
+    // for bit (compared as JSON text: ryu's shortest form is one text per f64, whereas
+    // serde_json's default parse may round the last bit)
+    let first = &read_plans(Path::new(&out)).unwrap()[0].msg;
+    let pieces = first.used();
+    assert!(pieces.len() > 2, "{first:?}");
+    let start: Vec<f64> = pieces.iter().flat_map(|w| w.start[..9].to_vec()).collect();
+    let twists: Vec<f64> = pieces
+        .iter()
+        .flat_map(|w| (0..5).flat_map(|k| w.twists[ipc_types::MAX_M * k..][..3].to_vec()))
+        .collect();
+    let line = std::fs::read_to_string(format!("{out}/run.jsonl"))
+        .unwrap()
+        .lines()
+        .find(|l| l.contains("\"topic\":\"/eqtrack/plan\""))
+        .unwrap()
+        .to_owned();
+    for (name, values) in [("start", &start), ("twists", &twists)] {
+        let text = format!("\"{name}\":{}", serde_json::to_string(values).unwrap());
+        assert!(line.contains(&text), "{text} in {line}");
+    }
+    assert_eq!(
+        plan_lines[0]["fields"]["start"].as_array().unwrap().len(),
+        9 * pieces.len()
+    );
+    assert_eq!(
+        plan_lines[0]["fields"]["twists"].as_array().unwrap().len(),
+        15 * pieces.len()
+    );
 
     // the first message holds every piece (the planner's horizon covers the path): nudge
     // the third piece's first displacement; it starts at t0, so cycle t0/period + 1 is the
