@@ -69,21 +69,20 @@ def check_against_log(log_path, by_topic):
     """Every state, cycle and command message against the log's own bytes."""
     records = read_log(log_path)
     commands = [r for r in records if r["has_command"]]
-    for topic, want in (("/eqtrack/state", records), ("/eqtrack/cycle", records), ("/eqtrack/command", commands)):
+    checks = (
+        ("/eqtrack/state", records, ("cycle", "t", "q", "v", "applied_before")),
+        ("/eqtrack/cycle", records, ("cycle", "decision", "misses_in_row", "deadline_ns", "has_command", "received_ns", "applied")),
+        ("/eqtrack/command", commands, ("cycle", "seq", "tau", "lyapunov")),
+    )
+    for topic, want, fields in checks:
         got = by_topic.get(topic, [])
         if len(got) != len(want):
             sys.exit(f"{topic}: {len(got)} messages, but {log_path} holds {len(want)} whole records for it")
-    fields = {
-        "/eqtrack/state": ("cycle", "t", "q", "v", "applied_before"),
-        "/eqtrack/cycle": ("cycle", "decision", "misses_in_row", "deadline_ns", "has_command", "received_ns", "applied"),
-        "/eqtrack/command": ("cycle", "seq", "tau", "lyapunov"),
-    }
-    for topic, want in (("/eqtrack/state", records), ("/eqtrack/cycle", records), ("/eqtrack/command", commands)):
-        for decoded, rec in zip(by_topic[topic] if want else [], want):
-            for name in fields[topic]:
-                got, value = getattr(decoded, name), rec[name]
-                if not same(got, value):
-                    sys.exit(f"{topic} cycle {rec['cycle']}: field {name} = {got!r}, but messages.log holds {value!r}")
+        for decoded, rec in zip(got, want):
+            for name in fields:
+                field, value = getattr(decoded, name), rec[name]
+                if not same(field, value):
+                    sys.exit(f"{topic} cycle {rec['cycle']}: field {name} = {field!r}, but messages.log holds {value!r}")
     return len(records), len(commands)
 
 from mcap.reader import make_reader
