@@ -321,9 +321,7 @@ pub fn plan_message(e: &PlanEntry, cycle: u64, taken: bool, n: usize, m: usize) 
     let used = msg.used();
     let twists = used
         .iter()
-        .flat_map(|w| {
-            (0..5).flat_map(move |k| w.twists[k * ipc_types::MAX_M..][..m].iter().copied())
-        })
+        .flat_map(|w| (0..5).flat_map(move |k| w.twist(k, m).iter().copied()))
         .collect();
     Message {
         schema: "eqtrack_msgs/msg/Plan",

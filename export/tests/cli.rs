@@ -6,7 +6,7 @@
 use ipc_types::{CommandMsg, MAX_M, StateMsg, group_code};
 use link::Decision;
 use plant_sim::recorder::{Header, Record};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn export(args: &[&str]) -> (i32, String) {
@@ -22,6 +22,14 @@ fn export(args: &[&str]) -> (i32, String) {
             String::from_utf8_lossy(&out.stderr)
         ),
     )
+}
+
+/// A fresh directory `eqtrack-export-<tag>-<pid>` holding [`write_log`]'s log.
+fn hand_made_log(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("eqtrack-export-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    write_log(&dir);
+    dir
 }
 
 /// A log of three SO(3) cycles at 0.01 s: a command in cycles 0 and 2 (a NaN torque in 2),
@@ -76,9 +84,7 @@ fn write_log(dir: &Path) {
 
 #[test]
 fn a_hand_made_log_exports_each_channel_and_nan_stays_nan() {
-    let dir = std::env::temp_dir().join(format!("eqtrack-export-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    write_log(&dir);
+    let dir = hand_made_log("cli");
     let d = dir.to_str().unwrap();
     let (code, text) = export(&[d]);
     assert_eq!(code, 0, "{text}");
@@ -124,9 +130,7 @@ fn a_hand_made_log_exports_each_channel_and_nan_stays_nan() {
 /// feature when it has not.
 #[test]
 fn out_names_the_file_and_compress_needs_the_zstd_feature() {
-    let dir = std::env::temp_dir().join(format!("eqtrack-export-out-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    write_log(&dir);
+    let dir = hand_made_log("out");
     let d = dir.to_str().unwrap();
     let elsewhere = dir.join("elsewhere.mcap");
     let (code, text) = export(&[d, "--out", elsewhere.to_str().unwrap()]);

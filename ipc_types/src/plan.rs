@@ -141,6 +141,12 @@ const EMPTY_SEGMENT: WireSegment = WireSegment {
 };
 
 impl WireSegment {
+    /// The first `m` entries of twist `k` (`k < 5`, `m ≤ MAX_M`): `ξ` for `k = 0` of a
+    /// [`SHAPE_REST`] piece, `v_{k+1}` of a [`SHAPE_THROUGH`] piece.
+    pub fn twist(&self, k: usize, m: usize) -> &[f64] {
+        &self.twists[k * MAX_M..k * MAX_M + m]
+    }
+
     /// The wire form of `seg`.
     pub fn from_segment<const N: usize, const M: usize>(seg: &Segment<f64, N, M>) -> Self {
         let mut w = EMPTY_SEGMENT;
@@ -315,7 +321,7 @@ pub fn check_plan(msg: &PlanMsg, group: GroupKind, period: f64) -> Result<(), Pl
         if !(s.t0.is_finite()
             && s.t1.is_finite()
             && all_finite(&s.start[..n * n])
-            && (0..twists).all(|k| all_finite(&s.twists[k * MAX_M..k * MAX_M + m])))
+            && (0..twists).all(|k| all_finite(s.twist(k, m))))
         {
             return Err(PlanReject::NonFinite);
         }
