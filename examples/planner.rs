@@ -14,7 +14,8 @@
 //! ```
 //!
 //! It watches the plant's clock (`t` of its newest state) and keeps the pieces that end at
-//! or after `t` and start by `t + horizon` published, at most `PLAN_WINDOW` per message; the
+//! or after `t` and start by `t + horizon` published, at most `PLAN_WINDOW` per message: a
+//! message goes out whenever a piece not published yet enters that window, and the
 //! controller appends those it does not have. In lockstep the plant runs faster than real
 //! time: give a horizon of at least the scenario's duration, so every piece is out before the
 //! first state. It leaves when the plant ends the run or is gone, or on SIGINT/SIGTERM; a
@@ -121,7 +122,10 @@ impl OnGroup for Stream<'_> {
 }
 
 /// Publishes the window of pieces that end at or after the plant's `t` and start by
-/// `t + horizon` whenever it changes, until the run ends.
+/// `t + horizon` whenever a piece not published yet enters it, until the run ends. Pieces
+/// only leaving the window are no reason to publish: the controller keeps what it has. So a
+/// planner whose first window holds the whole path publishes once, and a lockstep run's
+/// record does not depend on how fast the planner watched the plant's clock.
 fn stream<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     board: &mut PlanWriter,
     pieces: &[WireSegment],
@@ -130,7 +134,8 @@ fn stream<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 ) -> Result<(), (Exit, String)> {
     let started = Instant::now();
     let mut plant_pid = None;
-    let mut published = None;
+    // one past the last piece published
+    let mut published_end = 0;
     loop {
         if let Some(sig) = stop.requested() {
             log(format_args!("{sig} received, leaving"));
@@ -171,7 +176,7 @@ fn stream<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             .take(PLAN_WINDOW)
             .take_while(|p| p.t0 <= ahead)
             .count();
-        if count > 0 && published != Some((from, count)) {
+        if count > 0 && from + count > published_end {
             let mut msg = PlanMsg::new(G::KIND);
             msg.first_index = from as u32;
             msg.count = count as u32;
@@ -184,7 +189,7 @@ fn stream<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                 pieces[from].t0,
                 pieces[from + count - 1].t1
             ));
-            published = Some((from, count));
+            published_end = from + count;
         }
         std::thread::sleep(Duration::from_millis(2));
     }

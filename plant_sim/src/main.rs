@@ -964,14 +964,17 @@ fn print_pair_summary(s: &plant_sim::pair::PairSummary, out: &Path) {
     if let Some(t) = &s.tick_lateness {
         println!("plant tick lateness (scheduling): {}", p(t));
     }
-    println!(
-        "deadline misses {}, safe-mode entries {} ({} cycles), commands rejected {}, late {}",
-        s.deadline_misses,
-        s.safe_mode_entries,
-        s.safe_mode_cycles,
-        s.commands_rejected,
-        s.late_commands
-    );
+    match &s.deadline_note {
+        Some(note) => println!("{note}; commands rejected {}", s.commands_rejected),
+        None => println!(
+            "deadline misses {}, safe-mode entries {} ({} cycles), commands rejected {}, late {}",
+            s.deadline_misses,
+            s.safe_mode_entries,
+            s.safe_mode_cycles,
+            s.commands_rejected,
+            s.late_commands
+        ),
+    }
     println!(
         "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg{}}}",
         out.display(),

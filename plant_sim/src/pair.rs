@@ -34,6 +34,17 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+/// What lockstep applies at every tick: the command it waited for. Lockstep has no deadline,
+/// so nothing is held and safe mode never starts.
+const LOCKSTEP_STEP: link::Step = link::Step {
+    decision: Decision::Fresh,
+    transition: None,
+    misses_in_row: 0,
+};
+
+/// The summary's note on a lockstep run's deadline figures.
+pub const LOCKSTEP_NOTE: &str = "lockstep: the plant waits for every command, so deadline misses, late commands and safe mode do not apply (none are counted)";
+
 /// How the plant's clock runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Mode {
@@ -179,6 +190,10 @@ pub struct PairSummary {
     pub commands_rejected: u64,
     /// Commands that arrived after their deadline (ignored).
     pub late_commands: u64,
+    /// Lockstep: why the deadline figures above are zero (the plant waits for every
+    /// command: deadlines, late commands and safe mode do not apply). Absent in real time.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub deadline_note: Option<String>,
     /// Exit status of the spawned controller (`None`: not spawned or killed).
     pub controller_exit: Option<i32>,
     /// `iceoryx2` or `uds`.
@@ -589,25 +604,61 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         Ok(first)
     }
 
-    /// Command k in lockstep: waits for it (checking the controller and the stop flag).
+    /// Command k in real time: waits for it until the tick's deadline and asks the
+    /// [`DeadlinePolicy`] what to apply.
+    fn realtime_command(
+        &mut self,
+        k: u64,
+        pending: Option<Command>,
+    ) -> Result<(Option<Command>, link::Step, u64), SimError> {
+        let deadline = self.t0 + (k + 1) * self.period_ns;
+        let got = match pending {
+            Some(c) => Some(c),
+            None => match self.ep.wait_command(k, deadline) {
+                Ok(c) => Some(c),
+                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
+                Err(NoCommand::Missed) => None,
+            },
+        };
+        // the first command arrived before the clock started: it is on time by definition
+        let arrival = got.map(|c| link::Arrival {
+            at_ns: if k == 0 { deadline } else { c.received_ns },
+            ..c.arrival()
+        });
+        Ok((got, self.policy.step(k, deadline, arrival), deadline))
+    }
+
+    /// Command k in lockstep: waits for it (checking the controller and the stop flag). Only
+    /// `--lockstep-timeout` ends the wait for lack of a command; a rejected command ends the
+    /// run at once, since lockstep applies every command or none (nothing is ever held).
     fn lockstep_command(&mut self, k: u64, child: &mut Spawned) -> Result<Command, SimError> {
         let give_up = Instant::now() + self.opts.lockstep_timeout;
+        let rejected = self.ep.rejected_commands();
         loop {
             match self.ep.wait_command(k, clock::monotonic_ns() + 20_000_000) {
                 Ok(c) => return Ok(c),
                 Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
                 Err(NoCommand::Missed) => {}
             }
-            self.log_rejections();
+            if self.ep.rejected_commands() > rejected {
+                let why = self
+                    .ep
+                    .next_rejection()
+                    .map(|r| format!(" (seq {}: {})", r.msg.seq, r.kind))
+                    .unwrap_or_default();
+                return Err(SimError::Run(format!(
+                    "lockstep: the controller's command for step {k} was rejected by the plant's checks{why}; a lockstep run applies every command and holds none, so it stops here"
+                )));
+            }
             SimError::check(&self.opts.stop)?;
             if let Some(status) = child.exited() {
                 return Err(SimError::Run(format!(
-                    "controller_node exited during the run ({status})"
+                    "controller_node exited during the run, at step {k} ({status})"
                 )));
             }
             if Instant::now() > give_up {
                 return Err(SimError::Run(format!(
-                    "lockstep: no command for step {k} within {:.1} s",
+                    "lockstep: no command for step {k} within {:.1} s (--lockstep-timeout)",
                     self.opts.lockstep_timeout.as_secs_f64()
                 )));
             }
@@ -615,32 +666,30 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
     }
 
     /// Tick k: obtain command k, decide, record the row, wait for the tick's end.
+    ///
+    /// Real time: command k is judged against the wall-clock deadline `t0 + (k+1)·period` by
+    /// the [`DeadlinePolicy`]. Lockstep: command k is waited for and applied; no clock is read
+    /// and the policy is not consulted (docs/architecture.md, "Lockstep").
     fn cycle(
         &mut self,
         k: u64,
         pending: Option<Command>,
         child: &mut Spawned,
     ) -> Result<(), SimError> {
-        let deadline = self.t0 + (k + 1) * self.period_ns;
-        let got = match pending {
-            Some(c) => Some(c),
-            None if self.realtime() => match self.ep.wait_command(k, deadline) {
-                Ok(c) => Some(c),
-                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
-                Err(NoCommand::Missed) => None,
-            },
-            None => Some(self.lockstep_command(k, child)?),
+        let (got, step, deadline) = if self.realtime() {
+            self.realtime_command(k, pending)?
+        } else {
+            let c = match pending {
+                Some(c) => c,
+                None => self.lockstep_command(k, child)?,
+            };
+            // the tick's nominal end, t_{k+1} in ns: a lockstep record holds no clock reading
+            (Some(c), LOCKSTEP_STEP, (k + 1) * self.period_ns)
         };
         self.log_rejections();
         if let Some(c) = &got {
             self.stats.command(c, self.published, k == 0);
         }
-        // the first command arrived before the clock started: it is on time by definition
-        let arrival = got.map(|c| link::Arrival {
-            at_ns: if k == 0 { deadline } else { c.received_ns },
-            ..c.arrival()
-        });
-        let step = self.policy.step(k, deadline, arrival);
         let v = self.plant.velocity();
         self.tau = match (step.decision, &got) {
             (Decision::Fresh, Some(c)) => {
@@ -834,11 +883,17 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             controller_compute: Percentiles::of(&self.stats.compute),
             leg_to_plant: Percentiles::of(&self.stats.to_plant),
             tick_lateness: realtime.then(|| Percentiles::of(&self.stats.lateness)),
-            deadline_misses: if realtime { self.policy.misses() } else { 0 },
+            // lockstep never steps the policy: its counters stay 0
+            deadline_misses: self.policy.misses(),
             safe_mode_entries: self.policy.safe_entries(),
             safe_mode_cycles: self.policy.safe_cycles(),
             commands_rejected: rejected,
-            late_commands: late + self.policy.late(),
+            late_commands: if realtime {
+                late + self.policy.late()
+            } else {
+                0
+            },
+            deadline_note: (!realtime).then(|| LOCKSTEP_NOTE.to_owned()),
             controller_exit,
             transport: opts.transport.name().to_owned(),
             controller_heap_allocations: self.stats.last_allocations,

@@ -364,7 +364,53 @@ pub fn check_plans_header(b: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
+/// Process ids as a lockstep log keeps them: each pid seen (a planner's) becomes its ordinal,
+/// 1, 2, … in the order the writer met them; 0 stays 0 (none). The plans and the commands
+/// that name them are mapped through one table, so replay still pairs them.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct PidOrdinals {
+    seen: Vec<u32>,
+}
+
+impl PidOrdinals {
+    /// The ordinal of `pid`.
+    pub fn ordinal(&mut self, pid: u32) -> u32 {
+        if pid == 0 {
+            return 0;
+        }
+        let i = match self.seen.iter().position(|p| *p == pid) {
+            Some(i) => i,
+            None => {
+                self.seen.push(pid);
+                self.seen.len() - 1
+            }
+        };
+        u32::try_from(i + 1).unwrap_or(u32::MAX)
+    }
+}
+
 impl Record {
+    /// The record as a lockstep log keeps it (docs/architecture.md, "A lockstep log is
+    /// reproducible"): no clock reading and no process id, so two lockstep runs of one
+    /// scenario write the same bytes. The state's publication stamp, the controller's
+    /// receive and publication stamps and the plant's receive stamp become the tick's nominal
+    /// time `t_k = k·period` (ns), the compute time 0, the plant's pid 0, and the planner's
+    /// pid its ordinal ([`PidOrdinals`]). The deadline is already nominal.
+    pub fn lockstep_form(&self, period_ns: u64, pids: &mut PidOrdinals) -> Record {
+        let t_k = self.cycle.saturating_mul(period_ns);
+        let mut r = *self;
+        r.state.stamp_ns = t_k;
+        r.state.plant_pid = 0;
+        if let Some((c, received)) = r.command.as_mut() {
+            c.state_received_ns = t_k;
+            c.stamp_ns = t_k;
+            c.compute_ns = 0;
+            c.plan_pid = pids.ordinal(c.plan_pid);
+            *received = t_k;
+        }
+        r
+    }
+
     /// The record's bytes without the sensor block.
     pub fn to_bytes(&self) -> [u8; RECORD_BYTES] {
         let mut b = [0u8; RECORD_BYTES];

@@ -20,8 +20,8 @@ pub mod replay;
 pub mod writer;
 
 pub use format::{
-    FORMAT_VERSION, HEADER_BYTES, Header, LOG_FILE, PLANS_FILE, PlanEntry, RECORD_BYTES,
-    RECORD_COMMAND_OFFSET, RECORD_STATE_OFFSET, Record, SENSOR_BYTES, SensorRecord,
+    FORMAT_VERSION, HEADER_BYTES, Header, LOG_FILE, PLANS_FILE, PidOrdinals, PlanEntry,
+    RECORD_BYTES, RECORD_COMMAND_OFFSET, RECORD_STATE_OFFSET, Record, SENSOR_BYTES, SensorRecord,
     torque_byte_offset,
 };
 pub use reader::{LogReader, read_plans};

@@ -6,9 +6,15 @@
 //! [`PlanSource`], appends every new plan message on the run's plan board to `plans.log`.
 //! When the run ends, for any reason the loop notices (its end, SIGINT, SIGTERM),
 //! [`Recorder::finish`] drains it.
+//!
+//! A lockstep run's log depends on the scenario alone: the writer keeps its records in
+//! [`Record::lockstep_form`] (nominal times instead of clock readings, ordinals instead of
+//! process ids), and a full channel makes the loop wait for the disk instead of dropping a
+//! record (lockstep has no deadline to miss).
 
 use super::format::{
-    Header, LOG_FILE, PLANS_FILE, PlanEntry, RECORD_BYTES, Record, SENSOR_BYTES, plans_header,
+    Header, LOG_FILE, PLANS_FILE, PidOrdinals, PlanEntry, RECORD_BYTES, Record, SENSOR_BYTES,
+    plans_header,
 };
 use crate::SimError;
 use ipc_types::PlanMsg;
@@ -65,6 +71,8 @@ pub type SinkFactory = Box<dyn FnOnce() -> Option<Box<dyn StatusSink>> + Send>;
 /// The loop's end of the recorder.
 pub struct Recorder {
     tx: Option<SyncSender<Record>>,
+    /// Lockstep: wait for room in the channel instead of dropping a record.
+    wait_when_full: bool,
     dropped: u64,
     thread: Option<JoinHandle<Written>>,
     path: PathBuf,
@@ -89,7 +97,15 @@ impl Recorder {
         let file = File::create(&path)
             .map_err(|e| SimError::Run(format!("cannot create {}: {e}", path.display())))?;
         let mut w = BufWriter::with_capacity(1 << 16, file);
-        w.write_all(&header.to_bytes())
+        let lockstep = (!header.realtime).then(|| Lockstep {
+            period_ns: (header.control_period * 1e9).round() as u64,
+            pids: PidOrdinals::default(),
+        });
+        let mut kept = header.clone();
+        if lockstep.is_some() {
+            kept.plant_pid = 0;
+        }
+        w.write_all(&kept.to_bytes())
             .and_then(|_| w.flush())
             .map_err(|e| SimError::Run(format!("{}: {e}", path.display())))?;
         let out = Some(w);
@@ -109,12 +125,19 @@ impl Recorder {
                     written: 0,
                     error: None,
                 });
+                let mut lockstep = lockstep;
                 // what is on the plan board before the run starts is kept too
                 if let Some(p) = plans.as_mut() {
-                    p.poll(None);
+                    p.poll(None, lockstep.as_mut().map(|l| &mut l.pids));
                 }
                 let _ = ready_tx.send(());
-                let mut w = write_loop(&rx, out, record_bytes, sink.as_deref_mut(), plans);
+                let files = Files {
+                    out,
+                    record_bytes,
+                    plans,
+                    lockstep,
+                };
+                let mut w = write_loop(&rx, files, sink.as_deref_mut());
                 if let Some(s) = sink.as_deref_mut() {
                     s.end();
                 }
@@ -127,6 +150,7 @@ impl Recorder {
         let _ = ready.recv_timeout(Duration::from_secs(10));
         Ok(Recorder {
             tx: Some(tx),
+            wait_when_full: !header.realtime,
             dropped: 0,
             thread: Some(thread),
             path,
@@ -134,9 +158,15 @@ impl Recorder {
     }
 
     /// Hands one record to the writer: a copy into the preallocated channel, nothing else
-    /// (a full channel drops it and counts the drop).
+    /// (a full channel drops it and counts the drop; in lockstep it waits for room).
     pub fn push(&mut self, r: &Record) {
         if let Some(tx) = &self.tx {
+            if self.wait_when_full {
+                if tx.send(*r).is_err() {
+                    self.dropped += 1;
+                }
+                return;
+            }
             match tx.try_send(*r) {
                 Ok(()) => {}
                 Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
@@ -184,6 +214,22 @@ struct Written {
     error: Option<String>,
 }
 
+/// What a lockstep log replaces clock readings and process ids with.
+struct Lockstep {
+    period_ns: u64,
+    pids: PidOrdinals,
+}
+
+/// What the writer thread writes to.
+struct Files {
+    /// `messages.log` (`None` once it failed).
+    out: Option<BufWriter<File>>,
+    record_bytes: usize,
+    plans: Option<Plans>,
+    /// A lockstep run's log ([`Record::lockstep_form`]).
+    lockstep: Option<Lockstep>,
+}
+
 /// `plans.log` and where its messages come from.
 struct Plans {
     source: PlanSource,
@@ -194,10 +240,14 @@ struct Plans {
 }
 
 impl Plans {
-    /// Appends every new plan message (creating the file at the first), flushed.
-    fn poll(&mut self, last_cycle: Option<u64>) {
+    /// Appends every new plan message (creating the file at the first), flushed; a lockstep
+    /// log's planner pids become their ordinals in `pids`.
+    fn poll(&mut self, last_cycle: Option<u64>, mut pids: Option<&mut PidOrdinals>) {
         let mut got = false;
-        while let Some(msg) = (self.source)() {
+        while let Some(mut msg) = (self.source)() {
+            if let Some(p) = pids.as_deref_mut() {
+                msg.planner_pid = p.ordinal(msg.planner_pid);
+            }
             if self.error.is_some() {
                 continue;
             }
@@ -243,11 +293,15 @@ impl Plans {
 /// error that stopped a file, if any.
 fn write_loop(
     rx: &Receiver<Record>,
-    mut out: Option<BufWriter<File>>,
-    record_bytes: usize,
+    files: Files,
     mut sink: Option<&mut (dyn StatusSink + 'static)>,
-    mut plans: Option<Plans>,
 ) -> Written {
+    let Files {
+        mut out,
+        record_bytes,
+        mut plans,
+        mut lockstep,
+    } = files;
     let mut written = 0u64;
     let mut error = None;
     let mut last_cycle = None;
@@ -267,7 +321,7 @@ fn write_loop(
     };
     loop {
         if let Some(p) = plans.as_mut() {
-            p.poll(last_cycle);
+            p.poll(last_cycle, lockstep.as_mut().map(|l| &mut l.pids));
         }
         let mut got = false;
         let closed = loop {
@@ -276,7 +330,10 @@ fn write_loop(
                     got = true;
                     last_cycle = Some(r.cycle);
                     if let Some(w) = out.as_mut() {
-                        r.write_into(bytes);
+                        match lockstep.as_mut() {
+                            Some(l) => r.lockstep_form(l.period_ns, &mut l.pids).write_into(bytes),
+                            None => r.write_into(bytes),
+                        }
                         match w.write_all(bytes) {
                             Ok(()) => written += 1,
                             Err(e) => give_up(&mut out, e),
@@ -305,7 +362,7 @@ fn write_loop(
                 give_up(&mut out, e);
             }
             if let Some(p) = plans.as_mut() {
-                p.poll(last_cycle);
+                p.poll(last_cycle, lockstep.as_mut().map(|l| &mut l.pids));
             }
             return end(written, error, plans);
         }
