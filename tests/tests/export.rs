@@ -4,7 +4,7 @@
 //! version is refused with both versions named. The Python and TypeScript readers run in
 //! `scripts/mcap-readers.sh` (CI). Tests run one at a time ([`serial`]).
 
-use pair_tests::{Proc, TempDir, run, serial};
+use pair_tests::{Proc, TempDir, run, serial, wait_for_cycles};
 use plant_sim::recorder::{HEADER_BYTES, LOG_FILE, LogReader, RECORD_BYTES};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -199,7 +199,7 @@ fn a_killed_runs_log_exports_up_to_its_last_whole_record() {
         "{}",
         plant.output()
     );
-    std::thread::sleep(Duration::from_millis(1000));
+    wait_for_cycles(&out, 400, LONG);
     plant.kill();
     // cut mid-record, as a kill during a write would
     let path = Path::new(&out).join(LOG_FILE);

@@ -1,7 +1,9 @@
 //! The flight recorder (`messages.log`), `plant_sim replay` and `plant_sim monitor`, driven as
 //! real processes. Tests run one at a time ([`serial`]).
 
-use pair_tests::{Proc, TempDir, bin, run, serial, summary};
+use pair_tests::{
+    Proc, TempDir, bin, realtime_priority, run, serial, summary, wait_for_cycles, wait_until,
+};
 use plant_sim::recorder::{
     HEADER_BYTES, LOG_FILE, LogReader, RECORD_BYTES, RECORD_STATE_OFFSET, torque_byte_offset,
 };
@@ -67,7 +69,7 @@ fn a_real_time_run_with_misses_and_safe_mode_replays_bit_for_bit() {
     let mut plant = start_run("t-flight-stop", &out, "3", &["--no-spawn"]);
     let ctl = Proc::start("controller_node", &["--name", "t-flight-stop"]);
     connected(&plant);
-    std::thread::sleep(Duration::from_millis(1000));
+    wait_for_cycles(&out, 1000, Duration::from_secs(60));
     // 20 ms without a controller: deadline misses, then safe mode (3 misses in a row at 1 kHz)
     ctl.signal("STOP");
     std::thread::sleep(Duration::from_millis(20));
@@ -189,7 +191,7 @@ fn a_killed_run_replays_up_to_its_last_whole_record_and_an_interrupted_one_is_co
     let out = d.join("killed");
     let mut plant = start_run("t-flight-kill", &out, "30", &[]);
     connected(&plant);
-    std::thread::sleep(Duration::from_millis(1500));
+    wait_for_cycles(&out, 600, Duration::from_secs(60));
     plant.kill();
     let (records, log) = read_log(&out);
     assert!(records.len() > 500, "{} records", records.len());
@@ -221,7 +223,7 @@ fn a_killed_run_replays_up_to_its_last_whole_record_and_an_interrupted_one_is_co
     let out = d.join("stopped");
     let mut plant = start_run("t-flight-term", &out, "30", &[]);
     connected(&plant);
-    std::thread::sleep(Duration::from_millis(800));
+    wait_for_cycles(&out, 500, Duration::from_secs(60));
     plant.signal("TERM");
     assert!(plant.wait_timeout(Duration::from_secs(20)).is_some());
     let s = summary(Path::new(&out));
@@ -300,6 +302,12 @@ fn wait_file(path: &Path, timeout: Duration) -> Option<String> {
 #[test]
 fn the_monitor_shows_the_live_loop_in_a_terminal_and_quits_on_q() {
     let _g = serial();
+    // the rate the monitor shows is the plant's: a real-time figure
+    let Some(prio) =
+        realtime_priority("the_monitor_shows_the_live_loop_in_a_terminal_and_quits_on_q")
+    else {
+        return;
+    };
     let d = TempDir::new("flight-monitor");
     let t = Tmux {
         bin: tmux(),
@@ -322,13 +330,24 @@ fn the_monitor_shows_the_live_loop_in_a_terminal_and_quits_on_q() {
         &monitor,
     ]);
     let out = d.join("run");
-    let mut plant = start_run("t-flight-mon", &out, "8", &[]);
+    let mut plant = start_run("t-flight-mon", &out, "8", &prio);
     connected(&plant);
+    let t_of = |s: &str| field(s, "│t").and_then(|x| x.parse::<f64>().ok());
+    // the first screen whose run time is in `range`
+    let screen_at = |range: std::ops::Range<f64>| {
+        let mut screen = String::new();
+        let seen = wait_until(Duration::from_secs(30), || {
+            screen = t.capture();
+            t_of(&screen).is_some_and(|x| x >= range.start)
+        });
+        assert!(seen, "no screen at t >= {}:\n{screen}", range.start);
+        let at = t_of(&screen).unwrap_or(f64::NAN);
+        assert!(range.contains(&at), "t = {at} is past {range:?}:\n{screen}");
+        screen
+    };
     // in the run's first second the rate (cycles in the last second) is still climbing
-    std::thread::sleep(Duration::from_millis(400));
-    let first = t.capture();
-    std::thread::sleep(Duration::from_millis(1400));
-    let second = t.capture();
+    let first = screen_at(0.2..0.9);
+    let second = screen_at(1.8..7.0);
     let rate = |s: &str| field(s, "│rate").and_then(|r| r.parse::<f64>().ok());
     let (r1, r2) = (rate(&first), rate(&second));
     assert!(
@@ -358,7 +377,6 @@ fn the_monitor_shows_the_live_loop_in_a_terminal_and_quits_on_q() {
     }
     // the time and the Lyapunov value move
     let l = |s: &str| field(s, "│Lyapunov L").and_then(|x| x.parse::<f64>().ok());
-    let t_of = |s: &str| field(s, "│t").and_then(|x| x.parse::<f64>().ok());
     let (l1, l2) = (l(&first), l(&second));
     assert!(
         l1.is_some() && l2.is_some() && l1 != l2,

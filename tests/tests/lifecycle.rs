@@ -1,7 +1,7 @@
 //! Stopping, refusing and staying allocation-free: signals to either process, configuration
 //! mismatches, a plant that dies or pauses.
 
-use pair_tests::{Csv, Proc, TempDir, run, serial, summary};
+use pair_tests::{Csv, Proc, TempDir, run, serial, summary, wait_for_cycles, wait_until};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -18,8 +18,9 @@ fn controller_of_run_alive(run: &str) -> bool {
     !out.stdout.is_empty()
 }
 
-/// SIGINT or SIGTERM ~2 s into a real-time run: exit 128+N within 1 s, the rows that ran
-/// written, the summary says so, the spawned controller gone, the name reusable.
+/// SIGINT or SIGTERM once a real-time run has recorded 1.6 s: exit 128+N promptly (within
+/// 5 s, generous for a loaded machine), the rows that ran written, the summary says so, the
+/// spawned controller gone, the name reusable.
 fn interrupt_run(sig: &str, code: i32) {
     let _g = serial();
     let d = TempDir::new(&format!("int-{sig}"));
@@ -42,7 +43,7 @@ fn interrupt_run(sig: &str, code: i32) {
         "{}",
         p.output()
     );
-    std::thread::sleep(Duration::from_millis(2000));
+    wait_for_cycles(&out_dir, 1600, Duration::from_secs(60));
     p.signal(sig);
     let sent = Instant::now();
     let status = p.wait_timeout(Duration::from_secs(10));
@@ -50,7 +51,7 @@ fn interrupt_run(sig: &str, code: i32) {
     let out = p.output();
     assert_eq!(status.and_then(|s| s.code()), Some(code), "{out}");
     assert!(
-        took < Duration::from_secs(1),
+        took < Duration::from_secs(5),
         "took {took:?} to stop:\n{out}"
     );
     let csv = Csv::read(&Path::new(&out_dir).join("trajectory.csv"));
@@ -66,9 +67,8 @@ fn interrupt_run(sig: &str, code: i32) {
     assert_eq!(s["signal"], format!("SIG{sig}"));
     assert_eq!(s["cycles"].as_u64().unwrap() as usize, t.len());
     assert!(Path::new(&out_dir).join("figure.png").exists());
-    std::thread::sleep(Duration::from_secs(2));
     assert!(
-        !controller_of_run_alive(&name),
+        wait_until(Duration::from_secs(10), || !controller_of_run_alive(&name)),
         "a controller_node of {name} is left"
     );
     let (code, out) = plant(&[
@@ -126,9 +126,9 @@ fn sigterm_to_the_controller_makes_it_leave_and_the_plant_goes_to_safe_mode() {
     let d = TempDir::new("ctl-term");
     let out_dir = d.join("run");
     let (mut p, mut ctl) = start_pair("t-ctl-term", "3", &out_dir);
-    std::thread::sleep(Duration::from_millis(1000));
+    wait_for_cycles(&out_dir, 1000, Duration::from_secs(60));
     ctl.signal("TERM");
-    let status = ctl.wait_timeout(Duration::from_secs(2));
+    let status = ctl.wait_timeout(Duration::from_secs(10));
     assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", ctl.output());
     assert!(
         ctl.output().contains("SIGTERM received, leaving the run"),
@@ -172,7 +172,11 @@ fn mismatch(ctl_args: &[&str], needle: &str) {
             &d.join("r"),
         ],
     );
-    std::thread::sleep(Duration::from_millis(300));
+    assert!(
+        p.wait_for_line("waiting up to", Duration::from_secs(20)),
+        "{}",
+        p.output()
+    );
     let mut args = vec!["--name", "t-mismatch"];
     args.extend_from_slice(ctl_args);
     let started = Instant::now();
@@ -217,8 +221,9 @@ fn allocations(out: &str) -> u64 {
 fn the_controller_allocates_nothing_when_the_plant_is_killed() {
     let _g = serial();
     let d = TempDir::new("alloc-kill");
-    let (mut p, mut ctl) = start_pair("t-alloc-kill", "30", &d.join("r"));
-    std::thread::sleep(Duration::from_millis(1000));
+    let out_dir = d.join("r");
+    let (mut p, mut ctl) = start_pair("t-alloc-kill", "30", &out_dir);
+    wait_for_cycles(&out_dir, 1000, Duration::from_secs(60));
     p.kill();
     let status = ctl.wait_timeout(Duration::from_secs(5));
     let out = ctl.output();
@@ -233,7 +238,7 @@ fn the_controller_allocates_nothing_when_the_plant_pauses() {
     let d = TempDir::new("alloc-pause");
     let out_dir = d.join("r");
     let (mut p, mut ctl) = start_pair("t-alloc-pause", "3", &out_dir);
-    std::thread::sleep(Duration::from_millis(800));
+    wait_for_cycles(&out_dir, 800, Duration::from_secs(60));
     p.signal("STOP");
     std::thread::sleep(Duration::from_millis(500));
     p.signal("CONT");

@@ -6,7 +6,9 @@ use controller::group::So3;
 use controller::path::{Path as GroupPath, PathReference};
 use controller::{Controller, Trajectory};
 use nalgebra::{Matrix3, SMatrix, Vector3};
-use pair_tests::{Csv, Proc, TempDir, run, serial};
+use pair_tests::{
+    CpuHog, Csv, Proc, TempDir, realtime_priority, recorded_cycles, run, serial, wait_for_cycles,
+};
 use scenario::Scenario;
 use std::path::Path;
 use std::time::Duration;
@@ -143,6 +145,38 @@ fn a_streamed_lockstep_run_equals_the_same_waypoints_from_the_file_bit_for_bit()
     }
 }
 
+/// A streamed lockstep run of `slew_so3` is exact with a CPU hog on every core: its
+/// trajectory is the simulation's, and a second run writes the same messages.log (the
+/// planner's first message holds the whole path, and the log keeps no clock reading and no
+/// process id).
+#[test]
+fn a_streamed_lockstep_run_under_a_cpu_hog_equals_the_simulation_and_its_log_repeats() {
+    let _g = serial();
+    let d = TempDir::new("stream-hog");
+    let scenario = format!("{}/slew_so3.toml", scenarios());
+    let sim = d.join("sim");
+    let (code, out) = run(
+        "plant_sim",
+        &["sim", "--scenario", &scenario, "--out", &sim],
+        LONG,
+    );
+    assert_eq!(code, 0, "{out}");
+    let _hog = CpuHog::start();
+    let (a, b) = (d.join("a"), d.join("b"));
+    for out in [&a, &b] {
+        streamed_lockstep(&scenario, "t-stream-hog", out);
+    }
+    let read = |p: String| std::fs::read(&p).unwrap_or_else(|e| panic!("{p}: {e}"));
+    assert!(
+        read(format!("{sim}/trajectory.csv")) == read(format!("{a}/trajectory.csv")),
+        "the streamed lockstep run under the hog differs from the simulation"
+    );
+    assert!(
+        read(format!("{a}/messages.log")) == read(format!("{b}/messages.log")),
+        "two streamed lockstep runs wrote different messages.log"
+    );
+}
+
 /// Waypoints one second apart, so a real-time run covers running dry and resuming in 7 s.
 const KILL_CSV: &str =
     "t,rx,ry,rz\n0.5,0,0,0\n1.5,0,0,0.8\n2.5,0.6,0,0.8\n3.5,0,-0.5,0\n4.5,0.3,0.3,0\n";
@@ -196,6 +230,12 @@ fn rotation(r: [f64; 3]) -> Matrix3<f64> {
 #[test]
 fn killing_the_planner_holds_the_last_pose_and_a_new_planner_resumes() {
     let _g = serial();
+    // a real-time run: the hold's length and the tracking after it need the pair on time
+    let Some(prio) =
+        realtime_priority("killing_the_planner_holds_the_last_pose_and_a_new_planner_resumes")
+    else {
+        return;
+    };
     let d = TempDir::new("stream-kill");
     let scenario = kill_scenario(&d);
     let out = d.join("run");
@@ -224,6 +264,8 @@ fn killing_the_planner_holds_the_last_pose_and_a_new_planner_resumes() {
             "t-stream-kill",
             "--out",
             &out,
+            prio[0],
+            prio[1],
         ],
     );
     let ctl_args = [
@@ -233,6 +275,8 @@ fn killing_the_planner_holds_the_last_pose_and_a_new_planner_resumes() {
         "t-stream-kill",
         "--reference",
         "stream",
+        prio[0],
+        prio[1],
     ];
     let mut ctl = Proc::start("controller_node", &ctl_args);
     // the pieces up to the waypoint at 2.5 s are out once the plant's clock passes 1.1 s
@@ -264,7 +308,8 @@ fn killing_the_planner_holds_the_last_pose_and_a_new_planner_resumes() {
         "{}",
         ctl.output()
     );
-    std::thread::sleep(Duration::from_millis(500));
+    // half a second of holding before a new planner starts
+    wait_for_cycles(&out, recorded_cycles(&out) + 500, LONG);
     let mut second = Proc::start("planner", &args);
     assert_eq!(
         plant.wait_timeout(LONG).and_then(|s| s.code()),

@@ -1,0 +1,221 @@
+//! Lockstep is exact whatever the machine is doing (docs/architecture.md, "Lockstep"): the
+//! plant waits for each command and reads no clock, so a CPU hog on every core, a stopped
+//! controller or a slow emulator changes how long a run takes, never what it writes. Only
+//! `--lockstep-timeout` ends a run for lack of a command, and a run that cannot apply a
+//! command stops with a non-zero exit naming the step. Tests run one at a time ([`serial`]).
+
+use pair_tests::{
+    CpuHog, Proc, TempDir, recorded_cycles, run, serial, summary, wait_for_cycles, wait_until,
+};
+use std::path::Path;
+use std::time::Duration;
+
+const LONG: Duration = Duration::from_secs(300);
+
+fn scenario(name: &str) -> String {
+    format!("{}/../scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn plant(args: &[&str]) -> (i32, String) {
+    run("plant_sim", args, LONG)
+}
+
+fn read(path: &str) -> Vec<u8> {
+    std::fs::read(path).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+/// `file` flown by `plant_sim sim` into `d/<tag>-sim`.
+fn sim(d: &TempDir, tag: &str, file: &str) -> String {
+    let out = d.join(&format!("{tag}-sim"));
+    let (code, text) = plant(&["sim", "--scenario", file, "--out", &out]);
+    assert_eq!(code, 0, "{text}");
+    out
+}
+
+/// The seed scenario lasting `seconds` (100 cycles a second at its 10 ms period), in `d`.
+fn long_seed(d: &TempDir, seconds: u32) -> String {
+    let text = std::fs::read_to_string(scenario("seed")).unwrap();
+    let longer = text.replace("duration = 20.0", &format!("duration = {seconds}.0"));
+    assert_ne!(text, longer, "the template changed");
+    let path = d.join("long_seed.toml");
+    std::fs::write(&path, longer).unwrap();
+    path
+}
+
+#[test]
+fn lockstep_under_a_cpu_hog_equals_the_simulation_byte_for_byte() {
+    let _g = serial();
+    let d = TempDir::new("lockstep-hog");
+    let _hog = CpuHog::start();
+    // the feedforward series on both groups, the rejection terms, both estimators
+    for name in ["seed", "se3_circle", "reject_so3", "sensors_so3", "eqf_so3"] {
+        let file = scenario(name);
+        let sim = sim(&d, name, &file);
+        let runs: Vec<String> = ["a", "b"]
+            .iter()
+            .map(|k| {
+                let out = d.join(&format!("{name}-{k}"));
+                let run_name = format!("t-hog-{name}");
+                let (code, text) = plant(&[
+                    "run",
+                    "--scenario",
+                    &file,
+                    "--mode",
+                    "lockstep",
+                    "--name",
+                    &run_name,
+                    "--out",
+                    &out,
+                ]);
+                assert_eq!(code, 0, "{name}: {text}");
+                out
+            })
+            .collect();
+        let csv = |dir: &str| read(&format!("{dir}/trajectory.csv"));
+        assert!(
+            csv(&sim) == csv(&runs[0]) && csv(&sim) == csv(&runs[1]),
+            "{name}: a lockstep run under the hog differs from the simulation"
+        );
+        let log = |dir: &str| read(&format!("{dir}/messages.log"));
+        assert!(
+            log(&runs[0]) == log(&runs[1]),
+            "{name}: two lockstep runs wrote different messages.log"
+        );
+        let s = summary(Path::new(&runs[0]));
+        assert_eq!(s["deadline_misses"], 0, "{s}");
+        assert_eq!(s["late_commands"], 0, "{s}");
+        assert_eq!(s["safe_mode_entries"], 0, "{s}");
+        assert!(
+            s["deadline_note"]
+                .as_str()
+                .is_some_and(|n| n.contains("do not apply")),
+            "{s}"
+        );
+    }
+}
+
+/// Starts `plant_sim run --mode lockstep --no-spawn` of `file` under `run_name` into `out`
+/// with `extra` arguments, and a controller by hand; returns both once they are connected.
+fn hand_started_pair(file: &str, run_name: &str, out: &str, extra: &[&str]) -> (Proc, Proc) {
+    let mut args = vec![
+        "run",
+        "--scenario",
+        file,
+        "--mode",
+        "lockstep",
+        "--no-spawn",
+        "--name",
+        run_name,
+        "--out",
+        out,
+    ];
+    args.extend_from_slice(extra);
+    let plant = Proc::start("plant_sim", &args);
+    let ctl = Proc::start("controller_node", &["--scenario", file, "--name", run_name]);
+    assert!(
+        plant.wait_for_line("controller connected", Duration::from_secs(30)),
+        "{}",
+        plant.output()
+    );
+    (plant, ctl)
+}
+
+/// SIGSTOP to the controller once `out` has 500 cycles; returns the cycles recorded while it
+/// is stopped (the plant waits: the count stands still).
+fn stop_controller(ctl: &Proc, out: &str) -> u64 {
+    wait_for_cycles(out, 500, LONG);
+    ctl.signal("STOP");
+    // what was on its way is written, then nothing more
+    std::thread::sleep(Duration::from_millis(200));
+    recorded_cycles(out)
+}
+
+#[test]
+fn a_controller_stopped_for_less_than_the_lockstep_timeout_changes_nothing() {
+    let _g = serial();
+    let d = TempDir::new("lockstep-pause");
+    let file = long_seed(&d, 60);
+    let sim = sim(&d, "pause", &file);
+    let out = d.join("pair");
+    let (mut plant, ctl) =
+        hand_started_pair(&file, "t-lock-pause", &out, &["--lockstep-timeout", "30"]);
+    let at = stop_controller(&ctl, &out);
+    // two seconds stopped: far longer than any period, far shorter than the timeout
+    std::thread::sleep(Duration::from_secs(2));
+    let still = recorded_cycles(&out);
+    ctl.signal("CONT");
+    assert!(
+        at < 6000 && still == at,
+        "the plant waited at cycle {at} (recorded {still} after the stop)"
+    );
+    let status = plant.wait_timeout(LONG);
+    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
+    assert!(
+        read(&format!("{sim}/trajectory.csv")) == read(&format!("{out}/trajectory.csv")),
+        "a pause of the controller changed the lockstep run"
+    );
+}
+
+#[test]
+fn a_controller_stopped_for_longer_than_the_lockstep_timeout_ends_the_run_non_zero() {
+    let _g = serial();
+    let d = TempDir::new("lockstep-timeout");
+    let file = long_seed(&d, 60);
+    let out = d.join("pair");
+    let (mut plant, ctl) =
+        hand_started_pair(&file, "t-lock-timeout", &out, &["--lockstep-timeout", "1"]);
+    let at = stop_controller(&ctl, &out);
+    let status = plant.wait_timeout(LONG);
+    ctl.signal("CONT");
+    let text = plant.output();
+    assert_eq!(status.and_then(|s| s.code()), Some(1), "{text}");
+    let needle = format!("lockstep: no command for step {at} within 1.0 s (--lockstep-timeout)");
+    assert!(text.contains(&needle), "missing `{needle}` in:\n{text}");
+    assert!(
+        !Path::new(&out).join("summary.json").exists(),
+        "a run that timed out writes no summary of a run that did not happen"
+    );
+}
+
+#[test]
+fn a_rejected_command_ends_a_lockstep_run_at_once_naming_the_step() {
+    let _g = serial();
+    let d = TempDir::new("lockstep-reject");
+    let out = d.join("pair");
+    // the spawned controller publishes a NaN torque for step 50: the plant's checks reject
+    // it, and lockstep cannot hold the previous torque instead
+    let mut p = Proc::start(
+        "plant_sim",
+        &[
+            "run",
+            "--mode",
+            "lockstep",
+            "--name",
+            "t-lock-reject",
+            "--out",
+            &out,
+            "--lockstep-timeout",
+            "120",
+            "--fault-nan-torque",
+            "50",
+        ],
+    );
+    let status = p.wait_timeout(Duration::from_secs(60));
+    let text = p.output();
+    assert!(
+        !text.contains("unexpected argument '--fault"),
+        "the binaries lack the test-only fault-injection feature: run the workspace's tests\n{text}"
+    );
+    assert_eq!(
+        status.and_then(|s| s.code()),
+        Some(1),
+        "the run stops long before its 120 s timeout:\n{text}"
+    );
+    let needle = "lockstep: the controller's command for step 50 was rejected by the plant's checks (seq 50: non-finite number)";
+    assert!(text.contains(needle), "missing `{needle}` in:\n{text}");
+    assert!(
+        wait_until(Duration::from_secs(10), || recorded_cycles(&out) == 50),
+        "the log holds the 50 steps applied, got {}",
+        recorded_cycles(&out)
+    );
+}
