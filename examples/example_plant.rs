@@ -23,7 +23,7 @@ use controller::GroupKind;
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;
 use controller::law::safe_mode_torque;
-use link::{DeadlinePolicy, Decision, NoCommand, PlantConfig, PlantEndpoint, clock};
+use link::{DeadlinePolicy, Decision, NoCommand, PlantConfig, PlantEndpoint, Step, clock};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 const PERIOD: f64 = 0.01; // s: 100 Hz, the scenarios' control period
@@ -183,8 +183,13 @@ fn fly<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         if k == 0 {
             t0 = clock::monotonic_ns();
         }
-        // 3. Apply it, hold the last one, or fall back to the safe-mode torque.
-        let step = policy.step(k, deadline, got.as_ref().map(|c| c.arrival()));
+        // 3. Apply it, hold the last one, or fall back to the safe-mode torque (real time;
+        //    lockstep applies every command it waited for).
+        let step = if realtime {
+            policy.step(k, deadline, got.as_ref().map(|c| c.arrival()))
+        } else {
+            Step::LOCKSTEP
+        };
         torque = match (step.decision, got) {
             (Decision::Fresh, Some(cmd)) => cmd.torque(),
             (Decision::Safe, _) => safe_mode_torque(&kd, &v, Some(&limit)),

@@ -60,6 +60,17 @@ pub struct Step {
     pub misses_in_row: u32,
 }
 
+impl Step {
+    /// What a lockstep plant applies at every tick: the command it waited for. Lockstep has
+    /// no deadline, so it never asks the policy; nothing is held and safe mode never starts
+    /// (docs/architecture.md, "One control cycle").
+    pub const LOCKSTEP: Step = Step {
+        decision: Decision::Fresh,
+        transition: None,
+        misses_in_row: 0,
+    };
+}
+
 /// The policy and its counters.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DeadlinePolicy {

@@ -34,14 +34,6 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-/// What lockstep applies at every tick: the command it waited for. Lockstep has no deadline,
-/// so nothing is held and safe mode never starts.
-const LOCKSTEP_STEP: link::Step = link::Step {
-    decision: Decision::Fresh,
-    transition: None,
-    misses_in_row: 0,
-};
-
 /// The summary's note on a lockstep run's deadline figures.
 pub const LOCKSTEP_NOTE: &str = "lockstep: the plant waits for every command, so deadline misses, late commands and safe mode do not apply (none are counted)";
 
@@ -684,7 +676,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 None => self.lockstep_command(k, child)?,
             };
             // the tick's nominal end, t_{k+1} in ns: a lockstep record holds no clock reading
-            (Some(c), LOCKSTEP_STEP, (k + 1) * self.period_ns)
+            (Some(c), link::Step::LOCKSTEP, (k + 1) * self.period_ns)
         };
         self.log_rejections();
         if let Some(c) = &got {

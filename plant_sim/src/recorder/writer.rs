@@ -528,7 +528,12 @@ mod tests {
     fn the_writer_drains_everything_and_a_cut_log_reads_to_its_last_whole_record() {
         let dir = std::env::temp_dir().join(format!("eqtrack-flight-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let h = lockstep_header(2, false);
+        // real time: the loop never waits for the disk
+        let h = Header {
+            realtime: true,
+            rate_hz: 1000.0,
+            ..lockstep_header(2, false)
+        };
         // a small channel: the loop outpaces the writer, pushes are dropped and counted
         let mut rec = Recorder::start(&dir, &h, 4, None, None).unwrap();
         let mut pushed = 0;
@@ -601,7 +606,8 @@ mod tests {
         let plans = read_plans(&dir).unwrap();
         let seqs: Vec<u64> = plans.iter().map(|p| p.msg.seq).collect();
         assert_eq!(seqs, [1, 2, 3, 4, 5]);
-        assert!(plans.iter().all(|p| p.msg.planner_pid == 99));
+        // a lockstep log: the planner's pid is its ordinal
+        assert!(plans.iter().all(|p| p.msg.planner_pid == 1));
         let mut log = LogReader::open(&dir.join(LOG_FILE)).unwrap();
         assert!(log.header.sensors);
         let mut k = 0;
@@ -623,6 +629,75 @@ mod tests {
         assert!(
             e.contains("format version 3") && e.contains("version 4"),
             "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_lockstep_log_keeps_nominal_times_and_pid_ordinals_and_drops_nothing() {
+        let dir = std::env::temp_dir().join(format!("eqtrack-lockstep-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let h = lockstep_header(2, false);
+        let commanded = |k: u64| {
+            let mut r = record(k, true);
+            if let Some((c, _)) = r.command.as_mut() {
+                c.compute_ns = 300 + k;
+                c.state_received_ns = 2_000 + k;
+                c.stamp_ns = 3_000 + k;
+                // a planner replaced halfway through the run
+                c.plan_pid = if k < 1000 { 4242 } else { 777 };
+            }
+            r.state.plant_pid = 31337;
+            r
+        };
+        // the same small channel as in real time: here the loop waits, and nothing is lost
+        let mut rec = Recorder::start(&dir, &h, 4, None, None).unwrap();
+        for k in 0..2000 {
+            rec.push(&commanded(k));
+        }
+        let report = rec.finish().unwrap();
+        assert_eq!((report.records, report.dropped), (2000, 0));
+        let mut log = LogReader::open(&dir.join(LOG_FILE)).unwrap();
+        assert_eq!(log.header, Header { plant_pid: 0, ..h });
+        let mut k = 0;
+        while let Some(r) = log.next_record().unwrap() {
+            let t_k = k * 1_000_000; // the tick's nominal time at 1 ms, in ns
+            let (c, received) = r.command.unwrap();
+            assert_eq!(
+                (r.state.stamp_ns, c.state_received_ns, c.stamp_ns, received),
+                (t_k, t_k, t_k, t_k),
+                "cycle {k}"
+            );
+            assert_eq!((c.compute_ns, r.state.plant_pid), (0, 0));
+            assert_eq!(c.plan_pid, if k < 1000 { 1 } else { 2 }, "cycle {k}");
+            // everything else as it came
+            let mut want = commanded(k);
+            want.state.stamp_ns = t_k;
+            want.state.plant_pid = 0;
+            want.command = Some((
+                CommandMsg {
+                    compute_ns: 0,
+                    state_received_ns: t_k,
+                    stamp_ns: t_k,
+                    plan_pid: c.plan_pid,
+                    ..want.command.unwrap().0
+                },
+                t_k,
+            ));
+            assert_eq!(r.to_bytes(), want.to_bytes(), "cycle {k}");
+            k += 1;
+        }
+        assert_eq!(k, 2000);
+        // no process id and no pid ordinal 0 for a real pid
+        let mut ids = PidOrdinals::default();
+        assert_eq!(
+            [
+                ids.ordinal(0),
+                ids.ordinal(9),
+                ids.ordinal(5),
+                ids.ordinal(9)
+            ],
+            [0, 1, 2, 1]
         );
         std::fs::remove_dir_all(&dir).unwrap();
     }
