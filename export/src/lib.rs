@@ -28,7 +28,7 @@
 #![forbid(unsafe_code)]
 
 use ipc_types::{CommandMsg, StateMsg, group_kind};
-use plant_sim::recorder::{Header, LogReader, PlanEntry, Record, read_plans};
+use recorder::{Header, LogReader, PlanEntry, Record, read_plans};
 use std::collections::{BTreeMap, HashMap};
 use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
@@ -508,7 +508,7 @@ fn metadata(h: &Header, records: u64) -> BTreeMap<String, String> {
         ("records", records.to_string()),
         (
             "flight_recorder_format",
-            plant_sim::recorder::FORMAT_VERSION.to_string(),
+            recorder::FORMAT_VERSION.to_string(),
         ),
     ] {
         m.insert(k.to_owned(), v);

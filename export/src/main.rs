@@ -45,7 +45,7 @@ struct Cli {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let log = if cli.dir.is_dir() {
-        cli.dir.join(plant_sim::recorder::LOG_FILE)
+        cli.dir.join(recorder::LOG_FILE)
     } else {
         cli.dir.clone()
     };

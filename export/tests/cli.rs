@@ -5,7 +5,7 @@
 
 use ipc_types::{CommandMsg, MAX_M, StateMsg, group_code};
 use link::Decision;
-use plant_sim::recorder::{Header, Record};
+use recorder::{Header, Record};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -91,7 +91,7 @@ impl OnGroup for SeedRecords<'_> {
                 applied: [0.0; MAX_M],
                 state,
                 command: Some((cmd, k * 1_000_000 + 5)),
-                sensors: Some(SensorRecord::new(&row, &truth)),
+                sensors: Some(row.sensor_record(&truth)),
             };
             let mut b = vec![0u8; RECORD_PART];
             r.write_into(&mut b);

@@ -20,6 +20,8 @@ use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 use nalgebra::{SMatrix, SVector};
 
+pub mod decision;
+pub use decision::Decision;
 pub mod plan;
 pub use plan::{PLAN_BYTES, PLAN_WINDOW, PlanMsg, PlanReject, WireSegment, check_plan};
 pub mod status;

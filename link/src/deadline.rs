@@ -18,27 +18,7 @@ pub struct Arrival {
     pub at_ns: u64,
 }
 
-/// What to apply over the tick.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Decision {
-    /// The command for this tick, on time.
-    Fresh,
-    /// A miss: hold the previous torque.
-    Held,
-    /// Too many misses in a row: the safe-mode torque.
-    Safe,
-}
-
-impl Decision {
-    /// The `command_status` column of a trajectory: 0 fresh, 1 held, 2 safe mode.
-    pub fn code(self) -> u8 {
-        match self {
-            Decision::Fresh => 0,
-            Decision::Held => 1,
-            Decision::Safe => 2,
-        }
-    }
-}
+pub use ipc_types::Decision;
 
 /// A change of mode, for the log.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

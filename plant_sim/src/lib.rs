@@ -45,6 +45,15 @@ pub enum SimError {
     Interrupted(link::StopSignal),
 }
 
+impl From<recorder::RecorderError> for SimError {
+    fn from(e: recorder::RecorderError) -> Self {
+        match e {
+            recorder::RecorderError::Input(m) => SimError::Input(m),
+            recorder::RecorderError::Io(m) => SimError::Run(m),
+        }
+    }
+}
+
 impl From<scenario::ScenarioError> for SimError {
     fn from(e: scenario::ScenarioError) -> Self {
         SimError::Input(e.to_string())

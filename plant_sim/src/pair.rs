@@ -525,7 +525,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 if self.recorder.is_some() {
                     let mut truth = StateMsg::new(self.s.group);
                     truth.set_state(self.plant.configuration(), &self.plant.velocity());
-                    self.sensor_record = Some(crate::recorder::SensorRecord::new(&row, &truth));
+                    self.sensor_record = Some(row.sensor_record(&truth));
                 }
                 self.estimate = Some(row);
             }

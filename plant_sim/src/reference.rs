@@ -203,7 +203,7 @@ impl std::fmt::Display for LimitWarning {
 
 /// What `plant_sim reference` reports before flight: peaks of the desired motion and of the
 /// feedforward per axis, on the control-period grid, against the torque limit
-/// (README.md, "Reading the feasibility report").
+/// (docs/paths.md, "Reading the feasibility report").
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Feasibility {
     /// The scenario.

@@ -16,22 +16,10 @@ use rand_distr::{Distribution, StandardNormal};
 use scenario::SensorsSpec;
 use scenario::sensing::{GRAVITY, MAX_DIRECTIONS};
 
-/// One tick's samples, as the board would read them.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Samples {
-    /// The gyro: body rate plus bias plus noise (rad/s).
-    pub gyro: Vector3<f64>,
-    /// Direction samples in the body frame (the first `count` used).
-    pub directions: [Vector3<f64>; MAX_DIRECTIONS],
-    /// How many directions.
-    pub count: usize,
-    /// SE(3): the body-frame specific force `Rᵀ(ẍ − g)` plus noise (m/s²).
-    pub accel: Option<Vector3<f64>>,
-    /// SE(3): a position fix, on ticks that take one.
-    pub position: Option<Vector3<f64>>,
-    /// The true gyro bias at this tick (rad/s).
-    pub bias: Vector3<f64>,
-}
+pub use recorder::Samples;
+
+// the sensor block of a record holds as many directions as a scenario may have
+const _: () = assert!(recorder::MAX_DIRECTIONS == MAX_DIRECTIONS);
 
 /// Test-build faults planted in a tick's samples (`plant_sim --fault-sample K:KIND`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

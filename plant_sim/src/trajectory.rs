@@ -87,6 +87,22 @@ pub struct EstimateRow {
     pub nees: Option<f64>,
 }
 
+impl EstimateRow {
+    /// The tick's sensor block for the flight recording: the samples and what the estimator
+    /// said, beside the true state the samples were drawn from (`truth`'s `q` and `v`).
+    pub fn sensor_record(&self, truth: &ipc_types::StateMsg) -> recorder::SensorRecord {
+        recorder::SensorRecord {
+            samples: self.samples,
+            q_true: truth.q,
+            v_true: truth.v,
+            bias_hat: self.bias_hat,
+            estimate_error: self.estimate_error,
+            covariance: self.covariance,
+            nees: self.nees,
+        }
+    }
+}
+
 impl Row {
     /// The row at `t` for the plant state `(q, v)`, the desired state and the torque held
     /// over `[t_k, t_{k+1})`. The tracking error and L use the controller's model inertia and

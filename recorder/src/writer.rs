@@ -16,7 +16,7 @@ use super::format::{
     Header, LOG_FILE, PLANS_FILE, PidOrdinals, PlanEntry, RECORD_BYTES, Record, SENSOR_BYTES,
     plans_header,
 };
-use crate::SimError;
+use crate::RecorderError;
 use ipc_types::PlanMsg;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -92,10 +92,10 @@ impl Recorder {
         capacity: usize,
         sink: Option<SinkFactory>,
         plans: Option<PlanSourceFactory>,
-    ) -> Result<Recorder, SimError> {
+    ) -> Result<Recorder, RecorderError> {
         let path = dir.join(LOG_FILE);
         let file = File::create(&path)
-            .map_err(|e| SimError::Run(format!("cannot create {}: {e}", path.display())))?;
+            .map_err(|e| RecorderError::Io(format!("cannot create {}: {e}", path.display())))?;
         let mut w = BufWriter::with_capacity(1 << 16, file);
         let lockstep = (!header.realtime).then(|| Lockstep {
             period_ns: (header.control_period * 1e9).round() as u64,
@@ -107,7 +107,7 @@ impl Recorder {
         }
         w.write_all(&kept.to_bytes())
             .and_then(|_| w.flush())
-            .map_err(|e| SimError::Run(format!("{}: {e}", path.display())))?;
+            .map_err(|e| RecorderError::Io(format!("{}: {e}", path.display())))?;
         let out = Some(w);
         let (tx, rx) = sync_channel::<Record>(capacity.max(1));
         let shown = path.display().to_string();
@@ -144,7 +144,7 @@ impl Recorder {
                 w.error = w.error.map(|e| format!("{shown}: {e}"));
                 w
             })
-            .map_err(|e| SimError::Run(format!("cannot start the recorder thread: {e}")))?;
+            .map_err(|e| RecorderError::Io(format!("cannot start the recorder thread: {e}")))?;
         // the run starts once the recorder reads its boards: a plan message published
         // before the first state is in the record whatever the planner does next
         let _ = ready.recv_timeout(Duration::from_secs(10));
@@ -177,11 +177,11 @@ impl Recorder {
     }
 
     /// Closes the channel, lets the writer drain it, flush and sync the file.
-    pub fn finish(mut self) -> Result<RecordingReport, SimError> {
+    pub fn finish(mut self) -> Result<RecordingReport, RecorderError> {
         self.tx = None;
         let w = match self.thread.take().map(JoinHandle::join) {
             Some(Ok(w)) => w,
-            Some(Err(_)) => return Err(SimError::Run("the recorder thread panicked".into())),
+            Some(Err(_)) => return Err(RecorderError::Io("the recorder thread panicked".into())),
             None => Written::default(),
         };
         Ok(RecordingReport {
@@ -372,13 +372,13 @@ fn write_loop(
 
 #[cfg(test)]
 mod tests {
+    use super::super::format::Samples;
     use super::super::format::{HEADER_BYTES, SensorRecord, torque_byte_offset};
     use super::super::reader::{LogReader, read_plans};
     use super::*;
-    use crate::sensors::Samples;
     use controller::GroupKind;
+    use ipc_types::Decision;
     use ipc_types::{CommandMsg, MAX_M, StateMsg};
-    use link::Decision;
     use nalgebra::Vector3;
 
     fn f64_at(b: &[u8], at: usize) -> f64 {

@@ -6,7 +6,7 @@ use super::format::{
     HEADER_BYTES, Header, PLAN_ENTRY_BYTES, PLANS_FILE, PLANS_HEADER_BYTES, PlanEntry, Record,
     check_plans_header,
 };
-use crate::SimError;
+use crate::RecorderError;
 use std::fs::File;
 use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
@@ -26,8 +26,8 @@ pub struct LogReader {
 
 impl LogReader {
     /// Opens `path` and reads its header.
-    pub fn open(path: &Path) -> Result<LogReader, SimError> {
-        let bad = |what: String| SimError::Input(format!("{}: {what}", path.display()));
+    pub fn open(path: &Path) -> Result<LogReader, RecorderError> {
+        let bad = |what: String| RecorderError::Input(format!("{}: {what}", path.display()));
         let file = File::open(path).map_err(|e| bad(format!("cannot open: {e}")))?;
         let len = file
             .metadata()
@@ -54,7 +54,7 @@ impl LogReader {
     }
 
     /// The next whole record, `None` after the last one.
-    pub fn next_record(&mut self) -> Result<Option<Record>, SimError> {
+    pub fn next_record(&mut self) -> Result<Option<Record>, RecorderError> {
         if self.read == self.records {
             return Ok(None);
         }
@@ -63,30 +63,30 @@ impl LogReader {
         let at = self.read;
         self.input
             .read_exact(b)
-            .map_err(|e| SimError::Run(format!("{}: record {at}: {e}", self.path.display())))?;
+            .map_err(|e| RecorderError::Io(format!("{}: record {at}: {e}", self.path.display())))?;
         self.read += 1;
         Record::from_bytes(b)
             .map(Some)
-            .map_err(|e| SimError::Input(format!("{}: record {at}: {e}", self.path.display())))
+            .map_err(|e| RecorderError::Input(format!("{}: record {at}: {e}", self.path.display())))
     }
 }
 
 /// A run's recorded plan messages (`dir/plans.log`), in the order the recorder saw them:
 /// empty when the file does not exist (the run streamed nothing), whole entries only when it
 /// was cut short.
-pub fn read_plans(dir: &Path) -> Result<Vec<PlanEntry>, SimError> {
+pub fn read_plans(dir: &Path) -> Result<Vec<PlanEntry>, RecorderError> {
     let path = dir.join(PLANS_FILE);
     let bytes = match std::fs::read(&path) {
         Ok(b) => b,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
         Err(e) => {
-            return Err(SimError::Input(format!(
+            return Err(RecorderError::Input(format!(
                 "{}: cannot read: {e}",
                 path.display()
             )));
         }
     };
-    let bad = |what: String| SimError::Input(format!("{}: {what}", path.display()));
+    let bad = |what: String| RecorderError::Input(format!("{}: {what}", path.display()));
     check_plans_header(&bytes).map_err(bad)?;
     bytes[PLANS_HEADER_BYTES..]
         .chunks_exact(PLAN_ENTRY_BYTES)

@@ -13,14 +13,31 @@
 //! them.
 
 use ipc_types::{
-    COMMAND_BYTES, CommandMsg, MAX_M, NAME_BYTES, PLAN_BYTES, PlanMsg, STATE_BYTES, StateMsg,
-    padded_bytes, padded_str,
+    COMMAND_BYTES, CommandMsg, Decision, MAX_M, NAME_BYTES, PLAN_BYTES, PlanMsg, STATE_BYTES,
+    StateMsg, padded_bytes, padded_str,
 };
-use link::Decision;
 use nalgebra::Vector3;
-use scenario::sensing::MAX_DIRECTIONS;
 
-use crate::sensors::Samples;
+/// Direction samples a sensor block holds (the scenario's limit on direction sensors).
+pub const MAX_DIRECTIONS: usize = 4;
+
+/// One tick's sensor samples, as the board would read them (and as the sensor block of a
+/// record keeps them).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Samples {
+    /// The gyro: body rate plus bias plus noise (rad/s).
+    pub gyro: Vector3<f64>,
+    /// Direction samples in the body frame (the first `count` used).
+    pub directions: [Vector3<f64>; MAX_DIRECTIONS],
+    /// How many directions.
+    pub count: usize,
+    /// SE(3): the body-frame specific force `Rᵀ(ẍ − g)` plus noise (m/s²).
+    pub accel: Option<Vector3<f64>>,
+    /// SE(3): a position fix, on ticks that take one.
+    pub position: Option<Vector3<f64>>,
+    /// The true gyro bias at this tick (rad/s).
+    pub bias: Vector3<f64>,
+}
 
 /// The file's first eight bytes.
 pub const MAGIC: [u8; 8] = *b"EQTRKLOG";
@@ -198,20 +215,6 @@ pub struct SensorRecord {
 }
 
 impl SensorRecord {
-    /// The block of a tick: the estimator's row (samples and what it said) and the true
-    /// state the samples were drawn from (`truth`'s `q` and `v`).
-    pub fn new(row: &crate::trajectory::EstimateRow, truth: &StateMsg) -> SensorRecord {
-        SensorRecord {
-            samples: row.samples,
-            q_true: truth.q,
-            v_true: truth.v,
-            bias_hat: row.bias_hat,
-            estimate_error: row.estimate_error,
-            covariance: row.covariance,
-            nees: row.nees,
-        }
-    }
-
     /// The block's bytes.
     pub fn to_bytes(&self) -> [u8; SENSOR_BYTES] {
         let mut b = [0u8; SENSOR_BYTES];
@@ -451,12 +454,8 @@ impl Record {
                 RECORD_BYTES + SENSOR_BYTES
             ));
         }
-        let decision = match b[8] {
-            0 => Decision::Fresh,
-            1 => Decision::Held,
-            2 => Decision::Safe,
-            d => return Err(format!("decision code {d} (expected 0, 1 or 2)")),
-        };
+        let decision = Decision::from_code(b[8])
+            .ok_or_else(|| format!("decision code {} (expected 0, 1 or 2)", b[8]))?;
         let state = StateMsg::from_bytes(&b[RECORD_STATE_OFFSET..RECORD_COMMAND_OFFSET])
             .map_err(|e| format!("state message: {e}"))?;
         let command = match b[9] {

@@ -1,0 +1,40 @@
+//! The flight recorder's files (docs/architecture.md, "The flight recorder"): what a run's
+//! `messages.log` and `plans.log` hold, how the plant's loop hands records over without
+//! allocating, and how a recording is read back.
+//!
+//! * [`format`]: the versioned file formats — `messages.log` (header, fixed-size records,
+//!   sensor blocks) and `plans.log` (a streamed run's plan messages);
+//! * [`writer`]: the loop's side ([`Recorder::push`], allocation-free) and the writer thread;
+//! * [`reader`]: reading a recording back (cut-short files up to their last whole record).
+//!
+//! It knows the wire contract (`ipc_types`) and nothing else of the project: the plant, the
+//! offline tools (replay, monitor) and the MCAP export all build on it, and none of them is
+//! needed to read a log.
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+pub mod format;
+pub mod reader;
+pub mod writer;
+
+pub use format::{
+    FORMAT_VERSION, HEADER_BYTES, Header, LOG_FILE, MAX_DIRECTIONS, PLANS_FILE, PidOrdinals,
+    PlanEntry, RECORD_BYTES, RECORD_COMMAND_OFFSET, RECORD_STATE_OFFSET, Record, SENSOR_BYTES,
+    Samples, SensorRecord, torque_byte_offset,
+};
+pub use reader::{LogReader, read_plans};
+pub use writer::{
+    PlanSource, PlanSourceFactory, Recorder, RecordingReport, SinkFactory, StatusSink,
+};
+
+/// What went wrong with a recording.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum RecorderError {
+    /// The file is not a recording this build reads (not ours, another version, cut inside
+    /// its header, a bad record): the input is at fault.
+    #[error("{0}")]
+    Input(String),
+    /// The file could not be created or written, or the writer thread failed.
+    #[error("{0}")]
+    Io(String),
+}
