@@ -10,7 +10,8 @@
 #       and a sample of values.
 # The Python reader also reads each messages.log itself with `struct` and the documented
 # layout, and checks the state, cycle and command channels against it record by record; the
-# README's figure script (scripts/mcap/plot_mcap.py) then draws the first run from its MCAP.
+# figure script of docs/flight-recorder.md, "Looking at a run in Foxglove or PlotJuggler"
+# (scripts/mcap/plot_mcap.py), then draws the first run from its MCAP.
 # Four runs, so every channel is there: the observer's set-point (`scenarios/reject_so3.toml`,
 # 4 s in lockstep: the disturbance terms), the SE(3) equivariant filter (`eqf_se3.toml`, 2 s:
 # sensor samples, estimates, covariance), the complementary filter (`sensors_so3.toml`, 2 s:
@@ -98,7 +99,7 @@ if ((python_ready)); then
 		"$VENV/bin/python" "$REPO/scripts/mcap/check_mcap.py" "$run/run.mcap" "$run/run.jsonl" "$run/messages.log" ||
 			die "the Python reader disagrees on $run"
 	done
-	# the README's figure script, on the first run: it draws from the MCAP alone
+	# the guide's figure script (docs/flight-recorder.md), on the first run: it draws from the MCAP alone
 	rm -f "$OUT/figure.png"
 	"$VENV/bin/python" "$REPO/scripts/mcap/plot_mcap.py" "${RUNS[0]}/run.mcap" "$OUT/figure.png" ||
 		die "scripts/mcap/plot_mcap.py failed on ${RUNS[0]}/run.mcap"

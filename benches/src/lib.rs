@@ -2,6 +2,7 @@
 //! states, the seed and SE(3) set-ups in f32 and f64, and a plain nalgebra EqT to compare
 //! against in the same run.
 #![forbid(unsafe_code)]
+#![deny(missing_docs)]
 
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;

@@ -22,11 +22,11 @@
 //! | [`integrator`] | RKMK4 on the group, the rigid body |
 //! | [`closed_loop`] | controller + reference + plant in one loop (simulation, firmware) |
 //!
-//! The README's example (doc-tested) shows the whole loop; [`closed_loop::ClosedLoop`] is the
-//! place to start reading.
+//! The example in docs/getting-started.md, "The `controller` crate's API" (doc-tested), shows the
+//! whole loop; [`closed_loop::ClosedLoop`] is the place to start reading.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod closed_loop;
 pub mod disturbance;
@@ -67,3 +67,9 @@ pub fn real<T: Real>(x: f64) -> T {
 #[cfg(doctest)]
 #[doc = include_str!("../../README.md")]
 pub struct ReadmeDoctests;
+
+/// The getting-started guide's code blocks (the whole loop on SO(3)), compiled and run as doc
+/// tests.
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/getting-started.md")]
+pub struct GettingStartedDoctests;

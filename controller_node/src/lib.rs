@@ -10,7 +10,7 @@
 //! stops when the plant ends the run, when the plant's process is gone, after a silence
 //! longer than the timeout, or on SIGINT/SIGTERM.
 #![forbid(unsafe_code)]
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::path::{Path, PathReference};

@@ -17,7 +17,7 @@
 //! or the previous estimate is held, and each is counted in [`Faults`].
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 mod complementary;
 pub mod eqf;

@@ -26,6 +26,7 @@
 //! `eqtrack-export`.
 
 #![forbid(unsafe_code)]
+#![deny(missing_docs)]
 
 use ipc_types::{CommandMsg, StateMsg, group_kind};
 use recorder::{Header, LogReader, PlanEntry, Record, read_plans};

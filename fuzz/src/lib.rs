@@ -44,7 +44,7 @@
 //! same bytes, `check_*` accepts only messages of the right version, group and sequence,
 //! `Controller::compute` never returns a non-finite torque, a fingerprint is never 0.
 #![forbid(unsafe_code)]
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 mod mutate;
 mod path_target;

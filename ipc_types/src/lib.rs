@@ -10,7 +10,7 @@
 //! `{seq k, τ_k, L, compute time}`.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 use controller::{GroupKind, Law};
 use core::fmt::Write;
@@ -57,11 +57,11 @@ pub mod flags {
     pub const WAKE_EVENT: u32 = 1;
     /// The run is over: the controller exits cleanly.
     pub const SHUTDOWN: u32 = 2;
-    /// [`CommandMsg::flags`]: the controller refuses the run (configuration mismatch, see
-    /// [`CommandMsg::mismatch`]); the plant stops.
+    /// [`CommandMsg::flags`](crate::CommandMsg::flags): the controller refuses the run (configuration mismatch, see
+    /// [`CommandMsg::mismatch`](crate::CommandMsg::mismatch)); the plant stops.
     pub const REFUSED: u32 = 4;
-    /// [`CommandMsg::flags`]: the controller tracks a streamed reference (`--reference
-    /// stream`); [`CommandMsg::plans_received`] says what it had taken from the plan board.
+    /// [`CommandMsg::flags`](crate::CommandMsg::flags): the controller tracks a streamed reference (`--reference
+    /// stream`); [`CommandMsg::plans_received`](crate::CommandMsg::plans_received) says what it had taken from the plan board.
     pub const STREAMED: u32 = 8;
 }
 

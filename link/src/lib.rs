@@ -44,7 +44,7 @@
 //! # Ok::<(), link::LinkError>(())
 //! ```
 #![forbid(unsafe_code)]
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod clock;
 pub mod controller_side;

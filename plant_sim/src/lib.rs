@@ -7,7 +7,7 @@
 //! * [`reference`](mod@reference): the desired trajectory sampled for inspection;
 //! * [`recorder`]: the flight recorder — its formats, writer, reader, replay and live status.
 #![forbid(unsafe_code)]
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod bench_loop;
 pub mod estimation;

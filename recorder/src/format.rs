@@ -393,9 +393,9 @@ impl PidOrdinals {
 }
 
 impl Record {
-    /// The record as a lockstep log keeps it (docs/architecture.md, "A lockstep log is
-    /// reproducible"): no clock reading and no process id, so two lockstep runs of one
-    /// scenario write the same bytes. The state's publication stamp, the controller's
+    /// The record as a lockstep log keeps it
+    /// (docs/architecture.md, "A lockstep log is reproducible"): no clock reading and no
+    /// process id, so two lockstep runs of one scenario write the same bytes. The state's publication stamp, the controller's
     /// receive and publication stamps and the plant's receive stamp become the tick's nominal
     /// time `t_k = k·period` (ns), the compute time 0, the plant's pid 0, and the planner's
     /// pid its ordinal ([`PidOrdinals`]). The deadline is already nominal.

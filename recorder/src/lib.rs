@@ -2,7 +2,7 @@
 //! `messages.log` and `plans.log` hold, how the plant's loop hands records over without
 //! allocating, and how a recording is read back.
 //!
-//! * [`format`]: the versioned file formats — `messages.log` (header, fixed-size records,
+//! * [`mod@format`]: the versioned file formats — `messages.log` (header, fixed-size records,
 //!   sensor blocks) and `plans.log` (a streamed run's plan messages);
 //! * [`writer`]: the loop's side ([`Recorder::push`], allocation-free) and the writer thread;
 //! * [`reader`]: reading a recording back (cut-short files up to their last whole record).

@@ -2,38 +2,10 @@
 //! that turn a validated [`Scenario`] into the controller crate's objects. Both processes
 //! (plant and controller) read configuration only through this crate.
 //!
-//! ```toml
-//! name = "seed"                 # optional
-//! group = "so3"                 # "so3" | "se3"
-//! law = "eqt"                   # "eqt" | "gt" | "nog" | "asym" (the last three: so3 only)
-//! duration = 20.0               # s, a whole number of control periods
-//! control_period = 0.01         # s
-//! plant_substeps = 10           # default 10
-//! reference_substeps = 10       # default 1
-//! [plant]
-//! inertia = [[...]]             # m×m, symmetric positive definite
-//! torque_limit = 5.0            # optional: a number for every axis, or m numbers
-//! disturbance = [0.0, 0.0, 0.0] # optional, m entries, body frame
-//! disturbance_world = [...]     # optional, m entries, world axes (see `rejection`)
-//! disturbance_steps = [{ t = 5.0, value = [...] }]   # optional (see `rejection`)
-//! [controller]
-//! inertia = [[...]]             # optional, defaults to plant.inertia
-//! kp = 0.5                      # number (times identity) or n×n matrix: K
-//! kd = 0.5                      # number (times identity) or m×m matrix: K_d
-//! disturbance_observer = { gain = 20.0 }       # optional (see `rejection`)
-//! integral = { ki = 1.0, c = 5.0 }             # optional (see `rejection`)
-//! [initial]
-//! rotation = [rx, ry, rz]       # R(0) = exp(hat(rotation))
-//! position = [x, y, z]          # se3 only
-//! velocity = [...]              # m entries (se3: ω then v)
-//! [reference]                   # one of three kinds:
-//! rotation = [...]; position = [...] (se3 only); velocity = [...]     # 1. feedforward series
-//! torque = [ { offset = 0.0, terms = [ { amplitude = 1.0, frequency = 1.0, phase = 0.0 } ] }, ... ]
-//! waypoints = "slew.csv"        # 2. a path through waypoints (relative to this file)
-//! setpoint = { rotation = [...], position = [...] }                   # 3. a set-point
-//! ```
+//! The schema, key by key (type, unit, default and meaning of every key this crate accepts,
+//! and the waypoint file's columns), is docs/scenario.md.
 #![forbid(unsafe_code)]
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod cli;
 pub mod rejection;

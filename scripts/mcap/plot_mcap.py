@@ -4,7 +4,7 @@ Lyapunov value from /eqtrack/command, and the plant's decision from /eqtrack/cyc
 
     python plot_mcap.py RUN.mcap FIGURE.png      # needs matplotlib too
 
-The README's figure of the seed run is drawn with it.
+The figure of the seed run in docs/flight-recorder.md, "Looking at a run in Foxglove or PlotJuggler", is drawn with it.
 """
 
 import sys

@@ -5,6 +5,7 @@
 //! them). Processes are killed and reaped when their handle drops, so a failing test leaves
 //! no process behind.
 #![forbid(unsafe_code)]
+#![deny(missing_docs)]
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

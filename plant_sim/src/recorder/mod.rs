@@ -1,5 +1,5 @@
 //! The flight recorder as `plant_sim` uses it (docs/architecture.md, "The flight recorder"):
-//! the files themselves are the `recorder` crate's (re-exported here: [`format`], [`writer`],
+//! the files themselves are the `recorder` crate's (re-exported here: [`mod@format`], [`writer`],
 //! [`reader`]); this module adds the offline tools over them:
 //!
 //! * [`replay`]: `plant_sim replay`, the controller and the estimator over the recorded
