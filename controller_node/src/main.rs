@@ -10,42 +10,12 @@ use controller::Law;
 use controller_node::{Fault, Options, ReferenceMode, Report, Stop, run};
 use link::{Exit, StopFlag, TransportKind};
 use scenario::cli::{ScenarioSource, law_parser, positive_seconds};
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
-/// Counts every heap allocation of the process, so the loop can prove it allocates nothing.
-struct Counting;
-
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: every call is forwarded unchanged to the system allocator, which upholds the
-// GlobalAlloc contract; the counter is a relaxed atomic increment with no other effect.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same layout contract as our caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same layout contract as our caller's.
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: ptr was allocated by System with this layout (all our allocations are).
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: ptr was allocated by System with this layout.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
+// Counts every heap allocation of the process, so the loop can prove it allocates nothing.
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: alloc_counter::Counting = alloc_counter::Counting;
 
 #[derive(Parser)]
 #[command(
@@ -151,7 +121,7 @@ fn main() -> ExitCode {
         fault: None::<Fault>,
         stop,
     };
-    match run(&opts, &|| ALLOCATIONS.load(Ordering::Relaxed)) {
+    match run(&opts, &alloc_counter::process_allocations) {
         Ok(report) => finish(&report, &cli.name),
         Err(e) => fail(e.exit(), format_args!("{e}")),
     }

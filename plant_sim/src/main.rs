@@ -32,51 +32,12 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
-/// Counts the heap allocations of each thread (the plant's loop thread reports its own in
-/// `summary.json`, to show that recording allocates nothing there).
-struct Counting;
-
-std::thread_local! {
-    static THREAD_ALLOCATIONS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
-}
-
-fn count_one() {
-    // `try_with`: a thread being torn down has no counter left, and is not the loop
-    let _ = THREAD_ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-}
-
-/// The calling thread's allocations so far.
-fn thread_allocations() -> u64 {
-    THREAD_ALLOCATIONS.try_with(|c| c.get()).unwrap_or(0)
-}
-
-// SAFETY: every call is forwarded unchanged to the system allocator, which upholds the
-// GlobalAlloc contract; the counter is a const-initialised thread-local Cell with no
-// destructor, so touching it neither allocates nor re-enters the allocator.
-unsafe impl std::alloc::GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
-        count_one();
-        // SAFETY: same layout contract as our caller's.
-        unsafe { std::alloc::System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: std::alloc::Layout) -> *mut u8 {
-        count_one();
-        // SAFETY: same layout contract as our caller's.
-        unsafe { std::alloc::System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, new_size: usize) -> *mut u8 {
-        count_one();
-        // SAFETY: ptr was allocated by System with this layout (all our allocations are).
-        unsafe { std::alloc::System.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
-        // SAFETY: ptr was allocated by System with this layout.
-        unsafe { std::alloc::System.dealloc(ptr, layout) }
-    }
-}
-
+// Counts the heap allocations of each thread: the plant's loop thread reports its own in
+// `summary.json`, to show that recording allocates nothing there.
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: alloc_counter::Counting = alloc_counter::Counting;
+
+use alloc_counter::thread_allocations;
 
 #[derive(Parser)]
 #[command(

@@ -11,9 +11,7 @@ fn run(args: &[&str]) -> Output {
         .expect("plant_sim starts")
 }
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
-}
+use pair_tests::repo;
 
 fn temp(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("eqtrack-ref-{tag}-{}", std::process::id()));
@@ -31,15 +29,14 @@ fn text(out: &Output) -> String {
     )
 }
 
-/// Columns of a CSV by name.
+/// A CSV's header and rows, as numbers.
 fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-    let mut r = csv::Reader::from_path(path).unwrap();
-    let header = r.headers().unwrap().iter().map(str::to_owned).collect();
-    let rows = r
-        .records()
-        .map(|rec| rec.unwrap().iter().map(|x| x.parse().unwrap()).collect())
+    let (header, rows) = pair_tests::read_csv(path);
+    let numbers = rows
+        .iter()
+        .map(|r| r.iter().map(|x| x.parse().unwrap()).collect())
         .collect();
-    (header, rows)
+    (header, numbers)
 }
 
 fn cols(header: &[String], rows: &[Vec<f64>], prefix: &str, count: usize) -> Vec<Vec<f64>> {

@@ -2,11 +2,8 @@
 //! (file, line, column or key named), and the fingerprint (unchanged for stop paths).
 
 use scenario::{PathKind, Scenario};
-use std::path::{Path, PathBuf};
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
-}
+use pair_tests::repo;
 
 /// `slew_so3.toml` (or `slew_se3.toml`) with `extra` appended to `[reference]` and its
 /// waypoints replaced by `csv`, in a fresh directory; loaded.

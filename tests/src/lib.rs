@@ -345,6 +345,42 @@ impl Drop for CpuHog {
     }
 }
 
+/// The path of `path` relative to the repository's root.
+pub fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
+}
+
+/// Reads a CSV file (the project writes plain ones: no quoting) into a header and rows of
+/// strings.
+pub fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut lines = text.lines();
+    let header = lines
+        .next()
+        .unwrap_or_default()
+        .split(',')
+        .map(str::to_owned)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(str::to_owned).collect())
+        .collect();
+    (header, rows)
+}
+
+/// The column `name` of a CSV read by [`read_csv`], as numbers.
+pub fn column(header: &[String], rows: &[Vec<String>], name: &str) -> Vec<f64> {
+    let j = header
+        .iter()
+        .position(|h| h == name)
+        .unwrap_or_else(|| panic!("no column {name} in {header:?}"));
+    rows.iter()
+        .map(|r| {
+            r[j].parse()
+                .unwrap_or_else(|e| panic!("column {name}: `{}`: {e}", r[j]))
+        })
+        .collect()
+}
+
 /// A CSV file as a header and rows of strings.
 pub struct Csv {
     /// Column names.
@@ -354,31 +390,15 @@ pub struct Csv {
 }
 
 impl Csv {
-    /// Reads a CSV file.
+    /// Reads a CSV file ([`read_csv`]).
     pub fn read(path: &Path) -> Csv {
-        let text =
-            std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let mut lines = text.lines();
-        let header = lines
-            .next()
-            .unwrap_or_default()
-            .split(',')
-            .map(str::to_owned)
-            .collect();
-        let rows = lines
-            .map(|l| l.split(',').map(str::to_owned).collect())
-            .collect();
+        let (header, rows) = read_csv(path);
         Csv { header, rows }
     }
 
-    /// A numeric column.
+    /// A numeric column ([`column`]).
     pub fn col(&self, name: &str) -> Vec<f64> {
-        let j = self
-            .header
-            .iter()
-            .position(|h| h == name)
-            .unwrap_or_else(|| panic!("no column {name}"));
-        self.rows.iter().map(|r| r[j].parse().unwrap()).collect()
+        column(&self.header, &self.rows, name)
     }
 }
 
@@ -388,28 +408,33 @@ pub fn summary(dir: &Path) -> serde_json::Value {
     serde_json::from_str(&text).expect("valid JSON")
 }
 
-/// A fresh temporary directory (removed on drop).
-pub struct TempDir(pub PathBuf);
+/// A fresh temporary directory (`tempfile`'s, removed on drop), named after the test.
+pub struct TempDir(tempfile::TempDir);
 
 impl TempDir {
-    /// Creates `/tmp/eqtrack-<tag>-<pid>-<n>`.
+    /// Creates `<tmp>/eqtrack-<tag>-XXXXXX`.
     pub fn new(tag: &str) -> TempDir {
-        static N: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
-        let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let p = std::env::temp_dir().join(format!("eqtrack-{tag}-{}-{n}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).expect("temp dir");
-        TempDir(p)
+        TempDir(
+            tempfile::Builder::new()
+                .prefix(&format!("eqtrack-{tag}-"))
+                .tempdir()
+                .expect("temp dir"),
+        )
     }
 
     /// A path inside as a string.
     pub fn join(&self, name: &str) -> String {
-        self.0.join(name).display().to_string()
+        self.0.path().join(name).display().to_string()
     }
 }
 
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
+/// The path of `scenarios/<name>.toml` in the repository.
+pub fn scenario(name: &str) -> String {
+    format!("{}/../scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Runs `plant_sim args...` to completion (generous timeout for a loaded machine): its exit
+/// code and output.
+pub fn plant(args: &[&str]) -> (i32, String) {
+    run("plant_sim", args, Duration::from_secs(300))
 }

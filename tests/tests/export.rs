@@ -4,17 +4,13 @@
 //! version is refused with both versions named. The Python and TypeScript readers run in
 //! `scripts/mcap-readers.sh` (CI). Tests run one at a time ([`serial`]).
 
-use pair_tests::{Proc, TempDir, run, serial, wait_for_cycles};
+use pair_tests::{Proc, TempDir, run, scenario, serial, wait_for_cycles};
 use plant_sim::recorder::{HEADER_BYTES, LOG_FILE, LogReader, RECORD_BYTES};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Duration;
 
 const LONG: Duration = Duration::from_secs(120);
-
-fn scenario(name: &str) -> String {
-    format!("{}/../scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"))
-}
 
 /// What the `mcap` crate reads back: messages per topic, log times in file order, and the
 /// distinct (schema encoding, message encoding) pairs.

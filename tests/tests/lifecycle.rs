@@ -1,13 +1,9 @@
 //! Stopping, refusing and staying allocation-free: signals to either process, configuration
 //! mismatches, a plant that dies or pauses.
 
-use pair_tests::{Csv, Proc, TempDir, run, serial, summary, wait_for_cycles, wait_until};
+use pair_tests::{Csv, Proc, TempDir, plant, serial, summary, wait_for_cycles, wait_until};
 use std::path::Path;
 use std::time::{Duration, Instant};
-
-fn plant(args: &[&str]) -> (i32, String) {
-    run("plant_sim", args, Duration::from_secs(120))
-}
 
 /// No `controller_node` of this run is left (its process list entry, by run name).
 fn controller_of_run_alive(run: &str) -> bool {

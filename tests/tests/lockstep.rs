@@ -5,20 +5,13 @@
 //! command stops with a non-zero exit naming the step. Tests run one at a time ([`serial`]).
 
 use pair_tests::{
-    CpuHog, Proc, TempDir, recorded_cycles, run, serial, summary, wait_for_cycles, wait_until,
+    CpuHog, Proc, TempDir, plant, recorded_cycles, scenario, serial, summary, wait_for_cycles,
+    wait_until,
 };
 use std::path::Path;
 use std::time::Duration;
 
 const LONG: Duration = Duration::from_secs(300);
-
-fn scenario(name: &str) -> String {
-    format!("{}/../scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn plant(args: &[&str]) -> (i32, String) {
-    run("plant_sim", args, LONG)
-}
 
 fn read(path: &str) -> Vec<u8> {
     std::fs::read(path).unwrap_or_else(|e| panic!("{path}: {e}"))

@@ -2,16 +2,12 @@
 //! processes talking over iceoryx2 shared memory. Tests run one at a time ([`serial`]).
 
 use pair_tests::{
-    Csv, Proc, TempDir, realtime_priority, recorded_cycles, run, serial, summary, wait_for_cycles,
+    Csv, Proc, TempDir, plant, realtime_priority, recorded_cycles, serial, summary, wait_for_cycles,
 };
 use std::path::Path;
 use std::time::{Duration, Instant};
 
 const LONG: Duration = Duration::from_secs(60);
-
-fn plant(args: &[&str]) -> (i32, String) {
-    run("plant_sim", args, LONG)
-}
 
 fn same_file(a: &str, b: &str) -> bool {
     std::fs::read(a).unwrap() == std::fs::read(b).unwrap()

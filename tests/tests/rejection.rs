@@ -4,21 +4,13 @@
 //! bad keys are refused. Tests run one at a time ([`serial`]).
 
 use pair_tests::{
-    Csv, Proc, TempDir, realtime_priority, run, serial, sim_equals_lockstep, summary,
-    wait_for_cycles,
+    Csv, Proc, TempDir, plant, realtime_priority, run, scenario, serial, sim_equals_lockstep,
+    summary, wait_for_cycles,
 };
 use std::path::Path;
 use std::time::Duration;
 
 const LONG: Duration = Duration::from_secs(120);
-
-fn scenario(name: &str) -> String {
-    format!("{}/../scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn plant(args: &[&str]) -> (i32, String) {
-    run("plant_sim", args, LONG)
-}
 
 #[test]
 fn lockstep_with_the_observer_and_the_integral_equals_the_simulation_bit_for_bit() {

@@ -2,19 +2,11 @@
 //! the equivariant filter on the plant side, driven through the real binaries
 //! (docs/architecture.md, "Sensors and the estimator"). Tests run one at a time ([`serial`]).
 
-use pair_tests::{Csv, TempDir, run, serial, sim_equals_lockstep, summary};
+use pair_tests::{Csv, TempDir, plant, run, scenario, serial, sim_equals_lockstep, summary};
 use std::path::Path;
 use std::time::Duration;
 
 const LONG: Duration = Duration::from_secs(120);
-
-fn scenario(name: &str) -> String {
-    format!("{}/../scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn plant(args: &[&str]) -> (i32, String) {
-    run("plant_sim", args, LONG)
-}
 
 #[test]
 fn lockstep_with_sensors_and_the_filter_equals_the_simulation_bit_for_bit() {
