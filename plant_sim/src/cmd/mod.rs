@@ -1,0 +1,49 @@
+//! The subcommands of `plant_sim`, one module each: its arguments and its handler.
+
+use indicatif::{ProgressBar, ProgressStyle};
+#[cfg(feature = "fault-injection")]
+use plant_sim::SimError;
+
+pub(crate) mod bench_loop;
+pub(crate) mod export;
+pub(crate) mod monitor;
+pub(crate) mod montecarlo;
+pub(crate) mod noise;
+pub(crate) mod reference;
+pub(crate) mod rejection;
+pub(crate) mod replay;
+pub(crate) mod run;
+pub(crate) mod sim;
+
+pub(crate) fn progress(len: u64, what: &str) -> ProgressBar {
+    // indicatif draws only when stderr is a terminal.
+    let bar = ProgressBar::new(len);
+    if let Ok(style) =
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
+    {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_message(what.to_owned());
+    bar
+}
+
+/// The `--fault-sample K:KIND` injections (test builds only).
+#[cfg(feature = "fault-injection")]
+pub(crate) fn sample_faults(
+    texts: &[String],
+) -> Result<Vec<(u64, plant_sim::sensors::SampleFault)>, SimError> {
+    texts
+        .iter()
+        .map(|text| {
+            let bad = || {
+                SimError::Input(format!(
+                    "--fault-sample: expected K:gyro-nan|gyro-inf|gyro-spike|dir-nan|dir-inf|dir-zero|accel-far, got `{text}`"
+                ))
+            };
+            let (k, kind) = text.split_once(':').ok_or_else(bad)?;
+            let k: u64 = k.parse().map_err(|_| bad())?;
+            let kind = plant_sim::sensors::SampleFault::parse(kind).ok_or_else(bad)?;
+            Ok((k, kind))
+        })
+        .collect()
+}

@@ -1,0 +1,217 @@
+//! `plant_sim run`: the plant process of the pair, and the summary it prints.
+
+#[cfg(feature = "fault-injection")]
+use super::sample_faults;
+use alloc_counter::thread_allocations;
+use clap::Args;
+use link::{StopFlag, TransportKind, Wake};
+use plant_sim::SimError;
+use plant_sim::pair::Mode;
+use scenario::cli::{ScenarioSource, positive_seconds};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+#[derive(Args)]
+pub(crate) struct RunArgs {
+    #[command(flatten)]
+    source: ScenarioSource,
+    /// lockstep: exact, waits for each command; realtime: steps on the wall clock.
+    #[arg(long, value_enum, default_value_t = Mode::Realtime)]
+    mode: Mode,
+    /// Real-time rate; the control period becomes 1/F.
+    #[arg(long, value_name = "F", default_value_t = 1000.0)]
+    rate_hz: f64,
+    /// How the processes wait for each other's messages: event (they sleep; robust on a
+    /// shared machine) or spin (busy polling; lowest latency, needs a core per process).
+    #[arg(long, value_enum, default_value_t = Wake::Event)]
+    wake: Wake,
+    /// Override the scenario's duration (s).
+    #[arg(long, value_name = "S", value_parser = positive_seconds)]
+    duration: Option<Duration>,
+    /// Transport: iceoryx2, or uds (the Unix-socket baseline; spawned controllers follow).
+    #[arg(long, value_enum, default_value_t = TransportKind::Iceoryx2)]
+    transport: TransportKind,
+    /// Do not start controller_node; wait for one started by hand.
+    #[arg(long)]
+    no_spawn: bool,
+    /// Run name: pairs with different names run side by side.
+    #[arg(long, value_name = "RUN", default_value = "eqtrack")]
+    name: String,
+    /// Output directory; default out/run-<RUN>.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Consecutive deadline misses that start safe mode.
+    #[arg(long, value_name = "N", default_value_t = 3)]
+    miss_limit: u32,
+    /// Do not record: no `messages.log`, no flight-recorder thread and no live status for
+    /// `plant_sim monitor` (the loop then runs exactly as it would without the recorder).
+    #[arg(long)]
+    no_record: bool,
+    /// Keep every Nth cycle in trajectory.csv (and the last one): for long runs, whose rows
+    /// are otherwise all held in memory until the end.
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    record_every: u64,
+    #[command(flatten)]
+    rt: link::rt::RtSettings,
+    /// Pin the controller this command starts to these CPUs (default: `--cpu`'s list, the
+    /// best choice with event wake-up; give busy-polling processes a CPU each).
+    /// `--rt-priority` and `--lock-memory` apply to both processes.
+    #[arg(long, value_name = "LIST", value_parser = link::rt::parse_cpu_list, conflicts_with = "no_spawn")]
+    controller_cpu: Option<link::rt::CpuList>,
+    /// Lockstep: seconds to wait for each command.
+    #[arg(long, value_name = "S", default_value = "5", value_parser = positive_seconds)]
+    lockstep_timeout: Duration,
+    /// Seconds to wait for the controller (default 10, or 60 with --no-spawn).
+    #[arg(long, value_name = "S", value_parser = positive_seconds)]
+    connect_timeout: Option<Duration>,
+    /// Test builds only (feature `fault-injection`): K:version|group|nan publishes a
+    /// corrupted state instead of state K.
+    #[cfg(feature = "fault-injection")]
+    #[arg(long, value_name = "K:KIND", hide = true)]
+    fault_state: Vec<String>,
+    /// Test builds only: the spawned controller publishes a NaN torque instead of command K.
+    #[cfg(feature = "fault-injection")]
+    #[arg(long, value_name = "K", hide = true)]
+    fault_nan_torque: Option<u64>,
+    /// Test builds only: K:KIND plants a bad sensor sample at tick K (as `sim`).
+    #[cfg(feature = "fault-injection")]
+    #[arg(long, value_name = "K:KIND", hide = true)]
+    fault_sample: Vec<String>,
+}
+
+pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
+    use plant_sim::pair::{PairOptions, run_pair};
+    let mut scenario = args.source.load("seed")?;
+    if let Some(d) = args.duration {
+        scenario.duration = d.as_secs_f64();
+    }
+    let state_faults = state_faults(&args)?;
+    let spawn = !args.no_spawn;
+    let opts = PairOptions {
+        scenario,
+        source: args.source.clone(),
+        record: !args.no_record,
+        thread_allocations: Some(thread_allocations),
+        mode: args.mode,
+        rate_hz: args.rate_hz,
+        wake: args.wake,
+        transport: args.transport,
+        spawn,
+        run: args.name.clone(),
+        out: args
+            .out
+            .unwrap_or_else(|| Path::new("out").join(format!("run-{}", args.name))),
+        miss_limit: args.miss_limit,
+        rt: args.rt.clone(),
+        controller_rt: link::rt::RtSettings {
+            cpu: args.controller_cpu.clone().or_else(|| args.rt.cpu.clone()),
+            ..args.rt.clone()
+        },
+        record_every: args.record_every,
+        lockstep_timeout: args.lockstep_timeout,
+        connect_timeout: args
+            .connect_timeout
+            .unwrap_or(Duration::from_secs(if spawn { 10 } else { 60 })),
+        state_faults,
+        #[cfg(feature = "fault-injection")]
+        controller_fault_nan_torque: args.fault_nan_torque,
+        #[cfg(feature = "fault-injection")]
+        sample_faults: sample_faults(&args.fault_sample)?,
+        #[cfg(not(feature = "fault-injection"))]
+        sample_faults: Vec::new(),
+        #[cfg(not(feature = "fault-injection"))]
+        controller_fault_nan_torque: None,
+        stop: stop.clone(),
+    };
+    let (_, s) = run_pair(&opts)?;
+    print_pair_summary(&s, &opts.out);
+    match stop.requested() {
+        Some(sig) if s.interrupted => Err(SimError::Interrupted(sig)),
+        _ => Ok(()),
+    }
+}
+
+/// The `--fault-state K:KIND` injections (test builds only; empty otherwise).
+pub(crate) fn state_faults(
+    #[allow(unused_variables)] args: &RunArgs,
+) -> Result<Vec<(u64, plant_sim::pair::StateFault)>, SimError> {
+    #[allow(unused_mut)]
+    let mut state_faults = Vec::new();
+    #[cfg(feature = "fault-injection")]
+    for text in &args.fault_state {
+        let bad = || {
+            SimError::Input(format!(
+                "--fault-state: expected K:version|group|nan, got `{text}`"
+            ))
+        };
+        let (k, kind) = text.split_once(':').ok_or_else(bad)?;
+        let k: u64 = k.parse().map_err(|_| bad())?;
+        let kind = match kind {
+            "version" => plant_sim::pair::StateFault::Version,
+            "group" => plant_sim::pair::StateFault::Group,
+            "nan" => plant_sim::pair::StateFault::Nan,
+            _ => return Err(bad()),
+        };
+        state_faults.push((k, kind));
+    }
+    Ok(state_faults)
+}
+
+/// Prints a finished (or interrupted) pair run's summary to stdout.
+pub(crate) fn print_pair_summary(s: &plant_sim::pair::PairSummary, out: &Path) {
+    let f = &s.sim.final_errors;
+    println!(
+        "run `{}`: scenario {} ({}, law {}), {}, {} cycles, {} wake-up",
+        s.run,
+        s.sim.scenario,
+        s.sim.group,
+        s.sim.law,
+        match s.rate_hz {
+            Some(r) => format!("real time at {r} Hz"),
+            None => "lockstep".to_owned(),
+        },
+        s.cycles,
+        s.wake
+    );
+    println!(
+        "final: L = {:.4e}, |Q_E - I| = {:.4e}, |p_E| = {:.4e}, attitude error = {:.4e}",
+        f.lyapunov, f.config_error, f.momentum_error, f.attitude_error
+    );
+    let p = |x: &plant_sim::pair::Percentiles| {
+        format!(
+            "p50 {:.2} / p99 {:.2} / p99.9 {:.2} / max {:.2} us",
+            x.p50_us, x.p99_us, x.p99_9_us, x.max_us
+        )
+    };
+    println!(
+        "round trip (state published -> command received): {}",
+        p(&s.latency)
+    );
+    println!(
+        "controller compute (state received -> command published): {}",
+        p(&s.controller_compute)
+    );
+    if let Some(t) = &s.tick_lateness {
+        println!("plant tick lateness (scheduling): {}", p(t));
+    }
+    match &s.deadline_note {
+        Some(note) => println!("{note}; commands rejected {}", s.commands_rejected),
+        None => println!(
+            "deadline misses {}, safe-mode entries {} ({} cycles), commands rejected {}, late {}",
+            s.deadline_misses,
+            s.safe_mode_entries,
+            s.safe_mode_cycles,
+            s.commands_rejected,
+            s.late_commands
+        ),
+    }
+    println!(
+        "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg{}}}",
+        out.display(),
+        if s.recording.is_some() {
+            ", messages.log, scenario.toml"
+        } else {
+            ""
+        }
+    );
+}

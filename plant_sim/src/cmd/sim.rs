@@ -1,0 +1,90 @@
+//! `plant_sim sim`: one scenario in process (the default command).
+
+use super::progress;
+#[cfg(feature = "fault-injection")]
+use super::sample_faults;
+use clap::Args;
+use controller::Law;
+use link::StopFlag;
+use plant_sim::SimError;
+use plant_sim::output::{Summary, ensure_dir, write_json, write_trajectory_csv};
+use plant_sim::plot::trajectory_figure;
+use scenario::cli::{ScenarioSource, law_parser};
+use std::path::{Path, PathBuf};
+
+#[derive(Args, Default)]
+pub(crate) struct SimArgs {
+    #[command(flatten)]
+    source: ScenarioSource,
+    /// Override the scenario's law.
+    #[arg(long, value_name = "L", value_parser = law_parser())]
+    law: Option<Law>,
+    /// Output directory (created if needed); default out/<scenario name>.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Test builds only (feature `fault-injection`): K:KIND plants a bad sensor sample at
+    /// tick K (gyro-nan, gyro-inf, gyro-spike, dir-nan, dir-inf, dir-zero, accel-far).
+    #[cfg(feature = "fault-injection")]
+    #[arg(long, value_name = "K:KIND", hide = true)]
+    fault_sample: Vec<String>,
+}
+
+pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
+    let mut s = args.source.load("seed")?;
+    if let Some(l) = args.law {
+        s = s.with_law(l)?;
+    }
+    let out = args.out.unwrap_or_else(|| Path::new("out").join(&s.name));
+    ensure_dir(&out)?;
+    let bar = progress(s.steps() + 1, &format!("sim {}", s.name));
+    #[cfg(feature = "fault-injection")]
+    let planted = sample_faults(&args.fault_sample)?;
+    #[cfg(not(feature = "fault-injection"))]
+    let planted = Vec::new();
+    let traj = plant_sim::trajectory::simulate_planted(&s, &planted, &|k| {
+        if k % 256 == 0 {
+            bar.set_position(k);
+            SimError::check(stop)?;
+        }
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    write_trajectory_csv(&traj, &out.join("trajectory.csv"))?;
+    let summary = Summary::of(&traj, &s.name, s.law.name());
+    write_json(&summary, &out.join("summary.json"))?;
+    let title = format!(
+        "{} — {} on {}, T = {} s",
+        s.name,
+        s.law.name().to_uppercase(),
+        s.group.name().to_uppercase(),
+        s.duration
+    );
+    trajectory_figure(&traj, &title, &out.join("figure"))?;
+    let f = &summary.final_errors;
+    println!(
+        "scenario {} ({}, law {}), {} steps of {} s",
+        s.name,
+        s.group.name(),
+        s.law.name(),
+        s.steps(),
+        s.control_period
+    );
+    println!(
+        "final: L = {:.4e}, |Q_E - I| = {:.4e}, |p_E| = {:.4e}, attitude error = {:.4e}, velocity error = {:.4e}",
+        f.lyapunov, f.config_error, f.momentum_error, f.attitude_error, f.velocity_error
+    );
+    println!(
+        "peak torque {:.4}, effort {:.4}, settling time {}",
+        summary.peak_torque,
+        summary.effort,
+        summary
+            .settling_time
+            .map(|t| format!("{t:.2} s"))
+            .unwrap_or_else(|| "not settled".to_owned())
+    );
+    println!(
+        "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}",
+        out.display()
+    );
+    Ok(())
+}
