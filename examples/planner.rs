@@ -101,7 +101,7 @@ impl OnGroup for Stream<'_> {
                 ));
             }
         };
-        let pieces: Vec<WireSegment> = path.segments().map(WireSegment::from_segment).collect();
+        let pieces: Vec<WireSegment> = path.segments().map(link::wire::wire_segment).collect();
         let (Some(first), Some(last)) = (pieces.first(), pieces.last()) else {
             return Err(bad("a set-point has no pieces to stream".into()));
         };
@@ -177,7 +177,7 @@ fn stream<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             .take_while(|p| p.t0 <= ahead)
             .count();
         if count > 0 && from + count > published_end {
-            let mut msg = PlanMsg::new(G::KIND);
+            let mut msg = PlanMsg::new(link::wire::wire_group(G::KIND));
             msg.first_index = from as u32;
             msg.count = count as u32;
             msg.segments[..count].copy_from_slice(&pieces[from..from + count]);

@@ -5,7 +5,9 @@
 #     link or controller_node: the offline exporter needs only the recorder and the wire;
 #   * recorder depends, of our crates, only on ipc_types (and what ipc_types needs): a
 #     recording is read without the plant, the controller process or a transport;
-#   * no control process (plant_sim, controller_node, link) links mcap, and export does.
+#   * no control process (plant_sim, controller_node, link) links mcap, and export does;
+#   * the wire (ipc_types) depends on no crate of ours: it owns its codes, and link::wire
+#     converts them to and from the maths crate's types.
 #
 #   bash scripts/check-arrows.sh              check this repository
 #   bash scripts/check-arrows.sh --self-test  plant each forbidden arrow in a copy of the
@@ -22,10 +24,17 @@ tree() {
 # check DIR: prints one line per broken rule; status 1 if any
 check() {
 	local dir=$1 bad=0 p
-	local export_tree recorder_tree
+	local export_tree recorder_tree wire_tree
 	export_tree=$(tree "$dir" export)
 	recorder_tree=$(tree "$dir" recorder)
-	[[ -n $export_tree && -n $recorder_tree ]] || { echo "cargo tree failed in $dir" >&2; return 2; }
+	wire_tree=$(tree "$dir" ipc_types)
+	[[ -n $export_tree && -n $recorder_tree && -n $wire_tree ]] || { echo "cargo tree failed in $dir" >&2; return 2; }
+	for p in controller estimator scenario link recorder plant_sim controller_node; do
+		if grep -qx "$p" <<<"$wire_tree"; then
+			echo "arrow: ipc_types depends on $p (the wire owns its codes; conversions live in link::wire)"
+			bad=1
+		fi
+	done
 	for p in iceoryx2 plotters ratatui rayon hdrhistogram plant_sim link controller_node; do
 		if grep -qx "$p" <<<"$export_tree"; then
 			echo "arrow: export depends on $p (the exporter needs only recorder and ipc_types)"
@@ -50,7 +59,7 @@ check() {
 
 if [[ ${1:-} != --self-test ]]; then
 	check "$REPO"
-	echo "arrows: OK (export, recorder, mcap)"
+	echo "arrows: OK (export, recorder, the wire, mcap)"
 	exit 0
 fi
 
@@ -73,5 +82,6 @@ plant() { # plant FILE LINE: add LINE to FILE's [dependencies], check, restore
 plant export/Cargo.toml 'plant_sim = { path = "../plant_sim" }'
 plant export/Cargo.toml 'rayon = "1"'
 plant recorder/Cargo.toml 'link = { path = "../link" }'
+plant ipc_types/Cargo.toml 'controller = { path = "../controller" }'
 plant controller_node/Cargo.toml 'mcap = { version = "0.26", default-features = false }'
 echo "check-arrows self-test: every planted arrow caught"

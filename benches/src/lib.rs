@@ -179,7 +179,7 @@ pub fn state_msg<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     q: &SMatrix<f64, N, N>,
     v: &SVector<f64, M>,
 ) -> StateMsg {
-    let mut m = StateMsg::new(G::KIND);
+    let mut m = StateMsg::new(link::wire::wire_group(G::KIND));
     m.control_period = 0.001;
     m.set_state(q, v);
     m

@@ -206,9 +206,9 @@ where
     T: controller::Real,
     G: MatrixLieGroup<N, M>,
 {
-    let mut cmd = CommandMsg::new(G::KIND);
+    let mut cmd = CommandMsg::new(link::wire::wire_group(G::KIND));
     cmd.seq = seq;
-    cmd.law = ipc_types::law_code(law);
+    cmd.law = link::wire::law_code(law);
     cmd.set_torque(&out.torque.map(to_f64::<T>));
     cmd.lyapunov = to_f64(out.lyapunov.total);
     for i in 0..M.min(ipc_types::MAX_M) {
@@ -499,10 +499,10 @@ impl PlanIntake {
     ) -> Result<(), PlanReject> {
         self.received = self.received.wrapping_add(1);
         self.last = (msg.planner_pid, msg.seq);
-        check_plan(msg, G::KIND, reference.period())?;
+        check_plan(msg, link::wire::wire_group(G::KIND), reference.period())?;
         let now = reference.time();
         for w in msg.used() {
-            let seg = w.segment::<N, M>();
+            let seg = link::wire::segment::<N, M>(w);
             if seg.t0 < self.high_water || seg.t1 < now {
                 continue;
             }

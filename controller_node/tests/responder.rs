@@ -33,7 +33,7 @@ fn a_skipped_gap_and_an_unrecorded_late_command_do_not_stop_replay() {
     let mut applied = Vector3::zeros();
     let (mut states, mut commands): (Vec<StateMsg>, Vec<Option<CommandMsg>>) = (vec![], vec![]);
     for k in 0..200u64 {
-        let mut msg = StateMsg::new(controller::GroupKind::So3);
+        let mut msg = StateMsg::new(ipc_types::WireGroup::So3);
         msg.seq = k;
         msg.t = k as f64 * s.control_period;
         msg.control_period = s.control_period;

@@ -28,7 +28,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
-use ipc_types::{CommandMsg, StateMsg, group_kind};
+use ipc_types::{CommandMsg, StateMsg, WireGroup, WireLaw};
 use recorder::{Header, LogReader, PlanEntry, Record, read_plans};
 use std::collections::{BTreeMap, HashMap};
 use std::io::{BufWriter, Seek, Write};
@@ -242,7 +242,7 @@ pub fn messages(r: &Record, n: usize, m: usize, terms: bool) -> Vec<Message> {
                 (
                     "law",
                     Value::Str(
-                        ipc_types::law_from_code(c.law)
+                        WireLaw::from_code(c.law)
                             .map_or("", |l| l.name())
                             .to_owned(),
                     ),
@@ -492,7 +492,7 @@ fn walk(
 /// The header as an MCAP metadata map.
 fn metadata(h: &Header, records: u64) -> BTreeMap<String, String> {
     let mut m = BTreeMap::new();
-    let group = group_kind(h.group).map_or("unknown", |g| g.name());
+    let group = WireGroup::from_code(h.group).map_or("unknown", |g| g.name());
     for (k, v) in [
         ("run", h.run.clone()),
         ("scenario", h.scenario.clone()),
@@ -526,7 +526,7 @@ pub fn export(
     compress: bool,
 ) -> Result<Exported, ExportError> {
     let mut reader = LogReader::open(log).map_err(|e| ExportError::Input(e.to_string()))?;
-    let (n, m) = group_kind(reader.header.group)
+    let (n, m) = WireGroup::from_code(reader.header.group)
         .map(|g| g.dims())
         .ok_or_else(|| {
             ExportError::Input(format!(

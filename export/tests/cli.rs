@@ -3,8 +3,9 @@
 //! with a NaN in its torque, exports the messages it should, read back with the `mcap` crate;
 //! the JSONL form writes NaN as "NaN"; a missing log exits 2.
 
-use ipc_types::{CommandMsg, MAX_M, StateMsg, group_code};
+use ipc_types::{CommandMsg, MAX_M, StateMsg};
 use link::Decision;
+use link::wire::group_code;
 use recorder::{Header, Record};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -51,13 +52,13 @@ fn write_log(dir: &Path) {
     };
     let mut bytes = header.to_bytes().to_vec();
     for k in 0..3u64 {
-        let mut state = StateMsg::new(controller::GroupKind::So3);
+        let mut state = StateMsg::new(ipc_types::WireGroup::So3);
         state.seq = k;
         state.t = k as f64 * 0.01;
         state.q[0] = 1.0;
         state.v[1] = 0.5 * k as f64;
         let command = (k != 1).then(|| {
-            let mut c = CommandMsg::new(controller::GroupKind::So3);
+            let mut c = CommandMsg::new(ipc_types::WireGroup::So3);
             c.seq = k;
             c.tau[0] = if k == 2 { f64::NAN } else { 0.25 };
             c.lyapunov = 1.0 / (k + 1) as f64;

@@ -237,13 +237,13 @@ impl OnGroup for Exercise<'_> {
             law_on(&controller, &s);
         }
         // streamed: every window the planner would publish is accepted as it is
-        let pieces: Vec<WireSegment> = path.segments().map(WireSegment::from_segment).collect();
+        let pieces: Vec<WireSegment> = path.segments().map(link::wire::wire_segment).collect();
         for window in pieces.chunks(PLAN_WINDOW) {
-            let mut msg = PlanMsg::new(G::KIND);
+            let mut msg = PlanMsg::new(link::wire::wire_group(G::KIND));
             msg.count = window.len() as u32;
             msg.segments[..window.len()].copy_from_slice(window);
             assert_eq!(
-                check_plan(&msg, G::KIND, PERIOD),
+                check_plan(&msg, link::wire::wire_group(G::KIND), PERIOD),
                 Ok(()),
                 "a planner's own window is refused"
             );
@@ -265,13 +265,13 @@ impl OnGroup for Exercise<'_> {
                 3 => seg.start[((h >> 24) % (MAX_N * MAX_N) as u64) as usize] = value,
                 _ => seg.twists[((h >> 24) % (5 * MAX_M) as u64) as usize] = value,
             }
-            if check_plan(&msg, G::KIND, PERIOD).is_err() {
+            if check_plan(&msg, link::wire::wire_group(G::KIND), PERIOD).is_err() {
                 continue;
             }
             // what the controller does with an accepted message
             let mut streamed = Path::<f64, G, N, M>::hold(poses[0]).expect("finite first pose");
             for w in msg.used() {
-                if streamed.push(w.segment::<N, M>()).is_err() {
+                if streamed.push(link::wire::segment::<N, M>(w)).is_err() {
                     break;
                 }
             }

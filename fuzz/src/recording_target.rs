@@ -74,13 +74,13 @@ impl OnGroup for SeedRecords<'_> {
         let torque = SVector::<f64, M>::from_fn(|i, _| 0.1 * (i as f64 + 1.0));
         for k in 0..4u64 {
             let (q_hat, v_hat, row) = e.measure(k, &body, &torque);
-            let mut state = StateMsg::new(s.group);
+            let mut state = StateMsg::new(link::wire::wire_group(s.group));
             state.seq = k;
             state.t = k as f64 * s.control_period;
             state.set_state(&q_hat, &v_hat);
-            let mut truth = StateMsg::new(s.group);
+            let mut truth = StateMsg::new(link::wire::wire_group(s.group));
             truth.set_state(body.configuration(), &body.velocity());
-            let mut cmd = CommandMsg::new(s.group);
+            let mut cmd = CommandMsg::new(link::wire::wire_group(s.group));
             cmd.seq = k;
             cmd.tau[..M].copy_from_slice(torque.as_slice());
             let r = Record {
@@ -115,9 +115,9 @@ impl OnGroup for SeedPlans<'_> {
             let mut spec = spec.clone();
             spec.kind = kind;
             let path = scenario::build_path::<G, N, M>(&spec).expect("the slew's path");
-            let pieces: Vec<WireSegment> = path.segments().map(WireSegment::from_segment).collect();
+            let pieces: Vec<WireSegment> = path.segments().map(link::wire::wire_segment).collect();
             for (i, window) in pieces.chunks(PLAN_WINDOW).enumerate() {
-                let mut msg = PlanMsg::new(G::KIND);
+                let mut msg = PlanMsg::new(link::wire::wire_group(G::KIND));
                 msg.seq = i as u64 + 1;
                 msg.planner_pid = 4242;
                 msg.first_index = (i * PLAN_WINDOW) as u32;
@@ -239,7 +239,7 @@ impl OnGroup for Estimate<'_> {
         let truth = StateMsg {
             q: self.sr.q_true,
             v: self.sr.v_true,
-            ..StateMsg::new(G::KIND)
+            ..StateMsg::new(link::wire::wire_group(G::KIND))
         };
         let (q, v) = (truth.configuration::<N>(), truth.velocity::<M>());
         for _ in 0..3 {
@@ -314,7 +314,7 @@ pub(crate) fn check(input: &[u8]) -> Outcome {
         Ok(e) => e,
         Err(e) => return Outcome::Rejected(kind("PlanEntry::from_bytes", &e)),
     };
-    let s = match ipc_types::group_kind(entry.msg.group) {
+    let s = match link::wire::group_kind(entry.msg.group) {
         Some(GroupKind::So3) => &sc.slews[0],
         Some(GroupKind::Se3) => &sc.slews[1],
         None => {

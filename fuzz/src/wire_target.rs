@@ -10,8 +10,9 @@ use controller::group::OnGroup;
 use controller::{GroupKind, MatrixLieGroup};
 use ipc_types::{
     COMMAND_BYTES, CommandMsg, DecodeError, Identity, PROTOCOL_VERSION, STATE_BYTES, StateMsg,
-    check_command, check_state, flags, group_code, group_kind, mismatch, name_bytes, name_str,
+    check_command, check_state, flags, mismatch, name_bytes, name_str,
 };
+use link::wire::{group_code, group_kind, wire_group};
 use scenario::Scenario;
 use std::hint::black_box;
 use std::sync::OnceLock;
@@ -140,14 +141,14 @@ impl OnGroup for Realistic<'_> {
             bytes: bytes.to_vec(),
         };
         let mut out = Vec::new();
-        let mut last = StateMsg::new(G::KIND);
+        let mut last = StateMsg::new(link::wire::wire_group(G::KIND));
         // the realistic commands carry both disturbance-rejection terms
         let mut terms =
             controller::Rejection::new(rejection::<M>(), c.config().torque_limit.as_ref())
                 .expect("valid terms");
         let mut applied = nalgebra::SVector::<f64, M>::zeros();
         for k in 0..4u64 {
-            let mut st = StateMsg::new(G::KIND);
+            let mut st = StateMsg::new(link::wire::wire_group(G::KIND));
             st.seq = k;
             st.t = k as f64 * s.control_period;
             st.control_period = s.control_period;
@@ -170,7 +171,7 @@ impl OnGroup for Realistic<'_> {
                 )
                 .expect("built-in law");
             applied = law.torque;
-            let mut cmd = CommandMsg::new(G::KIND);
+            let mut cmd = CommandMsg::new(link::wire::wire_group(G::KIND));
             cmd.seq = k;
             cmd.state_received_ns = st.stamp_ns + 20_000;
             cmd.stamp_ns = st.stamp_ns + 55_000;
@@ -194,7 +195,7 @@ impl OnGroup for Realistic<'_> {
         last.seq += 1;
         last.flags = flags::SHUTDOWN;
         out.push(item(MsgKind::State, last.seq, &last.to_bytes()));
-        let me = Identity::new(G::KIND, 0.001, fp ^ 1, &s.name);
+        let me = Identity::new(wire_group(G::KIND), 0.001, fp ^ 1, &s.name);
         let refusal = CommandMsg::refusal(&me, 0, mismatch::PERIOD | mismatch::SCENARIO);
         out.push(item(MsgKind::Command, 0, &refusal.to_bytes()));
         out
@@ -484,10 +485,15 @@ fn context() -> &'static Context {
         let so3 = Scenario::builtin("seed").expect("built-in scenario");
         let se3 = Scenario::builtin("se3_circle").expect("built-in scenario");
         let identities = vec![
-            Identity::new(GroupKind::So3, 0.0, so3.fingerprint(), &so3.name),
-            Identity::new(GroupKind::So3, 0.01, so3.fingerprint(), &so3.name),
-            Identity::new(GroupKind::Se3, 0.0, se3.fingerprint(), &se3.name),
-            Identity::new(GroupKind::Se3, 0.01, 0, ""),
+            Identity::new(ipc_types::WireGroup::So3, 0.0, so3.fingerprint(), &so3.name),
+            Identity::new(
+                ipc_types::WireGroup::So3,
+                0.01,
+                so3.fingerprint(),
+                &so3.name,
+            ),
+            Identity::new(ipc_types::WireGroup::Se3, 0.0, se3.fingerprint(), &se3.name),
+            Identity::new(ipc_types::WireGroup::Se3, 0.01, 0, ""),
         ];
         Context {
             so3,
@@ -606,7 +612,7 @@ impl OnGroup for PlantOnCommand<'_> {
         let mut body = s.plant_body::<G, N, M>().expect("built-in plant");
         let applied = self.msg.torque::<M>() + s.disturbance_vector::<M>();
         body.advance(&applied, s.control_period, s.plant_substeps);
-        let mut next = StateMsg::new(G::KIND);
+        let mut next = StateMsg::new(link::wire::wire_group(G::KIND));
         next.seq = self.msg.seq.wrapping_add(1);
         next.set_state(body.configuration(), &body.velocity());
         black_box(next.to_bytes());
@@ -670,7 +676,7 @@ pub(crate) fn check(case: &WireCase) -> Outcome {
             for g in GroupKind::ALL {
                 for last in seqs {
                     for p in periods {
-                        let verdict = check_state(&msg, g, last, p);
+                        let verdict = check_state(&msg, wire_group(g), last, p);
                         if verdict.is_ok() {
                             assert_eq!(msg.version, PROTOCOL_VERSION);
                             assert_eq!(group_kind(msg.group), Some(g));
@@ -680,7 +686,7 @@ pub(crate) fn check(case: &WireCase) -> Outcome {
                     }
                 }
             }
-            match check_state(&msg, r.group, r.last_seq, r.period) {
+            match check_state(&msg, wire_group(r.group), r.last_seq, r.period) {
                 Err(k) => Outcome::Rejected(format!("check_state: Reject::{k:?}")),
                 Ok(()) => {
                     let law = LawOnState {
@@ -721,7 +727,7 @@ pub(crate) fn check(case: &WireCase) -> Outcome {
             );
             for g in GroupKind::ALL {
                 for awaited in [0, msg.seq, msg.seq.wrapping_add(1), u64::MAX] {
-                    let verdict = check_command(&msg, g, awaited);
+                    let verdict = check_command(&msg, wire_group(g), awaited);
                     if verdict.is_ok() {
                         assert_eq!(msg.seq, awaited);
                         assert_eq!(group_kind(msg.group), Some(g));
@@ -729,7 +735,7 @@ pub(crate) fn check(case: &WireCase) -> Outcome {
                     let _ = black_box(verdict);
                 }
             }
-            match check_command(&msg, r.group, r.awaited) {
+            match check_command(&msg, wire_group(r.group), r.awaited) {
                 Err(k) => Outcome::Rejected(format!("check_command: Reject::{k:?}")),
                 Ok(()) => {
                     r.group.dispatch(PlantOnCommand {
@@ -750,7 +756,7 @@ mod tests {
 
     #[test]
     fn field_tables_match_the_encoding() {
-        let mut s = StateMsg::new(GroupKind::Se3);
+        let mut s = StateMsg::new(ipc_types::WireGroup::Se3);
         s.seq = 0x0102_0304_0506_0708;
         s.control_period = 0.25;
         s.v[5] = -7.5;
@@ -770,7 +776,7 @@ mod tests {
         let last = STATE_FIELDS[STATE_FIELDS.len() - 1];
         assert_eq!(last.1 + width(last.2) * last.3, STATE_BYTES);
 
-        let mut c = CommandMsg::new(GroupKind::So3);
+        let mut c = CommandMsg::new(ipc_types::WireGroup::So3);
         c.tau[5] = 3.5;
         c.lyapunov = 2.0;
         c.mismatch = 6;

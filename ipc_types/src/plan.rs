@@ -6,14 +6,12 @@
 //! body-frame displacements — so the controller evaluates it at any `t_k` without allocating,
 //! and a streamed path equals, bit for bit, the same path built from a file.
 
+use crate::WireGroup;
 use crate::{DecodeError, Get, MAX_M, MAX_N, PROTOCOL_VERSION, Put, all_finite, length, own_dims};
-use controller::GroupKind;
-use controller::path::{Segment, Shape};
 #[cfg(feature = "zero-copy")]
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 #[cfg(feature = "zero-copy")]
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
-use nalgebra::{SMatrix, SVector};
 
 /// Segments per plan message.
 pub const PLAN_WINDOW: usize = 8;
@@ -70,7 +68,7 @@ pub struct WireSegment {
 pub struct PlanMsg {
     /// [`PROTOCOL_VERSION`] (0: nothing written yet).
     pub version: u32,
-    /// [`crate::group_code`].
+    /// [`WireGroup::code`].
     pub group: u32,
     /// Increases with every publication of a planner.
     pub seq: u64,
@@ -131,6 +129,11 @@ impl core::fmt::Display for PlanReject {
     }
 }
 
+impl WireSegment {
+    /// A zeroed segment (no shape: refused until filled in).
+    pub const EMPTY: WireSegment = EMPTY_SEGMENT;
+}
+
 const EMPTY_SEGMENT: WireSegment = WireSegment {
     t0: 0.0,
     t1: 0.0,
@@ -146,74 +149,14 @@ impl WireSegment {
     pub fn twist(&self, k: usize, m: usize) -> &[f64] {
         &self.twists[k * MAX_M..k * MAX_M + m]
     }
-
-    /// The wire form of `seg`.
-    pub fn from_segment<const N: usize, const M: usize>(seg: &Segment<f64, N, M>) -> Self {
-        let mut w = EMPTY_SEGMENT;
-        w.t0 = seg.t0;
-        w.t1 = seg.t1;
-        for i in 0..N.min(MAX_N) {
-            for j in 0..N.min(MAX_N) {
-                w.start[i * N + j] = seg.start[(i, j)];
-            }
-        }
-        let mut put = |k: usize, v: &SVector<f64, M>| {
-            for i in 0..M.min(MAX_M) {
-                w.twists[k * MAX_M + i] = v[i];
-            }
-        };
-        let shape = match &seg.shape {
-            Shape::Rest { twist } => {
-                put(0, twist);
-                SHAPE_REST
-            }
-            Shape::Through { v } => {
-                for (k, vk) in v.iter().enumerate() {
-                    put(k, vk);
-                }
-                SHAPE_THROUGH
-            }
-        };
-        w.shape = shape;
-        w
-    }
-
-    /// The segment (entries beyond the wire's are NaN, and so is an unknown shape, so neither
-    /// ever passes [`Segment::check`]).
-    pub fn segment<const N: usize, const M: usize>(&self) -> Segment<f64, N, M> {
-        let twist = |k: usize| -> SVector<f64, M> {
-            SVector::from_fn(|i, _| {
-                if i < MAX_M {
-                    self.twists[k * MAX_M + i]
-                } else {
-                    f64::NAN
-                }
-            })
-        };
-        let shape = match self.shape {
-            SHAPE_REST => Shape::Rest { twist: twist(0) },
-            SHAPE_THROUGH => Shape::Through {
-                v: [twist(0), twist(1), twist(2), twist(3), twist(4)],
-            },
-            _ => Shape::Rest {
-                twist: SVector::from_element(f64::NAN),
-            },
-        };
-        Segment {
-            t0: self.t0,
-            t1: self.t1,
-            start: SMatrix::from_fn(|i, j| self.start.get(i * N + j).copied().unwrap_or(f64::NAN)),
-            shape,
-        }
-    }
 }
 
 impl PlanMsg {
     /// An empty plan of `group` with the version filled in.
-    pub fn new(group: GroupKind) -> Self {
+    pub fn new(group: WireGroup) -> Self {
         PlanMsg {
             version: PROTOCOL_VERSION,
-            group: crate::group_code(group),
+            group: group.code(),
             seq: 0,
             stamp_ns: 0,
             first_index: 0,
@@ -260,7 +203,7 @@ impl PlanMsg {
     pub fn from_bytes(buf: &[u8]) -> Result<Self, DecodeError> {
         length(buf, PLAN_BYTES)?;
         let mut g = Get { buf, at: 0 };
-        let mut m = PlanMsg::new(GroupKind::So3);
+        let mut m = PlanMsg::new(WireGroup::So3);
         m.version = g.u32();
         m.group = g.u32();
         m.seq = g.u64();
@@ -303,7 +246,7 @@ fn on_group(q: &[f64], n: usize) -> bool {
 /// Checks a plan message against the receiver's group and control period: version, group,
 /// count, shape codes, finite numbers, increasing non-overlapping times, every segment at
 /// least `period` long, start poses on the group.
-pub fn check_plan(msg: &PlanMsg, group: GroupKind, period: f64) -> Result<(), PlanReject> {
+pub fn check_plan(msg: &PlanMsg, group: WireGroup, period: f64) -> Result<(), PlanReject> {
     if msg.version != PROTOCOL_VERSION {
         return Err(PlanReject::Version);
     }
@@ -338,145 +281,4 @@ pub fn check_plan(msg: &PlanMsg, group: GroupKind, period: f64) -> Result<(), Pl
         }
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use controller::group::{MatrixLieGroup, Se3, So3};
-    use nalgebra::{Matrix3, Vector3, Vector6};
-
-    fn so3_segment(t0: f64, t1: f64) -> Segment<f64, 3, 3> {
-        let a = So3::exp(&Vector3::new(0.3, -1.0, 2.0));
-        let b = So3::exp(&Vector3::new(-2.5, 0.4, 0.1));
-        Segment::between::<So3>(t0, &a, t1, &b)
-    }
-
-    #[test]
-    fn segments_cross_the_wire_unchanged_on_both_groups() {
-        let s = so3_segment(1.0, 2.5);
-        assert_eq!(WireSegment::from_segment(&s).segment::<3, 3>(), s);
-        let a = Se3::exp(&Vector6::new(0.1, 0.2, -3.0, 1.0, 2.0, 3.0));
-        let b = Se3::exp(&Vector6::new(2.0, -0.2, 0.3, -1.0, 0.5, 0.0));
-        let s = Segment::between::<Se3>(0.0, &a, 4.0, &b);
-        assert_eq!(WireSegment::from_segment(&s).segment::<4, 6>(), s);
-        // through-waypoint pieces too
-        let knot = |q, v: Vector6<f64>| controller::PathSample {
-            q,
-            v,
-            v_dot: v * 0.5,
-        };
-        let s = Segment::hermite::<Se3>(
-            0.0,
-            &knot(a, Vector6::new(0.1, 0.2, 0.3, 0.4, 0.5, 0.6)),
-            4.0,
-            &knot(b, Vector6::new(-0.3, 0.2, 0.1, 0.0, 0.5, -0.6)),
-        );
-        let w = WireSegment::from_segment(&s);
-        assert_eq!(w.shape, SHAPE_THROUGH);
-        assert_eq!(w.segment::<4, 6>(), s);
-        let t = So3::exp(&Vector3::new(0.3, 0.0, 0.1));
-        let s = Segment::hermite::<So3>(1.0, &controller::PathSample::rest(t), 2.0, &knot3(t));
-        assert_eq!(WireSegment::from_segment(&s).segment::<3, 3>(), s);
-    }
-
-    fn knot3(q: Matrix3<f64>) -> controller::PathSample<f64, 3, 3> {
-        controller::PathSample {
-            q: q * So3::exp(&Vector3::new(0.0, 1.0, 0.0)),
-            v: Vector3::new(0.5, -0.1, 0.0),
-            v_dot: Vector3::new(0.0, 0.2, 0.1),
-        }
-    }
-
-    #[test]
-    fn plan_messages_round_trip_through_their_bytes() {
-        let mut m = PlanMsg::new(GroupKind::So3);
-        m.seq = 12;
-        m.stamp_ns = 34;
-        m.planner_pid = 56;
-        m.first_index = 2;
-        m.count = 1;
-        m.segments[0] = WireSegment::from_segment(&so3_segment(0.5, 1.5));
-        m.segments[3].twists[29] = f64::NAN;
-        let b = m.to_bytes();
-        let back = PlanMsg::from_bytes(&b).unwrap();
-        assert_eq!(back.to_bytes(), b);
-        assert_eq!(
-            (back.seq, back.planner_pid, back.segments[0]),
-            (12, 56, m.segments[0])
-        );
-        assert!(back.segments[3].twists[29].is_nan());
-        assert!(PlanMsg::from_bytes(&b[1..]).is_err());
-    }
-
-    #[test]
-    fn plans_are_checked() {
-        let mut p = PlanMsg::new(GroupKind::So3);
-        p.count = 2;
-        p.segments[0] = WireSegment::from_segment(&so3_segment(0.0, 1.0));
-        p.segments[1] = WireSegment::from_segment(&so3_segment(1.0, 2.0));
-        assert_eq!(check_plan(&p, GroupKind::So3, 0.01), Ok(()));
-        assert_eq!(check_plan(&p, GroupKind::Se3, 0.01), Err(PlanReject::Group));
-        // a leg shorter than the control period, or a period that is not a number
-        assert_eq!(check_plan(&p, GroupKind::So3, 1.0), Ok(()));
-        assert_eq!(
-            check_plan(&p, GroupKind::So3, 1.0 + 1e-9),
-            Err(PlanReject::ShortLeg)
-        );
-        assert_eq!(
-            check_plan(&p, GroupKind::So3, f64::NAN),
-            Err(PlanReject::ShortLeg)
-        );
-        let bad = |f: &dyn Fn(&mut PlanMsg)| {
-            let mut q = p;
-            f(&mut q);
-            check_plan(&q, GroupKind::So3, 0.01)
-        };
-        assert_eq!(bad(&|q| q.segments[1].shape = 2), Err(PlanReject::Shape));
-        // a through piece's later twists are checked, a rest piece's are not used
-        assert_eq!(
-            bad(&|q| {
-                q.segments[1].shape = SHAPE_THROUGH;
-                q.segments[1].twists[4 * MAX_M + 2] = f64::NAN
-            }),
-            Err(PlanReject::NonFinite)
-        );
-        assert_eq!(
-            bad(&|q| q.segments[1].twists[4 * MAX_M + 2] = f64::NAN),
-            Ok(())
-        );
-        assert_eq!(bad(&|q| q.version = 0), Err(PlanReject::Version));
-        assert_eq!(bad(&|q| q.count = 9), Err(PlanReject::Count));
-        assert_eq!(
-            bad(&|q| q.segments[1].twists[2] = f64::NAN),
-            Err(PlanReject::NonFinite)
-        );
-        assert_eq!(bad(&|q| q.segments[1].t0 = 0.5), Err(PlanReject::Times));
-        assert_eq!(bad(&|q| q.segments[0].t1 = 0.0), Err(PlanReject::Times));
-        assert_eq!(
-            bad(&|q| q.segments[1].start[0] *= 1.001),
-            Err(PlanReject::NotOnGroup)
-        );
-        // a reflection is orthonormal but not a rotation
-        let flip = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, -1.0);
-        let mut s = so3_segment(1.0, 2.0);
-        s.start = flip;
-        assert_eq!(
-            bad(&|q| q.segments[1] = WireSegment::from_segment(&s)),
-            Err(PlanReject::NotOnGroup)
-        );
-        // unused entries are not looked at
-        assert_eq!(bad(&|q| q.segments[5].t0 = f64::NAN), Ok(()));
-        // SE(3): the last row must be 0 0 0 1
-        let mut p = PlanMsg::new(GroupKind::Se3);
-        p.count = 1;
-        let a = Se3::exp(&Vector6::new(0.1, 0.2, -3.0, 1.0, 2.0, 3.0));
-        p.segments[0] = WireSegment::from_segment(&Segment::between::<Se3>(0.0, &a, 1.0, &a));
-        assert_eq!(check_plan(&p, GroupKind::Se3, 0.01), Ok(()));
-        p.segments[0].start[14] = 0.5;
-        assert_eq!(
-            check_plan(&p, GroupKind::Se3, 0.01),
-            Err(PlanReject::NotOnGroup)
-        );
-    }
 }

@@ -3,8 +3,8 @@
 //! board. Figures over "the last second" cover the cycles whose states were published in the
 //! second before the newest one.
 
+use crate::WireGroup;
 use crate::{NAME_BYTES, PROTOCOL_VERSION, name_bytes};
-use controller::GroupKind;
 #[cfg(feature = "zero-copy")]
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 #[cfg(feature = "zero-copy")]
@@ -31,7 +31,7 @@ pub mod status_flags {
 pub struct StatusMsg {
     /// [`PROTOCOL_VERSION`] (0: nothing written yet).
     pub version: u32,
-    /// [`crate::group_code`].
+    /// [`WireGroup::code`].
     pub group: u32,
     /// Increases with every publication.
     pub seq: u64,
@@ -69,10 +69,10 @@ pub struct StatusMsg {
 
 impl StatusMsg {
     /// A status of the current protocol with nothing measured yet.
-    pub fn new(group: GroupKind, scenario: &str) -> StatusMsg {
+    pub fn new(group: WireGroup, scenario: &str) -> StatusMsg {
         StatusMsg {
             version: PROTOCOL_VERSION,
-            group: crate::group_code(group),
+            group: group.code(),
             seq: 0,
             stamp_ns: 0,
             cycle: 0,

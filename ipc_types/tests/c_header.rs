@@ -24,7 +24,7 @@ macro_rules! fields {
 }
 
 fn rust_layout() -> Layout {
-    use controller::GroupKind::So3;
+    use ipc_types::WireGroup::So3;
     let mut m = Layout::new();
     fields!(
         m,
@@ -217,7 +217,7 @@ fn the_c_header_has_the_rust_layout() {
 
 #[test]
 fn the_header_names_the_protocol_version_and_limits() {
-    use controller::GroupKind::{Se3, So3};
+    use ipc_types::WireGroup::{Se3, So3};
     let h = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/include/eqtrack_wire.h"
@@ -240,14 +240,8 @@ fn the_header_names_the_protocol_version_and_limits() {
             "EQTRACK_SHAPE_THROUGH",
             format!("{}u", ipc_types::plan::SHAPE_THROUGH),
         ),
-        (
-            "EQTRACK_GROUP_SO3",
-            format!("{}u", ipc_types::group_code(So3)),
-        ),
-        (
-            "EQTRACK_GROUP_SE3",
-            format!("{}u", ipc_types::group_code(Se3)),
-        ),
+        ("EQTRACK_GROUP_SO3", format!("{}u", So3.code())),
+        ("EQTRACK_GROUP_SE3", format!("{}u", Se3.code())),
         (
             "EQTRACK_FLAG_WAKE_EVENT",
             format!("{}u", ipc_types::flags::WAKE_EVENT),

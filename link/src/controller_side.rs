@@ -3,9 +3,10 @@
 
 use crate::rejections::{Rejected, Rejections};
 use crate::transport::{ControllerTransport, open};
+use crate::wire::group_code;
 use crate::{LinkError, Refusal, Role, TransportKind, check_run_name, clock};
 use controller::GroupKind;
-use ipc_types::{CommandMsg, Identity, PROTOCOL_VERSION, StateMsg, check_state, flags, group_code};
+use ipc_types::{CommandMsg, Identity, PROTOCOL_VERSION, StateMsg, check_state, flags};
 use std::time::{Duration, Instant};
 
 /// How to open the controller's side of a run.
@@ -95,7 +96,7 @@ impl ControllerEndpoint {
         check_run_name(&config.run)?;
         let transport = open(config.transport, &config.run, Role::Controller)?;
         let identity = Identity::new(
-            config.group,
+            crate::wire::wire_group(config.group),
             config.period.unwrap_or(0.0),
             config.fingerprint,
             &config.scenario,
@@ -180,7 +181,12 @@ impl ControllerEndpoint {
                 }));
             }
         }
-        match check_state(&msg, self.config.group, self.last_seq, self.period) {
+        match check_state(
+            &msg,
+            crate::wire::wire_group(self.config.group),
+            self.last_seq,
+            self.period,
+        ) {
             Ok(()) => {
                 self.last_seq = Some(msg.seq);
                 self.period = Some(msg.control_period);
@@ -219,7 +225,7 @@ impl ControllerEndpoint {
 
     /// A command for the state of `seq` with this controller's group filled in.
     pub fn command(&self, seq: u64) -> CommandMsg {
-        let mut c = CommandMsg::new(self.config.group);
+        let mut c = CommandMsg::new(crate::wire::wire_group(self.config.group));
         c.group = group_code(self.config.group);
         c.seq = seq;
         c

@@ -58,6 +58,7 @@ pub mod rt;
 pub mod status;
 pub mod transport;
 pub mod uds;
+pub mod wire;
 
 pub use controller_side::{ControllerConfig, ControllerEndpoint, Incoming};
 pub use deadline::{Arrival, DeadlinePolicy, Decision, Step, Transition};

@@ -15,7 +15,7 @@ use ipc_types::{PROTOCOL_VERSION, PlanMsg, StateMsg};
 
 /// An empty slot: version 0.
 fn empty_plan() -> PlanMsg {
-    let mut m = PlanMsg::new(controller::GroupKind::So3);
+    let mut m = PlanMsg::new(ipc_types::WireGroup::So3);
     m.version = 0;
     m.group = 0;
     m

@@ -141,12 +141,12 @@ impl PlantEndpoint {
         }
         let transport = open(config.transport, &config.run, Role::Plant)?;
         let identity = Identity::new(
-            config.group,
+            crate::wire::wire_group(config.group),
             config.control_period,
             config.fingerprint,
             &config.scenario,
         );
-        let mut template = StateMsg::new(config.group);
+        let mut template = StateMsg::new(crate::wire::wire_group(config.group));
         template.control_period = config.control_period;
         template.flags = if config.wake == Wake::Event {
             flags::WAKE_EVENT
@@ -235,7 +235,7 @@ impl PlantEndpoint {
                 controller: msg.identity(),
             })));
         }
-        match check_command(&msg, self.config.group, seq) {
+        match check_command(&msg, crate::wire::wire_group(self.config.group), seq) {
             Ok(()) => Some(Ok(Command {
                 msg,
                 received_ns: clock::monotonic_ns(),

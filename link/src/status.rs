@@ -14,7 +14,7 @@ use ipc_types::{PROTOCOL_VERSION, StatusMsg};
 
 /// An empty slot: version 0.
 fn empty_status() -> StatusMsg {
-    let mut m = StatusMsg::new(controller::GroupKind::So3, "");
+    let mut m = StatusMsg::new(ipc_types::WireGroup::So3, "");
     m.version = 0;
     m.group = 0;
     m

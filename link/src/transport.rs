@@ -43,7 +43,7 @@ macro_rules! message {
     ($msg:ty) => {
         impl Message for $msg {
             fn empty() -> Self {
-                let mut m = <$msg>::new(controller::GroupKind::So3);
+                let mut m = <$msg>::new(ipc_types::WireGroup::So3);
                 m.version = 0;
                 m.group = 0;
                 m

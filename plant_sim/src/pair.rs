@@ -21,7 +21,8 @@ use controller::Trajectory as _;
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::law::{safe_mode_torque, saturate};
 use hdrhistogram::Histogram;
-use ipc_types::{StateMsg, group_code};
+use ipc_types::StateMsg;
+use link::wire::group_code;
 use link::{
     Command, DeadlinePolicy, Decision, NoCommand, PlantConfig, PlantEndpoint, StopFlag, Transition,
     TransportKind, Wake, clock,
@@ -443,7 +444,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 crate::trajectory::Terms::of(&SVector::<f64, M>::zeros(), &SVector::zeros())
             }),
             published: 0,
-            state: StateMsg::new(s.group),
+            state: StateMsg::new(link::wire::wire_group(s.group)),
             recorder: None,
             t0: 0,
             rt: Realtime::default(),
@@ -523,7 +524,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 let (q_hat, v_hat, row) = e.measure(k, &self.plant, &held);
                 msg.set_state(&q_hat, &v_hat);
                 if self.recorder.is_some() {
-                    let mut truth = StateMsg::new(self.s.group);
+                    let mut truth = StateMsg::new(link::wire::wire_group(self.s.group));
                     truth.set_state(self.plant.configuration(), &self.plant.velocity());
                     self.sensor_record = Some(row.sensor_record(&truth));
                 }

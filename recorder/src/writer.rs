@@ -376,7 +376,6 @@ mod tests {
     use super::super::format::{HEADER_BYTES, SensorRecord, torque_byte_offset};
     use super::super::reader::{LogReader, read_plans};
     use super::*;
-    use controller::GroupKind;
     use ipc_types::Decision;
     use ipc_types::{CommandMsg, MAX_M, StateMsg};
     use nalgebra::Vector3;
@@ -423,12 +422,12 @@ mod tests {
     }
 
     fn record(k: u64, with_command: bool) -> Record {
-        let mut state = StateMsg::new(GroupKind::Se3);
+        let mut state = StateMsg::new(ipc_types::WireGroup::Se3);
         state.seq = k;
         state.t = k as f64 * 0.001;
         state.v = [0.1, -0.2, 0.3, 1e-300, f64::MIN_POSITIVE, -0.0];
         state.stamp_ns = 1_000 + k;
-        let mut cmd = CommandMsg::new(GroupKind::Se3);
+        let mut cmd = CommandMsg::new(ipc_types::WireGroup::Se3);
         cmd.seq = k;
         cmd.tau = [1.0, -2.0, 3.5, 0.25, -0.125, 7.0];
         cmd.lyapunov = 0.5;
@@ -587,7 +586,7 @@ mod tests {
             Some(Box::new(move || {
                 next += 1;
                 (next <= 5).then(|| {
-                    let mut m = PlanMsg::new(GroupKind::So3);
+                    let mut m = PlanMsg::new(ipc_types::WireGroup::So3);
                     m.seq = next;
                     m.planner_pid = 99;
                     m

@@ -396,7 +396,7 @@ impl Csv {
         Csv { header, rows }
     }
 
-    /// A numeric column ([`column`]).
+    /// A numeric column ([`fn@column`]).
     pub fn col(&self, name: &str) -> Vec<f64> {
         column(&self.header, &self.rows, name)
     }

@@ -110,7 +110,7 @@ fn closed_loop_check<T: Real>() -> bool {
 
 /// The wire contract without std: build, validate and reject messages.
 fn ipc_check() -> bool {
-    use controller::GroupKind::{Se3, So3};
+    use ipc_types::WireGroup::{Se3, So3};
     use ipc_types::{CommandMsg, Reject, StateMsg, check_command, check_state, service_names};
     let mut s = StateMsg::new(So3);
     s.seq = 3;

@@ -107,9 +107,9 @@ fn services(
         if create {
             let c = b.blackboard_creator::<u32>();
             let c = if empty_state {
-                c.add::<StateMsg>(0, StateMsg::new(controller::GroupKind::So3))
+                c.add::<StateMsg>(0, StateMsg::new(ipc_types::WireGroup::So3))
             } else {
-                c.add::<CommandMsg>(0, CommandMsg::new(controller::GroupKind::So3))
+                c.add::<CommandMsg>(0, CommandMsg::new(ipc_types::WireGroup::So3))
             };
             c.create().map_err(|e| format!("{suffix}: {e:?}"))
         } else {
@@ -188,7 +188,7 @@ fn run() -> Result<(), String> {
             .spawn()
             .map_err(|e| format!("cannot start pong: {e}"))?;
         // the hand-shake: state 1, answered within 10 s, then the paced loop
-        let mut msg = StateMsg::new(controller::GroupKind::So3);
+        let mut msg = StateMsg::new(ipc_types::WireGroup::So3);
         msg.seq = 1; // 0 is the empty slot's
         let give_up = now_ns() + 10_000_000_000;
         while inp.get().seq != 1 {
@@ -212,7 +212,7 @@ fn run() -> Result<(), String> {
         let out = writer
             .entry::<CommandMsg>(&0)
             .map_err(|e| format!("entry: {e:?}"))?;
-        let mut reply = CommandMsg::new(controller::GroupKind::So3);
+        let mut reply = CommandMsg::new(ipc_types::WireGroup::So3);
         let mut last = 0u64;
         // leave when ping has been silent for a second after the last cycle
         let mut quiet_since = now_ns();

@@ -11,7 +11,7 @@
 
 use super::{Header, Record, SinkFactory, StatusSink};
 use crate::SimError;
-use ipc_types::{StatusMsg, group_kind, name_str, status_flags};
+use ipc_types::{StatusMsg, name_str, status_flags};
 use link::status::{StatusReader, StatusWriter};
 use link::{Decision, StopFlag, clock};
 use std::collections::VecDeque;
@@ -26,7 +26,7 @@ const WINDOW_NS: u64 = 1_000_000_000;
 pub fn status_sink(run: &str, header: &Header) -> SinkFactory {
     let run = run.to_owned();
     let mut msg = StatusMsg::new(
-        group_kind(header.group).unwrap_or(controller::GroupKind::So3),
+        ipc_types::WireGroup::from_code(header.group).unwrap_or(ipc_types::WireGroup::So3),
         &header.scenario,
     );
     msg.target_rate_hz = header.rate_hz;

@@ -37,8 +37,9 @@ use controller::Source;
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::{Law, Trajectory as _};
 use controller_node::PlanIntake;
-use ipc_types::{CommandMsg, MAX_M, StateMsg, flags, group_code};
+use ipc_types::{CommandMsg, MAX_M, StateMsg, flags};
 use link::Decision;
+use link::wire::group_code;
 use scenario::Scenario;
 use std::path::{Path, PathBuf};
 
@@ -395,7 +396,9 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             }
         }
         next = r.cycle + 1;
-        if ipc_types::check_state(&r.state, G::KIND, last_seq, period).is_err() {
+        if ipc_types::check_state(&r.state, link::wire::wire_group(G::KIND), last_seq, period)
+            .is_err()
+        {
             if let Some((rec, _)) = &r.command {
                 compare::<M>(&mut report, &r, rec, None);
             }
@@ -403,7 +406,7 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         }
         (last_seq, period) = (Some(r.state.seq), Some(r.state.control_period));
         if let (Some((c, _)), false) = (&r.command, what_if)
-            && let Some(named) = ipc_types::law_from_code(c.law)
+            && let Some(named) = link::wire::law_from_code(c.law)
         {
             law = named;
             if !report.recorded_laws.contains(&named) {

@@ -1,0 +1,126 @@
+//! The checks every receiver applies before a message is used, and why a message is rejected ([`Reject`]).
+
+use crate::{CommandMsg, PROTOCOL_VERSION, StateMsg, WireGroup};
+
+/// Why a message was rejected. Each kind is logged once and counted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Reject {
+    /// The protocol version differs.
+    Version,
+    /// The group differs from the receiver's.
+    Group,
+    /// A number is NaN or infinite.
+    NonFinite,
+    /// The sequence number did not increase, or jumped by more than [`MAX_SEQ_JUMP`] (for
+    /// commands: is not the one awaited).
+    Sequence,
+    /// The control period is not positive, or differs from the one the receiver runs with.
+    Period,
+}
+
+impl Reject {
+    /// All kinds, for counters.
+    pub const ALL: [Reject; 5] = [
+        Reject::Version,
+        Reject::Group,
+        Reject::NonFinite,
+        Reject::Sequence,
+        Reject::Period,
+    ];
+
+    /// Index into a counter array.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    /// Lower-case name for logs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Reject::Version => "wrong protocol version",
+            Reject::Group => "wrong group",
+            Reject::NonFinite => "non-finite number",
+            Reject::Sequence => "sequence number not increasing",
+            Reject::Period => "control period mismatch",
+        }
+    }
+}
+
+impl core::fmt::Display for Reject {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+pub(crate) fn all_finite(xs: &[f64]) -> bool {
+    xs.iter().all(|x| x.is_finite())
+}
+
+/// The `(n, m)` of a message's group code, if it is the receiver's group.
+pub(crate) fn own_dims(code: u32, group: WireGroup) -> Result<(usize, usize), Reject> {
+    match WireGroup::from_code(code) {
+        Some(g) if g == group => Ok(g.dims()),
+        _ => Err(Reject::Group),
+    }
+}
+
+/// How many sequence numbers a state may skip past the one expected next (0 for the first
+/// state): 2²² ≈ 4.2 million cycles, 70 min at 1 kHz. A controller that joins late or
+/// missed states steps its reference through every skipped cycle (≈ 0.2–0.5 µs each, so
+/// at most about 2 s of catching up); an absurd jump (a corrupt or hostile sequence number
+/// near 2⁶⁴) is refused instead of stalling it.
+pub const MAX_SEQ_JUMP: u64 = 1 << 22;
+
+/// Checks a state against the receiver's group, the last accepted sequence number and the
+/// period the receiver runs with (`None`: any positive period). The sequence number must
+/// increase, by at most [`MAX_SEQ_JUMP`] + 1.
+pub fn check_state(
+    msg: &StateMsg,
+    group: WireGroup,
+    last_seq: Option<u64>,
+    period: Option<f64>,
+) -> Result<(), Reject> {
+    if msg.version != PROTOCOL_VERSION {
+        return Err(Reject::Version);
+    }
+    let (n, m) = own_dims(msg.group, group)?;
+    if !all_finite(&msg.q[..n * n])
+        || !all_finite(&msg.v[..m])
+        || !all_finite(&msg.applied[..m])
+        || !msg.t.is_finite()
+        || !msg.control_period.is_finite()
+    {
+        return Err(Reject::NonFinite);
+    }
+    let next = match last_seq {
+        None => 0,
+        Some(last) => last.checked_add(1).ok_or(Reject::Sequence)?,
+    };
+    if msg.seq < next || msg.seq - next > MAX_SEQ_JUMP {
+        return Err(Reject::Sequence);
+    }
+    if msg.control_period <= 0.0 || period.is_some_and(|p| p != msg.control_period) {
+        return Err(Reject::Period);
+    }
+    Ok(())
+}
+
+/// Checks a command against the receiver's group and the sequence number it awaits.
+pub fn check_command(msg: &CommandMsg, group: WireGroup, awaited: u64) -> Result<(), Reject> {
+    if msg.version != PROTOCOL_VERSION {
+        return Err(Reject::Version);
+    }
+    let (_, m) = own_dims(msg.group, group)?;
+    if !all_finite(&msg.tau[..m])
+        || !msg.lyapunov.is_finite()
+        || !all_finite(&msg.observer[..m])
+        || !all_finite(&msg.integral[..m])
+        || !all_finite(&msg.estimate_before[..m])
+        || !all_finite(&msg.z_before[..m])
+    {
+        return Err(Reject::NonFinite);
+    }
+    if msg.seq != awaited {
+        return Err(Reject::Sequence);
+    }
+    Ok(())
+}

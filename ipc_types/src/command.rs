@@ -1,0 +1,142 @@
+//! The controller's answer, [`CommandMsg`], and its accessors.
+
+use crate::{Identity, MAX_M, NAME_BYTES, NO_PREVIOUS, PROTOCOL_VERSION, WireGroup, flags};
+#[cfg(feature = "zero-copy")]
+use iceoryx2_bb_derive_macros::ZeroCopySend;
+#[cfg(feature = "zero-copy")]
+use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+use nalgebra::SVector;
+
+/// The controller's answer to state k (or its refusal of the run).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "zero-copy",
+    derive(ZeroCopySend),
+    type_name("eqtrack::CommandMsg6")
+)]
+#[repr(C)]
+pub struct CommandMsg {
+    /// [`PROTOCOL_VERSION`].
+    pub version: u32,
+    /// [`WireGroup::code`] of the controller's group.
+    pub group: u32,
+    /// The state's k.
+    pub seq: u64,
+    /// CLOCK_MONOTONIC when the state was received (ns).
+    pub state_received_ns: u64,
+    /// CLOCK_MONOTONIC at publication (ns).
+    pub stamp_ns: u64,
+    /// Time spent from receiving the state to publishing this command (ns).
+    pub compute_ns: u64,
+    /// Torque `τ_k` after saturation, first m entries (SE(3): torque then force).
+    pub tau: [f64; MAX_M],
+    /// Lyapunov function at `t_k` (diagnostic).
+    pub lyapunov: f64,
+    /// The disturbance observer's estimate `d̂` in the body frame, subtracted from the law's
+    /// torque (zeros without the observer), first m entries.
+    pub observer: [f64; MAX_M],
+    /// The integral's torque `−K_I z` in the body frame, added to the law's torque (zeros
+    /// without the integral), first m entries.
+    pub integral: [f64; MAX_M],
+    /// The sequence number of the state the controller processed before this one
+    /// ([`NO_PREVIOUS`]: none; states in between it never saw).
+    pub previous_seq: u64,
+    /// The observer's estimate before this state updated it, in the observer's own frame
+    /// (zeros without the observer), first m entries. With `previous_seq` and the recorded
+    /// states, replay restores the terms from it and checks this command on its own.
+    pub estimate_before: [f64; MAX_M],
+    /// The integral `z` before this state updated it (zeros without the integral), first m.
+    pub z_before: [f64; MAX_M],
+    /// Heap allocations the controller made since the end of its first cycle (diagnostic).
+    pub heap_allocations: u64,
+    /// [`flags`] bits ([`flags::REFUSED`]).
+    pub flags: u32,
+    /// With [`flags::REFUSED`]: the [`mismatch`](crate::mismatch) bits.
+    pub mismatch: u32,
+    /// The controller's scenario fingerprint (0: none).
+    pub fingerprint: u64,
+    /// The control period the controller insists on (0: it follows the plant).
+    pub expected_period: f64,
+    /// The controller's scenario name, UTF-8, NUL-padded.
+    pub scenario: [u8; NAME_BYTES],
+    /// The law that computed `tau` ([`WireLaw::code`](crate::WireLaw::code); 0: not said): a controller started by hand
+    /// may run another law than the scenario's, and replay must know which.
+    pub law: u32,
+    /// With a streamed reference ([`flags::STREAMED`]): how many plan messages the controller
+    /// had taken from the plan board (accepted or refused) before it answered this state.
+    pub plans_received: u32,
+    /// The sequence number of the last of them (0: none).
+    pub plan_seq: u64,
+    /// Its planner's process id (0: none). With `plans_received`, what replay needs to
+    /// apply the recorded plan messages at the cycles the controller took them.
+    pub plan_pid: u32,
+    /// Zero.
+    pub reserved: u32,
+}
+
+impl CommandMsg {
+    /// A zeroed message of `group` with the version filled in.
+    pub fn new(group: WireGroup) -> Self {
+        CommandMsg {
+            version: PROTOCOL_VERSION,
+            group: group.code(),
+            seq: 0,
+            state_received_ns: 0,
+            stamp_ns: 0,
+            compute_ns: 0,
+            tau: [0.0; MAX_M],
+            lyapunov: 0.0,
+            observer: [0.0; MAX_M],
+            integral: [0.0; MAX_M],
+            previous_seq: NO_PREVIOUS,
+            estimate_before: [0.0; MAX_M],
+            z_before: [0.0; MAX_M],
+            heap_allocations: 0,
+            flags: 0,
+            mismatch: 0,
+            fingerprint: 0,
+            expected_period: 0.0,
+            law: 0,
+            plans_received: 0,
+            plan_seq: 0,
+            plan_pid: 0,
+            reserved: 0,
+            scenario: [0; NAME_BYTES],
+        }
+    }
+
+    /// The torque `τ` (m entries).
+    pub fn torque<const M: usize>(&self) -> SVector<f64, M> {
+        SVector::from_fn(|i, _| self.tau.get(i).copied().unwrap_or(f64::NAN))
+    }
+
+    /// Writes the torque `τ`.
+    pub fn set_torque<const M: usize>(&mut self, tau: &SVector<f64, M>) {
+        for i in 0..M.min(MAX_M) {
+            self.tau[i] = tau[i];
+        }
+    }
+
+    /// The controller's identity carried by this command.
+    pub fn identity(&self) -> Identity {
+        Identity {
+            group: self.group,
+            period: self.expected_period,
+            fingerprint: self.fingerprint,
+            scenario: self.scenario,
+        }
+    }
+
+    /// A refusal of state `seq`: the controller's identity and what differs.
+    pub fn refusal(controller: &Identity, seq: u64, mismatch: u32) -> Self {
+        let mut c = CommandMsg::new(WireGroup::So3);
+        c.group = controller.group;
+        c.seq = seq;
+        c.flags = flags::REFUSED;
+        c.mismatch = mismatch;
+        c.fingerprint = controller.fingerprint;
+        c.expected_period = controller.period;
+        c.scenario = controller.scenario;
+        c
+    }
+}

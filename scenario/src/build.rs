@@ -1,0 +1,264 @@
+//! The builders that turn a validated [`Scenario`] into the controller crate's objects, and the scenario's fingerprint.
+
+use crate::{
+    BUILTINS, PathKind, Scenario, ScenarioError, StateSpec, Validator, build_path, parse_law,
+};
+use controller::group::MatrixLieGroup;
+use controller::group::so3::exp_so3;
+use controller::integrator::RigidBody;
+use controller::reference::{AxisTorque, CosTerm, Feedforward};
+use controller::{
+    Controller, ControllerConfig, Law, Path as GroupPath, PathReference, Reference, Source,
+};
+use nalgebra::{SMatrix, SVector, Vector3};
+use std::path::Path;
+
+impl Scenario {
+    /// Loads a built-in scenario by name.
+    pub fn builtin(name: &str) -> Result<Scenario, ScenarioError> {
+        let (_, text) = BUILTINS
+            .iter()
+            .find(|(n, _)| *n == name)
+            .ok_or_else(|| ScenarioError::UnknownBuiltin(name.to_owned()))?;
+        Scenario::from_toml(text, &format!("built-in scenario `{name}`"), name)
+    }
+
+    /// Loads and validates a scenario file.
+    pub fn from_file(path: &Path) -> Result<Scenario, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scenario".to_owned());
+        Validator {
+            origin: &path.display().to_string(),
+            base: path.parent(),
+        }
+        .parse(&text, &stem)
+    }
+
+    /// Parses and validates TOML text; `origin` names it in errors, `default_name` is used
+    /// when the file has no `name`.
+    pub fn from_toml(
+        text: &str,
+        origin: &str,
+        default_name: &str,
+    ) -> Result<Scenario, ScenarioError> {
+        Validator { origin, base: None }.parse(text, default_name)
+    }
+
+    /// Overrides the law (checked against the group).
+    pub fn with_law(mut self, law: Law) -> Result<Scenario, ScenarioError> {
+        self.law = parse_law(law.name(), self.group, "--law", "the command line")?;
+        Ok(self)
+    }
+
+    /// The number of control steps N = duration / control_period.
+    pub fn steps(&self) -> u64 {
+        (self.duration / self.control_period).round() as u64
+    }
+
+    /// n×n configuration from a [`StateSpec`].
+    pub fn configuration<const N: usize>(spec: &StateSpec) -> SMatrix<f64, N, N> {
+        let r = exp_so3(&Vector3::from(spec.rotation));
+        let mut q = SMatrix::<f64, N, N>::identity();
+        for i in 0..3.min(N) {
+            for j in 0..3.min(N) {
+                q[(i, j)] = r[(i, j)];
+            }
+            if N > 3 {
+                q[(i, N - 1)] = spec.position[i];
+            }
+        }
+        q
+    }
+
+    /// The controller configuration (validated again by [`Controller::new`]).
+    pub fn controller_config<const N: usize, const M: usize>(&self) -> ControllerConfig<f64, N, M> {
+        ControllerConfig {
+            law: self.law,
+            inertia: SMatrix::from_row_slice(&self.model_inertia),
+            k: SMatrix::from_row_slice(&self.kp),
+            kd: SMatrix::from_row_slice(&self.kd),
+            torque_limit: self
+                .torque_limit
+                .as_ref()
+                .map(|l| SVector::from_row_slice(l)),
+        }
+    }
+
+    /// The controller.
+    pub fn controller<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Result<Controller<f64, G, N, M>, controller::Error> {
+        Controller::new(self.controller_config())
+    }
+
+    /// The feedforward torque.
+    pub fn feedforward<const M: usize>(&self) -> Result<Feedforward<f64, M>, controller::Error> {
+        let mut ff = Feedforward::<f64, M>::zero();
+        for (i, axis) in self.feedforward.iter().enumerate().take(M) {
+            let terms: Vec<CosTerm<f64>> = axis
+                .terms
+                .iter()
+                .map(|t| CosTerm {
+                    amplitude: t.amplitude,
+                    frequency: t.frequency,
+                    phase: t.phase,
+                })
+                .collect();
+            ff.axes[i] = AxisTorque::new(i, axis.offset, &terms)?;
+        }
+        Ok(ff)
+    }
+
+    /// The reference generator (model inertia, control period, reference substeps).
+    pub fn reference_generator<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Result<Reference<f64, G, N, M>, controller::Error> {
+        Reference::new(
+            Self::configuration::<N>(&self.reference),
+            SVector::from_row_slice(&self.reference.velocity),
+            SMatrix::from_row_slice(&self.model_inertia),
+            self.feedforward()?,
+            self.control_period,
+            self.reference_substeps,
+        )
+    }
+
+    /// The path of a waypoint or set-point scenario (`None` for a feedforward series).
+    pub fn path<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Option<Result<GroupPath<f64, G, N, M>, controller::Error>> {
+        self.path.as_ref().map(build_path::<G, N, M>)
+    }
+
+    /// The desired trajectory, whichever its kind: the feedforward series integrated, or the
+    /// path through waypoints (a set-point) stepped at the control period.
+    pub fn reference_source<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Result<Source<f64, G, N, M>, controller::Error> {
+        Ok(match self.path::<G, N, M>() {
+            None => Source::Series(self.reference_generator()?),
+            Some(path) => Source::Path(PathReference::new(
+                path?,
+                SMatrix::from_row_slice(&self.model_inertia),
+                self.control_period,
+            )?),
+        })
+    }
+
+    /// n×n configuration from a rotation vector and a position (ignored on SO(3)).
+    pub fn pose<const N: usize>(rotation: [f64; 3], position: [f64; 3]) -> SMatrix<f64, N, N> {
+        Self::configuration::<N>(&StateSpec {
+            rotation,
+            position,
+            velocity: Vec::new(),
+        })
+    }
+
+    /// The plant body at its initial state (true inertia).
+    pub fn plant_body<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Result<RigidBody<f64, G, N, M>, controller::Error> {
+        RigidBody::new(
+            SMatrix::from_row_slice(&self.plant_inertia),
+            Self::configuration::<N>(&self.initial),
+            SVector::from_row_slice(&self.initial.velocity),
+        )
+    }
+
+    /// A 64-bit fingerprint (FNV-1a, never 0) of what the controller takes from the scenario:
+    /// the group, the control period and reference substeps, the model inertia, `K`, `K_d`,
+    /// the torque limit, the reference's initial state and its feedforward. Not the law (a
+    /// controller may override it), the duration, the name, nor the plant's own initial state,
+    /// inertia or disturbances. The disturbance-rejection terms when there are any. Two processes of a pair compare it on their first message
+    /// (docs/architecture.md, "Configuration identity").
+    pub fn fingerprint(&self) -> u64 {
+        let mut h = Fnv(0xcbf2_9ce4_8422_2325);
+        h.bytes(self.group.name().as_bytes());
+        h.f64s(&[self.control_period, self.reference_substeps as f64]);
+        for part in [&self.model_inertia, &self.kp, &self.kd] {
+            h.f64s(&[part.len() as f64]);
+            h.f64s(part);
+        }
+        match &self.torque_limit {
+            Some(l) => h.f64s(l),
+            None => h.bytes(b"no limit"),
+        }
+        h.f64s(&self.reference.rotation);
+        h.f64s(&self.reference.position);
+        h.f64s(&self.reference.velocity);
+        for axis in &self.feedforward {
+            h.f64s(&[axis.offset, axis.terms.len() as f64]);
+            for t in &axis.terms {
+                h.f64s(&[t.amplitude, t.frequency, t.phase]);
+            }
+        }
+        if let Some(p) = &self.path {
+            h.f64s(&[p.times.len() as f64]);
+            h.f64s(&p.times);
+            for pose in &p.poses {
+                h.f64s(&pose.rotation);
+                h.f64s(&pose.position);
+            }
+            // only for a through-path, so stop paths keep their fingerprints
+            if p.kind == PathKind::Through {
+                h.bytes(b"through");
+                for v in &p.velocities {
+                    match v {
+                        Some(v) => h.f64s(v),
+                        None => h.bytes(b"chosen"),
+                    }
+                }
+            }
+        }
+        // only when present, so scenarios without them keep their fingerprints
+        if let Some(o) = &self.rejection.observer {
+            h.bytes(b"observer");
+            h.bytes(o.frame.name().as_bytes());
+            h.f64s(&o.gain);
+            if let Some(l) = &o.limit {
+                h.f64s(l);
+            }
+        }
+        if let Some(i) = &self.rejection.integral {
+            h.bytes(if i.anti_windup {
+                b"integral"
+            } else {
+                b"wound-up"
+            });
+            for part in [&i.ki, &i.c] {
+                h.f64s(part);
+            }
+            if let Some(l) = &i.limit {
+                h.f64s(l);
+            }
+        }
+        h.0.max(1)
+    }
+
+    /// The disturbance as a vector.
+    pub fn disturbance_vector<const M: usize>(&self) -> SVector<f64, M> {
+        SVector::from_row_slice(&self.disturbance)
+    }
+}
+
+/// FNV-1a, 64 bits.
+struct Fnv(u64);
+
+impl Fnv {
+    fn bytes(&mut self, b: &[u8]) {
+        for x in b {
+            self.0 = (self.0 ^ u64::from(*x)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    fn f64s(&mut self, xs: &[f64]) {
+        for x in xs {
+            self.bytes(&x.to_bits().to_le_bytes());
+        }
+    }
+}
