@@ -399,6 +399,37 @@ where
 
     /// One evaluation of the law: checks the state is finite, computes the torque, saturates
     /// it, and evaluates the Lyapunov function. Never returns a non-finite torque.
+    ///
+    /// On the desired trajectory the tracking error is the identity, `L = 0`, and the torque
+    /// is the feedforward; off it, the law pulls back, and a NaN state is refused:
+    ///
+    /// ```
+    /// use controller::group::{MatrixLieGroup, So3};
+    /// use controller::law::Desired;
+    /// use controller::{Controller, ControllerConfig, Law};
+    /// use nalgebra::{Matrix3, Vector3};
+    ///
+    /// let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759);
+    /// let law = Controller::<f64, So3, 3, 3>::new(ControllerConfig {
+    ///     law: Law::Eqt,
+    ///     inertia,
+    ///     k: Matrix3::identity() * 0.5,
+    ///     kd: Matrix3::identity() * 0.5,
+    ///     torque_limit: None,
+    /// })?;
+    /// let q_d = So3::exp(&Vector3::new(0.1, -0.2, 0.3));
+    /// let v_d = Vector3::new(0.5, 0.0, -0.25);
+    /// let desired = Desired { q: q_d, p: inertia * v_d, v: v_d, tau: Vector3::new(0.1, 0.2, 0.3) };
+    ///
+    /// let on = law.compute(&q_d, &v_d, &desired)?;
+    /// assert!(on.lyapunov.total.abs() < 1e-15);
+    /// assert!((on.torque - desired.tau).norm() < 1e-12);
+    ///
+    /// let off = law.compute(&(q_d * So3::exp(&Vector3::new(0.0, 0.0, 0.5))), &v_d, &desired)?;
+    /// assert!(off.lyapunov.total > 0.0);
+    /// assert!(law.compute(&q_d, &Vector3::new(f64::NAN, 0.0, 0.0), &desired).is_err());
+    /// # Ok::<(), controller::Error>(())
+    /// ```
     pub fn compute(
         &self,
         q: &SMatrix<T, N, N>,

@@ -52,6 +52,27 @@ impl Step {
 }
 
 /// The policy and its counters.
+///
+/// Data in, decision out: no clock and no IPC, so each transition is a line of code to test.
+///
+/// ```
+/// use link::{Arrival, DeadlinePolicy, Decision, Transition};
+///
+/// let mut policy = DeadlinePolicy::new(3);
+/// let deadline = |k: u64| (k + 1) * 1_000_000; // 1 kHz
+/// let on_time = |k: u64| Some(Arrival { seq: k, at_ns: deadline(k) - 200_000 });
+/// assert_eq!(policy.step(0, deadline(0), on_time(0)).decision, Decision::Fresh);
+/// // the controller falls silent: held, held, then safe mode at the third miss
+/// assert_eq!(policy.step(1, deadline(1), None).decision, Decision::Held);
+/// assert_eq!(policy.step(2, deadline(2), None).decision, Decision::Held);
+/// let third = policy.step(3, deadline(3), None);
+/// assert_eq!((third.decision, third.transition), (Decision::Safe, Some(Transition::EnteredSafe)));
+/// // a command for an older tick does not count; the next fresh one ends safe mode
+/// assert_eq!(policy.step(4, deadline(4), on_time(3)).decision, Decision::Safe);
+/// let back = policy.step(5, deadline(5), on_time(5));
+/// assert_eq!(back.transition, Some(Transition::LeftSafe));
+/// assert_eq!((policy.misses(), policy.safe_entries()), (4, 1));
+/// ```
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DeadlinePolicy {
     miss_limit: u32,

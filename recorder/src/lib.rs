@@ -7,6 +7,37 @@
 //! * [`writer`]: the loop's side ([`Recorder::push`], allocation-free) and the writer thread;
 //! * [`reader`]: reading a recording back (cut-short files up to their last whole record).
 //!
+//! A recording written and read back (the loop's side is [`Recorder::push`]; the writer
+//! thread does the rest):
+//!
+//! ```
+//! use ipc_types::{Decision, StateMsg, WireGroup, MAX_M};
+//! use recorder::{Header, LogReader, Record, Recorder, LOG_FILE};
+//!
+//! let dir = std::env::temp_dir().join(format!("recorder-doc-{}", std::process::id()));
+//! std::fs::create_dir_all(&dir)?;
+//! let header = Header {
+//!     group: WireGroup::So3.code(), control_period: 0.01, rate_hz: 0.0, realtime: false,
+//!     event_wake: true, miss_limit: 3, fingerprint: 7, run: "doc".into(),
+//!     scenario: "seed".into(), law: "eqt".into(), plant_pid: 1, sensors: false,
+//! };
+//! let mut rec = Recorder::start(&dir, &header, 64, None, None)?;
+//! for k in 0..100 {
+//!     let mut state = StateMsg::new(WireGroup::So3);
+//!     state.seq = k;
+//!     rec.push(&Record {
+//!         cycle: k, decision: Decision::Fresh, misses_in_row: 0, deadline_ns: 0,
+//!         applied: [0.0; MAX_M], state, command: None, sensors: None,
+//!     });
+//! }
+//! assert_eq!(rec.finish()?.records, 100);
+//! let mut log = LogReader::open(&dir.join(LOG_FILE))?;
+//! assert_eq!((log.records, log.header.scenario.as_str()), (100, "seed"));
+//! assert_eq!(log.next_record()?.map(|r| r.state.seq), Some(0));
+//! std::fs::remove_dir_all(&dir)?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! It knows the wire contract (`ipc_types`) and nothing else of the project: the plant, the
 //! offline tools (replay, monitor) and the MCAP export all build on it, and none of them is
 //! needed to read a log.
