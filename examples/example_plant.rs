@@ -23,7 +23,7 @@ use controller::GroupKind;
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;
 use controller::law::safe_mode_torque;
-use link::{DeadlinePolicy, Decision, NoCommand, PlantConfig, PlantEndpoint, Step, clock};
+use link::{DeadlinePolicy, Decision, NoCommand, PlantEndpoint, PlantEndpointConfig, Step, clock};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 const PERIOD: f64 = 0.01; // s: 100 Hz, the scenarios' control period
@@ -144,7 +144,7 @@ fn fly<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     mut body: Body<G, N, M>,
     mut filter: Option<Filter>,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    let mut plant = PlantEndpoint::open(PlantConfig::new(run, group, PERIOD))?;
+    let mut plant = PlantEndpoint::open(PlantEndpointConfig::new(run, group, PERIOD))?;
     let mut policy = DeadlinePolicy::new(MISS_LIMIT);
     let kd = SMatrix::<f64, M, M>::identity() * KD_SAFE;
     let limit = SVector::<f64, M>::repeat(TORQUE_LIMIT);

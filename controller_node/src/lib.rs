@@ -15,11 +15,11 @@
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::path::{Path, PathReference};
 use controller::{Controller, Rejection, RejectionConfig, Source, Trajectory};
-use ipc_types::{CommandMsg, PlanMsg, PlanReject, StateMsg, check_plan, flags, name_str};
+use ipc_types::{CommandMsg, PlanInvalid, PlanMsg, StateMsg, check_plan, flags, name_str};
 use link::plan::PlanReader;
 use link::{
-    ControllerConfig, ControllerEndpoint, Incoming, LinkError, Refusal, StopFlag, StopSignal,
-    TransportKind, clock,
+    ControllerEndpoint, ControllerEndpointConfig, Incoming, LinkError, Refusal, StopFlag,
+    StopSignal, TransportKind, clock,
 };
 use scenario::Scenario;
 use std::time::{Duration, Instant};
@@ -89,13 +89,13 @@ pub struct Report {
     pub stop: Stop,
     /// Commands published.
     pub cycles: u64,
-    /// Rejected states per [`ipc_types::Reject`] kind.
+    /// Rejected states per [`ipc_types::Invalid`] kind.
     pub rejected: [u64; 5],
     /// States the law refused (non-finite state), no command published.
     pub refused: u64,
-    /// With `--reference stream`: plan messages refused per [`ipc_types::PlanReject`] kind
+    /// With `--reference stream`: plan messages refused per [`ipc_types::PlanInvalid`] kind
     /// (its discriminant), e.g. for a segment shorter than the control period.
-    pub plans_refused: [u64; PlanReject::KINDS],
+    pub plans_refused: [u64; PlanInvalid::KINDS],
     /// Heap allocations counted between the end of the first cycle and the moment the node
     /// stopped (`None` if fewer than two cycles ran), and the cycles they span.
     pub allocations_after_startup: Option<(u64, u64)>,
@@ -496,7 +496,7 @@ impl PlanIntake {
         &mut self,
         msg: &PlanMsg,
         reference: &mut PathReference<f64, G, N, M>,
-    ) -> Result<(), PlanReject> {
+    ) -> Result<(), PlanInvalid> {
         self.received = self.received.wrapping_add(1);
         self.last = (msg.planner_pid, msg.seq);
         check_plan(msg, link::wire::wire_group(G::KIND), reference.period())?;
@@ -533,8 +533,8 @@ struct Stream {
     dry: bool,
     /// Whether any piece has come.
     started: bool,
-    /// Plan messages refused, per [`ipc_types::PlanReject`] kind (its discriminant) (each kind logged once).
-    rejected: [u64; PlanReject::KINDS],
+    /// Plan messages refused, per [`ipc_types::PlanInvalid`] kind (its discriminant) (each kind logged once).
+    rejected: [u64; PlanInvalid::KINDS],
 }
 
 impl Stream {
@@ -544,7 +544,7 @@ impl Stream {
             intake: PlanIntake::default(),
             dry: true,
             started: false,
-            rejected: [0; PlanReject::KINDS],
+            rejected: [0; PlanInvalid::KINDS],
         })
     }
 
@@ -565,7 +565,7 @@ impl Stream {
                         .used()
                         .iter()
                         .enumerate()
-                        .find(|(_, w)| kind == PlanReject::ShortLeg && w.t1 - w.t0 < period)
+                        .find(|(_, w)| kind == PlanInvalid::ShortLeg && w.t1 - w.t0 < period)
                         .map_or(String::new(), |(j, w)| {
                             format!(
                                 ": piece {} from t = {} s to t = {} s lasts {:e} s, less than the control period {period} s",
@@ -613,8 +613,8 @@ impl Stream {
 }
 
 /// Logs each rejection kind once.
-fn log_rejections(ep: &mut ControllerEndpoint) {
-    while let Some(r) = ep.next_rejection() {
+fn log_invalid(ep: &mut ControllerEndpoint) {
+    while let Some(r) = ep.next_invalid() {
         let m = &r.msg;
         log(format_args!(
             "rejected state seq {} ({}: version {}, group code {}, period {} s); no torque for it. Further rejections of this kind are counted, not logged",
@@ -635,7 +635,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             scenario: s.name.clone(),
             source,
         })?;
-    let mut ep = ControllerEndpoint::open(ControllerConfig {
+    let mut ep = ControllerEndpoint::open(ControllerEndpointConfig {
         run: opts.run.clone(),
         transport: opts.transport,
         group: s.group,
@@ -683,7 +683,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             }
             Incoming::Nothing => {}
         }
-        log_rejections(&mut ep);
+        log_invalid(&mut ep);
     };
     let allocations_after_startup = cycles
         .baseline
@@ -692,12 +692,12 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     Ok(Report {
         stop,
         cycles: cycles.cycles,
-        rejected: ep.rejected_states(),
+        rejected: ep.invalid_states(),
         refused: cycles.refused,
         plans_refused: cycles
             .stream
             .as_ref()
-            .map_or([0; PlanReject::KINDS], |s| s.rejected),
+            .map_or([0; PlanInvalid::KINDS], |s| s.rejected),
         allocations_after_startup,
     })
 }

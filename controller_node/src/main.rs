@@ -155,7 +155,7 @@ fn finish(report: &Report, run: &str) -> ExitCode {
         None => "heap allocations after start-up: not measured (fewer than 2 cycles)".to_owned(),
     };
     let plans: u64 = report.plans_refused.iter().sum();
-    let short = report.plans_refused[ipc_types::PlanReject::ShortLeg as usize];
+    let short = report.plans_refused[ipc_types::PlanInvalid::ShortLeg as usize];
     eprintln!(
         "controller_node: exiting: {why}; {} commands, {rejected} states rejected, {} refused, {plans} plan messages refused ({short} with a segment shorter than the control period); {allocs}",
         report.cycles, report.refused

@@ -38,7 +38,7 @@
 //!
 //! The oracle: no panic, and every rejection a typed error. Each case runs under
 //! [`std::panic::catch_unwind`] ([`run_case`]); a quiet panic hook records the message and
-//! location of panics inside a case. Rejections are counted by kind ([`Report::rejected`]);
+//! location of panics inside a case. InvalidCounts are counted by kind ([`Report::rejected`]);
 //! panics are [`Finding`]s and fail the run ([`Report::passed`]). A few extra assertions turn
 //! broken documented properties into panics too: decoding then encoding a message gives the
 //! same bytes, `check_*` accepts only messages of the right version, group and sequence,
@@ -174,7 +174,7 @@ pub enum Outcome {
     /// Accepted all the way.
     Accepted,
     /// Rejected with a typed error; the string names its kind (e.g.
-    /// `"ScenarioError::Invalid (plant.inertia)"`, `"check_state: Reject::NonFinite"`).
+    /// `"ScenarioError::Invalid (plant.inertia)"`, `"check_state: Invalid::NonFinite"`).
     Rejected(String),
 }
 

@@ -687,7 +687,7 @@ pub(crate) fn check(case: &WireCase) -> Outcome {
                 }
             }
             match check_state(&msg, wire_group(r.group), r.last_seq, r.period) {
-                Err(k) => Outcome::Rejected(format!("check_state: Reject::{k:?}")),
+                Err(k) => Outcome::Rejected(format!("check_state: Invalid::{k:?}")),
                 Ok(()) => {
                     let law = LawOnState {
                         scenario: ctx.scenario(r.group),
@@ -736,7 +736,7 @@ pub(crate) fn check(case: &WireCase) -> Outcome {
                 }
             }
             match check_command(&msg, wire_group(r.group), r.awaited) {
-                Err(k) => Outcome::Rejected(format!("check_command: Reject::{k:?}")),
+                Err(k) => Outcome::Rejected(format!("check_command: Invalid::{k:?}")),
                 Ok(()) => {
                     r.group.dispatch(PlantOnCommand {
                         scenario: ctx.scenario(r.group),

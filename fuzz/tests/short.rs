@@ -57,15 +57,15 @@ fn wire_inputs_never_panic() {
     for kind in [
         "StateMsg::from_bytes: DecodeError::Length",
         "CommandMsg::from_bytes: DecodeError::Length",
-        "check_state: Reject::Version",
-        "check_state: Reject::Group",
-        "check_state: Reject::NonFinite",
-        "check_state: Reject::Sequence",
-        "check_state: Reject::Period",
-        "check_command: Reject::Version",
-        "check_command: Reject::Group",
-        "check_command: Reject::NonFinite",
-        "check_command: Reject::Sequence",
+        "check_state: Invalid::Version",
+        "check_state: Invalid::Group",
+        "check_state: Invalid::NonFinite",
+        "check_state: Invalid::Sequence",
+        "check_state: Invalid::Period",
+        "check_command: Invalid::Version",
+        "check_command: Invalid::Group",
+        "check_command: Invalid::NonFinite",
+        "check_command: Invalid::Sequence",
     ] {
         assert!(r.rejected.contains_key(kind), "{kind} never seen\n{r}");
     }

@@ -1,10 +1,10 @@
-//! The checks every receiver applies before a message is used, and why a message is rejected ([`Reject`]).
+//! The checks every receiver applies before a message is used, and why a message is rejected ([`Invalid`]).
 
 use crate::{CommandMsg, PROTOCOL_VERSION, StateMsg, WireGroup};
 
-/// Why a message was rejected. Each kind is logged once and counted.
+/// Why a message is invalid (it failed its check; it is never used). Each kind is logged once and counted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Reject {
+pub enum Invalid {
     /// The protocol version differs.
     Version,
     /// The group differs from the receiver's.
@@ -18,14 +18,14 @@ pub enum Reject {
     Period,
 }
 
-impl Reject {
+impl Invalid {
     /// All kinds, for counters.
-    pub const ALL: [Reject; 5] = [
-        Reject::Version,
-        Reject::Group,
-        Reject::NonFinite,
-        Reject::Sequence,
-        Reject::Period,
+    pub const ALL: [Invalid; 5] = [
+        Invalid::Version,
+        Invalid::Group,
+        Invalid::NonFinite,
+        Invalid::Sequence,
+        Invalid::Period,
     ];
 
     /// Index into a counter array.
@@ -36,16 +36,16 @@ impl Reject {
     /// Lower-case name for logs.
     pub fn name(self) -> &'static str {
         match self {
-            Reject::Version => "wrong protocol version",
-            Reject::Group => "wrong group",
-            Reject::NonFinite => "non-finite number",
-            Reject::Sequence => "sequence number not increasing",
-            Reject::Period => "control period mismatch",
+            Invalid::Version => "wrong protocol version",
+            Invalid::Group => "wrong group",
+            Invalid::NonFinite => "non-finite number",
+            Invalid::Sequence => "sequence number not increasing",
+            Invalid::Period => "control period mismatch",
         }
     }
 }
 
-impl core::fmt::Display for Reject {
+impl core::fmt::Display for Invalid {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(self.name())
     }
@@ -56,10 +56,10 @@ pub(crate) fn all_finite(xs: &[f64]) -> bool {
 }
 
 /// The `(n, m)` of a message's group code, if it is the receiver's group.
-pub(crate) fn own_dims(code: u32, group: WireGroup) -> Result<(usize, usize), Reject> {
+pub(crate) fn own_dims(code: u32, group: WireGroup) -> Result<(usize, usize), Invalid> {
     match WireGroup::from_code(code) {
         Some(g) if g == group => Ok(g.dims()),
-        _ => Err(Reject::Group),
+        _ => Err(Invalid::Group),
     }
 }
 
@@ -78,9 +78,9 @@ pub fn check_state(
     group: WireGroup,
     last_seq: Option<u64>,
     period: Option<f64>,
-) -> Result<(), Reject> {
+) -> Result<(), Invalid> {
     if msg.version != PROTOCOL_VERSION {
-        return Err(Reject::Version);
+        return Err(Invalid::Version);
     }
     let (n, m) = own_dims(msg.group, group)?;
     if !all_finite(&msg.q[..n * n])
@@ -89,25 +89,25 @@ pub fn check_state(
         || !msg.t.is_finite()
         || !msg.control_period.is_finite()
     {
-        return Err(Reject::NonFinite);
+        return Err(Invalid::NonFinite);
     }
     let next = match last_seq {
         None => 0,
-        Some(last) => last.checked_add(1).ok_or(Reject::Sequence)?,
+        Some(last) => last.checked_add(1).ok_or(Invalid::Sequence)?,
     };
     if msg.seq < next || msg.seq - next > MAX_SEQ_JUMP {
-        return Err(Reject::Sequence);
+        return Err(Invalid::Sequence);
     }
     if msg.control_period <= 0.0 || period.is_some_and(|p| p != msg.control_period) {
-        return Err(Reject::Period);
+        return Err(Invalid::Period);
     }
     Ok(())
 }
 
 /// Checks a command against the receiver's group and the sequence number it awaits.
-pub fn check_command(msg: &CommandMsg, group: WireGroup, awaited: u64) -> Result<(), Reject> {
+pub fn check_command(msg: &CommandMsg, group: WireGroup, awaited: u64) -> Result<(), Invalid> {
     if msg.version != PROTOCOL_VERSION {
-        return Err(Reject::Version);
+        return Err(Invalid::Version);
     }
     let (_, m) = own_dims(msg.group, group)?;
     if !all_finite(&msg.tau[..m])
@@ -117,10 +117,10 @@ pub fn check_command(msg: &CommandMsg, group: WireGroup, awaited: u64) -> Result
         || !all_finite(&msg.estimate_before[..m])
         || !all_finite(&msg.z_before[..m])
     {
-        return Err(Reject::NonFinite);
+        return Err(Invalid::NonFinite);
     }
     if msg.seq != awaited {
-        return Err(Reject::Sequence);
+        return Err(Invalid::Sequence);
     }
     Ok(())
 }

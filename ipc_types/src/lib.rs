@@ -17,7 +17,7 @@ pub use codes::{WireGroup, WireLaw};
 pub mod decision;
 pub use decision::Decision;
 pub mod plan;
-pub use plan::{PLAN_BYTES, PLAN_WINDOW, PlanMsg, PlanReject, WireSegment, check_plan};
+pub use plan::{PLAN_BYTES, PLAN_WINDOW, PlanInvalid, PlanMsg, WireSegment, check_plan};
 pub mod status;
 pub use status::{StatusMsg, status_flags};
 
@@ -27,7 +27,7 @@ mod encoding;
 mod identity;
 mod services;
 mod state;
-pub use checks::{MAX_SEQ_JUMP, Reject, check_command, check_state};
+pub use checks::{Invalid, MAX_SEQ_JUMP, check_command, check_state};
 pub(crate) use checks::{all_finite, own_dims};
 pub use command::CommandMsg;
 pub use encoding::{COMMAND_BYTES, DecodeError, STATE_BYTES};
@@ -82,41 +82,41 @@ mod tests {
         let mut s = StateMsg::new(So3);
         s.control_period = 0.01;
         assert_eq!(check_state(&s, So3, None, None), Ok(()));
-        assert_eq!(check_state(&s, Se3, None, None), Err(Reject::Group));
+        assert_eq!(check_state(&s, Se3, None, None), Err(Invalid::Group));
         s.seq = 5;
-        assert_eq!(check_state(&s, So3, Some(5), None), Err(Reject::Sequence));
+        assert_eq!(check_state(&s, So3, Some(5), None), Err(Invalid::Sequence));
         assert_eq!(check_state(&s, So3, Some(4), None), Ok(()));
         s.seq = 5 + MAX_SEQ_JUMP;
         assert_eq!(check_state(&s, So3, Some(4), None), Ok(()));
         s.seq += 1;
-        assert_eq!(check_state(&s, So3, Some(4), None), Err(Reject::Sequence));
+        assert_eq!(check_state(&s, So3, Some(4), None), Err(Invalid::Sequence));
         s.seq = MAX_SEQ_JUMP;
         assert_eq!(check_state(&s, So3, None, None), Ok(()));
         s.seq = u64::MAX;
-        assert_eq!(check_state(&s, So3, None, None), Err(Reject::Sequence));
+        assert_eq!(check_state(&s, So3, None, None), Err(Invalid::Sequence));
         assert_eq!(
             check_state(&s, So3, Some(u64::MAX), None),
-            Err(Reject::Sequence)
+            Err(Invalid::Sequence)
         );
         s.seq = 5;
-        assert_eq!(check_state(&s, So3, None, Some(0.02)), Err(Reject::Period));
+        assert_eq!(check_state(&s, So3, None, Some(0.02)), Err(Invalid::Period));
         assert_eq!(check_state(&s, So3, None, Some(0.01)), Ok(()));
         s.v[2] = f64::NAN;
-        assert_eq!(check_state(&s, So3, None, None), Err(Reject::NonFinite));
+        assert_eq!(check_state(&s, So3, None, None), Err(Invalid::NonFinite));
         s.v[2] = 0.0;
         s.applied[1] = f64::INFINITY;
-        assert_eq!(check_state(&s, So3, None, None), Err(Reject::NonFinite));
+        assert_eq!(check_state(&s, So3, None, None), Err(Invalid::NonFinite));
         s.applied[1] = 0.0;
         s.applied[4] = f64::NAN; // beyond m = 3: ignored
         s.v[5] = f64::NAN; // beyond m = 3: ignored
         assert_eq!(check_state(&s, So3, None, None), Ok(()));
         s.control_period = 0.0;
-        assert_eq!(check_state(&s, So3, None, None), Err(Reject::Period));
+        assert_eq!(check_state(&s, So3, None, None), Err(Invalid::Period));
         s.version = 99;
-        assert_eq!(check_state(&s, So3, None, None), Err(Reject::Version));
+        assert_eq!(check_state(&s, So3, None, None), Err(Invalid::Version));
         let mut u = StateMsg::new(So3);
         u.group = 77;
-        assert_eq!(check_state(&u, So3, None, None), Err(Reject::Group));
+        assert_eq!(check_state(&u, So3, None, None), Err(Invalid::Group));
     }
 
     #[test]
@@ -124,19 +124,19 @@ mod tests {
         let mut c = CommandMsg::new(Se3);
         c.seq = 3;
         assert_eq!(check_command(&c, Se3, 3), Ok(()));
-        assert_eq!(check_command(&c, So3, 3), Err(Reject::Group));
-        assert_eq!(check_command(&c, Se3, 4), Err(Reject::Sequence));
+        assert_eq!(check_command(&c, So3, 3), Err(Invalid::Group));
+        assert_eq!(check_command(&c, Se3, 4), Err(Invalid::Sequence));
         c.tau[5] = f64::INFINITY;
-        assert_eq!(check_command(&c, Se3, 3), Err(Reject::NonFinite));
+        assert_eq!(check_command(&c, Se3, 3), Err(Invalid::NonFinite));
         c.tau[5] = 0.0;
         c.observer[5] = f64::NAN;
-        assert_eq!(check_command(&c, Se3, 3), Err(Reject::NonFinite));
+        assert_eq!(check_command(&c, Se3, 3), Err(Invalid::NonFinite));
         c.observer[5] = 0.0;
         c.integral[0] = f64::NEG_INFINITY;
-        assert_eq!(check_command(&c, Se3, 3), Err(Reject::NonFinite));
+        assert_eq!(check_command(&c, Se3, 3), Err(Invalid::NonFinite));
         c.integral[0] = 0.0;
         c.z_before[5] = f64::NAN;
-        assert_eq!(check_command(&c, Se3, 3), Err(Reject::NonFinite));
+        assert_eq!(check_command(&c, Se3, 3), Err(Invalid::NonFinite));
         c.z_before[5] = 0.0;
         assert_eq!(check_command(&c, Se3, 3), Ok(()));
     }

@@ -88,7 +88,7 @@ pub struct PlanMsg {
 
 /// Why a plan message was not used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum PlanReject {
+pub enum PlanInvalid {
     /// The protocol version differs.
     Version,
     /// The group differs from the receiver's.
@@ -109,22 +109,22 @@ pub enum PlanReject {
     ShortLeg,
 }
 
-impl PlanReject {
+impl PlanInvalid {
     /// How many kinds there are (for counters indexed by `kind as usize`).
     pub const KINDS: usize = 8;
 }
 
-impl core::fmt::Display for PlanReject {
+impl core::fmt::Display for PlanInvalid {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(match self {
-            PlanReject::Version => "wrong protocol version",
-            PlanReject::Group => "wrong group",
-            PlanReject::Count => "more segments than a plan message holds",
-            PlanReject::NonFinite => "non-finite number",
-            PlanReject::Times => "segment times not increasing",
-            PlanReject::NotOnGroup => "a start pose is not on the group",
-            PlanReject::Shape => "unknown segment shape",
-            PlanReject::ShortLeg => "a segment is shorter than the control period",
+            PlanInvalid::Version => "wrong protocol version",
+            PlanInvalid::Group => "wrong group",
+            PlanInvalid::Count => "more segments than a plan message holds",
+            PlanInvalid::NonFinite => "non-finite number",
+            PlanInvalid::Times => "segment times not increasing",
+            PlanInvalid::NotOnGroup => "a start pose is not on the group",
+            PlanInvalid::Shape => "unknown segment shape",
+            PlanInvalid::ShortLeg => "a segment is shorter than the control period",
         })
     }
 }
@@ -246,38 +246,38 @@ fn on_group(q: &[f64], n: usize) -> bool {
 /// Checks a plan message against the receiver's group and control period: version, group,
 /// count, shape codes, finite numbers, increasing non-overlapping times, every segment at
 /// least `period` long, start poses on the group.
-pub fn check_plan(msg: &PlanMsg, group: WireGroup, period: f64) -> Result<(), PlanReject> {
+pub fn check_plan(msg: &PlanMsg, group: WireGroup, period: f64) -> Result<(), PlanInvalid> {
     if msg.version != PROTOCOL_VERSION {
-        return Err(PlanReject::Version);
+        return Err(PlanInvalid::Version);
     }
-    let (n, m) = own_dims(msg.group, group).map_err(|_| PlanReject::Group)?;
+    let (n, m) = own_dims(msg.group, group).map_err(|_| PlanInvalid::Group)?;
     if msg.count as usize > PLAN_WINDOW {
-        return Err(PlanReject::Count);
+        return Err(PlanInvalid::Count);
     }
     let mut end = f64::NEG_INFINITY;
     for s in msg.used() {
         let twists = match s.shape {
             SHAPE_REST => 1,
             SHAPE_THROUGH => 5,
-            _ => return Err(PlanReject::Shape),
+            _ => return Err(PlanInvalid::Shape),
         };
         if !(s.t0.is_finite()
             && s.t1.is_finite()
             && all_finite(&s.start[..n * n])
             && (0..twists).all(|k| all_finite(s.twist(k, m))))
         {
-            return Err(PlanReject::NonFinite);
+            return Err(PlanInvalid::NonFinite);
         }
         if s.t1 <= s.t0 || s.t0 < end {
-            return Err(PlanReject::Times);
+            return Err(PlanInvalid::Times);
         }
         // the times are finite here; a NaN period refuses too
         if s.t1 - s.t0 < period || period.is_nan() {
-            return Err(PlanReject::ShortLeg);
+            return Err(PlanInvalid::ShortLeg);
         }
         end = s.t1;
         if !on_group(&s.start, n) {
-            return Err(PlanReject::NotOnGroup);
+            return Err(PlanInvalid::NotOnGroup);
         }
     }
     Ok(())

@@ -1,7 +1,7 @@
 //! The controller's handle on a run: wait for states, publish commands, learn that the plant
 //! is gone. Nothing here allocates after [`ControllerEndpoint::open`].
 
-use crate::rejections::{Rejected, Rejections};
+use crate::invalid::{InvalidCounts, InvalidMessage};
 use crate::transport::{ControllerTransport, open};
 use crate::wire::group_code;
 use crate::{LinkError, Refusal, Role, TransportKind, check_run_name, clock};
@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 /// How to open the controller's side of a run.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ControllerConfig {
+pub struct ControllerEndpointConfig {
     /// The run name.
     pub run: String,
     /// The transport.
@@ -51,11 +51,11 @@ const LIVENESS_EVERY: Duration = Duration::from_millis(100);
 ///
 /// ```no_run
 /// use controller::GroupKind;
-/// use link::{ControllerConfig, ControllerEndpoint, Incoming, TransportKind};
+/// use link::{ControllerEndpointConfig, ControllerEndpoint, Incoming, TransportKind};
 /// use nalgebra::Vector3;
 /// use std::time::Duration;
 ///
-/// let mut ctl = ControllerEndpoint::open(ControllerConfig {
+/// let mut ctl = ControllerEndpoint::open(ControllerEndpointConfig {
 ///     run: "board1".into(),
 ///     transport: TransportKind::Iceoryx2,
 ///     group: GroupKind::So3,
@@ -79,9 +79,9 @@ const LIVENESS_EVERY: Duration = Duration::from_millis(100);
 /// ```
 pub struct ControllerEndpoint {
     transport: ControllerTransport,
-    config: ControllerConfig,
+    config: ControllerEndpointConfig,
     identity: Identity,
-    rejections: Rejections<StateMsg>,
+    rejections: InvalidCounts<StateMsg>,
     last_seq: Option<u64>,
     period: Option<f64>,
     plant_pid: u32,
@@ -92,7 +92,7 @@ pub struct ControllerEndpoint {
 
 impl ControllerEndpoint {
     /// Opens the controller's side of run `config.run` (a plant may come before or after).
-    pub fn open(config: ControllerConfig) -> Result<ControllerEndpoint, LinkError> {
+    pub fn open(config: ControllerEndpointConfig) -> Result<ControllerEndpoint, LinkError> {
         check_run_name(&config.run)?;
         let transport = open(config.transport, &config.run, Role::Controller)?;
         let identity = Identity::new(
@@ -105,7 +105,7 @@ impl ControllerEndpoint {
             transport,
             config,
             identity,
-            rejections: Rejections::new(),
+            rejections: InvalidCounts::new(),
             last_seq: None,
             period: None,
             plant_pid: 0,
@@ -238,12 +238,12 @@ impl ControllerEndpoint {
 
     /// The first rejected state of a kind not reported yet (log it; later ones of that kind
     /// are only counted).
-    pub fn next_rejection(&mut self) -> Option<Rejected<StateMsg>> {
+    pub fn next_invalid(&mut self) -> Option<InvalidMessage<StateMsg>> {
         self.rejections.next()
     }
 
-    /// Rejected states per [`ipc_types::Reject`] kind.
-    pub fn rejected_states(&self) -> [u64; 5] {
+    /// Rejected states per [`ipc_types::Invalid`] kind.
+    pub fn invalid_states(&self) -> [u64; 5] {
         self.rejections.counts()
     }
 }

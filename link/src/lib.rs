@@ -19,11 +19,11 @@
 //!
 //! ```no_run
 //! use controller::GroupKind;
-//! use link::{Decision, DeadlinePolicy, PlantConfig, PlantEndpoint, clock};
+//! use link::{Decision, DeadlinePolicy, PlantEndpointConfig, PlantEndpoint, clock};
 //! use nalgebra::{Matrix3, Vector3};
 //!
 //! let period = 0.001;
-//! let mut plant = PlantEndpoint::open(PlantConfig::new("board1", GroupKind::So3, period))?;
+//! let mut plant = PlantEndpoint::open(PlantEndpointConfig::new("board1", GroupKind::So3, period))?;
 //! let mut policy = DeadlinePolicy::new(3);
 //! let t0 = clock::monotonic_ns();
 //! let mut torque = Vector3::<f64>::zeros(); // what the motors apply
@@ -50,21 +50,21 @@ pub mod clock;
 pub mod controller_side;
 pub mod deadline;
 pub mod iceoryx2;
+mod invalid;
 pub mod plan;
 pub mod plant_side;
 pub mod process;
-mod rejections;
 pub mod rt;
 pub mod status;
 pub mod transport;
 pub mod uds;
 pub mod wire;
 
-pub use controller_side::{ControllerConfig, ControllerEndpoint, Incoming};
+pub use controller_side::{ControllerEndpoint, ControllerEndpointConfig, Incoming};
 pub use deadline::{Arrival, DeadlinePolicy, Decision, Step, Transition};
-pub use plant_side::{Command, NoCommand, PlantConfig, PlantEndpoint, Refusal};
+pub use invalid::InvalidMessage;
+pub use plant_side::{Command, NoCommand, PlantEndpoint, PlantEndpointConfig, Refusal};
 pub use process::{Exit, StopFlag, StopSignal, process_alive};
-pub use rejections::Rejected;
 pub use transport::{Message, Transport, open};
 
 use std::fmt;

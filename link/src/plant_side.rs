@@ -1,12 +1,12 @@
 //! The plant's handle on a run: publish states, wait for commands with a deadline.
 
 use crate::deadline::Arrival;
-use crate::rejections::{Rejected, Rejections};
+use crate::invalid::{InvalidCounts, InvalidMessage};
 use crate::transport::{PlantTransport, open};
 use crate::{LinkError, Role, TransportKind, Wake, check_run_name, clock};
 use controller::GroupKind;
 use ipc_types::{
-    CommandMsg, Identity, PROTOCOL_VERSION, Reject, StateMsg, check_command, flags, mismatch,
+    CommandMsg, Identity, Invalid, PROTOCOL_VERSION, StateMsg, check_command, flags, mismatch,
 };
 use nalgebra::{SMatrix, SVector};
 use std::fmt;
@@ -14,7 +14,7 @@ use std::time::Duration;
 
 /// How to open the plant's side of a run.
 #[derive(Debug, Clone, PartialEq)]
-pub struct PlantConfig {
+pub struct PlantEndpointConfig {
     /// The run name (services and sockets derive from it).
     pub run: String,
     /// The plant's group.
@@ -33,10 +33,10 @@ pub struct PlantConfig {
     pub scenario: String,
 }
 
-impl PlantConfig {
+impl PlantEndpointConfig {
     /// A hardware plant's configuration: iceoryx2, event wake-up, no scenario fingerprint.
-    pub fn new(run: &str, group: GroupKind, control_period: f64) -> PlantConfig {
-        PlantConfig {
+    pub fn new(run: &str, group: GroupKind, control_period: f64) -> PlantEndpointConfig {
+        PlantEndpointConfig {
             run: run.to_owned(),
             group,
             control_period,
@@ -118,9 +118,9 @@ pub enum NoCommand {
 /// the whole one is `examples/example_plant.rs`).
 pub struct PlantEndpoint {
     transport: PlantTransport,
-    config: PlantConfig,
+    config: PlantEndpointConfig,
     identity: Identity,
-    rejections: Rejections<CommandMsg>,
+    rejections: InvalidCounts<CommandMsg>,
     template: StateMsg,
     last_seq: u64,
     late: u64,
@@ -129,7 +129,7 @@ pub struct PlantEndpoint {
 impl PlantEndpoint {
     /// Opens the plant's side of run `config.run`. With iceoryx2 it fails if a live plant
     /// already holds the run; shared memory left by crashed processes is removed first.
-    pub fn open(config: PlantConfig) -> Result<PlantEndpoint, LinkError> {
+    pub fn open(config: PlantEndpointConfig) -> Result<PlantEndpoint, LinkError> {
         check_run_name(&config.run)?;
         if config.transport == TransportKind::Iceoryx2
             && crate::iceoryx2::node_alive(&config.run, Role::Plant)?
@@ -160,7 +160,7 @@ impl PlantEndpoint {
             transport,
             config,
             identity,
-            rejections: Rejections::new(),
+            rejections: InvalidCounts::new(),
             template,
             last_seq: 0,
             late: 0,
@@ -168,7 +168,7 @@ impl PlantEndpoint {
     }
 
     /// The configuration it was opened with.
-    pub fn config(&self) -> &PlantConfig {
+    pub fn config(&self) -> &PlantEndpointConfig {
         &self.config
     }
 
@@ -206,7 +206,7 @@ impl PlantEndpoint {
 
     /// Waits until the command for tick `seq` arrives or CLOCK_MONOTONIC reaches
     /// `deadline_ns`. Commands that fail the checks are never returned (see
-    /// [`PlantEndpoint::next_rejection`]); commands for earlier ticks are skipped (counted in
+    /// [`PlantEndpoint::next_invalid`]); commands for earlier ticks are skipped (counted in
     /// [`PlantEndpoint::late_commands`]).
     pub fn wait_command(&mut self, seq: u64, deadline_ns: u64) -> Result<Command, NoCommand> {
         loop {
@@ -240,7 +240,7 @@ impl PlantEndpoint {
                 msg,
                 received_ns: clock::monotonic_ns(),
             })),
-            Err(Reject::Sequence) if msg.seq < seq => {
+            Err(Invalid::Sequence) if msg.seq < seq => {
                 self.late += 1;
                 None
             }
@@ -253,12 +253,12 @@ impl PlantEndpoint {
 
     /// The first rejected command of a kind not reported yet (log it; later ones of that kind
     /// are only counted).
-    pub fn next_rejection(&mut self) -> Option<Rejected<CommandMsg>> {
+    pub fn next_invalid(&mut self) -> Option<InvalidMessage<CommandMsg>> {
         self.rejections.next()
     }
 
     /// Commands rejected by the checks (never applied).
-    pub fn rejected_commands(&self) -> u64 {
+    pub fn invalid_commands(&self) -> u64 {
         self.rejections.counts().iter().sum()
     }
 

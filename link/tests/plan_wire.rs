@@ -79,46 +79,49 @@ fn plans_are_checked() {
     p.segments[0] = wire_segment(&so3_segment(0.0, 1.0));
     p.segments[1] = wire_segment(&so3_segment(1.0, 2.0));
     assert_eq!(check_plan(&p, WireGroup::So3, 0.01), Ok(()));
-    assert_eq!(check_plan(&p, WireGroup::Se3, 0.01), Err(PlanReject::Group));
+    assert_eq!(
+        check_plan(&p, WireGroup::Se3, 0.01),
+        Err(PlanInvalid::Group)
+    );
     // a leg shorter than the control period, or a period that is not a number
     assert_eq!(check_plan(&p, WireGroup::So3, 1.0), Ok(()));
     assert_eq!(
         check_plan(&p, WireGroup::So3, 1.0 + 1e-9),
-        Err(PlanReject::ShortLeg)
+        Err(PlanInvalid::ShortLeg)
     );
     assert_eq!(
         check_plan(&p, WireGroup::So3, f64::NAN),
-        Err(PlanReject::ShortLeg)
+        Err(PlanInvalid::ShortLeg)
     );
     let bad = |f: &dyn Fn(&mut PlanMsg)| {
         let mut q = p;
         f(&mut q);
         check_plan(&q, WireGroup::So3, 0.01)
     };
-    assert_eq!(bad(&|q| q.segments[1].shape = 2), Err(PlanReject::Shape));
+    assert_eq!(bad(&|q| q.segments[1].shape = 2), Err(PlanInvalid::Shape));
     // a through piece's later twists are checked, a rest piece's are not used
     assert_eq!(
         bad(&|q| {
             q.segments[1].shape = SHAPE_THROUGH;
             q.segments[1].twists[4 * MAX_M + 2] = f64::NAN
         }),
-        Err(PlanReject::NonFinite)
+        Err(PlanInvalid::NonFinite)
     );
     assert_eq!(
         bad(&|q| q.segments[1].twists[4 * MAX_M + 2] = f64::NAN),
         Ok(())
     );
-    assert_eq!(bad(&|q| q.version = 0), Err(PlanReject::Version));
-    assert_eq!(bad(&|q| q.count = 9), Err(PlanReject::Count));
+    assert_eq!(bad(&|q| q.version = 0), Err(PlanInvalid::Version));
+    assert_eq!(bad(&|q| q.count = 9), Err(PlanInvalid::Count));
     assert_eq!(
         bad(&|q| q.segments[1].twists[2] = f64::NAN),
-        Err(PlanReject::NonFinite)
+        Err(PlanInvalid::NonFinite)
     );
-    assert_eq!(bad(&|q| q.segments[1].t0 = 0.5), Err(PlanReject::Times));
-    assert_eq!(bad(&|q| q.segments[0].t1 = 0.0), Err(PlanReject::Times));
+    assert_eq!(bad(&|q| q.segments[1].t0 = 0.5), Err(PlanInvalid::Times));
+    assert_eq!(bad(&|q| q.segments[0].t1 = 0.0), Err(PlanInvalid::Times));
     assert_eq!(
         bad(&|q| q.segments[1].start[0] *= 1.001),
-        Err(PlanReject::NotOnGroup)
+        Err(PlanInvalid::NotOnGroup)
     );
     // a reflection is orthonormal but not a rotation
     let flip = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, -1.0);
@@ -126,7 +129,7 @@ fn plans_are_checked() {
     s.start = flip;
     assert_eq!(
         bad(&|q| q.segments[1] = wire_segment(&s)),
-        Err(PlanReject::NotOnGroup)
+        Err(PlanInvalid::NotOnGroup)
     );
     // unused entries are not looked at
     assert_eq!(bad(&|q| q.segments[5].t0 = f64::NAN), Ok(()));
@@ -139,6 +142,6 @@ fn plans_are_checked() {
     p.segments[0].start[14] = 0.5;
     assert_eq!(
         check_plan(&p, WireGroup::Se3, 0.01),
-        Err(PlanReject::NotOnGroup)
+        Err(PlanInvalid::NotOnGroup)
     );
 }

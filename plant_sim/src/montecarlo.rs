@@ -210,7 +210,7 @@ pub fn fly(
     s: &Scenario,
     run: usize,
     sample: Sample,
-) -> Result<crate::trajectory::Trajectory, SimError> {
+) -> Result<crate::trajectory::SimulatedTrajectory, SimError> {
     let (r0, w0) = initial_state(s, sample);
     let plant = RigidBody::<f64, So3, 3, 3>::new(
         SMatrix::from_row_slice(&s.plant_inertia),

@@ -1,7 +1,7 @@
 //! `trajectory.csv` and `summary.json`.
 
 use crate::SimError;
-use crate::trajectory::{Trajectory, effort, settling_time};
+use crate::trajectory::{SimulatedTrajectory, effort, settling_time};
 use serde::Serialize;
 use std::path::Path;
 
@@ -112,7 +112,7 @@ fn csv_err(path: &Path) -> impl Fn(csv::Error) -> SimError + '_ {
 }
 
 /// Writes `trajectory.csv`, one row per control step, numbers in full round-trip precision.
-pub fn write_trajectory_csv(traj: &Trajectory, path: &Path) -> Result<(), SimError> {
+pub fn write_trajectory_csv(traj: &SimulatedTrajectory, path: &Path) -> Result<(), SimError> {
     let (n, m) = traj.dims();
     let mut w = csv::Writer::from_path(path).map_err(csv_err(path))?;
     let mut header = trajectory_header(n, m);
@@ -225,7 +225,7 @@ pub struct Summary {
 
 impl Summary {
     /// Computes the summary of a trajectory.
-    pub fn of(traj: &Trajectory, scenario: &str, law: &str) -> Summary {
+    pub fn of(traj: &SimulatedTrajectory, scenario: &str, law: &str) -> Summary {
         let (_, m) = traj.dims();
         let last = traj.rows.last().copied();
         let f = |g: fn(&crate::trajectory::Row) -> f64| last.as_ref().map(g).unwrap_or(f64::NAN);

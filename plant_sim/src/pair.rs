@@ -16,7 +16,7 @@ use crate::output::{Summary, ensure_dir, write_json, write_trajectory_csv};
 use crate::plot::trajectory_figure;
 use crate::recorder::{Header, Record, Recorder, RecordingReport};
 use crate::spawn::Spawned;
-use crate::trajectory::{Row, Trajectory, input};
+use crate::trajectory::{Row, SimulatedTrajectory, input};
 use controller::Trajectory as _;
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::law::{safe_mode_torque, saturate};
@@ -24,8 +24,8 @@ use hdrhistogram::Histogram;
 use ipc_types::StateMsg;
 use link::wire::group_code;
 use link::{
-    Command, DeadlinePolicy, Decision, NoCommand, PlantConfig, PlantEndpoint, StopFlag, Transition,
-    TransportKind, Wake, clock,
+    Command, DeadlinePolicy, Decision, NoCommand, PlantEndpoint, PlantEndpointConfig, StopFlag,
+    Transition, TransportKind, Wake, clock,
 };
 use nalgebra::SVector;
 use scenario::Scenario;
@@ -223,7 +223,7 @@ fn log(msg: std::fmt::Arguments) {
 
 /// Runs the pair; returns the trajectory and the summary (also written to `out`). An
 /// interrupted run is written too, and returned with `interrupted: true`.
-pub fn run_pair(opts: &PairOptions) -> Result<(Trajectory, PairSummary), SimError> {
+pub fn run_pair(opts: &PairOptions) -> Result<(SimulatedTrajectory, PairSummary), SimError> {
     if opts.mode == Mode::Realtime
         && !(opts.rate_hz.is_finite() && opts.rate_hz > 0.0 && opts.rate_hz <= 100_000.0)
     {
@@ -244,7 +244,7 @@ pub fn run_pair(opts: &PairOptions) -> Result<(Trajectory, PairSummary), SimErro
 struct Pair<'a>(&'a PairOptions);
 
 impl OnGroup for Pair<'_> {
-    type Output = Result<(Trajectory, PairSummary), SimError>;
+    type Output = Result<(SimulatedTrajectory, PairSummary), SimError>;
     fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         run_group::<G, N, M>(self.0)
     }
@@ -328,7 +328,7 @@ struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
 
 fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     opts: &PairOptions,
-) -> Result<(Trajectory, PairSummary), SimError> {
+) -> Result<(SimulatedTrajectory, PairSummary), SimError> {
     let mut run = PlantRun::<G, N, M>::new(opts)?;
     ensure_dir(&opts.out)?;
     if opts.record {
@@ -382,7 +382,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let loop_allocations = allocations.map(|(count, at_start)| count() - at_start);
     run.live_status_end();
     let wall = started.elapsed();
-    let (rejected, late) = (run.ep.rejected_commands(), run.ep.late_commands());
+    let (rejected, late) = (run.ep.invalid_commands(), run.ep.late_commands());
     // The run is over: tell the controller, then reap it.
     run.ep.shutdown();
     let controller_exit = child.finish(Duration::from_secs(3));
@@ -417,7 +417,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         let plant = s.plant_body::<G, N, M>().map_err(input(&s))?;
         let reference = s.reference_source::<G, N, M>().map_err(input(&s))?;
         let cfg = s.controller_config::<N, M>();
-        let ep = PlantEndpoint::open(PlantConfig {
+        let ep = PlantEndpoint::open(PlantEndpointConfig {
             run: opts.run.clone(),
             group: s.group,
             control_period: s.control_period,
@@ -567,7 +567,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
                 Err(NoCommand::Missed) => {}
             }
-            self.log_rejections();
+            self.log_invalid();
             SimError::check(&opts.stop)?;
             if let Some(status) = child.exited() {
                 return Err(SimError::Run(format!(
@@ -626,17 +626,17 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
     /// run at once, since lockstep applies every command or none (nothing is ever held).
     fn lockstep_command(&mut self, k: u64, child: &mut Spawned) -> Result<Command, SimError> {
         let give_up = Instant::now() + self.opts.lockstep_timeout;
-        let rejected = self.ep.rejected_commands();
+        let rejected = self.ep.invalid_commands();
         loop {
             match self.ep.wait_command(k, clock::monotonic_ns() + 20_000_000) {
                 Ok(c) => return Ok(c),
                 Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
                 Err(NoCommand::Missed) => {}
             }
-            if self.ep.rejected_commands() > rejected {
+            if self.ep.invalid_commands() > rejected {
                 let why = self
                     .ep
-                    .next_rejection()
+                    .next_invalid()
                     .map(|r| format!(" (seq {}: {})", r.msg.seq, r.kind))
                     .unwrap_or_default();
                 return Err(SimError::Run(format!(
@@ -679,7 +679,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             // the tick's nominal end, t_{k+1} in ns: a lockstep record holds no clock reading
             (Some(c), link::Step::LOCKSTEP, (k + 1) * self.period_ns)
         };
-        self.log_rejections();
+        self.log_invalid();
         if let Some(c) = &got {
             self.stats.command(c, self.published, k == 0);
         }
@@ -776,8 +776,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         }
     }
 
-    fn log_rejections(&mut self) {
-        while let Some(r) = self.ep.next_rejection() {
+    fn log_invalid(&mut self) {
+        while let Some(r) = self.ep.next_invalid() {
             log(format_args!(
                 "rejected command seq {} ({}); it is never applied. Further rejections of this kind are counted, not logged",
                 r.msg.seq, r.kind
@@ -821,7 +821,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         rejected: u64,
         late: u64,
         loop_allocations: Option<u64>,
-    ) -> Result<(Trajectory, PairSummary), SimError> {
+    ) -> Result<(SimulatedTrajectory, PairSummary), SimError> {
         // a failed recording (a full disk) is reported, and the run's results still written
         let recording = match self.recorder.take().map(Recorder::finish) {
             Some(Ok(r)) => Some(r),
@@ -852,7 +852,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         let realtime = self.realtime();
         let cycles = self.cycles;
         let estimator = self.estimation.as_ref().map(|e| e.report(&self.rows));
-        let traj = Trajectory {
+        let traj = SimulatedTrajectory {
             estimator,
             group: s.group,
             // the spacing of the rows kept (the effort sums over them)

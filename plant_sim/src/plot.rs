@@ -2,7 +2,7 @@
 //! font library is needed).
 
 use crate::SimError;
-use crate::trajectory::Trajectory;
+use crate::trajectory::SimulatedTrajectory;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -174,7 +174,11 @@ pub fn render_against(
 }
 
 /// The seed paper's figure: `L`, `‖Q_E − I‖_F` and `‖p_E‖` against time.
-pub fn trajectory_figure(traj: &Trajectory, title: &str, stem: &Path) -> Result<(), SimError> {
+pub fn trajectory_figure(
+    traj: &SimulatedTrajectory,
+    title: &str,
+    stem: &Path,
+) -> Result<(), SimError> {
     let series =
         |f: fn(&crate::trajectory::Row) -> f64| traj.rows.iter().map(|r| (r.t, f(r))).collect();
     let blue = law_color("eqt");

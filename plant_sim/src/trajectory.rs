@@ -190,7 +190,7 @@ impl Row {
 
 /// A recorded closed-loop run.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Trajectory {
+pub struct SimulatedTrajectory {
     /// The group (decides n and m).
     pub group: GroupKind,
     /// The control period.
@@ -206,7 +206,7 @@ pub struct Trajectory {
     pub estimator: Option<crate::estimation::EstimatorReport>,
 }
 
-impl Trajectory {
+impl SimulatedTrajectory {
     /// `(n, m)` of the group.
     pub fn dims(&self) -> (usize, usize) {
         self.group.dims()
@@ -218,7 +218,7 @@ impl Trajectory {
 pub fn simulate(
     s: &Scenario,
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
-) -> Result<Trajectory, SimError> {
+) -> Result<SimulatedTrajectory, SimError> {
     simulate_planted(s, &[], on_step)
 }
 
@@ -227,7 +227,7 @@ pub fn simulate_planted(
     s: &Scenario,
     faults: &[(u64, crate::sensors::SampleFault)],
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
-) -> Result<Trajectory, SimError> {
+) -> Result<SimulatedTrajectory, SimError> {
     s.group.dispatch(Simulate { s, faults, on_step })
 }
 
@@ -238,7 +238,7 @@ struct Simulate<'a> {
 }
 
 impl OnGroup for Simulate<'_> {
-    type Output = Result<Trajectory, SimError>;
+    type Output = Result<SimulatedTrajectory, SimError>;
     fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let plant = self.s.plant_body::<G, N, M>().map_err(input(self.s))?;
         simulate_with_planted::<G, N, M>(self.s, plant, self.faults, self.on_step)
@@ -254,7 +254,7 @@ pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     s: &Scenario,
     plant: RigidBody<f64, G, N, M>,
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
-) -> Result<Trajectory, SimError> {
+) -> Result<SimulatedTrajectory, SimError> {
     simulate_with_planted::<G, N, M>(s, plant, &[], on_step)
 }
 
@@ -267,7 +267,7 @@ pub fn simulate_with_planted<G: MatrixLieGroup<N, M>, const N: usize, const M: u
     plant: RigidBody<f64, G, N, M>,
     faults: &[(u64, crate::sensors::SampleFault)],
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
-) -> Result<Trajectory, SimError> {
+) -> Result<SimulatedTrajectory, SimError> {
     let mut estimation = crate::estimation::Estimation::new(s, s.control_period, faults)?;
     let controller = s.controller::<G, N, M>().map_err(input(s))?;
     let reference = s.reference_source::<G, N, M>().map_err(input(s))?;
@@ -309,7 +309,7 @@ pub fn simulate_with_planted<G: MatrixLieGroup<N, M>, const N: usize, const M: u
         );
         on_step(k)?;
     }
-    Ok(Trajectory {
+    Ok(SimulatedTrajectory {
         group: s.group,
         control_period: s.control_period,
         duration: s.duration,

@@ -111,17 +111,17 @@ fn closed_loop_check<T: Real>() -> bool {
 /// The wire contract without std: build, validate and reject messages.
 fn ipc_check() -> bool {
     use ipc_types::WireGroup::{Se3, So3};
-    use ipc_types::{CommandMsg, Reject, StateMsg, check_command, check_state, service_names};
+    use ipc_types::{CommandMsg, Invalid, StateMsg, check_command, check_state, service_names};
     let mut s = StateMsg::new(So3);
     s.seq = 3;
     s.control_period = 0.001;
     let ok = check_state(&s, So3, Some(2), None) == Ok(());
     s.v[1] = f64::NAN;
-    let nan = check_state(&s, So3, Some(2), None) == Err(Reject::NonFinite);
+    let nan = check_state(&s, So3, Some(2), None) == Err(Invalid::NonFinite);
     let mut c = CommandMsg::new(Se3);
     c.seq = 3;
     let cmd =
-        check_command(&c, Se3, 3) == Ok(()) && check_command(&c, So3, 3) == Err(Reject::Group);
+        check_command(&c, Se3, 3) == Ok(()) && check_command(&c, So3, 3) == Err(Invalid::Group);
     let round_trip = StateMsg::from_bytes(&s.to_bytes()).is_ok_and(|d| d.seq == 3);
     let names = service_names("board1").is_some_and(|n| n.state.as_str() == "eqtrack/board1/state");
     ok && nan && cmd && names && round_trip
