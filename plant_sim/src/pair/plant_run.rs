@@ -1,0 +1,369 @@
+//! The plant side of one run: its state, set-up, the connection, the published states and the written results.
+
+use super::{
+    LOCKSTEP_NOTE, Mode, PairOptions, PairSummary, Percentiles, Realtime, StateFault, Stats, log,
+};
+use crate::SimError;
+use crate::output::{Summary, write_json, write_trajectory_csv};
+use crate::plot::trajectory_figure;
+use crate::recorder::{Header, Recorder};
+use crate::spawn::Spawned;
+use crate::trajectory::{Row, SimulatedTrajectory, input};
+use controller::group::MatrixLieGroup;
+use ipc_types::StateMsg;
+use link::wire::group_code;
+use link::{Command, DeadlinePolicy, NoCommand, PlantEndpoint, PlantEndpointConfig, clock};
+use nalgebra::SVector;
+use scenario::Scenario;
+use std::time::Instant;
+
+/// The plant side of one run: body, scenario, endpoint, policy and records.
+pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
+    pub(super) opts: &'a PairOptions,
+    pub(super) s: Scenario,
+    pub(super) steps: u64,
+    pub(super) period_ns: u64,
+    pub(super) plant: controller::integrator::RigidBody<f64, G, N, M>,
+    pub(super) reference: controller::Source<f64, G, N, M>,
+    pub(super) cfg: controller::ControllerConfig<f64, N, M>,
+    pub(super) ep: PlantEndpoint,
+    pub(super) policy: DeadlinePolicy,
+    pub(super) stats: Stats,
+    pub(super) rows: Vec<Row>,
+    pub(super) status: Vec<u8>,
+    /// Cycles run (rows are kept every `record_every`).
+    pub(super) cycles: u64,
+    pub(super) tau: SVector<f64, M>,
+    /// The disturbance-rejection terms of the last fresh command (`None`: the scenario has
+    /// none).
+    pub(super) terms: Option<crate::trajectory::Terms>,
+    pub(super) published: u64,
+    /// The state published last (with its stamp).
+    pub(super) state: StateMsg,
+    pub(super) recorder: Option<Recorder>,
+    pub(super) t0: u64,
+    /// What the real-time settings did.
+    pub(super) rt: Realtime,
+    /// The sensors and the estimator (`None`: the law is handed the exact state).
+    pub(super) estimation: Option<crate::estimation::Estimation>,
+    /// The samples and estimate of the state published last.
+    pub(super) estimate: Option<crate::trajectory::EstimateRow>,
+    /// The same, with the true state, for the flight recorder.
+    pub(super) sensor_record: Option<crate::recorder::SensorRecord>,
+}
+
+/// Corrupts a state as a test asks.
+pub(super) fn corrupt(msg: &mut StateMsg, fault: StateFault, group: controller::GroupKind) {
+    match fault {
+        StateFault::Version => msg.version += 1,
+        StateFault::Group => {
+            let other = controller::GroupKind::ALL
+                .into_iter()
+                .find(|g| *g != group)
+                .unwrap_or(group);
+            msg.group = group_code(other);
+        }
+        StateFault::Nan => msg.v[0] = f64::NAN,
+    }
+}
+
+impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G, N, M> {
+    /// The scenario at the run's period, the body, the reference for the records, the
+    /// endpoint.
+    pub(super) fn new(opts: &'a PairOptions) -> Result<Self, SimError> {
+        let mut s = opts.scenario.clone();
+        let fingerprint = s.fingerprint();
+        let steps = match opts.mode {
+            Mode::Realtime => {
+                s.control_period = 1.0 / opts.rate_hz;
+                (s.duration * opts.rate_hz).round() as u64
+            }
+            Mode::Lockstep => s.steps(),
+        };
+        let plant = s.plant_body::<G, N, M>().map_err(input(&s))?;
+        let reference = s.reference_source::<G, N, M>().map_err(input(&s))?;
+        let cfg = s.controller_config::<N, M>();
+        let ep = PlantEndpoint::open(PlantEndpointConfig {
+            run: opts.run.clone(),
+            group: s.group,
+            control_period: s.control_period,
+            transport: opts.transport,
+            wake: opts.wake,
+            fingerprint,
+            scenario: s.name.clone(),
+        })?;
+        Ok(PlantRun {
+            opts,
+            steps,
+            period_ns: (s.control_period * 1e9).round() as u64,
+            plant,
+            reference,
+            cfg,
+            ep,
+            policy: DeadlinePolicy::new(opts.miss_limit),
+            stats: Stats::new()?,
+            rows: Vec::with_capacity((steps / opts.record_every.max(1)) as usize + 2),
+            status: Vec::with_capacity((steps / opts.record_every.max(1)) as usize + 2),
+            cycles: 0,
+            tau: SVector::zeros(),
+            terms: s.rejection_config::<M>().any().then(|| {
+                crate::trajectory::Terms::of(&SVector::<f64, M>::zeros(), &SVector::zeros())
+            }),
+            published: 0,
+            state: StateMsg::new(link::wire::wire_group(s.group)),
+            recorder: None,
+            t0: 0,
+            rt: Realtime::default(),
+            estimation: crate::estimation::Estimation::new(
+                &s,
+                s.control_period,
+                &opts.sample_faults,
+            )?,
+            estimate: None,
+            sensor_record: None,
+            s,
+        })
+    }
+
+    pub(super) fn realtime(&self) -> bool {
+        self.opts.mode == Mode::Realtime
+    }
+
+    /// Copies the scenario into the output directory and starts the flight recorder (its
+    /// channel holds half a second of cycles, at least 4096).
+    pub(super) fn start_recorder(&mut self) -> Result<(), SimError> {
+        let opts = self.opts;
+        opts.source.save("seed", &opts.out)?;
+        let header = Header {
+            group: group_code(self.s.group),
+            control_period: self.s.control_period,
+            rate_hz: if self.realtime() { opts.rate_hz } else { 0.0 },
+            realtime: self.realtime(),
+            event_wake: opts.wake == link::Wake::Event,
+            miss_limit: opts.miss_limit,
+            fingerprint: opts.scenario.fingerprint(),
+            run: opts.run.clone(),
+            scenario: self.s.name.clone(),
+            law: self.s.law.name().to_owned(),
+            plant_pid: std::process::id(),
+            sensors: self.estimation.is_some(),
+        };
+        let capacity = ((0.5 / self.s.control_period) as usize).clamp(4096, 1 << 16);
+        let sink = crate::recorder::monitor::status_sink(&opts.run, &header);
+        // the plan board, read on the recorder's thread: a controller started with
+        // `--reference stream` takes its pieces from it, and replay needs them
+        let run = opts.run.clone();
+        let plans: crate::recorder::PlanSourceFactory = Box::new(move || {
+            match link::plan::PlanReader::for_recorder(&run) {
+                Ok(mut r) => Some(Box::new(move || r.receive()) as crate::recorder::PlanSource),
+                Err(e) => {
+                    log(format_args!(
+                        "warning: the flight recorder cannot read the plan board ({e}): a streamed run will not replay"
+                    ));
+                    None
+                }
+            }
+        });
+        self.recorder = Some(Recorder::start(
+            &opts.out,
+            &header,
+            capacity,
+            Some(sink),
+            Some(plans),
+        )?);
+        Ok(())
+    }
+
+    /// Publishes state k (or the test's corrupted version of it).
+    pub(super) fn publish(&mut self, k: u64) -> Result<(), SimError> {
+        let mut msg = self.ep.state_template();
+        msg.seq = k;
+        msg.t = k as f64 * self.s.control_period;
+        // the torque applied over the last period (zero at k = 0): the rejection terms' input
+        msg.set_applied(&self.tau);
+        match &mut self.estimation {
+            None => msg.set_state(self.plant.configuration(), &self.plant.velocity()),
+            Some(e) => {
+                // the torque held over the last period, as the in-process simulation has it
+                let r = G::rotation(self.plant.configuration());
+                let held = self.tau + self.s.disturbance_wrench::<M>(k.saturating_sub(1), &r);
+                let (q_hat, v_hat, row) = e.measure(k, &self.plant, &held);
+                msg.set_state(&q_hat, &v_hat);
+                if self.recorder.is_some() {
+                    let mut truth = StateMsg::new(link::wire::wire_group(self.s.group));
+                    truth.set_state(self.plant.configuration(), &self.plant.velocity());
+                    self.sensor_record = Some(row.sensor_record(&truth));
+                }
+                self.estimate = Some(row);
+            }
+        }
+        if let Some(&(_, fault)) = self.opts.state_faults.iter().find(|(fk, _)| *fk == k) {
+            corrupt(&mut msg, fault, self.s.group);
+            log(format_args!(
+                "fault injection: publishing a corrupted state ({fault:?}) for seq {k}"
+            ));
+        }
+        self.published = self.ep.publish_message(&msg)?;
+        msg.stamp_ns = self.published;
+        self.state = msg;
+        Ok(())
+    }
+
+    /// Publishes state 0 and waits for command 0; the clock starts when it arrives.
+    pub(super) fn connect(&mut self, child: &mut Spawned) -> Result<Command, SimError> {
+        let opts = self.opts;
+        if opts.spawn {
+            log(format_args!(
+                "run `{}`: started controller_node, waiting for it",
+                opts.run
+            ));
+        } else {
+            log(format_args!(
+                "run `{}`: waiting up to {:.0} s for a controller (controller_node --name {} ...)",
+                opts.run,
+                opts.connect_timeout.as_secs_f64(),
+                opts.run
+            ));
+        }
+        self.publish(0)?;
+        let give_up = Instant::now() + opts.connect_timeout;
+        let first = loop {
+            match self.ep.wait_command(0, clock::monotonic_ns() + 1_000_000) {
+                Ok(c) => break c,
+                Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
+                Err(NoCommand::Missed) => {}
+            }
+            self.log_invalid();
+            SimError::check(&opts.stop)?;
+            if let Some(status) = child.exited() {
+                return Err(SimError::Run(format!(
+                    "controller_node exited before the run started ({status})"
+                )));
+            }
+            if Instant::now() > give_up {
+                return Err(SimError::Run(format!(
+                    "no controller answered on run `{}` within {:.0} s",
+                    opts.run,
+                    opts.connect_timeout.as_secs_f64()
+                )));
+            }
+        };
+        self.t0 = clock::monotonic_ns();
+        log(format_args!(
+            "controller connected; running {} steps {} ({} wake-up, period {} s)",
+            self.steps,
+            if self.realtime() {
+                "in real time"
+            } else {
+                "in lockstep"
+            },
+            self.opts.wake,
+            self.s.control_period
+        ));
+        Ok(first)
+    }
+
+    /// Writes trajectory.csv, summary.json and the figure.
+    pub(super) fn write(
+        mut self,
+        interrupted: Option<link::StopSignal>,
+        controller_exit: Option<i32>,
+        rejected: u64,
+        late: u64,
+        loop_allocations: Option<u64>,
+    ) -> Result<(SimulatedTrajectory, PairSummary), SimError> {
+        // a failed recording (a full disk) is reported, and the run's results still written
+        let recording = match self.recorder.take().map(Recorder::finish) {
+            Some(Ok(r)) => Some(r),
+            Some(Err(e)) => {
+                log(format_args!("warning: the flight recording failed: {e}"));
+                None
+            }
+            None => None,
+        };
+        if let Some(e) = recording.as_ref().and_then(|r| r.error.as_ref()) {
+            log(format_args!(
+                "warning: the flight recording stopped early: {e}"
+            ));
+        }
+        if let Some(r) = &recording {
+            log(format_args!(
+                "flight recording: {} cycles in {}{}",
+                r.records,
+                r.path,
+                if r.dropped > 0 {
+                    format!(" ({} records dropped: the disk did not keep up)", r.dropped)
+                } else {
+                    String::new()
+                }
+            ));
+        }
+        let (opts, s) = (self.opts, &self.s);
+        let realtime = self.realtime();
+        let cycles = self.cycles;
+        let estimator = self.estimation.as_ref().map(|e| e.report(&self.rows));
+        let traj = SimulatedTrajectory {
+            estimator,
+            group: s.group,
+            // the spacing of the rows kept (the effort sums over them)
+            control_period: s.control_period * opts.record_every.max(1) as f64,
+            duration: cycles.saturating_sub(1) as f64 * s.control_period,
+            rows: self.rows,
+            status: self.status,
+        };
+        let summary = PairSummary {
+            sim: Summary::of(&traj, &s.name, s.law.name()),
+            mode: if realtime { "realtime" } else { "lockstep" }.to_owned(),
+            wake: opts.wake.name().to_owned(),
+            run: opts.run.clone(),
+            rate_hz: realtime.then_some(opts.rate_hz),
+            cycles,
+            record_every: opts.record_every.max(1),
+            interrupted: interrupted.is_some(),
+            signal: interrupted.map(|s| s.name().to_owned()),
+            latency: Percentiles::of(&self.stats.latency),
+            leg_to_controller: Percentiles::of(&self.stats.to_controller),
+            controller_compute: Percentiles::of(&self.stats.compute),
+            leg_to_plant: Percentiles::of(&self.stats.to_plant),
+            tick_lateness: realtime.then(|| Percentiles::of(&self.stats.lateness)),
+            // lockstep never steps the policy: its counters stay 0
+            deadline_misses: self.policy.misses(),
+            safe_mode_entries: self.policy.safe_entries(),
+            safe_mode_cycles: self.policy.safe_cycles(),
+            commands_rejected: rejected,
+            late_commands: if realtime {
+                late + self.policy.late()
+            } else {
+                0
+            },
+            deadline_note: (!realtime).then(|| LOCKSTEP_NOTE.to_owned()),
+            controller_exit,
+            transport: opts.transport.name().to_owned(),
+            controller_heap_allocations: self.stats.last_allocations,
+            realtime: self.rt.clone(),
+            recording,
+            plant_loop_heap_allocations: loop_allocations,
+        };
+        write_trajectory_csv(&traj, &opts.out.join("trajectory.csv"))?;
+        write_json(&summary, &opts.out.join("summary.json"))?;
+        let title = format!(
+            "{} — {} on {}, {} ({}){}",
+            s.name,
+            s.law.name().to_uppercase(),
+            s.group.name().to_uppercase(),
+            if realtime {
+                format!("real time at {} Hz", opts.rate_hz)
+            } else {
+                "lockstep".to_owned()
+            },
+            opts.run,
+            if interrupted.is_some() {
+                ", interrupted"
+            } else {
+                ""
+            }
+        );
+        trajectory_figure(&traj, &title, &opts.out.join("figure"))?;
+        Ok((traj, summary))
+    }
+}
