@@ -9,7 +9,7 @@
 #    with `apt-get install --download-only` and unpacked with `dpkg -x`. Nothing is installed
 #    system-wide. A second run re-uses the cache without apt.
 #    If the packages cannot be fetched, prints one `SKIPPED: <reason>` line and exits 0.
-# 2. Builds controller/firmware-cortex-m for thumbv7em-none-eabihf with the private rustc
+# 2. Builds embedded/firmware-cortex-m for thumbv7em-none-eabihf with the private rustc
 #    (RUSTC_BOOTSTRAP=1, linker: the rustup toolchain's rust-lld) and runs it under the
 #    private qemu-system-arm (board mps2-an386) with a timeout.
 # 3. Builds and runs the host program (firmware-cortex-m/host, the machine's normal cargo),
@@ -35,7 +35,7 @@
 set -euo pipefail
 
 REPO=$(cd -- "$(dirname -- "${BASH_SOURCE[0]}")/.." && pwd)
-FW=$REPO/controller/firmware-cortex-m
+FW=$REPO/embedded/firmware-cortex-m
 PACKAGES=(rustc-web rust-web-src qemu-system-arm)
 TARGET=thumbv7em-none-eabihf
 TIMEOUT=${CORTEX_M_TIMEOUT:-120}
