@@ -269,7 +269,9 @@ pub struct ControllerConfig<T: Real, const N: usize, const M: usize> {
     pub law: Law,
     /// The model inertia `I` (m×m, symmetric positive definite).
     pub inertia: SMatrix<T, M, M>,
-    /// The potential weight `K` (n×n, symmetric positive definite).
+    /// The potential weight `K` (n×n, symmetric positive definite). A scenario file calls it
+    /// `controller.kp` (the papers' `k_p`); `scenario::Scenario::controller_config` is the one
+    /// place that maps the one to the other.
     pub k: SMatrix<T, N, N>,
     /// The damping `K_d` (m×m, symmetric positive definite).
     pub kd: SMatrix<T, M, M>,

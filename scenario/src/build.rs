@@ -76,7 +76,8 @@ impl Scenario {
         q
     }
 
-    /// The controller configuration (validated again by [`Controller::new`]).
+    /// The controller configuration (validated again by [`Controller::new`]). The one place
+    /// where the file's `controller.kp` becomes the law's `K` (`ControllerConfig::k`).
     pub fn controller_config<const N: usize, const M: usize>(&self) -> ControllerConfig<f64, N, M> {
         ControllerConfig {
             law: self.law,
