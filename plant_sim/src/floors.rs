@@ -5,7 +5,7 @@
 //!   period, the wake-up latency of an absolute-time sleep on this machine. It inherits this
 //!   process's 1 ns timer slack, as the plant runs with, and the plant's scheduling class
 //!   (SCHED_OTHER, no priority);
-//! * the **transport floor**: `transport_floor` (built with `link`), two processes exchanging
+//! * the **transport floor**: `transport_floor` (the `floors` crate's binary), two processes exchanging
 //!   the pair's messages over iceoryx2 with nothing else, paced like the plant, in busy-poll
 //!   and event modes.
 
