@@ -1,0 +1,193 @@
+//! One answer to one state: the law (and the disturbance-rejection terms) at the state's time, as a command. The cycle the process runs and `plant_sim replay` runs again.
+
+use controller::group::MatrixLieGroup;
+use controller::{Controller, Rejection, RejectionConfig, Trajectory};
+use ipc_types::{CommandMsg, StateMsg};
+
+/// One controller cycle without IPC: steps the reference up to the state's k (normally it is
+/// there already), runs the law through the controller crate (finite-state check,
+/// saturation) with the state's configuration and body velocity, and fills the command.
+/// Allocation-free; generic over the scalar so the same cycle can be measured in f32, and
+/// over the reference source. The state must have passed `ipc_types::check_state` (its
+/// sequence number jumps by at most `MAX_SEQ_JUMP`, which bounds the catching up). The plain
+/// law only: with disturbance-rejection terms, see [`Responder`].
+pub fn respond<T, G, R, const N: usize, const M: usize>(
+    controller: &Controller<T, G, N, M>,
+    reference: &mut R,
+    msg: &StateMsg,
+) -> Result<CommandMsg, controller::Error>
+where
+    T: controller::Real,
+    G: MatrixLieGroup<N, M>,
+    R: Trajectory<T, N, M>,
+{
+    let (q, v) = catch_up(reference, msg);
+    let out = controller.compute(&q, &v, &reference.desired())?;
+    Ok(command::<T, G, N, M>(
+        msg.seq,
+        &out,
+        controller.config().law,
+    ))
+}
+
+/// Steps `reference` to the state's k and reads the state in the scalar `T`.
+pub(crate) fn catch_up<T, R, const N: usize, const M: usize>(
+    reference: &mut R,
+    msg: &StateMsg,
+) -> (nalgebra::SMatrix<T, N, N>, nalgebra::SVector<T, M>)
+where
+    T: controller::Real,
+    R: Trajectory<T, N, M>,
+{
+    while reference.step_index() < msg.seq {
+        reference.advance();
+    }
+    (
+        msg.configuration::<N>().map(controller::real::<T>),
+        msg.velocity::<M>().map(controller::real::<T>),
+    )
+}
+
+/// A scalar as `f64` (NaN if it cannot be converted).
+pub(crate) fn to_f64<T: controller::Real>(x: T) -> f64 {
+    nalgebra::try_convert::<T, f64>(x).unwrap_or(f64::NAN)
+}
+
+/// The command for state `seq` from the law's output, naming the law that computed it.
+pub(crate) fn command<T, G, const N: usize, const M: usize>(
+    seq: u64,
+    out: &controller::LawOutput<T, N, M>,
+    law: controller::Law,
+) -> CommandMsg
+where
+    T: controller::Real,
+    G: MatrixLieGroup<N, M>,
+{
+    let mut cmd = CommandMsg::new(link::wire::wire_group(G::KIND));
+    cmd.seq = seq;
+    cmd.law = link::wire::law_code(law);
+    cmd.set_torque(&out.torque.map(to_f64::<T>));
+    cmd.lyapunov = to_f64(out.lyapunov.total);
+    for i in 0..M.min(ipc_types::MAX_M) {
+        cmd.observer[i] = to_f64(out.observer[i]);
+        cmd.integral[i] = to_f64(out.integral[i]);
+    }
+    cmd
+}
+
+/// The controller's cycle with its state between cycles: the law, the disturbance-rejection
+/// terms (docs/maths.md, "Disturbance rejection") fed with the torque each state says the
+/// plant applied, and the sequence number of the last state processed. The node and
+/// `plant_sim replay` answer states through it, so replay repeats the node bit for bit.
+#[derive(Debug, Clone)]
+pub struct Responder<T: controller::Real, G, const N: usize, const M: usize> {
+    pub(crate) controller: Controller<T, G, N, M>,
+    pub(crate) rejection: Option<Rejection<T, M>>,
+    pub(crate) previous: Option<u64>,
+}
+
+impl<T, G, const N: usize, const M: usize> Responder<T, G, N, M>
+where
+    T: controller::Real,
+    G: MatrixLieGroup<N, M>,
+{
+    /// A responder with the terms of `rejection` (none: the plain law).
+    pub fn new(
+        controller: Controller<T, G, N, M>,
+        rejection: RejectionConfig<T, M>,
+    ) -> Result<Self, controller::Error> {
+        let rejection = if rejection.any() {
+            Some(Rejection::new(
+                rejection,
+                controller.config().torque_limit.as_ref(),
+            )?)
+        } else {
+            None
+        };
+        Ok(Responder {
+            controller,
+            rejection,
+            previous: None,
+        })
+    }
+
+    /// The controller.
+    pub fn controller(&self) -> &Controller<T, G, N, M> {
+        &self.controller
+    }
+
+    /// The disturbance-rejection terms' state, if any run.
+    pub fn rejection(&self) -> Option<&Rejection<T, M>> {
+        self.rejection.as_ref()
+    }
+
+    /// Answers state `msg` (see [`respond`]). The terms update only when the state follows
+    /// the last one processed (`seq = previous + 1`); after a gap they re-anchor. The command
+    /// carries the estimate, the integral's torque and the previous sequence number.
+    pub fn respond<R: Trajectory<T, N, M>>(
+        &mut self,
+        reference: &mut R,
+        msg: &StateMsg,
+    ) -> Result<CommandMsg, controller::Error> {
+        let (q, v) = catch_up(reference, msg);
+        let desired = reference.desired();
+        let before = self
+            .rejection
+            .as_ref()
+            .map(|r| (*r.estimate(), *r.integral_state()));
+        let out = match &mut self.rejection {
+            None => self.controller.compute(&q, &v, &desired)?,
+            Some(r) => {
+                let applied = msg.applied_torque::<M>().map(controller::real::<T>);
+                let follows = self
+                    .previous
+                    .is_some_and(|p| p.checked_add(1) == Some(msg.seq));
+                self.controller.compute_rejecting(
+                    r,
+                    &q,
+                    &v,
+                    &desired,
+                    &applied,
+                    controller::real(msg.control_period),
+                    follows,
+                )?
+            }
+        };
+        let mut cmd = command::<T, G, N, M>(msg.seq, &out, self.controller.config().law);
+        cmd.previous_seq = self.previous.unwrap_or(ipc_types::NO_PREVIOUS);
+        if let Some((estimate, z)) = before {
+            for i in 0..M.min(ipc_types::MAX_M) {
+                cmd.estimate_before[i] = to_f64(estimate[i]);
+                cmd.z_before[i] = to_f64(z[i]);
+            }
+        }
+        self.previous = Some(msg.seq);
+        Ok(cmd)
+    }
+
+    /// Restores the state this responder had before it answered the recorded command `cmd`
+    /// (replay): the terms from the command's `estimate_before` and `z_before`, their anchor
+    /// from `previous` (the recorded state `cmd.previous_seq`; `None` if there is none or it
+    /// is not in the record), and the previous sequence number. Without terms it only sets
+    /// the sequence number.
+    pub fn restore(&mut self, cmd: &CommandMsg, previous: Option<&StateMsg>) {
+        self.previous = (cmd.previous_seq != ipc_types::NO_PREVIOUS).then_some(cmd.previous_seq);
+        if let Some(r) = &mut self.rejection {
+            let from = |xs: &[f64; ipc_types::MAX_M]| {
+                nalgebra::SVector::<T, M>::from_fn(|i, _| controller::real::<T>(xs[i]))
+            };
+            let anchor = previous.map(|p| {
+                (
+                    p.configuration::<N>().map(controller::real::<T>),
+                    p.velocity::<M>().map(controller::real::<T>),
+                )
+            });
+            self.controller.restore_rejection(
+                r,
+                &from(&cmd.estimate_before),
+                &from(&cmd.z_before),
+                anchor.as_ref().map(|(q, v)| (q, v)),
+            );
+        }
+    }
+}
