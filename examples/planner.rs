@@ -17,8 +17,8 @@
 //! or after `t` and start by `t + horizon` published, at most `PLAN_WINDOW` per message: a
 //! message goes out whenever a piece not published yet enters that window, and the
 //! controller appends those it does not have. In lockstep the plant runs faster than real
-//! time: give a horizon of at least the scenario's duration, so every piece is out before the
-//! first state. It leaves when the plant ends the run or is gone, or on SIGINT/SIGTERM; a
+//! time: give a horizon of at least the scenario's duration, on a path of at most
+//! `PLAN_WINDOW` pieces, so every piece is out before the first state. It leaves when the plant ends the run or is gone, or on SIGINT/SIGTERM; a
 //! planner started after one was killed takes over (exit codes as the other binaries': 0
 //! done, 1 no plant or the plant is gone, 2 bad input).
 use clap::Parser;

@@ -150,6 +150,13 @@ impl ControllerEndpoint {
                 return Incoming::PlantGone;
             }
             if now >= until {
+                // a last look: a state that came while this process was not running (stopped,
+                // or preempted on a busy machine) is read, not taken for silence
+                while let Some(msg) = self.transport.receive() {
+                    if let Some(incoming) = self.judge(msg) {
+                        return incoming;
+                    }
+                }
                 return Incoming::Nothing;
             }
             let left = until - now;

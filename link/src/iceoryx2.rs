@@ -17,6 +17,7 @@ use iceoryx2::port::reader::{EntryHandle, Reader};
 use iceoryx2::port::writer::{EntryHandleMut, Writer};
 use iceoryx2::prelude::*;
 use iceoryx2::service::builder::blackboard::{BlackboardCreateError, BlackboardOpenError};
+use iceoryx2::service::builder::event::{EventCreateError, EventOpenError, EventOpenOrCreateError};
 use iceoryx2::service::port_factory::blackboard::PortFactory as BoardFactory;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
@@ -361,6 +362,19 @@ pub(crate) fn board<T: Slot>(
         {
             Ok(f) => return Ok(f),
             Err(BlackboardOpenError::DoesNotExist) => {}
+            // the other process is creating it (or a dead one's is being removed): a passing
+            // state, longer on a loaded machine, so try again until the deadline
+            Err(
+                e @ (BlackboardOpenError::ServiceInCorruptedState
+                | BlackboardOpenError::HangsInCreation
+                | BlackboardOpenError::IsMarkedForDestruction),
+            ) => {
+                if Instant::now() > until {
+                    return Err(LinkError::iceoryx2(format!("{name}: open"), e));
+                }
+                std::thread::sleep(Duration::from_millis(1));
+                continue;
+            }
             Err(e) => return Err(LinkError::iceoryx2(format!("{name}: open"), e)),
         }
         let mut creator = node
@@ -394,11 +408,36 @@ pub(crate) fn event(
     let service_name: ServiceName = name
         .try_into()
         .map_err(|e| LinkError::iceoryx2(format!("service name {name}"), e))?;
-    node.service_builder(&service_name)
-        .event()
-        .max_notifiers(2)
-        .max_listeners(2)
-        .max_nodes(MAX_NODES)
-        .open_or_create()
-        .map_err(|e| LinkError::iceoryx2(name, e))
+    // as for a board: a service another process is still creating is retried, not an error
+    let until = Instant::now() + Duration::from_secs(5);
+    loop {
+        match node
+            .service_builder(&service_name)
+            .event()
+            .max_notifiers(2)
+            .max_listeners(2)
+            .max_nodes(MAX_NODES)
+            .open_or_create()
+        {
+            Ok(f) => return Ok(f),
+            Err(
+                e @ (EventOpenOrCreateError::SystemInFlux
+                | EventOpenOrCreateError::EventOpenError(
+                    EventOpenError::ServiceInCorruptedState
+                    | EventOpenError::HangsInCreation
+                    | EventOpenError::DoesNotExist,
+                )
+                | EventOpenOrCreateError::EventCreateError(
+                    EventCreateError::IsBeingCreatedByAnotherInstance
+                    | EventCreateError::AlreadyExists,
+                )),
+            ) => {
+                if Instant::now() > until {
+                    return Err(LinkError::iceoryx2(name, e));
+                }
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            Err(e) => return Err(LinkError::iceoryx2(name, e)),
+        }
+    }
 }

@@ -140,13 +140,21 @@ fn hand_started_pair(file: &str, run_name: &str, out: &str, extra: &[&str]) -> (
 }
 
 /// SIGSTOP to the controller once `out` has 500 cycles; returns the cycles recorded while it
-/// is stopped (the plant waits: the count stands still).
+/// is stopped: the plant waits, so the count settles (what was on its way is written, then
+/// nothing more), and the count is taken once it has stood still for half a second.
 fn stop_controller(ctl: &Proc, out: &str) -> u64 {
     wait_for_cycles(out, 500, LONG);
     ctl.signal("STOP");
-    // what was on its way is written, then nothing more
-    std::thread::sleep(Duration::from_millis(200));
-    recorded_cycles(out)
+    let (mut last, mut since) = (recorded_cycles(out), std::time::Instant::now());
+    let settled = wait_until(LONG, || {
+        let now = recorded_cycles(out);
+        if now != last {
+            (last, since) = (now, std::time::Instant::now());
+        }
+        since.elapsed() >= Duration::from_millis(500)
+    });
+    assert!(settled, "the recorded count never settled ({last})");
+    last
 }
 
 #[test]
@@ -155,24 +163,34 @@ fn a_controller_stopped_for_less_than_the_lockstep_timeout_changes_nothing() {
     let d = TempDir::new("lockstep-pause");
     let file = long_seed(&d, 60);
     let sim = sim(&d, "pause", &file);
-    let out = d.join("pair");
-    let (mut plant, ctl) =
-        hand_started_pair(&file, "t-lock-pause", &out, &["--lockstep-timeout", "30"]);
-    let at = stop_controller(&ctl, &out);
-    // two seconds stopped: far longer than any period, far shorter than the timeout
-    std::thread::sleep(Duration::from_secs(2));
-    let still = recorded_cycles(&out);
-    ctl.signal("CONT");
-    assert!(
-        at < 6000 && still == at,
-        "the plant waited at cycle {at} (recorded {still} after the stop)"
-    );
-    let status = plant.wait_timeout(LONG);
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
-    assert!(
-        read(&format!("{sim}/trajectory.csv")) == read(&format!("{out}/trajectory.csv")),
-        "a pause of the controller changed the lockstep run"
-    );
+    // with event wake-up the controller sleeps between states; with busy polling it is
+    // almost always between reading the board and looking at its clock when it is stopped
+    for wake in ["event", "spin"] {
+        let out = d.join(&format!("pair-{wake}"));
+        let extra = ["--lockstep-timeout", "30", "--wake", wake];
+        let (mut plant, ctl) = hand_started_pair(&file, "t-lock-pause", &out, &extra);
+        let at = stop_controller(&ctl, &out);
+        // two seconds stopped: longer than any period and than the controller's 1 s silence
+        // timeout, far shorter than the lockstep timeout
+        std::thread::sleep(Duration::from_secs(2));
+        let still = recorded_cycles(&out);
+        ctl.signal("CONT");
+        assert!(
+            at < 6000 && still == at,
+            "{wake}: the plant waited at cycle {at} (recorded {still} after the stop)"
+        );
+        let status = plant.wait_timeout(LONG);
+        assert_eq!(
+            status.and_then(|s| s.code()),
+            Some(0),
+            "{wake}: {}",
+            plant.output()
+        );
+        assert!(
+            read(&format!("{sim}/trajectory.csv")) == read(&format!("{out}/trajectory.csv")),
+            "{wake}: a pause of the controller changed the lockstep run"
+        );
+    }
 }
 
 #[test]
@@ -200,41 +218,49 @@ fn a_controller_stopped_for_longer_than_the_lockstep_timeout_ends_the_run_non_ze
 fn a_rejected_command_ends_a_lockstep_run_at_once_naming_the_step() {
     let _g = serial();
     let d = TempDir::new("lockstep-reject");
-    let out = d.join("pair");
-    // the spawned controller publishes a NaN torque for step 50: the plant's checks reject
-    // it, and lockstep cannot hold the previous torque instead
-    let mut p = Proc::start(
-        "plant_sim",
-        &[
-            "run",
-            "--mode",
-            "lockstep",
-            "--name",
-            "t-lock-reject",
-            "--out",
-            &out,
-            "--lockstep-timeout",
-            "120",
-            "--fault-nan-torque",
-            "50",
-        ],
-    );
-    let status = p.wait_timeout(Duration::from_secs(60));
-    let text = p.output();
-    assert!(
-        !text.contains("unexpected argument '--fault"),
-        "the binaries lack the test-only fault-injection feature: run the workspace's tests\n{text}"
-    );
-    assert_eq!(
-        status.and_then(|s| s.code()),
-        Some(1),
-        "the run stops long before its 120 s timeout:\n{text}"
-    );
-    let needle = "lockstep: the controller's command for step 50 was rejected by the plant's checks (seq 50: non-finite number)";
-    assert!(text.contains(needle), "missing `{needle}` in:\n{text}");
-    assert!(
-        wait_until(Duration::from_secs(10), || recorded_cycles(&out) == 50),
-        "the log holds the 50 steps applied, got {}",
-        recorded_cycles(&out)
-    );
+    // the spawned controller publishes a NaN torque for step K: the plant's checks reject it,
+    // and lockstep cannot hold the previous torque instead. Step 0 is the first command,
+    // which the plant takes while it waits for a controller.
+    for step in [50u64, 0] {
+        let out = d.join(&format!("pair-{step}"));
+        let k = step.to_string();
+        let mut p = Proc::start(
+            "plant_sim",
+            &[
+                "run",
+                "--mode",
+                "lockstep",
+                "--name",
+                "t-lock-reject",
+                "--out",
+                &out,
+                "--lockstep-timeout",
+                "120",
+                "--connect-timeout",
+                "120",
+                "--fault-nan-torque",
+                &k,
+            ],
+        );
+        let status = p.wait_timeout(Duration::from_secs(60));
+        let text = p.output();
+        assert!(
+            !text.contains("unexpected argument '--fault"),
+            "the binaries lack the test-only fault-injection feature: run the workspace's tests\n{text}"
+        );
+        assert_eq!(
+            status.and_then(|s| s.code()),
+            Some(1),
+            "the run stops long before its 120 s timeouts:\n{text}"
+        );
+        let needle = format!(
+            "lockstep: the controller's command for step {step} was rejected by the plant's checks (seq {step}: non-finite number)"
+        );
+        assert!(text.contains(&needle), "missing `{needle}` in:\n{text}");
+        assert!(
+            wait_until(Duration::from_secs(10), || recorded_cycles(&out) == step),
+            "the log holds the {step} steps applied, got {}",
+            recorded_cycles(&out)
+        );
+    }
 }

@@ -53,15 +53,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
                 Err(NoCommand::Missed) => {}
             }
-            if self.ep.invalid_commands() > rejected {
-                let why = self
-                    .ep
-                    .next_invalid()
-                    .map(|r| format!(" (seq {}: {})", r.msg.seq, r.kind))
-                    .unwrap_or_default();
-                return Err(SimError::Run(format!(
-                    "lockstep: the controller's command for step {k} was rejected by the plant's checks{why}; a lockstep run applies every command and holds none, so it stops here"
-                )));
+            if let Some(e) = self.lockstep_invalid(k, rejected) {
+                return Err(e);
             }
             SimError::check(&self.opts.stop)?;
             if let Some(status) = child.exited() {
@@ -76,6 +69,23 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 )));
             }
         }
+    }
+
+    /// Lockstep: the error that ends the run when a command failed the plant's checks since
+    /// the count was `before` (`None`: none did). Lockstep applies every command and holds
+    /// none, so an invalid command cannot be replaced; the run stops, naming the step.
+    pub(super) fn lockstep_invalid(&mut self, k: u64, before: u64) -> Option<SimError> {
+        if self.ep.invalid_commands() <= before {
+            return None;
+        }
+        let why = self
+            .ep
+            .next_invalid()
+            .map(|r| format!(" (seq {}: {})", r.msg.seq, r.kind))
+            .unwrap_or_default();
+        Some(SimError::Run(format!(
+            "lockstep: the controller's command for step {k} was rejected by the plant's checks{why}; a lockstep run applies every command and holds none, so it stops here"
+        )))
     }
 
     /// Tick k: obtain command k, decide, record the row, wait for the tick's end.

@@ -233,6 +233,11 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
                 Err(NoCommand::Missed) => {}
             }
+            if !self.realtime()
+                && let Some(e) = self.lockstep_invalid(0, 0)
+            {
+                return Err(e);
+            }
             self.log_invalid();
             SimError::check(&opts.stop)?;
             if let Some(status) = child.exited() {
