@@ -47,7 +47,7 @@ impl OnGroup for Node<'_> {
 
 /// Logs without allocating (the arguments are formatted straight into stderr).
 fn log(msg: std::fmt::Arguments) {
-    eprintln!("controller_node: {msg}");
+    link::log_line(format_args!("controller_node: {msg}"));
 }
 
 /// The loop's state between cycles.

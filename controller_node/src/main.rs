@@ -67,7 +67,7 @@ struct Cli {
 }
 
 fn fail(exit: Exit, msg: std::fmt::Arguments) -> ExitCode {
-    eprintln!("controller_node: error: {msg}");
+    link::log_line(format_args!("controller_node: error: {msg}"));
     exit.into()
 }
 
@@ -97,15 +97,15 @@ fn main() -> ExitCode {
     // before the transport starts any thread, so all of them inherit the settings
     let rt = cli.rt.apply();
     for line in rt.lines() {
-        eprintln!("controller_node: real-time settings: {line}");
+        link::log_line(format_args!("controller_node: real-time settings: {line}"));
     }
     if let Some(path) = &cli.rt_report
         && let Err(e) = rt.write_json(path)
     {
-        eprintln!(
+        link::log_line(format_args!(
             "controller_node: warning: cannot write the real-time report to {}: {e}",
             path.display()
-        );
+        ));
     }
     let opts = Options {
         scenario,
@@ -156,9 +156,9 @@ fn finish(report: &Report, run: &str) -> ExitCode {
     };
     let plans: u64 = report.plans_refused.iter().sum();
     let short = report.plans_refused[ipc_types::PlanInvalid::ShortLeg as usize];
-    eprintln!(
+    link::log_line(format_args!(
         "controller_node: exiting: {why}; {} commands, {rejected} states rejected, {} refused, {plans} plan messages refused ({short} with a segment shorter than the control period); {allocs}",
         report.cycles, report.refused
-    );
+    ));
     exit.into()
 }

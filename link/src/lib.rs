@@ -64,7 +64,7 @@ pub use controller_side::{ControllerEndpoint, ControllerEndpointConfig, Incoming
 pub use deadline::{Arrival, DeadlinePolicy, Decision, Step, Transition};
 pub use invalid::InvalidMessage;
 pub use plant_side::{Command, NoCommand, PlantEndpoint, PlantEndpointConfig, Refusal};
-pub use process::{Exit, StopFlag, StopSignal, process_alive};
+pub use process::{Exit, StopFlag, StopSignal, log_line, process_alive};
 pub use transport::{Message, Transport, open};
 
 use std::fmt;

@@ -116,6 +116,39 @@ pub fn process_alive(pid: u32) -> bool {
     }
 }
 
+/// Writes one line (`args` and a newline) to standard error in a single write, formatted
+/// first into a 1 KiB buffer on the stack (a longer line is cut). Two processes that share a
+/// pipe (a plant and the controller it spawned) then never interleave within a line, which
+/// `eprintln!` allows: it writes each piece of its format separately. No allocation, so the
+/// control loops may log.
+pub fn log_line(args: std::fmt::Arguments) {
+    use std::io::Write;
+    struct Buf {
+        bytes: [u8; 1024],
+        len: usize,
+    }
+    impl std::fmt::Write for Buf {
+        fn write_str(&mut self, s: &str) -> std::fmt::Result {
+            // keep what fits, cut at a character boundary; one byte is kept for the newline
+            let room = self.bytes.len() - 1 - self.len;
+            let mut n = s.len().min(room);
+            while !s.is_char_boundary(n) {
+                n -= 1;
+            }
+            self.bytes[self.len..self.len + n].copy_from_slice(&s.as_bytes()[..n]);
+            self.len += n;
+            Ok(())
+        }
+    }
+    let mut buf = Buf {
+        bytes: [0; 1024],
+        len: 0,
+    };
+    let _ = std::fmt::Write::write_fmt(&mut buf, args);
+    buf.bytes[buf.len] = b'\n';
+    let _ = std::io::stderr().write_all(&buf.bytes[..=buf.len]);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

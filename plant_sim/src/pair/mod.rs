@@ -29,7 +29,7 @@ use summary::Stats;
 pub use summary::{LOCKSTEP_NOTE, PairSummary, Percentiles, Realtime};
 
 fn log(msg: std::fmt::Arguments) {
-    eprintln!("plant_sim: {msg}");
+    link::log_line(format_args!("plant_sim: {msg}"));
 }
 
 /// Runs the pair; returns the trajectory and the summary (also written to `out`). An
