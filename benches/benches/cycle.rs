@@ -6,7 +6,7 @@ use benches::*;
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::law::{eqt, so3};
 use controller::{Law, Real, Source, Trajectory, real};
-use controller_node::respond;
+use control_cycle::respond;
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::{SVector, Vector3};
 use std::hint::black_box;
@@ -257,7 +257,7 @@ fn plant_side(c: &mut Criterion) {
         g.bench_function(format!("so3/f64/{name}"), |b| {
             b.iter_batched_ref(
                 || {
-                    let mut e = plant_sim::estimation::Estimation::new(s, 0.001, &[])
+                    let mut e = plant::estimation::Estimation::new(s, 0.001, &[])
                         .ok()
                         .flatten()
                         .expect("the scenario has sensors");
@@ -351,7 +351,7 @@ fn terms<T: Real>(c: &mut Criterion, scalar: &str) {
     g.throughput(Throughput::Elements(1));
     let (q64, v64, ..) = so3_generic::<f64>();
     for (name, config) in term_variants::<T>() {
-        let Ok(mut responder) = controller_node::Responder::new(ctl, config) else {
+        let Ok(mut responder) = control_cycle::Responder::new(ctl, config) else {
             continue;
         };
         let mut reference = seed_reference::<T>(1);

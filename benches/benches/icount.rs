@@ -13,7 +13,7 @@ use controller::integrator::RigidBody;
 use controller::law::so3::{self, So3LawInput};
 use controller::law::{Desired, eqt};
 use controller::{Controller, Law, Reference, real};
-use controller_node::respond;
+use control_cycle::respond;
 use gungraun::{library_benchmark, library_benchmark_group, main};
 use ipc_types::{CommandMsg, StateMsg};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};

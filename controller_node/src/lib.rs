@@ -19,13 +19,11 @@ use link::{ControllerEndpoint, ControllerEndpointConfig, Incoming, clock};
 use std::time::{Duration, Instant};
 
 mod options;
-mod respond;
 mod stream;
 
 pub use options::{Fault, NodeError, Options, ReferenceMode, Report, Stop};
-pub use respond::{Responder, respond};
+use control_cycle::{Responder, streamed_reference};
 use stream::Stream;
-pub use stream::{PlanIntake, streamed_reference};
 
 /// Runs the node until it stops. `allocations()` reads the process's allocation counter
 /// (the binary installs a counting allocator; pass `|| 0` without one).

@@ -24,7 +24,7 @@
 //! * **recording** — what replay and export read back from a flight recording: a record of a
 //!   run with sensors (with its sensor block) through `Record::from_bytes`, its samples
 //!   through both groups' estimators as replay steps them, and a `plans.log` entry through
-//!   `PlanEntry::from_bytes` and `controller_node::PlanIntake::take` on a streamed
+//!   `PlanEntry::from_bytes` and `control_cycle::PlanIntake::take` on a streamed
 //!   reference, its pieces handed to the law. Seeds: the first ticks of the two sensor
 //!   scenarios, the slews' plan messages.
 //!

@@ -5,7 +5,7 @@
 //! decode to the same bytes, and its sensor samples go through both groups' estimators (the
 //! complementary filter of `sensors_so3`, the EqF pose filter of `eqf_se3`) as replay steps
 //! them. The plan entry goes through `PlanEntry::from_bytes`, and an accepted message through
-//! `controller_node::PlanIntake::take` on the streamed reference of its group, as replay hands
+//! `control_cycle::PlanIntake::take` on the streamed reference of its group, as replay hands
 //! it to the controller; what it appends is sampled and handed to the law (a finite torque or
 //! a typed error, never a NaN). Seeds: records of the first ticks of the two sensor scenarios,
 //! and the plan messages of the shipped slews (both path kinds).
@@ -16,11 +16,11 @@ use crate::path_target::{FIELD_VALUES, law_on, unit_controller};
 use crate::rng::Gen;
 use controller::group::OnGroup;
 use controller::{GroupKind, MatrixLieGroup, Source, Trajectory};
-use controller_node::PlanIntake;
+use control_cycle::PlanIntake;
 use ipc_types::{CommandMsg, MAX_M, PLAN_WINDOW, PlanMsg, StateMsg, WireSegment};
 use nalgebra::SVector;
-use plant_sim::estimation::Estimation;
-use plant_sim::recorder::{PlanEntry, RECORD_BYTES, Record, SENSOR_BYTES, SensorRecord};
+use plant::estimation::Estimation;
+use recorder::{PlanEntry, RECORD_BYTES, Record, SENSOR_BYTES, SensorRecord};
 use scenario::{PathKind, Scenario};
 use std::path::Path;
 use std::sync::OnceLock;
@@ -260,7 +260,7 @@ struct Intake<'a> {
 impl OnGroup for Intake<'_> {
     type Output = Result<(), String>;
     fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
-        let mut reference = controller_node::streamed_reference::<G, N, M>(self.s)
+        let mut reference = control_cycle::streamed_reference::<G, N, M>(self.s)
             .expect("the slew's streamed reference");
         let Source::Path(path) = &mut reference else {
             panic!("a streamed reference is a path");

@@ -5,7 +5,7 @@
 //! `scripts/mcap-readers.sh` (CI). Tests run one at a time ([`serial`]).
 
 use pair_tests::{Proc, TempDir, run, scenario, serial, wait_for_cycles};
-use plant_sim::recorder::{HEADER_BYTES, LOG_FILE, LogReader, RECORD_BYTES};
+use recorder::{HEADER_BYTES, LOG_FILE, LogReader, RECORD_BYTES};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Duration;
@@ -233,7 +233,7 @@ fn a_log_of_another_format_version_is_refused_with_both_versions_named() {
     assert!(
         text.contains(&format!(
             "format version 1; this build reads version {}",
-            plant_sim::recorder::FORMAT_VERSION
+            recorder::FORMAT_VERSION
         )),
         "{text}"
     );

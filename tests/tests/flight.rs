@@ -4,7 +4,7 @@
 use pair_tests::{
     Proc, TempDir, bin, realtime_priority, run, serial, summary, wait_for_cycles, wait_until,
 };
-use plant_sim::recorder::{
+use recorder::{
     HEADER_BYTES, LOG_FILE, LogReader, RECORD_BYTES, RECORD_STATE_OFFSET, torque_byte_offset,
 };
 use std::path::Path;
@@ -36,7 +36,7 @@ fn copy_dir(from: &str, to: &str) {
 }
 
 /// (records, decisions seen) of a log.
-fn read_log(dir: &str) -> (Vec<plant_sim::recorder::Record>, LogReader) {
+fn read_log(dir: &str) -> (Vec<recorder::Record>, LogReader) {
     let mut log = LogReader::open(&Path::new(dir).join(LOG_FILE)).unwrap();
     let mut records = Vec::new();
     while let Some(r) = log.next_record().unwrap() {
@@ -447,7 +447,7 @@ fn a_run_answered_by_a_hand_started_controller_with_another_law_replays_bit_for_
     // the law bytes rewritten to EqT: replay answers with EqT, and the commands differ
     let path = Path::new(&out).join(LOG_FILE);
     let mut bytes = std::fs::read(&path).unwrap();
-    let at = plant_sim::recorder::RECORD_COMMAND_OFFSET + 360;
+    let at = recorder::RECORD_COMMAND_OFFSET + 360;
     for k in 0..records.len() {
         let base = HEADER_BYTES + k * RECORD_BYTES;
         if bytes[base + 9] != 0 {

@@ -114,12 +114,12 @@ fn replays(out: &str, name: &str, kind: &str) {
     )
     .unwrap();
     let mut log = std::fs::read(format!("{out}/messages.log")).unwrap();
-    let header = plant_sim::recorder::Header::from_bytes(&log).unwrap();
+    let header = recorder::Header::from_bytes(&log).unwrap();
     assert!(header.sensors);
     let k = 1000;
-    let at = plant_sim::recorder::HEADER_BYTES
+    let at = recorder::HEADER_BYTES
         + k * header.record_bytes()
-        + plant_sim::recorder::RECORD_BYTES
+        + recorder::RECORD_BYTES
         + 8;
     let gyro = f64::from_le_bytes(log[at..at + 8].try_into().unwrap());
     log[at..at + 8].copy_from_slice(&(gyro * (1.0 + 1e-12) + 1e-15).to_le_bytes());

@@ -432,7 +432,7 @@ fn killing_the_planner_holds_the_last_pose_and_a_new_planner_resumes() {
 /// record without the plan messages is refused, naming the cycle that needs one.
 #[test]
 fn a_streamed_run_replays_and_a_changed_plan_message_is_caught_at_its_cycle() {
-    use plant_sim::recorder::{PLANS_FILE, format::plans_header, read_plans};
+    use recorder::{PLANS_FILE, format::plans_header, read_plans};
     let _g = serial();
     let d = TempDir::new("stream-replay");
     let scenario = format!("{}/slew_so3.toml", scenarios());

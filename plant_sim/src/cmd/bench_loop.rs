@@ -3,7 +3,7 @@
 use alloc_counter::thread_allocations;
 use clap::Args;
 use link::StopFlag;
-use plant_sim::SimError;
+use plant::SimError;
 use scenario::cli::{ScenarioSource, positive_seconds};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -45,7 +45,7 @@ pub(crate) fn bench_loop_cmd(args: BenchLoopArgs, stop: &StopFlag) -> Result<(),
     let out = args
         .out
         .unwrap_or_else(|| Path::new("out").join("bench-loop"));
-    let result = plant_sim::bench_loop::bench_loop(
+    let result = floors::bench_loop::bench_loop(
         &args.source,
         &rates,
         args.duration.as_secs_f64(),
@@ -58,9 +58,9 @@ pub(crate) fn bench_loop_cmd(args: BenchLoopArgs, stop: &StopFlag) -> Result<(),
         "round trip of the controller loop (state published -> command received), scenario {}:",
         result.scenario
     );
-    print!("{}", plant_sim::bench_loop::table(&result.cases));
+    print!("{}", floors::bench_loop::table(&result.cases));
     println!("\nthe floors, measured in the same run at the same rates and durations:");
-    print!("{}", plant_sim::bench_loop::floors_table(&result));
+    print!("{}", floors::bench_loop::floors_table(&result));
     println!(
         "wrote {}/{{summary.json, table.md}} and one run directory per case",
         out.display()

@@ -1,7 +1,7 @@
 //! `plant_sim export`: runs `eqtrack-export` on a recording.
 
 use clap::Args;
-use plant_sim::SimError;
+use plant::SimError;
 use std::path::PathBuf;
 
 #[derive(Args)]

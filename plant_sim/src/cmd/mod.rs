@@ -2,7 +2,7 @@
 
 use indicatif::{ProgressBar, ProgressStyle};
 #[cfg(feature = "fault-injection")]
-use plant_sim::SimError;
+use plant::SimError;
 
 pub(crate) mod bench_loop;
 pub(crate) mod export;
@@ -31,7 +31,7 @@ pub(crate) fn progress(len: u64, what: &str) -> ProgressBar {
 #[cfg(feature = "fault-injection")]
 pub(crate) fn sample_faults(
     texts: &[String],
-) -> Result<Vec<(u64, plant_sim::sensors::SampleFault)>, SimError> {
+) -> Result<Vec<(u64, plant::sensors::SampleFault)>, SimError> {
     texts
         .iter()
         .map(|text| {
@@ -42,7 +42,7 @@ pub(crate) fn sample_faults(
             };
             let (k, kind) = text.split_once(':').ok_or_else(bad)?;
             let k: u64 = k.parse().map_err(|_| bad())?;
-            let kind = plant_sim::sensors::SampleFault::parse(kind).ok_or_else(bad)?;
+            let kind = plant::sensors::SampleFault::parse(kind).ok_or_else(bad)?;
             Ok((k, kind))
         })
         .collect()

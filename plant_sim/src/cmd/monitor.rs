@@ -2,7 +2,7 @@
 
 use clap::Args;
 use link::StopFlag;
-use plant_sim::SimError;
+use plant::SimError;
 use scenario::cli::positive_seconds;
 use std::time::Duration;
 
@@ -20,7 +20,7 @@ pub(crate) struct MonitorArgs {
 }
 
 pub(crate) fn monitor_cmd(args: MonitorArgs, stop: &StopFlag) -> Result<(), SimError> {
-    use plant_sim::recorder::monitor::{MonitorEnd, MonitorOptions, monitor};
+    use flight_tools::monitor::{MonitorEnd, MonitorOptions, monitor};
     let end = monitor(&MonitorOptions {
         run: args.name.clone(),
         wait: args.wait,

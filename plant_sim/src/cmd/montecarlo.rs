@@ -4,9 +4,9 @@ use super::progress;
 use clap::Args;
 use controller::Law;
 use link::StopFlag;
-use plant_sim::SimError;
-use plant_sim::montecarlo;
-use plant_sim::output::{ensure_dir, write_json};
+use plant::SimError;
+use studies::montecarlo;
+use plant::output::{ensure_dir, write_json};
 use scenario::Scenario;
 use scenario::cli::law_parser;
 use std::path::{Path, PathBuf};
@@ -126,7 +126,7 @@ pub(crate) fn estimator_study(
     out: &Path,
     stop: &StopFlag,
 ) -> Result<(), SimError> {
-    use plant_sim::estimator_study as study;
+    use studies::estimator_study as study;
     let bar = progress((samples.len() * estimators.len()) as u64, "estimators");
     let results = study::run_study(
         base,

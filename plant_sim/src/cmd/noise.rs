@@ -1,8 +1,8 @@
 //! `plant_sim noise`: the sensor-noise study.
 
 use clap::Args;
-use plant_sim::SimError;
-use plant_sim::output::ensure_dir;
+use plant::SimError;
+use plant::output::ensure_dir;
 use scenario::Scenario;
 use std::path::{Path, PathBuf};
 
@@ -35,9 +35,9 @@ pub(crate) fn noise_cmd(args: NoiseArgs) -> Result<(), SimError> {
     let base = Scenario::from_file(&args.scenario)?;
     let out = args.out.unwrap_or_else(|| Path::new("out").join("noise"));
     ensure_dir(&out)?;
-    let rows = plant_sim::noise::study(&base, &args.gyro_noise, args.runs)?;
-    plant_sim::noise::write(&rows, &base.name, &out)?;
-    print!("{}", plant_sim::noise::table(&rows));
+    let rows = studies::noise::study(&base, &args.gyro_noise, args.runs)?;
+    studies::noise::write(&rows, &base.name, &out)?;
+    print!("{}", studies::noise::table(&rows));
     println!(
         "wrote {}/{{noise.csv, table.md, noise.png, noise.svg}}",
         out.display()

@@ -1,7 +1,7 @@
 //! `plant_sim reference`: a waypoint scenario's reference and feasibility report.
 
 use clap::Args;
-use plant_sim::SimError;
+use plant::SimError;
 use scenario::cli::ScenarioSource;
 use std::path::{Path, PathBuf};
 
@@ -25,7 +25,7 @@ pub(crate) struct ReferenceArgs {
 pub(crate) fn reference_cmd(args: ReferenceArgs) -> Result<(), SimError> {
     let s = args.source.load("seed")?;
     let out = args.out.unwrap_or_else(|| Path::new("out").join(&s.name));
-    let (csv, report) = plant_sim::reference::write_reference(&s, &out)?;
+    let (csv, report) = studies::reference::write_reference(&s, &out)?;
     println!(
         "reference of `{}` ({}, {}{}): {} samples at {} s; wrote {}, {}/reference.{{png,svg}} and {}/reference.json",
         s.name,
@@ -43,12 +43,12 @@ pub(crate) fn reference_cmd(args: ReferenceArgs) -> Result<(), SimError> {
         out.display(),
         out.display()
     );
-    print!("{}", plant_sim::reference::feasibility_text(&report));
+    print!("{}", studies::reference::feasibility_text(&report));
     for w in &report.warnings {
         eprintln!("{w}");
     }
     if args.compare_paths {
-        let c = plant_sim::reference::compare_paths(&s, &out)?;
+        let c = studies::reference::compare_paths(&s, &out)?;
         for ((way, f), (_, flown)) in c.reports.iter().zip(&c.tracking) {
             let tau = f.torque.iter().map(|p| p.value).fold(0.0f64, f64::max);
             println!(

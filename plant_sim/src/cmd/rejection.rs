@@ -1,8 +1,8 @@
 //! `plant_sim rejection`: the disturbance-rejection study.
 
 use clap::Args;
-use plant_sim::SimError;
-use plant_sim::output::ensure_dir;
+use plant::SimError;
+use plant::output::ensure_dir;
 use scenario::Scenario;
 use scenario::cli::ScenarioSource;
 use std::path::{Path, PathBuf};
@@ -57,7 +57,7 @@ pub(crate) struct RejectionArgs {
 }
 
 pub(crate) fn rejection_cmd(args: RejectionArgs) -> Result<(), SimError> {
-    use plant_sim::rejection;
+    use studies::rejection;
     // default: the set-point, shipped as a scenario file
     let s = if args.source.scenario.is_none() && args.source.builtin.is_none() {
         Scenario::from_file(Path::new("scenarios/reject_so3.toml"))?
@@ -82,7 +82,7 @@ pub(crate) fn rejection_cmd(args: RejectionArgs) -> Result<(), SimError> {
         let mut calm = s.clone();
         calm.disturbance = vec![0.0; s.group.dims().1];
         calm.rejection = Default::default();
-        let undisturbed = plant_sim::trajectory::simulate(&calm, &|_| Ok(()))?
+        let undisturbed = plant::trajectory::simulate(&calm, &|_| Ok(()))?
             .rows
             .last()
             .map_or(f64::NAN, |r| rejection::angle(r.attitude_error));

@@ -2,7 +2,7 @@
 
 use clap::Args;
 use controller::Law;
-use plant_sim::SimError;
+use plant::SimError;
 use scenario::cli::law_parser;
 use std::path::PathBuf;
 
@@ -43,7 +43,7 @@ pub(crate) struct ReplayArgs {
 /// `plant_sim replay`: prints what the replay found; a difference outside a what-if is an
 /// error (exit 1).
 pub(crate) fn replay_cmd(args: ReplayArgs) -> Result<(), SimError> {
-    use plant_sim::recorder::replay::{ReplayOptions, replay};
+    use flight_tools::replay::{ReplayOptions, replay};
     let opts = ReplayOptions {
         dir: args.dir,
         law: args.law,

@@ -5,8 +5,8 @@ use super::sample_faults;
 use alloc_counter::thread_allocations;
 use clap::Args;
 use link::{StopFlag, TransportKind, Wake};
-use plant_sim::SimError;
-use plant_sim::pair::Mode;
+use plant::SimError;
+use plant::pair::Mode;
 use scenario::cli::{ScenarioSource, positive_seconds};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -80,7 +80,7 @@ pub(crate) struct RunArgs {
 }
 
 pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
-    use plant_sim::pair::{PairOptions, run_pair};
+    use plant::pair::{PairOptions, run_pair};
     let mut scenario = args.source.load("seed")?;
     if let Some(d) = args.duration {
         scenario.duration = d.as_secs_f64();
@@ -134,7 +134,7 @@ pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
 /// The `--fault-state K:KIND` injections (test builds only; empty otherwise).
 pub(crate) fn state_faults(
     #[allow(unused_variables)] args: &RunArgs,
-) -> Result<Vec<(u64, plant_sim::pair::StateFault)>, SimError> {
+) -> Result<Vec<(u64, plant::pair::StateFault)>, SimError> {
     #[allow(unused_mut)]
     let mut state_faults = Vec::new();
     #[cfg(feature = "fault-injection")]
@@ -147,9 +147,9 @@ pub(crate) fn state_faults(
         let (k, kind) = text.split_once(':').ok_or_else(bad)?;
         let k: u64 = k.parse().map_err(|_| bad())?;
         let kind = match kind {
-            "version" => plant_sim::pair::StateFault::Version,
-            "group" => plant_sim::pair::StateFault::Group,
-            "nan" => plant_sim::pair::StateFault::Nan,
+            "version" => plant::pair::StateFault::Version,
+            "group" => plant::pair::StateFault::Group,
+            "nan" => plant::pair::StateFault::Nan,
             _ => return Err(bad()),
         };
         state_faults.push((k, kind));
@@ -158,7 +158,7 @@ pub(crate) fn state_faults(
 }
 
 /// Prints a finished (or interrupted) pair run's summary to stdout.
-pub(crate) fn print_pair_summary(s: &plant_sim::pair::PairSummary, out: &Path) {
+pub(crate) fn print_pair_summary(s: &plant::pair::PairSummary, out: &Path) {
     let f = &s.sim.final_errors;
     println!(
         "run `{}`: scenario {} ({}, law {}), {}, {} cycles, {} wake-up",
@@ -177,7 +177,7 @@ pub(crate) fn print_pair_summary(s: &plant_sim::pair::PairSummary, out: &Path) {
         "final: L = {:.4e}, |Q_E - I| = {:.4e}, |p_E| = {:.4e}, attitude error = {:.4e}",
         f.lyapunov, f.config_error, f.momentum_error, f.attitude_error
     );
-    let p = |x: &plant_sim::pair::Percentiles| {
+    let p = |x: &plant::pair::Percentiles| {
         format!(
             "p50 {:.2} / p99 {:.2} / p99.9 {:.2} / max {:.2} us",
             x.p50_us, x.p99_us, x.p99_9_us, x.max_us

@@ -6,9 +6,9 @@ use super::sample_faults;
 use clap::Args;
 use controller::Law;
 use link::StopFlag;
-use plant_sim::SimError;
-use plant_sim::output::{Summary, ensure_dir, write_json, write_trajectory_csv};
-use plant_sim::plot::trajectory_figure;
+use plant::SimError;
+use plant::output::{Summary, ensure_dir, write_json, write_trajectory_csv};
+use plant::plot::trajectory_figure;
 use scenario::cli::{ScenarioSource, law_parser};
 use std::path::{Path, PathBuf};
 
@@ -41,7 +41,7 @@ pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
     let planted = sample_faults(&args.fault_sample)?;
     #[cfg(not(feature = "fault-injection"))]
     let planted = Vec::new();
-    let traj = plant_sim::trajectory::simulate_planted(&s, &planted, &|k| {
+    let traj = plant::trajectory::simulate_planted(&s, &planted, &|k| {
         if k % 256 == 0 {
             bar.set_position(k);
             SimError::check(stop)?;

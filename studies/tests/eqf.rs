@@ -3,8 +3,8 @@
 //! matched noise and out of it with the noise understated, its convergence from 2.5 rad, and
 //! the filters flown on the same sensor streams.
 
-use plant_sim::estimator_study::{StudyRun, chi2_band, run_study, stats};
-use plant_sim::montecarlo::draw_samples;
+use studies::estimator_study::{StudyRun, chi2_band, run_study, stats};
+use studies::montecarlo::draw_samples;
 use scenario::{EstimatorKind, Scenario};
 use std::path::Path;
 
@@ -152,7 +152,7 @@ fn on_se3_the_eqf_takes_four_direction_sensors_and_the_accelerometer() {
     }
     s.estimator.eqf.as_mut().unwrap().direction_noise = vec![0.01, 0.01, 0.01, 0.01, 0.1];
     s.duration = 2.0;
-    let t = plant_sim::trajectory::simulate(&s, &|_| Ok(())).unwrap();
+    let t = plant::trajectory::simulate(&s, &|_| Ok(())).unwrap();
     let report = t.estimator.unwrap();
     assert_eq!((report.kind.as_str(), report.directions), ("eqf", 4));
     // measured 0.0027 rad

@@ -1,28 +1,26 @@
-//! The plant process and the simulation front end.
+//! The plant: the in-process closed loop and the plant process of the pair.
 //!
-//! * [`trajectory`]: the in-process closed loop (controller crate's `ClosedLoop`) and its rows;
-//! * [`output`]: `trajectory.csv` and `summary.json`;
-//! * [`plot`]: the figures (PNG and SVG);
-//! * [`montecarlo`]: the extended paper's Monte Carlo study;
-//! * [`reference`](mod@reference): the desired trajectory sampled for inspection;
-//! * [`recorder`]: the flight recorder — its formats, writer, reader, replay and live status.
+//! * [`trajectory`]: the in-process simulation (the controller crate's `ClosedLoop`, with
+//!   simulated sensors and the estimator when the scenario has them) and its rows,
+//!   [`trajectory::SimulatedTrajectory`];
+//! * [`sensors`], [`estimation`]: seeded sensor samples drawn from the true state, and the
+//!   estimator that turns them into the state the law is handed;
+//! * [`pair`]: the plant process of the pair over `link` (lockstep or real time), with its
+//!   flight recorder; [`spawn`] starts the controller process beside it;
+//! * [`status`]: the run's live figures, published for `plant_sim monitor`;
+//! * [`output`], [`plot`]: `trajectory.csv`, `summary.json` and the figures of a run.
+//!
+//! It depends on no crate of the controller process: the two processes meet only on the wire.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
-pub mod bench_loop;
 pub mod estimation;
-pub mod estimator_study;
-pub mod floors;
-pub mod montecarlo;
-pub mod noise;
 pub mod output;
 pub mod pair;
 pub mod plot;
-pub mod recorder;
-pub mod reference;
-pub mod rejection;
 pub mod sensors;
 pub mod spawn;
+pub mod status;
 pub mod trajectory;
 
 /// Errors of the simulation front end, split by who is to blame (for the exit code).

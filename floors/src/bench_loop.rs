@@ -2,13 +2,13 @@
 //! controller_node as two processes, the same messages) over iceoryx2 with busy polling,
 //! iceoryx2 with event wake-up, and a Unix-domain-socket baseline (blocking, and busy-polled),
 //! at each requested rate; and, in the same run at the same rates and durations, the floors
-//! it is measured against ([`crate::floors`]): cyclictest's wake-up latency and a bare
+//! it is measured against ([`crate::os_floor`]): cyclictest's wake-up latency and a bare
 //! iceoryx2 exchange.
 
-use crate::SimError;
-use crate::floors::{OsFloor, TransportFloor, os_floor, transport_floor};
-use crate::output::{ensure_dir, write_json};
-use crate::pair::{Mode, PairOptions, run_pair};
+use plant::SimError;
+use crate::os_floor::{OsFloor, TransportFloor, os_floor, transport_floor};
+use plant::output::{ensure_dir, write_json};
+use plant::pair::{Mode, PairOptions, run_pair};
 use link::{StopFlag, TransportKind as Transport, Wake};
 use scenario::cli::ScenarioSource;
 use serde::Serialize;
@@ -177,7 +177,7 @@ pub fn bench_loop(
             SimError::check(stop)?;
             let p50 = sum.latency.p50_us;
             let base = *base_p50.get_or_insert(p50);
-            let lateness = |f: fn(&crate::pair::Percentiles) -> f64| {
+            let lateness = |f: fn(&plant::pair::Percentiles) -> f64| {
                 sum.tick_lateness.as_ref().map(f).unwrap_or(f64::NAN)
             };
             rows.push(LoopRow {

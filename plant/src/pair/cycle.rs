@@ -2,7 +2,7 @@
 
 use super::{PlantRun, log};
 use crate::SimError;
-use crate::recorder::Record;
+use recorder::Record;
 use crate::spawn::Spawned;
 use crate::trajectory::Row;
 use controller::Trajectory as _;

@@ -2,7 +2,7 @@
 //! the band the docs state, and the closed loop on estimates converges on SO(3) and SE(3)
 //! with the tracking error bounded as documented (docs/maths.md, "What noise costs").
 
-use plant_sim::trajectory::simulate;
+use plant::trajectory::simulate;
 use scenario::Scenario;
 use std::path::Path;
 
@@ -13,7 +13,7 @@ fn scenario(name: &str) -> Scenario {
     .unwrap()
 }
 
-fn no_progress(_: u64) -> Result<(), plant_sim::SimError> {
+fn no_progress(_: u64) -> Result<(), plant::SimError> {
     Ok(())
 }
 
@@ -83,7 +83,7 @@ fn the_closed_loop_on_estimates_converges_on_so3_and_se3() {
 #[test]
 fn the_noise_study_degrades_with_gyro_noise_and_truth_fed_rows_do_not_see_it() {
     let base = scenario("sensors_so3");
-    let rows = plant_sim::noise::study(&base, &[0.002, 0.1], 3).unwrap();
+    let rows = studies::noise::study(&base, &[0.002, 0.1], 3).unwrap();
     assert_eq!(rows.len(), 8, "2 noise levels × bias on/off × truth/filter");
     let find = |noise: f64, bias: bool, est: &str| {
         rows.iter()
@@ -108,33 +108,32 @@ fn the_noise_study_degrades_with_gyro_noise_and_truth_fed_rows_do_not_see_it() {
         assert_eq!(a.final_attitude_error, b.final_attitude_error);
         assert_eq!((a.rms_estimate_error, b.rms_estimate_error), (0.0, 0.0));
     }
-    let d = std::env::temp_dir().join(format!("noise-study-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    plant_sim::noise::write(&rows, "sensors_so3", &d).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    studies::noise::write(&rows, "sensors_so3", d).unwrap();
     let csv = std::fs::read_to_string(d.join("noise.csv")).unwrap();
     assert_eq!(csv.lines().count(), 9, "{csv}");
     assert!(d.join("noise.png").exists() && d.join("table.md").exists());
-    std::fs::remove_dir_all(&d).unwrap();
     // a scenario without a filter is refused
     let plain = Scenario::builtin("seed").unwrap();
-    assert!(plant_sim::noise::study(&plain, &[0.002], 1).is_err());
+    assert!(studies::noise::study(&plain, &[0.002], 1).is_err());
 }
 
 #[test]
 fn the_monte_carlo_study_gives_each_run_its_own_sensors_whatever_the_thread_count() {
     let base = scenario("sensors_so3");
     let (mut a, mut b, mut again) = (base.clone(), base.clone(), base.clone());
-    plant_sim::montecarlo::run_sensors(&mut a, 0);
-    plant_sim::montecarlo::run_sensors(&mut b, 1);
-    plant_sim::montecarlo::run_sensors(&mut again, 0);
+    studies::montecarlo::run_sensors(&mut a, 0);
+    studies::montecarlo::run_sensors(&mut b, 1);
+    studies::montecarlo::run_sensors(&mut again, 0);
     let (sa, sb) = (a.sensors.unwrap(), b.sensors.unwrap());
     assert_ne!(sa.seed, sb.seed);
     assert_ne!(sa.gyro.bias, sb.gyro.bias);
     assert_eq!(again.sensors.unwrap(), sa, "drawn from the run index alone");
-    let samples = plant_sim::montecarlo::draw_samples(4, 3);
+    let samples = studies::montecarlo::draw_samples(4, 3);
     let stop = link::StopFlag::never();
     let run = |threads| {
-        plant_sim::montecarlo::run_all(
+        studies::montecarlo::run_all(
             &base,
             &samples,
             &[controller::Law::Eqt],
@@ -153,7 +152,7 @@ fn the_monte_carlo_study_gives_each_run_its_own_sensors_whatever_the_thread_coun
 #[test]
 fn the_noise_study_flies_the_eqf_too_and_keeps_its_noise_model_matched() {
     let base = scenario("eqf_so3");
-    let rows = plant_sim::noise::study(&base, &[0.002, 0.02], 2).unwrap();
+    let rows = studies::noise::study(&base, &[0.002, 0.02], 2).unwrap();
     assert_eq!(rows.len(), 8);
     assert!(rows.iter().any(|r| r.estimator == "eqf"), "{rows:?}");
     for r in rows.iter().filter(|r| r.estimator == "eqf") {

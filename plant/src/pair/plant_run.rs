@@ -6,7 +6,7 @@ use super::{
 use crate::SimError;
 use crate::output::{Summary, write_json, write_trajectory_csv};
 use crate::plot::trajectory_figure;
-use crate::recorder::{Header, Recorder};
+use recorder::{Header, Recorder};
 use crate::spawn::Spawned;
 use crate::trajectory::{Row, SimulatedTrajectory, input};
 use controller::group::MatrixLieGroup;
@@ -49,7 +49,7 @@ pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M:
     /// The samples and estimate of the state published last.
     pub(super) estimate: Option<crate::trajectory::EstimateRow>,
     /// The same, with the true state, for the flight recorder.
-    pub(super) sensor_record: Option<crate::recorder::SensorRecord>,
+    pub(super) sensor_record: Option<recorder::SensorRecord>,
 }
 
 /// Corrupts a state as a test asks.
@@ -149,13 +149,13 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             sensors: self.estimation.is_some(),
         };
         let capacity = ((0.5 / self.s.control_period) as usize).clamp(4096, 1 << 16);
-        let sink = crate::recorder::monitor::status_sink(&opts.run, &header);
+        let sink = crate::status::status_sink(&opts.run, &header);
         // the plan board, read on the recorder's thread: a controller started with
         // `--reference stream` takes its pieces from it, and replay needs them
         let run = opts.run.clone();
-        let plans: crate::recorder::PlanSourceFactory = Box::new(move || {
+        let plans: recorder::PlanSourceFactory = Box::new(move || {
             match link::plan::PlanReader::for_recorder(&run) {
-                Ok(mut r) => Some(Box::new(move || r.receive()) as crate::recorder::PlanSource),
+                Ok(mut r) => Some(Box::new(move || r.receive()) as recorder::PlanSource),
                 Err(e) => {
                     log(format_args!(
                         "warning: the flight recorder cannot read the plan board ({e}): a streamed run will not replay"

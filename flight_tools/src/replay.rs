@@ -1,7 +1,7 @@
 //! `plant_sim replay OUT_DIR`: the controller, in-process, over the states a run recorded
 //! (docs/architecture.md, "The flight recorder").
 //!
-//! Each recorded state goes through `controller_node::Responder::respond` — the very cycle
+//! Each recorded state goes through `control_cycle::Responder::respond` — the very cycle
 //! the controller process runs — with the scenario the run stored beside its log, the reference
 //! built at the plant's period and stepped exactly as the node steps it. The controller is
 //! deterministic, so every recorded command must come out again bit for bit: a difference is
@@ -20,7 +20,7 @@
 //! A streamed run (its commands carry `STREAMED`) starts from the streamed reference's held
 //! pose, and each recorded command says how many plan messages the controller had taken and
 //! which was the last: replay hands the recorded plan messages (`plans.log`) to the same
-//! `controller_node::PlanIntake` at the cycle they were taken, before it moves the reference
+//! `control_cycle::PlanIntake` at the cycle they were taken, before it moves the reference
 //! on, as the node does. A command naming a message the recorder never saw is a log replay
 //! cannot check, and it says so.
 //!
@@ -29,14 +29,14 @@
 //! recorded estimate (`Q̂`, `V̂` in the state message, the bias) bit for bit, up to the first
 //! gap in the log (the filter's state after a gap is not in the record).
 
-use super::{LOG_FILE, LogReader, PlanEntry, Record, read_plans};
-use crate::SimError;
-use crate::output::ensure_dir;
-use crate::plot::{Line, Panel, law_color, render};
+use recorder::{LOG_FILE, LogReader, PlanEntry, Record, read_plans};
+use plant::SimError;
+use plant::output::ensure_dir;
+use plant::plot::{Line, Panel, law_color, render};
 use controller::Source;
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::{Law, Trajectory as _};
-use controller_node::PlanIntake;
+use control_cycle::PlanIntake;
 use ipc_types::{CommandMsg, MAX_M, StateMsg, flags};
 use link::Decision;
 use link::wire::group_code;
@@ -336,7 +336,7 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             })?
         };
         with.controller::<G, N, M>()
-            .and_then(|c| controller_node::Responder::new(c, with.rejection_config()))
+            .and_then(|c| control_cycle::Responder::new(c, with.rejection_config()))
             .map_err(bad)
     };
     // one responder per law the recorded commands name (protocol 5 commands say which law
@@ -368,7 +368,7 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         (true, false) => {
             let mut at = s.clone();
             at.control_period = log.header.control_period;
-            crate::estimation::Estimation::new(&at, at.control_period, &[])?
+            plant::estimation::Estimation::new(&at, at.control_period, &[])?
         }
         _ => None,
     };
@@ -439,7 +439,7 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                 let mut at = s.clone();
                 at.control_period = r.state.control_period;
                 let built = match plans {
-                    Some(_) => controller_node::streamed_reference::<G, N, M>(&at),
+                    Some(_) => control_cycle::streamed_reference::<G, N, M>(&at),
                     None => at.reference_source::<G, N, M>(),
                 };
                 (reference.insert(built.map_err(bad)?), true)
@@ -483,8 +483,8 @@ fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 /// Steps the estimator over record `r`'s samples and compares what it publishes with the
 /// recorded state message's `Q̂`, `V̂` and the recorded bias, bit for bit.
 fn check_estimate<const N: usize, const M: usize>(
-    e: &mut crate::estimation::Estimation,
-    sr: &super::SensorRecord,
+    e: &mut plant::estimation::Estimation,
+    sr: &recorder::SensorRecord,
     r: &Record,
     check: &mut EstimatorCheck,
 ) {

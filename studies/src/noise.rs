@@ -3,10 +3,10 @@
 //! flown truth-fed and complementary-filter-fed over seeded runs: the final and RMS tracking
 //! error of the true state and the RMS estimate error, as a table, a CSV and a figure.
 
-use crate::SimError;
-use crate::output::num;
-use crate::plot::{Line, Panel, law_color, render_against};
-use crate::trajectory::simulate;
+use plant::SimError;
+use plant::output::num;
+use plant::plot::{Line, Panel, law_color, render_against};
+use plant::trajectory::simulate;
 use rayon::prelude::*;
 use scenario::{EstimatorKind, EstimatorSpec, Scenario};
 use std::path::Path;

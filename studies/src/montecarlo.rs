@@ -5,10 +5,10 @@
 //! `w ~ N(0, 1)` per axis, all from one ChaCha8 stream seeded with `--seed` in run order, so
 //! the numbers do not depend on the thread count.
 
-use crate::SimError;
-use crate::output::num;
-use crate::plot::{Line, Panel, law_color, render};
-use crate::trajectory::{effort, settling_time, simulate_with};
+use plant::SimError;
+use plant::output::num;
+use plant::plot::{Line, Panel, law_color, render};
+use plant::trajectory::{effort, settling_time, simulate_with};
 use controller::group::So3;
 use controller::group::so3::{exp_so3, log_so3};
 use controller::integrator::RigidBody;
@@ -210,7 +210,7 @@ pub fn fly(
     s: &Scenario,
     run: usize,
     sample: Sample,
-) -> Result<crate::trajectory::SimulatedTrajectory, SimError> {
+) -> Result<plant::trajectory::SimulatedTrajectory, SimError> {
     let (r0, w0) = initial_state(s, sample);
     let plant = RigidBody::<f64, So3, 3, 3>::new(
         SMatrix::from_row_slice(&s.plant_inertia),

@@ -2,7 +2,7 @@
 
 use crate::SimError;
 use crate::output::Summary;
-use crate::recorder::RecordingReport;
+use recorder::RecordingReport;
 use hdrhistogram::Histogram;
 use link::Command;
 use serde::Serialize;

@@ -2,10 +2,10 @@
 //! `reference.csv` (`t`, `qd_ij`, `vd_i`, `vd_dot_i`, `tau_d_i`) and a figure — so that a
 //! manoeuvre is checked before it is flown.
 
-use crate::SimError;
-use crate::output::{ensure_dir, num, write_json};
-use crate::plot::{Line, Panel, render};
-use crate::trajectory::input;
+use plant::SimError;
+use plant::output::{ensure_dir, num, write_json};
+use plant::plot::{Line, Panel, render};
+use plant::trajectory::input;
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::{Source, Trajectory};
 use nalgebra::{SMatrix, SVector};
@@ -421,7 +421,7 @@ pub fn compare_paths(s: &Scenario, out: &Path) -> Result<PathComparison, SimErro
     for (name, kind, color) in ways {
         let way = with_path_kind(s, kind)?;
         let rows = sample_reference(&way)?;
-        let flown = crate::trajectory::simulate(&way, &|_| Ok(()))?;
+        let flown = plant::trajectory::simulate(&way, &|_| Ok(()))?;
         let line = |f: &dyn Fn(&ReferenceRow) -> f64| Line {
             label: name.to_owned(),
             color,

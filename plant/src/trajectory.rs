@@ -245,7 +245,8 @@ impl OnGroup for Simulate<'_> {
     }
 }
 
-pub(crate) fn input(s: &Scenario) -> impl Fn(controller::Error) -> SimError + '_ {
+/// Maps a `controller` error met while building scenario `s`'s parts to bad input naming the scenario.
+pub fn input(s: &Scenario) -> impl Fn(controller::Error) -> SimError + '_ {
     move |e| SimError::Input(format!("scenario `{}`: {e}", s.name))
 }
 

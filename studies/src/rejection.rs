@@ -5,10 +5,10 @@
 //! disturbances (seeded), the final error's distribution per variant
 //! (`rejection_montecarlo.csv`).
 
-use crate::SimError;
-use crate::output::num;
-use crate::plot::{Line, Panel, law_color, render};
-use crate::trajectory::{Row, simulate};
+use plant::SimError;
+use plant::output::num;
+use plant::plot::{Line, Panel, law_color, render};
+use plant::trajectory::{Row, simulate};
 use controller::Frame;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;

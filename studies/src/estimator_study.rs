@@ -6,10 +6,10 @@
 //! the runs the EqF's average NEES at each tick against its 95 % χ² band, and with
 //! `--initial-error` the time each filter takes to converge from that attitude error.
 
-use crate::SimError;
+use plant::SimError;
 use crate::montecarlo::{Sample, fly, in_pool, initial_state, run_sensors};
-use crate::output::num;
-use crate::plot::{Line, Panel, law_color, render};
+use plant::output::num;
+use plant::plot::{Line, Panel, law_color, render};
 use controller::Law;
 use controller::group::so3::{exp_so3, log_so3};
 use nalgebra::Vector3;

@@ -4,7 +4,7 @@
 
 use controller::group::So3;
 use controller::{Source, Trajectory};
-use controller_node::Responder;
+use control_cycle::Responder;
 use ipc_types::{CommandMsg, NO_PREVIOUS, StateMsg};
 use nalgebra::Vector3;
 use scenario::Scenario;

@@ -1,0 +1,18 @@
+//! The controller's cycle without a process (docs/architecture.md, "One control cycle"):
+//!
+//! * [`respond`] and [`Responder`]: one answer to one plant state — the reference stepped to
+//!   the state's time, the law (with its disturbance-rejection terms) through the `controller`
+//!   crate, the command filled in. Allocation-free and generic over the scalar.
+//! * [`PlanIntake`] and [`streamed_reference`]: a streamed reference, the plan messages taken
+//!   into its path, and the path a streamed run starts from.
+//!
+//! `controller_node` runs this cycle over `link`; `plant_sim replay` and the fuzz harness run
+//! it again over recorded inputs, which is why it lives apart from the process.
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+mod respond;
+mod stream;
+
+pub use respond::{Responder, respond};
+pub use stream::{PlanIntake, streamed_reference};

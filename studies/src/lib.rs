@@ -1,0 +1,17 @@
+//! The studies over the in-process simulation (`plant::trajectory`), each a `plant_sim`
+//! subcommand that writes its CSV and figures:
+//!
+//! * [`montecarlo`]: the extended paper's Monte Carlo comparison of the laws;
+//! * [`estimator_study`]: the laws flown on estimated states, estimator against truth;
+//! * [`noise`]: the laws under sensor noise;
+//! * [`rejection`]: the disturbance-rejection terms against a disturbance;
+//! * [`reference`](mod@reference): the desired trajectory sampled for inspection, before it
+//!   is flown.
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+pub mod estimator_study;
+pub mod montecarlo;
+pub mod noise;
+pub mod reference;
+pub mod rejection;
