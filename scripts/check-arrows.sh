@@ -7,7 +7,13 @@
 #     recording is read without the plant, the controller process or a transport;
 #   * no control process (plant_sim, controller_node, link) links mcap, and export does;
 #   * the wire (ipc_types) depends on no crate of ours: it owns its codes, and link::wire
-#     converts them to and from the maths crate's types.
+#     converts them to and from the maths crate's types;
+#   * the plant process's library (plant) depends on no crate of the controller process
+#     (controller_node, control_cycle), and the plant_sim command line not on controller_node:
+#     the two processes meet only on the wire;
+#   * fuzz depends on libraries, not on a process's crate (plant_sim, controller_node);
+#   * docs/architecture.md's crate table and "who depends on whom" block say what `cargo
+#     metadata` says (scripts/crate-arrows.py --check).
 #
 #   bash scripts/check-arrows.sh              check this repository
 #   bash scripts/check-arrows.sh --self-test  plant each forbidden arrow in a copy of the
@@ -21,7 +27,7 @@ tree() {
 		awk '{print $1}' | sort -u
 }
 
-# check DIR: prints one line per broken rule; status 1 if any
+# check DIR [--no-docs]: prints one line per broken rule; status 1 if any
 check() {
 	local dir=$1 bad=0 p
 	local export_tree recorder_tree wire_tree
@@ -35,7 +41,7 @@ check() {
 			bad=1
 		fi
 	done
-	for p in iceoryx2 plotters ratatui rayon hdrhistogram plant_sim link controller_node; do
+	for p in iceoryx2 plotters ratatui rayon hdrhistogram plant plant_sim studies flight_tools floors link controller_node control_cycle; do
 		if grep -qx "$p" <<<"$export_tree"; then
 			echo "arrow: export depends on $p (the exporter needs only recorder and ipc_types)"
 			bad=1
@@ -47,19 +53,38 @@ check() {
 			bad=1
 		fi
 	done
-	for p in plant_sim controller_node link; do
+	for p in controller_node control_cycle; do
+		if tree "$dir" plant | grep -qx "$p"; then
+			echo "arrow: plant depends on $p (the plant process knows the controller only through the wire)"
+			bad=1
+		fi
+	done
+	if tree "$dir" plant_sim | grep -qx controller_node; then
+		echo "arrow: plant_sim depends on controller_node (replay runs control_cycle, the controller's library)"
+		bad=1
+	fi
+	for p in plant_sim controller_node; do
+		if tree "$dir" fuzz | grep -qx "$p"; then
+			echo "arrow: fuzz depends on $p (a process's crate; fuzz the libraries)"
+			bad=1
+		fi
+	done
+	for p in plant_sim controller_node link plant flight_tools; do
 		if tree "$dir" "$p" | grep -qx mcap; then
 			echo "arrow: $p links mcap (only the export crate may)"
 			bad=1
 		fi
 	done
 	grep -qx mcap <<<"$export_tree" || { echo "the check cannot see mcap in export's tree" >&2; return 2; }
+	if [[ ${2:-} != --no-docs ]]; then
+		(cd "$dir" && cargo metadata --format-version 1 --no-deps --offline | python3 scripts/crate-arrows.py --check docs/architecture.md) || bad=1
+	fi
 	return $bad
 }
 
 if [[ ${1:-} != --self-test ]]; then
 	check "$REPO"
-	echo "arrows: OK (export, recorder, the wire, mcap)"
+	echo "arrows: OK (export, recorder, the wire, mcap, plant, fuzz, and the docs' block)"
 	exit 0
 fi
 
@@ -68,20 +93,34 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 (cd "$REPO" && git ls-files -z | xargs -0 tar -cf - 2>/dev/null) | (cd "$work" && tar -xf -)
 check "$work" >/dev/null || { echo "check-arrows self-test: the unplanted copy fails" >&2; exit 1; }
-plant() { # plant FILE LINE: add LINE to FILE's [dependencies], check, restore
-	local file=$work/$1 line=$2 out
+# plant FILE LINE WANT [--no-docs]: add LINE to FILE's [dependencies], check (the rule
+# checks alone with --no-docs), require a failure with a line that holds WANT, restore
+plant() {
+	local file=$work/$1 line=$2 want=$3 out
 	cp "$file" "$file.orig"
 	awk -v add="$line" '{ print } !done && $0 == "[dependencies]" { print add; done = 1 }' "$file.orig" >"$file"
-	if out=$(check "$work"); then
+	if out=$(check "$work" "${4:-}"); then
 		echo "check-arrows self-test: \`$line\` in $1 was not caught" >&2
 		exit 1
 	fi
-	echo "caught: $line in $1 -> $(head -1 <<<"$out")"
+	grep -qF "$want" <<<"$out" || {
+		echo "check-arrows self-test: \`$line\` in $1 was caught by the wrong rule: $out" >&2
+		exit 1
+	}
+	echo "caught: $line in $1 -> $(grep -F "$want" <<<"$out" | head -1)"
 	mv "$file.orig" "$file"
 }
-plant export/Cargo.toml 'plant_sim = { path = "../plant_sim" }'
-plant export/Cargo.toml 'rayon = "1"'
-plant recorder/Cargo.toml 'link = { path = "../link" }'
-plant ipc_types/Cargo.toml 'controller = { path = "../controller" }'
-plant controller_node/Cargo.toml 'mcap = { version = "0.26", default-features = false }'
+plant export/Cargo.toml 'plant_sim = { path = "../plant_sim" }' "export depends on plant_sim" --no-docs
+plant export/Cargo.toml 'plant = { path = "../plant" }' "export depends on plant" --no-docs
+plant export/Cargo.toml 'rayon = "1"' "export depends on rayon" --no-docs
+plant recorder/Cargo.toml 'link = { path = "../link" }' "recorder depends on link" --no-docs
+plant ipc_types/Cargo.toml 'controller = { path = "../controller" }' "ipc_types depends on controller" --no-docs
+plant controller_node/Cargo.toml 'mcap = { version = "0.26", default-features = false }' "controller_node links mcap" --no-docs
+plant plant/Cargo.toml 'controller_node = { path = "../controller_node" }' "plant depends on controller_node" --no-docs
+plant plant/Cargo.toml 'control_cycle = { path = "../control_cycle" }' "plant depends on control_cycle" --no-docs
+plant plant_sim/Cargo.toml 'controller_node = { path = "../controller_node" }' "plant_sim depends on controller_node" --no-docs
+plant fuzz/Cargo.toml 'plant_sim = { path = "../plant_sim" }' "fuzz depends on plant_sim" --no-docs
+plant fuzz/Cargo.toml 'controller_node = { path = "../controller_node" }' "fuzz depends on controller_node" --no-docs
+# an arrow no rule forbids: only the docs' block can catch it
+plant studies/Cargo.toml 'recorder = { path = "../recorder" }' "docs: docs/architecture.md"
 echo "check-arrows self-test: every planted arrow caught"

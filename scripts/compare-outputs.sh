@@ -10,7 +10,11 @@
 #     summary.json, the figures);
 #   * lockstep pair runs of seed and se3_circle: trajectory.csv and messages.log (a lockstep
 #     log holds no clock reading and no process id);
-#   * `plant_sim reference` of every waypoint scenario: every file it writes.
+#   * `plant_sim reference` of every waypoint scenario: every file it writes;
+#   * the studies, small: `montecarlo` (the laws, and the estimators), `noise`, `rejection`
+#     (with its Monte Carlo); every file each writes;
+#   * `plant_sim replay` of the lockstep seed run, bit for bit and as a what-if (another law):
+#     what it prints and every file the what-if writes.
 # Prints one line per comparison and `compare-outputs: PASS`, or the first file that differs
 # and exit status 1.
 set -euo pipefail
@@ -55,4 +59,25 @@ for f in "$REPO"/scenarios/*.toml; do
 	name=$(basename "$f" .toml)
 	both "reference-$name" -- reference --scenario "$f"
 done
+both "montecarlo" -- montecarlo --runs 6 --threads 2
+both "montecarlo-estimators" -- montecarlo --scenario "$REPO/scenarios/eqf_so3.toml" --runs 3 --threads 2 --estimators truth,complementary,eqf
+both "noise" -- noise --scenario "$REPO/scenarios/sensors_so3.toml" --runs 2 --gyro-noise 0.002,0.1
+both "rejection" -- rejection --scenario "$REPO/scenarios/reject_so3.toml" --runs 3
+# both builds replay one run (the base's lockstep seed; the new build's log is identical, above)
+run=$OUT/base/lockstep-seed
+for side in base new; do
+	bin=$BASE
+	[[ $side == new ]] && bin=$NEW
+	"$bin/plant_sim" replay "$run" >"$OUT/$side/replay.txt" 2>&1 || die "$side: replay: $(cat "$OUT/$side/replay.txt")"
+	"$bin/plant_sim" replay "$run" --law gt --out "$OUT/$side/whatif" >"$OUT/$side/whatif.txt" 2>&1 ||
+		die "$side: replay --law gt: $(cat "$OUT/$side/whatif.txt")"
+done
+cmp -s "$OUT/base/replay.txt" "$OUT/new/replay.txt" || die "replay: what it prints differs"
+# the what-if names the directory it wrote to; the rest of what it prints must agree
+diff <(sed "s#$OUT/base/whatif#WHATIF#g" "$OUT/base/whatif.txt") <(sed "s#$OUT/new/whatif#WHATIF#g" "$OUT/new/whatif.txt") >/dev/null ||
+	die "replay --law gt: what it prints differs"
+for f in $(cd "$OUT/base/whatif" && find . -type f | sort); do
+	cmp -s "$OUT/base/whatif/$f" "$OUT/new/whatif/$f" || die "replay what-if: $f differs"
+done
+echo "compare-outputs: replay: what it prints, and the what-if's files, identical"
 echo "compare-outputs: PASS"

@@ -1,0 +1,79 @@
+#!/usr/bin/env python3
+"""Who depends on whom among the workspace's crates, from `cargo metadata` (direct normal
+dependencies on crates of the workspace).
+
+    cargo metadata --format-version 1 --no-deps --offline | python3 scripts/crate-arrows.py
+        prints the block docs/architecture.md carries: one line per crate others depend on,
+        `crate ◀── dependents`
+    ... | python3 scripts/crate-arrows.py --check docs/architecture.md
+        requires that page's block to be that block, and its crate table's last column
+        ("depends on (ours)") to name exactly each crate's dependencies; prints each
+        difference and exits 1 if there is one
+
+scripts/check-arrows.sh runs the check in CI.
+"""
+import json
+import re
+import sys
+
+meta = json.load(sys.stdin)
+members = set(meta["workspace_members"])
+packages = [p for p in meta["packages"] if p["id"] in members]
+ours = {p["name"] for p in packages}
+deps = {
+    p["name"]: [
+        d["name"]
+        for d in p["dependencies"]
+        if d["kind"] is None and d["name"] in ours and d["name"] != p["name"]
+    ]
+    for p in packages
+}
+order = [p["name"] for p in packages]
+width = max(len(n) for n in ours) + 2
+block = [
+    f"{name.ljust(width)}◀── {', '.join(n for n in order if name in deps[n])}"
+    for name in order
+    if any(name in deps[n] for n in order)
+]
+
+if len(sys.argv) == 1:
+    print("\n".join(block))
+    sys.exit(0)
+if len(sys.argv) != 3 or sys.argv[1] != "--check":
+    sys.exit(__doc__)
+
+page = open(sys.argv[2], encoding="utf-8").read().splitlines()
+bad = []
+start = next((i for i, l in enumerate(page) if l.startswith("who depends on whom")), None)
+if start is None:
+    bad.append("no \"who depends on whom\" block")
+else:
+    lines = page[start + 1 :]
+    while lines and not lines[0].strip():
+        lines.pop(0)
+    documented = []
+    for l in lines:
+        if not l.strip():
+            break
+        documented.append(l)
+    if documented != block:
+        bad.append("the \"who depends on whom\" block differs; it should read:\n" + "\n".join(block))
+# the crate table: | `name` | kind | what it holds | depends on (ours) |
+rows = {}
+for l in page:
+    m = re.match(r"^\| `([a-z_]+)` \|(.*)\|\s*$", l)
+    if m and m.group(1) in ours:
+        rows[m.group(1)] = set(re.findall(r"`([a-z_]+)`", m.group(2).split("|")[-1]))
+for name in order:
+    if name == "pair_tests":
+        continue  # tests/: only dev-dependencies
+    if name not in rows:
+        bad.append(f"the crate table has no row for `{name}`")
+    elif rows[name] != set(deps[name]):
+        bad.append(
+            f"the crate table says `{name}` depends on {sorted(rows[name]) or 'nothing of ours'}; "
+            f"cargo metadata says {sorted(deps[name]) or 'nothing of ours'}"
+        )
+for problem in bad:
+    print(f"docs: docs/architecture.md: {problem}")
+sys.exit(1 if bad else 0)
