@@ -19,6 +19,7 @@
 //! simulated IMU is exact; on a board `read_imu` reads the real one.
 //! One CSV line per tick on stdout: `k, t, Q (row-major), V, τ, status` (0 fresh, 1 held,
 //! 2 safe mode).
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 use controller::GroupKind;
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;

@@ -21,6 +21,7 @@
 //! `PLAN_WINDOW` pieces, so every piece is out before the first state. It leaves when the plant ends the run or is gone, or on SIGINT/SIGTERM; a
 //! planner started after one was killed takes over (exit codes as the other binaries': 0
 //! done, 1 no plant or the plant is gone, 2 bad input).
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 use clap::Parser;
 use controller::group::{MatrixLieGroup, OnGroup};
 use ipc_types::{PLAN_WINDOW, PlanMsg, WireSegment, flags};

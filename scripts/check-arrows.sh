@@ -77,7 +77,7 @@ check() {
 	done
 	grep -qx mcap <<<"$export_tree" || { echo "the check cannot see mcap in export's tree" >&2; return 2; }
 	if [[ ${2:-} != --no-docs ]]; then
-		(cd "$dir" && cargo metadata --format-version 1 --no-deps --offline | python3 scripts/crate-arrows.py --check docs/architecture.md) || bad=1
+		(cd "$dir" && cargo metadata --format-version 1 --no-deps --offline | python3 scripts/crate-arrows.py --check docs/architecture.md README.md) || bad=1
 	fi
 	return $bad
 }
@@ -122,5 +122,5 @@ plant plant_sim/Cargo.toml 'controller_node = { path = "../controller_node" }' "
 plant fuzz/Cargo.toml 'plant_sim = { path = "../plant_sim" }' "fuzz depends on plant_sim" --no-docs
 plant fuzz/Cargo.toml 'controller_node = { path = "../controller_node" }' "fuzz depends on controller_node" --no-docs
 # an arrow no rule forbids: only the docs' block can catch it
-plant studies/Cargo.toml 'recorder = { path = "../recorder" }' "docs: docs/architecture.md"
+plant studies/Cargo.toml 'recorder = { path = "../recorder" }' "docs: docs/architecture.md: the \"who depends on whom\" block differs"
 echo "check-arrows self-test: every planted arrow caught"

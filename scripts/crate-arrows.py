@@ -5,10 +5,10 @@ dependencies on crates of the workspace).
     cargo metadata --format-version 1 --no-deps --offline | python3 scripts/crate-arrows.py
         prints the block docs/architecture.md carries: one line per crate others depend on,
         `crate ◀── dependents`
-    ... | python3 scripts/crate-arrows.py --check docs/architecture.md
-        requires that page's block to be that block, and its crate table's last column
-        ("depends on (ours)") to name exactly each crate's dependencies; prints each
-        difference and exits 1 if there is one
+    ... | python3 scripts/crate-arrows.py --check docs/architecture.md [README.md ...]
+        requires the first page's block to be that block, and every page's crate table's
+        last column ("depends on (ours)") to name exactly each crate's dependencies; prints
+        each difference and exits 1 if there is one
 
 scripts/check-arrows.sh runs the check in CI.
 """
@@ -39,11 +39,31 @@ block = [
 if len(sys.argv) == 1:
     print("\n".join(block))
     sys.exit(0)
-if len(sys.argv) != 3 or sys.argv[1] != "--check":
+if len(sys.argv) < 3 or sys.argv[1] != "--check":
     sys.exit(__doc__)
 
-page = open(sys.argv[2], encoding="utf-8").read().splitlines()
+
+def check_table(path, page, bad):
+    """The crate table: | `name` | ... | depends on (ours) |."""
+    rows = {}
+    for l in page:
+        m = re.match(r"^\| `([a-z_]+)` \|(.*)\|\s*$", l)
+        if m and m.group(1) in ours:
+            rows[m.group(1)] = set(re.findall(r"`([a-z_]+)`", m.group(2).split("|")[-1]))
+    for name in order:
+        if name == "pair_tests":
+            continue  # tests/: only dev-dependencies
+        if name not in rows:
+            bad.append(f"{path}: the crate table has no row for `{name}`")
+        elif rows[name] != set(deps[name]):
+            bad.append(
+                f"{path}: the crate table says `{name}` depends on {sorted(rows[name]) or 'nothing of ours'}; "
+                f"cargo metadata says {sorted(deps[name]) or 'nothing of ours'}"
+            )
+
+
 bad = []
+page = open(sys.argv[2], encoding="utf-8").read().splitlines()
 start = next((i for i, l in enumerate(page) if l.startswith("who depends on whom")), None)
 if start is None:
     bad.append("no \"who depends on whom\" block")
@@ -57,23 +77,9 @@ else:
             break
         documented.append(l)
     if documented != block:
-        bad.append("the \"who depends on whom\" block differs; it should read:\n" + "\n".join(block))
-# the crate table: | `name` | kind | what it holds | depends on (ours) |
-rows = {}
-for l in page:
-    m = re.match(r"^\| `([a-z_]+)` \|(.*)\|\s*$", l)
-    if m and m.group(1) in ours:
-        rows[m.group(1)] = set(re.findall(r"`([a-z_]+)`", m.group(2).split("|")[-1]))
-for name in order:
-    if name == "pair_tests":
-        continue  # tests/: only dev-dependencies
-    if name not in rows:
-        bad.append(f"the crate table has no row for `{name}`")
-    elif rows[name] != set(deps[name]):
-        bad.append(
-            f"the crate table says `{name}` depends on {sorted(rows[name]) or 'nothing of ours'}; "
-            f"cargo metadata says {sorted(deps[name]) or 'nothing of ours'}"
-        )
+        bad.append(f"{sys.argv[2]}: the \"who depends on whom\" block differs; it should read:\n" + "\n".join(block))
+for path in sys.argv[2:]:
+    check_table(path, open(path, encoding="utf-8").read().splitlines(), bad)
 for problem in bad:
-    print(f"docs: docs/architecture.md: {problem}")
+    print(f"docs: {problem}")
 sys.exit(1 if bad else 0)

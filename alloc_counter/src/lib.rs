@@ -23,6 +23,7 @@
 //! This is the project's one `unsafe` allocator code: implementing `GlobalAlloc` is an
 //! `unsafe impl` by definition.
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;

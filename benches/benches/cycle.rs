@@ -3,10 +3,10 @@
 //! `cargo bench -p benches` (full) or `cargo bench -p benches -- --quick`.
 
 use benches::*;
+use control_cycle::respond;
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::law::{eqt, so3};
 use controller::{Law, Real, Source, Trajectory, real};
-use control_cycle::respond;
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::{SVector, Vector3};
 use std::hint::black_box;

@@ -8,12 +8,12 @@
 //! ```
 
 use benches::*;
+use control_cycle::respond;
 use controller::group::{Se3, So3};
 use controller::integrator::RigidBody;
 use controller::law::so3::{self, So3LawInput};
 use controller::law::{Desired, eqt};
 use controller::{Controller, Law, Reference, real};
-use control_cycle::respond;
 use gungraun::{library_benchmark, library_benchmark_group, main};
 use ipc_types::{CommandMsg, StateMsg};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};

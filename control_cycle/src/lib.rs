@@ -10,6 +10,7 @@
 //! it again over recorded inputs, which is why it lives apart from the process.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 mod respond;
 mod stream;

@@ -2,9 +2,9 @@
 //! states and answered one too late to be recorded is still checked command by command, by
 //! restoring its terms from each recorded command.
 
+use control_cycle::Responder;
 use controller::group::So3;
 use controller::{Source, Trajectory};
-use control_cycle::Responder;
 use ipc_types::{CommandMsg, NO_PREVIOUS, StateMsg};
 use nalgebra::Vector3;
 use scenario::Scenario;

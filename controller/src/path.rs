@@ -309,19 +309,75 @@ pub fn waypoint_motion<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M
     velocity: &mut [SVector<T, M>],
     acceleration: &mut [SVector<T, M>],
 ) -> Result<(), Error> {
+    check_waypoint_inputs(
+        times,
+        poses.len(),
+        given,
+        velocity.len().min(acceleration.len()),
+    )?;
     let n = times.len();
-    if poses.len() != n || given.len() != n {
+    let zero = SVector::<T, M>::zeros();
+    let mut slope = [zero; MAX_SEGMENTS]; // δ_i = ξ_i / h_i
+    let mut span = [T::zero(); MAX_SEGMENTS]; // h_i
+    let mut hold = [false; MAX_SEGMENTS];
+    for i in 0..n.saturating_sub(1) {
+        let xi = G::log(&G::compose(&G::inverse(&poses[i]), &poses[i + 1]));
+        finite(Quantity::Reference, &xi)?;
+        span[i] = times[i + 1] - times[i];
+        slope[i] = xi / span[i];
+        hold[i] = xi.iter().all(|x| *x == T::zero());
+    }
+    let fixed =
+        |i: usize| i == 0 || i + 1 == n || given[i].is_some() || hold[i] || (i > 0 && hold[i - 1]);
+    let two = real::<T>(2.0);
+    for i in 0..n {
+        velocity[i] = given[i].unwrap_or(zero);
+    }
+    // a clamped spline on each run of free knots between two fixed ones
+    let mut a = 0;
+    while a + 1 < n {
+        let mut b = a + 1;
+        while !fixed(b) {
+            b += 1;
+        }
+        if b > a + 1 {
+            clamped_run(a, b, &span, &slope, velocity);
+        }
+        a = b;
+    }
+    let four = real::<T>(4.0);
+    let six = real::<T>(6.0);
+    for i in 0..n {
+        acceleration[i] = if i == 0 || i + 1 == n || hold[i] || hold[i - 1] {
+            zero
+        } else {
+            // the cubic on each side: p''(t_i⁺) from leg i, p''(t_i⁻) from leg i − 1
+            let right = (slope[i] * six - velocity[i] * four - velocity[i + 1] * two) / span[i];
+            let left =
+                (velocity[i - 1] * two + velocity[i] * four - slope[i - 1] * six) / span[i - 1];
+            (right + left) / two
+        };
+    }
+    Ok(())
+}
+
+/// The inputs of [`waypoint_motion`] checked: matching lengths, within capacity (`room`: the
+/// shorter output slice), given velocities finite and zero at the ends, times increasing.
+fn check_waypoint_inputs<T: Real, const M: usize>(
+    times: &[T],
+    poses: usize,
+    given: &[GivenVelocity<T, M>],
+    room: usize,
+) -> Result<(), Error> {
+    let n = times.len();
+    if poses != n || given.len() != n {
         return Err(Error::WrongShape {
             quantity: Quantity::Reference,
             expected: n,
-            found: if poses.len() != n {
-                poses.len()
-            } else {
-                given.len()
-            },
+            found: if poses != n { poses } else { given.len() },
         });
     }
-    if n > MAX_SEGMENTS + 1 || velocity.len() < n || acceleration.len() < n {
+    if n > MAX_SEGMENTS + 1 || room < n {
         return Err(Error::TooManySegments {
             capacity: MAX_SEGMENTS,
         });
@@ -340,80 +396,52 @@ pub fn waypoint_motion<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M
             return Err(Error::NotIncreasing { index: i });
         }
     }
+    Ok(())
+}
+
+/// The slopes of the free knots `a+1 .. b−1` between the fixed knots `a` and `b` of a clamped
+/// cubic spline (docs/maths.md, "Choosing the velocities at the waypoints"), by the Thomas
+/// algorithm: row i reads `h_i m_{i−1} + 2(h_{i−1}+h_i) m_i + h_{i−1} m_{i+1} =
+/// 3(h_i δ_{i−1} + h_{i−1} δ_i)`, with `m_a`, `m_b` known (in `velocity`).
+fn clamped_run<T: Real, const M: usize>(
+    a: usize,
+    b: usize,
+    span: &[T],
+    slope: &[SVector<T, M>],
+    velocity: &mut [SVector<T, M>],
+) {
     let zero = SVector::<T, M>::zeros();
-    let mut slope = [zero; MAX_SEGMENTS]; // δ_i = ξ_i / h_i
-    let mut span = [T::zero(); MAX_SEGMENTS]; // h_i
-    let mut hold = [false; MAX_SEGMENTS];
-    for i in 0..n.saturating_sub(1) {
-        let xi = G::log(&G::compose(&G::inverse(&poses[i]), &poses[i + 1]));
-        finite(Quantity::Reference, &xi)?;
-        span[i] = times[i + 1] - times[i];
-        slope[i] = xi / span[i];
-        hold[i] = xi.iter().all(|x| *x == T::zero());
-    }
-    let fixed =
-        |i: usize| i == 0 || i + 1 == n || given[i].is_some() || hold[i] || (i > 0 && hold[i - 1]);
     let three = real::<T>(3.0);
     let two = real::<T>(2.0);
-    for i in 0..n {
-        velocity[i] = given[i].unwrap_or(zero);
-    }
-    // a clamped spline on each run of free knots between two fixed ones (Thomas algorithm)
-    let mut a = 0;
-    while a + 1 < n {
-        let mut b = a + 1;
-        while !fixed(b) {
-            b += 1;
+    let mut c_prime = [T::zero(); MAX_SEGMENTS + 1];
+    let mut d_prime = [zero; MAX_SEGMENTS + 1];
+    for i in a + 1..b {
+        let lower = span[i];
+        let diag = two * (span[i - 1] + span[i]);
+        let upper = span[i - 1];
+        let mut rhs = (slope[i - 1] * span[i] + slope[i] * span[i - 1]) * three;
+        if i == a + 1 {
+            rhs -= velocity[a] * lower;
         }
-        if b > a + 1 {
-            // unknowns m_{a+1} .. m_{b−1}; row i: h_i m_{i−1} + 2(h_{i−1}+h_i) m_i + h_{i−1} m_{i+1}
-            //                                     = 3(h_i δ_{i−1} + h_{i−1} δ_i)
-            let mut c_prime = [T::zero(); MAX_SEGMENTS + 1];
-            let mut d_prime = [zero; MAX_SEGMENTS + 1];
-            for i in a + 1..b {
-                let lower = span[i];
-                let diag = two * (span[i - 1] + span[i]);
-                let upper = span[i - 1];
-                let mut rhs = (slope[i - 1] * span[i] + slope[i] * span[i - 1]) * three;
-                if i == a + 1 {
-                    rhs -= velocity[a] * lower;
-                }
-                if i == b - 1 {
-                    rhs -= velocity[b] * upper;
-                }
-                let (denominator, carried) = if i == a + 1 {
-                    (diag, rhs)
-                } else {
-                    (diag - lower * c_prime[i - 1], rhs - d_prime[i - 1] * lower)
-                };
-                c_prime[i] = if i == b - 1 {
-                    T::zero()
-                } else {
-                    upper / denominator
-                };
-                d_prime[i] = carried / denominator;
-            }
-            velocity[b - 1] = d_prime[b - 1];
-            for i in (a + 1..b - 1).rev() {
-                velocity[i] = d_prime[i] - velocity[i + 1] * c_prime[i];
-            }
+        if i == b - 1 {
+            rhs -= velocity[b] * upper;
         }
-        a = b;
-    }
-    let four = real::<T>(4.0);
-    let six = real::<T>(6.0);
-    for i in 0..n {
-        acceleration[i] = if i == 0 || i + 1 == n || hold[i] || hold[i - 1] {
-            zero
+        let (denominator, carried) = if i == a + 1 {
+            (diag, rhs)
         } else {
-            // the cubic on each side: p''(t_i⁺) from leg i, p''(t_i⁻) from leg i − 1
-            let right = (slope[i] * six - velocity[i] * four - velocity[i + 1] * two) / span[i];
-            let left =
-                (velocity[i - 1] * two + velocity[i] * four - slope[i - 1] * six) / span[i - 1];
-            (right + left) / two
+            (diag - lower * c_prime[i - 1], rhs - d_prime[i - 1] * lower)
         };
+        c_prime[i] = if i == b - 1 {
+            T::zero()
+        } else {
+            upper / denominator
+        };
+        d_prime[i] = carried / denominator;
     }
-    Ok(())
+    velocity[b - 1] = d_prime[b - 1];
+    for i in (a + 1..b - 1).rev() {
+        velocity[i] = d_prime[i] - velocity[i + 1] * c_prime[i];
+    }
 }
 
 /// Segments in time order, and the pose held where none covers `t`.

@@ -11,6 +11,7 @@
 //! longer than the timeout, or on SIGINT/SIGTERM.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::{Source, Trajectory};
@@ -21,8 +22,8 @@ use std::time::{Duration, Instant};
 mod options;
 mod stream;
 
-pub use options::{Fault, NodeError, Options, ReferenceMode, Report, Stop};
 use control_cycle::{Responder, streamed_reference};
+pub use options::{Fault, NodeError, Options, ReferenceMode, Report, Stop};
 use stream::Stream;
 
 /// Runs the node until it stops. `allocations()` reads the process's allocation counter

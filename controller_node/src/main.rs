@@ -4,6 +4,7 @@
 //! `plant_sim run` spawn it. Exit codes (shared with `plant_sim`, `link::Exit`): 0 the plant
 //! ended the run or SIGINT/SIGTERM asked the node to leave, 1 the plant is gone or IPC
 //! failed, 2 bad input or a configuration mismatch with the plant.
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 use clap::Parser;
 use controller::Law;

@@ -3,8 +3,8 @@
 
 use crate::{NodeError, log};
 use control_cycle::PlanIntake;
-use controller::group::MatrixLieGroup;
 use controller::Trajectory;
+use controller::group::MatrixLieGroup;
 use controller::path::PathReference;
 use ipc_types::PlanInvalid;
 use link::plan::PlanReader;

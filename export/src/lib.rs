@@ -27,8 +27,12 @@
 
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
-use ipc_types::{CommandMsg, StateMsg, WireGroup, WireLaw};
+mod channels;
+
+pub use channels::messages;
+use ipc_types::WireGroup;
 use recorder::{Header, LogReader, PlanEntry, Record, read_plans};
 use std::collections::{BTreeMap, HashMap};
 use std::io::{BufWriter, Seek, Write};
@@ -181,134 +185,6 @@ impl Message {
                 .collect(),
         )
     }
-}
-
-/// The decision names of the cycle channel, by code.
-const DECISIONS: [&str; 3] = ["fresh", "held", "safe_mode"];
-
-/// The messages of one record, for a group with `n`×`n` configurations and `m`-vectors;
-/// `terms`: whether the run has disturbance-rejection terms.
-pub fn messages(r: &Record, n: usize, m: usize, terms: bool) -> Vec<Message> {
-    let s: &StateMsg = &r.state;
-    let mut out = vec![Message {
-        schema: "eqtrack_msgs/msg/State",
-        topic: "/eqtrack/state",
-        fields: vec![
-            ("cycle", Value::U64(r.cycle)),
-            ("t", Value::F64(s.t)),
-            ("control_period", Value::F64(s.control_period)),
-            ("stamp_ns", Value::U64(s.stamp_ns)),
-            ("group", Value::U32(s.group)),
-            ("flags", Value::U32(s.flags)),
-            ("q", Value::F64s(s.q[..n * n].to_vec())),
-            ("v", Value::F64s(s.v[..m].to_vec())),
-            ("applied_before", Value::F64s(s.applied[..m].to_vec())),
-        ],
-    }];
-    let code = r.decision.code();
-    out.push(Message {
-        schema: "eqtrack_msgs/msg/Cycle",
-        topic: "/eqtrack/cycle",
-        fields: vec![
-            ("cycle", Value::U64(r.cycle)),
-            ("decision", Value::U8(code)),
-            (
-                "decision_name",
-                Value::Str(DECISIONS.get(code as usize).unwrap_or(&"?").to_string()),
-            ),
-            ("misses_in_row", Value::U32(r.misses_in_row)),
-            ("deadline_ns", Value::U64(r.deadline_ns)),
-            ("has_command", Value::Bool(r.command.is_some())),
-            ("received_ns", Value::U64(r.command.map_or(0, |c| c.1))),
-            ("applied", Value::F64s(r.applied[..m].to_vec())),
-        ],
-    });
-    if let Some((c, received)) = &r.command {
-        let c: &CommandMsg = c;
-        out.push(Message {
-            schema: "eqtrack_msgs/msg/Command",
-            topic: "/eqtrack/command",
-            fields: vec![
-                ("cycle", Value::U64(r.cycle)),
-                ("seq", Value::U64(c.seq)),
-                ("state_received_ns", Value::U64(c.state_received_ns)),
-                ("stamp_ns", Value::U64(c.stamp_ns)),
-                ("compute_ns", Value::U64(c.compute_ns)),
-                ("received_ns", Value::U64(*received)),
-                ("tau", Value::F64s(c.tau[..m].to_vec())),
-                ("lyapunov", Value::F64(c.lyapunov)),
-                ("heap_allocations", Value::U64(c.heap_allocations)),
-                ("flags", Value::U32(c.flags)),
-                (
-                    "law",
-                    Value::Str(
-                        WireLaw::from_code(c.law)
-                            .map_or("", |l| l.name())
-                            .to_owned(),
-                    ),
-                ),
-            ],
-        });
-        if terms {
-            out.push(Message {
-                schema: "eqtrack_msgs/msg/Terms",
-                topic: "/eqtrack/terms",
-                fields: vec![
-                    ("cycle", Value::U64(r.cycle)),
-                    ("observer", Value::F64s(c.observer[..m].to_vec())),
-                    ("integral", Value::F64s(c.integral[..m].to_vec())),
-                ],
-            });
-        }
-    }
-    if let Some(x) = &r.sensors {
-        let sm = &x.samples;
-        out.push(Message {
-            schema: "eqtrack_msgs/msg/Sensors",
-            topic: "/eqtrack/sensors",
-            fields: vec![
-                ("cycle", Value::U64(r.cycle)),
-                ("gyro", Value::F64s(sm.gyro.as_slice().to_vec())),
-                (
-                    "directions",
-                    Value::F64s(
-                        sm.directions[..sm.count.min(sm.directions.len())]
-                            .iter()
-                            .flat_map(|d| d.as_slice().to_vec())
-                            .collect(),
-                    ),
-                ),
-                (
-                    "accel",
-                    Value::F64s(sm.accel.iter().flat_map(|a| a.iter().copied()).collect()),
-                ),
-                (
-                    "position",
-                    Value::F64s(sm.position.iter().flat_map(|p| p.iter().copied()).collect()),
-                ),
-                ("true_bias", Value::F64s(sm.bias.as_slice().to_vec())),
-                ("true_q", Value::F64s(x.q_true[..n * n].to_vec())),
-                ("true_v", Value::F64s(x.v_true[..m].to_vec())),
-            ],
-        });
-        out.push(Message {
-            schema: "eqtrack_msgs/msg/Estimate",
-            topic: "/eqtrack/estimate",
-            fields: vec![
-                ("cycle", Value::U64(r.cycle)),
-                ("q_hat", Value::F64s(s.q[..n * n].to_vec())),
-                ("v_hat", Value::F64s(s.v[..m].to_vec())),
-                ("bias_hat", Value::F64s(x.bias_hat.to_vec())),
-                ("estimate_error", Value::F64(x.estimate_error)),
-                (
-                    "covariance",
-                    Value::F64s(x.covariance.map_or(Vec::new(), |c| c.to_vec())),
-                ),
-                ("nees", Value::F64(x.nees.unwrap_or(f64::NAN))),
-            ],
-        });
-    }
-    out
 }
 
 /// The message of a recorded plan message: `cycle` is the cycle the controller took it in

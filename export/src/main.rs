@@ -6,6 +6,7 @@
 //!
 //! Reads `OUT_DIR/messages.log` and writes `OUT_DIR/run.mcap` (or `run.jsonl`, or `--out`).
 //! Exit codes as the other binaries': 0 done, 1 the output cannot be written, 2 bad input.
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 use clap::{Parser, ValueEnum};
 use export::{Format, export};

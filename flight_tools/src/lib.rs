@@ -9,6 +9,7 @@
 //! `export` crate, so that nothing else links the `mcap` crate.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod monitor;
 pub mod replay;

@@ -190,39 +190,11 @@ pub fn monitor(opts: &MonitorOptions) -> Result<MonitorEnd, SimError> {
         {
             view.update(s);
         }
-        let last_seen = view.status;
-        if let Some(s) = last_seen {
-            if s.flags & status_flags::ENDED != 0 {
-                view.end = Some(MonitorEnd::RunEnded);
-            } else if !link::process_alive(s.plant_pid) {
-                view.end = Some(MonitorEnd::PlantGone);
-            }
-        } else if started.elapsed() > opts.wait {
-            break Err(SimError::Run(format!(
-                "monitor: run `{}` published no status within {:.0} s (is it running? a run started with --no-record publishes none)",
-                opts.run,
-                opts.wait.as_secs_f64()
-            )));
+        if let Err(e) = view.watch_end(started, opts) {
+            break Err(e);
         }
-        if opts.stop.requested().is_some() {
-            view.end = Some(MonitorEnd::Quit);
-        }
-        match &mut ui {
-            Some(term) => {
-                if let Err(e) = term.draw(|f| draw(f, &view)) {
-                    break Err(SimError::Run(format!("monitor: cannot draw: {e}")));
-                }
-                if view.end.is_none() && quit_key(Duration::from_millis(100)) {
-                    view.end = Some(MonitorEnd::Quit);
-                }
-            }
-            None => {
-                if last_line.elapsed() >= Duration::from_secs(1) || view.end.is_some() {
-                    last_line = Instant::now();
-                    println!("{}", view.lines().join(" | "));
-                }
-                std::thread::sleep(Duration::from_millis(100));
-            }
+        if let Err(e) = present(&mut ui, &mut view, &mut last_line) {
+            break Err(e);
         }
         if let Some(end) = view.end {
             break Ok(end);
@@ -249,6 +221,56 @@ pub fn monitor(opts: &MonitorOptions) -> Result<MonitorEnd, SimError> {
 }
 
 /// Whether `q`, Esc or Ctrl-C was pressed within `wait` (in raw mode Ctrl-C is a key).
+impl View {
+    /// Notes how the run ended (its plant said so, or is gone), or that the user asked to
+    /// quit; fails when no status came within `opts.wait`.
+    fn watch_end(&mut self, started: Instant, opts: &MonitorOptions) -> Result<(), SimError> {
+        if let Some(s) = self.status {
+            if s.flags & status_flags::ENDED != 0 {
+                self.end = Some(MonitorEnd::RunEnded);
+            } else if !link::process_alive(s.plant_pid) {
+                self.end = Some(MonitorEnd::PlantGone);
+            }
+        } else if started.elapsed() > opts.wait {
+            return Err(SimError::Run(format!(
+                "monitor: run `{}` published no status within {:.0} s (is it running? a run started with --no-record publishes none)",
+                opts.run,
+                opts.wait.as_secs_f64()
+            )));
+        }
+        if opts.stop.requested().is_some() {
+            self.end = Some(MonitorEnd::Quit);
+        }
+        Ok(())
+    }
+}
+
+/// Draws the view (and reads the quit key) in the terminal UI, or with `--plain` prints
+/// it as one line a second; either way waits about 100 ms.
+fn present(
+    ui: &mut Option<ratatui::DefaultTerminal>,
+    view: &mut View,
+    last_line: &mut Instant,
+) -> Result<(), SimError> {
+    match ui {
+        Some(term) => {
+            term.draw(|f| draw(f, view))
+                .map_err(|e| SimError::Run(format!("monitor: cannot draw: {e}")))?;
+            if view.end.is_none() && quit_key(Duration::from_millis(100)) {
+                view.end = Some(MonitorEnd::Quit);
+            }
+        }
+        None => {
+            if last_line.elapsed() >= Duration::from_secs(1) || view.end.is_some() {
+                *last_line = Instant::now();
+                println!("{}", view.lines().join(" | "));
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+    Ok(())
+}
+
 fn quit_key(wait: Duration) -> bool {
     use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
     let until = Instant::now() + wait;

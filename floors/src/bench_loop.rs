@@ -5,11 +5,11 @@
 //! it is measured against ([`crate::os_floor`]): cyclictest's wake-up latency and a bare
 //! iceoryx2 exchange.
 
-use plant::SimError;
 use crate::os_floor::{OsFloor, TransportFloor, os_floor, transport_floor};
+use link::{StopFlag, TransportKind as Transport, Wake};
+use plant::SimError;
 use plant::output::{ensure_dir, write_json};
 use plant::pair::{Mode, PairOptions, run_pair};
-use link::{StopFlag, TransportKind as Transport, Wake};
 use scenario::cli::ScenarioSource;
 use serde::Serialize;
 use std::path::Path;
@@ -121,6 +121,72 @@ fn floors(cyclictest: &Path, rate: f64, duration: f64) -> RateFloors {
     }
 }
 
+/// The pair's options for case `i` (`(transport, wake, record)`) at `rate_hz`: real time,
+/// the controller spawned, 3 misses to safe mode, default real-time settings, no faults.
+fn case_options(
+    scenario: scenario::Scenario,
+    source: &ScenarioSource,
+    (transport, wake, record): (Transport, Wake, bool),
+    (rate_hz, i): (f64, usize),
+    out: std::path::PathBuf,
+    thread_allocations: Option<fn() -> u64>,
+    stop: &StopFlag,
+) -> PairOptions {
+    PairOptions {
+        scenario,
+        source: source.clone(),
+        record,
+        thread_allocations,
+        mode: Mode::Realtime,
+        rate_hz,
+        wake,
+        transport,
+        spawn: true,
+        run: format!("bench-loop-{i}"),
+        out,
+        miss_limit: 3,
+        rt: link::rt::RtSettings::default(),
+        controller_rt: link::rt::RtSettings::default(),
+        sample_faults: Vec::new(),
+        record_every: 1,
+        lockstep_timeout: Duration::from_secs(5),
+        connect_timeout: Duration::from_secs(10),
+        state_faults: Vec::new(),
+        controller_fault_nan_torque: None,
+        stop: stop.clone(),
+    }
+}
+
+impl LoopRow {
+    /// The row of case `label` at `rate_hz` from its pair summary; `base` is the busy-poll
+    /// case's p50 at that rate.
+    fn of(label: &str, rate_hz: f64, sum: &plant::pair::PairSummary, base: f64) -> LoopRow {
+        let p50 = sum.latency.p50_us;
+        let lateness = |f: fn(&plant::pair::Percentiles) -> f64| {
+            sum.tick_lateness.as_ref().map(f).unwrap_or(f64::NAN)
+        };
+        LoopRow {
+            case: label.to_string(),
+            rate_hz,
+            cycles: sum.cycles,
+            p50_us: p50,
+            p99_us: sum.latency.p99_us,
+            p99_9_us: sum.latency.p99_9_us,
+            max_us: sum.latency.max_us,
+            deadline_misses: sum.deadline_misses,
+            tick_lateness_p50_us: lateness(|t| t.p50_us),
+            tick_lateness_p99_us: lateness(|t| t.p99_us),
+            tick_lateness_p99_9_us: lateness(|t| t.p99_9_us),
+            tick_lateness_max_us: lateness(|t| t.max_us),
+            leg_to_controller_p50_us: sum.leg_to_controller.p50_us,
+            compute_p50_us: sum.controller_compute.p50_us,
+            leg_to_plant_p50_us: sum.leg_to_plant.p50_us,
+            p50_ratio_to_busy_poll: p50 / base,
+            controller_heap_allocations: sum.controller_heap_allocations,
+        }
+    }
+}
+
 /// Runs the floors and every case at every rate for `duration` seconds each; SIGINT/SIGTERM
 /// (`stop`) end it after the current case's run directory is written.
 pub fn bench_loop(
@@ -149,56 +215,13 @@ pub fn bench_loop(
                 rate
             ));
             eprintln!("bench-loop: {label} at {rate} Hz for {duration} s ...");
-            let opts = PairOptions {
-                scenario: s,
-                source: source.clone(),
-                record: *record,
-                thread_allocations,
-                mode: Mode::Realtime,
-                rate_hz: *rate,
-                wake: *wake,
-                transport: *transport,
-                spawn: true,
-                run: format!("bench-loop-{i}"),
-                out: dir,
-                miss_limit: 3,
-                rt: link::rt::RtSettings::default(),
-                controller_rt: link::rt::RtSettings::default(),
-                sample_faults: Vec::new(),
-                record_every: 1,
-                lockstep_timeout: Duration::from_secs(5),
-                connect_timeout: Duration::from_secs(10),
-                state_faults: Vec::new(),
-                controller_fault_nan_torque: None,
-                stop: stop.clone(),
-            };
+            let case = (*transport, *wake, *record);
+            let opts = case_options(s, source, case, (*rate, i), dir, thread_allocations, stop);
             let (_, sum) = run_pair(&opts)?;
             // a stopped case is not a measurement: stop here (its run directory is written)
             SimError::check(stop)?;
-            let p50 = sum.latency.p50_us;
-            let base = *base_p50.get_or_insert(p50);
-            let lateness = |f: fn(&plant::pair::Percentiles) -> f64| {
-                sum.tick_lateness.as_ref().map(f).unwrap_or(f64::NAN)
-            };
-            rows.push(LoopRow {
-                case: label.to_string(),
-                rate_hz: *rate,
-                cycles: sum.cycles,
-                p50_us: p50,
-                p99_us: sum.latency.p99_us,
-                p99_9_us: sum.latency.p99_9_us,
-                max_us: sum.latency.max_us,
-                deadline_misses: sum.deadline_misses,
-                tick_lateness_p50_us: lateness(|t| t.p50_us),
-                tick_lateness_p99_us: lateness(|t| t.p99_us),
-                tick_lateness_p99_9_us: lateness(|t| t.p99_9_us),
-                tick_lateness_max_us: lateness(|t| t.max_us),
-                leg_to_controller_p50_us: sum.leg_to_controller.p50_us,
-                compute_p50_us: sum.controller_compute.p50_us,
-                leg_to_plant_p50_us: sum.leg_to_plant.p50_us,
-                p50_ratio_to_busy_poll: p50 / base,
-                controller_heap_allocations: sum.controller_heap_allocations,
-            });
+            let base = *base_p50.get_or_insert(sum.latency.p50_us);
+            rows.push(LoopRow::of(label, *rate, &sum, base));
         }
     }
     let result = BenchLoop {

@@ -1,5 +1,5 @@
-//! The loop benchmark and the floors it is measured against (docs/architecture.md, "The
-//! floors"):
+//! The loop benchmark and the floors it is measured against
+//! (docs/architecture.md, "The floors"):
 //!
 //! * [`bench_loop`]: `plant_sim bench-loop`, the round trip of the real pair (the `plant`
 //!   crate's plant process and `controller_node`) over each transport and wake-up mode;
@@ -9,6 +9,7 @@
 //! The `transport_floor` binary itself uses nothing of the project but the message layout.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod bench_loop;
 pub mod os_floor;

@@ -15,6 +15,7 @@
 //! where the round trip is state written → reply seen, like the pair's, and `missed` counts
 //! replies not seen by the next tick; `leg1_p50_us` (state written → seen by pong) and
 //! `leg2_p50_us` (reply stamped → seen by ping) split it as the pair's summary does.
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
@@ -167,77 +168,114 @@ fn run() -> Result<(), String> {
         .listener_builder()
         .create()
         .map_err(|e| format!("listener: {e:?}"))?;
+    let ports = Ports {
+        writer,
+        reader,
+        notifier,
+        listener,
+    };
+    if ping {
+        ping_side(&a, &ports)
+    } else {
+        pong_side(&a, &ports)
+    }
+}
+
+/// One side's ports: the board it writes, the board it reads, and the two events.
+struct Ports {
+    writer: iceoryx2::port::writer::Writer<ipc::Service, u32>,
+    reader: iceoryx2::port::reader::Reader<ipc::Service, u32>,
+    notifier: Notifier<ipc::Service>,
+    listener: Listener<ipc::Service>,
+}
+
+/// The plant's role: starts pong, hand-shakes, then runs the paced loop and prints the line.
+fn ping_side(a: &Args, p: &Ports) -> Result<(), String> {
     let period_ns = (1e9 / a.rate_hz).round() as u64;
     let cycles = (a.duration * a.rate_hz).round() as u64;
-    if ping {
-        let out = writer
-            .entry::<StateMsg>(&0)
-            .map_err(|e| format!("entry: {e:?}"))?;
-        let inp = reader
-            .entry::<CommandMsg>(&0)
-            .map_err(|e| format!("entry: {e:?}"))?;
-        let wake = if a.spin { "spin" } else { "event" };
-        let mut pong = Command::new(std::env::current_exe().map_err(|e| e.to_string())?)
-            .args(["pong", "--wake", wake, "--name", &a.name])
-            .args([
-                "--rate-hz",
-                &a.rate_hz.to_string(),
-                "--duration",
-                &a.duration.to_string(),
-            ])
-            .spawn()
-            .map_err(|e| format!("cannot start pong: {e}"))?;
-        // the hand-shake: state 1, answered within 10 s, then the paced loop
-        let mut msg = StateMsg::new(ipc_types::WireGroup::So3);
-        msg.seq = 1; // 0 is the empty slot's
-        let give_up = now_ns() + 10_000_000_000;
-        while inp.get().seq != 1 {
-            if now_ns() > give_up {
-                let _ = pong.kill();
-                return Err("pong did not answer within 10 s".into());
-            }
-            msg.stamp_ns = now_ns();
-            out.update_with_copy(msg);
-            let _ = notifier.notify();
-            std::thread::sleep(Duration::from_millis(1));
+    let out = p
+        .writer
+        .entry::<StateMsg>(&0)
+        .map_err(|e| format!("entry: {e:?}"))?;
+    let inp = p
+        .reader
+        .entry::<CommandMsg>(&0)
+        .map_err(|e| format!("entry: {e:?}"))?;
+    let wake = if a.spin { "spin" } else { "event" };
+    let mut pong = Command::new(std::env::current_exe().map_err(|e| e.to_string())?)
+        .args(["pong", "--wake", wake, "--name", &a.name])
+        .args([
+            "--rate-hz",
+            &a.rate_hz.to_string(),
+            "--duration",
+            &a.duration.to_string(),
+        ])
+        .spawn()
+        .map_err(|e| format!("cannot start pong: {e}"))?;
+    // the hand-shake: state 1, answered within 10 s, then the paced loop
+    let mut msg = StateMsg::new(ipc_types::WireGroup::So3);
+    msg.seq = 1; // 0 is the empty slot's
+    let give_up = now_ns() + 10_000_000_000;
+    while inp.get().seq != 1 {
+        if now_ns() > give_up {
+            let _ = pong.kill();
+            return Err("pong did not answer within 10 s".into());
         }
-        let samples = Vec::with_capacity(cycles as usize);
-        measure(
-            &a, &out, &inp, &notifier, &listener, period_ns, cycles, msg, samples, &mut pong,
-        )
-    } else {
-        let inp = reader
-            .entry::<StateMsg>(&0)
-            .map_err(|e| format!("entry: {e:?}"))?;
-        let out = writer
-            .entry::<CommandMsg>(&0)
-            .map_err(|e| format!("entry: {e:?}"))?;
-        let mut reply = CommandMsg::new(ipc_types::WireGroup::So3);
-        let mut last = 0u64;
-        // leave when ping has been silent for a second after the last cycle
-        let mut quiet_since = now_ns();
-        loop {
-            let m = inp.get();
-            if m.seq != last {
-                last = m.seq;
-                reply.seq = m.seq;
-                reply.state_received_ns = now_ns();
-                reply.stamp_ns = now_ns();
-                out.update_with_copy(reply);
-                if !a.spin {
-                    let _ = notifier.notify();
-                }
-                quiet_since = now_ns();
-                continue;
+        msg.stamp_ns = now_ns();
+        out.update_with_copy(msg);
+        let _ = p.notifier.notify();
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let samples = Vec::with_capacity(cycles as usize);
+    measure(
+        a,
+        &out,
+        &inp,
+        &p.notifier,
+        &p.listener,
+        period_ns,
+        cycles,
+        msg,
+        samples,
+        &mut pong,
+    )
+}
+
+/// The controller's role: answers each new state at once, until ping has been silent for a
+/// second after the last cycle.
+fn pong_side(a: &Args, p: &Ports) -> Result<(), String> {
+    let inp = p
+        .reader
+        .entry::<StateMsg>(&0)
+        .map_err(|e| format!("entry: {e:?}"))?;
+    let out = p
+        .writer
+        .entry::<CommandMsg>(&0)
+        .map_err(|e| format!("entry: {e:?}"))?;
+    let mut reply = CommandMsg::new(ipc_types::WireGroup::So3);
+    let mut last = 0u64;
+    let mut quiet_since = now_ns();
+    loop {
+        let m = inp.get();
+        if m.seq != last {
+            last = m.seq;
+            reply.seq = m.seq;
+            reply.state_received_ns = now_ns();
+            reply.stamp_ns = now_ns();
+            out.update_with_copy(reply);
+            if !a.spin {
+                let _ = p.notifier.notify();
             }
-            if now_ns() - quiet_since > 1_000_000_000 {
-                return Ok(());
-            }
-            if a.spin {
-                std::hint::spin_loop();
-            } else {
-                wait(&listener, Duration::from_millis(100));
-            }
+            quiet_since = now_ns();
+            continue;
+        }
+        if now_ns() - quiet_since > 1_000_000_000 {
+            return Ok(());
+        }
+        if a.spin {
+            std::hint::spin_loop();
+        } else {
+            wait(&p.listener, Duration::from_millis(100));
         }
     }
 }

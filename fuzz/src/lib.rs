@@ -45,6 +45,7 @@
 //! `Controller::compute` never returns a non-finite torque, a fingerprint is never 0.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 mod mutate;
 mod path_target;

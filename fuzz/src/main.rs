@@ -7,11 +7,12 @@
 //! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 use clap::{Parser, ValueEnum};
 use fuzz::{Outcome, Target};
 use indicatif::{ProgressBar, ProgressStyle};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -69,25 +70,7 @@ fn main() -> ExitCode {
     let args = Args::parse();
     if let Some(case) = args.case {
         for target in targets(args.target) {
-            let (input, outcome) = fuzz::replay(target, args.seed, case);
-            let context = input.context();
-            println!("{target} case {case} of seed {}", args.seed);
-            if !context.is_empty() {
-                println!("  {context}");
-            }
-            match &input {
-                fuzz::Case::Scenario(b) | fuzz::Case::Path(b) => {
-                    println!("  input:\n{}", String::from_utf8_lossy(b))
-                }
-                fuzz::Case::Wire(fuzz::WireCase { bytes, .. }) | fuzz::Case::Recording(bytes) => {
-                    let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
-                    println!("  input ({} bytes): {hex}", bytes.len())
-                }
-            }
-            match outcome {
-                Outcome::Accepted => println!("  accepted"),
-                Outcome::Rejected(kind) => println!("  rejected: {kind}"),
-            }
+            print_replay(target, args.seed, case);
         }
         return ExitCode::SUCCESS;
     }
@@ -99,44 +82,8 @@ fn main() -> ExitCode {
     let start = Instant::now();
     let mut failed = false;
     for target in targets(args.target) {
-        let bar = ProgressBar::new(args.cases);
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{prefix:>8} [{elapsed_precise}] {wide_bar} {pos}/{len} ({per_sec}, eta {eta})",
-            )
-            .expect("valid progress template"),
-        );
-        bar.set_prefix(target.name());
-        // Without a terminal indicatif draws nothing: print a line every 10 % instead.
-        let hidden = bar.is_hidden();
-        let tenth = (args.cases / 10).max(1);
-        let mut next_line = tenth;
-        let t0 = Instant::now();
-        let report = fuzz::run_with(target, args.seed, 0..args.cases, fuzz::check, |done| {
-            bar.set_position(done);
-            if hidden && done >= next_line && done < args.cases {
-                next_line += tenth;
-                eprintln!(
-                    "fuzz: {target}: {done}/{} cases, {:.0} cases/s",
-                    args.cases,
-                    done as f64 / t0.elapsed().as_secs_f64().max(1e-9)
-                );
-            }
-        });
-        bar.finish_and_clear();
-        println!("{report}");
-        if !report.passed() {
+        if !run_target(&args, target, &dir) {
             failed = true;
-            if args.save {
-                for finding in &report.panics {
-                    match finding.save(&dir) {
-                        Ok(path) => println!("  saved {}", path.display()),
-                        Err(e) => {
-                            eprintln!("fuzz: cannot save a finding in {}: {e}", dir.display())
-                        }
-                    }
-                }
-            }
         }
     }
     println!(
@@ -148,5 +95,90 @@ fn main() -> ExitCode {
         ExitCode::FAILURE
     } else {
         ExitCode::SUCCESS
+    }
+}
+
+/// Replays case `case` of seed `seed` on `target` (panics not caught) and prints it: the
+/// case's context, its input and its outcome.
+fn print_replay(target: Target, seed: u64, case: u64) {
+    let (input, outcome) = fuzz::replay(target, seed, case);
+    let context = input.context();
+    println!("{target} case {case} of seed {seed}");
+    if !context.is_empty() {
+        println!("  {context}");
+    }
+    print_input(&input);
+    match outcome {
+        Outcome::Accepted => println!("  accepted"),
+        Outcome::Rejected(kind) => println!("  rejected: {kind}"),
+    }
+}
+
+/// Prints a replayed case's input: text inputs as (lossy) text, binary inputs as hex.
+fn print_input(input: &fuzz::Case) {
+    match input {
+        fuzz::Case::Scenario(b) | fuzz::Case::Path(b) => {
+            println!("  input:\n{}", String::from_utf8_lossy(b))
+        }
+        fuzz::Case::Wire(fuzz::WireCase { bytes, .. }) | fuzz::Case::Recording(bytes) => {
+            let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
+            println!("  input ({} bytes): {hex}", bytes.len())
+        }
+    }
+}
+
+/// Runs `args.cases` cases of `target` with a progress bar, prints the report and saves the
+/// findings if asked; returns whether the target passed (no case panicked).
+fn run_target(args: &Args, target: Target, dir: &Path) -> bool {
+    let bar = progress_bar(target, args.cases);
+    // Without a terminal indicatif draws nothing: print a line every 10 % instead.
+    let hidden = bar.is_hidden();
+    let tenth = (args.cases / 10).max(1);
+    let mut next_line = tenth;
+    let t0 = Instant::now();
+    let report = fuzz::run_with(target, args.seed, 0..args.cases, fuzz::check, |done| {
+        bar.set_position(done);
+        if hidden && done >= next_line && done < args.cases {
+            next_line += tenth;
+            eprintln!(
+                "fuzz: {target}: {done}/{} cases, {:.0} cases/s",
+                args.cases,
+                done as f64 / t0.elapsed().as_secs_f64().max(1e-9)
+            );
+        }
+    });
+    bar.finish_and_clear();
+    println!("{report}");
+    if report.passed() {
+        return true;
+    }
+    if args.save {
+        save_findings(&report, dir);
+    }
+    false
+}
+
+/// The progress bar of one target's run of `cases` cases, prefixed with the target's name.
+fn progress_bar(target: Target, cases: u64) -> ProgressBar {
+    let bar = ProgressBar::new(cases);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{prefix:>8} [{elapsed_precise}] {wide_bar} {pos}/{len} ({per_sec}, eta {eta})",
+        )
+        .expect("valid progress template"),
+    );
+    bar.set_prefix(target.name());
+    bar
+}
+
+/// Writes each panicking input of `report` to `dir`, printing where (or why not).
+fn save_findings(report: &fuzz::Report, dir: &Path) {
+    for finding in &report.panics {
+        match finding.save(dir) {
+            Ok(path) => println!("  saved {}", path.display()),
+            Err(e) => {
+                eprintln!("fuzz: cannot save a finding in {}: {e}", dir.display())
+            }
+        }
     }
 }

@@ -14,7 +14,7 @@ use estimator::{
     ComplementaryConfig, ComplementaryFilter, EqfConfig, EquivariantFilter, PoseConfig, PoseFilter,
 };
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
-use scenario::{EstimatorKind, Scenario};
+use scenario::{EqfSpec, EstimatorKind, EstimatorSpec, Scenario, SensorsSpec};
 use serde::Serialize;
 
 /// `summary.json` → `estimator`: the sensors, the filter, its faults and its error.
@@ -65,6 +65,138 @@ fn bad(e: estimator::EstimatorError) -> SimError {
     SimError::Input(format!("[estimator]: {e}"))
 }
 
+/// What a filter is built from: the scenario's `[estimator]` table and its sensors.
+struct FilterInputs<'a> {
+    e: &'a EstimatorSpec,
+    /// The direction sensors' world directions.
+    world: Vec<Vector3<f64>>,
+    /// The filter's start attitude, if the scenario gives one (else TRIAD).
+    initial: Option<Matrix3<f64>>,
+    /// The accelerometer's noise (0: none).
+    accel: f64,
+    /// The position sensor's noise (0: none).
+    position: f64,
+}
+
+impl<'a> FilterInputs<'a> {
+    fn of(s: &'a Scenario, spec: &SensorsSpec) -> Self {
+        FilterInputs {
+            e: &s.estimator,
+            world: spec
+                .directions
+                .iter()
+                .map(|d| Vector3::from(d.world))
+                .collect(),
+            initial: s
+                .estimator
+                .initial_attitude
+                .map(|r| exp_so3(&Vector3::from(r))),
+            accel: spec.accelerometer.unwrap_or(0.0),
+            position: spec.position.map_or(0.0, |p| p.noise),
+        }
+    }
+
+    /// The filter of the scenario's kind on `group`.
+    fn build(&self, group: controller::GroupKind) -> Result<Filter, SimError> {
+        use controller::GroupKind::{Se3, So3};
+        Ok(match (self.e.kind, group) {
+            (EstimatorKind::Truth, _) => Filter::Truth,
+            (EstimatorKind::Complementary, So3) => self.complementary()?,
+            (EstimatorKind::Complementary, Se3) => self.pose()?,
+            (EstimatorKind::Eqf, So3) => self.eqf()?,
+            (EstimatorKind::Eqf, Se3) => self.pose_eqf()?,
+        })
+    }
+
+    /// The complementary filter on SO(3).
+    fn complementary(&self) -> Result<Filter, SimError> {
+        let e = self.e;
+        let mut cfg = ComplementaryConfig::new(e.kp, e.ki, &self.world, &e.weights).map_err(bad)?;
+        if let Some(l) = e.bias_limit {
+            cfg = cfg.bias_limit(l).map_err(bad)?;
+        }
+        if let Some(r) = self.initial {
+            cfg = cfg.initial_attitude(r).map_err(bad)?;
+        }
+        Ok(Filter::Attitude(Box::new(ComplementaryFilter::new(cfg))))
+    }
+
+    /// The pose filter on SE(3): the complementary filter's attitude and a Kalman filter.
+    fn pose(&self) -> Result<Filter, SimError> {
+        let e = self.e;
+        let mut cfg = PoseConfig::new(
+            e.kp,
+            e.ki,
+            &self.world,
+            &e.weights,
+            self.accel,
+            self.position,
+        )
+        .map_err(bad)?;
+        if let Some(g) = e.accel_gate {
+            cfg = cfg.accel_gate(g).map_err(bad)?;
+        }
+        if let Some(l) = e.bias_limit {
+            cfg.attitude = cfg.attitude.bias_limit(l).map_err(bad)?;
+        }
+        if let Some(r) = self.initial {
+            cfg.attitude = cfg.attitude.initial_attitude(r).map_err(bad)?;
+        }
+        Ok(Filter::Pose(Box::new(PoseFilter::new(cfg))))
+    }
+
+    /// The EqF's noise model (`kind = "eqf"` needs it).
+    fn eqf_spec(&self) -> Result<&'a EqfSpec, SimError> {
+        self.e.eqf.as_ref().ok_or_else(|| {
+            SimError::Input("[estimator]: kind = \"eqf\" without its noise model".into())
+        })
+    }
+
+    /// The start and the clamp, on either group's attitude filter.
+    fn eqf_start(&self, cfg: EqfConfig<f64>) -> Result<EqfConfig<f64>, SimError> {
+        let q = self.eqf_spec()?;
+        let mut cfg = cfg
+            .initial_std(q.initial_attitude_std, q.initial_bias_std)
+            .map_err(bad)?;
+        if let Some(l) = self.e.bias_limit {
+            cfg = cfg.bias_limit(l).map_err(bad)?;
+        }
+        if let Some(r) = self.initial {
+            cfg = cfg.initial_attitude(r).map_err(bad)?;
+        }
+        Ok(cfg)
+    }
+
+    /// The equivariant filter on SO(3).
+    fn eqf(&self) -> Result<Filter, SimError> {
+        let q = self.eqf_spec()?;
+        let cfg = EqfConfig::new(q.gyro_noise, q.bias_walk, &self.world, &q.direction_noise)
+            .map_err(bad)?;
+        Ok(Filter::Eqf(Box::new(EquivariantFilter::new(
+            self.eqf_start(cfg)?,
+        ))))
+    }
+
+    /// The pose filter on SE(3) with the EqF for its attitude.
+    fn pose_eqf(&self) -> Result<Filter, SimError> {
+        let q = self.eqf_spec()?;
+        let mut cfg = PoseConfig::eqf(
+            q.gyro_noise,
+            q.bias_walk,
+            &self.world,
+            &q.direction_noise,
+            self.accel,
+            self.position,
+        )
+        .map_err(bad)?;
+        cfg.attitude = self.eqf_start(cfg.attitude)?;
+        if let Some(g) = self.e.accel_gate {
+            cfg = cfg.accel_gate(g).map_err(bad)?;
+        }
+        Ok(Filter::PoseEqf(Box::new(PoseFilter::new(cfg))))
+    }
+}
+
 impl Estimation {
     /// The scenario's sensors and estimator at control period `period` (`None`: the
     /// scenario simulates no sensors, and the law sees the exact state as always).
@@ -77,84 +209,7 @@ impl Estimation {
             return Ok(None);
         };
         let e = &s.estimator;
-        let world: Vec<Vector3<f64>> = spec
-            .directions
-            .iter()
-            .map(|d| Vector3::from(d.world))
-            .collect();
-        let initial = e.initial_attitude.map(|r| exp_so3(&Vector3::from(r)));
-        let accel = spec.accelerometer.unwrap_or(0.0);
-        let position = spec.position.map_or(0.0, |p| p.noise);
-        let eqf_spec = || {
-            e.eqf.as_ref().ok_or_else(|| {
-                SimError::Input("[estimator]: kind = \"eqf\" without its noise model".into())
-            })
-        };
-        // the start and the clamp, on either group's attitude filter
-        let eqf_start = |cfg: EqfConfig<f64>| -> Result<EqfConfig<f64>, SimError> {
-            let q = eqf_spec()?;
-            let mut cfg = cfg
-                .initial_std(q.initial_attitude_std, q.initial_bias_std)
-                .map_err(bad)?;
-            if let Some(l) = e.bias_limit {
-                cfg = cfg.bias_limit(l).map_err(bad)?;
-            }
-            if let Some(r) = initial {
-                cfg = cfg.initial_attitude(r).map_err(bad)?;
-            }
-            Ok(cfg)
-        };
-        let filter = match (e.kind, s.group) {
-            (EstimatorKind::Truth, _) => Filter::Truth,
-            (EstimatorKind::Complementary, controller::GroupKind::So3) => {
-                let mut cfg =
-                    ComplementaryConfig::new(e.kp, e.ki, &world, &e.weights).map_err(bad)?;
-                if let Some(l) = e.bias_limit {
-                    cfg = cfg.bias_limit(l).map_err(bad)?;
-                }
-                if let Some(r) = initial {
-                    cfg = cfg.initial_attitude(r).map_err(bad)?;
-                }
-                Filter::Attitude(Box::new(ComplementaryFilter::new(cfg)))
-            }
-            (EstimatorKind::Complementary, controller::GroupKind::Se3) => {
-                let mut cfg = PoseConfig::new(e.kp, e.ki, &world, &e.weights, accel, position)
-                    .map_err(bad)?;
-                if let Some(g) = e.accel_gate {
-                    cfg = cfg.accel_gate(g).map_err(bad)?;
-                }
-                if let Some(l) = e.bias_limit {
-                    cfg.attitude = cfg.attitude.bias_limit(l).map_err(bad)?;
-                }
-                if let Some(r) = initial {
-                    cfg.attitude = cfg.attitude.initial_attitude(r).map_err(bad)?;
-                }
-                Filter::Pose(Box::new(PoseFilter::new(cfg)))
-            }
-            (EstimatorKind::Eqf, controller::GroupKind::So3) => {
-                let q = eqf_spec()?;
-                let cfg = EqfConfig::new(q.gyro_noise, q.bias_walk, &world, &q.direction_noise)
-                    .map_err(bad)?;
-                Filter::Eqf(Box::new(EquivariantFilter::new(eqf_start(cfg)?)))
-            }
-            (EstimatorKind::Eqf, controller::GroupKind::Se3) => {
-                let q = eqf_spec()?;
-                let mut cfg = PoseConfig::eqf(
-                    q.gyro_noise,
-                    q.bias_walk,
-                    &world,
-                    &q.direction_noise,
-                    accel,
-                    position,
-                )
-                .map_err(bad)?;
-                cfg.attitude = eqf_start(cfg.attitude)?;
-                if let Some(g) = e.accel_gate {
-                    cfg = cfg.accel_gate(g).map_err(bad)?;
-                }
-                Filter::PoseEqf(Box::new(PoseFilter::new(cfg)))
-            }
-        };
+        let filter = FilterInputs::of(s, spec).build(s.group)?;
         Ok(Some(Estimation {
             kind: e.kind,
             seed: spec.seed,

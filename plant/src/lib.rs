@@ -13,6 +13,7 @@
 //! It depends on no crate of the controller process: the two processes meet only on the wire.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod estimation;
 pub mod output;

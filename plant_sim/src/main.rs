@@ -16,6 +16,7 @@
 //! ```
 //! Exit codes: 0 done, 2 bad input (with a message naming the key and what is wrong),
 //! 1 the run could not complete.
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 use clap::{Parser, Subcommand};
 use link::StopFlag;

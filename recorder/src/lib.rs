@@ -43,6 +43,7 @@
 //! needed to read a log.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod format;
 pub mod reader;

@@ -6,6 +6,7 @@
 //! and the waypoint file's columns), is docs/scenario.md.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod cli;
 pub mod rejection;

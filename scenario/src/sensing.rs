@@ -311,17 +311,57 @@ impl Validator<'_> {
         sensors: Option<&SensorsSpec>,
         group: GroupKind,
     ) -> Result<EstimatorSpec, ScenarioError> {
-        let kind = match raw.kind.as_str() {
-            "truth" => EstimatorKind::Truth,
-            "complementary" => EstimatorKind::Complementary,
-            "eqf" => EstimatorKind::Eqf,
-            other => {
-                return Err(self.err(
-                    "estimator.kind",
-                    format!("unknown kind `{other}` (expected truth, complementary or eqf)"),
-                ));
-            }
+        let kind = self.estimator_kind(&raw.kind)?;
+        self.foreign_keys(raw, kind)?;
+        if kind == EstimatorKind::Truth {
+            return Ok(EstimatorSpec::default());
+        }
+        let (sensors, sources) = self.filter_sensors(sensors, kind, group)?;
+        let eqf = match kind {
+            EstimatorKind::Eqf => Some(self.eqf(raw, sensors, sources)?),
+            _ => None,
         };
+        let kp = self.non_negative("estimator.kp", raw.kp.unwrap_or(1.0))?;
+        let ki = self.non_negative("estimator.ki", raw.ki.unwrap_or(0.3))?;
+        let weights = self.weights(raw.weights.as_deref(), sources, group)?;
+        let bias_limit = raw
+            .bias_limit
+            .map(|x| self.positive("estimator.bias_limit", x))
+            .transpose()?;
+        let accel_gate = self.accel_gate(raw.accel_gate, group)?;
+        let initial_attitude = raw
+            .initial_attitude
+            .as_ref()
+            .map(|r| self.three("estimator.initial_attitude", r, "a rotation vector"))
+            .transpose()?;
+        Ok(EstimatorSpec {
+            kind,
+            kp,
+            ki,
+            weights,
+            eqf,
+            bias_limit,
+            accel_gate,
+            initial_attitude,
+        })
+    }
+
+    /// `estimator.kind`: `truth`, `complementary` or `eqf`.
+    fn estimator_kind(&self, name: &str) -> Result<EstimatorKind, ScenarioError> {
+        match name {
+            "truth" => Ok(EstimatorKind::Truth),
+            "complementary" => Ok(EstimatorKind::Complementary),
+            "eqf" => Ok(EstimatorKind::Eqf),
+            other => Err(self.err(
+                "estimator.kind",
+                format!("unknown kind `{other}` (expected truth, complementary or eqf)"),
+            )),
+        }
+    }
+
+    /// Refuses the first key given that `kind` does not take: `truth` takes none, each filter
+    /// not the other's.
+    fn foreign_keys(&self, raw: &RawEstimator, kind: EstimatorKind) -> Result<(), ScenarioError> {
         let complementary_keys = [
             ("kp", raw.kp.is_some()),
             ("ki", raw.ki.is_some()),
@@ -348,19 +388,29 @@ impl Validator<'_> {
                 let why = "kind = \"truth\" hands the law the exact state: it takes no gains";
                 refuse(&complementary_keys, why)?;
                 refuse(&eqf_keys, why)?;
-                refuse(&shared, why)?;
-                return Ok(EstimatorSpec::default());
+                refuse(&shared, why)
             }
             EstimatorKind::Complementary => refuse(
                 &eqf_keys,
                 "a key of kind = \"eqf\" (the complementary filter takes kp, ki and weights)",
-            )?,
+            ),
             EstimatorKind::Eqf => refuse(
                 &complementary_keys,
                 "a gain of kind = \"complementary\" (the EqF's gains come from its noise \
                  model: gyro_noise, bias_walk, direction_noise)",
-            )?,
+            ),
         }
+    }
+
+    /// The sensors a filter of `kind` reads: `[sensors]` given, on se3 the accelerometer and
+    /// position fixes, and at least two directions; returns them and the count of direction
+    /// sources (the accelerometer counting as one on se3).
+    fn filter_sensors<'s>(
+        &self,
+        sensors: Option<&'s SensorsSpec>,
+        kind: EstimatorKind,
+        group: GroupKind,
+    ) -> Result<(&'s SensorsSpec, usize), ScenarioError> {
         let sensors = sensors.ok_or_else(|| {
             self.err(
                 "estimator.kind",
@@ -396,56 +446,45 @@ impl Validator<'_> {
                 ),
             ));
         }
-        let eqf = match kind {
-            EstimatorKind::Eqf => Some(self.eqf(raw, sensors, sources)?),
-            _ => None,
+        Ok((sensors, sources))
+    }
+
+    /// `estimator.weights`: one per direction source, each > 0; all 1 when absent.
+    fn weights(
+        &self,
+        given: Option<&[f64]>,
+        sources: usize,
+        group: GroupKind,
+    ) -> Result<Vec<f64>, ScenarioError> {
+        let Some(w) = given else {
+            return Ok(vec![1.0; sources]);
         };
-        let kp = self.non_negative("estimator.kp", raw.kp.unwrap_or(1.0))?;
-        let ki = self.non_negative("estimator.ki", raw.ki.unwrap_or(0.3))?;
-        let weights = match &raw.weights {
-            None => vec![1.0; sources],
-            Some(w) => {
-                let why = if accel == 1 {
-                    "one per direction, then one for the accelerometer"
-                } else {
-                    "one per direction"
-                };
-                let w = self.vector("estimator.weights", w, sources, why)?;
-                if let Some(x) = w.iter().find(|x| **x <= 0.0) {
-                    return Err(self.err("estimator.weights", format!("must be > 0, got {x}")));
-                }
-                w
-            }
+        let why = if group == GroupKind::Se3 {
+            "one per direction, then one for the accelerometer"
+        } else {
+            "one per direction"
         };
-        let bias_limit = raw
-            .bias_limit
-            .map(|x| self.positive("estimator.bias_limit", x))
-            .transpose()?;
-        let accel_gate = match (raw.accel_gate, group) {
-            (None, _) => None,
-            (Some(_), GroupKind::So3) => {
-                return Err(self.err(
-                    "estimator.accel_gate",
-                    "only se3 scenarios have an accelerometer",
-                ));
-            }
-            (Some(x), GroupKind::Se3) => Some(self.positive("estimator.accel_gate", x)?),
-        };
-        let initial_attitude = raw
-            .initial_attitude
-            .as_ref()
-            .map(|r| self.three("estimator.initial_attitude", r, "a rotation vector"))
-            .transpose()?;
-        Ok(EstimatorSpec {
-            kind,
-            kp,
-            ki,
-            weights,
-            eqf,
-            bias_limit,
-            accel_gate,
-            initial_attitude,
-        })
+        let w = self.vector("estimator.weights", w, sources, why)?;
+        if let Some(x) = w.iter().find(|x| **x <= 0.0) {
+            return Err(self.err("estimator.weights", format!("must be > 0, got {x}")));
+        }
+        Ok(w)
+    }
+
+    /// `estimator.accel_gate`: se3 only, and > 0.
+    fn accel_gate(
+        &self,
+        gate: Option<f64>,
+        group: GroupKind,
+    ) -> Result<Option<f64>, ScenarioError> {
+        match (gate, group) {
+            (None, _) => Ok(None),
+            (Some(_), GroupKind::So3) => Err(self.err(
+                "estimator.accel_gate",
+                "only se3 scenarios have an accelerometer",
+            )),
+            (Some(x), GroupKind::Se3) => Ok(Some(self.positive("estimator.accel_gate", x)?)),
+        }
     }
 }
 
@@ -530,296 +569,7 @@ impl Validator<'_> {
 }
 
 #[cfg(test)]
-mod tests {
-    use crate::Scenario;
-
-    const SO3: &str = r#"
-[sensors]
-seed = 7
-gyro = { noise = 0.002, bias = [0.02, -0.01, 0.03], bias_walk = 1e-5 }
-directions = [ { world = [0.0, 0.0, 2.0], noise = 0.01 }, { world = [0.5, 0.0, 0.866], noise = 0.02 } ]
-
-[estimator]
-kind = "complementary"
-kp = 2.0
-ki = 0.5
-weights = [1.0, 0.5]
-bias_limit = 0.1
-"#;
-
-    fn seed_with(extra: &str) -> Result<Scenario, String> {
-        let text = format!("{}\n{extra}", crate::BUILTINS[0].1);
-        Scenario::from_toml(&text, "test.toml", "test").map_err(|e| e.to_string())
-    }
-
-    fn se3_with(extra: &str) -> Result<Scenario, String> {
-        let text = format!("{}\n{extra}", crate::BUILTINS[2].1);
-        Scenario::from_toml(&text, "test.toml", "test").map_err(|e| e.to_string())
-    }
-
-    #[test]
-    fn the_tables_parse_and_directions_are_normalised() {
-        let s = seed_with(SO3).unwrap();
-        let sensors = s.sensors.as_ref().unwrap();
-        assert_eq!(sensors.seed, 7);
-        assert_eq!(sensors.gyro.bias, [0.02, -0.01, 0.03]);
-        assert_eq!(sensors.directions[0].world, [0.0, 0.0, 1.0]);
-        let w = sensors.directions[1].world;
-        assert!(((w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt() - 1.0).abs() < 1e-15);
-        assert_eq!(s.estimator.kind, super::EstimatorKind::Complementary);
-        assert_eq!(s.estimator.weights, vec![1.0, 0.5]);
-        assert_eq!(s.estimator.bias_limit, Some(0.1));
-        // neither table changes what the controller takes
-        let plain = Scenario::builtin("seed").unwrap();
-        assert_eq!(s.fingerprint(), plain.fingerprint());
-        assert!(plain.sensors.is_none() && !plain.estimator.estimates());
-    }
-
-    #[test]
-    fn se3_needs_the_accelerometer_and_fixes_and_weighs_the_accelerometer_last() {
-        let ok = r#"
-[sensors]
-directions = [ { world = [1.0, 0.0, 0.0], noise = 0.01 } ]
-accelerometer = { noise = 0.05 }
-position = { noise = 0.005, rate_hz = 100.0 }
-[estimator]
-kind = "complementary"
-weights = [1.0, 2.0]
-accel_gate = 1.0
-"#;
-        let s = se3_with(ok).unwrap();
-        assert_eq!(s.estimator.weights, vec![1.0, 2.0]);
-        assert_eq!(s.sensors.unwrap().position.unwrap().rate_hz, 100.0);
-        let e =
-            se3_with(&ok.replace("position = { noise = 0.005, rate_hz = 100.0 }", "")).unwrap_err();
-        assert!(e.contains("key `sensors.position`: missing"), "{e}");
-        let e = se3_with(&ok.replace("weights = [1.0, 2.0]", "weights = [1.0]")).unwrap_err();
-        assert!(
-            e.contains("key `estimator.weights`: expected 2 numbers"),
-            "{e}"
-        );
-    }
-
-    #[test]
-    fn bad_values_name_the_key_and_what_is_wrong() {
-        for (from, to, needle) in [
-            ("seed = 7", "seed = -1", "key `sensors.seed`: must be ≥ 0"),
-            (
-                "noise = 0.002",
-                "noise = -0.002",
-                "key `sensors.gyro.noise`: must be a finite number ≥ 0",
-            ),
-            (
-                "bias_walk = 1e-5",
-                "bias_walk = nan",
-                "key `sensors.gyro.bias_walk`",
-            ),
-            (
-                "bias = [0.02, -0.01, 0.03]",
-                "bias = [0.02, -0.01]",
-                "key `sensors.gyro.bias`: expected 3 numbers",
-            ),
-            (
-                "bias = [0.02, -0.01, 0.03]",
-                "bias = [0.02, -0.01, inf]",
-                "key `sensors.gyro.bias`: entry 2 is not a finite number",
-            ),
-            (
-                "world = [0.0, 0.0, 2.0]",
-                "world = [0.0, 0.0, 0.0]",
-                "key `sensors.directions[0].world`: a direction must not be zero",
-            ),
-            (
-                "noise = 0.02 }",
-                "noise = -1.0 }",
-                "key `sensors.directions[1].noise`",
-            ),
-            (
-                "kind = \"complementary\"",
-                "kind = \"kalman\"",
-                "key `estimator.kind`: unknown kind `kalman`",
-            ),
-            ("kp = 2.0", "kp = -2.0", "key `estimator.kp`"),
-            ("ki = 0.5", "ki = inf", "key `estimator.ki`"),
-            (
-                "weights = [1.0, 0.5]",
-                "weights = [1.0, 0.0]",
-                "key `estimator.weights`: must be > 0",
-            ),
-            (
-                "weights = [1.0, 0.5]",
-                "weights = [1.0, 0.5, 1.0]",
-                "key `estimator.weights`: expected 2 numbers (one per direction)",
-            ),
-            (
-                "bias_limit = 0.1",
-                "bias_limit = 0.0",
-                "key `estimator.bias_limit`",
-            ),
-            (
-                "bias_limit = 0.1",
-                "accel_gate = 1.0",
-                "key `estimator.accel_gate`: only se3",
-            ),
-            (
-                "seed = 7",
-                "seed = 7\naccelerometer = { noise = 0.1 }",
-                "key `sensors.accelerometer`: only se3",
-            ),
-            (
-                "seed = 7",
-                "seed = 7\nposition = { noise = 0.1, rate_hz = 10.0 }",
-                "key `sensors.position`: only se3",
-            ),
-            (
-                "seed = 7",
-                "seed = 7\nmagnetometer = 1",
-                "unknown field `magnetometer`",
-            ),
-            ("kp = 2.0", "kp = 2.0\ngain = 1", "unknown field `gain`"),
-            (
-                "noise = 0.002,",
-                "noise = \"low\",",
-                "invalid type: string \"low\", expected f64",
-            ),
-        ] {
-            assert!(SO3.contains(from), "{from}");
-            let e = seed_with(&SO3.replacen(from, to, 1)).unwrap_err();
-            assert!(e.contains(needle), "{to}: {e}");
-        }
-        // one direction is not enough for an attitude
-        let one = SO3.replace(", { world = [0.5, 0.0, 0.866], noise = 0.02 }", "");
-        let e = seed_with(&one.replace("weights = [1.0, 0.5]", "")).unwrap_err();
-        assert!(
-            e.contains("key `sensors.directions`: the filter needs two"),
-            "{e}"
-        );
-        let five = "directions = [ {world=[1.0,0.0,0.0]}, {world=[0.0,1.0,0.0]}, {world=[0.0,0.0,1.0]}, {world=[1.0,1.0,0.0]}, {world=[0.0,1.0,1.0]} ]";
-        let e = seed_with(&format!("[sensors]\n{five}\n")).unwrap_err();
-        assert!(e.contains("key `sensors.directions`: at most 4"), "{e}");
-        // a filter needs sensors; truth takes no gains
-        let e = seed_with("[estimator]\nkind = \"complementary\"\n").unwrap_err();
-        assert!(e.contains("needs a [sensors] table"), "{e}");
-        let e = seed_with("[estimator]\nkind = \"truth\"\nkp = 1.0\n").unwrap_err();
-        assert!(e.contains("key `estimator.kp`: kind = \"truth\""), "{e}");
-    }
-}
+mod tests;
 
 #[cfg(test)]
-mod eqf_tests {
-    use crate::Scenario;
-
-    const SENSORS: &str = r#"
-[sensors]
-seed = 7
-gyro = { noise = 0.002, bias = [0.02, -0.01, 0.03], bias_walk = 1e-5 }
-directions = [ { world = [0.0, 0.0, 1.0], noise = 0.01 }, { world = [0.5, 0.0, 0.866], noise = 0.02 } ]
-"#;
-
-    fn seed_with(estimator: &str) -> Result<Scenario, String> {
-        let text = format!(
-            "{}\n{SENSORS}\n[estimator]\n{estimator}",
-            crate::BUILTINS[0].1
-        );
-        Scenario::from_toml(&text, "test.toml", "test").map_err(|e| e.to_string())
-    }
-
-    #[test]
-    fn the_eqf_defaults_to_the_sensors_noise_and_takes_overrides() {
-        let s = seed_with("kind = \"eqf\"\n").unwrap();
-        let e = s.estimator.eqf.unwrap();
-        assert_eq!((e.gyro_noise, e.bias_walk), (0.002, 1e-5));
-        assert_eq!(e.direction_noise, vec![0.01, 0.02]);
-        assert_eq!((e.initial_attitude_std, e.initial_bias_std), (0.1, 0.03));
-        let s = seed_with(
-            "kind = \"eqf\"\ngyro_noise = 0.01\nbias_walk = 0.0\ndirection_noise = [0.1, 0.2]\n\
-             initial_attitude_std = 2.5\ninitial_bias_std = 0.1\ninitial_attitude = [0.0, 0.0, 2.5]\n",
-        )
-        .unwrap();
-        let e = s.estimator.eqf.as_ref().unwrap();
-        assert_eq!((e.gyro_noise, e.bias_walk), (0.01, 0.0));
-        assert_eq!(e.direction_noise, vec![0.1, 0.2]);
-        assert_eq!((e.initial_attitude_std, e.initial_bias_std), (2.5, 0.1));
-        assert_eq!(s.estimator.initial_attitude, Some([0.0, 0.0, 2.5]));
-        // the estimator is not the controller's: the fingerprint is the seed's
-        assert_eq!(
-            s.fingerprint(),
-            Scenario::builtin("seed").unwrap().fingerprint()
-        );
-    }
-
-    #[test]
-    fn bad_eqf_values_name_the_key_and_what_is_wrong() {
-        for (text, needle) in [
-            (
-                "kind = \"eqf\"\ngyro_noise = -1.0\n",
-                "key `estimator.gyro_noise`: must be a finite number ≥ 0",
-            ),
-            (
-                "kind = \"eqf\"\nbias_walk = nan\n",
-                "key `estimator.bias_walk`",
-            ),
-            (
-                "kind = \"eqf\"\ndirection_noise = [0.1]\n",
-                "key `estimator.direction_noise`: expected 2 numbers (one per direction)",
-            ),
-            (
-                "kind = \"eqf\"\ndirection_noise = [0.1, 0.0]\n",
-                "key `estimator.direction_noise`: each must be > 0",
-            ),
-            (
-                "kind = \"eqf\"\ndirection_noise = [0.1, inf]\n",
-                "key `estimator.direction_noise`: entry 1 is not a finite number",
-            ),
-            (
-                "kind = \"eqf\"\ninitial_attitude_std = 0.0\n",
-                "key `estimator.initial_attitude_std`: must be a finite number > 0",
-            ),
-            (
-                "kind = \"eqf\"\ninitial_bias_std = -0.1\n",
-                "key `estimator.initial_bias_std`",
-            ),
-            (
-                "kind = \"eqf\"\nkp = 1.0\n",
-                "key `estimator.kp`: a gain of kind = \"complementary\"",
-            ),
-            (
-                "kind = \"complementary\"\ngyro_noise = 0.01\n",
-                "key `estimator.gyro_noise`: a key of kind = \"eqf\"",
-            ),
-            (
-                "kind = \"truth\"\ndirection_noise = [0.1, 0.1]\n",
-                "key `estimator.direction_noise`: kind = \"truth\"",
-            ),
-            (
-                "kind = \"eqf\"\ngyro_noise = \"low\"\n",
-                "invalid type: string \"low\", expected f64",
-            ),
-        ] {
-            let e = seed_with(text).unwrap_err();
-            assert!(e.contains(needle), "{text}: {e}");
-        }
-        // a noiseless direction sensor has no default: the filter divides by it
-        let text = format!(
-            "{}\n{}\n[estimator]\nkind = \"eqf\"\n",
-            crate::BUILTINS[0].1,
-            SENSORS.replace("noise = 0.02", "noise = 0.0")
-        );
-        let e = Scenario::from_toml(&text, "t.toml", "t")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("key `estimator.direction_noise`: missing, and its default sensors.directions[1].noise is 0"),
-            "{e}"
-        );
-        // no sensors, no filter
-        let text = format!("{}\n[estimator]\nkind = \"eqf\"\n", crate::BUILTINS[0].1);
-        let e = Scenario::from_toml(&text, "t.toml", "t")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("kind = \"eqf\": a filter needs a [sensors] table"),
-            "{e}"
-        );
-    }
-}
+mod eqf_tests;

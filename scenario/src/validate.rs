@@ -2,7 +2,8 @@
 
 use crate::{
     Axis, EstimatorSpec, NumberOrList, NumberOrMatrix, PathKind, PathSpec, Pose, RawAxis,
-    RawReference, RawScenario, RawState, Scenario, ScenarioError, StateSpec, Term, waypoints,
+    RawController, RawPlant, RawPose, RawReference, RawScenario, RawState, RejectionSpec, Scenario,
+    ScenarioError, StateSpec, StepSpec, Term, waypoints,
 };
 use controller::reference::MAX_TERMS;
 use controller::validate::spd_inverse;
@@ -218,111 +219,21 @@ impl Validator<'_> {
         })
     }
 
+    /// The whole scenario, checked table by table in the file's order; the first error found
+    /// is the one reported.
     pub(crate) fn validate(
         &self,
         raw: RawScenario,
         default_name: &str,
     ) -> Result<Scenario, ScenarioError> {
-        let group = match raw.group.as_str() {
-            "so3" => GroupKind::So3,
-            "se3" => GroupKind::Se3,
-            other => {
-                return Err(self.err(
-                    "group",
-                    format!("unknown group `{other}` (expected so3 or se3)"),
-                ));
-            }
-        };
+        let group = self.group(&raw.group)?;
         let (n, m) = group.dims();
         let law = parse_law(&raw.law, group, "law", self.origin)?;
-        for (key, x) in [
-            ("duration", raw.duration),
-            ("control_period", raw.control_period),
-        ] {
-            if !x.is_finite() {
-                return Err(self.err(key, format!("not a finite number ({x})")));
-            }
-            if x <= 0.0 {
-                return Err(self.err(key, format!("must be positive, got {x}")));
-            }
-        }
-        let steps = raw.duration / raw.control_period;
-        if (steps - steps.round()).abs() > 1e-9 * steps.max(1.0) {
-            return Err(self.err(
-                "duration",
-                format!(
-                    "must be a whole number of control periods ({} / {} = {steps})",
-                    raw.duration, raw.control_period
-                ),
-            ));
-        }
-        if steps.round() > 1e9 {
-            return Err(self.err(
-                "duration",
-                format!("{steps} control steps is more than 1e9"),
-            ));
-        }
-        let substeps =
-            |key: &str, v: Option<i64>, default: usize| -> Result<usize, ScenarioError> {
-                match v {
-                    None => Ok(default),
-                    Some(x) if (1..=100_000).contains(&x) => Ok(x as usize),
-                    Some(x) => Err(self.err(
-                        key,
-                        format!("must be a whole number from 1 to 100000, got {x}"),
-                    )),
-                }
-            };
-        let plant_substeps = substeps("plant_substeps", raw.plant_substeps, 10)?;
-        let reference_substeps = substeps("reference_substeps", raw.reference_substeps, 1)?;
-
-        let plant_inertia =
-            self.matrix("plant.inertia", &raw.plant.inertia, m, "m×m for the group")?;
-        self.spd("plant.inertia", &plant_inertia, m)?;
-        let torque_limit = match &raw.plant.torque_limit {
-            None => None,
-            Some(NumberOrList::Number(x)) => Some(vec![*x; m]),
-            Some(NumberOrList::List(xs)) => Some(xs.clone()),
-        };
-        if let Some(l) = &torque_limit {
-            let l = self.vector("plant.torque_limit", l, m, "one limit per axis")?;
-            if let Some(x) = l.iter().find(|x| **x <= 0.0) {
-                return Err(self.err("plant.torque_limit", format!("must be positive, got {x}")));
-            }
-        }
-        let disturbance = match &raw.plant.disturbance {
-            None => vec![0.0; m],
-            Some(d) => self.vector("plant.disturbance", d, m, "one entry per axis")?,
-        };
-        let disturbance_world = raw
-            .plant
-            .disturbance_world
-            .as_ref()
-            .map(|d| {
-                let why = if m == 6 {
-                    "world axes: torque then force"
-                } else {
-                    "world axes"
-                };
-                self.vector("plant.disturbance_world", d, m, why)
-            })
-            .transpose()?;
-        let disturbance_steps = self.steps(raw.plant.disturbance_steps.as_deref(), m)?;
-        let model_inertia = match &raw.controller.inertia {
-            None => plant_inertia.clone(),
-            Some(rows) => {
-                let i = self.matrix("controller.inertia", rows, m, "m×m for the group")?;
-                self.spd("controller.inertia", &i, m)?;
-                i
-            }
-        };
-        let kp = self.gain("controller.kp", &raw.controller.kp, n, "n×n for the group")?;
-        let kd = self.gain("controller.kd", &raw.controller.kd, m, "m×m for the group")?;
-        let rejection = self.rejection(
-            raw.controller.disturbance_observer.as_ref(),
-            raw.controller.integral.as_ref(),
-            m,
-        )?;
+        self.timing(raw.duration, raw.control_period)?;
+        let plant_substeps = self.substeps("plant_substeps", raw.plant_substeps, 10)?;
+        let reference_substeps = self.substeps("reference_substeps", raw.reference_substeps, 1)?;
+        let plant = self.plant(&raw.plant, m)?;
+        let controller = self.controller(&raw.controller, &plant.inertia, n, m)?;
         let initial = self.state("initial", &raw.initial, group, m)?;
         let (reference, feedforward, path) =
             self.reference(&raw.reference, group, m, raw.control_period)?;
@@ -343,21 +254,144 @@ impl Validator<'_> {
             control_period: raw.control_period,
             plant_substeps,
             reference_substeps,
-            plant_inertia,
-            torque_limit,
-            disturbance,
-            disturbance_world,
-            disturbance_steps,
-            model_inertia,
-            kp,
-            kd,
-            rejection,
+            plant_inertia: plant.inertia,
+            torque_limit: plant.torque_limit,
+            disturbance: plant.disturbance,
+            disturbance_world: plant.disturbance_world,
+            disturbance_steps: plant.disturbance_steps,
+            model_inertia: controller.model_inertia,
+            kp: controller.kp,
+            kd: controller.kd,
+            rejection: controller.rejection,
             initial,
             reference,
             feedforward,
             path,
             sensors,
             estimator,
+        })
+    }
+
+    /// `group`: `so3` or `se3`.
+    fn group(&self, name: &str) -> Result<GroupKind, ScenarioError> {
+        match name {
+            "so3" => Ok(GroupKind::So3),
+            "se3" => Ok(GroupKind::Se3),
+            other => Err(self.err(
+                "group",
+                format!("unknown group `{other}` (expected so3 or se3)"),
+            )),
+        }
+    }
+
+    /// `duration` and `control_period`: each finite and positive, the duration a whole number
+    /// of periods, and at most 1e9 steps.
+    fn timing(&self, duration: f64, control_period: f64) -> Result<(), ScenarioError> {
+        for (key, x) in [("duration", duration), ("control_period", control_period)] {
+            if !x.is_finite() {
+                return Err(self.err(key, format!("not a finite number ({x})")));
+            }
+            if x <= 0.0 {
+                return Err(self.err(key, format!("must be positive, got {x}")));
+            }
+        }
+        let steps = duration / control_period;
+        if (steps - steps.round()).abs() > 1e-9 * steps.max(1.0) {
+            return Err(self.err(
+                "duration",
+                format!(
+                    "must be a whole number of control periods ({duration} / {control_period} = {steps})"
+                ),
+            ));
+        }
+        if steps.round() > 1e9 {
+            return Err(self.err(
+                "duration",
+                format!("{steps} control steps is more than 1e9"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// `plant_substeps` or `reference_substeps`: a whole number from 1 to 100000, `default`
+    /// when absent.
+    fn substeps(&self, key: &str, v: Option<i64>, default: usize) -> Result<usize, ScenarioError> {
+        match v {
+            None => Ok(default),
+            Some(x) if (1..=100_000).contains(&x) => Ok(x as usize),
+            Some(x) => Err(self.err(
+                key,
+                format!("must be a whole number from 1 to 100000, got {x}"),
+            )),
+        }
+    }
+
+    /// `[plant]`: inertia, torque limit, disturbances, in that order.
+    fn plant(&self, raw: &RawPlant, m: usize) -> Result<Plant, ScenarioError> {
+        let inertia = self.matrix("plant.inertia", &raw.inertia, m, "m×m for the group")?;
+        self.spd("plant.inertia", &inertia, m)?;
+        let torque_limit = match &raw.torque_limit {
+            None => None,
+            Some(NumberOrList::Number(x)) => Some(vec![*x; m]),
+            Some(NumberOrList::List(xs)) => Some(xs.clone()),
+        };
+        if let Some(l) = &torque_limit {
+            let l = self.vector("plant.torque_limit", l, m, "one limit per axis")?;
+            if let Some(x) = l.iter().find(|x| **x <= 0.0) {
+                return Err(self.err("plant.torque_limit", format!("must be positive, got {x}")));
+            }
+        }
+        let disturbance = match &raw.disturbance {
+            None => vec![0.0; m],
+            Some(d) => self.vector("plant.disturbance", d, m, "one entry per axis")?,
+        };
+        let disturbance_world = raw
+            .disturbance_world
+            .as_ref()
+            .map(|d| {
+                let why = if m == 6 {
+                    "world axes: torque then force"
+                } else {
+                    "world axes"
+                };
+                self.vector("plant.disturbance_world", d, m, why)
+            })
+            .transpose()?;
+        let disturbance_steps = self.steps(raw.disturbance_steps.as_deref(), m)?;
+        Ok(Plant {
+            inertia,
+            torque_limit,
+            disturbance,
+            disturbance_world,
+            disturbance_steps,
+        })
+    }
+
+    /// `[controller]`: model inertia (default the plant's), gains, rejection terms.
+    fn controller(
+        &self,
+        raw: &RawController,
+        plant_inertia: &[f64],
+        n: usize,
+        m: usize,
+    ) -> Result<Controller, ScenarioError> {
+        let model_inertia = match &raw.inertia {
+            None => plant_inertia.to_vec(),
+            Some(rows) => {
+                let i = self.matrix("controller.inertia", rows, m, "m×m for the group")?;
+                self.spd("controller.inertia", &i, m)?;
+                i
+            }
+        };
+        let kp = self.gain("controller.kp", &raw.kp, n, "n×n for the group")?;
+        let kd = self.gain("controller.kd", &raw.kd, m, "m×m for the group")?;
+        let rejection =
+            self.rejection(raw.disturbance_observer.as_ref(), raw.integral.as_ref(), m)?;
+        Ok(Controller {
+            model_inertia,
+            kp,
+            kd,
+            rejection,
         })
     }
 
@@ -382,13 +416,26 @@ impl Validator<'_> {
                  waypoints = \"FILE.csv\", or setpoint = { rotation = [...] }",
             ));
         }
-        let zero = vec![
-            Axis {
-                offset: 0.0,
-                terms: vec![]
-            };
-            m
-        ];
+        let kind = self.path_kind(raw)?;
+        let path = if let Some(file) = &raw.waypoints {
+            self.waypoint_path(file, kind, group, period)?
+        } else if let Some(sp) = &raw.setpoint {
+            self.setpoint_path(sp, group, m)?
+        } else {
+            let (reference, feedforward) = self.series(raw, group, m)?;
+            return Ok((reference, feedforward, None));
+        };
+        let first = path.poses[0];
+        let reference = StateSpec {
+            rotation: first.rotation,
+            position: first.position,
+            velocity: vec![0.0; m],
+        };
+        Ok((reference, zero_feedforward(m), Some(path)))
+    }
+
+    /// `reference.path`: `stop` (the default) or `through`, and only with `waypoints`.
+    fn path_kind(&self, raw: &RawReference) -> Result<PathKind, ScenarioError> {
         let kind = match raw.path.as_deref() {
             None | Some("stop") => PathKind::Stop,
             Some("through") => PathKind::Through,
@@ -405,57 +452,77 @@ impl Validator<'_> {
                 "applies to `waypoints = \"FILE.csv\"` only (a set-point or a feedforward series has no waypoints to pass)",
             ));
         }
-        let path = if let Some(file) = &raw.waypoints {
-            let full = self
-                .base
-                .map_or_else(|| Path::new(file).to_path_buf(), |b| b.join(file));
-            let mut spec = waypoints::read(&full, group)?;
-            spec.kind = kind;
-            waypoints::check_legs(&spec, group, period)?;
-            spec
-        } else if let Some(sp) = &raw.setpoint {
-            let st = self.state_parts(
-                "reference.setpoint",
-                &sp.rotation,
-                sp.position.as_deref(),
-                &vec![0.0; m],
-                group,
-                m,
-            )?;
-            PathSpec {
-                file: "setpoint".to_owned(),
-                kind: PathKind::Stop,
-                times: vec![0.0],
-                poses: vec![Pose {
-                    rotation: st.rotation,
-                    position: st.position,
-                }],
-                velocities: vec![None],
-                lines: vec![0],
-            }
-        } else {
-            let missing = |k: &str| self.err(&format!("reference.{k}"), "missing");
-            let reference = self.state_parts(
-                "reference",
-                raw.rotation.as_deref().ok_or_else(|| missing("rotation"))?,
-                raw.position.as_deref(),
-                raw.velocity.as_deref().ok_or_else(|| missing("velocity"))?,
-                group,
-                m,
-            )?;
-            let feedforward = match &raw.torque {
-                None => zero,
-                Some(axes) => self.feedforward(axes, m)?,
-            };
-            return Ok((reference, feedforward, None));
+        Ok(kind)
+    }
+
+    /// `reference.waypoints`: the file (relative to the scenario's folder), read and its legs
+    /// checked.
+    fn waypoint_path(
+        &self,
+        file: &str,
+        kind: PathKind,
+        group: GroupKind,
+        period: f64,
+    ) -> Result<PathSpec, ScenarioError> {
+        let full = self
+            .base
+            .map_or_else(|| Path::new(file).to_path_buf(), |b| b.join(file));
+        let mut spec = waypoints::read(&full, group)?;
+        spec.kind = kind;
+        waypoints::check_legs(&spec, group, period)?;
+        Ok(spec)
+    }
+
+    /// `reference.setpoint`: one pose, held at rest from t = 0.
+    fn setpoint_path(
+        &self,
+        sp: &RawPose,
+        group: GroupKind,
+        m: usize,
+    ) -> Result<PathSpec, ScenarioError> {
+        let st = self.state_parts(
+            "reference.setpoint",
+            &sp.rotation,
+            sp.position.as_deref(),
+            &vec![0.0; m],
+            group,
+            m,
+        )?;
+        Ok(PathSpec {
+            file: "setpoint".to_owned(),
+            kind: PathKind::Stop,
+            times: vec![0.0],
+            poses: vec![Pose {
+                rotation: st.rotation,
+                position: st.position,
+            }],
+            velocities: vec![None],
+            lines: vec![0],
+        })
+    }
+
+    /// The feedforward series: the reference's start (`rotation`, `velocity`, optional
+    /// `position`) and its torque (zero when absent).
+    fn series(
+        &self,
+        raw: &RawReference,
+        group: GroupKind,
+        m: usize,
+    ) -> Result<(StateSpec, Vec<Axis>), ScenarioError> {
+        let missing = |k: &str| self.err(&format!("reference.{k}"), "missing");
+        let reference = self.state_parts(
+            "reference",
+            raw.rotation.as_deref().ok_or_else(|| missing("rotation"))?,
+            raw.position.as_deref(),
+            raw.velocity.as_deref().ok_or_else(|| missing("velocity"))?,
+            group,
+            m,
+        )?;
+        let feedforward = match &raw.torque {
+            None => zero_feedforward(m),
+            Some(axes) => self.feedforward(axes, m)?,
         };
-        let first = path.poses[0];
-        let reference = StateSpec {
-            rotation: first.rotation,
-            position: first.position,
-            velocity: vec![0.0; m],
-        };
-        Ok((reference, zero, Some(path)))
+        Ok((reference, feedforward))
     }
 
     pub(crate) fn feedforward(
@@ -501,4 +568,41 @@ impl Validator<'_> {
         }
         Ok(out)
     }
+}
+
+/// `[plant]`, checked.
+struct Plant {
+    /// `plant.inertia` (m×m, row-major).
+    inertia: Vec<f64>,
+    /// `plant.torque_limit`, one per axis.
+    torque_limit: Option<Vec<f64>>,
+    /// `plant.disturbance` (zero when absent).
+    disturbance: Vec<f64>,
+    /// `plant.disturbance_world`.
+    disturbance_world: Option<Vec<f64>>,
+    /// `plant.disturbance_steps`.
+    disturbance_steps: Vec<StepSpec>,
+}
+
+/// `[controller]`, checked.
+struct Controller {
+    /// `controller.inertia` (the plant's when absent).
+    model_inertia: Vec<f64>,
+    /// `controller.kp` (n×n).
+    kp: Vec<f64>,
+    /// `controller.kd` (m×m).
+    kd: Vec<f64>,
+    /// `controller.disturbance_observer` and `controller.integral`.
+    rejection: RejectionSpec,
+}
+
+/// A zero feedforward torque on each of the `m` axes.
+fn zero_feedforward(m: usize) -> Vec<Axis> {
+    vec![
+        Axis {
+            offset: 0.0,
+            terms: vec![]
+        };
+        m
+    ]
 }

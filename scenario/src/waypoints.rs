@@ -59,14 +59,7 @@ pub fn read(path: &Path, group: GroupKind) -> Result<PathSpec, ScenarioError> {
 
 /// Parses waypoint CSV text; `file` names it in errors.
 pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, ScenarioError> {
-    let want = header(group);
-    let err = |line: u64, column: usize, message: String| ScenarioError::Waypoints {
-        file: file.to_owned(),
-        line,
-        column: column + 1,
-        name: want.get(column).copied().unwrap_or("(extra)").to_owned(),
-        message,
-    };
+    let mut columns = Columns::new(file, group);
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
         .flexible(true)
@@ -74,67 +67,9 @@ pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, Scena
         .from_reader(text.as_bytes());
     let head = reader
         .headers()
-        .map_err(|e| err(1, 0, format!("unreadable header: {e}")))?
+        .map_err(|e| columns.err(1, 0, format!("unreadable header: {e}")))?
         .clone();
-    for (i, name) in want.iter().enumerate() {
-        match head.get(i) {
-            Some(h) if h == *name => {}
-            found => {
-                return Err(err(
-                    1,
-                    i,
-                    format!(
-                        "header must be `{}` for {}, found `{}`",
-                        want.join(","),
-                        group.name(),
-                        found.unwrap_or("")
-                    ),
-                ));
-            }
-        }
-    }
-    let speeds = velocity_header(group);
-    let full: Vec<&str> = want.iter().chain(speeds).copied().collect();
-    let expected = format!(
-        "header must be `{}` for {}, optionally followed by `{}`",
-        want.join(","),
-        group.name(),
-        speeds.join(",")
-    );
-    let named = |column: usize| full.get(column).copied().unwrap_or("(extra)").to_owned();
-    let columns = if head.len() == want.len() {
-        want.len()
-    } else {
-        let header_err = |column: usize, message: String| ScenarioError::Waypoints {
-            file: file.to_owned(),
-            line: 1,
-            column: column + 1,
-            name: named(column),
-            message,
-        };
-        for (i, name) in full.iter().enumerate().skip(want.len()) {
-            match head.get(i) {
-                Some(h) if h == *name => {}
-                found => {
-                    return Err(header_err(
-                        i,
-                        format!("{expected}, found `{}`", found.unwrap_or("")),
-                    ));
-                }
-            }
-        }
-        if head.len() > full.len() {
-            return Err(header_err(full.len(), expected));
-        }
-        full.len()
-    };
-    let err = |line: u64, column: usize, message: String| ScenarioError::Waypoints {
-        file: file.to_owned(),
-        line,
-        column: column + 1,
-        name: named(column),
-        message,
-    };
+    columns.count = columns.check_header(&head)?;
     let mut spec = PathSpec {
         file: file.to_owned(),
         kind: PathKind::Stop,
@@ -146,60 +81,149 @@ pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, Scena
     for record in reader.records() {
         let record = record.map_err(|e| {
             let line = e.position().map_or(0, |p| p.line());
-            err(line, 0, format!("unreadable line: {e}"))
+            columns.err(line, 0, format!("unreadable line: {e}"))
         })?;
+        columns.read_line(&record, &mut spec)?;
+    }
+    if spec.times.is_empty() {
+        return Err(columns.err(
+            2,
+            0,
+            "no waypoints (at least one line after the header)".to_owned(),
+        ));
+    }
+    Ok(spec)
+}
+
+/// A waypoint file's columns while it is parsed: the group's names, and where errors point.
+struct Columns<'a> {
+    /// The file, as errors name it.
+    file: &'a str,
+    /// The group the file is read for.
+    group: GroupKind,
+    /// The pose columns, which every line has.
+    pose: &'static [&'static str],
+    /// The optional velocity columns.
+    speeds: &'static [&'static str],
+    /// How many values each line holds (the header's columns, once checked).
+    count: usize,
+}
+
+impl<'a> Columns<'a> {
+    /// The columns of `group`'s waypoint file named `file`, before its header is read.
+    fn new(file: &'a str, group: GroupKind) -> Self {
+        let pose = header(group);
+        Columns {
+            file,
+            group,
+            pose,
+            speeds: velocity_header(group),
+            count: pose.len(),
+        }
+    }
+
+    /// The name of the 0-based `column` (`(extra)` past the last velocity column).
+    fn name(&self, column: usize) -> String {
+        self.pose
+            .iter()
+            .chain(self.speeds)
+            .nth(column)
+            .copied()
+            .unwrap_or("(extra)")
+            .to_owned()
+    }
+
+    /// An error at `line` and the 0-based `column`.
+    fn err(&self, line: u64, column: usize, message: String) -> ScenarioError {
+        ScenarioError::Waypoints {
+            file: self.file.to_owned(),
+            line,
+            column: column + 1,
+            name: self.name(column),
+            message,
+        }
+    }
+
+    /// Checks the header: the pose columns, then either nothing or every velocity column;
+    /// returns how many values each line must hold.
+    fn check_header(&self, head: &csv::StringRecord) -> Result<usize, ScenarioError> {
+        for (i, name) in self.pose.iter().enumerate() {
+            match head.get(i) {
+                Some(h) if h == *name => {}
+                found => {
+                    return Err(self.err(
+                        1,
+                        i,
+                        format!(
+                            "header must be `{}` for {}, found `{}`",
+                            self.pose.join(","),
+                            self.group.name(),
+                            found.unwrap_or("")
+                        ),
+                    ));
+                }
+            }
+        }
+        if head.len() == self.pose.len() {
+            return Ok(self.pose.len());
+        }
+        let expected = format!(
+            "header must be `{}` for {}, optionally followed by `{}`",
+            self.pose.join(","),
+            self.group.name(),
+            self.speeds.join(",")
+        );
+        let full = self.pose.len() + self.speeds.len();
+        for (j, name) in self.speeds.iter().enumerate() {
+            let i = self.pose.len() + j;
+            match head.get(i) {
+                Some(h) if h == *name => {}
+                found => {
+                    return Err(self.err(
+                        1,
+                        i,
+                        format!("{expected}, found `{}`", found.unwrap_or("")),
+                    ));
+                }
+            }
+        }
+        if head.len() > full {
+            return Err(self.err(1, full, expected));
+        }
+        Ok(full)
+    }
+
+    /// Reads one line of values into `spec`: its count, the waypoint limit, the pose, the
+    /// velocity, then the time's order.
+    fn read_line(
+        &self,
+        record: &csv::StringRecord,
+        spec: &mut PathSpec,
+    ) -> Result<(), ScenarioError> {
         let line = record.position().map_or(0, |p| p.line());
-        if record.len() != columns {
-            return Err(err(
+        if record.len() != self.count {
+            return Err(self.err(
                 line,
-                record.len().min(columns),
-                format!("expected {columns} values, found {}", record.len()),
+                record.len().min(self.count),
+                format!("expected {} values, found {}", self.count, record.len()),
             ));
         }
         if spec.times.len() == MAX_WAYPOINTS {
-            return Err(err(
+            return Err(self.err(
                 line,
                 0,
                 format!("too many waypoints: at most {MAX_WAYPOINTS}"),
             ));
         }
-        let number = |i: usize, field: &str| -> Result<f64, ScenarioError> {
-            let v: f64 = field
-                .parse()
-                .map_err(|_| err(line, i, format!("`{field}` is not a number")))?;
-            if !v.is_finite() {
-                return Err(err(line, i, format!("`{field}` is not a finite number")));
-            }
-            Ok(v)
-        };
         let mut x = [0.0; 7];
-        for (i, field) in record.iter().enumerate().take(want.len()) {
-            x[i] = number(i, field)?;
+        for (i, field) in record.iter().enumerate().take(self.pose.len()) {
+            x[i] = self.number(line, i, field)?;
         }
-        // the velocity: every field empty (chosen) or every field a number (given)
-        let given: Vec<&str> = record.iter().skip(want.len()).collect();
-        let velocity = if given.iter().all(|f| f.is_empty()) {
-            None
-        } else if let Some(j) = given.iter().position(|f| f.is_empty()) {
-            return Err(err(
-                line,
-                want.len() + j,
-                format!(
-                    "empty while other velocity columns of the line are given: give all of `{}` or none",
-                    speeds.join(",")
-                ),
-            ));
-        } else {
-            let mut v = Vec::with_capacity(given.len());
-            for (j, field) in given.iter().enumerate() {
-                v.push(number(want.len() + j, field)?);
-            }
-            Some(v)
-        };
+        let velocity = self.velocity(line, record)?;
         if let Some(last) = spec.times.last()
             && x[0] <= *last
         {
-            return Err(err(
+            return Err(self.err(
                 line,
                 0,
                 format!("times must increase strictly: {} after {last}", x[0]),
@@ -212,15 +236,46 @@ pub fn parse(text: &str, file: &str, group: GroupKind) -> Result<PathSpec, Scena
         });
         spec.velocities.push(velocity);
         spec.lines.push(line);
+        Ok(())
     }
-    if spec.times.is_empty() {
-        return Err(err(
-            2,
-            0,
-            "no waypoints (at least one line after the header)".to_owned(),
-        ));
+
+    /// The line's velocity: every field empty (chosen, `None`) or every field a number (given).
+    fn velocity(
+        &self,
+        line: u64,
+        record: &csv::StringRecord,
+    ) -> Result<Option<Vec<f64>>, ScenarioError> {
+        let given: Vec<&str> = record.iter().skip(self.pose.len()).collect();
+        if given.iter().all(|f| f.is_empty()) {
+            return Ok(None);
+        }
+        if let Some(j) = given.iter().position(|f| f.is_empty()) {
+            return Err(self.err(
+                line,
+                self.pose.len() + j,
+                format!(
+                    "empty while other velocity columns of the line are given: give all of `{}` or none",
+                    self.speeds.join(",")
+                ),
+            ));
+        }
+        let mut v = Vec::with_capacity(given.len());
+        for (j, field) in given.iter().enumerate() {
+            v.push(self.number(line, self.pose.len() + j, field)?);
+        }
+        Ok(Some(v))
     }
-    Ok(spec)
+
+    /// The value in the 0-based `column` of `line`: a finite number.
+    fn number(&self, line: u64, column: usize, field: &str) -> Result<f64, ScenarioError> {
+        let v: f64 = field
+            .parse()
+            .map_err(|_| self.err(line, column, format!("`{field}` is not a number")))?;
+        if !v.is_finite() {
+            return Err(self.err(line, column, format!("`{field}` is not a finite number")));
+        }
+        Ok(v)
+    }
 }
 
 /// Checks a read waypoint file against the scenario: every leg at least one control period

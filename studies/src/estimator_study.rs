@@ -6,13 +6,14 @@
 //! the runs the EqF's average NEES at each tick against its 95 % χ² band, and with
 //! `--initial-error` the time each filter takes to converge from that attitude error.
 
-use plant::SimError;
 use crate::montecarlo::{Sample, fly, in_pool, initial_state, run_sensors};
-use plant::output::num;
-use plant::plot::{Line, Panel, law_color, render};
 use controller::Law;
 use controller::group::so3::{exp_so3, log_so3};
 use nalgebra::Vector3;
+use plant::SimError;
+use plant::output::num;
+use plant::plot::{Line, Panel, law_color, render};
+use plotters::style::RGBColor;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -325,6 +326,59 @@ pub fn write(
     out: &Path,
 ) -> Result<(), SimError> {
     let fail = |e: std::io::Error| SimError::Run(format!("cannot write {}: {e}", out.display()));
+    std::fs::write(out.join("estimators.csv"), runs_csv(results)).map_err(fail)?;
+    std::fs::write(out.join("estimators.md"), table(stats)).map_err(fail)?;
+    let nees = nees_series(results);
+    let band = stats.iter().find_map(|s| s.nees_band);
+    if let Some((lo, hi)) = band {
+        let mut csv = String::from("t,mean_nees,band_low,band_high\n");
+        for (k, x) in nees.iter().enumerate() {
+            csv += &format!(
+                "{},{},{},{}\n",
+                num(k as f64 * control_period),
+                num(*x),
+                num(lo),
+                num(hi)
+            );
+        }
+        std::fs::write(out.join("nees.csv"), csv).map_err(fail)?;
+    }
+    let filters: Vec<EstimatorKind> = estimators
+        .iter()
+        .copied()
+        .filter(|k| *k != EstimatorKind::Truth)
+        .collect();
+    let error_panel = |title: &str, y: &str, q: usize| Panel {
+        title: title.to_owned(),
+        y_label: y.to_owned(),
+        lines: filters
+            .iter()
+            .map(|k| Line {
+                label: k.name().to_owned(),
+                color: estimator_color(*k),
+                points: over_runs(results, *k, q, control_period),
+            })
+            .collect(),
+    };
+    let mut panels = vec![
+        error_panel("Attitude estimate error, RMS over runs", "error [rad]", 0),
+        error_panel("Gyro bias error |b̂ − b|, RMS over runs", "[rad/s]", 1),
+    ];
+    if let Some(band) = band {
+        panels.push(nees_panel(&nees, band, control_period));
+    }
+    let runs = stats.first().map_or(0, |s| s.runs);
+    render(
+        &out.join("estimators"),
+        &format!("The filters on the same {runs} seeded runs"),
+        &panels,
+        1,
+        (1000, 350 * panels.len() as u32 + 50),
+    )
+}
+
+/// `estimators.csv`: one line per run and estimator.
+fn runs_csv(results: &[StudyRun]) -> String {
     let mut csv = String::from(
         "run,estimator,rms_estimate_error,rms_bias_error,rms_attitude_error,final_attitude_error,mean_nees,convergence_time\n",
     );
@@ -342,107 +396,74 @@ pub fn write(
             opt(r.convergence_time)
         );
     }
-    std::fs::write(out.join("estimators.csv"), csv).map_err(fail)?;
-    std::fs::write(out.join("estimators.md"), table(stats)).map_err(fail)?;
-    let nees = nees_series(results);
-    let band = stats.iter().find_map(|s| s.nees_band);
-    if let Some((lo, hi)) = band {
-        let mut csv = String::from("t,mean_nees,band_low,band_high\n");
-        for (k, x) in nees.iter().enumerate() {
-            csv += &format!(
-                "{},{},{},{}\n",
-                num(k as f64 * control_period),
-                num(*x),
-                num(lo),
-                num(hi)
-            );
-        }
-        std::fs::write(out.join("nees.csv"), csv).map_err(fail)?;
-    }
-    // per tick, the RMS over runs of each estimator's attitude and bias error
-    let color = |k: EstimatorKind| match k {
+    csv
+}
+
+/// Each estimator's colour in the figure.
+fn estimator_color(k: EstimatorKind) -> RGBColor {
+    match k {
         EstimatorKind::Truth => law_color("eqt"),
         EstimatorKind::Complementary => law_color("gt"),
         EstimatorKind::Eqf => law_color("nog"),
-    };
-    let over_runs = |kind: EstimatorKind, q: usize| -> Vec<(f64, f64)> {
-        let runs: Vec<&StudyRun> = results.iter().filter(|r| r.estimator == kind).collect();
-        let len = runs.iter().map(|r| r.series.len()).min().unwrap_or(0);
-        (0..len)
-            .map(|k| {
-                let ms = runs.iter().map(|r| r.series[k][q].powi(2)).sum::<f64>()
-                    / runs.len().max(1) as f64;
-                (k as f64 * control_period, ms.sqrt())
-            })
-            .collect()
-    };
-    let filters: Vec<EstimatorKind> = estimators
-        .iter()
-        .copied()
-        .filter(|k| *k != EstimatorKind::Truth)
-        .collect();
-    let error_panel = |title: &str, y: &str, q: usize| Panel {
-        title: title.to_owned(),
-        y_label: y.to_owned(),
-        lines: filters
-            .iter()
-            .map(|k| Line {
-                label: k.name().to_owned(),
-                color: color(*k),
-                points: over_runs(*k, q),
-            })
-            .collect(),
-    };
-    let mut panels = vec![
-        error_panel("Attitude estimate error, RMS over runs", "error [rad]", 0),
-        error_panel("Gyro bias error |b̂ − b|, RMS over runs", "[rad/s]", 1),
-    ];
-    if let Some((lo, hi)) = band {
-        let t = |k: usize| k as f64 * control_period;
-        let flat = |v: f64| vec![(0.0, v), (t(nees.len().saturating_sub(1)), v)];
-        // a start far off makes the first ticks' NEES thousands: drawn clipped, so the band
-        // stays readable
-        let top = 3.0 * hi;
-        let clipped = nees.iter().any(|x| *x > top);
-        panels.push(Panel {
-            title: format!(
-                "EqF: NEES averaged over the runs, with its 95 % χ² band{}",
-                if clipped {
-                    format!(" (drawn clipped at {top:.0})")
-                } else {
-                    String::new()
-                }
-            ),
-            y_label: "NEES".to_owned(),
-            lines: vec![
-                Line {
-                    label: "mean NEES".to_owned(),
-                    color: color(EstimatorKind::Eqf),
-                    points: nees
-                        .iter()
-                        .enumerate()
-                        .map(|(k, x)| (t(k), x.min(top)))
-                        .collect(),
-                },
-                Line {
-                    label: format!("band {lo:.2} – {hi:.2}"),
-                    color: law_color("asym"),
-                    points: flat(lo),
-                },
-                Line {
-                    label: String::new(),
-                    color: law_color("asym"),
-                    points: flat(hi),
-                },
-            ],
-        });
     }
-    let runs = stats.first().map_or(0, |s| s.runs);
-    render(
-        &out.join("estimators"),
-        &format!("The filters on the same {runs} seeded runs"),
-        &panels,
-        1,
-        (1000, 350 * panels.len() as u32 + 50),
-    )
+}
+
+/// Per tick, the RMS over the runs of estimator `kind` of error `q` (0: attitude, 1: bias).
+fn over_runs(
+    results: &[StudyRun],
+    kind: EstimatorKind,
+    q: usize,
+    control_period: f64,
+) -> Vec<(f64, f64)> {
+    let runs: Vec<&StudyRun> = results.iter().filter(|r| r.estimator == kind).collect();
+    let len = runs.iter().map(|r| r.series.len()).min().unwrap_or(0);
+    (0..len)
+        .map(|k| {
+            let ms =
+                runs.iter().map(|r| r.series[k][q].powi(2)).sum::<f64>() / runs.len().max(1) as f64;
+            (k as f64 * control_period, ms.sqrt())
+        })
+        .collect()
+}
+
+/// The EqF's run-averaged NEES per tick with its 95 % χ² band `(lo, hi)`.
+fn nees_panel(nees: &[f64], (lo, hi): (f64, f64), control_period: f64) -> Panel {
+    let t = |k: usize| k as f64 * control_period;
+    let flat = |v: f64| vec![(0.0, v), (t(nees.len().saturating_sub(1)), v)];
+    // a start far off makes the first ticks' NEES thousands: drawn clipped, so the band
+    // stays readable
+    let top = 3.0 * hi;
+    let clipped = nees.iter().any(|x| *x > top);
+    Panel {
+        title: format!(
+            "EqF: NEES averaged over the runs, with its 95 % χ² band{}",
+            if clipped {
+                format!(" (drawn clipped at {top:.0})")
+            } else {
+                String::new()
+            }
+        ),
+        y_label: "NEES".to_owned(),
+        lines: vec![
+            Line {
+                label: "mean NEES".to_owned(),
+                color: estimator_color(EstimatorKind::Eqf),
+                points: nees
+                    .iter()
+                    .enumerate()
+                    .map(|(k, x)| (t(k), x.min(top)))
+                    .collect(),
+            },
+            Line {
+                label: format!("band {lo:.2} – {hi:.2}"),
+                color: law_color("asym"),
+                points: flat(lo),
+            },
+            Line {
+                label: String::new(),
+                color: law_color("asym"),
+                points: flat(hi),
+            },
+        ],
+    }
 }

@@ -9,6 +9,7 @@
 //!   is flown.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod estimator_study;
 pub mod montecarlo;

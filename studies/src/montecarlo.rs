@@ -5,15 +5,15 @@
 //! `w ~ N(0, 1)` per axis, all from one ChaCha8 stream seeded with `--seed` in run order, so
 //! the numbers do not depend on the thread count.
 
-use plant::SimError;
-use plant::output::num;
-use plant::plot::{Line, Panel, law_color, render};
-use plant::trajectory::{effort, settling_time, simulate_with};
 use controller::group::So3;
 use controller::group::so3::{exp_so3, log_so3};
 use controller::integrator::RigidBody;
 use controller::{GroupKind, Law};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use plant::SimError;
+use plant::output::num;
+use plant::plot::{Line, Panel, law_color, render};
+use plant::trajectory::{effort, settling_time, simulate_with};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal, Uniform};

@@ -2,13 +2,13 @@
 //! `reference.csv` (`t`, `qd_ij`, `vd_i`, `vd_dot_i`, `tau_d_i`) and a figure — so that a
 //! manoeuvre is checked before it is flown.
 
+use controller::group::{MatrixLieGroup, OnGroup};
+use controller::{Source, Trajectory};
+use nalgebra::{SMatrix, SVector};
 use plant::SimError;
 use plant::output::{ensure_dir, num, write_json};
 use plant::plot::{Line, Panel, render};
 use plant::trajectory::input;
-use controller::group::{MatrixLieGroup, OnGroup};
-use controller::{Source, Trajectory};
-use nalgebra::{SMatrix, SVector};
 use plotters::style::RGBColor;
 use scenario::{PathKind, Scenario};
 use std::path::{Path, PathBuf};

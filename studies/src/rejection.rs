@@ -5,11 +5,11 @@
 //! disturbances (seeded), the final error's distribution per variant
 //! (`rejection_montecarlo.csv`).
 
+use controller::Frame;
 use plant::SimError;
 use plant::output::num;
 use plant::plot::{Line, Panel, law_color, render};
 use plant::trajectory::{Row, simulate};
-use controller::Frame;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal, Uniform};

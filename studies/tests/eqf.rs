@@ -3,10 +3,10 @@
 //! matched noise and out of it with the noise understated, its convergence from 2.5 rad, and
 //! the filters flown on the same sensor streams.
 
-use studies::estimator_study::{StudyRun, chi2_band, run_study, stats};
-use studies::montecarlo::draw_samples;
 use scenario::{EstimatorKind, Scenario};
 use std::path::Path;
+use studies::estimator_study::{StudyRun, chi2_band, run_study, stats};
+use studies::montecarlo::draw_samples;
 
 fn eqf_so3() -> Scenario {
     Scenario::from_file(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/eqf_so3.toml"))

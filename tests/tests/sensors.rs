@@ -117,10 +117,7 @@ fn replays(out: &str, name: &str, kind: &str) {
     let header = recorder::Header::from_bytes(&log).unwrap();
     assert!(header.sensors);
     let k = 1000;
-    let at = recorder::HEADER_BYTES
-        + k * header.record_bytes()
-        + recorder::RECORD_BYTES
-        + 8;
+    let at = recorder::HEADER_BYTES + k * header.record_bytes() + recorder::RECORD_BYTES + 8;
     let gyro = f64::from_le_bytes(log[at..at + 8].try_into().unwrap());
     log[at..at + 8].copy_from_slice(&(gyro * (1.0 + 1e-12) + 1e-15).to_le_bytes());
     std::fs::write(format!("{planted}/messages.log"), log).unwrap();

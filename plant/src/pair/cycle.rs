@@ -2,13 +2,13 @@
 
 use super::{PlantRun, log};
 use crate::SimError;
-use recorder::Record;
 use crate::spawn::Spawned;
 use crate::trajectory::Row;
 use controller::Trajectory as _;
 use controller::group::MatrixLieGroup;
 use controller::law::{safe_mode_torque, saturate};
 use link::{Command, Decision, NoCommand, Transition, clock};
+use recorder::Record;
 use std::io::IsTerminal;
 use std::time::Instant;
 

@@ -6,7 +6,6 @@ use super::{
 use crate::SimError;
 use crate::output::{Summary, write_json, write_trajectory_csv};
 use crate::plot::trajectory_figure;
-use recorder::{Header, Recorder};
 use crate::spawn::Spawned;
 use crate::trajectory::{Row, SimulatedTrajectory, input};
 use controller::group::MatrixLieGroup;
@@ -14,6 +13,7 @@ use ipc_types::StateMsg;
 use link::wire::group_code;
 use link::{Command, DeadlinePolicy, NoCommand, PlantEndpoint, PlantEndpointConfig, clock};
 use nalgebra::SVector;
+use recorder::{Header, Recorder};
 use scenario::Scenario;
 use std::time::Instant;
 
@@ -268,16 +268,9 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         Ok(first)
     }
 
-    /// Writes trajectory.csv, summary.json and the figure.
-    pub(super) fn write(
-        mut self,
-        interrupted: Option<link::StopSignal>,
-        controller_exit: Option<i32>,
-        rejected: u64,
-        late: u64,
-        loop_allocations: Option<u64>,
-    ) -> Result<(SimulatedTrajectory, PairSummary), SimError> {
-        // a failed recording (a full disk) is reported, and the run's results still written
+    /// Ends the flight recording and logs how it went; a failed recording (a full disk) is
+    /// reported, and the run's results are still written.
+    fn finish_recording(&mut self) -> Option<recorder::RecordingReport> {
         let recording = match self.recorder.take().map(Recorder::finish) {
             Some(Ok(r)) => Some(r),
             Some(Err(e)) => {
@@ -303,6 +296,19 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 }
             ));
         }
+        recording
+    }
+
+    /// Writes trajectory.csv, summary.json and the figure.
+    pub(super) fn write(
+        mut self,
+        interrupted: Option<link::StopSignal>,
+        controller_exit: Option<i32>,
+        rejected: u64,
+        late: u64,
+        loop_allocations: Option<u64>,
+    ) -> Result<(SimulatedTrajectory, PairSummary), SimError> {
+        let recording = self.finish_recording();
         let (opts, s) = (self.opts, &self.s);
         let realtime = self.realtime();
         let cycles = self.cycles;
@@ -351,24 +357,25 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         };
         write_trajectory_csv(&traj, &opts.out.join("trajectory.csv"))?;
         write_json(&summary, &opts.out.join("summary.json"))?;
-        let title = format!(
-            "{} — {} on {}, {} ({}){}",
-            s.name,
-            s.law.name().to_uppercase(),
-            s.group.name().to_uppercase(),
-            if realtime {
-                format!("real time at {} Hz", opts.rate_hz)
-            } else {
-                "lockstep".to_owned()
-            },
-            opts.run,
-            if interrupted.is_some() {
-                ", interrupted"
-            } else {
-                ""
-            }
-        );
+        let title = figure_title(s, opts, realtime, interrupted.is_some());
         trajectory_figure(&traj, &title, &opts.out.join("figure"))?;
         Ok((traj, summary))
     }
+}
+
+/// The run figure's title: the scenario, the law, the group, the mode and the run's name.
+fn figure_title(s: &Scenario, opts: &PairOptions, realtime: bool, interrupted: bool) -> String {
+    format!(
+        "{} — {} on {}, {} ({}){}",
+        s.name,
+        s.law.name().to_uppercase(),
+        s.group.name().to_uppercase(),
+        if realtime {
+            format!("real time at {} Hz", opts.rate_hz)
+        } else {
+            "lockstep".to_owned()
+        },
+        opts.run,
+        if interrupted { ", interrupted" } else { "" }
+    )
 }

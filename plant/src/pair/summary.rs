@@ -2,9 +2,9 @@
 
 use crate::SimError;
 use crate::output::Summary;
-use recorder::RecordingReport;
 use hdrhistogram::Histogram;
 use link::Command;
+use recorder::RecordingReport;
 use serde::Serialize;
 
 /// The summary's note on a lockstep run's deadline figures.

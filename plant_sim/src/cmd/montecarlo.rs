@@ -5,11 +5,11 @@ use clap::Args;
 use controller::Law;
 use link::StopFlag;
 use plant::SimError;
-use studies::montecarlo;
 use plant::output::{ensure_dir, write_json};
 use scenario::Scenario;
 use scenario::cli::law_parser;
 use std::path::{Path, PathBuf};
+use studies::montecarlo;
 
 #[derive(Args)]
 pub(crate) struct McArgs {

@@ -53,6 +53,38 @@ pub(crate) fn replay_cmd(args: ReplayArgs) -> Result<(), SimError> {
         out: args.out,
     };
     let r = replay(&opts)?;
+    print_report(&r, &opts);
+    match &r.first {
+        Some(d) if !opts.what_if() => Err(SimError::Run(format!(
+            "replay differs from the recording: {} of {} commands, first at cycle {} ({})",
+            r.differing,
+            r.compared,
+            d.cycle,
+            d.describe()
+        ))),
+        _ => match r
+            .estimator
+            .as_ref()
+            .and_then(|e| e.first.as_ref().map(|d| (e, d)))
+        {
+            Some((e, d)) => Err(SimError::Run(format!(
+                "the replayed estimator differs from the recording: {} of {} estimates, first at cycle {} ({})",
+                e.differing,
+                e.compared,
+                d.cycle,
+                d.describe()
+            ))),
+            None => Ok(()),
+        },
+    }
+}
+
+/// Prints what the replay found: notes on the log, the comparison, the first difference, the
+/// streamed reference, the estimator's check, and what a what-if wrote.
+fn print_report(
+    r: &flight_tools::replay::ReplayReport,
+    opts: &flight_tools::replay::ReplayOptions,
+) {
     if r.trailing_bytes > 0 {
         println!(
             "note: the log ends {} bytes into a record (the recording was cut short, e.g. by SIGKILL): replayed up to its last whole record",
@@ -117,28 +149,5 @@ pub(crate) fn replay_cmd(args: ReplayArgs) -> Result<(), SimError> {
             r.max_torque_difference,
             dir.display()
         );
-    }
-    match &r.first {
-        Some(d) if !opts.what_if() => Err(SimError::Run(format!(
-            "replay differs from the recording: {} of {} commands, first at cycle {} ({})",
-            r.differing,
-            r.compared,
-            d.cycle,
-            d.describe()
-        ))),
-        _ => match r
-            .estimator
-            .as_ref()
-            .and_then(|e| e.first.as_ref().map(|d| (e, d)))
-        {
-            Some((e, d)) => Err(SimError::Run(format!(
-                "the replayed estimator differs from the recording: {} of {} estimates, first at cycle {} ({})",
-                e.differing,
-                e.compared,
-                d.cycle,
-                d.describe()
-            ))),
-            None => Ok(()),
-        },
     }
 }

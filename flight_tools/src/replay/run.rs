@@ -1,0 +1,455 @@
+//! One replay: the recorded states answered again by the controller's cycle, in order, with
+//! the node's own checks and bookkeeping (the terms restored from each command, the law each
+//! command names, the streamed reference's plan messages), and the estimator stepped again
+//! over the recorded samples.
+
+use super::output::{figure, write_csv};
+use super::{Difference, EstimatorCheck, ReplayOptions, ReplayReport};
+use control_cycle::PlanIntake;
+use controller::Source;
+use controller::group::MatrixLieGroup;
+use controller::{Law, Trajectory as _};
+use ipc_types::{CommandMsg, StateMsg};
+use link::Decision;
+use plant::SimError;
+use plant::output::ensure_dir;
+use recorder::{LogReader, PlanEntry, Record};
+use scenario::Scenario;
+
+/// One cycle of `replay.csv`.
+pub(super) struct Row {
+    pub(super) cycle: u64,
+    pub(super) t: f64,
+    pub(super) decision: Decision,
+    pub(super) recorded: Option<CommandMsg>,
+    pub(super) replayed: Option<CommandMsg>,
+}
+
+/// The recorded plan messages handed to a streamed run's reference, as the node took them.
+struct Plans<'a> {
+    entries: &'a [PlanEntry],
+    intake: PlanIntake,
+    /// Entries before this one were handed over (or passed by).
+    next: usize,
+    taken: u64,
+}
+
+impl Plans<'_> {
+    /// Before state k is answered (the reference still at the previous state's time, as
+    /// the node pulls after answering): hands over what the controller had taken by the
+    /// time it answered, as recorded command `c` says.
+    fn catch_up<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &mut self,
+        c: &CommandMsg,
+        cycle: u64,
+        reference: &mut Source<f64, G, N, M>,
+    ) -> Result<(), SimError> {
+        if c.plans_received == self.intake.received {
+            return Ok(());
+        }
+        let Source::Path(path) = reference else {
+            return Ok(());
+        };
+        let named = (c.plan_pid, c.plan_seq);
+        let Some(j) = (self.next..self.entries.len())
+            .find(|&i| (self.entries[i].msg.planner_pid, self.entries[i].msg.seq) == named)
+        else {
+            return Err(SimError::Input(format!(
+                "cycle {cycle}: the controller had taken plan message seq {} from planner pid {}, which plans.log does not hold (the recorder did not see it on the plan board): this streamed run cannot be checked",
+                c.plan_seq, c.plan_pid
+            )));
+        };
+        // the messages taken since the last command: the last `new` seen up to the named one
+        let new = c.plans_received.wrapping_sub(self.intake.received) as usize;
+        for e in &self.entries[(j + 1).saturating_sub(new).max(self.next)..=j] {
+            // a refused message counts as taken; the node refuses it the same way
+            let _ = self.intake.take(&e.msg, path);
+            self.taken += 1;
+        }
+        self.intake.received = c.plans_received;
+        self.next = j + 1;
+        Ok(())
+    }
+}
+
+pub(super) fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    opts: &ReplayOptions,
+    log: &mut LogReader,
+    s: &Scenario,
+    plans: Option<&[PlanEntry]>,
+) -> Result<ReplayReport, SimError> {
+    let mut run = ReplayRun::<G, N, M>::new(opts, log, s, plans)?;
+    while let Some(r) = log.next_record()? {
+        run.record(&r)?;
+    }
+    run.finish(log)
+}
+
+/// A `(responder, law)` pair: the controller's cycle answering with one law.
+type LawResponder<G, const N: usize, const M: usize> =
+    (Law, control_cycle::Responder<f64, G, N, M>);
+
+/// The replay of one recording on group `G`: the controller's cycle (and the estimator) run
+/// again over the records in order, with the node's own checks and bookkeeping.
+struct ReplayRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
+    opts: &'a ReplayOptions,
+    s: &'a Scenario,
+    what_if: bool,
+    /// One responder per law the recorded commands name (protocol 5 commands say which law
+    /// computed them); a what-if answers every state with its own law.
+    responders: Vec<LawResponder<G, N, M>>,
+    /// The law the last recorded command named.
+    law: Law,
+    plans: Option<Plans<'a>>,
+    /// The run's estimator, fresh, at the run's period: stepped over the recorded samples.
+    estimation: Option<plant::estimation::Estimation>,
+    /// The recorded states since the last one a command named as its previous.
+    states: std::collections::BTreeMap<u64, StateMsg>,
+    reference: Option<Source<f64, G, N, M>>,
+    /// The cycle the next record should have.
+    next: u64,
+    /// The node's own checks on each state (sequence, period): what it would have rejected
+    /// gets no command in replay either.
+    last_seq: Option<u64>,
+    period: Option<f64>,
+    rows: Vec<Row>,
+    report: ReplayReport,
+}
+
+impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, G, N, M> {
+    fn new(
+        opts: &'a ReplayOptions,
+        log: &LogReader,
+        s: &'a Scenario,
+        plans: Option<&'a [PlanEntry]>,
+    ) -> Result<Self, SimError> {
+        let what_if = opts.what_if();
+        let responders = vec![(s.law, responder_for::<G, N, M>(s, s.law)?)];
+        let estimation = match (log.header.sensors, what_if) {
+            (true, false) => {
+                let mut at = s.clone();
+                at.control_period = log.header.control_period;
+                plant::estimation::Estimation::new(&at, at.control_period, &[])?
+            }
+            _ => None,
+        };
+        let report = ReplayReport {
+            cycles: 0,
+            compared: 0,
+            differing: 0,
+            first: None,
+            max_torque_difference: 0.0,
+            missing: 0,
+            trailing_bytes: log.trailing_bytes,
+            written: None,
+            recorded_laws: Vec::new(),
+            plans_taken: None,
+            estimator: estimation.as_ref().map(|_| EstimatorCheck::default()),
+        };
+        Ok(ReplayRun {
+            opts,
+            s,
+            what_if,
+            responders,
+            law: s.law,
+            plans: plans.map(|entries| Plans {
+                entries,
+                intake: PlanIntake::default(),
+                next: 0,
+                taken: 0,
+            }),
+            estimation,
+            states: std::collections::BTreeMap::new(),
+            reference: None,
+            next: 0,
+            last_seq: None,
+            period: None,
+            rows: Vec::new(),
+            report,
+        })
+    }
+
+    /// Replays one record: the estimator's check, the node's checks on the state, the
+    /// controller's state restored from the command, the reference moved on, the answer
+    /// compared with the recorded command.
+    fn record(&mut self, r: &Record) -> Result<(), SimError> {
+        self.report.cycles += 1;
+        self.report.missing += r.cycle.saturating_sub(self.next);
+        self.check_estimator(r);
+        self.next = r.cycle + 1;
+        if ipc_types::check_state(
+            &r.state,
+            link::wire::wire_group(G::KIND),
+            self.last_seq,
+            self.period,
+        )
+        .is_err()
+        {
+            if let Some((rec, _)) = &r.command {
+                compare::<M>(&mut self.report, r, rec, None);
+            }
+            return Ok(());
+        }
+        (self.last_seq, self.period) = (Some(r.state.seq), Some(r.state.control_period));
+        self.note_law(r);
+        let at = self.responder_index()?;
+        if let (Some((c, _)), false) = (&r.command, self.what_if) {
+            // the controller's state before it answered: from the command and the recorded
+            // state it processed before (states it never saw, or answered too late to be
+            // recorded, change nothing)
+            let previous = self.states.get(&c.previous_seq).copied();
+            self.responders[at].1.restore(c, previous.as_ref());
+            self.states.retain(|k, _| *k >= c.previous_seq);
+        }
+        self.states.insert(r.state.seq, r.state);
+        let replayed = self.answer(r, at)?;
+        let recorded = r.command.map(|c| c.0);
+        if let Some(rec) = &recorded {
+            compare::<M>(&mut self.report, r, rec, replayed.as_ref());
+        }
+        if self.what_if {
+            self.rows.push(Row {
+                cycle: r.cycle,
+                t: r.state.t,
+                decision: r.decision,
+                recorded,
+                replayed,
+            });
+        }
+        Ok(())
+    }
+
+    /// Steps the estimator over the record's samples, or stops checking it at the first
+    /// gap (the filter's state after a gap is not in the record).
+    fn check_estimator(&mut self, r: &Record) {
+        if let (Some(e), Some(check)) = (&mut self.estimation, &mut self.report.estimator) {
+            match (&r.sensors, r.cycle == self.next) {
+                (Some(sr), true) => check_estimate::<N, M>(e, sr, r, check),
+                _ => {
+                    check.stopped_at = Some(r.cycle);
+                    self.estimation = None;
+                }
+            }
+        }
+    }
+
+    /// Follows the law the recorded command names (not in a what-if).
+    fn note_law(&mut self, r: &Record) {
+        if let (Some((c, _)), false) = (&r.command, self.what_if)
+            && let Some(named) = link::wire::law_from_code(c.law)
+        {
+            self.law = named;
+            if !self.report.recorded_laws.contains(&named) {
+                self.report.recorded_laws.push(named);
+            }
+        }
+    }
+
+    /// The responder of the current law, made on its first use.
+    fn responder_index(&mut self) -> Result<usize, SimError> {
+        Ok(
+            match self.responders.iter().position(|(l, _)| *l == self.law) {
+                Some(i) => i,
+                None => {
+                    let responder = responder_for::<G, N, M>(self.s, self.law)?;
+                    self.responders.push((self.law, responder));
+                    self.responders.len() - 1
+                }
+            },
+        )
+    }
+
+    /// The node builds its reference on the first state, at the plant's period (a streamed
+    /// one holds the start pose until pieces come); it moves it on after each answer, after
+    /// taking the plan messages that came (replay: before the next answer). Then responder
+    /// `at` answers the state.
+    fn answer(&mut self, r: &Record, at: usize) -> Result<Option<CommandMsg>, SimError> {
+        let (reference, fresh) = match &mut self.reference {
+            Some(x) => (x, false),
+            None => {
+                let mut at = self.s.clone();
+                at.control_period = r.state.control_period;
+                let built = match self.plans {
+                    Some(_) => control_cycle::streamed_reference::<G, N, M>(&at),
+                    None => at.reference_source::<G, N, M>(),
+                };
+                (self.reference.insert(built.map_err(bad(self.s))?), true)
+            }
+        };
+        if let (Some(p), Some((c, _))) = (&mut self.plans, &r.command) {
+            p.catch_up(c, r.cycle, reference)?;
+        }
+        if !fresh {
+            reference.advance();
+        }
+        Ok(self.responders[at].1.respond(reference, &r.state).ok())
+    }
+
+    /// The report, and a what-if's `replay.csv` and figure.
+    fn finish(mut self, log: &LogReader) -> Result<ReplayReport, SimError> {
+        self.report.plans_taken = self.plans.map(|p| p.taken);
+        if self.report.recorded_laws == [self.s.law] {
+            self.report.recorded_laws.clear();
+        }
+        if self.what_if {
+            let out = self
+                .opts
+                .out
+                .clone()
+                .unwrap_or_else(|| self.opts.dir.clone());
+            ensure_dir(&out)?;
+            write_csv::<M>(&self.rows, &out.join("replay.csv"))?;
+            figure::<M>(
+                &self.rows,
+                self.opts,
+                self.s,
+                &log.header.law,
+                &out.join("replay"),
+            )?;
+            self.report.written = Some(out);
+        }
+        Ok(self.report)
+    }
+}
+
+/// A bad scenario, named.
+fn bad(s: &Scenario) -> impl Fn(controller::Error) -> SimError + '_ {
+    move |e| SimError::Input(format!("scenario `{}`: {e}", s.name))
+}
+
+/// The controller's cycle for scenario `s` with law `law` (the scenario's own, or another
+/// one a recorded command names).
+fn responder_for<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    s: &Scenario,
+    law: Law,
+) -> Result<control_cycle::Responder<f64, G, N, M>, SimError> {
+    let with = if law == s.law {
+        s.clone()
+    } else {
+        s.clone().with_law(law).map_err(|e| {
+            SimError::Input(format!(
+                "the recorded commands name law {}: {e}",
+                law.name()
+            ))
+        })?
+    };
+    with.controller::<G, N, M>()
+        .and_then(|c| control_cycle::Responder::new(c, with.rejection_config()))
+        .map_err(bad(s))
+}
+
+/// Steps the estimator over record `r`'s samples and compares what it publishes with the
+/// recorded state message's `Q̂`, `V̂` and the recorded bias, bit for bit.
+fn check_estimate<const N: usize, const M: usize>(
+    e: &mut plant::estimation::Estimation,
+    sr: &recorder::SensorRecord,
+    r: &Record,
+    check: &mut EstimatorCheck,
+) {
+    let truth = StateMsg {
+        q: sr.q_true,
+        v: sr.v_true,
+        ..r.state
+    };
+    let (q_hat, v_hat, row) = e.estimate::<N, M>(
+        sr.samples,
+        &truth.configuration::<N>(),
+        &truth.velocity::<M>(),
+    );
+    let mut published = r.state;
+    published.set_state(&q_hat, &v_hat);
+    check.compared += 1;
+    let pairs = (0..N * N)
+        .map(|i| (format!("estimate Q̂[{i}]"), r.state.q[i], published.q[i]))
+        .chain((0..M).map(|i| (format!("estimate V̂[{i}]"), r.state.v[i], published.v[i])))
+        .chain((0..3).map(|i| {
+            (
+                format!("estimated bias[{i}]"),
+                sr.bias_hat[i],
+                row.bias_hat[i],
+            )
+        }));
+    let mut found = None;
+    for (what, a, b) in pairs {
+        if a.to_bits() != b.to_bits() {
+            found = Some(Difference {
+                cycle: r.cycle,
+                t: r.state.t,
+                what,
+                recorded: a,
+                replayed: b,
+            });
+            break;
+        }
+    }
+    if let Some(d) = found {
+        check.differing += 1;
+        check.first.get_or_insert(d);
+    }
+}
+
+/// Compares one recorded command with the replayed one, bit for bit (torque, L, the
+/// observer's estimate and the integral's torque).
+fn compare<const M: usize>(
+    report: &mut ReplayReport,
+    r: &Record,
+    recorded: &CommandMsg,
+    replayed: Option<&CommandMsg>,
+) {
+    report.compared += 1;
+    let diff = |what: String, a: f64, b: f64| Difference {
+        cycle: r.cycle,
+        t: r.state.t,
+        what,
+        recorded: a,
+        replayed: b,
+    };
+    let found = match replayed {
+        None => Some(diff(
+            "no command: the controller would reject or refuse this state".to_owned(),
+            recorded.tau[0],
+            f64::NAN,
+        )),
+        Some(c) => {
+            let mut worst: Option<Difference> = None;
+            for i in 0..M {
+                let (a, b) = (recorded.tau[i], c.tau[i]);
+                let d = (b - a).abs();
+                if d.is_finite() {
+                    report.max_torque_difference = report.max_torque_difference.max(d);
+                }
+                if a.to_bits() != b.to_bits()
+                    && worst.as_ref().is_none_or(|w| d.total_cmp(&w.by()).is_gt())
+                {
+                    worst = Some(diff(format!("tau[{i}]"), a, b));
+                }
+            }
+            worst.or_else(|| {
+                let terms = (0..M).flat_map(|i| {
+                    [
+                        (
+                            format!("observer[{i}]"),
+                            recorded.observer[i],
+                            c.observer[i],
+                        ),
+                        (
+                            format!("integral[{i}]"),
+                            recorded.integral[i],
+                            c.integral[i],
+                        ),
+                    ]
+                });
+                std::iter::once(("L".to_owned(), recorded.lyapunov, c.lyapunov))
+                    .chain(terms)
+                    .find(|(_, a, b)| a.to_bits() != b.to_bits())
+                    .map(|(what, a, b)| diff(what, a, b))
+            })
+        }
+    };
+    if let Some(d) = found {
+        report.differing += 1;
+        if report.first.is_none() {
+            report.first = Some(d);
+        }
+    }
+}

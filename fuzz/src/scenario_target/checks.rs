@@ -1,0 +1,178 @@
+//! The oracle of the scenario target: parsing and validating, then what the processes do with
+//! an accepted scenario; the report's names of the errors.
+
+use crate::Outcome;
+use controller::group::OnGroup;
+use controller::{Law, MatrixLieGroup, Quantity};
+use scenario::{Scenario, ScenarioError};
+
+/// Closed-loop cycles run on an accepted scenario, at most.
+const CYCLES: usize = 3;
+/// RKMK4 substeps one accepted case may spend per integrator (plant, reference): a scenario
+/// asking for more substeps per period runs fewer cycles (down to one law evaluation and no
+/// step), so a case stays cheap whatever `plant_substeps` says.
+const SUBSTEP_BUDGET: usize = 2_000;
+
+/// The report's name of a scenario error: the variant, and for `Invalid` the key (indices
+/// shown as `*`); for `Parse` a coarse class of the parser's message.
+pub(super) fn scenario_error_kind(e: &ScenarioError) -> String {
+    match e {
+        ScenarioError::Io { .. } => "ScenarioError::Io".to_owned(),
+        ScenarioError::Parse { message, .. } => {
+            let class = [
+                ("unknown field", "unknown field"),
+                ("missing field", "missing field"),
+                ("invalid type", "invalid type"),
+                ("duplicate key", "duplicate key"),
+                ("did not match any variant", "untagged: no variant matched"),
+                ("invalid length", "invalid length"),
+                ("invalid value", "invalid value"),
+            ]
+            .iter()
+            .find(|(needle, _)| message.contains(needle))
+            .map_or("syntax or value", |(_, class)| class);
+            format!("ScenarioError::Parse ({class})")
+        }
+        ScenarioError::Invalid { key, .. } => {
+            let mut k = String::with_capacity(key.len());
+            let mut in_index = false;
+            for c in key.chars() {
+                match c {
+                    '[' => {
+                        in_index = true;
+                        k.push_str("[*");
+                    }
+                    ']' => {
+                        in_index = false;
+                        k.push(']');
+                    }
+                    _ if in_index => {}
+                    _ => k.push(c),
+                }
+            }
+            format!("ScenarioError::Invalid ({k})")
+        }
+        ScenarioError::UnknownBuiltin(_) => "ScenarioError::UnknownBuiltin".to_owned(),
+        ScenarioError::Waypoints { .. } => "ScenarioError::Waypoints".to_owned(),
+    }
+}
+
+/// The report's name of a controller error: variant and quantity (no sizes or indices).
+pub(crate) fn controller_error_kind(e: &controller::Error) -> String {
+    use controller::Error as E;
+    let q = |q: &Quantity| format!("{q:?}");
+    match e {
+        E::NonFinite(x) => format!("NonFinite({})", q(x)),
+        E::NotSymmetric(x) => format!("NotSymmetric({})", q(x)),
+        E::NotPositiveDefinite(x) => format!("NotPositiveDefinite({})", q(x)),
+        E::NotPositive(x) => format!("NotPositive({})", q(x)),
+        E::WrongShape { quantity, .. } => format!("WrongShape({})", q(quantity)),
+        E::LawNotDefined { law, group } => format!("LawNotDefined({law:?}, {group:?})"),
+        E::TooManyTerms { .. } => "TooManyTerms".to_owned(),
+        E::NotIncreasing { .. } => "NotIncreasing".to_owned(),
+        E::TooManySegments { .. } => "TooManySegments".to_owned(),
+        E::NotAtRest { .. } => "NotAtRest".to_owned(),
+        E::MissesWaypoint { .. } => "MissesWaypoint".to_owned(),
+    }
+}
+
+/// `controller::Error` of one stage, as a rejection name.
+fn stage(name: &str, e: controller::Error) -> String {
+    format!("{name}: controller::Error::{}", controller_error_kind(&e))
+}
+
+/// What the processes do with an accepted scenario, on its group.
+struct Exercise<'a>(&'a Scenario);
+
+impl OnGroup for Exercise<'_> {
+    type Output = Result<(), String>;
+
+    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+        let s = self.0;
+        let controller = s
+            .controller::<G, N, M>()
+            .map_err(|e| stage("controller()", e))?;
+        let mut reference = s
+            .reference_generator::<G, N, M>()
+            .map_err(|e| stage("reference_generator()", e))?;
+        let mut body = s
+            .plant_body::<G, N, M>()
+            .map_err(|e| stage("plant_body()", e))?;
+        let _ = s
+            .feedforward::<M>()
+            .map_err(|e| stage("feedforward()", e))?;
+        // the disturbance-rejection terms, fed with the torque applied, as the node runs them
+        let mut terms = controller::Rejection::new(
+            s.rejection_config::<M>(),
+            controller.config().torque_limit.as_ref(),
+        )
+        .map_err(|e| stage("Rejection::new()", e))?;
+        let mut applied = nalgebra::SVector::<f64, M>::zeros();
+        let world = s.world_disturbance::<M>();
+        let most = s.plant_substeps.max(s.reference_substeps).max(1);
+        let cycles = (SUBSTEP_BUDGET / most).min(CYCLES);
+        for k in 0..=cycles {
+            let desired = reference.desired();
+            let (q, v) = (*body.configuration(), body.velocity());
+            let out = if s.rejection_config::<M>().any() {
+                controller
+                    .compute_rejecting(
+                        &mut terms,
+                        &q,
+                        &v,
+                        &desired,
+                        &applied,
+                        s.control_period,
+                        true,
+                    )
+                    .map_err(|e| stage("compute_rejecting()", e))?
+            } else {
+                controller
+                    .compute(&q, &v, &desired)
+                    .map_err(|e| stage("compute()", e))?
+            };
+            assert!(
+                out.torque
+                    .iter()
+                    .chain(&out.observer)
+                    .chain(&out.integral)
+                    .all(|x| x.is_finite()),
+                "the controller returned a non-finite number: {:?} {:?} {:?}",
+                out.torque.as_slice(),
+                out.observer.as_slice(),
+                out.integral.as_slice()
+            );
+            if k == cycles {
+                break;
+            }
+            applied = out.torque;
+            let total = out.torque + s.disturbance_at::<M>(k as u64);
+            match &world {
+                None => body.advance(&total, s.control_period, s.plant_substeps),
+                Some(w) => body.advance_with_world(&total, w, s.control_period, s.plant_substeps),
+            }
+            reference.advance();
+        }
+        Ok(())
+    }
+}
+
+/// Checks one scenario input (bytes: invalid UTF-8 is replaced, so the parser still runs).
+pub(crate) fn check(input: &[u8]) -> Outcome {
+    let text = String::from_utf8_lossy(input);
+    let s = match Scenario::from_toml(&text, "fuzz input", "fuzz") {
+        Ok(s) => s,
+        Err(e) => return Outcome::Rejected(scenario_error_kind(&e)),
+    };
+    let fp = s.fingerprint();
+    assert_ne!(fp, 0, "Scenario::fingerprint is documented never to be 0");
+    assert_eq!(fp, s.clone().fingerprint(), "fingerprint not deterministic");
+    std::hint::black_box(s.steps());
+    for law in Law::ALL {
+        let _ = std::hint::black_box(s.clone().with_law(law));
+    }
+    match s.group.dispatch(Exercise(&s)) {
+        Ok(()) => Outcome::Accepted,
+        Err(kind) => Outcome::Rejected(kind),
+    }
+}

@@ -1,0 +1,110 @@
+//! The seed corpus: realistic states and commands from a few cycles of the built-in
+//! scenarios' closed loops, a shutdown state and a refusal.
+
+use super::{Corpus, Item, rejection};
+use crate::MsgKind;
+use controller::MatrixLieGroup;
+use controller::group::OnGroup;
+use ipc_types::{CommandMsg, Identity, StateMsg, flags, mismatch, name_bytes};
+use link::wire::wire_group;
+use scenario::Scenario;
+
+/// Realistic messages of one scenario: a few cycles of the closed loop, a shutdown state and
+/// a refusal.
+struct Realistic<'a>(&'a Scenario);
+
+impl OnGroup for Realistic<'_> {
+    type Output = Vec<Item>;
+
+    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Vec<Item> {
+        let s = self.0;
+        // The built-in scenarios are valid: the unit tests check it.
+        let c = s.controller::<G, N, M>().expect("built-in controller");
+        let mut r = s
+            .reference_generator::<G, N, M>()
+            .expect("built-in reference");
+        let mut body = s.plant_body::<G, N, M>().expect("built-in plant");
+        let name = name_bytes(&s.name);
+        let fp = s.fingerprint();
+        let item = |kind, seq, bytes: &[u8]| Item {
+            kind,
+            group: G::KIND,
+            seq,
+            period: s.control_period,
+            bytes: bytes.to_vec(),
+        };
+        let mut out = Vec::new();
+        let mut last = StateMsg::new(link::wire::wire_group(G::KIND));
+        // the realistic commands carry both disturbance-rejection terms
+        let mut terms =
+            controller::Rejection::new(rejection::<M>(), c.config().torque_limit.as_ref())
+                .expect("valid terms");
+        let mut applied = nalgebra::SVector::<f64, M>::zeros();
+        for k in 0..4u64 {
+            let mut st = StateMsg::new(link::wire::wire_group(G::KIND));
+            st.seq = k;
+            st.t = k as f64 * s.control_period;
+            st.control_period = s.control_period;
+            st.stamp_ns = 5_000_000_000 + k * 10_000_000;
+            st.set_state(body.configuration(), &body.velocity());
+            st.set_applied(&applied);
+            st.flags = if k % 2 == 0 { flags::WAKE_EVENT } else { 0 };
+            st.plant_pid = 4242;
+            st.fingerprint = fp;
+            st.scenario = name;
+            let law = c
+                .compute_rejecting(
+                    &mut terms,
+                    body.configuration(),
+                    &body.velocity(),
+                    &r.desired(),
+                    &applied,
+                    s.control_period,
+                    true,
+                )
+                .expect("built-in law");
+            applied = law.torque;
+            let mut cmd = CommandMsg::new(link::wire::wire_group(G::KIND));
+            cmd.seq = k;
+            cmd.state_received_ns = st.stamp_ns + 20_000;
+            cmd.stamp_ns = st.stamp_ns + 55_000;
+            cmd.compute_ns = 35_000;
+            cmd.set_torque(&law.torque);
+            cmd.lyapunov = law.lyapunov.total;
+            for i in 0..M {
+                cmd.observer[i] = law.observer[i];
+                cmd.integral[i] = law.integral[i];
+            }
+            cmd.previous_seq = k.checked_sub(1).unwrap_or(ipc_types::NO_PREVIOUS);
+            cmd.heap_allocations = k.saturating_sub(1);
+            cmd.fingerprint = fp;
+            cmd.scenario = name;
+            out.push(item(MsgKind::State, k, &st.to_bytes()));
+            out.push(item(MsgKind::Command, k, &cmd.to_bytes()));
+            body.advance(&law.torque, s.control_period, s.plant_substeps);
+            r.advance();
+            last = st;
+        }
+        last.seq += 1;
+        last.flags = flags::SHUTDOWN;
+        out.push(item(MsgKind::State, last.seq, &last.to_bytes()));
+        let me = Identity::new(wire_group(G::KIND), 0.001, fp ^ 1, &s.name);
+        let refusal = CommandMsg::refusal(&me, 0, mismatch::PERIOD | mismatch::SCENARIO);
+        out.push(item(MsgKind::Command, 0, &refusal.to_bytes()));
+        out
+    }
+}
+
+impl Corpus {
+    /// Realistic states and commands of the three built-in scenarios (both groups).
+    pub(crate) fn new() -> Corpus {
+        let items = scenario::BUILTINS
+            .iter()
+            .flat_map(|(name, _)| {
+                let s = Scenario::builtin(name).expect("built-in scenario");
+                s.group.dispatch(Realistic(&s))
+            })
+            .collect();
+        Corpus { items }
+    }
+}
