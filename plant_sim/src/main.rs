@@ -1,25 +1,7 @@
-//! `plant_sim`: the plant process and the simulation front end.
-//!
-//! ```text
-//! plant_sim                                  # = plant_sim sim --builtin seed
-//! plant_sim sim [--scenario FILE | --builtin NAME] [--law L] [--out DIR]
-//! plant_sim montecarlo [--scenario FILE] [--runs N] [--seed S] [--laws eqt,gt,nog,asym]
-//!                      [--samples FILE] [--threads N] [--out DIR]
-//!                      [--estimators truth,complementary,eqf] [--initial-error RAD]
-//! plant_sim run [--scenario FILE | --builtin NAME] [--mode lockstep|realtime] [--rate-hz F]
-//!               [--wake spin|event] [--no-spawn] [--name RUN] [--out DIR] [--no-record]
-//! plant_sim replay OUT_DIR [--law L] [--scenario FILE] [--kp X[,X...]] [--kd X[,X...]]
-//! plant_sim monitor [--name RUN] [--plain]
-//! plant_sim bench-loop [--rates LIST] [--duration S] [--cyclictest PATH]
-//! plant_sim reference [--scenario FILE | --builtin NAME] [--out DIR] [--strict] [--compare-paths]
-//! plant_sim export OUT_DIR [--format mcap|jsonl] [--out FILE] [--compress]
-//! ```
-//! Exit codes: 0 done, 2 bad input (with a message naming the key and what is wrong),
-//! 1 the run could not complete.
-#![cfg_attr(not(test), warn(clippy::too_many_lines))]
+//! `plant_sim`: see the library's documentation (`plant_sim::main`), and
+//! docs/simulations.md for every subcommand.
+#![forbid(unsafe_code)]
 
-use clap::{Parser, Subcommand};
-use link::StopFlag;
 use std::process::ExitCode;
 
 // Counts the heap allocations of each thread: the plant's loop thread reports its own in
@@ -27,83 +9,6 @@ use std::process::ExitCode;
 #[global_allocator]
 static GLOBAL: alloc_counter::Counting = alloc_counter::Counting;
 
-mod cmd;
-
-use cmd::{bench_loop, export, monitor, montecarlo, noise, reference, rejection, replay, run, sim};
-
-#[derive(Parser)]
-#[command(
-    name = "plant_sim",
-    version,
-    about = "Equivariant tracking control: plant and simulator"
-)]
-struct Cli {
-    #[command(subcommand)]
-    command: Option<Command>,
-}
-
-#[derive(Subcommand)]
-enum Command {
-    /// Run the closed loop in one process; write trajectory.csv, summary.json, figure.png/.svg.
-    Sim(sim::SimArgs),
-    /// The extended paper's Monte Carlo study over the four laws.
-    Montecarlo(montecarlo::McArgs),
-    /// What sensor noise costs: truth-fed against filter-fed control over gyro noise levels,
-    /// with and without the gyro bias, over seeded runs (a scenario with [sensors]).
-    Noise(noise::NoiseArgs),
-    /// What the disturbance-rejection terms buy: the scenario (default
-    /// scenarios/reject_so3.toml) flown with the plain law, the geometric integral and the
-    /// momentum observer side by side (rejection.csv, table.md, a figure); with --runs N, a
-    /// Monte Carlo over random constant body disturbances.
-    Rejection(rejection::RejectionArgs),
-    /// The plant process of the pair: talks to controller_node over iceoryx2.
-    Run(run::RunArgs),
-    /// Round trip of the real loop: iceoryx2 busy-poll, iceoryx2 event, Unix-socket baseline.
-    BenchLoop(bench_loop::BenchLoopArgs),
-    /// The scenario's desired trajectory sampled at its control period: reference.csv and a
-    /// figure (check a manoeuvre before flying it).
-    Reference(reference::ReferenceArgs),
-    /// Export a run's flight recording (OUT_DIR/messages.log) to MCAP for Foxglove,
-    /// PlotJuggler or Rerun: OUT_DIR/run.mcap. Offline; runs `eqtrack-export` from this
-    /// binary's directory (the plant process itself never links an MCAP writer).
-    Export(export::ExportArgs),
-    /// Run the controller in-process over a recorded run's states (OUT_DIR/messages.log) and
-    /// compare every command with the recorded one, bit for bit: exit 0 when all are
-    /// identical, 1 naming the first that differs. With --law, --scenario, --kp or --kd: a
-    /// what-if, written to replay.csv and a figure (exit 0).
-    Replay(replay::ReplayArgs),
-    /// Watch a running pair live in the terminal: rate, round trip, misses, safe mode, the
-    /// Lyapunov value. Read-only; exits when the run ends, or on q or Ctrl-C.
-    Monitor(monitor::MonitorArgs),
-}
-
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let stop = match StopFlag::install() {
-        Ok(s) => s,
-        Err(e) => {
-            eprintln!("error: cannot handle signals: {e}");
-            return link::Exit::Failed.into();
-        }
-    };
-    let result = match cli.command {
-        None => sim::sim(sim::SimArgs::default(), &stop),
-        Some(Command::Sim(a)) => sim::sim(a, &stop),
-        Some(Command::Montecarlo(a)) => montecarlo::montecarlo_cmd(a, &stop),
-        Some(Command::Noise(a)) => noise::noise_cmd(a),
-        Some(Command::Rejection(a)) => rejection::rejection_cmd(a),
-        Some(Command::Run(a)) => run::run_cmd(a, &stop),
-        Some(Command::BenchLoop(a)) => bench_loop::bench_loop_cmd(a, &stop),
-        Some(Command::Reference(a)) => reference::reference_cmd(a),
-        Some(Command::Export(a)) => export::export_cmd(a),
-        Some(Command::Replay(a)) => replay::replay_cmd(a),
-        Some(Command::Monitor(a)) => monitor::monitor_cmd(a, &stop),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            e.exit().into()
-        }
-    }
+    plant_sim::main()
 }

@@ -49,7 +49,7 @@ pub struct PairOptions {
     pub out: PathBuf,
     /// Consecutive deadline misses that start safe mode.
     pub miss_limit: u32,
-    /// Record every cycle in `messages.log` (the flight recorder, [`crate::recorder`]) and
+    /// Record every cycle in `messages.log` (the flight recorder, [`recorder`]) and
     /// publish the live status the monitor shows.
     pub record: bool,
     /// The calling thread's heap allocations so far (the binary's counting allocator; `None`
