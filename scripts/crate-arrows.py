@@ -28,7 +28,8 @@ deps = {
     ]
     for p in packages
 }
-order = [p["name"] for p in packages]
+# alphabetical: cargo metadata's own order differs between checkouts
+order = sorted(p["name"] for p in packages)
 width = max(len(n) for n in ours) + 2
 block = [
     f"{name.ljust(width)}◀── {', '.join(n for n in order if name in deps[n])}"

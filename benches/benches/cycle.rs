@@ -422,7 +422,52 @@ fn paths(c: &mut Criterion) {
     group::<Se3, 4, 6>(c, "se3", "slew_se3.toml", &q, &v);
 }
 
+/// One allocation (docs/maths.md, "Control allocation"): the hexarotor (m = 6) and the ROV
+/// (m = 8), a demand within reach (stages 1–3 each converge in one or two iterations) and one
+/// past it (saturated: more active-set iterations).
+fn allocations<T: Real>(c: &mut Criterion, scalar: &str) {
+    use allocation::{Allocator, Geometry, Priority, presets};
+    use nalgebra::SVector;
+    let r = |x: f64| controller::real::<T>(x);
+    let hexarotor = presets::hexarotor::<T>(r(0.25), r(0.5), r(0.016), r(8.0));
+    let rov = presets::rov_heavy::<T>(r(0.4), r(0.3), r(0.12), r(0.22), r(40.0));
+    type Case<'a, T> = (&'a str, &'a [allocation::Actuator<T>], [f64; 6], [f64; 6]);
+    let cases: [Case<T>; 2] = [
+        (
+            "hexarotor_m6",
+            &hexarotor,
+            [0.1, -0.05, 0.02, 0.5, -0.3, 20.0],
+            [0.5, -0.3, 1.2, 2.0, -1.0, 45.0],
+        ),
+        (
+            "rov_m8",
+            &rov,
+            [1.0, -2.0, 3.0, 20.0, -10.0, 5.0],
+            [10.0, -8.0, 30.0, 150.0, -90.0, 120.0],
+        ),
+    ];
+    let mut g = c.benchmark_group("allocation");
+    g.throughput(Throughput::Elements(1));
+    for (name, acts, within, past) in cases {
+        let Ok(geometry) = Geometry::<T, 6>::new(acts) else {
+            continue;
+        };
+        let Ok(alloc) = Allocator::new(geometry, &[], &[], Priority::Torque) else {
+            continue;
+        };
+        for (reach, d) in [("within", within), ("saturated", past)] {
+            let demand = SVector::<T, 6>::from(d.map(r));
+            g.bench_function(format!("{name}/{reach}/{scalar}"), |b| {
+                b.iter(|| alloc.allocate(black_box(&demand)))
+            });
+        }
+    }
+    g.finish();
+}
+
 fn all(c: &mut Criterion) {
+    allocations::<f64>(c, "f64");
+    allocations::<f32>(c, "f32");
     laws::<f64>(c, "f64");
     laws::<f32>(c, "f32");
     baseline(c);

@@ -277,8 +277,33 @@ fn through_path_check<T: Real>() -> bool {
     through && moving && path.segments().count() == 2
 }
 
+/// Allocation without std: the hexarotor's hover wrench met exactly within the bounds, and a
+/// demand past its reach keeps the torque (status 2, the force given up).
+fn allocation_check<T: Real>() -> bool {
+    use allocation::{Allocator, Geometry, Priority, Status, presets};
+    let rotors = presets::hexarotor::<T>(real(0.25), real(0.5), real(0.016), real(8.0));
+    let Ok(geometry) = Geometry::<T, 6>::new(&rotors) else {
+        return false;
+    };
+    let Ok(alloc) = Allocator::new(geometry, &[], &[], Priority::Torque) else {
+        return false;
+    };
+    let hover = nalgebra::SVector::<T, 6>::from([T::zero(), T::zero(), T::zero(), T::zero(), T::zero(), real(20.0)]);
+    let a = alloc.allocate(&hover);
+    let met = a.status == Status::Met && (a.achieved - hover).amax() < real(1e-3);
+    let within = a.u.iter().take(6).all(|x| *x >= -real::<T>(1e-6) && *x <= real(8.0 + 1e-6));
+    let mut far = hover;
+    far[2] = real(1.2);
+    far[5] = real(45.0);
+    let b = alloc.allocate(&far);
+    let kept = b.status == Status::ForceGivenUp && (b.achieved[2] - real(1.2)).abs() < real(1e-3);
+    met && within && kept
+}
+
 fn run() -> i32 {
-    let checks: [(&str, bool); 14] = [
+    let checks: [(&str, bool); 16] = [
+        ("allocation f32", allocation_check::<f32>()),
+        ("allocation f64", allocation_check::<f64>()),
         ("through-waypoint path f32", through_path_check::<f32>()),
         ("through-waypoint path f64", through_path_check::<f64>()),
         ("disturbance rejection f32", rejection_check::<f32>()),
@@ -304,7 +329,7 @@ fn run() -> i32 {
         }
     }
     rt::write(if code == 0 {
-        b"nostd-check: controller, estimator and ipc_types run with no std, no alloc, no allocator\n"
+        b"nostd-check: controller, estimator, allocation and ipc_types run with no std, no alloc, no allocator\n"
     } else {
         b"nostd-check: FAILED\n"
     });

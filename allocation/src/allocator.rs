@@ -1,0 +1,338 @@
+//! The prioritised bounded allocation (docs/maths.md, "Control allocation").
+
+use crate::geometry::Geometry;
+use crate::qp::{MAX_EQ, Qp, least_squares, solve};
+use crate::{Commands, MAX_ACTUATORS};
+use core::fmt;
+use nalgebra::{RealField, SMatrix, SVector};
+
+/// Which part of the wrench is met first when not all of it can be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Priority {
+    /// The torque first, then the force (SE(3)); on SO(3) there is only torque.
+    Torque,
+    /// The whole wrench as one least-squares problem.
+    None,
+}
+
+/// How an allocation went: an integer code in `trajectory.csv` (`alloc_status`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    /// 0: the demand is met (to the solver's accuracy).
+    Met = 0,
+    /// 1: the torque cannot be met within the bounds (with [`Priority::None`]: the wrench);
+    /// the nearest achievable one is produced.
+    TorqueInfeasible = 1,
+    /// 2: the torque is met; the force cannot be, and the nearest achievable one (with that
+    /// torque) is produced.
+    ForceGivenUp = 2,
+    /// 3: the iteration cap stopped a stage before its optimum; the answer is the last
+    /// iterate (within the bounds, finite).
+    Stopped = 3,
+    /// 4: the demand was not finite; the answer is the preferred command within the bounds.
+    InvalidDemand = 4,
+}
+
+impl Status {
+    /// The integer code.
+    pub fn code(self) -> u8 {
+        self as u8
+    }
+}
+
+/// One allocation's answer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Allocation<T, const K: usize> {
+    /// The actuator commands `u_cmd` (0 past the geometry's count).
+    pub u: Commands<T>,
+    /// The wrench they produce, `B u_cmd`.
+    pub achieved: SVector<T, K>,
+    /// How it went.
+    pub status: Status,
+    /// Active-set iterations over all stages.
+    pub iterations: u32,
+}
+
+/// Why allocator settings are refused.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AllocatorError {
+    /// `weights` or `preferred` does not have one entry per actuator.
+    Length {
+        /// `weights` or `preferred`.
+        what: &'static str,
+        /// Its length.
+        found: usize,
+        /// The actuator count.
+        expected: usize,
+    },
+    /// A weight is not positive and finite, or a preferred command is not finite.
+    Value {
+        /// `weights` or `preferred`.
+        what: &'static str,
+        /// The entry (0-based).
+        index: usize,
+    },
+}
+
+impl fmt::Display for AllocatorError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            AllocatorError::Length {
+                what,
+                found,
+                expected,
+            } => write!(
+                f,
+                "`{what}` has {found} entries; it needs one per actuator ({expected})"
+            ),
+            AllocatorError::Value { what, index } => write!(
+                f,
+                "`{what}` entry {index} must be {}",
+                if *what == "weights" {
+                    "positive and finite"
+                } else {
+                    "finite"
+                }
+            ),
+        }
+    }
+}
+
+/// The bounds an allocation respects: the geometry's, narrowed for a rate limit or a failed
+/// actuator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bounds<T> {
+    /// The least command of each actuator.
+    pub lo: Commands<T>,
+    /// The largest command of each actuator.
+    pub hi: Commands<T>,
+}
+
+impl<T: RealField + Copy> Bounds<T> {
+    /// Holds actuator `j` at `value` (a failed actuator, stuck): its bounds become
+    /// `[value, value]`.
+    pub fn fail(&mut self, j: usize, value: T) {
+        if j < MAX_ACTUATORS {
+            self.lo[j] = value;
+            self.hi[j] = value;
+        }
+    }
+
+    /// Narrows actuator `j`'s bounds to `[from − step, from + step]` (a rate limit over one
+    /// period), keeping them within the present ones.
+    pub fn limit_rate(&mut self, j: usize, from: T, step: T) {
+        if j < MAX_ACTUATORS {
+            let lo = (from - step).max(self.lo[j]).min(self.hi[j]);
+            let hi = (from + step).min(self.hi[j]).max(lo);
+            self.lo[j] = lo;
+            self.hi[j] = hi;
+        }
+    }
+}
+
+/// The allocator: a geometry, the weights `W` and preferred command `u_pref` of the last
+/// stage, and the priority.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Allocator<T, const K: usize> {
+    geometry: Geometry<T, K>,
+    weights: Commands<T>,
+    preferred: Commands<T>,
+    priority: Priority,
+    cap: u32,
+}
+
+impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
+    /// An allocator over `geometry` with weights `W` (positive; empty: all 1) and preferred
+    /// command `u_pref` (empty: 0), one entry per actuator each.
+    pub fn new(
+        geometry: Geometry<T, K>,
+        weights: &[T],
+        preferred: &[T],
+        priority: Priority,
+    ) -> Result<Self, AllocatorError> {
+        let m = geometry.count();
+        let mut w = Commands::from_element(T::one());
+        let mut up = Commands::zeros();
+        for (what, given, into) in [
+            ("weights", weights, &mut w),
+            ("preferred", preferred, &mut up),
+        ] {
+            if given.is_empty() {
+                continue;
+            }
+            if given.len() != m {
+                return Err(AllocatorError::Length {
+                    what,
+                    found: given.len(),
+                    expected: m,
+                });
+            }
+            for (i, x) in given.iter().enumerate() {
+                let ok = x.is_finite() && (what != "weights" || *x > T::zero());
+                if !ok {
+                    return Err(AllocatorError::Value { what, index: i });
+                }
+                into[i] = *x;
+            }
+        }
+        let top = w.max();
+        Ok(Allocator {
+            geometry,
+            weights: w / top,
+            preferred: up,
+            priority,
+            cap: 8 * MAX_ACTUATORS as u32,
+        })
+    }
+
+    /// The same allocator with at most `cap` active-set iterations per stage (default
+    /// 8 × [`MAX_ACTUATORS`]); a stage that reaches it answers [`Status::Stopped`].
+    pub fn with_iteration_cap(mut self, cap: u32) -> Self {
+        self.cap = cap.max(1);
+        self
+    }
+
+    /// The geometry.
+    pub fn geometry(&self) -> &Geometry<T, K> {
+        &self.geometry
+    }
+
+    /// The geometry's bounds, to narrow for a failure or a rate limit.
+    pub fn bounds(&self) -> Bounds<T> {
+        let (lo, hi) = self.geometry.bounds();
+        Bounds { lo, hi }
+    }
+
+    /// Allocates `demand` (torque, then force on SE(3)) within the geometry's bounds.
+    pub fn allocate(&self, demand: &SVector<T, K>) -> Allocation<T, K> {
+        self.allocate_within(demand, &self.bounds())
+    }
+
+    /// Allocates `demand` within `bounds` (docs/maths.md, "Control allocation"): stage 1 the
+    /// torque (or with [`Priority::None`], or on SO(3), the whole wrench), stage 2 the force
+    /// keeping the torque achieved, stage 3 the command nearest `u_pref` in the `W`-norm
+    /// keeping the wrench achieved. Allocation-free; never NaN.
+    pub fn allocate_within(&self, demand: &SVector<T, K>, bounds: &Bounds<T>) -> Allocation<T, K> {
+        let (lo, hi) = (bounds.lo, bounds.hi);
+        let up = self
+            .preferred
+            .zip_zip_map(&lo, &hi, |p, l, h| p.max(l).min(h));
+        if !demand.iter().all(|x| x.is_finite()) {
+            return self.answer(up, Status::InvalidDemand, 0);
+        }
+        let b = self.geometry.effectiveness();
+        let split = K == 6 && self.priority == Priority::Torque;
+        let mut iterations = 0;
+        let mut stopped = false;
+        let mut run = |qp: &Qp<T>, start: Commands<T>| {
+            let s = solve(qp, &lo, &hi, start, self.cap);
+            iterations += s.iterations;
+            stopped |= s.stopped;
+            s.u
+        };
+        // stage 1: the torque (or the whole wrench)
+        let first = if split { 3 } else { K };
+        let (a1, b1) = rows(b, demand, 0..first);
+        let (h, g) = least_squares(&a1, &b1);
+        let start = self.start(demand, &up, bounds);
+        let mut u = run(&stage(h, g, &SMatrix::zeros(), 0), start);
+        // stage 2: the force, keeping the torque
+        if split {
+            let (a2, b2) = rows(b, demand, 3..6);
+            let (h, g) = least_squares(&a2, &b2);
+            u = run(&stage(h, g, &a1, 3), u);
+        }
+        // stage 3: nearest u_pref, keeping the wrench achieved
+        let (all, _) = rows(b, demand, 0..K);
+        let mut h = SMatrix::<T, MAX_ACTUATORS, MAX_ACTUATORS>::zeros();
+        let mut g = Commands::zeros();
+        for i in 0..MAX_ACTUATORS {
+            h[(i, i)] = self.weights[i];
+            g[i] = -self.weights[i] * up[i];
+        }
+        let last = Qp {
+            definite: true,
+            ..stage(h, g, &all, K)
+        };
+        u = run(&last, u);
+        let u = u.zip_zip_map(&lo, &hi, |x, l, h| x.max(l).min(h));
+        if !u.iter().all(|x| x.is_finite()) {
+            return self.answer(up, Status::Stopped, iterations);
+        }
+        let status = if stopped {
+            Status::Stopped
+        } else {
+            self.met(&u, demand, split)
+        };
+        self.answer(u, status, iterations)
+    }
+
+    /// Where stage 1 starts: the command nearest `u_pref` in the `W`-norm that produces the
+    /// whole demand, `u_pref + W⁻¹Bᵀ(BW⁻¹Bᵀ)⁻¹(w − B u_pref)`, clamped into the bounds. When
+    /// the demand is within reach and nothing saturates, it is every stage's optimum, and
+    /// each stage ends in one iteration. (Any point of the box is a valid start.)
+    fn start(&self, demand: &SVector<T, K>, up: &Commands<T>, bounds: &Bounds<T>) -> Commands<T> {
+        let b = self.geometry.effectiveness();
+        let winv = self.weights.map(|w| T::one() / w);
+        let bw = b * SMatrix::<T, MAX_ACTUATORS, MAX_ACTUATORS>::from_diagonal(&winv);
+        let Some(ch) = nalgebra::Cholesky::new(bw * b.transpose()) else {
+            return *up;
+        };
+        let u = up + bw.transpose() * ch.solve(&(demand - b * up));
+        u.zip_zip_map(&bounds.lo, &bounds.hi, |x, l, h| x.max(l).min(h))
+    }
+
+    /// Whether `u` meets the demand: the torque (or wrench), then the force.
+    fn met(&self, u: &Commands<T>, demand: &SVector<T, K>, split: bool) -> Status {
+        let miss = self.geometry.wrench(u) - demand;
+        let tol = T::default_epsilon().sqrt() * (T::one() + demand.amax());
+        let part = |r: core::ops::Range<usize>| r.into_iter().any(|i| miss[i].abs() > tol);
+        if part(0..if split { 3 } else { K }) {
+            Status::TorqueInfeasible
+        } else if split && part(3..6) {
+            Status::ForceGivenUp
+        } else {
+            Status::Met
+        }
+    }
+
+    fn answer(&self, u: Commands<T>, status: Status, iterations: u32) -> Allocation<T, K> {
+        Allocation {
+            u,
+            achieved: self.geometry.wrench(&u),
+            status,
+            iterations,
+        }
+    }
+}
+
+/// The least-squares rows `range` of `B` and of the demand, padded to [`MAX_EQ`] rows.
+fn rows<T: RealField + Copy, const K: usize>(
+    b: &SMatrix<T, K, MAX_ACTUATORS>,
+    demand: &SVector<T, K>,
+    range: core::ops::Range<usize>,
+) -> (SMatrix<T, MAX_EQ, MAX_ACTUATORS>, SVector<T, MAX_EQ>) {
+    let mut a = SMatrix::<T, MAX_EQ, MAX_ACTUATORS>::zeros();
+    let mut v = SVector::<T, MAX_EQ>::zeros();
+    for (r, i) in range.enumerate() {
+        a.set_row(r, &b.row(i));
+        v[r] = demand[i];
+    }
+    (a, v)
+}
+
+/// A stage's programme: `H`, `g`, and the first `k` rows of `c` as equalities.
+fn stage<T: RealField + Copy>(
+    h: SMatrix<T, MAX_ACTUATORS, MAX_ACTUATORS>,
+    g: Commands<T>,
+    c: &SMatrix<T, MAX_EQ, MAX_ACTUATORS>,
+    k: usize,
+) -> Qp<T> {
+    Qp {
+        definite: false,
+        h,
+        g,
+        c: *c,
+        k,
+    }
+}
