@@ -1,5 +1,5 @@
-//! Actuator geometry: the effectiveness column, and what is refused (docs/maths.md, "Control
-//! allocation").
+//! Actuator geometry: the effectiveness column, and what is refused
+//! (docs/maths.md, "Control allocation").
 
 use allocation::{
     Actuator, Allocator, AllocatorError, Geometry, GeometryError, Priority, Status, presets,

@@ -165,6 +165,27 @@ where
         }
     }
 
+    /// Advances by `period` in `substeps` RKMK4 steps under the body wrench
+    /// `wrench(s, Q, V)`, evaluated at every stage: `s` the time since the start of the period,
+    /// `Q` and `V = I⁻¹p` the stage's configuration and body velocity (docs/maths.md,
+    /// "Vehicle physics": gravity, buoyancy and drag depend on the state, an actuator's lag
+    /// on the time).
+    pub fn advance_with<F>(&mut self, period: T, substeps: usize, mut wrench: F)
+    where
+        F: FnMut(T, &SMatrix<T, N, N>, &SVector<T, M>) -> SVector<T, M>,
+    {
+        let h = period / real(substeps as f64);
+        let inv = self.inertia_inv;
+        for i in 0..substeps {
+            let t0 = h * real(i as f64);
+            self.state = rkmk4_step::<G, T, _, N, M>(&self.state, t0, h, |s, q, p| {
+                let v = inv * p;
+                let w = wrench(s, q, &v);
+                (v, G::ad(&v).tr_mul(p) + w)
+            });
+        }
+    }
+
     /// Advances by `period` with the torque held constant (zero-order hold), in `substeps`
     /// RKMK4 steps.
     pub fn advance(&mut self, torque: &SVector<T, M>, period: T, substeps: usize) {

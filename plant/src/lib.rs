@@ -8,7 +8,9 @@
 //! * [`pair`]: the plant process of the pair over `link` (lockstep or real time), with its
 //!   flight recorder; [`spawn`] starts the controller process beside it;
 //! * [`status`]: the run's live figures, published for `plant_sim monitor`;
-//! * [`output`], [`plot`]: `trajectory.csv`, `summary.json` and the figures of a run.
+//! * [`output`], [`plot`]: `trajectory.csv`, `summary.json` and the figures of a run;
+//! * [`vehicle`]: gravity, buoyancy, drag and the actuators' lag and failures, integrated with
+//!   the rigid body.
 //!
 //! It depends on no crate of the controller process: the two processes meet only on the wire.
 #![forbid(unsafe_code)]
@@ -23,6 +25,7 @@ pub mod sensors;
 pub mod spawn;
 pub mod status;
 pub mod trajectory;
+pub mod vehicle;
 
 /// Errors of the simulation front end, split by who is to blame (for the exit code).
 #[derive(Debug, thiserror::Error)]
