@@ -11,6 +11,8 @@
 //!   active-set method with an iteration cap; every answer is finite and within the bounds,
 //!   with a [`Status`].
 //! * Failures: [`Bounds::fail`] holds a failed actuator at its stuck value.
+//! * [`Restoring`]: gravity and buoyancy as a body wrench, which the controller compensates
+//!   and the plant integrates.
 //!
 //! ```
 //! use allocation::{Allocator, Geometry, Priority, Status, presets};
@@ -41,12 +43,16 @@
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 mod allocator;
+mod control;
 mod geometry;
 pub mod presets;
 mod qp;
+mod restoring;
 
 pub use allocator::{Allocation, Allocator, AllocatorError, Bounds, Priority, Status};
+pub use control::{Actuation, VehicleControl};
 pub use geometry::{Actuator, Geometry, GeometryError, LostDirections};
+pub use restoring::Restoring;
 
 /// The most actuators a geometry may have.
 pub const MAX_ACTUATORS: usize = 12;

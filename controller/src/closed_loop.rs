@@ -155,6 +155,48 @@ where
         self.step_measured(&q, &v)
     }
 
+    /// One control cycle whose wrench reaches the plant through `actuate` (a vehicle's
+    /// allocation, actuators and environment: docs/maths.md, "Vehicle physics"): the law at
+    /// `(q̂, v̂)` with its rejection terms, then `actuate(plant, wrench, period)` advances the
+    /// plant over the period and returns the wrench the terms take as applied. The
+    /// disturbances set on the loop are `actuate`'s to apply.
+    pub fn step_actuated<A>(
+        &mut self,
+        q_hat: &SMatrix<T, N, N>,
+        v_hat: &SVector<T, M>,
+        actuate: A,
+    ) -> Result<Sample<T, N, M>, Error>
+    where
+        A: FnOnce(&mut RigidBody<T, G, N, M>, &SVector<T, M>, T) -> SVector<T, M>,
+    {
+        let t = self.reference.time();
+        let q = *self.plant.configuration();
+        let v = self.plant.velocity();
+        let desired = self.reference.desired();
+        let period = self.reference.period();
+        let output = match &mut self.rejection {
+            None => self.controller.compute(q_hat, v_hat, &desired)?,
+            Some(r) => self.controller.compute_rejecting(
+                r,
+                q_hat,
+                v_hat,
+                &desired,
+                &self.applied,
+                period,
+                true,
+            )?,
+        };
+        self.applied = actuate(&mut self.plant, &output.torque, period);
+        self.reference.advance();
+        Ok(Sample {
+            t,
+            q,
+            v,
+            desired,
+            output,
+        })
+    }
+
     /// One control cycle with the law handed `(q̂, v̂)` (an estimate of the plant's state at
     /// `t_k`) instead of the exact state; the sample records the plant's true state.
     pub fn step_measured(

@@ -29,6 +29,12 @@ use stream::Stream;
 /// Runs the node until it stops. `allocations()` reads the process's allocation counter
 /// (the binary installs a counting allocator; pass `|| 0` without one).
 pub fn run(opts: &Options, allocations: &dyn Fn() -> u64) -> Result<Report, NodeError> {
+    if opts.scenario.vehicle.is_some() {
+        return Err(NodeError::Unsupported {
+            scenario: opts.scenario.name.clone(),
+            what: "it has a [vehicle]: the pair does not carry actuator commands yet (the wire has no field for them); simulate it with `plant_sim sim`",
+        });
+    }
     opts.scenario.group.dispatch(Node { opts, allocations })
 }
 

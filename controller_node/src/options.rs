@@ -95,15 +95,23 @@ pub enum NodeError {
     /// The process layer failed.
     #[error(transparent)]
     Link(#[from] LinkError),
+    /// The scenario asks for what the node cannot do yet.
+    #[error("scenario `{scenario}`: {what}")]
+    Unsupported {
+        /// Its name.
+        scenario: String,
+        /// What.
+        what: &'static str,
+    },
 }
 
 impl NodeError {
     /// The exit code class.
     pub fn exit(&self) -> link::Exit {
         match self {
-            NodeError::Scenario { .. } | NodeError::Link(LinkError::InvalidRunName(_)) => {
-                link::Exit::BadInput
-            }
+            NodeError::Scenario { .. }
+            | NodeError::Unsupported { .. }
+            | NodeError::Link(LinkError::InvalidRunName(_)) => link::Exit::BadInput,
             NodeError::Link(_) => link::Exit::Failed,
         }
     }

@@ -103,6 +103,27 @@ fn estimate_fields(e: &crate::trajectory::EstimateRow, n: usize, rec: &mut Vec<S
     }
 }
 
+/// The vehicle columns of `trajectory.csv` (docs/maths.md, "Control allocation"), for `n`
+/// wrench components and `m` actuators: `demand_i`, `u_cmd_j`, `u_j`, `achieved_i`,
+/// `alloc_status`.
+pub fn vehicle_header(n: usize, m: usize) -> Vec<String> {
+    let mut h: Vec<String> = (0..n).map(|i| format!("demand_{i}")).collect();
+    h.extend((0..m).map(|j| format!("u_cmd_{j}")));
+    h.extend((0..m).map(|j| format!("u_{j}")));
+    h.extend((0..n).map(|i| format!("achieved_{i}")));
+    h.push("alloc_status".to_owned());
+    h
+}
+
+/// The values of [`vehicle_header`]'s columns for one row.
+fn vehicle_fields(v: &crate::trajectory::VehicleRow, n: usize, m: usize, rec: &mut Vec<String>) {
+    rec.extend(v.demand[..n].iter().map(|x| num(*x)));
+    rec.extend(v.u_cmd[..m].iter().map(|x| num(*x)));
+    rec.extend(v.u[..m].iter().map(|x| num(*x)));
+    rec.extend(v.achieved[..n].iter().map(|x| num(*x)));
+    rec.push(v.status.to_string());
+}
+
 fn io(path: &Path) -> impl Fn(std::io::Error) -> SimError + '_ {
     move |e| SimError::Run(format!("cannot write {}: {e}", path.display()))
 }
@@ -129,6 +150,10 @@ pub fn write_trajectory_csv(traj: &SimulatedTrajectory, path: &Path) -> Result<(
     if with_terms {
         header.extend((0..m).map(|i| format!("dhat_{i}")));
         header.extend((0..m).map(|i| format!("integral_{i}")));
+    }
+    let vehicle = traj.rows.first().and_then(|r| r.vehicle).map(|v| v.count);
+    if let Some(count) = vehicle {
+        header.extend(vehicle_header(m, count));
     }
     if with_status {
         header.push("command_status".to_owned());
@@ -168,6 +193,16 @@ pub fn write_trajectory_csv(traj: &SimulatedTrajectory, path: &Path) -> Result<(
             });
             rec.extend(t.observer[..m].iter().map(|x| num(*x)));
             rec.extend(t.integral[..m].iter().map(|x| num(*x)));
+        }
+        if let Some(count) = vehicle {
+            match &r.vehicle {
+                Some(v) => vehicle_fields(v, m, count, &mut rec),
+                None => {
+                    return Err(SimError::Run(format!(
+                        "row {k} of a run with a vehicle has no allocation"
+                    )));
+                }
+            }
         }
         if with_status {
             rec.push(traj.status.get(k).copied().unwrap_or(0).to_string());
@@ -221,6 +256,9 @@ pub struct Summary {
     /// The sensors and the estimator (absent: none were simulated).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub estimator: Option<crate::estimation::EstimatorReport>,
+    /// The vehicle: saturation, allocation residual, failures (absent: no `[vehicle]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vehicle: Option<crate::vehicle::VehicleReport>,
 }
 
 impl Summary {
@@ -252,6 +290,7 @@ impl Summary {
             effort: effort(&traj.rows, traj.control_period, traj.duration),
             settling_time: settling_time(&traj.rows),
             estimator: traj.estimator.clone(),
+            vehicle: traj.vehicle.clone(),
         }
     }
 }

@@ -224,6 +224,34 @@ pub fn trajectory_figure(
             ],
         });
     }
+    if let Some(count) = traj.rows.first().and_then(|r| r.vehicle).map(|v| v.count) {
+        panels.push(actuator_panel(traj, count));
+    }
     let height = 1100 * panels.len() as u32 / 3;
     render(stem, title, &panels, 1, (1000, height))
+}
+
+/// A vehicle's actuators: each one's output `u_j(t_k)` (after lag, limits and failures).
+fn actuator_panel(traj: &SimulatedTrajectory, count: usize) -> Panel {
+    const COLORS: [RGBColor; 4] = [
+        RGBColor(31, 119, 180),
+        RGBColor(214, 39, 40),
+        RGBColor(44, 160, 44),
+        RGBColor(148, 103, 189),
+    ];
+    Panel {
+        title: "Actuator outputs u_j".to_owned(),
+        y_label: "N".to_owned(),
+        lines: (0..count)
+            .map(|j| Line {
+                label: format!("u_{j}"),
+                color: COLORS[j % COLORS.len()],
+                points: traj
+                    .rows
+                    .iter()
+                    .map(|r| (r.t, r.vehicle.map_or(f64::NAN, |v| v.u[j])))
+                    .collect(),
+            })
+            .collect(),
+    }
 }

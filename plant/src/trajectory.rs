@@ -40,6 +40,28 @@ pub struct Row {
     /// The disturbance-rejection terms of the command applied (`None`: the scenario has
     /// none).
     pub terms: Option<Terms>,
+    /// A vehicle's allocation and actuators at `t_k` (`None`: no `[vehicle]`).
+    pub vehicle: Option<VehicleRow>,
+}
+
+/// What a vehicle's allocation and actuators did at `t_k`
+/// (docs/maths.md, "Control allocation"; first m wrench entries and the actuator count used).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VehicleRow {
+    /// The wrench asked of the allocator (body axes).
+    pub demand: [f64; 6],
+    /// The allocator's answer `u_cmd`.
+    pub u_cmd: [f64; 12],
+    /// The actuators' output `u` at `t_k`, after lag, limits and failures.
+    pub u: [f64; 12],
+    /// `B u_cmd`.
+    pub achieved: [f64; 6],
+    /// The allocator's status code (`allocation::Status`).
+    pub status: u8,
+    /// The number of actuators.
+    pub count: usize,
+    /// Which healthy actuators' commands are at a bound.
+    pub saturated: [bool; 12],
 }
 
 /// The disturbance-rejection terms of a command (body frame, first m entries used).
@@ -155,12 +177,28 @@ impl Row {
             v: vv,
             estimate: None,
             terms: None,
+            vehicle: None,
         }
     }
 
     /// The row with the disturbance-rejection terms attached.
     pub fn with_terms(mut self, terms: Option<Terms>) -> Row {
         self.terms = terms;
+        self
+    }
+
+    /// The row of a vehicle: its allocation and actuators attached, and `τ` the actuators'
+    /// wrench `B u(t_k)`.
+    pub fn with_vehicle<const M: usize>(
+        mut self,
+        vehicle: VehicleRow,
+        wrench: &SVector<f64, M>,
+    ) -> Row {
+        for i in 0..M {
+            self.tau[i] = wrench[i];
+        }
+        self.torque_norm = wrench.norm();
+        self.vehicle = Some(vehicle);
         self
     }
 
@@ -204,6 +242,8 @@ pub struct SimulatedTrajectory {
     pub status: Vec<u8>,
     /// The estimator's report (`None`: no sensors were simulated).
     pub estimator: Option<crate::estimation::EstimatorReport>,
+    /// The vehicle's report (`None`: no `[vehicle]`).
+    pub vehicle: Option<crate::vehicle::VehicleReport>,
 }
 
 impl SimulatedTrajectory {
@@ -269,6 +309,9 @@ pub fn simulate_with_planted<G: MatrixLieGroup<N, M>, const N: usize, const M: u
     faults: &[(u64, crate::sensors::SampleFault)],
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
 ) -> Result<SimulatedTrajectory, SimError> {
+    if let Some(run) = crate::vehicle::VehicleRun::<M>::of(s)? {
+        return crate::vehicle::simulate::<G, N, M>(s, plant, run, faults, on_step);
+    }
     let mut estimation = crate::estimation::Estimation::new(s, s.control_period, faults)?;
     let controller = s.controller::<G, N, M>().map_err(input(s))?;
     let reference = s.reference_source::<G, N, M>().map_err(input(s))?;
@@ -317,6 +360,7 @@ pub fn simulate_with_planted<G: MatrixLieGroup<N, M>, const N: usize, const M: u
         estimator: estimation.as_ref().map(|e| e.report(&rows)),
         rows,
         status: Vec::new(),
+        vehicle: None,
     })
 }
 

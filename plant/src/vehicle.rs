@@ -3,22 +3,25 @@
 //! inside the RKMK4 substeps with the rigid body (whose inertia includes any added mass:
 //! Kirchhoff's equations are Euler–Poincaré on SE(3) with the total inertia).
 
-use allocation::{Commands, MAX_ACTUATORS};
+use crate::SimError;
+use crate::trajectory::{Row, SimulatedTrajectory, Terms, VehicleRow, input};
+use allocation::{Actuation, Commands, MAX_ACTUATORS, Restoring, VehicleControl};
+use controller::closed_loop::ClosedLoop;
+use controller::disturbance::rotate_blocks;
 use controller::group::MatrixLieGroup;
 use controller::integrator::RigidBody;
-use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector};
+use scenario::Scenario;
+use scenario::vehicle::FailureSpec;
+use serde::Serialize;
 
 /// What the world does to the body: gravity and buoyancy (known to the controller, which
 /// compensates them) and drag. `M` is the group's dimension: 3 (SO(3), torques only) or 6
 /// (SE(3), torque then force).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Environment<const M: usize> {
-    /// The weight `m g` (N), along world −z at the centre of mass (the body origin).
-    pub weight: f64,
-    /// The buoyancy `B` (N), along world +z at [`Environment::buoyancy_centre`].
-    pub buoyancy: f64,
-    /// Where buoyancy acts, in body axes (m).
-    pub buoyancy_centre: Vector3<f64>,
+    /// Gravity and buoyancy.
+    pub restoring: Restoring<f64>,
     /// Fossen's linear damping `D_l` (diagonal), in `(ω, v)` order.
     pub damping_linear: SVector<f64, M>,
     /// Fossen's quadratic damping `D_q` (diagonal), in `(ω, v)` order.
@@ -29,30 +32,15 @@ impl<const M: usize> Environment<M> {
     /// No gravity, no buoyancy, no drag: the ideal floating body.
     pub fn none() -> Self {
         Environment {
-            weight: 0.0,
-            buoyancy: 0.0,
-            buoyancy_centre: Vector3::zeros(),
+            restoring: Restoring::none(),
             damping_linear: SVector::zeros(),
             damping_quadratic: SVector::zeros(),
         }
     }
 
-    /// Gravity and buoyancy as a body wrench at rotation `r` (body to world): the weight
-    /// `Rᵀ(0, 0, −mg)` at the centre of mass, the buoyancy `Rᵀ(0, 0, B)` at `r_B`, so the
-    /// torque `r_B × Rᵀ(0, 0, B)` and the force their sum. On SO(3) the torque alone.
+    /// Gravity and buoyancy as a body wrench at rotation `r` ([`Restoring::wrench`]).
     pub fn restoring(&self, r: &Matrix3<f64>) -> SVector<f64, M> {
-        let up = r.transpose() * Vector3::z();
-        let buoyancy = up * self.buoyancy;
-        let torque = self.buoyancy_centre.cross(&buoyancy);
-        let force = buoyancy - up * self.weight;
-        let mut w = SVector::<f64, M>::zeros();
-        for i in 0..3 {
-            w[i] = torque[i];
-            if M == 6 {
-                w[3 + i] = force[i];
-            }
-        }
-        w
+        self.restoring.wrench(r)
     }
 
     /// Drag at body velocity `v`, in Fossen's diagonal form: `−(D_l v + D_q |v|∘v)`.
@@ -161,9 +149,299 @@ pub fn step<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     h: f64,
     substeps: usize,
 ) {
+    step_in_world::<G, N, M>(body, environment, actuators, extra, None, h, substeps);
+}
+
+/// [`step`] with a wrench `world` constant in world axes at the body's origin as well
+/// (rotated into the body at every stage).
+pub fn step_in_world<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    body: &mut RigidBody<f64, G, N, M>,
+    environment: &Environment<M>,
+    actuators: &mut Actuators<M>,
+    extra: &SVector<f64, M>,
+    world: Option<&SVector<f64, M>>,
+    h: f64,
+    substeps: usize,
+) {
     let a = *actuators;
     body.advance_with(h, substeps, |s, q, v| {
-        a.wrench_at(s) + environment.wrench(&G::rotation(q), v) + extra
+        let r = G::rotation(q);
+        let mut w = a.wrench_at(s) + environment.wrench(&r, v) + extra;
+        if let Some(world) = world {
+            w += rotate_blocks(&r.transpose(), world);
+        }
+        w
     });
     actuators.end_period(h);
+}
+
+/// A scenario's vehicle, both sides, as the simulation drives it: the controller's
+/// allocation and the plant's actuators and environment, and the failures still to come.
+pub struct VehicleRun<const M: usize> {
+    /// The controller's side.
+    pub control: VehicleControl<f64, M>,
+    /// The plant's actuators.
+    pub actuators: Actuators<M>,
+    /// What the world does.
+    pub environment: Environment<M>,
+    effectiveness: SMatrix<f64, M, MAX_ACTUATORS>,
+    failures: Vec<FailureSpec>,
+    next_failure: usize,
+    period: f64,
+    count: usize,
+    /// Which actuators have failed so far (the plant's).
+    failed: [bool; MAX_ACTUATORS],
+}
+
+impl<const M: usize> VehicleRun<M> {
+    /// The vehicle of scenario `s` (`None`: it has none).
+    pub fn of(s: &Scenario) -> Result<Option<Self>, SimError> {
+        let Some(v) = &s.vehicle else {
+            return Ok(None);
+        };
+        let bad = |e: String| SimError::Input(format!("scenario `{}`: {e}", s.name));
+        let geometry = v.geometry::<M>().map_err(bad)?;
+        let allocator = v.allocator::<M>().map_err(bad)?;
+        Ok(Some(VehicleRun {
+            control: VehicleControl::new(
+                allocator,
+                v.restoring(),
+                v.actuator_rate_limit,
+                s.control_period,
+            ),
+            actuators: Actuators::new(*geometry.effectiveness(), v.actuator_time_constant),
+            environment: Environment {
+                restoring: v.restoring(),
+                damping_linear: SVector::from_row_slice(&v.damping_linear),
+                damping_quadratic: SVector::from_row_slice(&v.damping_quadratic),
+            },
+            effectiveness: *geometry.effectiveness(),
+            failures: v.failures.clone(),
+            next_failure: 0,
+            period: s.control_period,
+            count: geometry.count(),
+            failed: [false; MAX_ACTUATORS],
+        }))
+    }
+
+    /// The failures due at `t_k` (from the first tick `t_k ≥ t − h/2`): the plant's actuator
+    /// sticks, and the controller is told when the failure says `reconfigure`.
+    pub fn failures_at(&mut self, t_k: f64) {
+        while let Some(f) = self.failures.get(self.next_failure) {
+            if t_k < f.t - self.period / 2.0 {
+                break;
+            }
+            self.actuators.fail(f.actuator, f.value);
+            self.failed[f.actuator] = true;
+            if f.reconfigure {
+                self.control.fail(f.actuator, f.value);
+            }
+            self.next_failure += 1;
+        }
+    }
+
+    /// The actuators' wrench `B u`.
+    pub fn wrench_of(&self, u: &Commands<f64>) -> SVector<f64, M> {
+        self.effectiveness * u
+    }
+
+    /// The row's vehicle columns: the demand, `u_cmd`, the output `u(t_k)`, `B u_cmd`, the
+    /// status.
+    pub fn row(&self, a: &Actuation<f64, M>, u: &Commands<f64>) -> VehicleRow {
+        let (lo, hi) = self.control.bounds();
+        let mut row = VehicleRow {
+            demand: [0.0; 6],
+            u_cmd: [0.0; 12],
+            u: [0.0; 12],
+            achieved: [0.0; 6],
+            status: a.allocation.status.code(),
+            count: self.count,
+            saturated: [false; 12],
+        };
+        for i in 0..M {
+            row.demand[i] = a.demand[i];
+            row.achieved[i] = a.allocation.achieved[i];
+        }
+        for j in 0..MAX_ACTUATORS {
+            row.u_cmd[j] = a.allocation.u[j];
+            row.u[j] = u[j];
+            let x = a.allocation.u[j];
+            let tol = 1e-9 * (1.0 + lo[j].abs().max(hi[j].abs()));
+            row.saturated[j] =
+                j < self.count && !self.failed[j] && (x <= lo[j] + tol || x >= hi[j] - tol);
+        }
+        row
+    }
+}
+
+/// The in-process closed loop of a scenario with a `[vehicle]`
+/// (docs/maths.md, "Vehicle physics"): each tick the law's wrench (with its rejection terms) goes through the
+/// controller's allocation, and the plant integrates the actuators' output with gravity,
+/// buoyancy, drag and the disturbances. The rows carry the vehicle columns.
+pub fn simulate<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    s: &Scenario,
+    plant: RigidBody<f64, G, N, M>,
+    mut run: VehicleRun<M>,
+    faults: &[(u64, crate::sensors::SampleFault)],
+    on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
+) -> Result<SimulatedTrajectory, SimError> {
+    let mut estimation = crate::estimation::Estimation::new(s, s.control_period, faults)?;
+    let controller = s.controller::<G, N, M>().map_err(input(s))?;
+    let reference = s.reference_source::<G, N, M>().map_err(input(s))?;
+    let mut sim = ClosedLoop::new(controller, reference, plant, s.plant_substeps)
+        .and_then(|l| l.with_rejection(s.rejection_config()))
+        .map_err(input(s))?;
+    let world = s.world_disturbance::<M>();
+    let terms = s.rejection_config::<M>().any();
+    let steps = s.steps();
+    let mut rows = Vec::with_capacity(steps as usize + 1);
+    let mut held = SVector::<f64, M>::zeros();
+    for k in 0..=steps {
+        let t = sim.time();
+        run.failures_at(t);
+        let (q_hat, v_hat, estimate) = match &mut estimation {
+            None => (*sim.plant.configuration(), sim.plant.velocity(), None),
+            Some(e) => {
+                let (q, v, row) = e.measure(k, &sim.plant, &held);
+                (q, v, Some(row))
+            }
+        };
+        let r_hat = G::rotation(&q_hat);
+        let body = s.disturbance_at::<M>(k);
+        let mut record = None;
+        let substeps = s.plant_substeps;
+        let sample = sim
+            .step_actuated(&q_hat, &v_hat, |plant, wrench, h| {
+                let a = run.control.actuate(wrench, &r_hat);
+                run.actuators.command(&a.allocation.u);
+                let u = *run.actuators.output();
+                step_in_world::<G, N, M>(
+                    plant,
+                    &run.environment,
+                    &mut run.actuators,
+                    &body,
+                    world.as_ref(),
+                    h,
+                    substeps,
+                );
+                record = Some((a, u));
+                a.applied(&run.control.restoring(&r_hat))
+            })
+            .map_err(|e| SimError::Run(format!("closed loop stopped at t = {t} s: {e}")))?;
+        let Some((a, u)) = record else {
+            return Err(SimError::Run(format!(
+                "t = {t} s: the plant was not advanced"
+            )));
+        };
+        // what the plant holds at the next tick, for its accelerometer
+        let r = G::rotation(sim.plant.configuration());
+        held = run.wrench_of(run.actuators.output())
+            + run.environment.wrench(&r, &sim.plant.velocity())
+            + s.disturbance_wrench::<M>(k, &r);
+        let c = sim.controller.config();
+        rows.push(
+            Row::from_sample::<G, N, M>(&sample, &c.inertia, &c.k)
+                .with_estimate(estimate)
+                .with_terms(
+                    terms.then(|| Terms::of(&sample.output.observer, &sample.output.integral)),
+                )
+                .with_vehicle(run.row(&a, &u), &run.wrench_of(&u)),
+        );
+        on_step(k)?;
+    }
+    Ok(SimulatedTrajectory {
+        group: s.group,
+        control_period: s.control_period,
+        duration: s.duration,
+        estimator: estimation.as_ref().map(|e| e.report(&rows)),
+        vehicle: Some(VehicleReport::of(
+            &rows,
+            &s.vehicle
+                .as_ref()
+                .map(|v| v.failures.clone())
+                .unwrap_or_default(),
+            s.control_period,
+        )),
+        rows,
+        status: Vec::new(),
+    })
+}
+
+/// `summary.json` → `vehicle`: how long each actuator's command sat at a bound, how far the
+/// achieved wrench fell short of the demand, and the failures.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct VehicleReport {
+    /// Per actuator: the time its command spent at its lower or upper bound (s), over
+    /// `t_k < T` (a failed actuator's time after its failure is not counted).
+    pub saturated_time_s: Vec<f64>,
+    /// `‖demand − B u_cmd‖` over the rows.
+    pub residual: Residual,
+    /// The failures, as the scenario gives them.
+    pub failures: Vec<FailureReport>,
+}
+
+/// The allocation residual's statistics.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Residual {
+    /// The largest.
+    pub max: f64,
+    /// The root mean square.
+    pub rms: f64,
+}
+
+/// One failure in `summary.json`.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct FailureReport {
+    /// The actuator (0-based).
+    pub actuator: usize,
+    /// When (s).
+    pub t: f64,
+    /// The stuck value.
+    pub value: f64,
+    /// Whether the allocator was told.
+    pub reconfigure: bool,
+}
+
+impl VehicleReport {
+    /// The report over the rows of a run with period `h`.
+    pub fn of(rows: &[Row], failures: &[FailureSpec], h: f64) -> VehicleReport {
+        let count = rows
+            .iter()
+            .find_map(|r| r.vehicle.map(|v| v.count))
+            .unwrap_or(0);
+        let held = rows.len().saturating_sub(1);
+        let mut saturated = vec![0.0; count];
+        let (mut max, mut sum, mut n) = (0.0_f64, 0.0, 0usize);
+        for (k, v) in rows.iter().filter_map(|r| r.vehicle).enumerate() {
+            if k < held {
+                for (j, s) in saturated.iter_mut().enumerate() {
+                    if v.saturated[j] {
+                        *s += h;
+                    }
+                }
+            }
+            let r: f64 = (0..6)
+                .map(|i| (v.demand[i] - v.achieved[i]).powi(2))
+                .sum::<f64>();
+            max = max.max(r.sqrt());
+            sum += r;
+            n += 1;
+        }
+        VehicleReport {
+            saturated_time_s: saturated,
+            residual: Residual {
+                max,
+                rms: (sum / n.max(1) as f64).sqrt(),
+            },
+            failures: failures
+                .iter()
+                .map(|f| FailureReport {
+                    actuator: f.actuator,
+                    t: f.t,
+                    value: f.value,
+                    reconfigure: f.reconfigure,
+                })
+                .collect(),
+        }
+    }
 }

@@ -3,7 +3,7 @@
 //! pendulum), terminal velocity under drag, and Kirchhoff's equations with added mass
 //! (energy and spatial momentum conserved).
 
-use allocation::{Allocator, Commands, Geometry, Priority, presets};
+use allocation::{Allocator, Commands, Geometry, Priority, Restoring, presets};
 use controller::group::{MatrixLieGroup, Se3};
 use controller::integrator::RigidBody;
 use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, Vector3};
@@ -20,6 +20,17 @@ fn body(i: SMatrix<f64, 6, 6>, q: Matrix4<f64>, v: [f64; 6]) -> RigidBody<f64, S
     RigidBody::new(i, q, SVector::from(v)).unwrap()
 }
 
+/// Gravity on a body of mass `m`, nothing else.
+fn falling(m: f64) -> Environment<6> {
+    Environment {
+        restoring: Restoring {
+            weight: m * G,
+            ..Restoring::none()
+        },
+        ..Environment::none()
+    }
+}
+
 fn no_actuators() -> Actuators<6> {
     Actuators::new(SMatrix::zeros(), 0.0)
 }
@@ -31,10 +42,7 @@ fn position(b: &RigidBody<f64, Se3, 4, 6>) -> Vector3<f64> {
 #[test]
 fn free_fall_follows_half_g_t_squared() {
     let m = 2.0;
-    let env = Environment {
-        weight: m * G,
-        ..Environment::<6>::none()
-    };
+    let env = falling(m);
     let mut b = body(inertia([0.1, 0.2, 0.3], m), Matrix4::identity(), [0.0; 6]);
     let mut act = no_actuators();
     for _ in 0..100 {
@@ -57,10 +65,7 @@ fn free_fall_follows_half_g_t_squared() {
 #[test]
 fn the_hexarotor_hovers_exactly_on_the_allocated_commands() {
     let m = 1.5;
-    let env = Environment {
-        weight: m * G,
-        ..Environment::<6>::none()
-    };
+    let env = falling(m);
     let rotors = presets::hexarotor(0.25, 0.5, 0.016, 8.0);
     let geometry = Geometry::<f64, 6>::new(&rotors).unwrap();
     let alloc = Allocator::new(geometry, &[], &[], Priority::Torque).unwrap();
@@ -104,9 +109,11 @@ fn tilted(angle: f64) -> Matrix4<f64> {
 fn neutral_buoyancy_above_the_centre_of_mass_is_a_pendulum() {
     let (m, h, jx) = (10.0, 0.05, 0.4);
     let env = Environment {
-        weight: m * G,
-        buoyancy: m * G,
-        buoyancy_centre: Vector3::new(0.0, 0.0, h),
+        restoring: Restoring {
+            weight: m * G,
+            buoyancy: m * G,
+            centre: Vector3::new(0.0, 0.0, h),
+        },
         ..Environment::<6>::none()
     };
     // the restoring torque at a tilt θ about x is −B h sin θ, and no net force
@@ -166,10 +173,7 @@ fn drag_brings_a_falling_body_to_its_terminal_velocity() {
         (6.0, 0.0, -m * G / 6.0),
         (0.0, 4.0, -(m * G / 4.0_f64).sqrt()),
     ] {
-        let mut env = Environment {
-            weight: m * G,
-            ..Environment::<6>::none()
-        };
+        let mut env = falling(m);
         env.damping_linear[5] = linear;
         env.damping_quadratic[5] = quadratic;
         let mut b = body(inertia([0.1, 0.1, 0.1], m), Matrix4::identity(), [0.0; 6]);

@@ -512,3 +512,51 @@ fn torque_limit_disturbance_and_model_mismatch_reach_the_loop() {
     // and the trajectories part ways after the first step
     assert_ne!(column(&h, &rows, "q_00")[1], column(&h2, &rows2, "q_00")[1]);
 }
+
+#[test]
+fn a_vehicle_runs_in_sim_and_the_pair_refuses_it_for_now() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = repo("scenarios/rov_failure.toml");
+    let out = run(&[
+        "sim",
+        "--scenario",
+        scenario.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    ok(&out);
+    let (h, rows) = read_csv(&dir.path().join("trajectory.csv"));
+    assert!(
+        h.iter().any(|c| c == "alloc_status") && h.iter().any(|c| c == "u_cmd_7"),
+        "{h:?}"
+    );
+    assert_eq!(rows.len(), 4001);
+    let summary = std::fs::read_to_string(dir.path().join("summary.json")).unwrap();
+    assert!(
+        summary.contains("\"saturated_time_s\"") && summary.contains("\"reconfigure\": true"),
+        "{summary}"
+    );
+    // the pair has no wire field for actuator commands yet: exit 2, saying so
+    let out = run(&[
+        "run",
+        "--scenario",
+        scenario.to_str().unwrap(),
+        "--mode",
+        "lockstep",
+        "--name",
+        "t-vehicle-refused",
+        "--out",
+        dir.path().join("pair").to_str().unwrap(),
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("has a [vehicle]") && err.contains("plant_sim sim"),
+        "{err}"
+    );
+}

@@ -161,12 +161,12 @@ impl Scenario {
         })
     }
 
-    /// The plant body at its initial state (true inertia).
+    /// The plant body at its initial state (true inertia, any added mass included).
     pub fn plant_body<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         &self,
     ) -> Result<RigidBody<f64, G, N, M>, controller::Error> {
         RigidBody::new(
-            SMatrix::from_row_slice(&self.plant_inertia),
+            SMatrix::from_row_slice(&self.total_inertia()),
             Self::configuration::<N>(&self.initial),
             SVector::from_row_slice(&self.initial.velocity),
         )
@@ -237,6 +237,28 @@ impl Scenario {
             }
             if let Some(l) = &i.limit {
                 h.f64s(l);
+            }
+        }
+        // only when present, so scenarios without one keep their fingerprints
+        if let Some(v) = &self.vehicle {
+            h.bytes(b"vehicle");
+            let r = v.restoring();
+            h.f64s(&[r.weight, r.buoyancy, r.centre.x, r.centre.y, r.centre.z]);
+            h.f64s(&[v.actuator_rate_limit, v.actuators.len() as f64]);
+            for a in &v.actuators {
+                h.f64s(&a.position);
+                h.f64s(&a.axis);
+                h.f64s(&[a.torque_per_thrust, a.min, a.max]);
+            }
+            h.f64s(&v.weights);
+            h.f64s(&v.preferred);
+            h.bytes(if v.priority == allocation::Priority::Torque {
+                b"torque first"
+            } else {
+                b"no priority"
+            });
+            for f in v.failures.iter().filter(|f| f.reconfigure) {
+                h.f64s(&[f.actuator as f64, f.t, f.value]);
             }
         }
         h.0.max(1)

@@ -11,6 +11,7 @@
 pub mod cli;
 pub mod rejection;
 pub mod sensing;
+pub mod vehicle;
 pub mod waypoints;
 
 mod build;
@@ -139,6 +140,9 @@ pub struct Scenario {
     pub sensors: Option<SensorsSpec>,
     /// `[estimator]`: what the plant side hands the law (default: the exact state).
     pub estimator: EstimatorSpec,
+    /// `[vehicle]` and `[allocation]`: actuators, gravity, buoyancy, added mass, drag, and
+    /// the allocation of the law's wrench (`None`: the wrench acts on the body directly).
+    pub vehicle: Option<vehicle::VehicleSpec>,
 }
 
 #[cfg(test)]

@@ -1,6 +1,6 @@
 //! The TOML schema as serde reads it: every table with `deny_unknown_fields`, so an unknown key is refused naming the keys the table takes (docs/scenario.md is the reference).
 
-use crate::{rejection, sensing};
+use crate::{rejection, sensing, vehicle};
 use serde::Deserialize;
 
 #[derive(Debug, Deserialize)]
@@ -19,6 +19,8 @@ pub(crate) struct RawScenario {
     pub(crate) reference: RawReference,
     pub(crate) sensors: Option<sensing::RawSensors>,
     pub(crate) estimator: Option<sensing::RawEstimator>,
+    pub(crate) vehicle: Option<vehicle::RawVehicle>,
+    pub(crate) allocation: Option<vehicle::RawAllocation>,
 }
 
 #[derive(Debug, Deserialize)]

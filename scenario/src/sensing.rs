@@ -206,7 +206,8 @@ impl Default for EstimatorSpec {
 }
 
 impl Validator<'_> {
-    fn non_negative(&self, key: &str, x: f64) -> Result<f64, ScenarioError> {
+    /// A number that must be finite and ≥ 0.
+    pub(crate) fn non_negative(&self, key: &str, x: f64) -> Result<f64, ScenarioError> {
         if !x.is_finite() || x < 0.0 {
             return Err(self.err(key, format!("must be a finite number ≥ 0, got {x}")));
         }

@@ -233,7 +233,18 @@ impl Validator<'_> {
         let plant_substeps = self.substeps("plant_substeps", raw.plant_substeps, 10)?;
         let reference_substeps = self.substeps("reference_substeps", raw.reference_substeps, 1)?;
         let plant = self.plant(&raw.plant, m)?;
-        let controller = self.controller(&raw.controller, &plant.inertia, n, m)?;
+        let vehicle = self.vehicle(
+            raw.vehicle.as_ref(),
+            raw.allocation.as_ref(),
+            group,
+            &plant.inertia,
+        )?;
+        // the controller's model inertia defaults to the plant's total (added mass included)
+        let total = match vehicle.as_ref().and_then(|v| v.added_mass.as_ref()) {
+            None => plant.inertia.clone(),
+            Some(a) => plant.inertia.iter().zip(a).map(|(p, x)| p + x).collect(),
+        };
+        let controller = self.controller(&raw.controller, &total, n, m)?;
         let initial = self.state("initial", &raw.initial, group, m)?;
         let (reference, feedforward, path) =
             self.reference(&raw.reference, group, m, raw.control_period)?;
@@ -269,6 +280,7 @@ impl Validator<'_> {
             path,
             sensors,
             estimator,
+            vehicle,
         })
     }
 

@@ -109,6 +109,19 @@ impl OnGroup for Exercise<'_> {
         .map_err(|e| stage("Rejection::new()", e))?;
         let mut applied = nalgebra::SVector::<f64, M>::zeros();
         let world = s.world_disturbance::<M>();
+        // a vehicle: the law's wrench through its allocation, as the controller side runs it
+        let mut vehicle = match &s.vehicle {
+            None => None,
+            Some(v) => {
+                let allocator = v.allocator::<M>().map_err(|_| "vehicle: allocator()")?;
+                Some(allocation::VehicleControl::new(
+                    allocator,
+                    v.restoring(),
+                    v.actuator_rate_limit,
+                    s.control_period,
+                ))
+            }
+        };
         let most = s.plant_substeps.max(s.reference_substeps).max(1);
         let cycles = (SUBSTEP_BUDGET / most).min(CYCLES);
         for k in 0..=cycles {
@@ -142,6 +155,9 @@ impl OnGroup for Exercise<'_> {
                 out.observer.as_slice(),
                 out.integral.as_slice()
             );
+            if let Some(vehicle) = &mut vehicle {
+                allocate_checked(vehicle, &out.torque, &G::rotation(&q));
+            }
             if k == cycles {
                 break;
             }
@@ -154,6 +170,35 @@ impl OnGroup for Exercise<'_> {
             reference.advance();
         }
         Ok(())
+    }
+}
+
+/// One allocation of the law's wrench `wrench` at attitude `r`: the commands (and the wrench
+/// they give) must be finite and within the bounds, whatever the wrench (a demand that
+/// overflows is answered with status 4).
+fn allocate_checked<const M: usize>(
+    vehicle: &mut allocation::VehicleControl<f64, M>,
+    wrench: &nalgebra::SVector<f64, M>,
+    r: &nalgebra::Matrix3<f64>,
+) {
+    let (lo, hi) = vehicle.bounds();
+    let a = vehicle.actuate(wrench, r);
+    let u = a.allocation.u;
+    assert!(
+        u.iter()
+            .chain(a.allocation.achieved.iter())
+            .all(|x| x.is_finite()),
+        "the allocation returned a non-finite number: {a:?}"
+    );
+    for j in 0..allocation::MAX_ACTUATORS {
+        let tol = 1e-9 * (1.0 + lo[j].abs().max(hi[j].abs()));
+        assert!(
+            u[j] >= lo[j] - tol && u[j] <= hi[j] + tol,
+            "u[{j}] = {} outside [{}, {}]",
+            u[j],
+            lo[j],
+            hi[j]
+        );
     }
 }
 

@@ -5,7 +5,7 @@ use super::Corpus;
 use scenario::BUILTINS;
 
 /// Hand-written valid scenarios that reach the optional keys the built-ins leave out.
-const EXTRA_SEEDS: [&str; 9] = [
+const EXTRA_SEEDS: [&str; 12] = [
     // the disturbance-rejection terms and the world and step disturbances
     include_str!("../../../scenarios/reject_so3.toml"),
     include_str!("../../../scenarios/reject_se3.toml"),
@@ -14,6 +14,113 @@ const EXTRA_SEEDS: [&str; 9] = [
     include_str!("../../../scenarios/sensors_se3.toml"),
     include_str!("../../../scenarios/eqf_so3.toml"),
     include_str!("../../../scenarios/eqf_se3.toml"),
+    // `[vehicle]` (actuators, gravity, buoyancy, added mass, drag, lag, a failure) and
+    // `[allocation]`, on both groups
+    VEHICLE_SE3,
+    r#"group = "so3"
+law = "eqt"
+duration = 0.2
+control_period = 0.01
+[plant]
+inertia = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+[controller]
+kp = 1
+kd = 1
+[initial]
+rotation = [0.3, 0.0, 0.0]
+velocity = [0.0, 0.0, 0.0]
+[reference]
+setpoint = { rotation = [0.0, 0.0, 0.0] }
+[vehicle]
+buoyancy = 2.0
+buoyancy_centre = [0.0, 0.0, 0.1]
+damping_linear = [0.1, 0.1, 0.1]
+[[vehicle.actuator]]
+position = [1.0, 0.0, 0.0]
+axis = [0.0, 1.0, 0.0]
+min = -1.0
+max = 1.0
+[[vehicle.actuator]]
+position = [0.0, 1.0, 0.0]
+axis = [0.0, 0.0, 1.0]
+min = -1.0
+max = 1.0
+[[vehicle.actuator]]
+position = [0.0, 0.0, 1.0]
+axis = [1.0, 0.0, 0.0]
+min = -1.0
+max = 1.0
+[[vehicle.actuator]]
+position = [1.0, 1.0, 0.0]
+axis = [0.0, 0.0, 1.0]
+torque_per_thrust = 0.1
+min = -0.5
+max = 0.5
+[allocation]
+weights = [1.0, 2.0, 1.0, 0.5]
+preferred = [0.0, 0.1, 0.0, 0.0]
+priority = "none"
+"#,
+    r#"group = "se3"
+law = "eqt"
+duration = 0.1
+control_period = 0.01
+[plant]
+inertia = [[0.02, 0, 0, 0, 0, 0], [0, 0.02, 0, 0, 0, 0], [0, 0, 0.04, 0, 0, 0], [0, 0, 0, 1.5, 0, 0], [0, 0, 0, 0, 1.5, 0], [0, 0, 0, 0, 0, 1.5]]
+[controller]
+kp = 1
+kd = 1
+[initial]
+rotation = [0.0, 0.0, 0.0]
+position = [0.0, 0.0, 0.0]
+velocity = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+[reference]
+setpoint = { rotation = [0.3, 0.0, 0.0], position = [0.1, 0.0, 0.0] }
+[vehicle]
+gravity = 9.81
+actuator_time_constant = 0.02
+actuator_rate_limit = 200.0
+[[vehicle.actuator]]
+position = [0.25, 0.0, 0.0]
+axis = [0.0, 0.479425538604, 0.87758256189]
+torque_per_thrust = 0.016
+min = 0.0
+max = 8.0
+[[vehicle.actuator]]
+position = [0.125, 0.216506350946, 0.0]
+axis = [0.415194695654, -0.239712769302, 0.87758256189]
+torque_per_thrust = -0.016
+min = 0.0
+max = 8.0
+[[vehicle.actuator]]
+position = [-0.125, 0.216506350946, 0.0]
+axis = [-0.415194695654, -0.239712769302, 0.87758256189]
+torque_per_thrust = 0.016
+min = 0.0
+max = 8.0
+[[vehicle.actuator]]
+position = [-0.25, 0.0, 0.0]
+axis = [0.0, 0.479425538604, 0.87758256189]
+torque_per_thrust = -0.016
+min = 0.0
+max = 8.0
+[[vehicle.actuator]]
+position = [-0.125, -0.216506350946, 0.0]
+axis = [0.415194695654, -0.239712769302, 0.87758256189]
+torque_per_thrust = 0.016
+min = 0.0
+max = 8.0
+[[vehicle.actuator]]
+position = [0.125, -0.216506350946, 0.0]
+axis = [-0.415194695654, -0.239712769302, 0.87758256189]
+torque_per_thrust = -0.016
+min = 0.0
+max = 8.0
+[[vehicle.failure]]
+actuator = 4
+t = 0.05
+reconfigure = false
+"#,
     r#"name = "so3_everything"
 group = "so3"
 law = "gt"
@@ -100,6 +207,10 @@ velocity = [0.0, 0.0, 0.0]
 "#,
 ];
 
+/// The eight-thruster ROV with a failure (the `rov_failure` scenario, its waypoint file
+/// replaced by a set-point so that the text stands alone).
+const VEHICLE_SE3: &str = include_str!("../../../scenarios/rov_failure.toml");
+
 impl Corpus {
     /// The built-in scenarios and the extra seeds.
     pub(crate) fn new() -> Corpus {
@@ -107,7 +218,13 @@ impl Corpus {
             .iter()
             .map(|(_, text)| *text)
             .chain(EXTRA_SEEDS)
-            .map(|t| t.as_bytes().to_vec())
+            .map(|t| {
+                t.replace(
+                    "waypoints = \"rov_failure.csv\"",
+                    "setpoint = { rotation = [0.0, 0.0, 0.5], position = [0.6, 0.3, -0.3] }",
+                )
+                .into_bytes()
+            })
             .collect();
         Corpus { items }
     }

@@ -321,6 +321,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             duration: cycles.saturating_sub(1) as f64 * s.control_period,
             rows: self.rows,
             status: self.status,
+            vehicle: None,
         };
         let summary = PairSummary {
             sim: Summary::of(&traj, &s.name, s.law.name()),

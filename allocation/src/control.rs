@@ -1,0 +1,91 @@
+//! The controller's side of a vehicle (docs/maths.md, "Control allocation"): the known
+//! gravity and buoyancy compensated from the model and the attitude, the rest of the law's
+//! wrench allocated to the actuators within their bounds, a rate limit and the failures it
+//! has been told of.
+
+use crate::allocator::{Allocation, Allocator, Bounds};
+use crate::restoring::Restoring;
+use crate::{Commands, MAX_ACTUATORS};
+use nalgebra::{Matrix3, RealField, SVector};
+
+/// What one cycle asks of the actuators and what it got.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Actuation<T, const K: usize> {
+    /// The wrench asked of the allocator: the law's minus the known restoring wrench.
+    pub demand: SVector<T, K>,
+    /// The allocator's answer (`u_cmd`, the wrench `B u_cmd`, the status).
+    pub allocation: Allocation<T, K>,
+}
+
+impl<T: RealField + Copy, const K: usize> Actuation<T, K> {
+    /// The wrench the law takes as applied over the period (for its disturbance-rejection
+    /// terms): the actuators' `B u_cmd` plus the known restoring wrench it compensated.
+    pub fn applied(&self, restoring: &SVector<T, K>) -> SVector<T, K> {
+        self.allocation.achieved + restoring
+    }
+}
+
+/// The controller's vehicle: an allocator, the restoring model, the rate limit per period
+/// and the bounds as narrowed by the failures it was told of.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VehicleControl<T, const K: usize> {
+    allocator: Allocator<T, K>,
+    restoring: Restoring<T>,
+    /// The most a command may change in one period (0: no limit).
+    rate_step: T,
+    bounds: Bounds<T>,
+    previous: Option<Commands<T>>,
+}
+
+impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
+    /// The controller's vehicle: `rate_limit` (per second; 0 none) over periods of `period`.
+    pub fn new(
+        allocator: Allocator<T, K>,
+        restoring: Restoring<T>,
+        rate_limit: T,
+        period: T,
+    ) -> Self {
+        VehicleControl {
+            bounds: allocator.bounds(),
+            allocator,
+            restoring,
+            rate_step: rate_limit * period,
+            previous: None,
+        }
+    }
+
+    /// The bounds the next allocation starts from (the geometry's, with the failures told).
+    pub fn bounds(&self) -> (Commands<T>, Commands<T>) {
+        (self.bounds.lo, self.bounds.hi)
+    }
+
+    /// The known restoring wrench at the attitude `r`.
+    pub fn restoring(&self, r: &Matrix3<T>) -> SVector<T, K> {
+        self.restoring.wrench(r)
+    }
+
+    /// Tells the allocator that actuator `j` has failed, stuck at `value`: from now on it is
+    /// held there and the others take over.
+    pub fn fail(&mut self, j: usize, value: T) {
+        if j < MAX_ACTUATORS {
+            self.bounds.fail(j, value);
+        }
+    }
+
+    /// One cycle: the demand `wrench − restoring(r̂)` allocated within the bounds, narrowed
+    /// to the rate limit around the previous command. Allocation-free; never NaN.
+    pub fn actuate(&mut self, wrench: &SVector<T, K>, r_hat: &Matrix3<T>) -> Actuation<T, K> {
+        let demand = wrench - self.restoring(r_hat);
+        let mut bounds = self.bounds;
+        if let (Some(prev), true) = (&self.previous, self.rate_step > T::zero()) {
+            for j in 0..self.allocator.geometry().count() {
+                if bounds.hi[j] > bounds.lo[j] {
+                    bounds.limit_rate(j, prev[j], self.rate_step);
+                }
+            }
+        }
+        let allocation = self.allocator.allocate_within(&demand, &bounds);
+        self.previous = Some(allocation.u);
+        Actuation { demand, allocation }
+    }
+}

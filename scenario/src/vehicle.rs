@@ -1,0 +1,449 @@
+//! `[vehicle]` and `[allocation]`: the body's actuators, gravity, buoyancy, added mass and
+//! drag, and how the law's wrench is shared out among the actuators (docs/maths.md, "Control
+//! allocation" and "Vehicle physics"; docs/scenario.md lists every key).
+//!
+//! ```toml
+//! [vehicle]
+//! gravity = 9.81                  # m/s², world −z (default 0)
+//! buoyancy = 0.0                  # N, world +z (default 0)
+//! buoyancy_centre = [0.0, 0.0, 0.0]
+//! added_mass = [[...m×m...]]      # optional, body frame, symmetric
+//! damping_linear = [m values]     # optional, (ω, v) order
+//! damping_quadratic = [m values]  # optional
+//! actuator_time_constant = 0.0    # s
+//! actuator_rate_limit = 0.0       # N/s, 0 = none
+//! [[vehicle.actuator]]            # one table per actuator, 1..12
+//! position = [x, y, z]
+//! axis = [ax, ay, az]
+//! torque_per_thrust = 0.0
+//! min = 0.0
+//! max = 8.0
+//! [[vehicle.failure]]             # optional
+//! actuator = 3                    # 0-based
+//! t = 10.0
+//! value = 0.0
+//! reconfigure = true
+//! [allocation]                    # optional
+//! weights = [...]
+//! preferred = [...]
+//! priority = "torque"             # or "none"
+//! ```
+
+use crate::{Scenario, ScenarioError, Validator};
+use allocation::{Actuator, Allocator, Geometry, GeometryError, Priority, Restoring};
+use nalgebra::{SMatrix, Vector3};
+use serde::Deserialize;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawVehicle {
+    gravity: Option<f64>,
+    buoyancy: Option<f64>,
+    buoyancy_centre: Option<Vec<f64>>,
+    added_mass: Option<Vec<Vec<f64>>>,
+    damping_linear: Option<Vec<f64>>,
+    damping_quadratic: Option<Vec<f64>>,
+    actuator_time_constant: Option<f64>,
+    actuator_rate_limit: Option<f64>,
+    actuator: Vec<RawActuator>,
+    failure: Option<Vec<RawFailure>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawActuator {
+    position: Vec<f64>,
+    axis: Vec<f64>,
+    torque_per_thrust: Option<f64>,
+    min: f64,
+    max: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawFailure {
+    actuator: i64,
+    t: f64,
+    value: Option<f64>,
+    reconfigure: Option<bool>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawAllocation {
+    weights: Option<Vec<f64>>,
+    preferred: Option<Vec<f64>>,
+    priority: Option<String>,
+}
+
+/// `[[vehicle.failure]]`: an actuator stuck at `value` from `t` on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FailureSpec {
+    /// The actuator (0-based).
+    pub actuator: usize,
+    /// When (s): from the first tick `t_k ≥ t − h/2`.
+    pub t: f64,
+    /// The stuck value (N).
+    pub value: f64,
+    /// Whether the allocator is told (and redistributes over the rest).
+    pub reconfigure: bool,
+}
+
+/// `[vehicle]` with its actuators and failures, and `[allocation]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VehicleSpec {
+    /// `g` (m/s²), along world −z.
+    pub gravity: f64,
+    /// The mass `m` of the rigid body (SE(3): its inertia's force block; 0 on SO(3)).
+    pub mass: f64,
+    /// `B` (N), along world +z.
+    pub buoyancy: f64,
+    /// Where buoyancy acts (body axes, m).
+    pub buoyancy_centre: [f64; 3],
+    /// The added mass (m×m, row-major, symmetric), if any.
+    pub added_mass: Option<Vec<f64>>,
+    /// `D_l` (m entries).
+    pub damping_linear: Vec<f64>,
+    /// `D_q` (m entries).
+    pub damping_quadratic: Vec<f64>,
+    /// The actuators' lag (s; 0: none).
+    pub actuator_time_constant: f64,
+    /// The actuators' rate limit (N/s; 0: none).
+    pub actuator_rate_limit: f64,
+    /// The actuators.
+    pub actuators: Vec<Actuator<f64>>,
+    /// The failures, in time order.
+    pub failures: Vec<FailureSpec>,
+    /// `[allocation] weights` (empty: all 1).
+    pub weights: Vec<f64>,
+    /// `[allocation] preferred` (empty: 0).
+    pub preferred: Vec<f64>,
+    /// `[allocation] priority`.
+    pub priority: Priority,
+}
+
+impl VehicleSpec {
+    /// Gravity and buoyancy (docs/maths.md, "Vehicle physics").
+    pub fn restoring(&self) -> Restoring<f64> {
+        Restoring {
+            weight: self.mass * self.gravity,
+            buoyancy: self.buoyancy,
+            centre: Vector3::from(self.buoyancy_centre),
+        }
+    }
+
+    /// The actuators' geometry on a group of dimension `K` (checked at load).
+    pub fn geometry<const K: usize>(&self) -> Result<Geometry<f64, K>, String> {
+        Geometry::new(&self.actuators).map_err(|e| format!("vehicle.actuator: {e}"))
+    }
+
+    /// The allocator (docs/maths.md, "Control allocation"; checked at load).
+    pub fn allocator<const K: usize>(&self) -> Result<Allocator<f64, K>, String> {
+        Allocator::new(
+            self.geometry()?,
+            &self.weights,
+            &self.preferred,
+            self.priority,
+        )
+        .map_err(|e| format!("allocation: {e}"))
+    }
+}
+
+impl Validator<'_> {
+    /// `[vehicle]` and `[allocation]`, checked against the group and the plant's inertia.
+    pub(crate) fn vehicle(
+        &self,
+        raw: Option<&RawVehicle>,
+        allocation: Option<&RawAllocation>,
+        group: controller::GroupKind,
+        plant_inertia: &[f64],
+    ) -> Result<Option<VehicleSpec>, ScenarioError> {
+        let Some(raw) = raw else {
+            return match allocation {
+                Some(_) => Err(self.err("allocation", "needs a [vehicle] with its actuators")),
+                None => Ok(None),
+            };
+        };
+        let (_, m) = group.dims();
+        let gravity = self.optional_non_negative("vehicle.gravity", raw.gravity)?;
+        let buoyancy = self.optional_non_negative("vehicle.buoyancy", raw.buoyancy)?;
+        let centre = match &raw.buoyancy_centre {
+            None => [0.0; 3],
+            Some(c) => {
+                let c = self.vector("vehicle.buoyancy_centre", c, 3, "x, y, z in body axes")?;
+                [c[0], c[1], c[2]]
+            }
+        };
+        let mass = self.mass(group, gravity, plant_inertia)?;
+        if !(mass * gravity).is_finite() {
+            return Err(self.err(
+                "vehicle.gravity",
+                format!("the weight m·g = {mass} × {gravity} is not a finite number"),
+            ));
+        }
+        if centre.iter().any(|c| !(c * buoyancy).is_finite()) {
+            return Err(self.err(
+                "vehicle.buoyancy_centre",
+                format!("its torque r_B × B ({buoyancy} N at {centre:?}) is not a finite number"),
+            ));
+        }
+        let added_mass = raw
+            .added_mass
+            .as_ref()
+            .map(|a| self.added_mass(a, m, plant_inertia))
+            .transpose()?;
+        let damping = |key: &str, v: &Option<Vec<f64>>| -> Result<Vec<f64>, ScenarioError> {
+            let v = match v {
+                None => return Ok(vec![0.0; m]),
+                Some(v) => self.vector(key, v, m, "one per velocity component, (ω, v) order")?,
+            };
+            match v.iter().position(|x| *x < 0.0) {
+                Some(i) => Err(self.err(key, format!("entry {i} is negative ({})", v[i]))),
+                None => Ok(v),
+            }
+        };
+        let actuators = self.actuators(&raw.actuator, m)?;
+        let failures = self.failures(raw.failure.as_deref().unwrap_or(&[]), actuators.len())?;
+        let (weights, preferred, priority) = self.allocation(allocation, actuators.len())?;
+        let spec = VehicleSpec {
+            gravity,
+            mass,
+            buoyancy,
+            buoyancy_centre: centre,
+            added_mass,
+            damping_linear: damping("vehicle.damping_linear", &raw.damping_linear)?,
+            damping_quadratic: damping("vehicle.damping_quadratic", &raw.damping_quadratic)?,
+            actuator_time_constant: self.optional_non_negative(
+                "vehicle.actuator_time_constant",
+                raw.actuator_time_constant,
+            )?,
+            actuator_rate_limit: self
+                .optional_non_negative("vehicle.actuator_rate_limit", raw.actuator_rate_limit)?,
+            actuators,
+            failures,
+            weights,
+            preferred,
+            priority,
+        };
+        Ok(Some(spec))
+    }
+
+    /// An optional key that must be finite and ≥ 0 (default 0).
+    fn optional_non_negative(&self, key: &str, x: Option<f64>) -> Result<f64, ScenarioError> {
+        x.map_or(Ok(0.0), |x| self.non_negative(key, x))
+    }
+
+    /// The rigid body's mass: SE(3)'s force block `m·1₃` with no rotation–translation
+    /// coupling, required when gravity acts; gravity is refused on SO(3).
+    fn mass(
+        &self,
+        group: controller::GroupKind,
+        gravity: f64,
+        inertia: &[f64],
+    ) -> Result<f64, ScenarioError> {
+        if group == controller::GroupKind::So3 {
+            if gravity != 0.0 {
+                return Err(self.err(
+                    "vehicle.gravity",
+                    "an SO(3) body has no position: its weight acts at the centre of mass and turns nothing; use group se3, or 0",
+                ));
+            }
+            return Ok(0.0);
+        }
+        let i = SMatrix::<f64, 6, 6>::from_row_slice(inertia);
+        let m = i[(3, 3)];
+        let block = i.fixed_view::<3, 3>(3, 3) - SMatrix::<f64, 3, 3>::identity() * m;
+        let coupling = i
+            .fixed_view::<3, 3>(0, 3)
+            .amax()
+            .max(i.fixed_view::<3, 3>(3, 0).amax());
+        if gravity != 0.0 && (block.amax() > 1e-12 * m.abs().max(1.0) || coupling != 0.0) {
+            return Err(self.err(
+                "plant.inertia",
+                "with gravity, the inertia's force block must be m·1₃ and its rotation–translation blocks zero (the body origin at the centre of mass)",
+            ));
+        }
+        Ok(m)
+    }
+
+    /// `added_mass`: m×m, finite, symmetric, and the total inertia positive definite.
+    fn added_mass(
+        &self,
+        a: &[Vec<f64>],
+        m: usize,
+        plant: &[f64],
+    ) -> Result<Vec<f64>, ScenarioError> {
+        let key = "vehicle.added_mass";
+        let flat = self.matrix(key, a, m, "body frame, (ω, v) order")?;
+        for i in 0..m {
+            for j in 0..i {
+                let (x, y) = (flat[i * m + j], flat[j * m + i]);
+                if (x - y).abs() > 1e-12 * x.abs().max(y.abs()).max(1.0) {
+                    return Err(self.err(
+                        key,
+                        format!("must be symmetric: entry ({i}, {j}) is {x}, ({j}, {i}) is {y}"),
+                    ));
+                }
+            }
+        }
+        let total: Vec<f64> = plant.iter().zip(&flat).map(|(p, a)| p + a).collect();
+        self.spd(key, &total, m).map_err(|_| {
+            self.err(
+                key,
+                "the rigid body's inertia plus the added mass is not positive definite",
+            )
+        })?;
+        Ok(flat)
+    }
+
+    /// `[[vehicle.actuator]]`: 1 to 12, each with finite numbers, `min ≤ max`, a non-zero
+    /// axis, and together spanning the group's wrench space.
+    fn actuators(
+        &self,
+        raw: &[RawActuator],
+        m: usize,
+    ) -> Result<Vec<Actuator<f64>>, ScenarioError> {
+        let mut out = Vec::with_capacity(raw.len());
+        for (j, a) in raw.iter().enumerate() {
+            let key = |field: &str| format!("vehicle.actuator[{j}].{field}");
+            let p = self.vector(&key("position"), &a.position, 3, "x, y, z in body axes")?;
+            let axis = self.vector(
+                &key("axis"),
+                &a.axis,
+                3,
+                "its thrust direction in body axes",
+            )?;
+            out.push(Actuator {
+                position: [p[0], p[1], p[2]],
+                axis: [axis[0], axis[1], axis[2]],
+                torque_per_thrust: a.torque_per_thrust.unwrap_or(0.0),
+                min: a.min,
+                max: a.max,
+            });
+        }
+        let check = match m {
+            3 => Geometry::<f64, 3>::new(&out)
+                .map(|_| ())
+                .map_err(|e| e.to_string_with(&self.geometry_key(&e))),
+            _ => Geometry::<f64, 6>::new(&out)
+                .map(|_| ())
+                .map_err(|e| e.to_string_with(&self.geometry_key(&e))),
+        };
+        check.map_err(|(key, message)| self.err(&key, message))?;
+        Ok(out)
+    }
+
+    /// The key a geometry refusal belongs to.
+    fn geometry_key<const K: usize>(&self, e: &GeometryError<f64, K>) -> String {
+        match e {
+            GeometryError::Count { .. }
+            | GeometryError::Dimension
+            | GeometryError::DoesNotSpan(_) => "vehicle.actuator".to_owned(),
+            GeometryError::NonFinite { index, field } => {
+                format!("vehicle.actuator[{index}].{field}")
+            }
+            GeometryError::ZeroAxis { index } => format!("vehicle.actuator[{index}].axis"),
+            GeometryError::MinAboveMax { index, .. } => format!("vehicle.actuator[{index}].min"),
+        }
+    }
+
+    /// `[[vehicle.failure]]`: an actuator that exists, a finite `t ≥ 0`, a finite value; in
+    /// time order.
+    fn failures(
+        &self,
+        raw: &[RawFailure],
+        count: usize,
+    ) -> Result<Vec<FailureSpec>, ScenarioError> {
+        let mut out = Vec::with_capacity(raw.len());
+        for (i, f) in raw.iter().enumerate() {
+            let key = |field: &str| format!("vehicle.failure[{i}].{field}");
+            if f.actuator < 0 || f.actuator as usize >= count {
+                return Err(self.err(
+                    &key("actuator"),
+                    format!(
+                        "no actuator {} (the vehicle has {count}, numbered from 0)",
+                        f.actuator
+                    ),
+                ));
+            }
+            if !f.t.is_finite() || f.t < 0.0 {
+                return Err(self.err(&key("t"), format!("must be finite and ≥ 0, got {}", f.t)));
+            }
+            let value = f.value.unwrap_or(0.0);
+            if !value.is_finite() {
+                return Err(self.err(&key("value"), format!("not a finite number ({value})")));
+            }
+            out.push(FailureSpec {
+                actuator: f.actuator as usize,
+                t: f.t,
+                value,
+                reconfigure: f.reconfigure.unwrap_or(true),
+            });
+        }
+        out.sort_by(|a, b| a.t.total_cmp(&b.t));
+        Ok(out)
+    }
+
+    /// `[allocation]`: weights (positive) and preferred commands, one per actuator each, and
+    /// the priority.
+    fn allocation(
+        &self,
+        raw: Option<&RawAllocation>,
+        count: usize,
+    ) -> Result<(Vec<f64>, Vec<f64>, Priority), ScenarioError> {
+        let Some(raw) = raw else {
+            return Ok((Vec::new(), Vec::new(), Priority::Torque));
+        };
+        let list = |key: &str, v: &Option<Vec<f64>>| -> Result<Vec<f64>, ScenarioError> {
+            match v {
+                None => Ok(Vec::new()),
+                Some(v) => self.vector(key, v, count, "one per actuator"),
+            }
+        };
+        let weights = list("allocation.weights", &raw.weights)?;
+        if let Some(i) = weights.iter().position(|w| *w <= 0.0) {
+            return Err(self.err(
+                "allocation.weights",
+                format!("entry {i} must be positive, got {}", weights[i]),
+            ));
+        }
+        let preferred = list("allocation.preferred", &raw.preferred)?;
+        let priority = match raw.priority.as_deref() {
+            None | Some("torque") => Priority::Torque,
+            Some("none") => Priority::None,
+            Some(other) => {
+                return Err(self.err(
+                    "allocation.priority",
+                    format!("unknown priority `{other}` (expected torque or none)"),
+                ));
+            }
+        };
+        Ok((weights, preferred, priority))
+    }
+}
+
+/// A geometry refusal as `(key, message)`.
+trait KeyedMessage {
+    fn to_string_with(&self, key: &str) -> (String, String);
+}
+
+impl<const K: usize> KeyedMessage for GeometryError<f64, K> {
+    fn to_string_with(&self, key: &str) -> (String, String) {
+        (key.to_owned(), self.to_string())
+    }
+}
+
+impl Scenario {
+    /// The plant's total inertia: the rigid body's plus any added mass (m×m, row-major).
+    pub fn total_inertia(&self) -> Vec<f64> {
+        match self.vehicle.as_ref().and_then(|v| v.added_mass.as_ref()) {
+            None => self.plant_inertia.clone(),
+            Some(a) => self
+                .plant_inertia
+                .iter()
+                .zip(a)
+                .map(|(p, x)| p + x)
+                .collect(),
+        }
+    }
+}

@@ -1,0 +1,248 @@
+//! `[vehicle]` and `[allocation]`: bad tables are refused naming the key and what is wrong.
+
+use scenario::Scenario;
+
+fn rov_text() -> String {
+    std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/rov_failure.toml"
+    ))
+    .unwrap()
+}
+
+fn hexarotor_text() -> String {
+    std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/hexarotor_eight.toml"
+    ))
+    .unwrap()
+    .replace(
+        "waypoints = \"hexarotor_eight.csv\"\npath = \"through\"",
+        "setpoint = { rotation = [0.3, 0.0, 0.0] }",
+    )
+}
+
+/// The error a text gives, which must exist.
+fn error(text: &str) -> String {
+    match Scenario::from_toml(text, "test", "test") {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn refused(text: &str, key: &str, what: &str) {
+    let e = error(text);
+    assert!(
+        e.contains(&format!("key `{key}`")),
+        "{e} does not name {key}"
+    );
+    assert!(e.contains(what), "{e} does not say {what}");
+}
+
+#[test]
+fn the_vehicle_scenarios_load_and_the_model_inertia_defaults_to_the_total() {
+    let rov = Scenario::from_toml(
+        &rov_text().replace(
+            "waypoints = \"rov_failure.csv\"",
+            "setpoint = { rotation = [0.0, 0.0, 0.0] }",
+        ),
+        "rov",
+        "rov",
+    )
+    .unwrap();
+    let v = rov.vehicle.as_ref().unwrap();
+    assert_eq!((v.actuators.len(), v.failures.len(), v.mass), (8, 1, 11.5));
+    // the rigid body's 11.5 kg plus the added 5.5 kg along x
+    assert_eq!(rov.model_inertia[3 * 6 + 3], 17.0);
+    assert_eq!(rov.total_inertia()[5 * 6 + 5], 11.5 + 14.6);
+    assert_eq!(rov.plant_inertia[3 * 6 + 3], 11.5);
+    let hex = Scenario::from_toml(&hexarotor_text(), "hex", "hex").unwrap();
+    assert_eq!(hex.model_inertia, hex.plant_inertia);
+    // the vehicle is in the fingerprint; a scenario without one keeps its own
+    let mut other = hex.clone();
+    other.vehicle.as_mut().unwrap().actuators[0].max = 9.0;
+    assert_ne!(other.fingerprint(), hex.fingerprint());
+    let mut plain = hex.clone();
+    plain.vehicle = None;
+    assert_ne!(plain.fingerprint(), hex.fingerprint());
+}
+
+#[test]
+fn bad_actuators_are_refused_naming_the_key() {
+    let hex = hexarotor_text();
+    // an untilted hexarotor: no sideways force
+    let flat = hex
+        .replace("0.479425538604", "0.0")
+        .replace("0.415194695654", "0.0")
+        .replace("-0.239712769302", "0.0")
+        .replace("-0.415194695654", "0.0")
+        .replace("0.239712769302", "0.0")
+        .replace("-0.479425538604", "0.0");
+    let e = error(&flat);
+    assert!(
+        e.contains("key `vehicle.actuator`")
+            && e.contains("cannot produce every wrench")
+            && e.contains("fx"),
+        "{e}"
+    );
+    refused(
+        &hex.replacen("min = 0.0\nmax = 8.0", "min = 9.0\nmax = 8.0", 1),
+        "vehicle.actuator[0].min",
+        "is above `max`",
+    );
+    refused(
+        &hex.replacen(
+            "axis = [0.0, 0.479425538604, 0.87758256189]",
+            "axis = [0.0, 0.0, 0.0]",
+            1,
+        ),
+        "vehicle.actuator[0].axis",
+        "is zero",
+    );
+    refused(
+        &hex.replacen(
+            "position = [0.25, 0.0, 0.0]",
+            "position = [nan, 0.0, 0.0]",
+            1,
+        ),
+        "vehicle.actuator[0].position",
+        "not a finite number",
+    );
+    refused(
+        &hex.replacen(
+            "axis = [0.0, 0.479425538604, 0.87758256189]",
+            "axis = [0.0, 0.48]",
+            1,
+        ),
+        "vehicle.actuator[0].axis",
+        "expected 3 numbers",
+    );
+    let table = "\n[[vehicle.actuator]]\nposition = [0.0, 0.0, 0.0]\naxis = [0.0, 0.0, 1.0]\nmin = 0.0\nmax = 1.0\n";
+    refused(
+        &format!("{hex}{}", table.repeat(7)),
+        "vehicle.actuator",
+        "13 actuators: a vehicle has 1 to 12",
+    );
+}
+
+#[test]
+fn bad_vehicle_and_allocation_keys_are_refused_naming_the_key() {
+    let rov = rov_text();
+    refused(
+        &rov.replace("actuator = 5\n", "actuator = 8\n"),
+        "vehicle.failure[0].actuator",
+        "no actuator 8 (the vehicle has 8",
+    );
+    refused(
+        &rov.replace("actuator = 5\n", "actuator = -1\n"),
+        "vehicle.failure[0].actuator",
+        "no actuator -1",
+    );
+    refused(
+        &rov.replace("t = 20.0\n", "t = -1.0\n"),
+        "vehicle.failure[0].t",
+        "must be finite and ≥ 0",
+    );
+    refused(
+        &rov.replace("gravity = 9.81", "gravity = -9.81"),
+        "vehicle.gravity",
+        "≥ 0",
+    );
+    refused(
+        &rov.replace("buoyancy = 114.8", "buoyancy = inf"),
+        "vehicle.buoyancy",
+        "≥ 0",
+    );
+    refused(
+        &rov.replace("gravity = 9.81", "gravity = 1e308"),
+        "vehicle.gravity",
+        "is not a finite number",
+    );
+    refused(
+        &rov.replace(
+            "buoyancy_centre = [0.0, 0.0, 0.02]",
+            "buoyancy_centre = [0.0, 0.0, 1e307]",
+        ),
+        "vehicle.buoyancy_centre",
+        "not a finite number",
+    );
+    refused(
+        &rov.replace("damping_linear = [0.5,", "damping_linear = [-0.5,"),
+        "vehicle.damping_linear",
+        "entry 0 is negative",
+    );
+    refused(
+        &rov.replace(
+            "damping_quadratic = [0.5, 0.5, 0.5, 18.0, 21.0, 37.0]",
+            "damping_quadratic = [0.5]",
+        ),
+        "vehicle.damping_quadratic",
+        "expected 6 numbers",
+    );
+    refused(
+        &rov.replace(
+            "  [0.12, 0.0, 0.0, 0.0, 0.0, 0.0],",
+            "  [0.12, 0.3, 0.0, 0.0, 0.0, 0.0],",
+        ),
+        "vehicle.added_mass",
+        "must be symmetric",
+    );
+    refused(
+        &rov.replace(
+            "  [0.0, 0.0, 0.0, 5.5, 0.0, 0.0],",
+            "  [0.0, 0.0, 0.0, -40.0, 0.0, 0.0],",
+        ),
+        "vehicle.added_mass",
+        "not positive definite",
+    );
+    refused(
+        &rov.replace(
+            "actuator_time_constant = 0.05",
+            "actuator_time_constant = -0.05",
+        ),
+        "vehicle.actuator_time_constant",
+        "≥ 0",
+    );
+    // gravity needs a mass: m·1₃ and no coupling
+    refused(
+        &rov.replace(
+            "  [0.0, 0.0, 0.0, 0.0, 11.5, 0.0],",
+            "  [0.0, 0.0, 0.0, 0.0, 12.5, 0.0],",
+        ),
+        "plant.inertia",
+        "force block must be m·1₃",
+    );
+    let alloc = "\n[allocation]\nweights = [1.0, 1.0]\n";
+    refused(
+        &format!("{rov}{alloc}"),
+        "allocation.weights",
+        "expected 8 numbers (one per actuator)",
+    );
+    refused(
+        &format!("{rov}\n[allocation]\nweights = [1.0, 1.0, 1.0, 0.0, 1.0, 1.0, 1.0, 1.0]\n"),
+        "allocation.weights",
+        "entry 3 must be positive",
+    );
+    refused(
+        &format!("{rov}\n[allocation]\npriority = \"force\"\n"),
+        "allocation.priority",
+        "unknown priority `force`",
+    );
+    let bare = rov[..rov.find("[vehicle]").unwrap()].to_owned();
+    refused(
+        &format!("{bare}\n[allocation]\npriority = \"none\"\n"),
+        "allocation",
+        "needs a [vehicle]",
+    );
+    let e = error(&rov.replace("reconfigure = true", "reconfigure = true\nstuck = 1"));
+    assert!(e.contains("unknown field `stuck`"), "{e}");
+}
+
+#[test]
+fn gravity_on_so3_is_refused() {
+    let seed = scenario::BUILTINS[0].1;
+    let text = format!(
+        "{seed}\n[vehicle]\ngravity = 9.81\n[[vehicle.actuator]]\nposition = [1.0, 0.0, 0.0]\naxis = [0.0, 1.0, 0.0]\nmin = -1.0\nmax = 1.0\n"
+    );
+    refused(&text, "vehicle.gravity", "an SO(3) body has no position");
+}
