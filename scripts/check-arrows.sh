@@ -12,8 +12,9 @@
 #     (controller_node, control_cycle), and the plant_sim command line not on controller_node:
 #     the two processes meet only on the wire;
 #   * fuzz depends on libraries, not on a process's crate (plant_sim, controller_node);
-#   * docs/architecture.md's crate table and "who depends on whom" block say what `cargo
-#     metadata` says (scripts/crate-arrows.py --check).
+#   * docs/architecture.md's crate table and "who depends on whom" block, and README.md's
+#     crate map, say what `cargo metadata` says, the embedded workspaces' rows included
+#     (scripts/crate-arrows.py --check).
 #
 #   bash scripts/check-arrows.sh              check this repository
 #   bash scripts/check-arrows.sh --self-test  plant each forbidden arrow in a copy of the
@@ -27,55 +28,59 @@ tree() {
 		awk '{print $1}' | sort -u
 }
 
-# check DIR [--no-docs]: prints one line per broken rule; status 1 if any
+# check DIR [--no-docs]: prints one line per broken rule; status 1 if any, 2 if a tree could
+# not be read (an unreadable tree must not pass as "no arrow")
 check() {
-	local dir=$1 bad=0 p
-	local export_tree recorder_tree wire_tree
-	export_tree=$(tree "$dir" export)
-	recorder_tree=$(tree "$dir" recorder)
-	wire_tree=$(tree "$dir" ipc_types)
-	[[ -n $export_tree && -n $recorder_tree && -n $wire_tree ]] || { echo "cargo tree failed in $dir" >&2; return 2; }
-	for p in controller estimator scenario link recorder plant_sim controller_node; do
-		if grep -qx "$p" <<<"$wire_tree"; then
+	local dir=$1 bad=0 p c
+	local -A trees
+	for c in export recorder ipc_types plant plant_sim fuzz controller_node link flight_tools; do
+		trees[$c]=$(tree "$dir" "$c")
+		[[ -n ${trees[$c]} ]] || { echo "cargo tree failed for $c in $dir" >&2; return 2; }
+	done
+	# our crates: every member of the workspace
+	local ours
+	ours=$( (cd "$dir" && cargo metadata --format-version 1 --no-deps --offline) |
+		python3 -c 'import json,sys; m=json.load(sys.stdin); print("\n".join(p["name"] for p in m["packages"]))')
+	[[ -n $ours ]] || { echo "cargo metadata failed in $dir" >&2; return 2; }
+	for p in $ours; do
+		if [[ $p != ipc_types ]] && grep -qx "$p" <<<"${trees[ipc_types]}"; then
 			echo "arrow: ipc_types depends on $p (the wire owns its codes; conversions live in link::wire)"
 			bad=1
 		fi
-	done
-	for p in iceoryx2 plotters ratatui rayon hdrhistogram plant plant_sim studies flight_tools floors link controller_node control_cycle; do
-		if grep -qx "$p" <<<"$export_tree"; then
-			echo "arrow: export depends on $p (the exporter needs only recorder and ipc_types)"
-			bad=1
-		fi
-	done
-	for p in plant_sim link controller_node scenario estimator export; do
-		if grep -qx "$p" <<<"$recorder_tree"; then
+		if [[ $p != recorder && $p != ipc_types ]] && grep -qx "$p" <<<"${trees[recorder]}"; then
 			echo "arrow: recorder depends on $p (it may know the wire only)"
 			bad=1
 		fi
 	done
+	for p in iceoryx2 plotters ratatui rayon hdrhistogram plant plant_sim studies flight_tools floors link controller_node control_cycle; do
+		if grep -qx "$p" <<<"${trees[export]}"; then
+			echo "arrow: export depends on $p (the exporter needs only recorder and ipc_types)"
+			bad=1
+		fi
+	done
 	for p in controller_node control_cycle; do
-		if tree "$dir" plant | grep -qx "$p"; then
+		if grep -qx "$p" <<<"${trees[plant]}"; then
 			echo "arrow: plant depends on $p (the plant process knows the controller only through the wire)"
 			bad=1
 		fi
 	done
-	if tree "$dir" plant_sim | grep -qx controller_node; then
+	if grep -qx controller_node <<<"${trees[plant_sim]}"; then
 		echo "arrow: plant_sim depends on controller_node (replay runs control_cycle, the controller's library)"
 		bad=1
 	fi
 	for p in plant_sim controller_node; do
-		if tree "$dir" fuzz | grep -qx "$p"; then
+		if grep -qx "$p" <<<"${trees[fuzz]}"; then
 			echo "arrow: fuzz depends on $p (a process's crate; fuzz the libraries)"
 			bad=1
 		fi
 	done
 	for p in plant_sim controller_node link plant flight_tools; do
-		if tree "$dir" "$p" | grep -qx mcap; then
+		if grep -qx mcap <<<"${trees[$p]}"; then
 			echo "arrow: $p links mcap (only the export crate may)"
 			bad=1
 		fi
 	done
-	grep -qx mcap <<<"$export_tree" || { echo "the check cannot see mcap in export's tree" >&2; return 2; }
+	grep -qx mcap <<<"${trees[export]}" || { echo "the check cannot see mcap in export's tree" >&2; return 2; }
 	if [[ ${2:-} != --no-docs ]]; then
 		(cd "$dir" && cargo metadata --format-version 1 --no-deps --offline | python3 scripts/crate-arrows.py --check docs/architecture.md README.md) || bad=1
 	fi
@@ -113,6 +118,9 @@ plant() {
 plant export/Cargo.toml 'plant_sim = { path = "../plant_sim" }' "export depends on plant_sim" --no-docs
 plant export/Cargo.toml 'plant = { path = "../plant" }' "export depends on plant" --no-docs
 plant export/Cargo.toml 'rayon = "1"' "export depends on rayon" --no-docs
+plant export/Cargo.toml 'iceoryx2 = "=0.10.0"' "export depends on iceoryx2" --no-docs
+plant ipc_types/Cargo.toml 'allocation = { path = "../allocation" }' "ipc_types depends on allocation" --no-docs
+plant recorder/Cargo.toml 'controller = { path = "../controller" }' "recorder depends on controller" --no-docs
 plant recorder/Cargo.toml 'link = { path = "../link" }' "recorder depends on link" --no-docs
 plant ipc_types/Cargo.toml 'controller = { path = "../controller" }' "ipc_types depends on controller" --no-docs
 plant controller_node/Cargo.toml 'mcap = { version = "0.26", default-features = false }' "controller_node links mcap" --no-docs
@@ -123,4 +131,6 @@ plant fuzz/Cargo.toml 'plant_sim = { path = "../plant_sim" }' "fuzz depends on p
 plant fuzz/Cargo.toml 'controller_node = { path = "../controller_node" }' "fuzz depends on controller_node" --no-docs
 # an arrow no rule forbids: only the docs' block can catch it
 plant studies/Cargo.toml 'recorder = { path = "../recorder" }' "docs: docs/architecture.md: the \"who depends on whom\" block differs"
+# an embedded workspace's dependency the README does not name
+plant embedded/nostd-check/Cargo.toml 'scenario = { path = "../../scenario" }' "README.md: \`embedded/nostd-check\` is said to depend on"
 echo "check-arrows self-test: every planted arrow caught"

@@ -23,8 +23,10 @@
 #    the vector's magnitude, not of itself. The 1e-6 floor only matters for an exactly zero
 #    line (the goal state), where it demands agreement to 1e-11.
 # 4. Prints the ELF's flash/RAM footprint and the stack use the firmware measured.
-# 5. Counts the instructions of one SO(3) and one SE(3) law call and of one controller cycle
-#    (1 and 10 reference substeps) in QEMU's single-step execution log (feature `icount`).
+# 5. Counts the instructions of one SO(3) and one SE(3) law call, of one controller cycle
+#    (1 and 10 reference substeps), of the estimators' steps, the rejection terms and one
+#    allocation (hexarotor, ROV; within reach and saturated) in QEMU's single-step execution
+#    log (feature `icount`), and holds each budgeted one to its limit.
 #
 # Environment:
 #   TOOLCHAIN_CACHE=dir    toolchain cache (default <repo>/.toolchain; CORTEX_M_CACHE also works)
@@ -293,8 +295,8 @@ for line in open(sys.argv[1], errors="replace"):
     in_mark = False
     if current is not None:
         current[sym] += 1
-if runs < 24 or len(gaps) < 23:
-    sys.exit(f"expected 24 marks, found {runs}")
+if runs < 30 or len(gaps) < 29:
+    sys.exit(f"expected 30 marks, found {runs}")
 base = sum(gaps[0].values())
 # gaps[i] lies between mark i and mark i + 1
 names = {2: "SO(3) EqT, Controller::compute, f32", 4: "SE(3) EqT (generic), Controller::compute, f32",
@@ -305,7 +307,10 @@ names = {2: "SO(3) EqT, Controller::compute, f32", 4: "SE(3) EqT (generic), Cont
          16: "SO(3) EqT + momentum observer, Controller::compute_rejecting, f32",
          18: "SO(3) EqT + geometric integral, Controller::compute_rejecting, f32",
          20: "SO(3) EqT + observer + integral, Controller::compute_rejecting, f32",
-         22: "SO(3) EqT + momentum observer with its clamp, Controller::compute_rejecting, f32"}
+         22: "SO(3) EqT + momentum observer with its clamp, Controller::compute_rejecting, f32",
+         24: "allocation, hexarotor (6 rotors), within reach, f32",
+         26: "allocation, ROV (8 thrusters), within reach, f32",
+         28: "allocation, hexarotor, saturated, f32"}
 soft = re.compile(r"__aeabi_d|__adddf3|__subdf3|__muldf3|__divdf3|__fixdfsi|__floatsidf|__extendsfdf2|__truncdfsf2|compiler_builtins.*float")
 for i, name in names.items():
     g = gaps[i]
@@ -315,7 +320,10 @@ for i, name in names.items():
     print(f"ICOUNT {i // 2} {n:>6} instructions  {name}  (software double: {d}; top: {top})")
 print(f"ICOUNT overhead {base} (subtracted)")
 # the targets the issues set, at opt-level 3
-limits = {14: 6000} if sys.argv[2] == "opt-level-3" else {}
+# allocation (issue "From wrench to vehicle"): within reach a closed form, at most 5 000; a
+# saturated demand runs the active-set method, whose ceiling here only guards against it
+# growing (it is far over a 1 kHz cycle's budget: BENCHMARKS.md, section 14)
+limits = {14: 6000, 24: 5000, 26: 5000, 28: 900000} if sys.argv[2] == "opt-level-3" else {}
 for i, limit in limits.items():
     n = sum(gaps[i].values()) - base
     if n > limit:

@@ -7,8 +7,9 @@ dependencies on crates of the workspace).
         `crate ◀── dependents`
     ... | python3 scripts/crate-arrows.py --check docs/architecture.md [README.md ...]
         requires the first page's block to be that block, and every page's crate table's
-        last column ("depends on (ours)") to name exactly each crate's dependencies; prints
-        each difference and exits 1 if there is one
+        last column ("depends on (ours)") to name exactly each crate's dependencies, the
+        embedded workspaces' rows (`embedded/NAME`) included, from their own manifests;
+        prints each difference and exits 1 if there is one
 
 scripts/check-arrows.sh runs the check in CI.
 """
@@ -63,6 +64,33 @@ def check_table(path, page, bad):
             )
 
 
+def check_embedded(path, page, bad):
+    """Rows `| `embedded/NAME` | ... | depends on |`: what NAME's own manifest depends on."""
+    import subprocess
+
+    for l in page:
+        m = re.match(r"^\| `embedded/([a-z-]+)` \|(.*)\|\s*$", l)
+        if not m:
+            continue
+        name = m.group(1)
+        said = set(re.findall(r"`([a-z_]+)`", m.group(2).split("|")[-1])) & ours
+        out = subprocess.run(
+            ["cargo", "metadata", "--format-version", "1", "--no-deps", "--offline",
+             "--manifest-path", f"embedded/{name}/Cargo.toml"],
+            capture_output=True, text=True,
+        )
+        if out.returncode != 0:
+            bad.append(f"{path}: cargo metadata failed for embedded/{name}: {out.stderr.strip()}")
+            continue
+        pkg = next(p for p in json.loads(out.stdout)["packages"] if p["name"] == name)
+        real = {d["name"] for d in pkg["dependencies"] if d["kind"] is None and d["name"] in ours}
+        if said != real:
+            bad.append(
+                f"{path}: `embedded/{name}` is said to depend on {sorted(said)}; "
+                f"its manifest says {sorted(real)}"
+            )
+
+
 bad = []
 page = open(sys.argv[2], encoding="utf-8").read().splitlines()
 start = next((i for i, l in enumerate(page) if l.startswith("who depends on whom")), None)
@@ -81,6 +109,7 @@ else:
         bad.append(f"{sys.argv[2]}: the \"who depends on whom\" block differs; it should read:\n" + "\n".join(block))
 for path in sys.argv[2:]:
     check_table(path, open(path, encoding="utf-8").read().splitlines(), bad)
+    check_embedded(path, open(path, encoding="utf-8").read().splitlines(), bad)
 for problem in bad:
     print(f"docs: {problem}")
 sys.exit(1 if bad else 0)

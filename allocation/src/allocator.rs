@@ -232,9 +232,14 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         };
         // stage 1: the torque (or the whole wrench)
         let first = if split { 3 } else { K };
+        let (start, inside) = self.start(demand, &up, bounds);
+        if inside {
+            // the command nearest u_pref producing the whole demand lies within the bounds:
+            // it is every stage's optimum (docs/maths.md, "Control allocation")
+            return self.answer(start, Status::Met, 0);
+        }
         let (a1, b1) = rows(b, demand, 0..first);
         let (h, g) = least_squares(&a1, &b1);
-        let start = self.start(demand, &up, bounds);
         let mut u = run(&stage(h, g, &SMatrix::zeros(), 0), start);
         // stage 2: the force, keeping the torque
         if split {
@@ -268,18 +273,34 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     }
 
     /// Where stage 1 starts: the command nearest `u_pref` in the `W`-norm that produces the
-    /// whole demand, `u_pref + W⁻¹Bᵀ(BW⁻¹Bᵀ)⁻¹(w − B u_pref)`, clamped into the bounds. When
-    /// the demand is within reach and nothing saturates, it is every stage's optimum, and
-    /// each stage ends in one iteration. (Any point of the box is a valid start.)
-    fn start(&self, demand: &SVector<T, K>, up: &Commands<T>, bounds: &Bounds<T>) -> Commands<T> {
+    /// whole demand, `u_pref + W⁻¹Bᵀ(BW⁻¹Bᵀ)⁻¹(w − B u_pref)`, clamped into the bounds, and
+    /// whether it was inside them already. Inside, it meets stages 1 and 2 exactly and is
+    /// stage 3's unconstrained optimum, so it is every stage's answer. (Any point of the box
+    /// is a valid start.)
+    fn start(
+        &self,
+        demand: &SVector<T, K>,
+        up: &Commands<T>,
+        bounds: &Bounds<T>,
+    ) -> (Commands<T>, bool) {
         let b = self.geometry.effectiveness();
-        let winv = self.weights.map(|w| T::one() / w);
-        let bw = b * SMatrix::<T, MAX_ACTUATORS, MAX_ACTUATORS>::from_diagonal(&winv);
+        // B W⁻¹: each column divided by its weight
+        let mut bw = *b;
+        for (j, mut c) in bw.column_iter_mut().enumerate() {
+            c /= self.weights[j];
+        }
         let Some(ch) = nalgebra::Cholesky::new(bw * b.transpose()) else {
-            return *up;
+            return (*up, false);
         };
         let u = up + bw.transpose() * ch.solve(&(demand - b * up));
-        u.zip_zip_map(&bounds.lo, &bounds.hi, |x, l, h| x.max(l).min(h))
+        let inside = u
+            .iter()
+            .zip(bounds.lo.iter().zip(bounds.hi.iter()))
+            .all(|(x, (l, h))| x.is_finite() && *x >= *l && *x <= *h);
+        (
+            u.zip_zip_map(&bounds.lo, &bounds.hi, |x, l, h| x.max(l).min(h)),
+            inside,
+        )
     }
 
     /// Whether `u` meets the demand: the torque (or wrench), then the force.

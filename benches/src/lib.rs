@@ -3,6 +3,7 @@
 //! against in the same run.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;

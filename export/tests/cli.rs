@@ -7,7 +7,7 @@ use ipc_types::{CommandMsg, MAX_M, StateMsg};
 use link::Decision;
 use link::wire::group_code;
 use recorder::{Header, Record};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 fn export(args: &[&str]) -> (i32, String) {
@@ -25,11 +25,10 @@ fn export(args: &[&str]) -> (i32, String) {
     )
 }
 
-/// A fresh directory `eqtrack-export-<tag>-<pid>` holding [`write_log`]'s log.
-fn hand_made_log(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("eqtrack-export-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    write_log(&dir);
+/// A fresh temporary directory holding [`write_log`]'s log (removed when dropped).
+fn hand_made_log() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    write_log(dir.path());
     dir
 }
 
@@ -85,7 +84,8 @@ fn write_log(dir: &Path) {
 
 #[test]
 fn a_hand_made_log_exports_each_channel_and_nan_stays_nan() {
-    let dir = hand_made_log("cli");
+    let tmp = hand_made_log();
+    let dir = tmp.path().to_path_buf();
     let d = dir.to_str().unwrap();
     let (code, text) = export(&[d]);
     assert_eq!(code, 0, "{text}");
@@ -123,7 +123,6 @@ fn a_hand_made_log_exports_each_channel_and_nan_stays_nan() {
     let (code, text) = export(&[dir.join("missing").to_str().unwrap()]);
     assert_eq!(code, 2, "{text}");
     assert!(text.contains("cannot open"), "{text}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `--out` writes where it is told (and only there); `--compress` writes zstd chunks that the
@@ -131,7 +130,8 @@ fn a_hand_made_log_exports_each_channel_and_nan_stays_nan() {
 /// feature when it has not.
 #[test]
 fn out_names_the_file_and_compress_needs_the_zstd_feature() {
-    let dir = hand_made_log("out");
+    let tmp = hand_made_log();
+    let dir = tmp.path().to_path_buf();
     let d = dir.to_str().unwrap();
     let elsewhere = dir.join("elsewhere.mcap");
     let (code, text) = export(&[d, "--out", elsewhere.to_str().unwrap()]);
@@ -171,5 +171,4 @@ fn out_names_the_file_and_compress_needs_the_zstd_feature() {
         );
         assert!(!packed.exists(), "a refused export creates no file");
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }

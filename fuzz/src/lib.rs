@@ -584,7 +584,8 @@ mod tests {
 
     #[test]
     fn findings_are_saved() {
-        let dir = std::env::temp_dir().join(format!("fuzz-findings-test-{}", std::process::id()));
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("findings");
         let f = Finding {
             target: Target::Scenario,
             seed: 1,
@@ -602,6 +603,5 @@ mod tests {
             txt.contains("fuzz --target scenario --seed 1 --case 2"),
             "{txt}"
         );
-        std::fs::remove_dir_all(dir).unwrap();
     }
 }

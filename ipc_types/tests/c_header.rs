@@ -134,8 +134,8 @@ fn rust_layout() -> Layout {
 
 /// The same table from C: a program that includes the header prints `struct field offset size`.
 fn c_layout(rust: &Layout) -> Layout {
-    let dir = std::env::temp_dir().join(format!("eqtrack-c-header-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
     let mut prog =
         String::from("#include <stdio.h>\n#include \"eqtrack_wire.h\"\nint main(void) {\n");
     for (s, f) in rust.keys() {
@@ -163,7 +163,6 @@ fn c_layout(rust: &Layout) -> Layout {
         String::from_utf8_lossy(&out.stderr)
     );
     let run = Command::new(&exe).output().unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
     String::from_utf8(run.stdout)
         .unwrap()
         .lines()

@@ -304,14 +304,13 @@ mod tests {
             cpus_allowed: vec![0],
             scheduler: "SCHED_OTHER".to_owned(),
         };
-        let dir = std::env::temp_dir().join(format!("rt-json-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let path = dir.join("r.json");
         r.write_json(&path).unwrap();
         assert_eq!(RtReport::read_json(&path).unwrap(), r);
         std::fs::write(&path, "{").unwrap();
         assert!(RtReport::read_json(&path).unwrap_err().contains("r.json"));
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -5,11 +5,9 @@
 use plant::output::{Summary, write_trajectory_csv};
 use plant::trajectory::{SimulatedTrajectory, simulate};
 use scenario::Scenario;
-use std::path::Path;
 
 fn scenario(name: &str) -> Scenario {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../scenarios/{name}.toml"));
-    Scenario::from_file(&path).unwrap()
+    pair_tests::load_scenario(name)
 }
 
 fn run(s: &Scenario) -> SimulatedTrajectory {

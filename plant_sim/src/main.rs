@@ -1,6 +1,7 @@
 //! `plant_sim`: see the library's documentation (`plant_sim::main`), and
 //! docs/simulations.md for every subcommand.
 #![forbid(unsafe_code)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 use std::process::ExitCode;
 

@@ -20,7 +20,8 @@ fn cyclictest() -> String {
 
 #[test]
 fn bench_loop_shows_the_floors_beside_the_pair() {
-    let out_dir = std::env::temp_dir().join(format!("eqtrack-bench-loop-{}", std::process::id()));
+    let tmp = tempfile::tempdir().unwrap();
+    let out_dir = tmp.path().to_path_buf();
     let out = Command::new(env!("CARGO_BIN_EXE_plant_sim"))
         .args([
             "bench-loop",
@@ -79,5 +80,4 @@ fn bench_loop_shows_the_floors_beside_the_pair() {
             .exists()
     );
     assert!(!out_dir.join("iceoryx2-event-1000hz/messages.log").exists());
-    let _ = std::fs::remove_dir_all(&out_dir);
 }

@@ -1,26 +1,14 @@
 //! `plant_sim` driven as a user drives it: through the binary.
 
+mod common;
+
+use common::{ok, run};
+use pair_tests::{column, read_csv, repo};
 use std::path::Path;
 use std::process::{Command, Output};
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_plant_sim"))
-}
-
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("plant_sim starts")
-}
-
-use pair_tests::{column, read_csv, repo};
-
-fn ok(out: &Output) {
-    assert!(
-        out.status.success(),
-        "exit {:?}\nstdout: {}\nstderr: {}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
 }
 
 #[test]

@@ -1,32 +1,17 @@
 //! References as inputs, through the binary: `plant_sim reference` on the waypoint scenarios,
 //! a start on the reference under zero-order hold, and bad waypoint files.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_plant_sim"))
-        .args(args)
-        .output()
-        .expect("plant_sim starts")
-}
+use common::{run, text};
+use std::path::{Path, PathBuf};
+use std::process::Command;
 
 use pair_tests::repo;
 
-fn temp(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("eqtrack-ref-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn text(out: &Output) -> String {
-    format!(
-        "exit {:?}\nstdout: {}\nstderr: {}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    )
+/// A fresh temporary directory (removed when dropped).
+fn temp() -> tempfile::TempDir {
+    tempfile::tempdir().unwrap()
 }
 
 /// A CSV's header and rows, as numbers.
@@ -67,7 +52,8 @@ fn reference_csv_satisfies_the_euler_poincare_feedforward_on_both_groups() {
         ]
     };
     for (name, m) in [("slew_so3", 3), ("slew_se3", 6)] {
-        let out = temp(name);
+        let out_tmp = temp();
+        let out = out_tmp.path().to_path_buf();
         let o = run(&[
             "reference",
             "--scenario",
@@ -129,7 +115,8 @@ fn reference_csv_satisfies_the_euler_poincare_feedforward_on_both_groups() {
 /// The largest attitude error of `slew_so3` started exactly on its reference (first
 /// waypoint, at rest) at control period `h`, through the binary.
 fn on_reference_error(h: f64) -> f64 {
-    let d = temp(&format!("onref-{h}"));
+    let d_tmp = temp();
+    let d = d_tmp.path().to_path_buf();
     let toml = std::fs::read_to_string(repo("scenarios/slew_so3.toml"))
         .unwrap()
         .replace("rotation = [0.3, -0.3, 0.2]", "rotation = [0.0, 0.0, 0.0]")
@@ -174,7 +161,8 @@ fn a_start_on_the_waypoint_reference_stays_within_the_hold_error() {
 /// Each bad waypoint file: exit 2, no panic, a message naming the file, line and column.
 #[test]
 fn bad_waypoint_files_name_file_line_and_column() {
-    let d = temp("bad");
+    let d_tmp = temp();
+    let d = d_tmp.path().to_path_buf();
     let cases = [
         (
             "unsorted",
@@ -229,8 +217,13 @@ fn bad_waypoint_files_name_file_line_and_column() {
 
 /// `slew_{group}` with `path = "through"` (and `extra` lines replaced in the scenario), its
 /// waypoints from `csv` (default: the shipped file), written into a fresh directory.
-fn through_scenario(group: &str, tag: &str, csv: Option<&str>, edits: &[(&str, &str)]) -> PathBuf {
-    let d = temp(tag);
+fn through_scenario(
+    group: &str,
+    csv: Option<&str>,
+    edits: &[(&str, &str)],
+) -> (tempfile::TempDir, PathBuf) {
+    let tmp = temp();
+    let d = tmp.path();
     let name = format!("slew_{group}");
     let mut toml = std::fs::read_to_string(repo(&format!("scenarios/{name}.toml"))).unwrap();
     let waypoints = match csv {
@@ -252,13 +245,13 @@ fn through_scenario(group: &str, tag: &str, csv: Option<&str>, edits: &[(&str, &
     }
     let file = d.join("s.toml");
     std::fs::write(&file, toml).unwrap();
-    file
+    (tmp, file)
 }
 
 #[test]
 fn a_through_path_reference_satisfies_the_feedforward_and_never_stops_inside() {
     for group in ["so3", "se3"] {
-        let file = through_scenario(group, &format!("tau-{group}"), None, &[]);
+        let (_tmp, file) = through_scenario(group, None, &[]);
         let out = file.parent().unwrap().join("out");
         let o = run(&[
             "reference",
@@ -320,10 +313,9 @@ fn the_feasibility_report_warns_on_the_right_axis_at_the_right_time() {
     // t = 1 + 0.2113 s; with J_zz = 1.759 the feedforward peaks at 15.2 N·m on z, x and y
     // need nothing (J's off-diagonal 0.12 couples x: τ_x = 0.12·α = 1.04 N·m).
     let csv = "t,rx,ry,rz\n1,0,0,0\n2,0,0,1.5\n";
-    let strict_fail = |limit: &str, tag: &str| {
-        let file = through_scenario(
+    let strict_fail = |limit: &str| {
+        let (_tmp, file) = through_scenario(
             "so3",
-            tag,
             Some(csv),
             &[
                 ("torque_limit = 5.0", limit),
@@ -357,7 +349,7 @@ fn the_feasibility_report_warns_on_the_right_axis_at_the_right_time() {
                 .unwrap();
         (plain, strict, json)
     };
-    let (plain, strict, json) = strict_fail("torque_limit = 10.0", "tight");
+    let (plain, strict, json) = strict_fail("torque_limit = 10.0");
     let t = text(&plain);
     assert_eq!(
         plain.status.code(),
@@ -394,7 +386,7 @@ fn the_feasibility_report_warns_on_the_right_axis_at_the_right_time() {
         "{t}"
     );
     // a feasible limit: no warning, exit 0 even with --strict
-    let (plain, strict, json) = strict_fail("torque_limit = 20.0", "loose");
+    let (plain, strict, json) = strict_fail("torque_limit = 20.0");
     assert_eq!(plain.status.code(), Some(0), "{}", text(&plain));
     assert_eq!(strict.status.code(), Some(0), "{}", text(&strict));
     assert!(!text(&plain).contains("warning"), "{}", text(&plain));
@@ -403,7 +395,8 @@ fn the_feasibility_report_warns_on_the_right_axis_at_the_right_time() {
 
 #[test]
 fn compare_paths_flies_the_waypoints_both_ways() {
-    let out = temp("compare");
+    let out_tmp = temp();
+    let out = out_tmp.path().to_path_buf();
     let o = run(&[
         "reference",
         "--scenario",

@@ -14,8 +14,8 @@
 //! use ipc_types::{Decision, StateMsg, WireGroup, MAX_M};
 //! use recorder::{Header, LogReader, Record, Recorder, LOG_FILE};
 //!
-//! let dir = std::env::temp_dir().join(format!("recorder-doc-{}", std::process::id()));
-//! std::fs::create_dir_all(&dir)?;
+//! let tmp = tempfile::tempdir()?;
+//! let dir = tmp.path();
 //! let header = Header {
 //!     group: WireGroup::So3.code(), control_period: 0.01, rate_hz: 0.0, realtime: false,
 //!     event_wake: true, miss_limit: 3, fingerprint: 7, run: "doc".into(),
@@ -34,7 +34,6 @@
 //! let mut log = LogReader::open(&dir.join(LOG_FILE))?;
 //! assert_eq!((log.records, log.header.scenario.as_str()), (100, "seed"));
 //! assert_eq!(log.next_record()?.map(|r| r.state.seq), Some(0));
-//! std::fs::remove_dir_all(&dir)?;
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!

@@ -167,8 +167,8 @@ mod tests {
 
     #[test]
     fn a_saved_scenario_loads_back_to_the_same_one() {
-        let dir = std::env::temp_dir().join(format!("eqtrack-save-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().to_path_buf();
         let slew = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/slew_so3.toml");
         let sources = [
             ScenarioSource {
@@ -198,7 +198,6 @@ mod tests {
             builtin: Some("nope".to_owned()),
         };
         assert!(missing.save("seed", &dir).is_err());
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

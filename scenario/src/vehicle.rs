@@ -1,6 +1,7 @@
 //! `[vehicle]` and `[allocation]`: the body's actuators, gravity, buoyancy, added mass and
-//! drag, and how the law's wrench is shared out among the actuators (docs/maths.md, "Control
-//! allocation" and "Vehicle physics"; docs/scenario.md lists every key).
+//! drag, and how the law's wrench is shared out among the actuators
+//! (docs/maths.md, "Control allocation" and "Vehicle physics"; docs/scenario.md lists every
+//! key).
 //!
 //! ```toml
 //! [vehicle]

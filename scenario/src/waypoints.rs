@@ -398,14 +398,14 @@ mod tests {
 
     #[test]
     fn an_oversized_file_is_refused_without_reading_it_all() {
-        let path = std::env::temp_dir().join(format!("eqtrack-big-{}.csv", std::process::id()));
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("big.csv");
         let mut text = String::from("t,rx,ry,rz\n");
         while text.len() as u64 <= MAX_BYTES {
             text.push_str("0,0,0,0\n");
         }
         std::fs::write(&path, text).unwrap();
         let m = read(&path, GroupKind::So3).unwrap_err().to_string();
-        let _ = std::fs::remove_file(&path);
         assert!(m.contains("larger than 1048576 bytes"), "{m}");
     }
 

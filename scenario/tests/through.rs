@@ -8,8 +8,9 @@ use pair_tests::repo;
 /// `slew_so3.toml` (or `slew_se3.toml`) with `extra` appended to `[reference]` and its
 /// waypoints replaced by `csv`, in a fresh directory; loaded.
 fn load(group: &str, tag: &str, extra: &str, csv: Option<&str>) -> Result<Scenario, String> {
-    let dir = std::env::temp_dir().join(format!("eqtrack-through-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let _ = tag;
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
     let name = format!("slew_{group}");
     let toml = std::fs::read_to_string(repo(&format!("scenarios/{name}.toml"))).unwrap();
     let waypoints = match csv {
@@ -25,9 +26,7 @@ fn load(group: &str, tag: &str, extra: &str, csv: Option<&str>) -> Result<Scenar
     );
     let file = dir.join("s.toml");
     std::fs::write(&file, toml).unwrap();
-    let r = Scenario::from_file(&file).map_err(|e| e.to_string());
-    let _ = std::fs::remove_dir_all(&dir);
-    r
+    Scenario::from_file(&file).map_err(|e| e.to_string())
 }
 
 #[test]

@@ -4,18 +4,15 @@
 //! the filters flown on the same sensor streams.
 
 use scenario::{EstimatorKind, Scenario};
-use std::path::Path;
 use studies::estimator_study::{StudyRun, chi2_band, run_study, stats};
 use studies::montecarlo::draw_samples;
 
 fn eqf_so3() -> Scenario {
-    Scenario::from_file(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/eqf_so3.toml"))
-        .unwrap()
+    pair_tests::load_scenario("eqf_so3")
 }
 
 fn eqf_se3() -> Scenario {
-    Scenario::from_file(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/eqf_se3.toml"))
-        .unwrap()
+    pair_tests::load_scenario("eqf_se3")
 }
 
 fn study(

@@ -4,13 +4,9 @@
 
 use plant::trajectory::simulate;
 use scenario::Scenario;
-use std::path::Path;
 
 fn scenario(name: &str) -> Scenario {
-    Scenario::from_file(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../scenarios/{name}.toml")),
-    )
-    .unwrap()
+    pair_tests::load_scenario(name)
 }
 
 fn no_progress(_: u64) -> Result<(), plant::SimError> {

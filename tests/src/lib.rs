@@ -6,6 +6,7 @@
 //! no process behind.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -438,6 +439,12 @@ impl TempDir {
 /// The path of `scenarios/<name>.toml` in the repository.
 pub fn scenario(name: &str) -> String {
     format!("{}/../scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `scenarios/<name>.toml`, loaded (a test's own scenario: it must load).
+pub fn load_scenario(name: &str) -> ::scenario::Scenario {
+    ::scenario::Scenario::from_file(Path::new(&scenario(name)))
+        .unwrap_or_else(|e| panic!("scenarios/{name}.toml: {e}"))
 }
 
 /// Runs `plant_sim args...` to completion (generous timeout for a loaded machine): its exit

@@ -18,6 +18,9 @@
 //! | 18 → 19 | the same with the geometric integral (anti-windup, clamp) instead |
 //! | 20 → 21 | the same with both terms |
 //! | 22 → 23 | the observer alone again, with its optional clamp |
+//! | 24 → 25 | one allocation (`allocation`), the tilted hexarotor (6 rotors), a demand within reach, f32 |
+//! | 26 → 27 | one allocation, the eight-thruster ROV, a demand within reach, f32 |
+//! | 28 → 29 | one allocation, the hexarotor, a demand past its reach (saturated), f32 |
 
 use controller::Trajectory;
 use core::hint::black_box;
@@ -175,6 +178,41 @@ pub fn run() -> bool {
         finite(r.map_or(f32::NAN, |o| o.torque.norm()));
     }
 
+    ok &= allocations();
     hprintln!("ICOUNT done {}", ok);
+    ok
+}
+
+/// One allocation each (docs/maths.md, "Control allocation"): the two presets within reach,
+/// and the hexarotor saturated; true when every answer was finite.
+fn allocations() -> bool {
+    use allocation::{Allocator, Geometry, Priority, presets};
+    use nalgebra::SVector;
+    let hexarotor = presets::hexarotor(0.25f32, 0.5, 0.016, 8.0);
+    let rov = presets::rov_heavy(0.4f32, 0.3, 0.12, 0.22, 40.0);
+    let (Ok(gh), Ok(gr)) = (Geometry::<f32, 6>::new(&hexarotor), Geometry::<f32, 6>::new(&rov)) else {
+        hprintln!("ERR icount - geometry construction failed");
+        return false;
+    };
+    let (Ok(ah), Ok(ar)) = (
+        Allocator::new(gh, &[], &[], Priority::Torque),
+        Allocator::new(gr, &[], &[], Priority::Torque),
+    ) else {
+        hprintln!("ERR icount - allocator construction failed");
+        return false;
+    };
+    let cases = [
+        (24, ah, SVector::<f32, 6>::from([0.1, -0.05, 0.02, 0.5, -0.3, 20.0])),
+        (26, ar, SVector::<f32, 6>::from([1.0, -2.0, 3.0, 20.0, -10.0, 5.0])),
+        (28, ah, SVector::<f32, 6>::from([0.5, -0.3, 1.2, 2.0, -1.0, 45.0])),
+    ];
+    let mut ok = true;
+    for (first, alloc, demand) in cases {
+        let (alloc, demand) = (black_box(alloc), black_box(demand));
+        icount_mark(first);
+        let a = black_box(alloc.allocate(black_box(&demand)));
+        icount_mark(first + 1);
+        ok &= a.u.iter().all(|x| x.is_finite());
+    }
     ok
 }

@@ -1,6 +1,8 @@
 //! Calls the controller for SO(3) and SE(3) in f32 and f64, runs short closed loops (one with
-//! the disturbance-rejection terms), builds a through-waypoint path and uses
-//! the `ipc_types` wire contract, in a binary with no std, no alloc and no global allocator. Exits 0 when every check holds.
+//! the disturbance-rejection terms), builds a through-waypoint path, steps the estimators
+//! (`estimator`), allocates a wrench to a hexarotor's rotors (`allocation`) and uses the
+//! `ipc_types` wire contract, in a binary with no std, no alloc and no global allocator.
+//! Exits 0 when every check holds.
 #![no_std]
 #![no_main]
 

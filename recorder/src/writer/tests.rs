@@ -149,8 +149,8 @@ fn the_torque_offset_points_at_the_commands_torque() {
 
 #[test]
 fn the_writer_drains_everything_and_a_cut_log_reads_to_its_last_whole_record() {
-    let dir = std::env::temp_dir().join(format!("eqtrack-flight-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().to_path_buf();
     // real time: the loop never waits for the disk
     let h = Header {
         realtime: true,
@@ -196,13 +196,12 @@ fn the_writer_drains_everything_and_a_cut_log_reads_to_its_last_whole_record() {
     std::fs::write(&path, [b'x'; 300]).unwrap();
     let e = LogReader::open(&path).err().unwrap().to_string();
     assert!(e.contains("not an eqtrack flight recording"), "{e}");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
 fn plan_messages_seen_on_the_board_are_written_to_plans_log_and_read_back() {
-    let dir = std::env::temp_dir().join(format!("eqtrack-plans-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().to_path_buf();
     let h = lockstep_header(1, true);
     // a board that shows five messages, one per poll, then nothing
     let board: PlanSourceFactory = Box::new(|| {
@@ -253,13 +252,12 @@ fn plan_messages_seen_on_the_board_are_written_to_plans_log_and_read_back() {
         e.contains("format version 3") && e.contains("version 4"),
         "{e}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
 fn a_lockstep_log_keeps_nominal_times_and_pid_ordinals_and_drops_nothing() {
-    let dir = std::env::temp_dir().join(format!("eqtrack-lockstep-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().to_path_buf();
     let h = lockstep_header(2, false);
     let commanded = |k: u64| {
         let mut r = record(k, true);
@@ -322,5 +320,4 @@ fn a_lockstep_log_keeps_nominal_times_and_pid_ordinals_and_drops_nothing() {
         ],
         [0, 1, 2, 1]
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
