@@ -169,32 +169,10 @@ where
     where
         A: FnOnce(&mut RigidBody<T, G, N, M>, &SVector<T, M>, T) -> SVector<T, M>,
     {
-        let t = self.reference.time();
-        let q = *self.plant.configuration();
-        let v = self.plant.velocity();
-        let desired = self.reference.desired();
-        let period = self.reference.period();
-        let output = match &mut self.rejection {
-            None => self.controller.compute(q_hat, v_hat, &desired)?,
-            Some(r) => self.controller.compute_rejecting(
-                r,
-                q_hat,
-                v_hat,
-                &desired,
-                &self.applied,
-                period,
-                true,
-            )?,
-        };
-        self.applied = actuate(&mut self.plant, &output.torque, period);
+        let (sample, period) = self.law(q_hat, v_hat)?;
+        self.applied = actuate(&mut self.plant, &sample.output.torque, period);
         self.reference.advance();
-        Ok(Sample {
-            t,
-            q,
-            v,
-            desired,
-            output,
-        })
+        Ok(sample)
     }
 
     /// One control cycle with the law handed `(q̂, v̂)` (an estimate of the plant's state at
@@ -204,6 +182,26 @@ where
         q_hat: &SMatrix<T, N, N>,
         v_hat: &SVector<T, M>,
     ) -> Result<Sample<T, N, M>, Error> {
+        let (sample, period) = self.law(q_hat, v_hat)?;
+        self.applied = sample.output.torque;
+        let applied = sample.output.torque + self.disturbance;
+        match &self.world_disturbance {
+            None => self.plant.advance(&applied, period, self.plant_substeps),
+            Some(w) => self
+                .plant
+                .advance_with_world(&applied, w, period, self.plant_substeps),
+        }
+        self.reference.advance();
+        Ok(sample)
+    }
+
+    /// The law at `t_k` on `(q̂, v̂)`, with the rejection terms fed the wrench applied over
+    /// the last period: the cycle's sample (the plant's true state at `t_k`) and the period.
+    fn law(
+        &mut self,
+        q_hat: &SMatrix<T, N, N>,
+        v_hat: &SVector<T, M>,
+    ) -> Result<(Sample<T, N, M>, T), Error> {
         let t = self.reference.time();
         let q = *self.plant.configuration();
         let v = self.plant.velocity();
@@ -221,21 +219,15 @@ where
                 true,
             )?,
         };
-        self.applied = output.torque;
-        let applied = output.torque + self.disturbance;
-        match &self.world_disturbance {
-            None => self.plant.advance(&applied, period, self.plant_substeps),
-            Some(w) => self
-                .plant
-                .advance_with_world(&applied, w, period, self.plant_substeps),
-        }
-        self.reference.advance();
-        Ok(Sample {
-            t,
-            q,
-            v,
-            desired,
-            output,
-        })
+        Ok((
+            Sample {
+                t,
+                q,
+                v,
+                desired,
+                output,
+            },
+            period,
+        ))
     }
 }
