@@ -354,14 +354,7 @@ pub fn simulate<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         control_period: s.control_period,
         duration: s.duration,
         estimator: estimation.as_ref().map(|e| e.report(&rows)),
-        vehicle: Some(VehicleReport::of(
-            &rows,
-            &s.vehicle
-                .as_ref()
-                .map(|v| v.failures.clone())
-                .unwrap_or_default(),
-            s.control_period,
-        )),
+        vehicle: Some(VehicleReport::of(&rows, &run.failures, s.control_period)),
         rows,
         status: Vec::new(),
     })

@@ -322,21 +322,21 @@ impl Validator<'_> {
                 max: a.max,
             });
         }
-        let check = match m {
+        let spans = match m {
             3 => Geometry::<f64, 3>::new(&out)
-                .map(|_| ())
-                .map_err(|e| e.to_string_with(&self.geometry_key(&e))),
+                .map(drop)
+                .map_err(|e| self.geometry_refused(&e)),
             _ => Geometry::<f64, 6>::new(&out)
-                .map(|_| ())
-                .map_err(|e| e.to_string_with(&self.geometry_key(&e))),
+                .map(drop)
+                .map_err(|e| self.geometry_refused(&e)),
         };
-        check.map_err(|(key, message)| self.err(&key, message))?;
+        spans?;
         Ok(out)
     }
 
-    /// The key a geometry refusal belongs to.
-    fn geometry_key<const K: usize>(&self, e: &GeometryError<f64, K>) -> String {
-        match e {
+    /// A geometry refusal, under the key it belongs to.
+    fn geometry_refused<const K: usize>(&self, e: &GeometryError<f64, K>) -> ScenarioError {
+        let key = match e {
             GeometryError::Count { .. }
             | GeometryError::Dimension
             | GeometryError::DoesNotSpan(_) => "vehicle.actuator".to_owned(),
@@ -345,7 +345,8 @@ impl Validator<'_> {
             }
             GeometryError::ZeroAxis { index } => format!("vehicle.actuator[{index}].axis"),
             GeometryError::MinAboveMax { index, .. } => format!("vehicle.actuator[{index}].min"),
-        }
+        };
+        self.err(&key, e.to_string())
     }
 
     /// `[[vehicle.failure]]`: an actuator that exists, a finite `t ≥ 0`, a finite value; in
@@ -420,17 +421,6 @@ impl Validator<'_> {
             }
         };
         Ok((weights, preferred, priority))
-    }
-}
-
-/// A geometry refusal as `(key, message)`.
-trait KeyedMessage {
-    fn to_string_with(&self, key: &str) -> (String, String);
-}
-
-impl<const K: usize> KeyedMessage for GeometryError<f64, K> {
-    fn to_string_with(&self, key: &str) -> (String, String) {
-        (key.to_owned(), self.to_string())
     }
 }
 

@@ -2,12 +2,21 @@
 //! figure.
 
 use super::ReplayOptions;
-use super::run::Row;
 use ipc_types::{CommandMsg, MAX_M};
+use link::Decision;
 use plant::SimError;
 use plant::plot::{Line, Panel, law_color, render};
 use scenario::Scenario;
 use std::path::Path;
+
+/// One cycle of `replay.csv`.
+pub(super) struct Row {
+    pub(super) cycle: u64,
+    pub(super) t: f64,
+    pub(super) decision: Decision,
+    pub(super) recorded: Option<CommandMsg>,
+    pub(super) replayed: Option<CommandMsg>,
+}
 
 fn num(x: f64) -> String {
     if x.is_finite() {

@@ -3,27 +3,17 @@
 //! command names, the streamed reference's plan messages), and the estimator stepped again
 //! over the recorded samples.
 
-use super::output::{figure, write_csv};
+use super::output::{Row, figure, write_csv};
 use super::{Difference, EstimatorCheck, ReplayOptions, ReplayReport};
 use control_cycle::PlanIntake;
 use controller::Source;
 use controller::group::MatrixLieGroup;
 use controller::{Law, Trajectory as _};
 use ipc_types::{CommandMsg, StateMsg};
-use link::Decision;
 use plant::SimError;
 use plant::output::ensure_dir;
 use recorder::{LogReader, PlanEntry, Record};
 use scenario::Scenario;
-
-/// One cycle of `replay.csv`.
-pub(super) struct Row {
-    pub(super) cycle: u64,
-    pub(super) t: f64,
-    pub(super) decision: Decision,
-    pub(super) recorded: Option<CommandMsg>,
-    pub(super) replayed: Option<CommandMsg>,
-}
 
 /// The recorded plan messages handed to a streamed run's reference, as the node took them.
 struct Plans<'a> {
