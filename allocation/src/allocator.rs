@@ -38,6 +38,19 @@ impl Status {
     pub fn code(self) -> u8 {
         self as u8
     }
+
+    /// The status of an integer code (`None`: not a code).
+    pub fn from_code(code: u32) -> Option<Status> {
+        [
+            Status::Met,
+            Status::TorqueInfeasible,
+            Status::ForceGivenUp,
+            Status::Stopped,
+            Status::InvalidDemand,
+        ]
+        .into_iter()
+        .find(|s| u32::from(s.code()) == code)
+    }
 }
 
 /// One allocation's answer.

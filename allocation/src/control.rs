@@ -31,6 +31,8 @@ impl<T: RealField + Copy, const K: usize> Actuation<T, K> {
 pub struct VehicleControl<T, const K: usize> {
     allocator: Allocator<T, K>,
     restoring: Restoring<T>,
+    /// The rate limit (per second; 0: none).
+    rate_limit: T,
     /// The most a command may change in one period (0: no limit).
     rate_step: T,
     bounds: Bounds<T>,
@@ -49,9 +51,32 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
             bounds: allocator.bounds(),
             allocator,
             restoring,
+            rate_limit,
             rate_step: rate_limit * period,
             previous: None,
         }
+    }
+
+    /// Sets the control period the rate limit applies over (a pair's controller learns it
+    /// from the plant's first state).
+    pub fn set_period(&mut self, period: T) {
+        self.rate_step = self.rate_limit * period;
+    }
+
+    /// The previous command, which the rate limit narrows the next one around (`None`
+    /// before the first cycle).
+    pub fn previous(&self) -> Option<&Commands<T>> {
+        self.previous.as_ref()
+    }
+
+    /// Restores the previous command (replay: from a recorded command).
+    pub fn set_previous(&mut self, previous: Option<Commands<T>>) {
+        self.previous = previous;
+    }
+
+    /// The allocator.
+    pub fn allocator(&self) -> &Allocator<T, K> {
+        &self.allocator
     }
 
     /// The bounds the next allocation starts from (the geometry's, with the failures told).

@@ -3,6 +3,7 @@
 //! * [`respond`] and [`Responder`]: one answer to one plant state — the reference stepped to
 //!   the state's time, the law (with its disturbance-rejection terms) through the `controller`
 //!   crate, the command filled in. Allocation-free and generic over the scalar.
+//! * [`ControllerVehicle`]: with a vehicle, the law's wrench allocated to its actuators.
 //! * [`PlanIntake`] and [`streamed_reference`]: a streamed reference, the plan messages taken
 //!   into its path, and the path a streamed run starts from.
 //!
@@ -14,6 +15,8 @@
 
 mod respond;
 mod stream;
+mod vehicle;
 
 pub use respond::{Responder, respond};
 pub use stream::{PlanIntake, streamed_reference};
+pub use vehicle::ControllerVehicle;

@@ -84,6 +84,7 @@ pub struct Responder<T: controller::Real, G, const N: usize, const M: usize> {
     pub(crate) controller: Controller<T, G, N, M>,
     pub(crate) rejection: Option<Rejection<T, M>>,
     pub(crate) previous: Option<u64>,
+    pub(crate) vehicle: Option<crate::ControllerVehicle<M>>,
 }
 
 impl<T, G, const N: usize, const M: usize> Responder<T, G, N, M>
@@ -108,7 +109,14 @@ where
             controller,
             rejection,
             previous: None,
+            vehicle: None,
         })
+    }
+
+    /// The responder of a vehicle: each answer allocates the law's wrench to its actuators.
+    pub fn with_vehicle(mut self, vehicle: crate::ControllerVehicle<M>) -> Self {
+        self.vehicle = Some(vehicle);
+        self
     }
 
     /// The controller.
@@ -155,6 +163,9 @@ where
         };
         let mut cmd = command::<T, G, N, M>(msg.seq, &out, self.controller.config().law);
         cmd.previous_seq = self.previous.unwrap_or(ipc_types::NO_PREVIOUS);
+        if let Some(vehicle) = &mut self.vehicle {
+            vehicle.answer::<G, N>(msg, &out.torque.map(to_f64::<T>), &mut cmd);
+        }
         if let Some((estimate, z)) = before {
             for i in 0..M.min(ipc_types::MAX_M) {
                 cmd.estimate_before[i] = to_f64(estimate[i]);
@@ -168,10 +179,13 @@ where
     /// Restores the state this responder had before it answered the recorded command `cmd`
     /// (replay): the terms from the command's `estimate_before` and `z_before`, their anchor
     /// from `previous` (the recorded state `cmd.previous_seq`; `None` if there is none or it
-    /// is not in the record), and the previous sequence number. Without terms it only sets
-    /// the sequence number.
+    /// is not in the record), the vehicle's rate limit from `u_previous`, and the previous
+    /// sequence number. Without terms or vehicle it only sets the sequence number.
     pub fn restore(&mut self, cmd: &CommandMsg, previous: Option<&StateMsg>) {
         self.previous = (cmd.previous_seq != ipc_types::NO_PREVIOUS).then_some(cmd.previous_seq);
+        if let Some(vehicle) = &mut self.vehicle {
+            vehicle.restore(cmd);
+        }
         if let Some(r) = &mut self.rejection {
             let from = |xs: &[f64; ipc_types::MAX_M]| {
                 nalgebra::SVector::<T, M>::from_fn(|i, _| controller::real::<T>(xs[i]))

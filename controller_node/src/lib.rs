@@ -29,12 +29,6 @@ use stream::Stream;
 /// Runs the node until it stops. `allocations()` reads the process's allocation counter
 /// (the binary installs a counting allocator; pass `|| 0` without one).
 pub fn run(opts: &Options, allocations: &dyn Fn() -> u64) -> Result<Report, NodeError> {
-    if opts.scenario.vehicle.is_some() {
-        return Err(NodeError::Unsupported {
-            scenario: opts.scenario.name.clone(),
-            what: "it has a [vehicle]: the pair does not carry actuator commands yet (the wire has no field for them); simulate it with `plant_sim sim`",
-        });
-    }
     opts.scenario.group.dispatch(Node { opts, allocations })
 }
 
@@ -175,11 +169,11 @@ fn log_invalid(ep: &mut ControllerEndpoint) {
     }
 }
 
-fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
-    opts: &Options,
-    allocations: &dyn Fn() -> u64,
-) -> Result<Report, NodeError> {
-    let s = &opts.scenario;
+/// The controller's cycle for scenario `s`: the law, its rejection terms, and a vehicle's
+/// allocation.
+fn responder_for<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    s: &scenario::Scenario,
+) -> Result<Responder<f64, G, N, M>, NodeError> {
     let responder = s
         .controller::<G, N, M>()
         .and_then(|c| Responder::new(c, s.rejection_config()))
@@ -187,6 +181,25 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             scenario: s.name.clone(),
             source,
         })?;
+    Ok(match &s.vehicle {
+        None => responder,
+        Some(v) => responder.with_vehicle(
+            control_cycle::ControllerVehicle::new(v, s.control_period).map_err(|what| {
+                NodeError::Vehicle {
+                    scenario: s.name.clone(),
+                    what,
+                }
+            })?,
+        ),
+    })
+}
+
+fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    opts: &Options,
+    allocations: &dyn Fn() -> u64,
+) -> Result<Report, NodeError> {
+    let s = &opts.scenario;
+    let responder = responder_for::<G, N, M>(s)?;
     let mut ep = ControllerEndpoint::open(ControllerEndpointConfig {
         run: opts.run.clone(),
         transport: opts.transport,

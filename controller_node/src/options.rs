@@ -70,7 +70,7 @@ pub struct Report {
     /// Commands published.
     pub cycles: u64,
     /// Rejected states per [`ipc_types::Invalid`] kind.
-    pub rejected: [u64; 5],
+    pub rejected: [u64; ipc_types::Invalid::KINDS],
     /// States the law refused (non-finite state), no command published.
     pub refused: u64,
     /// With `--reference stream`: plan messages refused per [`ipc_types::PlanInvalid`] kind
@@ -95,13 +95,13 @@ pub enum NodeError {
     /// The process layer failed.
     #[error(transparent)]
     Link(#[from] LinkError),
-    /// The scenario asks for what the node cannot do yet.
+    /// The scenario's vehicle does not make an allocator.
     #[error("scenario `{scenario}`: {what}")]
-    Unsupported {
+    Vehicle {
         /// Its name.
         scenario: String,
-        /// What.
-        what: &'static str,
+        /// What is wrong.
+        what: String,
     },
 }
 
@@ -110,7 +110,7 @@ impl NodeError {
     pub fn exit(&self) -> link::Exit {
         match self {
             NodeError::Scenario { .. }
-            | NodeError::Unsupported { .. }
+            | NodeError::Vehicle { .. }
             | NodeError::Link(LinkError::InvalidRunName(_)) => link::Exit::BadInput,
             NodeError::Link(_) => link::Exit::Failed,
         }

@@ -16,16 +16,21 @@ pub enum Invalid {
     Sequence,
     /// The control period is not positive, or differs from the one the receiver runs with.
     Period,
+    /// A command's actuator count is not the receiver's vehicle's (0 without a vehicle).
+    Actuators,
 }
 
 impl Invalid {
+    /// How many kinds there are.
+    pub const KINDS: usize = 6;
     /// All kinds, for counters.
-    pub const ALL: [Invalid; 5] = [
+    pub const ALL: [Invalid; Invalid::KINDS] = [
         Invalid::Version,
         Invalid::Group,
         Invalid::NonFinite,
         Invalid::Sequence,
         Invalid::Period,
+        Invalid::Actuators,
     ];
 
     /// Index into a counter array.
@@ -41,6 +46,7 @@ impl Invalid {
             Invalid::NonFinite => "non-finite number",
             Invalid::Sequence => "sequence number not increasing",
             Invalid::Period => "control period mismatch",
+            Invalid::Actuators => "actuator count not the plant's",
         }
     }
 }
@@ -104,18 +110,33 @@ pub fn check_state(
     Ok(())
 }
 
-/// Checks a command against the receiver's group and the sequence number it awaits.
-pub fn check_command(msg: &CommandMsg, group: WireGroup, awaited: u64) -> Result<(), Invalid> {
+/// Checks a command against the receiver's group, the sequence number it awaits and its
+/// vehicle's actuator count (0: no vehicle).
+pub fn check_command(
+    msg: &CommandMsg,
+    group: WireGroup,
+    awaited: u64,
+    actuators: u32,
+) -> Result<(), Invalid> {
     if msg.version != PROTOCOL_VERSION {
         return Err(Invalid::Version);
     }
     let (_, m) = own_dims(msg.group, group)?;
+    if msg.actuators != actuators || msg.actuators as usize > crate::MAX_ACTUATORS {
+        return Err(Invalid::Actuators);
+    }
+    let count = msg.actuators as usize;
     if !all_finite(&msg.tau[..m])
         || !msg.lyapunov.is_finite()
         || !all_finite(&msg.observer[..m])
         || !all_finite(&msg.integral[..m])
         || !all_finite(&msg.estimate_before[..m])
         || !all_finite(&msg.z_before[..m])
+        || !all_finite(&msg.demand[..m])
+        || !all_finite(&msg.achieved[..m])
+        || !all_finite(&msg.accounted[..m])
+        || !all_finite(&msg.u_previous[..count])
+        || !all_finite(&msg.u_cmd[..count])
     {
         return Err(Invalid::NonFinite);
     }

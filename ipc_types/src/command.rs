@@ -1,6 +1,8 @@
 //! The controller's answer, [`CommandMsg`], and its accessors.
 
-use crate::{Identity, MAX_M, NAME_BYTES, NO_PREVIOUS, PROTOCOL_VERSION, WireGroup, flags};
+use crate::{
+    Identity, MAX_ACTUATORS, MAX_M, NAME_BYTES, NO_PREVIOUS, PROTOCOL_VERSION, WireGroup, flags,
+};
 #[cfg(feature = "zero-copy")]
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 #[cfg(feature = "zero-copy")]
@@ -72,6 +74,27 @@ pub struct CommandMsg {
     pub plan_pid: u32,
     /// Zero.
     pub reserved: u32,
+    /// A vehicle's actuator count (0: no vehicle, and `tau` is the wrench to apply; at most
+    /// [`MAX_ACTUATORS`]). With a vehicle, `tau` is the law's wrench and the plant applies
+    /// `u_cmd` through its actuators (docs/vehicles.md).
+    pub actuators: u32,
+    /// The allocator's status code (docs/maths.md, "Control allocation"; 0 with no vehicle).
+    pub alloc_status: u32,
+    /// The wrench asked of the allocator: `tau` minus the known restoring wrench, body
+    /// axes, first m entries.
+    pub demand: [f64; MAX_M],
+    /// `B u_cmd`, first m entries.
+    pub achieved: [f64; MAX_M],
+    /// The wrench the law counts as applied when this command is applied over the period
+    /// (`B u_cmd` plus the restoring wrench it compensated), first m entries: the plant
+    /// returns it in the next state's `applied` for the disturbance-rejection terms.
+    pub accounted: [f64; MAX_M],
+    /// The command the rate limit narrowed this one around (the controller's previous
+    /// `u_cmd`; meaningful when `previous_seq` is not [`NO_PREVIOUS`]), first `actuators`
+    /// entries. Replay restores the limit from it.
+    pub u_previous: [f64; MAX_ACTUATORS],
+    /// The actuator commands, first `actuators` entries.
+    pub u_cmd: [f64; MAX_ACTUATORS],
 }
 
 impl CommandMsg {
@@ -102,6 +125,13 @@ impl CommandMsg {
             plan_pid: 0,
             reserved: 0,
             scenario: [0; NAME_BYTES],
+            actuators: 0,
+            alloc_status: 0,
+            demand: [0.0; MAX_M],
+            achieved: [0.0; MAX_M],
+            accounted: [0.0; MAX_M],
+            u_previous: [0.0; MAX_ACTUATORS],
+            u_cmd: [0.0; MAX_ACTUATORS],
         }
     }
 

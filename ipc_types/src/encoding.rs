@@ -1,6 +1,6 @@
 //! The little-endian byte encoding of the messages, field by field (for transports that carry bytes and for the flight recorder), and its typed errors.
 
-use crate::{CommandMsg, MAX_M, MAX_N, NAME_BYTES, StateMsg, WireGroup};
+use crate::{CommandMsg, MAX_ACTUATORS, MAX_M, MAX_N, NAME_BYTES, StateMsg, WireGroup};
 
 /// Bytes of an encoded [`StateMsg`] (little-endian, field by field).
 pub const STATE_BYTES: usize =
@@ -24,7 +24,11 @@ pub const COMMAND_BYTES: usize = 4
     + 4
     + 8
     + 4
-    + 4;
+    + 4
+    + 4
+    + 4
+    + 8 * MAX_M * 3
+    + 8 * MAX_ACTUATORS * 2;
 
 /// Why bytes are not a message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -188,6 +192,13 @@ impl CommandMsg {
         p.bytes(&self.plan_seq.to_le_bytes());
         p.bytes(&self.plan_pid.to_le_bytes());
         p.bytes(&self.reserved.to_le_bytes());
+        p.bytes(&self.actuators.to_le_bytes());
+        p.bytes(&self.alloc_status.to_le_bytes());
+        p.f64s(&self.demand);
+        p.f64s(&self.achieved);
+        p.f64s(&self.accounted);
+        p.f64s(&self.u_previous);
+        p.f64s(&self.u_cmd);
         buf
     }
 
@@ -220,6 +231,13 @@ impl CommandMsg {
         m.plan_seq = g.u64();
         m.plan_pid = g.u32();
         m.reserved = g.u32();
+        m.actuators = g.u32();
+        m.alloc_status = g.u32();
+        g.f64s(&mut m.demand);
+        g.f64s(&mut m.achieved);
+        g.f64s(&mut m.accounted);
+        g.f64s(&mut m.u_previous);
+        g.f64s(&mut m.u_cmd);
         Ok(m)
     }
 }

@@ -38,13 +38,15 @@ pub use services::*;
 pub use state::StateMsg;
 
 /// Bumped whenever a message layout or meaning changes.
-pub const PROTOCOL_VERSION: u32 = 6;
+pub const PROTOCOL_VERSION: u32 = 7;
 /// [`CommandMsg::previous_seq`] when the controller processed no state before.
 pub const NO_PREVIOUS: u64 = u64::MAX;
 /// The largest n (configuration matrices are n×n) any supported group needs.
 pub const MAX_N: usize = 4;
 /// The largest m (algebra dimension) any supported group needs.
 pub const MAX_M: usize = 6;
+/// The most actuators a vehicle's command carries (the allocation crate's capacity).
+pub const MAX_ACTUATORS: usize = 12;
 /// Bytes of the scenario name carried in the messages (UTF-8, NUL-padded).
 pub const NAME_BYTES: usize = 32;
 
@@ -124,22 +126,47 @@ mod tests {
     fn commands_are_checked() {
         let mut c = CommandMsg::new(Se3);
         c.seq = 3;
-        assert_eq!(check_command(&c, Se3, 3), Ok(()));
-        assert_eq!(check_command(&c, So3, 3), Err(Invalid::Group));
-        assert_eq!(check_command(&c, Se3, 4), Err(Invalid::Sequence));
+        assert_eq!(check_command(&c, Se3, 3, 0), Ok(()));
+        assert_eq!(check_command(&c, So3, 3, 0), Err(Invalid::Group));
+        assert_eq!(check_command(&c, Se3, 4, 0), Err(Invalid::Sequence));
         c.tau[5] = f64::INFINITY;
-        assert_eq!(check_command(&c, Se3, 3), Err(Invalid::NonFinite));
+        assert_eq!(check_command(&c, Se3, 3, 0), Err(Invalid::NonFinite));
         c.tau[5] = 0.0;
         c.observer[5] = f64::NAN;
-        assert_eq!(check_command(&c, Se3, 3), Err(Invalid::NonFinite));
+        assert_eq!(check_command(&c, Se3, 3, 0), Err(Invalid::NonFinite));
         c.observer[5] = 0.0;
         c.integral[0] = f64::NEG_INFINITY;
-        assert_eq!(check_command(&c, Se3, 3), Err(Invalid::NonFinite));
+        assert_eq!(check_command(&c, Se3, 3, 0), Err(Invalid::NonFinite));
         c.integral[0] = 0.0;
         c.z_before[5] = f64::NAN;
-        assert_eq!(check_command(&c, Se3, 3), Err(Invalid::NonFinite));
+        assert_eq!(check_command(&c, Se3, 3, 0), Err(Invalid::NonFinite));
         c.z_before[5] = 0.0;
-        assert_eq!(check_command(&c, Se3, 3), Ok(()));
+        assert_eq!(check_command(&c, Se3, 3, 0), Ok(()));
+        // a vehicle's command: the count must be the plant's, its entries finite
+        c.actuators = 8;
+        assert_eq!(check_command(&c, Se3, 3, 0), Err(Invalid::Actuators));
+        assert_eq!(check_command(&c, Se3, 3, 6), Err(Invalid::Actuators));
+        assert_eq!(check_command(&c, Se3, 3, 8), Ok(()));
+        c.u_cmd[7] = f64::NAN;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::NonFinite));
+        c.u_cmd[7] = 0.0;
+        c.u_cmd[8] = f64::NAN; // beyond the count: ignored
+        c.u_previous[8] = f64::INFINITY;
+        assert_eq!(check_command(&c, Se3, 3, 8), Ok(()));
+        c.u_previous[0] = f64::INFINITY;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::NonFinite));
+        c.u_previous[0] = 0.0;
+        c.accounted[5] = f64::NAN;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::NonFinite));
+        c.accounted[5] = 0.0;
+        c.demand[0] = f64::NEG_INFINITY;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::NonFinite));
+        c.demand[0] = 0.0;
+        c.achieved[2] = f64::NAN;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::NonFinite));
+        c.achieved[2] = 0.0;
+        c.actuators = 13;
+        assert_eq!(check_command(&c, Se3, 3, 13), Err(Invalid::Actuators));
     }
 
     #[test]
@@ -176,7 +203,21 @@ mod tests {
         c.plans_received = 3;
         c.plan_seq = 41;
         c.plan_pid = 77;
+        c.actuators = 8;
+        c.alloc_status = 2;
+        c.demand[5] = 3.25;
+        c.achieved[0] = -7.5;
+        c.accounted[3] = 0.0625;
+        c.u_previous[11] = 1.75;
+        c.u_cmd[7] = -2.0;
         assert_eq!(CommandMsg::from_bytes(&c.to_bytes()), Ok(c));
+        let v = c.to_bytes();
+        assert_eq!(u32::from_le_bytes(v[384..388].try_into().unwrap()), 8);
+        assert_eq!(u32::from_le_bytes(v[388..392].try_into().unwrap()), 2);
+        assert_eq!(f64::from_le_bytes(v[432..440].try_into().unwrap()), 3.25);
+        assert_eq!(f64::from_le_bytes(v[624..632].try_into().unwrap()), 1.75);
+        assert_eq!(f64::from_le_bytes(v[688..696].try_into().unwrap()), -2.0);
+        assert_eq!(COMMAND_BYTES, 728);
         let b = c.to_bytes();
         assert_eq!(u32::from_le_bytes(b[364..368].try_into().unwrap()), 3);
         assert_eq!(u64::from_le_bytes(b[368..376].try_into().unwrap()), 41);

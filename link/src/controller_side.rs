@@ -250,7 +250,7 @@ impl ControllerEndpoint {
     }
 
     /// Rejected states per [`ipc_types::Invalid`] kind.
-    pub fn invalid_states(&self) -> [u64; 5] {
+    pub fn invalid_states(&self) -> [u64; ipc_types::Invalid::KINDS] {
         self.rejections.counts()
     }
 }

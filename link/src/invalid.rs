@@ -15,15 +15,15 @@ pub struct InvalidMessage<M> {
 /// Counters per [`Invalid`] kind and the first message of each kind not yet handed out.
 #[derive(Debug, Clone)]
 pub(crate) struct InvalidCounts<M> {
-    counts: [u64; 5],
-    first: [Option<M>; 5],
+    counts: [u64; ipc_types::Invalid::KINDS],
+    first: [Option<M>; ipc_types::Invalid::KINDS],
 }
 
 impl<M: Copy> InvalidCounts<M> {
     pub(crate) fn new() -> Self {
         InvalidCounts {
-            counts: [0; 5],
-            first: [None; 5],
+            counts: [0; ipc_types::Invalid::KINDS],
+            first: [None; ipc_types::Invalid::KINDS],
         }
     }
 
@@ -44,7 +44,7 @@ impl<M: Copy> InvalidCounts<M> {
         })
     }
 
-    pub(crate) fn counts(&self) -> [u64; 5] {
+    pub(crate) fn counts(&self) -> [u64; ipc_types::Invalid::KINDS] {
         self.counts
     }
 }

@@ -31,6 +31,9 @@ pub struct PlantEndpointConfig {
     pub fingerprint: u64,
     /// The scenario's name (empty: none).
     pub scenario: String,
+    /// The vehicle's actuator count (0: no vehicle, the commands carry the wrench to
+    /// apply); a command with another count is rejected.
+    pub actuators: u32,
 }
 
 impl PlantEndpointConfig {
@@ -44,6 +47,7 @@ impl PlantEndpointConfig {
             wake: Wake::Event,
             fingerprint: 0,
             scenario: String::new(),
+            actuators: 0,
         }
     }
 }
@@ -235,7 +239,12 @@ impl PlantEndpoint {
                 controller: msg.identity(),
             })));
         }
-        match check_command(&msg, crate::wire::wire_group(self.config.group), seq) {
+        match check_command(
+            &msg,
+            crate::wire::wire_group(self.config.group),
+            seq,
+            self.config.actuators,
+        ) {
             Ok(()) => Some(Ok(Command {
                 msg,
                 received_ns: clock::monotonic_ns(),

@@ -201,14 +201,8 @@ impl<const M: usize> VehicleRun<M> {
         };
         let bad = |e: String| SimError::Input(format!("scenario `{}`: {e}", s.name));
         let geometry = v.geometry::<M>().map_err(bad)?;
-        let allocator = v.allocator::<M>().map_err(bad)?;
         Ok(Some(VehicleRun {
-            control: VehicleControl::new(
-                allocator,
-                v.restoring(),
-                v.actuator_rate_limit,
-                s.control_period,
-            ),
+            control: v.control(s.control_period).map_err(bad)?,
             actuators: Actuators::new(*geometry.effectiveness(), v.actuator_time_constant),
             environment: Environment {
                 restoring: v.restoring(),
@@ -228,7 +222,7 @@ impl<const M: usize> VehicleRun<M> {
     /// sticks, and the controller is told when the failure says `reconfigure`.
     pub fn failures_at(&mut self, t_k: f64) {
         while let Some(f) = self.failures.get(self.next_failure) {
-            if t_k < f.t - self.period / 2.0 {
+            if !f.active(t_k, self.period) {
                 break;
             }
             self.actuators.fail(f.actuator, f.value);
@@ -238,6 +232,16 @@ impl<const M: usize> VehicleRun<M> {
             }
             self.next_failure += 1;
         }
+    }
+
+    /// The actuator count.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// The failures, as the scenario gives them.
+    pub fn failures(&self) -> &[FailureSpec] {
+        &self.failures
     }
 
     /// The actuators' wrench `B u`.

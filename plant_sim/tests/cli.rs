@@ -502,7 +502,7 @@ fn torque_limit_disturbance_and_model_mismatch_reach_the_loop() {
 }
 
 #[test]
-fn a_vehicle_runs_in_sim_and_the_pair_refuses_it_for_now() {
+fn a_vehicle_runs_in_sim_and_in_the_pair() {
     let dir = tempfile::tempdir().unwrap();
     let scenario = repo("scenarios/rov_failure.toml");
     let out = run(&[
@@ -524,7 +524,7 @@ fn a_vehicle_runs_in_sim_and_the_pair_refuses_it_for_now() {
         summary.contains("\"saturated_time_s\"") && summary.contains("\"reconfigure\": true"),
         "{summary}"
     );
-    // the pair has no wire field for actuator commands yet: exit 2, saying so
+    // the lockstep pair flies it too, and writes the same rows
     let out = run(&[
         "run",
         "--scenario",
@@ -532,19 +532,13 @@ fn a_vehicle_runs_in_sim_and_the_pair_refuses_it_for_now() {
         "--mode",
         "lockstep",
         "--name",
-        "t-vehicle-refused",
+        "t-vehicle-cli",
         "--out",
         dir.path().join("pair").to_str().unwrap(),
     ]);
+    ok(&out);
     assert_eq!(
-        out.status.code(),
-        Some(2),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("has a [vehicle]") && err.contains("plant_sim sim"),
-        "{err}"
+        std::fs::read(dir.path().join("trajectory.csv")).unwrap(),
+        std::fs::read(dir.path().join("pair/trajectory.csv")).unwrap()
     );
 }

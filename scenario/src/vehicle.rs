@@ -31,7 +31,9 @@
 //! ```
 
 use crate::{Scenario, ScenarioError, Validator};
-use allocation::{Actuator, Allocator, Geometry, GeometryError, Priority, Restoring};
+use allocation::{
+    Actuator, Allocator, Geometry, GeometryError, Priority, Restoring, VehicleControl,
+};
 use nalgebra::{SMatrix, Vector3};
 use serde::Deserialize;
 
@@ -88,6 +90,14 @@ pub struct FailureSpec {
     pub value: f64,
     /// Whether the allocator is told (and redistributes over the rest).
     pub reconfigure: bool,
+}
+
+impl FailureSpec {
+    /// Whether the failure has started at tick `t_k` of period `h` (from the first
+    /// `t_k ≥ t − h/2`).
+    pub fn active(&self, t_k: f64, h: f64) -> bool {
+        t_k >= self.t - h / 2.0
+    }
 }
 
 /// `[vehicle]` with its actuators and failures, and `[allocation]`.
@@ -147,6 +157,33 @@ impl VehicleSpec {
             self.priority,
         )
         .map_err(|e| format!("allocation: {e}"))
+    }
+
+    /// The controller's side of the vehicle over periods of `h`: the allocator, the
+    /// restoring model it compensates, the rate limit.
+    pub fn control<const K: usize>(&self, h: f64) -> Result<VehicleControl<f64, K>, String> {
+        Ok(VehicleControl::new(
+            self.allocator()?,
+            self.restoring(),
+            self.actuator_rate_limit,
+            h,
+        ))
+    }
+
+    /// Tells `control` of every failure it is to be told of (`reconfigure = true`) that has
+    /// started at tick `t_k` of period `h`. Telling again is harmless, so a controller that
+    /// calls this each cycle needs no memory of it (and replay none either).
+    pub fn tell_failures<const K: usize>(
+        &self,
+        control: &mut VehicleControl<f64, K>,
+        t_k: f64,
+        h: f64,
+    ) {
+        for f in &self.failures {
+            if f.reconfigure && f.active(t_k, h) {
+                control.fail(f.actuator, f.value);
+            }
+        }
     }
 }
 

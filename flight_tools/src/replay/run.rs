@@ -323,9 +323,17 @@ fn responder_for<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             ))
         })?
     };
-    with.controller::<G, N, M>()
+    let responder = with
+        .controller::<G, N, M>()
         .and_then(|c| control_cycle::Responder::new(c, with.rejection_config()))
-        .map_err(bad(s))
+        .map_err(bad(s))?;
+    Ok(match &with.vehicle {
+        None => responder,
+        Some(v) => responder.with_vehicle(
+            control_cycle::ControllerVehicle::new(v, with.control_period)
+                .map_err(|e| SimError::Input(format!("scenario `{}`: {e}", s.name)))?,
+        ),
+    })
 }
 
 /// Steps the estimator over record `r`'s samples and compares what it publishes with the
@@ -378,8 +386,42 @@ fn check_estimate<const N: usize, const M: usize>(
     }
 }
 
+/// A vehicle's fields of a recorded and a replayed command, side by side: the actuator
+/// count and status (as numbers), the demand, the wrench the law counts as applied, and the
+/// actuator commands.
+fn vehicle_fields<const M: usize>(
+    recorded: &CommandMsg,
+    c: &CommandMsg,
+) -> impl Iterator<Item = (String, f64, f64)> {
+    let counts = [
+        (
+            "actuators".to_owned(),
+            f64::from(recorded.actuators),
+            f64::from(c.actuators),
+        ),
+        (
+            "alloc_status".to_owned(),
+            f64::from(recorded.alloc_status),
+            f64::from(c.alloc_status),
+        ),
+    ];
+    let wrenches = (0..M).flat_map(move |i| {
+        [
+            (format!("demand[{i}]"), recorded.demand[i], c.demand[i]),
+            (
+                format!("accounted[{i}]"),
+                recorded.accounted[i],
+                c.accounted[i],
+            ),
+        ]
+    });
+    let count = (recorded.actuators as usize).min(ipc_types::MAX_ACTUATORS);
+    let commands = (0..count).map(move |j| (format!("u_cmd[{j}]"), recorded.u_cmd[j], c.u_cmd[j]));
+    counts.into_iter().chain(wrenches).chain(commands)
+}
+
 /// Compares one recorded command with the replayed one, bit for bit (torque, L, the
-/// observer's estimate and the integral's torque).
+/// observer's estimate, the integral's torque, and a vehicle's allocation).
 fn compare<const M: usize>(
     report: &mut ReplayReport,
     r: &Record,
@@ -431,6 +473,7 @@ fn compare<const M: usize>(
                 });
                 std::iter::once(("L".to_owned(), recorded.lyapunov, c.lyapunov))
                     .chain(terms)
+                    .chain(vehicle_fields::<M>(recorded, c))
                     .find(|(_, a, b)| a.to_bits() != b.to_bits())
                     .map(|(what, a, b)| diff(what, a, b))
             })

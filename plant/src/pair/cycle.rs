@@ -113,23 +113,11 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         if let Some(c) = &got {
             self.stats.command(c, self.published, k == 0);
         }
-        let v = self.plant.velocity();
-        self.tau = match (step.decision, &got) {
-            (Decision::Fresh, Some(c)) => {
-                if self.terms.is_some() {
-                    self.terms = Some(crate::trajectory::Terms {
-                        observer: c.msg.observer,
-                        integral: c.msg.integral,
-                    });
-                }
-                c.torque()
-            }
-            (Decision::Safe, _) => {
-                safe_mode_torque(&self.cfg.kd, &v, self.cfg.torque_limit.as_ref())
-            }
-            _ => self.tau,
-        };
-        saturate(&mut self.tau, self.cfg.torque_limit.as_ref());
+        if self.vehicle.is_some() {
+            self.actuate(k, step.decision, got.as_ref());
+        } else {
+            self.apply_wrench(step.decision, got.as_ref());
+        }
         self.log_transition(k, step.transition, step.misses_in_row);
         self.record(k, step.decision);
         if let Some(rec) = &mut self.recorder {
@@ -159,6 +147,11 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
 
     /// Integrates `[t_k, t_{k+1})` under the held torque and publishes state k+1.
     pub(super) fn advance(&mut self, k: u64) -> Result<(), SimError> {
+        if let Some(v) = &mut self.vehicle {
+            v.advance(&mut self.plant, &self.s, k);
+            self.reference.advance();
+            return self.publish(k + 1);
+        }
         let applied = self.tau + self.s.disturbance_at::<M>(k);
         let (h, substeps) = (self.s.control_period, self.s.plant_substeps);
         match self.s.world_disturbance::<M>() {
@@ -167,6 +160,58 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         }
         self.reference.advance();
         self.publish(k + 1)
+    }
+
+    /// The decision's wrench on the body: a fresh command's `τ`, the safe-mode damping, or
+    /// the held one; saturated.
+    fn apply_wrench(&mut self, decision: Decision, got: Option<&Command>) {
+        let v = self.plant.velocity();
+        self.tau = match (decision, got) {
+            (Decision::Fresh, Some(c)) => {
+                self.take_terms(c);
+                c.torque()
+            }
+            (Decision::Safe, _) => {
+                safe_mode_torque(&self.cfg.kd, &v, self.cfg.torque_limit.as_ref())
+            }
+            _ => self.tau,
+        };
+        saturate(&mut self.tau, self.cfg.torque_limit.as_ref());
+    }
+
+    /// The decision through the vehicle's actuators (docs/vehicles.md, "In the pair"): a
+    /// fresh command's `u_cmd`, the plant's own allocation of the safe-mode damping, or the
+    /// held commands. `τ` becomes the wrench the law counts as applied.
+    fn actuate(&mut self, k: u64, decision: Decision, got: Option<&Command>) {
+        let v = self.plant.velocity();
+        let Some(vehicle) = &mut self.vehicle else {
+            return;
+        };
+        vehicle.failures_at(k as f64 * self.s.control_period);
+        match (decision, got) {
+            (Decision::Fresh, Some(c)) => {
+                vehicle.apply(&c.msg);
+                self.take_terms(c);
+            }
+            (Decision::Safe, _) => {
+                let damping = safe_mode_torque(&self.cfg.kd, &v, self.cfg.torque_limit.as_ref());
+                vehicle.safe(&damping, &self.plant);
+            }
+            _ => vehicle.hold(),
+        }
+        if let Some(vehicle) = &self.vehicle {
+            self.tau = vehicle.accounted;
+        }
+    }
+
+    /// A fresh command's disturbance-rejection terms, for the rows.
+    fn take_terms(&mut self, c: &Command) {
+        if self.terms.is_some() {
+            self.terms = Some(crate::trajectory::Terms {
+                observer: c.msg.observer,
+                integral: c.msg.integral,
+            });
+        }
     }
 
     pub(super) fn record(&mut self, k: u64, decision: Decision) {
@@ -188,6 +233,11 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             .with_estimate(self.estimate)
             .with_terms(self.terms),
         );
+        if let (Some((row, wrench)), Some(last)) =
+            (self.vehicle.as_ref().and_then(|v| v.row), self.rows.pop())
+        {
+            self.rows.push(last.with_vehicle(row, &wrench));
+        }
         if self.realtime() {
             self.status.push(decision.code());
         }

@@ -22,6 +22,7 @@ mod cycle;
 mod options;
 mod plant_run;
 mod summary;
+mod vehicle;
 
 pub use options::{Mode, PairOptions, StateFault};
 use plant_run::PlantRun;
@@ -35,12 +36,6 @@ fn log(msg: std::fmt::Arguments) {
 /// Runs the pair; returns the trajectory and the summary (also written to `out`). An
 /// interrupted run is written too, and returned with `interrupted: true`.
 pub fn run_pair(opts: &PairOptions) -> Result<(SimulatedTrajectory, PairSummary), SimError> {
-    if opts.scenario.vehicle.is_some() {
-        return Err(SimError::Input(format!(
-            "scenario `{}` has a [vehicle]: the pair does not carry actuator commands yet (the wire has no field for them); simulate it with `plant_sim sim`",
-            opts.scenario.name
-        )));
-    }
     if opts.mode == Mode::Realtime
         && !(opts.rate_hz.is_finite() && opts.rate_hz > 0.0 && opts.rate_hz <= 100_000.0)
     {

@@ -50,6 +50,8 @@ pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M:
     pub(super) estimate: Option<crate::trajectory::EstimateRow>,
     /// The same, with the true state, for the flight recorder.
     pub(super) sensor_record: Option<recorder::SensorRecord>,
+    /// The vehicle (`None`: the command's wrench acts on the body directly).
+    pub(super) vehicle: Option<super::vehicle::PairVehicle<M>>,
 }
 
 /// Corrupts a state as a test asks.
@@ -83,7 +85,9 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         let plant = s.plant_body::<G, N, M>().map_err(input(&s))?;
         let reference = s.reference_source::<G, N, M>().map_err(input(&s))?;
         let cfg = s.controller_config::<N, M>();
+        let vehicle = super::vehicle::PairVehicle::of(&s)?;
         let ep = PlantEndpoint::open(PlantEndpointConfig {
+            actuators: vehicle.as_ref().map_or(0, |v| v.count()),
             run: opts.run.clone(),
             group: s.group,
             control_period: s.control_period,
@@ -121,6 +125,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             )?,
             estimate: None,
             sensor_record: None,
+            vehicle,
             s,
         })
     }
@@ -185,8 +190,13 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             None => msg.set_state(self.plant.configuration(), &self.plant.velocity()),
             Some(e) => {
                 // the torque held over the last period, as the in-process simulation has it
-                let r = G::rotation(self.plant.configuration());
-                let held = self.tau + self.s.disturbance_wrench::<M>(k.saturating_sub(1), &r);
+                let held = match &self.vehicle {
+                    Some(v) => v.held,
+                    None => {
+                        let r = G::rotation(self.plant.configuration());
+                        self.tau + self.s.disturbance_wrench::<M>(k.saturating_sub(1), &r)
+                    }
+                };
                 let (q_hat, v_hat, row) = e.measure(k, &self.plant, &held);
                 msg.set_state(&q_hat, &v_hat);
                 if self.recorder.is_some() {
@@ -322,6 +332,13 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             rows: self.rows,
             status: self.status,
             vehicle: None,
+        };
+        let traj = SimulatedTrajectory {
+            vehicle: self
+                .vehicle
+                .as_ref()
+                .map(|v| v.report(&traj.rows, traj.control_period)),
+            ..traj
         };
         let summary = PairSummary {
             sim: Summary::of(&traj, &s.name, s.law.name()),

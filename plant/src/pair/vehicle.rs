@@ -1,0 +1,130 @@
+//! A vehicle on the pair's plant side (docs/vehicles.md, "In the pair"): the controller's
+//! command carries the actuator commands `u_cmd`; the plant drives its actuators with them
+//! and integrates them with gravity, buoyancy, drag and the disturbances, exactly as the
+//! in-process simulation does. In safe mode the plant allocates the damping wrench itself.
+
+use crate::trajectory::VehicleRow;
+use crate::vehicle::{VehicleReport, VehicleRun, step_in_world};
+use allocation::{Actuation, Allocation, Commands, Status};
+use controller::group::MatrixLieGroup;
+use controller::integrator::RigidBody;
+use ipc_types::CommandMsg;
+use nalgebra::SVector;
+use scenario::Scenario;
+
+/// The plant's vehicle between cycles.
+pub(super) struct PairVehicle<const M: usize> {
+    run: VehicleRun<M>,
+    /// The last actuator commands applied (held over a missed deadline).
+    u_cmd: Commands<f64>,
+    /// The wrench the law counts as applied over the period (the next state's `applied`).
+    pub(super) accounted: SVector<f64, M>,
+    /// The wrench the plant held over the last period, for the accelerometer (zero at k = 0).
+    pub(super) held: SVector<f64, M>,
+    /// The row's vehicle columns at `t_k`, and the actuators' wrench `B u(t_k)`.
+    pub(super) row: Option<(VehicleRow, SVector<f64, M>)>,
+}
+
+impl<const M: usize> PairVehicle<M> {
+    /// The scenario's vehicle, if it has one.
+    pub(super) fn of(s: &Scenario) -> Result<Option<Self>, crate::SimError> {
+        Ok(VehicleRun::of(s)?.map(|run| PairVehicle {
+            run,
+            u_cmd: Commands::zeros(),
+            accounted: SVector::zeros(),
+            held: SVector::zeros(),
+            row: None,
+        }))
+    }
+
+    /// The actuator count (what the plant's endpoint expects in every command).
+    pub(super) fn count(&self) -> u32 {
+        self.run.count() as u32
+    }
+
+    /// Tick `t_k`: the failures that start now.
+    pub(super) fn failures_at(&mut self, t_k: f64) {
+        self.run.failures_at(t_k);
+    }
+
+    /// Applies a fresh command: its `u_cmd` to the actuators, and its columns to the row.
+    pub(super) fn apply(&mut self, c: &CommandMsg) {
+        let mut a = Actuation {
+            demand: SVector::zeros(),
+            allocation: Allocation {
+                u: Commands::from_fn(|j, _| c.u_cmd[j]),
+                achieved: SVector::zeros(),
+                status: Status::from_code(c.alloc_status).unwrap_or(Status::Stopped),
+                iterations: 0,
+            },
+        };
+        for i in 0..M {
+            a.demand[i] = c.demand[i];
+            a.allocation.achieved[i] = c.achieved[i];
+            self.accounted[i] = c.accounted[i];
+        }
+        self.command(&a);
+    }
+
+    /// Holds the last command over a missed deadline.
+    pub(super) fn hold(&mut self) {
+        let u = self.u_cmd;
+        self.run.actuators.command(&u);
+        let out = *self.run.actuators.output();
+        if let Some((row, wrench)) = &mut self.row {
+            for (j, x) in row.u.iter_mut().enumerate() {
+                *x = out[j];
+            }
+            *wrench = self.run.wrench_of(&out);
+        }
+    }
+
+    /// Safe mode: the plant allocates `wrench` (the damping law) itself, compensating the
+    /// restoring wrench at the body's true attitude.
+    pub(super) fn safe<G: MatrixLieGroup<N, M>, const N: usize>(
+        &mut self,
+        wrench: &SVector<f64, M>,
+        body: &RigidBody<f64, G, N, M>,
+    ) {
+        let r = G::rotation(body.configuration());
+        let a = self.run.control.actuate(wrench, &r);
+        self.accounted = a.applied(&self.run.control.restoring(&r));
+        self.command(&a);
+    }
+
+    fn command(&mut self, a: &Actuation<f64, M>) {
+        self.u_cmd = a.allocation.u;
+        self.run.actuators.command(&a.allocation.u);
+        let u = *self.run.actuators.output();
+        self.row = Some((self.run.row(a, &u), self.run.wrench_of(&u)));
+    }
+
+    /// Integrates `[t_k, t_{k+1})` under the actuators, the environment and the scenario's
+    /// disturbances of tick k, then takes the wrench held for the accelerometer at `t_{k+1}`.
+    pub(super) fn advance<G: MatrixLieGroup<N, M>, const N: usize>(
+        &mut self,
+        body: &mut RigidBody<f64, G, N, M>,
+        s: &Scenario,
+        k: u64,
+    ) {
+        let world = s.world_disturbance::<M>();
+        step_in_world::<G, N, M>(
+            body,
+            &self.run.environment,
+            &mut self.run.actuators,
+            &s.disturbance_at::<M>(k),
+            world.as_ref(),
+            s.control_period,
+            s.plant_substeps,
+        );
+        let r = G::rotation(body.configuration());
+        self.held = self.run.wrench_of(self.run.actuators.output())
+            + self.run.environment.wrench(&r, &body.velocity())
+            + s.disturbance_wrench::<M>(k, &r);
+    }
+
+    /// `summary.json` → `vehicle` over the rows kept, `h` apart.
+    pub(super) fn report(&self, rows: &[crate::trajectory::Row], h: f64) -> VehicleReport {
+        VehicleReport::of(rows, self.run.failures(), h)
+    }
+}

@@ -1,0 +1,133 @@
+//! Vehicles through the process pair (docs/vehicles.md, "In the pair"): the controller
+//! allocates the law's wrench and sends actuator commands; the plant drives its actuators
+//! with them. Driven through the real binaries; tests run one at a time ([`serial`]).
+
+use pair_tests::{Csv, TempDir, plant, repo, run, serial, sim_equals_lockstep, summary};
+use std::path::Path;
+use std::time::Duration;
+
+const LONG: Duration = Duration::from_secs(120);
+
+/// The vehicle scenarios, each flown by the lockstep pair.
+const VEHICLES: [&str; 2] = ["hexarotor_eqf", "rov_failure"];
+
+#[test]
+fn lockstep_with_a_vehicle_equals_the_simulation_bit_for_bit_and_allocates_nothing() {
+    let _g = serial();
+    let d = TempDir::new("vehicle-lockstep");
+    for name in VEHICLES {
+        let file = repo(&format!("scenarios/{name}.toml"));
+        let (sim, pair) = sim_equals_lockstep(&d, name, file.to_str().unwrap());
+        let (s, p) = (summary(Path::new(&sim)), summary(Path::new(&pair)));
+        // the vehicle report is the same (it is computed from the same rows)
+        assert_eq!(s["vehicle"], p["vehicle"], "{name}");
+        assert!(s["vehicle"]["saturated_time_s"].is_array(), "{s}");
+        // allocation, actuators and (for the hexarotor) the sensors and the EqF allocate
+        // nothing per cycle on either process
+        assert_eq!(p["controller_heap_allocations"].as_u64(), Some(0), "{p}");
+        assert_eq!(p["plant_loop_heap_allocations"].as_u64(), Some(0), "{p}");
+        let csv = Csv::read(&Path::new(&pair).join("trajectory.csv"));
+        for col in ["demand_5", "u_cmd_5", "u_5", "achieved_5", "alloc_status"] {
+            assert!(csv.header.iter().any(|h| h == col), "{name}: no {col}");
+        }
+        if name == "hexarotor_eqf" {
+            assert_eq!(s["estimator"]["kind"], "eqf", "{s}");
+            // the observer learned the wind: its terms crossed the wire too
+            assert!(csv.col("dhat_3").iter().any(|x| *x != 0.0), "{name}");
+        }
+        // the log replays bit for bit, allocation included
+        let (code, text) = run("plant_sim", &["replay", &pair], LONG);
+        assert_eq!(code, 0, "{name}: {text}");
+        assert!(text.contains("commands compared, 0 differ"), "{name}: {text}");
+    }
+}
+
+#[test]
+fn a_changed_actuator_command_in_the_log_is_found_by_replay() {
+    let _g = serial();
+    let d = TempDir::new("vehicle-replay");
+    let file = repo("scenarios/rov_failure.toml");
+    let out = d.join("pair");
+    let (code, text) = plant(&[
+        "run",
+        "--scenario",
+        file.to_str().unwrap(),
+        "--mode",
+        "lockstep",
+        "--duration",
+        "1",
+        "--name",
+        "t-vehicle-planted",
+        "--out",
+        &out,
+    ]);
+    assert_eq!(code, 0, "{text}");
+    let planted = format!("{out}-planted");
+    std::fs::create_dir_all(&planted).unwrap();
+    // the scenario and its waypoints, beside the changed log
+    for entry in std::fs::read_dir(&out).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_owned();
+        if path.is_file() && name != "messages.log" {
+            std::fs::copy(&path, Path::new(&planted).join(name)).unwrap();
+        }
+    }
+    let mut log = std::fs::read(format!("{out}/messages.log")).unwrap();
+    let header = recorder::Header::from_bytes(&log).unwrap();
+    // u_cmd[3] of the command recorded at cycle 40, nudged by one part in 10^12
+    let k = 40;
+    let cmd = recorder::HEADER_BYTES + k * header.record_bytes() + recorder::RECORD_COMMAND_OFFSET;
+    let at = cmd + 632 + 3 * 8;
+    let mut decoded =
+        ipc_types::CommandMsg::from_bytes(&log[cmd..cmd + ipc_types::COMMAND_BYTES]).unwrap();
+    assert_eq!(decoded.actuators, 8);
+    let u = f64::from_le_bytes(log[at..at + 8].try_into().unwrap());
+    assert_eq!(u.to_bits(), decoded.u_cmd[3].to_bits());
+    decoded.u_cmd[3] = u * (1.0 + 1e-12) + 1e-15;
+    log[cmd..cmd + ipc_types::COMMAND_BYTES].copy_from_slice(&decoded.to_bytes());
+    std::fs::write(format!("{planted}/messages.log"), log).unwrap();
+    let (code, text) = run("plant_sim", &["replay", &planted], LONG);
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains("u_cmd[3]"), "{text}");
+    assert!(text.contains(&format!("cycle {k} ")), "{text}");
+}
+
+#[test]
+fn a_real_time_vehicle_run_tracks_and_replays_bit_for_bit() {
+    let _g = serial();
+    let d = TempDir::new("vehicle-realtime");
+    let file = repo("scenarios/hexarotor_eqf.toml");
+    let out = d.join("rt");
+    let (code, text) = plant(&[
+        "run",
+        "--scenario",
+        file.to_str().unwrap(),
+        "--rate-hz",
+        "500",
+        "--duration",
+        "3",
+        "--name",
+        "t-vehicle-rt",
+        "--out",
+        &out,
+    ]);
+    assert_eq!(code, 0, "{text}");
+    let s = summary(Path::new(&out));
+    let cycles = s["cycles"].as_u64().unwrap();
+    assert!(cycles >= 1500, "{s}");
+    // the hover is held: the rotors carry the weight, the attitude error stays small (in
+    // safe mode too, should the machine stall: the plant then allocates the damping and
+    // compensates the weight itself)
+    let csv = Csv::read(&Path::new(&out).join("trajectory.csv"));
+    let worst = csv
+        .col("attitude_error")
+        .into_iter()
+        .fold(0.0_f64, f64::max);
+    assert!(worst < 0.2, "attitude error up to {worst}");
+    let thrust: f64 = (0..6).map(|j| csv.col(&format!("u_{j}"))[1000]).sum();
+    assert!(thrust > 10.0, "the rotors carry the weight: {thrust} N");
+    assert_eq!(s["plant_loop_heap_allocations"].as_u64(), Some(0), "{s}");
+    let (code, text) = run("plant_sim", &["replay", &out], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(" 0 differ"), "{text}");
+}
