@@ -35,7 +35,9 @@ PLANT=$TARGET/debug/plant_sim
 	die "cannot build plant_sim and controller_node (log: $OUT/build.log)"
 
 run=pyobs-$$
-"$PLANT" run --duration 4 --name "$run" --out "$OUT/run" >"$OUT/plant.log" 2>&1 &
+# a vehicle: the commands carry actuator commands, which the observers print
+"$PLANT" run --scenario "$REPO/scenarios/hexarotor_eqf.toml" --duration 4 --name "$run" \
+	--out "$OUT/run" >"$OUT/plant.log" 2>&1 &
 plant=$!
 for i in 1 2; do
 	"$VENV/bin/python" "$REPO/examples/python/observe.py" --name "$run" --count 30 --timeout 30 \
@@ -52,10 +54,13 @@ wait "$plant" || die "the pair failed: $(tail -3 "$OUT/plant.log")"
 for i in 1 2; do
 	python3 - "$OUT/observer-$i.out" "$i" <<'PY' || die "observer $i: see $OUT/observer-$i.out"
 import sys
-seqs = [int(l.split()[1]) for l in open(sys.argv[1]) if l.startswith("seq ")]
-ok = len(seqs) >= 10 and len(set(seqs)) == len(seqs) and seqs == sorted(seqs)
+lines = [l for l in open(sys.argv[1]) if l.startswith("seq ")]
+seqs = [int(l.split()[1]) for l in lines]
+# every answered state shows the vehicle's six rotor commands
+rotors = all(len(l.split("  u ")[1].split()) == 6 for l in lines if "  L nan" not in l)
+ok = len(seqs) >= 10 and len(set(seqs)) == len(seqs) and seqs == sorted(seqs) and rotors
 print(f"observer {sys.argv[2]}: {len(seqs)} states, seq {seqs[0] if seqs else '-'} .. {seqs[-1] if seqs else '-'}, "
-      f"{'distinct and increasing' if ok else 'NOT distinct and increasing (or fewer than 10)'}")
+      f"{'distinct and increasing, rotor commands shown' if ok else 'NOT distinct and increasing with rotor commands (or fewer than 10)'}")
 sys.exit(0 if ok else 1)
 PY
 done

@@ -8,7 +8,8 @@ It attaches to the run's `state` and `command` blackboards (iceoryx2 shared memo
 reader. The plant and the controller do not notice it, and the services admit several
 observers. It prints one line per new state: seq, t, the attitude error |Q - I| (or the pose's
 rotation part), the torque of the command answering that state, and the Lyapunov value (and,
-where the controller runs them, the disturbance estimate and the integral's torque). The
+where the controller runs them, the disturbance estimate and the integral's torque; for a
+vehicle, the allocator's status and the actuator commands). The
 message layout is ipc_types/include/eqtrack_wire.h, documented in docs/wire.md.
 
 It stops after --count states, when the plant ends the run, or after --timeout seconds.
@@ -23,7 +24,7 @@ import time
 
 import iceoryx2 as iox2
 
-MAX_N, MAX_M, NAME_BYTES, SLOTS = 4, 6, 32, 8
+MAX_N, MAX_M, NAME_BYTES, SLOTS, MAX_ACTUATORS = 4, 6, 32, 8, 12
 SHUTDOWN = 2
 
 
@@ -52,7 +53,7 @@ class StateMsg(ctypes.Structure):
 
 
 class CommandMsg(ctypes.Structure):
-    """eqtrack::CommandMsg6 (docs/wire.md)."""
+    """eqtrack::CommandMsg7 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -79,11 +80,18 @@ class CommandMsg(ctypes.Structure):
         ("plan_seq", ctypes.c_uint64),
         ("plan_pid", ctypes.c_uint32),
         ("reserved", ctypes.c_uint32),
+        ("actuators", ctypes.c_uint32),
+        ("alloc_status", ctypes.c_uint32),
+        ("demand", ctypes.c_double * MAX_M),
+        ("achieved", ctypes.c_double * MAX_M),
+        ("accounted", ctypes.c_double * MAX_M),
+        ("u_previous", ctypes.c_double * MAX_ACTUATORS),
+        ("u_cmd", ctypes.c_double * MAX_ACTUATORS),
     ]
 
     @staticmethod
     def type_name():
-        return "eqtrack::CommandMsg6"
+        return "eqtrack::CommandMsg7"
 
 
 def entries(node, run, what, msg_type, timeout):
@@ -159,6 +167,11 @@ def main():
         if answered and any(c.observer[i] != 0.0 or c.integral[i] != 0.0 for i in range(m)):
             terms = "  dhat " + " ".join(f"{c.observer[i]:+.4e}" for i in range(m))
             terms += "  integral " + " ".join(f"{c.integral[i]:+.4e}" for i in range(m))
+        # a vehicle's actuator commands and the allocator's status
+        if answered and 0 < c.actuators <= MAX_ACTUATORS:
+            terms += f"  alloc {c.alloc_status}  u " + " ".join(
+                f"{c.u_cmd[j]:+.4e}" for j in range(c.actuators)
+            )
         print(
             f"seq {s.seq:8d}  t {s.t:9.4f} s  |Q-I| {err:.4e}  L {lyap:.5e}  tau "
             + " ".join(f"{x:+.4e}" for x in tau)

@@ -125,6 +125,8 @@ pub struct Receiver {
     pub period: Option<f64>,
     /// Commands: the sequence number awaited.
     pub awaited: u64,
+    /// Commands: the plant's actuator count (0: no vehicle).
+    pub actuators: u32,
 }
 
 /// One wire case: bytes received, by whom.

@@ -8,7 +8,7 @@
  * Each message sits in an iceoryx2 blackboard entry (key type uint32_t, keys 0..7 are the
  * writer slots) of the service `eqtrack/<run>/state`, `eqtrack/<run>/command` or
  * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg6",
- * "eqtrack::CommandMsg6", "eqtrack::PlanMsg4", "eqtrack::StatusMsg4". All numbers are little-endian on the machines eqtrack runs on.
+ * "eqtrack::CommandMsg7", "eqtrack::PlanMsg4", "eqtrack::StatusMsg4". All numbers are little-endian on the machines eqtrack runs on.
  */
 #ifndef EQTRACK_WIRE_H
 #define EQTRACK_WIRE_H
@@ -16,11 +16,12 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define EQTRACK_PROTOCOL_VERSION 6u
+#define EQTRACK_PROTOCOL_VERSION 7u
 #define EQTRACK_MAX_N 4        /* configuration matrices are n x n, n <= 4 */
 #define EQTRACK_MAX_M 6        /* algebra dimension m <= 6 */
 #define EQTRACK_NAME_BYTES 32  /* scenario name, UTF-8, NUL-padded */
 #define EQTRACK_PLAN_WINDOW 8  /* segments per plan message */
+#define EQTRACK_MAX_ACTUATORS 12 /* actuator commands in a vehicle's command */
 
 /* group codes */
 #define EQTRACK_GROUP_SO3 1u
@@ -75,6 +76,14 @@ typedef struct eqtrack_CommandMsg {
     uint64_t plan_seq;          /* the last of them: its seq (0: none) */
     uint32_t plan_pid;          /* and its planner's pid (0: none) */
     uint32_t reserved;
+    uint32_t actuators;         /* a vehicle's actuator count; 0: no vehicle, tau is applied */
+    uint32_t alloc_status;      /* 0 met, 1 torque not reachable, 2 force given up, 3 cap, 4 bad demand */
+    double demand[EQTRACK_MAX_M];    /* tau less the known restoring wrench, first m */
+    double achieved[EQTRACK_MAX_M];  /* B u_cmd, first m */
+    double accounted[EQTRACK_MAX_M]; /* B u_cmd plus the compensated restoring wrench: the next
+                                        state's `applied` when this command is applied */
+    double u_previous[EQTRACK_MAX_ACTUATORS]; /* the command the rate limit narrowed around */
+    double u_cmd[EQTRACK_MAX_ACTUATORS];      /* actuator commands, first `actuators` */
 } eqtrack_CommandMsg;
 
 /* eqtrack_WireSegment.shape */

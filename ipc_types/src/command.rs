@@ -14,7 +14,7 @@ use nalgebra::SVector;
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::CommandMsg6")
+    type_name("eqtrack::CommandMsg7")
 )]
 #[repr(C)]
 pub struct CommandMsg {

@@ -77,6 +77,13 @@ fn rust_layout() -> Layout {
             plan_seq,
             plan_pid,
             reserved,
+            actuators,
+            alloc_status,
+            demand,
+            achieved,
+            accounted,
+            u_previous,
+            u_cmd,
         ]
     );
     fields!(
@@ -231,6 +238,10 @@ fn the_header_names_the_protocol_version_and_limits() {
         ("EQTRACK_MAX_M", ipc_types::MAX_M.to_string()),
         ("EQTRACK_NAME_BYTES", ipc_types::NAME_BYTES.to_string()),
         ("EQTRACK_PLAN_WINDOW", ipc_types::PLAN_WINDOW.to_string()),
+        (
+            "EQTRACK_MAX_ACTUATORS",
+            ipc_types::MAX_ACTUATORS.to_string(),
+        ),
         (
             "EQTRACK_SHAPE_REST",
             format!("{}u", ipc_types::plan::SHAPE_REST),

@@ -244,6 +244,23 @@ impl<const M: usize> VehicleRun<M> {
         &self.failures
     }
 
+    /// Drives the actuators with commands received from a controller, each clamped to its
+    /// actuator's physical range `[min, max]` first (an allocator's answer is within it
+    /// already, so this changes nothing in a healthy pair). Returns the commands applied.
+    pub fn command_received(&mut self, u_cmd: &Commands<f64>) -> Commands<f64> {
+        let range = self.control.allocator().bounds();
+        let u = Commands::from_fn(|j, _| {
+            let x = u_cmd[j];
+            if j < self.count {
+                x.clamp(range.lo[j], range.hi[j])
+            } else {
+                0.0
+            }
+        });
+        self.actuators.command(&u);
+        u
+    }
+
     /// The actuators' wrench `B u`.
     pub fn wrench_of(&self, u: &Commands<f64>) -> SVector<f64, M> {
         self.effectiveness * u

@@ -38,7 +38,10 @@ fn lockstep_with_a_vehicle_equals_the_simulation_bit_for_bit_and_allocates_nothi
         // the log replays bit for bit, allocation included
         let (code, text) = run("plant_sim", &["replay", &pair], LONG);
         assert_eq!(code, 0, "{name}: {text}");
-        assert!(text.contains("commands compared, 0 differ"), "{name}: {text}");
+        assert!(
+            text.contains("commands compared, 0 differ"),
+            "{name}: {text}"
+        );
     }
 }
 

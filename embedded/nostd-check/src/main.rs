@@ -122,8 +122,9 @@ fn ipc_check() -> bool {
     let nan = check_state(&s, So3, Some(2), None) == Err(Invalid::NonFinite);
     let mut c = CommandMsg::new(Se3);
     c.seq = 3;
-    let cmd =
-        check_command(&c, Se3, 3) == Ok(()) && check_command(&c, So3, 3) == Err(Invalid::Group);
+    let cmd = check_command(&c, Se3, 3, 0) == Ok(())
+        && check_command(&c, So3, 3, 0) == Err(Invalid::Group)
+        && check_command(&c, Se3, 3, 8) == Err(Invalid::Actuators);
     let round_trip = StateMsg::from_bytes(&s.to_bytes()).is_ok_and(|d| d.seq == 3);
     let names = service_names("board1").is_some_and(|n| n.state.as_str() == "eqtrack/board1/state");
     ok && nan && cmd && names && round_trip

@@ -19,6 +19,8 @@ use std::sync::OnceLock;
 struct Context {
     so3: Scenario,
     se3: Scenario,
+    /// The ROV with its eight thrusters.
+    vehicle: Scenario,
     identities: Vec<Identity>,
 }
 
@@ -42,6 +44,7 @@ fn context() -> &'static Context {
         Context {
             so3,
             se3,
+            vehicle: super::seeds::shipped("rov_failure"),
             identities,
         }
     })
@@ -258,8 +261,12 @@ fn check_command_bytes(bytes: &[u8], r: &Receiver, ctx: &Context) -> Outcome {
     };
     exercise_command(&msg, bytes);
     check_command_grid(&msg);
-    match check_command(&msg, wire_group(r.group), r.awaited) {
+    match check_command(&msg, wire_group(r.group), r.awaited, r.actuators) {
         Err(k) => Outcome::Rejected(format!("check_command: Invalid::{k:?}")),
+        Ok(()) if msg.actuators > 0 => {
+            vehicle_on_command(&ctx.vehicle, &msg);
+            Outcome::Accepted
+        }
         Ok(()) => {
             r.group.dispatch(PlantOnCommand {
                 scenario: ctx.scenario(r.group),
@@ -290,17 +297,53 @@ fn exercise_command(msg: &CommandMsg, bytes: &[u8]) {
     );
 }
 
-/// `check_command` for a grid of receivers (group, awaited sequence number): one that accepts
-/// awaited this sequence number on this group.
+/// `check_command` for a grid of receivers (group, awaited sequence number, actuator
+/// count): one that accepts awaited this sequence number on this group, with this many
+/// actuators, at most 12.
 fn check_command_grid(msg: &CommandMsg) {
     for g in GroupKind::ALL {
         for awaited in [0, msg.seq, msg.seq.wrapping_add(1), u64::MAX] {
-            let verdict = check_command(msg, wire_group(g), awaited);
-            if verdict.is_ok() {
-                assert_eq!(msg.seq, awaited);
-                assert_eq!(group_kind(msg.group), Some(g));
+            for actuators in [0, msg.actuators, 8, 12] {
+                let verdict = check_command(msg, wire_group(g), awaited, actuators);
+                if verdict.is_ok() {
+                    assert_eq!(msg.seq, awaited);
+                    assert_eq!(group_kind(msg.group), Some(g));
+                    assert_eq!(msg.actuators, actuators);
+                    assert!(actuators as usize <= ipc_types::MAX_ACTUATORS);
+                }
+                let _ = black_box(verdict);
             }
-            let _ = black_box(verdict);
         }
     }
+}
+
+/// A vehicle plant (the ROV of `rov_failure`) applying an accepted command: its actuator
+/// commands, each clamped to its range, drive the actuators over one period, and the state
+/// it publishes next is finite.
+fn vehicle_on_command(s: &Scenario, msg: &CommandMsg) {
+    type Se3 = controller::group::Se3;
+    let mut run = plant::vehicle::VehicleRun::<6>::of(s)
+        .expect("the shipped vehicle loads")
+        .expect("it has a vehicle");
+    let mut body = s.plant_body::<Se3, 4, 6>().expect("the shipped plant");
+    let u = nalgebra::SVector::<f64, { ipc_types::MAX_ACTUATORS }>::from_fn(|j, _| msg.u_cmd[j]);
+    let applied = run.command_received(&u);
+    assert!(
+        applied.iter().all(|x| x.is_finite()),
+        "clamped actuator commands: {applied:?}"
+    );
+    plant::vehicle::step::<Se3, 4, 6>(
+        &mut body,
+        &run.environment,
+        &mut run.actuators,
+        &nalgebra::SVector::zeros(),
+        s.control_period,
+        s.plant_substeps,
+    );
+    let mut next = StateMsg::new(ipc_types::WireGroup::Se3);
+    next.set_state(body.configuration(), &body.velocity());
+    assert!(
+        next.q.iter().chain(&next.v).all(|x| x.is_finite()),
+        "a vehicle under accepted commands left the finite numbers: {next:?}"
+    );
 }

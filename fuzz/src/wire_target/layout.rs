@@ -32,7 +32,7 @@ pub(super) const STATE_FIELDS: [(&str, usize, Ty, usize); 13] = [
 ];
 
 /// The fields of an encoded [`CommandMsg`](ipc_types::CommandMsg).
-pub(super) const COMMAND_FIELDS: [(&str, usize, Ty, usize); 24] = [
+pub(super) const COMMAND_FIELDS: [(&str, usize, Ty, usize); 31] = [
     ("version", 0, Ty::U32, 1),
     ("group", 4, Ty::U32, 1),
     ("seq", 8, Ty::U64, 1),
@@ -57,6 +57,13 @@ pub(super) const COMMAND_FIELDS: [(&str, usize, Ty, usize); 24] = [
     ("plan_seq", 368, Ty::U64, 1),
     ("plan_pid", 376, Ty::U32, 1),
     ("reserved", 380, Ty::U32, 1),
+    ("actuators", 384, Ty::U32, 1),
+    ("alloc_status", 388, Ty::U32, 1),
+    ("demand", 392, Ty::F64, 6),
+    ("achieved", 440, Ty::F64, 6),
+    ("accounted", 488, Ty::F64, 6),
+    ("u_previous", 536, Ty::F64, 12),
+    ("u_cmd", 632, Ty::F64, 12),
 ];
 
 /// The field table of an encoded message of kind `kind`.

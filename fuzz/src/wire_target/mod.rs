@@ -29,6 +29,8 @@ struct Item {
     group: GroupKind,
     seq: u64,
     period: f64,
+    /// A command's actuator count (0: none).
+    actuators: u32,
     bytes: Vec<u8>,
 }
 

@@ -89,6 +89,7 @@ impl Corpus {
                 last_seq: g.chance(1, 2).then(|| g.u64()),
                 period: g.chance(1, 2).then(|| f64::from_bits(g.u64())),
                 awaited: g.u64(),
+                actuators: *g.pick(&[0, 6, 8]),
             };
             return WireCase {
                 kind,
@@ -139,6 +140,11 @@ impl Corpus {
                 0..=7 => base.seq,
                 8 => base.seq + 1,
                 _ => g.u64(),
+            },
+            actuators: if g.chance(9, 10) {
+                base.actuators
+            } else {
+                *g.pick(&[0, 6, 8, 12, 13])
             },
         }
     }

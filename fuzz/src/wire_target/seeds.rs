@@ -31,6 +31,7 @@ impl OnGroup for Realistic<'_> {
             group: G::KIND,
             seq,
             period: s.control_period,
+            actuators: 0,
             bytes: bytes.to_vec(),
         };
         let mut out = Vec::new();
@@ -95,8 +96,57 @@ impl OnGroup for Realistic<'_> {
     }
 }
 
+/// A scenario shipped in `scenarios/`.
+pub(super) fn shipped(name: &str) -> Scenario {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenarios")
+        .join(format!("{name}.toml"));
+    Scenario::from_file(&path).expect("a shipped scenario loads")
+}
+
+/// A vehicle's commands as the controller's cycle answers them: the ROV of `rov_failure`,
+/// states 0..4 of its body at rest, answered by the responder with its allocation.
+fn vehicle_commands() -> Vec<Item> {
+    type Se3 = controller::group::Se3;
+    let s = shipped("rov_failure");
+    let spec = s.vehicle.as_ref().expect("rov_failure has a vehicle");
+    let mut responder = s
+        .controller::<Se3, 4, 6>()
+        .and_then(|c| control_cycle::Responder::new(c, s.rejection_config()))
+        .expect("the shipped controller")
+        .with_vehicle(
+            control_cycle::ControllerVehicle::new(spec, s.control_period)
+                .expect("the shipped vehicle"),
+        );
+    let mut reference = s
+        .reference_source::<Se3, 4, 6>()
+        .expect("the shipped reference");
+    let body = s.plant_body::<Se3, 4, 6>().expect("the shipped plant");
+    (0..4u64)
+        .map(|k| {
+            let mut st = StateMsg::new(wire_group(controller::GroupKind::Se3));
+            st.seq = k;
+            st.t = k as f64 * s.control_period;
+            st.control_period = s.control_period;
+            st.set_state(body.configuration(), &body.velocity());
+            let cmd = responder
+                .respond(&mut reference, &st)
+                .expect("the law answers the body at rest");
+            Item {
+                kind: MsgKind::Command,
+                group: controller::GroupKind::Se3,
+                seq: k,
+                period: s.control_period,
+                actuators: cmd.actuators,
+                bytes: cmd.to_bytes().to_vec(),
+            }
+        })
+        .collect()
+}
+
 impl Corpus {
-    /// Realistic states and commands of the three built-in scenarios (both groups).
+    /// Realistic states and commands of the three built-in scenarios (both groups), and a
+    /// vehicle's commands.
     pub(crate) fn new() -> Corpus {
         let items = scenario::BUILTINS
             .iter()
@@ -104,6 +154,7 @@ impl Corpus {
                 let s = Scenario::builtin(name).expect("built-in scenario");
                 s.group.dispatch(Realistic(&s))
             })
+            .chain(vehicle_commands())
             .collect();
         Corpus { items }
     }

@@ -64,6 +64,8 @@ fn field_tables_match_the_encoding() {
 fn the_seed_messages_are_accepted_by_their_receivers() {
     let c = Corpus::new();
     assert!(c.items.len() >= 20);
+    // a vehicle's commands are among them
+    assert!(c.items.iter().filter(|i| i.actuators == 8).count() >= 3);
     for item in &c.items {
         let case = WireCase {
             kind: item.kind,
@@ -72,6 +74,7 @@ fn the_seed_messages_are_accepted_by_their_receivers() {
                 last_seq: item.seq.checked_sub(1),
                 period: Some(item.period),
                 awaited: item.seq,
+                actuators: item.actuators,
             },
             bytes: item.bytes.clone(),
         };

@@ -47,7 +47,8 @@ impl<const M: usize> PairVehicle<M> {
         self.run.failures_at(t_k);
     }
 
-    /// Applies a fresh command: its `u_cmd` to the actuators, and its columns to the row.
+    /// Applies a fresh command: its `u_cmd` to the actuators (each within its range), and
+    /// its columns to the row.
     pub(super) fn apply(&mut self, c: &CommandMsg) {
         let mut a = Actuation {
             demand: SVector::zeros(),
@@ -63,7 +64,8 @@ impl<const M: usize> PairVehicle<M> {
             a.allocation.achieved[i] = c.achieved[i];
             self.accounted[i] = c.accounted[i];
         }
-        self.command(&a);
+        self.u_cmd = self.run.command_received(&a.allocation.u);
+        self.row_of(&a);
     }
 
     /// Holds the last command over a missed deadline.
@@ -95,6 +97,10 @@ impl<const M: usize> PairVehicle<M> {
     fn command(&mut self, a: &Actuation<f64, M>) {
         self.u_cmd = a.allocation.u;
         self.run.actuators.command(&a.allocation.u);
+        self.row_of(a);
+    }
+
+    fn row_of(&mut self, a: &Actuation<f64, M>) {
         let u = *self.run.actuators.output();
         self.row = Some((self.run.row(a, &u), self.run.wrench_of(&u)));
     }
