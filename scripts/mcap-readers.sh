@@ -63,6 +63,9 @@ RUNS+=("$OUT/eqf")
 "$BIN/plant_sim" run --scenario "$REPO/scenarios/sensors_so3.toml" --mode lockstep --duration 2 \
 	--name "mcap-cf-$$" --out "$OUT/cf" >"$OUT/plant-cf.log" 2>&1 || die "the complementary-filter run failed: $(tail -3 "$OUT/plant-cf.log")"
 RUNS+=("$OUT/cf")
+"$BIN/plant_sim" run --scenario "$REPO/scenarios/rov_failure.toml" --mode lockstep --duration 2 \
+	--name "mcap-rov-$$" --out "$OUT/rov" >"$OUT/plant-rov.log" 2>&1 || die "the vehicle run failed: $(tail -3 "$OUT/plant-rov.log")"
+RUNS+=("$OUT/rov")
 # streamed: the planner publishes the whole path, the controller takes it from the plan board
 SLEW=$REPO/scenarios/slew_so3.toml
 "$BIN/planner" --scenario "$SLEW" --name "mcap-st-$$" --horizon 1000 >"$OUT/planner.log" 2>&1 &

@@ -1,5 +1,5 @@
 //! The messages of one flight-recorder record, one per channel: state, cycle, command,
-//! terms, and for a run with sensors, sensors and estimate.
+//! terms, for a vehicle actuators, and for a run with sensors, sensors and estimate.
 
 use crate::{Message, Value};
 use ipc_types::{CommandMsg, StateMsg, WireLaw};
@@ -24,6 +24,9 @@ pub fn messages(r: &Record, n: usize, m: usize, terms: bool) -> Vec<Message> {
                     ("integral", Value::F64s(c.integral[..m].to_vec())),
                 ],
             });
+        }
+        if c.actuators > 0 {
+            out.push(actuators_message(r.cycle, c, m));
         }
     }
     if let Some(x) = &r.sensors {
@@ -99,6 +102,24 @@ fn command_message(cycle: u64, c: &CommandMsg, received: u64, m: usize) -> Messa
                         .to_owned(),
                 ),
             ),
+        ],
+    }
+}
+
+/// The actuators channel of a vehicle's command: the allocator's status, the demand, what
+/// its answer achieves, what the law counts as applied, and the actuator commands.
+fn actuators_message(cycle: u64, c: &CommandMsg, m: usize) -> Message {
+    let count = (c.actuators as usize).min(ipc_types::MAX_ACTUATORS);
+    Message {
+        schema: "eqtrack_msgs/msg/Actuators",
+        topic: "/eqtrack/actuators",
+        fields: vec![
+            ("cycle", Value::U64(cycle)),
+            ("alloc_status", Value::U32(c.alloc_status)),
+            ("demand", Value::F64s(c.demand[..m].to_vec())),
+            ("achieved", Value::F64s(c.achieved[..m].to_vec())),
+            ("accounted", Value::F64s(c.accounted[..m].to_vec())),
+            ("u_cmd", Value::F64s(c.u_cmd[..count].to_vec())),
         ],
     }
 }

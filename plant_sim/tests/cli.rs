@@ -542,3 +542,46 @@ fn a_vehicle_runs_in_sim_and_in_the_pair() {
         std::fs::read(dir.path().join("pair/trajectory.csv")).unwrap()
     );
 }
+
+/// The Monte Carlo study with a vehicle: the spacecraft's thrusters carry every run's torque
+/// (allocation in the loop, so the numbers differ from the same study without them), the
+/// result does not depend on the thread count, and no value is NaN.
+#[test]
+fn the_monte_carlo_study_flies_a_vehicle_through_its_thrusters() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = |scenario: &str, threads: &str, out: &str| {
+        let out = dir.path().join(out);
+        ok(&run(&[
+            "montecarlo",
+            "--scenario",
+            repo(scenario).to_str().unwrap(),
+            "--runs",
+            "6",
+            "--threads",
+            threads,
+            "--out",
+            out.to_str().unwrap(),
+        ]));
+        std::fs::read_to_string(out.join("runs.csv")).unwrap()
+    };
+    let one = study("scenarios/spacecraft.toml", "1", "one");
+    assert_eq!(one, study("scenarios/spacecraft.toml", "2", "two"));
+    let plain = study("scenarios/montecarlo.toml", "2", "plain");
+    assert_eq!(one.lines().count(), 1 + 6 * 4);
+    let (h, rows) = read_csv(&dir.path().join("one/runs.csv"));
+    let (_, plain_rows) = read_csv(&dir.path().join("plain/runs.csv"));
+    let effort = column(&h, &rows, "effort_0_20");
+    let plain_effort = column(&h, &plain_rows, "effort_0_20");
+    assert!(effort.iter().all(|x| x.is_finite()), "{effort:?}");
+    assert!(
+        column(&h, &rows, "final_attitude_error")
+            .iter()
+            .all(|x| x.is_finite())
+    );
+    // the same samples, another plant: the thrusters' bounds change every run's effort
+    assert!(
+        effort.iter().zip(&plain_effort).all(|(a, b)| a != b),
+        "{effort:?} vs {plain_effort:?}"
+    );
+    assert_ne!(one, plain);
+}

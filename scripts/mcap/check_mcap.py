@@ -20,7 +20,7 @@ import os
 import struct
 import sys
 
-# the flight recorder's layout (format 4) and the wire messages' (protocol 6)
+# the flight recorder's layout (format 5) and the wire messages' (protocol 7)
 LOG_MAGIC = b"EQTRKLOG"
 STATE_AT, COMMAND_AT = 80, 392
 GROUP_DIMS = {1: (3, 3), 2: (4, 6)}
@@ -34,8 +34,8 @@ def read_log(path):
     if data[:8] != LOG_MAGIC:
         sys.exit(f"{path}: not a flight recording")
     version, header_bytes, record_bytes, group = struct.unpack_from("<IIII", data, 8)
-    if version != 4:
-        sys.exit(f"{path}: format version {version}; this check reads 4")
+    if version != 5:
+        sys.exit(f"{path}: format version {version}; this check reads 5")
     n, m = GROUP_DIMS[group]
     records = []
     for at in range(header_bytes, len(data) - record_bytes + 1, record_bytes):
@@ -61,6 +61,12 @@ def read_log(path):
             rec["seq"] = struct.unpack_from("<Q", data, c + 8)[0]
             rec["tau"] = list(struct.unpack_from(f"<{m}d", data, c + 40))
             rec["lyapunov"] = struct.unpack_from("<d", data, c + 88)[0]
+            actuators, status = struct.unpack_from("<II", data, c + 384)
+            rec["actuators"] = actuators
+            if actuators > 0:
+                rec["alloc_status"] = status
+                rec["demand"] = list(struct.unpack_from(f"<{m}d", data, c + 392))
+                rec["u_cmd"] = list(struct.unpack_from(f"<{actuators}d", data, c + 632))
         records.append(rec)
     return records
 
@@ -73,6 +79,7 @@ def check_against_log(log_path, by_topic):
         ("/eqtrack/state", records, ("cycle", "t", "q", "v", "applied_before")),
         ("/eqtrack/cycle", records, ("cycle", "decision", "misses_in_row", "deadline_ns", "has_command", "received_ns", "applied")),
         ("/eqtrack/command", commands, ("cycle", "seq", "tau", "lyapunov")),
+        ("/eqtrack/actuators", [r for r in commands if r["actuators"] > 0], ("cycle", "alloc_status", "demand", "u_cmd")),
     )
     for topic, want, fields in checks:
         got = by_topic.get(topic, [])
@@ -137,7 +144,7 @@ def main(mcap_path, jsonl_path, log_path=None):
                 if not same(got, value):
                     sys.exit(f"{where}: field {name} = {got!r}, expected {value!r}")
             topics[channel.topic] = topics.get(channel.topic, 0) + 1
-            if log_path is not None and channel.topic in ("/eqtrack/state", "/eqtrack/cycle", "/eqtrack/command"):
+            if log_path is not None and channel.topic in ("/eqtrack/state", "/eqtrack/cycle", "/eqtrack/command", "/eqtrack/actuators"):
                 by_topic.setdefault(channel.topic, []).append(decoded)
             count += 1
     if count != len(expected):
@@ -152,7 +159,7 @@ def main(mcap_path, jsonl_path, log_path=None):
         records, commands = check_against_log(log_path, by_topic)
         against_log = (
             f"; {records} records and {commands} commands of {os.path.basename(log_path)}, read with struct, "
-            "equal to the state, cycle and command channels"
+            "equal to the state, cycle, command and actuators channels"
         )
     print(
         f"python mcap {count} messages decoded with CRCs checked, all equal to the project's reading{against_log}; "

@@ -123,6 +123,37 @@ fn a_run_exports_to_mcap_with_one_message_per_channel_and_cycle() {
 }
 
 #[test]
+fn a_vehicle_run_exports_its_actuator_commands() {
+    let _g = serial();
+    let d = TempDir::new("export-vehicle");
+    let out = d.join("rov");
+    let rov = pair_tests::repo("scenarios/rov_failure.toml");
+    lockstep(
+        "t-export-rov",
+        &out,
+        "1",
+        &["--scenario", rov.to_str().unwrap()],
+    );
+    let (code, text) = run("plant_sim", &["export", &out], LONG);
+    assert_eq!(code, 0, "{text}");
+    let n = records(&out);
+    let topics = read_mcap(&Path::new(&out).join("run.mcap")).topics;
+    assert_eq!(topics.get("/eqtrack/actuators"), Some(&n), "{topics:?}");
+    let (code, text) = run("plant_sim", &["export", &out, "--format", "jsonl"], LONG);
+    assert_eq!(code, 0, "{text}");
+    let line = std::fs::read_to_string(Path::new(&out).join("run.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .find(|l| l["topic"] == "/eqtrack/actuators" && l["sequence"] == 30)
+        .expect("an actuators message at cycle 30");
+    let f = &line["fields"];
+    assert_eq!(f["u_cmd"].as_array().map(Vec::len), Some(8), "{f}");
+    assert_eq!(f["demand"].as_array().map(Vec::len), Some(6), "{f}");
+    assert!(f["alloc_status"].as_u64().is_some(), "{f}");
+}
+
+#[test]
 fn a_run_with_sensors_exports_its_samples_and_estimates() {
     let _g = serial();
     let d = TempDir::new("export-sensors");
