@@ -5,10 +5,16 @@
 //! `drive_motors` writes the actuators. It sends no scenario fingerprint, as a board would.
 //!
 //! ```text
-//! example_plant [RUN] [so3|se3] [lockstep|realtime] [SECONDS] [truth|complementary|eqf]
+//! example_plant [RUN] [so3|se3|spacecraft] [lockstep|realtime] [SECONDS] [truth|complementary|eqf]
 //!                                                  # eqtrack so3 lockstep 20 truth
 //! controller_node --name RUN [--builtin se3_circle]            # in another terminal
 //! ```
+//!
+//! `spacecraft` is a vehicle: the seed's body flown by twelve one-way thrusters (those of
+//! `scenarios/spacecraft.toml`, which the controller must run: `controller_node --scenario
+//! scenarios/spacecraft.toml`). The controller allocates and each command carries the
+//! thrusters' commands `u_cmd`; `drive_thrusters` applies them, each within its range (on a
+//! board: writes the valve or ESC outputs). The state's `applied` is the command's `accounted`.
 //!
 //! With `complementary` (SO(3)) the plant publishes what a board would: not the body's state
 //! but the `estimator` crate's complementary filter run on its IMU — a gyro and two direction
@@ -24,7 +30,9 @@ use controller::GroupKind;
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;
 use controller::law::safe_mode_torque;
-use link::{DeadlinePolicy, Decision, NoCommand, PlantEndpoint, PlantEndpointConfig, Step, clock};
+use link::{
+    Command, DeadlinePolicy, Decision, NoCommand, PlantEndpoint, PlantEndpointConfig, Step, clock,
+};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 const PERIOD: f64 = 0.01; // s: 100 Hz, the scenarios' control period
@@ -93,6 +101,86 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Body<G, N, M> {
     fn drive_motors(&mut self, torque: &SVector<f64, M>) {
         self.0.advance(torque, PERIOD, SUBSTEPS);
     }
+    /// Applies the thrusters' wrench `B u` for one period (on a board: write the thruster
+    /// outputs; the wrench is then the world's doing).
+    fn drive_thrusters(&mut self, wrench: &SVector<f64, M>) {
+        self.0.advance_with(PERIOD, SUBSTEPS, |_, _, _| *wrench);
+    }
+}
+
+/// The spacecraft's twelve one-way thrusters, 0 to 3 N, 0.5 m out, two per signed body axis
+/// (`scenarios/spacecraft.toml`'s).
+fn thrusters() -> Vec<allocation::Actuator<f64>> {
+    let arm = |p: [f64; 3], a: [f64; 3]| allocation::Actuator {
+        position: p,
+        axis: a,
+        torque_per_thrust: 0.0,
+        min: 0.0,
+        max: 3.0,
+    };
+    let (h, z) = (0.5, 0.0);
+    vec![
+        arm([z, h, z], [0.0, 0.0, 1.0]),
+        arm([z, -h, z], [0.0, 0.0, 1.0]),
+        arm([z, z, h], [1.0, 0.0, 0.0]),
+        arm([z, z, -h], [1.0, 0.0, 0.0]),
+        arm([h, z, z], [0.0, 1.0, 0.0]),
+        arm([-h, z, z], [0.0, 1.0, 0.0]),
+        arm([z, -h, z], [0.0, 0.0, -1.0]),
+        arm([z, h, z], [0.0, 0.0, -1.0]),
+        arm([z, z, -h], [-1.0, 0.0, 0.0]),
+        arm([z, z, h], [-1.0, 0.0, 0.0]),
+        arm([-h, z, z], [0.0, -1.0, 0.0]),
+        arm([h, z, z], [0.0, -1.0, 0.0]),
+    ]
+}
+
+/// A vehicle's actuators: their allocator (for the safe mode's damping) and the commands held.
+struct Thrusters {
+    allocator: allocation::Allocator<f64, 3>,
+    u: allocation::Commands<f64>,
+    /// What the law counts as applied (the next state's `applied`).
+    accounted: Vector3<f64>,
+}
+
+impl Thrusters {
+    fn new() -> Thrusters {
+        let geometry = allocation::Geometry::new(&thrusters()).expect("a spanning geometry");
+        Thrusters {
+            allocator: allocation::Allocator::new(geometry, &[], &[], allocation::Priority::Torque)
+                .expect("default weights"),
+            u: allocation::Commands::zeros(),
+            accounted: Vector3::zeros(),
+        }
+    }
+
+    /// The decision's thruster commands: a fresh command's (each within its range), the held
+    /// ones, or the safe-mode damping allocated here. Returns the wrench `B u`.
+    fn decide(
+        &mut self,
+        decision: Decision,
+        got: Option<Command>,
+        v: &Vector3<f64>,
+    ) -> Vector3<f64> {
+        let (lo, hi) = self.allocator.geometry().bounds();
+        match (decision, got) {
+            (Decision::Fresh, Some(c)) => {
+                self.u = allocation::Commands::from_fn(|j, _| c.msg.u_cmd[j].clamp(lo[j], hi[j]));
+                self.accounted = Vector3::from_fn(|i, _| c.msg.accounted[i]);
+            }
+            (Decision::Safe, _) => {
+                let kd = Matrix3::identity() * KD_SAFE;
+                let limit = Vector3::repeat(TORQUE_LIMIT);
+                let a = self
+                    .allocator
+                    .allocate(&safe_mode_torque(&kd, v, Some(&limit)));
+                self.u = a.u;
+                self.accounted = a.achieved;
+            }
+            _ => {}
+        }
+        self.allocator.geometry().effectiveness() * self.u
+    }
 }
 
 fn main() -> std::process::ExitCode {
@@ -112,7 +200,12 @@ fn main() -> std::process::ExitCode {
         }
     };
     let r = |x: f64, y: f64, z: f64| Vector3::new(x, y, z);
-    let result = if group == "se3" {
+    let result = if group == "spacecraft" {
+        let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759);
+        let q0 = So3::exp(&(r(0.8, 0.6, 0.0) * (std::f64::consts::PI - 0.1)));
+        let body = Body::<So3, 3, 3>(RigidBody::new(inertia, q0, r(4.0, -3.0, 2.0)).expect("ok"));
+        fly_vehicle(&run, realtime, steps, body)
+    } else if group == "se3" {
         let inertia = SMatrix::<f64, 6, 6>::from_diagonal(&[0.8, 1.0, 1.2, 2.0, 2.0, 2.0].into());
         let mut q0 = SMatrix::<f64, 4, 4>::identity();
         q0.fixed_view_mut::<3, 3>(0, 0)
@@ -201,6 +294,57 @@ fn fly<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         // 4. Drive the motors over [t_k, t_k+1), then wait for the next tick.
         if k < steps {
             body.drive_motors(&torque);
+        }
+        if realtime {
+            clock::sleep_until(t0 + (k + 1) * period_ns);
+        }
+    }
+    plant.shutdown();
+    Ok(())
+}
+
+/// [`fly`] for the spacecraft: the commands carry thruster commands, which drive the
+/// thrusters; the state's `applied` is what the law counts as applied.
+fn fly_vehicle(
+    run: &str,
+    realtime: bool,
+    steps: u64,
+    mut body: Body<So3, 3, 3>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let mut thrusters = Thrusters::new();
+    let mut config = PlantEndpointConfig::new(run, GroupKind::So3, PERIOD);
+    config.actuators = thrusters.allocator.geometry().count() as u32;
+    let mut plant = PlantEndpoint::open(config)?;
+    let mut policy = DeadlinePolicy::new(MISS_LIMIT);
+    let period_ns = (PERIOD * 1e9) as u64;
+    let mut t0 = 0;
+    for k in 0..=steps {
+        let (q, v) = body.read_sensors();
+        plant.publish(k, &q, &v, &thrusters.accounted)?;
+        let deadline = if realtime && k > 0 {
+            t0 + (k + 1) * period_ns
+        } else {
+            clock::monotonic_ns() + 10_000_000_000
+        };
+        let got = match plant.wait_command(k, deadline) {
+            Ok(cmd) => Some(cmd),
+            Err(NoCommand::Missed) if realtime && k > 0 => None,
+            Err(NoCommand::Missed) => return Err(format!("no command for tick {k}").into()),
+            Err(NoCommand::Refused(r)) => return Err(r.to_string().into()),
+        };
+        if k == 0 {
+            t0 = clock::monotonic_ns();
+        }
+        let step = if realtime {
+            policy.step(k, deadline, got.as_ref().map(|c| c.arrival()))
+        } else {
+            Step::LOCKSTEP
+        };
+        let wrench = thrusters.decide(step.decision, got, &v);
+        let (t, qs, vs, ts) = (k as f64 * PERIOD, q.transpose(), csv(&v), csv(&wrench));
+        println!("{k},{t:?},{},{vs},{ts},{}", csv(&qs), step.decision.code());
+        if k < steps {
+            body.drive_thrusters(&wrench);
         }
         if realtime {
             clock::sleep_until(t0 + (k + 1) * period_ns);

@@ -55,7 +55,15 @@ fn example_matches_sim(sim: &str, c: &Case) {
     assert_eq!(code, 0, "{out}");
     let reference = Csv::read(&Path::new(sim).join("trajectory.csv"));
     let name = format!("t-example-{group}");
-    let mut ctl = Proc::start("controller_node", &["--name", &name, "--builtin", builtin]);
+    // a built-in scenario by name, or the scenario file the simulation flies
+    let by_name = ["--builtin", builtin];
+    let mut ctl_args = vec!["--name", &name];
+    ctl_args.extend_from_slice(if builtin.is_empty() {
+        &source
+    } else {
+        &by_name
+    });
+    let mut ctl = Proc::start("controller_node", &ctl_args);
     let mut plant = Proc::start_path(
         Path::new(env!("CARGO_BIN_EXE_example_plant")),
         &[&name, group, "lockstep", seconds, estimator],
@@ -90,6 +98,23 @@ fn example_matches_sim(sim: &str, c: &Case) {
             );
         }
     }
+}
+
+#[test]
+fn the_example_plant_flies_the_spacecraft_through_its_thrusters_bit_for_bit() {
+    let d = TempDir::new("example-spacecraft");
+    let scenario = pair_tests::repo("scenarios/spacecraft.toml");
+    let source = ["--scenario", scenario.to_str().unwrap()];
+    let case = Case {
+        group: "spacecraft",
+        source: &source,
+        builtin: "",
+        seconds: "20",
+        n: 3,
+        m: 3,
+        estimator: "truth",
+    };
+    example_matches_sim(&d.join("sim"), &case);
 }
 
 #[test]

@@ -106,7 +106,8 @@ impl<const M: usize> Actuators<M> {
                 self.command[j] = *v;
             }
         }
-        if !self.started {
+        // without lag the output jumps to the command at t_k; with lag it starts there
+        if !self.started || self.time_constant <= 0.0 {
             self.output = self.command;
             self.started = true;
         }
