@@ -465,7 +465,61 @@ fn allocations<T: Real>(c: &mut Criterion, scalar: &str) {
     g.finish();
 }
 
+/// The controller's whole cycle for a vehicle, as controller_node runs it: the law
+/// (`law_only`: without the vehicle, its wrench sent as is) or the law and the allocation of
+/// its wrench to the actuators (`with_allocation`), on the shipped hexarotor (m = 6, 500 Hz)
+/// and ROV (m = 8), from their initial state; then the reference's step. f64, as the node.
+fn vehicle_cycles(c: &mut Criterion) {
+    let mut g = c.benchmark_group("cycle_vehicle");
+    g.throughput(Throughput::Elements(1));
+    for (name, file) in [
+        ("hexarotor_m6", "hexarotor_eight"),
+        ("rov_m8", "rov_failure"),
+    ] {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../scenarios")
+            .join(format!("{file}.toml"));
+        let Ok(s) = scenario::Scenario::from_file(&path) else {
+            continue;
+        };
+        let (Some(spec), Ok(body)) = (&s.vehicle, s.plant_body::<Se3, 4, 6>()) else {
+            continue;
+        };
+        let Ok(law_only) = s
+            .controller::<Se3, 4, 6>()
+            .and_then(|c| control_cycle::Responder::new(c, s.rejection_config()))
+        else {
+            continue;
+        };
+        let Ok(vehicle) = control_cycle::ControllerVehicle::new(spec, s.control_period) else {
+            continue;
+        };
+        let with_allocation = law_only.clone().with_vehicle(vehicle);
+        let mut msg = state_msg::<Se3, 4, 6>(body.configuration(), &body.velocity());
+        msg.control_period = s.control_period;
+        for (variant, responder) in [("law_only", law_only), ("with_allocation", with_allocation)] {
+            g.bench_function(format!("{name}/{variant}"), |b| {
+                b.iter_batched_ref(
+                    || {
+                        let r = s.reference_source::<Se3, 4, 6>().ok();
+                        (r, responder.clone())
+                    },
+                    |(r, resp)| {
+                        let r = r.as_mut()?;
+                        let cmd = resp.respond(r, black_box(&msg)).ok();
+                        r.advance();
+                        cmd
+                    },
+                    BatchSize::SmallInput,
+                )
+            });
+        }
+    }
+    g.finish();
+}
+
 fn all(c: &mut Criterion) {
+    vehicle_cycles(c);
     allocations::<f64>(c, "f64");
     allocations::<f32>(c, "f32");
     laws::<f64>(c, "f64");
