@@ -134,3 +134,64 @@ fn a_real_time_vehicle_run_tracks_and_replays_bit_for_bit() {
     assert_eq!(code, 0, "{text}");
     assert!(text.contains(" 0 differ"), "{text}");
 }
+
+#[test]
+fn a_stalled_controller_leaves_the_vehicle_in_the_plants_safe_mode_not_falling() {
+    let _g = serial();
+    let d = TempDir::new("vehicle-safe");
+    let out = d.join("run");
+    let file = repo("scenarios/hexarotor_eqf.toml");
+    let name = "t-vehicle-safe";
+    let mut plant = pair_tests::Proc::start(
+        "plant_sim",
+        &[
+            "run",
+            "--scenario",
+            file.to_str().unwrap(),
+            "--rate-hz",
+            "500",
+            "--duration",
+            "3",
+            "--no-spawn",
+            "--name",
+            name,
+            "--out",
+            &out,
+        ],
+    );
+    let ctl = pair_tests::Proc::start(
+        "controller_node",
+        &["--scenario", file.to_str().unwrap(), "--name", name],
+    );
+    pair_tests::wait_for_cycles(&out, 600, Duration::from_secs(60));
+    // 100 ms without a controller: misses, then the plant's own safe mode
+    ctl.signal("STOP");
+    std::thread::sleep(Duration::from_millis(100));
+    ctl.signal("CONT");
+    let status = plant.wait_timeout(Duration::from_secs(60));
+    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
+    let s = summary(Path::new(&out));
+    assert!(s["safe_mode_entries"].as_u64().unwrap() >= 1, "{s}");
+    assert!(s["safe_mode_cycles"].as_u64().unwrap() >= 10, "{s}");
+    let csv = Csv::read(&Path::new(&out).join("trajectory.csv"));
+    let status_col = csv.col("command_status");
+    let safe: Vec<usize> = (0..status_col.len())
+        .filter(|&k| status_col[k] == 2.0)
+        .collect();
+    assert!(safe.len() >= 10, "{} safe rows", safe.len());
+    // in safe mode the plant allocates the damping and carries the weight itself: the rotors
+    // keep pushing (about 15 N in all), every number stays finite, and the vehicle does not fall
+    for &k in &safe {
+        let thrust: f64 = (0..6).map(|j| csv.col(&format!("u_cmd_{j}"))[k]).sum();
+        assert!(thrust > 10.0, "row {k}: rotors at {thrust} N in safe mode");
+    }
+    for col in ["u_cmd_0", "u_5", "demand_5", "achieved_2", "q_23", "v_5"] {
+        assert!(csv.col(col).iter().all(|x| x.is_finite()), "{col}");
+    }
+    let z = csv.col("q_23");
+    let drop = safe.iter().map(|&k| z[k].abs()).fold(0.0_f64, f64::max);
+    assert!(drop < 0.05, "the vehicle fell {drop} m in safe mode");
+    let (code, text) = run("plant_sim", &["replay", &out], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(" 0 differ"), "{text}");
+}
