@@ -220,24 +220,23 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             return;
         }
         let t = controller::real::<f64>(k as f64) * self.s.control_period;
-        self.rows.push(
-            Row::new::<G, N, M>(
-                t,
-                self.plant.configuration(),
-                &self.plant.velocity(),
-                &self.reference.desired(),
-                &self.tau,
-                &self.cfg.inertia,
-                &self.cfg.k,
-            )
-            .with_estimate(self.estimate)
-            .with_terms(self.terms),
-        );
-        if let (Some((row, wrench)), Some(last)) =
-            (self.vehicle.as_ref().and_then(|v| v.row), self.rows.pop())
-        {
-            self.rows.push(last.with_vehicle(row, &wrench));
-        }
+        let row = Row::new::<G, N, M>(
+            t,
+            self.plant.configuration(),
+            &self.plant.velocity(),
+            &self.reference.desired(),
+            &self.tau,
+            &self.cfg.inertia,
+            &self.cfg.k,
+        )
+        .with_estimate(self.estimate)
+        .with_terms(self.terms);
+        // a vehicle's row: its allocation and actuators, and tau the actuators' wrench
+        self.rows
+            .push(match self.vehicle.as_ref().and_then(|v| v.row) {
+                Some((vehicle, wrench)) => row.with_vehicle(vehicle, &wrench),
+                None => row,
+            });
         if self.realtime() {
             self.status.push(decision.code());
         }
