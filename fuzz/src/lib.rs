@@ -1,7 +1,7 @@
 //! A fuzz harness for the project's untrusted input, on stable Rust (no libFuzzer, no
 //! nightly): deterministic, seeded, mutation-based.
 //!
-//! Four targets ([`Target`]):
+//! Five targets ([`Target`]):
 //!
 //! * **scenario** — TOML text through [`scenario::Scenario::from_toml`] (parser and
 //!   validator); an accepted scenario then goes through what the processes do with it: its
@@ -27,6 +27,10 @@
 //!   `PlanEntry::from_bytes` and `control_cycle::PlanIntake::take` on a streamed
 //!   reference, its pieces handed to the law. Seeds: the first ticks of the two sensor
 //!   scenarios, the slews' plan messages.
+//! * **serial** — bytes on the processor-in-the-loop line through `serial_wire`'s deframer
+//!   and decoder (COBS, CRC, version, postcard); a decoded frame must re-encode to itself.
+//!   Seeds: every frame kind, alone and back to back; a third of the cases wrap a mutated
+//!   message in a valid envelope so that the message decoder is reached past the CRC.
 //!
 //! Each case is one corpus item with 1–8 random mutations (byte-level: bit flips, byte
 //! overwrite, insert, delete, truncation, chunk duplication, splicing; TOML: number and string
@@ -52,6 +56,7 @@ mod path_target;
 mod recording_target;
 mod rng;
 mod scenario_target;
+mod serial_target;
 mod wire_target;
 
 use controller::GroupKind;
@@ -76,15 +81,18 @@ pub enum Target {
     Path,
     /// Flight recordings: records with their sensor blocks, plan entries.
     Recording,
+    /// The processor-in-the-loop serial line: frames through the deframer and decoder.
+    Serial,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 4] = [
+    pub const ALL: [Target; 5] = [
         Target::Scenario,
         Target::Wire,
         Target::Path,
         Target::Recording,
+        Target::Serial,
     ];
 
     /// Lower-case name (`"scenario"`, `"wire"`, `"path"`), as on the command line.
@@ -94,6 +102,7 @@ impl Target {
             Target::Wire => "wire",
             Target::Path => "path",
             Target::Recording => "recording",
+            Target::Serial => "serial",
         }
     }
 }
@@ -151,13 +160,15 @@ pub enum Case {
     Path(Vec<u8>),
     /// A record of a run with sensors followed by a `plans.log` entry.
     Recording(Vec<u8>),
+    /// Bytes on the processor-in-the-loop serial line.
+    Serial(Vec<u8>),
 }
 
 impl Case {
     /// The raw input bytes (TOML text, or the message bytes).
     pub fn bytes(&self) -> &[u8] {
         match self {
-            Case::Scenario(b) | Case::Path(b) | Case::Recording(b) => b,
+            Case::Scenario(b) | Case::Path(b) | Case::Recording(b) | Case::Serial(b) => b,
             Case::Wire(w) => &w.bytes,
         }
     }
@@ -165,7 +176,9 @@ impl Case {
     /// What besides the bytes defines the case (the wire receiver), for reports.
     pub fn context(&self) -> String {
         match self {
-            Case::Scenario(_) | Case::Path(_) | Case::Recording(_) => String::new(),
+            Case::Scenario(_) | Case::Path(_) | Case::Recording(_) | Case::Serial(_) => {
+                String::new()
+            }
             Case::Wire(w) => format!("{:?} message, receiver {:?}", w.kind, w.receiver),
         }
     }
@@ -239,7 +252,9 @@ impl fmt::Display for Finding {
                 write!(f, "  input:\n{}", String::from_utf8_lossy(b))
             }
             Case::Wire(w) => write!(f, "  input ({} bytes): {}", w.bytes.len(), hex(&w.bytes)),
-            Case::Recording(b) => write!(f, "  input ({} bytes): {}", b.len(), hex(b)),
+            Case::Recording(b) | Case::Serial(b) => {
+                write!(f, "  input ({} bytes): {}", b.len(), hex(b))
+            }
         }
     }
 }
@@ -430,6 +445,7 @@ pub fn check(case: &Case) -> Outcome {
         Case::Path(bytes) => path_target::check(bytes),
         Case::Wire(w) => wire_target::check(w),
         Case::Recording(bytes) => recording_target::check(bytes),
+        Case::Serial(bytes) => serial_target::check(bytes),
     }
 }
 
@@ -441,6 +457,7 @@ pub struct Generator {
     paths: Option<path_target::Corpus>,
     wire: Option<wire_target::Corpus>,
     recordings: Option<recording_target::Corpus>,
+    serial: Option<serial_target::Corpus>,
 }
 
 impl Generator {
@@ -453,12 +470,16 @@ impl Generator {
             paths: (target == Target::Path).then(path_target::Corpus::new),
             wire: (target == Target::Wire).then(wire_target::Corpus::new),
             recordings: (target == Target::Recording).then(recording_target::Corpus::new),
+            serial: (target == Target::Serial).then(serial_target::Corpus::new),
         }
     }
 
     /// Case `case` (depends only on the target, the seed and `case`).
     pub fn case(&self, case: u64) -> Case {
         let mut g = self.streams.case(case);
+        if let Some(c) = &self.serial {
+            return Case::Serial(c.generate(&mut g));
+        }
         match (&self.scenarios, &self.wire, &self.paths, &self.recordings) {
             (Some(c), _, _, _) => Case::Scenario(c.generate(&mut g)),
             (_, Some(c), _, _) => Case::Wire(c.generate(&mut g)),

@@ -27,6 +27,8 @@ enum Which {
     Path,
     /// Flight recordings: records with sensor blocks, plan entries.
     Recording,
+    /// The processor-in-the-loop serial line's frames.
+    Serial,
     /// Every target.
     All,
 }
@@ -62,6 +64,7 @@ fn targets(which: Which) -> Vec<Target> {
         Which::Wire => vec![Target::Wire],
         Which::Path => vec![Target::Path],
         Which::Recording => vec![Target::Recording],
+        Which::Serial => vec![Target::Serial],
         Which::All => Target::ALL.to_vec(),
     }
 }
@@ -120,7 +123,9 @@ fn print_input(input: &fuzz::Case) {
         fuzz::Case::Scenario(b) | fuzz::Case::Path(b) => {
             println!("  input:\n{}", String::from_utf8_lossy(b))
         }
-        fuzz::Case::Wire(fuzz::WireCase { bytes, .. }) | fuzz::Case::Recording(bytes) => {
+        fuzz::Case::Wire(fuzz::WireCase { bytes, .. })
+        | fuzz::Case::Recording(bytes)
+        | fuzz::Case::Serial(bytes) => {
             let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
             println!("  input ({} bytes): {hex}", bytes.len())
         }

@@ -73,6 +73,18 @@ fn wire_inputs_never_panic() {
 }
 
 #[test]
+fn serial_inputs_never_panic() {
+    let r = fuzz::run(Target::Serial, CASES, SEED);
+    assert_sound(&r, 5);
+    // the line's every refusal is reached: broken COBS, a short frame, a CRC mismatch,
+    // another version, a message that does not decode
+    for kind in ["Cobs", "Short", "Crc", "Version", "Message"] {
+        let key = format!("serial: FrameError::{kind}");
+        assert!(r.rejected.contains_key(&key), "{key} never seen\n{r}");
+    }
+}
+
+#[test]
 fn recording_inputs_never_panic() {
     let r = fuzz::run(Target::Recording, CASES, SEED);
     assert_sound(&r, 8);

@@ -1,7 +1,8 @@
 //! Calls the controller for SO(3) and SE(3) in f32 and f64, runs short closed loops (one with
 //! the disturbance-rejection terms), builds a through-waypoint path, steps the estimators
 //! (`estimator`), allocates a wrench to a hexarotor's rotors (`allocation`) and uses the
-//! `ipc_types` wire contract, in a binary with no std, no alloc and no global allocator.
+//! `ipc_types` wire contract and the serial link's frames (`serial_wire`), in a binary with no
+//! std, no alloc and no global allocator.
 //! Exits 0 when every check holds.
 #![no_std]
 #![no_main]
@@ -303,8 +304,39 @@ fn allocation_check<T: Real>() -> bool {
     met && within && kept
 }
 
+/// The serial link's frames without std: a state frame encoded and decoded, a flipped bit
+/// refused by the CRC, the deframer finding the frame in a stream.
+fn serial_check() -> bool {
+    use serial_wire::{Deframer, Frame, FrameError, MAX_ENCODED, StateFrame, decode, encode};
+    let state = Frame::State(StateFrame {
+        seq: 3,
+        t: 0.03,
+        q: heapless::Vec::from_slice(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])
+            .unwrap_or_default(),
+        v: heapless::Vec::from_slice(&[0.5, -0.25, 0.125]).unwrap_or_default(),
+        applied: heapless::Vec::new(),
+        samples: None,
+    });
+    let mut out = [0u8; MAX_ENCODED];
+    let Ok(n) = encode(&state, &mut out) else {
+        return false;
+    };
+    let round_trip = decode(&out[..n - 1]).as_ref() == Ok(&state);
+    let mut d = Deframer::new();
+    let mut found = false;
+    for b in &out[..n] {
+        if let Some(r) = d.push(*b) {
+            found = r.as_ref() == Ok(&state);
+        }
+    }
+    out[3] ^= 0x10;
+    let caught = matches!(decode(&out[..n - 1]), Err(FrameError::Crc | FrameError::Cobs));
+    round_trip && found && caught
+}
+
 fn run() -> i32 {
-    let checks: [(&str, bool); 16] = [
+    let checks: [(&str, bool); 17] = [
+        ("serial_wire frames", serial_check()),
         ("allocation f32", allocation_check::<f32>()),
         ("allocation f64", allocation_check::<f64>()),
         ("through-waypoint path f32", through_path_check::<f32>()),
@@ -332,7 +364,7 @@ fn run() -> i32 {
         }
     }
     rt::write(if code == 0 {
-        b"nostd-check: controller, estimator, allocation and ipc_types run with no std, no alloc, no allocator\n"
+        b"nostd-check: controller, estimator, allocation, ipc_types and serial_wire run with no std, no alloc, no allocator\n"
     } else {
         b"nostd-check: FAILED\n"
     });

@@ -1,0 +1,142 @@
+//! The messages a frame carries. Numbers the controller computes with are `f32`, as the
+//! firmware computes; the time is `f64`. Vectors hold only the group's entries (n² for a
+//! configuration, m for a velocity or a wrench, the actuator count for commands).
+
+use heapless::{String, Vec};
+use serde::{Deserialize, Serialize};
+
+/// Bits of [`Frame::Refused`]'s `mismatch`: what differs between the two sides (the same
+/// bits as the iceoryx2 pair's).
+pub mod mismatch {
+    /// The group.
+    pub const GROUP: u8 = 1;
+    /// The control period.
+    pub const PERIOD: u8 = 2;
+    /// The scenario (its fingerprint).
+    pub const SCENARIO: u8 = 4;
+}
+
+/// One side's identity, sent first by the plant and answered by the controller.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Hello {
+    /// The group code (1 SO(3), 2 SE(3)).
+    pub group: u8,
+    /// The control period (s).
+    pub period: f64,
+    /// The scenario's fingerprint.
+    pub fingerprint: u64,
+    /// The scenario's name (up to 32 bytes of UTF-8).
+    pub scenario: String<32>,
+}
+
+impl Hello {
+    /// The [`mismatch`] bits between two identities (0: they agree).
+    pub fn mismatch(&self, other: &Hello) -> u8 {
+        let mut bits = 0;
+        if self.group != other.group {
+            bits |= mismatch::GROUP;
+        }
+        if self.period.to_bits() != other.period.to_bits() {
+            bits |= mismatch::PERIOD;
+        }
+        if self.fingerprint != other.fingerprint {
+            bits |= mismatch::SCENARIO;
+        }
+        bits
+    }
+}
+
+/// A board's sensor samples at `t_k` (what the firmware's estimator takes instead of the
+/// state).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Samples {
+    /// The gyro (rad/s, body).
+    pub gyro: [f32; 3],
+    /// The direction sensors' unit vectors (body), in the scenario's order.
+    pub directions: Vec<[f32; 3], 4>,
+    /// The accelerometer's specific force (m/s², body), where there is one.
+    pub accel: Option<[f32; 3]>,
+    /// A position fix (m, world), when one arrived at this tick.
+    pub position: Option<[f32; 3]>,
+}
+
+/// The plant's state at `t_k`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StateFrame {
+    /// The control step k.
+    pub seq: u64,
+    /// `t_k` (s).
+    pub t: f64,
+    /// The configuration `Q`, row-major (n² entries; empty when `samples` stands in).
+    pub q: Vec<f32, 16>,
+    /// The body velocity `V` (m entries; empty when `samples` stands in).
+    pub v: Vec<f32, 6>,
+    /// The wrench applied over the last period (m entries).
+    pub applied: Vec<f32, 6>,
+    /// The sensors' samples, for a controller that estimates the state itself.
+    pub samples: Option<Samples>,
+}
+
+/// What the controller's estimator made of the samples.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Estimate {
+    /// `Q̂`, row-major (n² entries).
+    pub q: Vec<f32, 16>,
+    /// `V̂` (m entries).
+    pub v: Vec<f32, 6>,
+    /// The gyro bias estimate.
+    pub bias: [f32; 3],
+}
+
+/// A vehicle's allocation of the law's wrench.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Allocation {
+    /// The allocator's status code.
+    pub status: u8,
+    /// The actuator commands.
+    pub u_cmd: Vec<f32, 12>,
+    /// The demand (m entries).
+    pub demand: Vec<f32, 6>,
+    /// `B u_cmd` plus the compensated restoring wrench (m entries).
+    pub accounted: Vec<f32, 6>,
+}
+
+/// The controller's answer to state k.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CommandFrame {
+    /// The state's k.
+    pub seq: u64,
+    /// The law's wrench (m entries).
+    pub tau: Vec<f32, 6>,
+    /// The Lyapunov function at `t_k`.
+    pub lyapunov: f32,
+    /// The disturbance observer's estimate (m entries; empty without it).
+    pub observer: Vec<f32, 6>,
+    /// The integral's torque (m entries; empty without it).
+    pub integral: Vec<f32, 6>,
+    /// The estimate, when the controller ran its estimator.
+    pub estimate: Option<Estimate>,
+    /// The allocation, for a vehicle.
+    pub allocation: Option<Allocation>,
+}
+
+/// One message on the line.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Frame {
+    /// The sender's identity: the plant's first frame, and the controller's answer when it
+    /// accepts.
+    Hello(Hello),
+    /// The controller refuses the run: its identity and what differs.
+    Refused {
+        /// The [`mismatch`] bits.
+        mismatch: u8,
+        /// The refusing side's identity.
+        identity: Hello,
+    },
+    /// A state for the controller.
+    State(StateFrame),
+    /// The controller's command.
+    Command(CommandFrame),
+    /// The run is over.
+    Bye,
+}

@@ -1,0 +1,240 @@
+//! The serial frames: every kind round-trips, the largest fits, corruption is caught (every
+//! single flipped bit of a frame, by the CRC or COBS), another version is refused, and line
+//! noise never panics the deframer nor costs more than the frame it lands in.
+
+use proptest::prelude::*;
+use serial_wire::{
+    Allocation, CommandFrame, Deframer, Estimate, Frame, FrameError, Hello, MAX_ENCODED,
+    SERIAL_VERSION, Samples, StateFrame, decode, encode, mismatch,
+};
+
+fn vec<const N: usize>(xs: &[f32]) -> heapless::Vec<f32, N> {
+    heapless::Vec::from_slice(xs).unwrap()
+}
+
+fn hello(fingerprint: u64) -> Hello {
+    Hello {
+        group: 2,
+        period: 0.002,
+        fingerprint,
+        scenario: heapless::String::try_from("hexarotor_eqf").unwrap(),
+    }
+}
+
+/// An SE(3) state with every sample present.
+fn state() -> StateFrame {
+    StateFrame {
+        seq: 123_456,
+        t: 246.912,
+        q: vec(&[0.5; 16]),
+        v: vec(&[-1.25; 6]),
+        applied: vec(&[3.0e-7; 6]),
+        samples: Some(Samples {
+            gyro: [0.1, -0.2, 0.3],
+            directions: heapless::Vec::from_slice(&[[1.0, 0.0, 0.0]; 4]).unwrap(),
+            accel: Some([0.0, 2.9, 9.4]),
+            position: Some([1.5, -0.5, 0.25]),
+        }),
+    }
+}
+
+/// The largest command: SE(3) with both terms, an estimate and twelve actuators.
+fn command() -> CommandFrame {
+    CommandFrame {
+        seq: u64::MAX,
+        tau: vec(&[f32::MAX; 6]),
+        lyapunov: 1.0e-7,
+        observer: vec(&[0.01; 6]),
+        integral: vec(&[-0.02; 6]),
+        estimate: Some(Estimate {
+            q: vec(&[0.25; 16]),
+            v: vec(&[0.125; 6]),
+            bias: [1e-3, -2e-3, 3e-3],
+        }),
+        allocation: Some(Allocation {
+            status: 2,
+            u_cmd: vec(&[8.0; 12]),
+            demand: vec(&[1.0; 6]),
+            accounted: vec(&[-1.0; 6]),
+        }),
+    }
+}
+
+fn all_frames() -> Vec<Frame> {
+    vec![
+        Frame::Hello(hello(0xdead_beef_0123_4567)),
+        Frame::Refused {
+            mismatch: mismatch::SCENARIO | mismatch::PERIOD,
+            identity: hello(7),
+        },
+        Frame::State(state()),
+        Frame::Command(command()),
+        Frame::Bye,
+    ]
+}
+
+fn encoded(f: &Frame) -> Vec<u8> {
+    let mut out = [0u8; MAX_ENCODED];
+    let n = encode(f, &mut out).unwrap();
+    out[..n].to_vec()
+}
+
+#[test]
+fn every_kind_round_trips_and_the_largest_fits() {
+    for f in all_frames() {
+        let bytes = encoded(&f);
+        assert_eq!(*bytes.last().unwrap(), 0, "ends with the sentinel");
+        assert!(
+            !bytes[..bytes.len() - 1].contains(&0),
+            "no zero inside a frame"
+        );
+        assert_eq!(decode(&bytes[..bytes.len() - 1]), Ok(f.clone()));
+        let mut d = Deframer::new();
+        let got: Vec<_> = bytes.iter().filter_map(|b| d.push(*b)).collect();
+        assert_eq!(got, vec![Ok(f)]);
+    }
+    // the largest command is well inside the limit
+    assert!(encoded(&Frame::Command(command())).len() < MAX_ENCODED - 32);
+}
+
+#[test]
+fn every_flipped_bit_is_caught_and_the_next_frame_still_decodes() {
+    for f in all_frames() {
+        let good = encoded(&f);
+        for i in 0..good.len() - 1 {
+            for bit in 0..8 {
+                let mut bad = good.clone();
+                bad[i] ^= 1 << bit;
+                let mut d = Deframer::new();
+                let mut results: Vec<_> = bad.iter().filter_map(|b| d.push(*b)).collect();
+                // a flip that makes a zero splits the frame in two: both are refused
+                assert!(
+                    results.iter().all(|r| r.is_err()),
+                    "byte {i} bit {bit} of {f:?}: {results:?}"
+                );
+                // the line recovers at the next frame
+                results = good.iter().filter_map(|b| d.push(*b)).collect();
+                assert_eq!(results, vec![Ok(f.clone())]);
+            }
+        }
+    }
+}
+
+/// A frame of another version with a valid CRC.
+fn other_version(version: u8) -> Vec<u8> {
+    let mut out = [0u8; MAX_ENCODED];
+    let message = postcard::to_allocvec(&Frame::Bye).unwrap();
+    let n = serial_wire::encode_raw(version, &message, &mut out).unwrap();
+    out[..n - 1].to_vec()
+}
+
+#[test]
+fn another_version_truncation_and_length_are_refused() {
+    assert_eq!(
+        decode(&other_version(SERIAL_VERSION + 1)),
+        Err(FrameError::Version(SERIAL_VERSION + 1))
+    );
+    assert_eq!(decode(&other_version(SERIAL_VERSION)), Ok(Frame::Bye));
+    let good = encoded(&Frame::State(state()));
+    for cut in 1..good.len() - 1 {
+        assert!(decode(&good[..cut]).is_err(), "cut at {cut}");
+    }
+    assert_eq!(decode(&[]), Err(FrameError::Cobs));
+    // a valid envelope around a message that does not decode, or leaves bytes over
+    let mut out = [0u8; MAX_ENCODED];
+    let n = serial_wire::encode_raw(SERIAL_VERSION, &[0xff, 0xff, 0xff], &mut out).unwrap();
+    assert_eq!(decode(&out[..n - 1]), Err(FrameError::Message));
+    let mut bye_and_more = postcard::to_allocvec(&Frame::Bye).unwrap();
+    bye_and_more.push(7);
+    let n = serial_wire::encode_raw(SERIAL_VERSION, &bye_and_more, &mut out).unwrap();
+    assert_eq!(decode(&out[..n - 1]), Err(FrameError::Message));
+    // a run of non-zero bytes longer than any frame is dropped and counted; the next frame
+    // decodes
+    let mut d = Deframer::new();
+    for _ in 0..3 * MAX_ENCODED {
+        assert_eq!(d.push(0x55), None);
+    }
+    assert_eq!(d.push(0), Some(Err(FrameError::TooLong)));
+    assert_eq!(d.too_long, 1);
+    let got: Vec<_> = good.iter().filter_map(|b| d.push(*b)).collect();
+    assert_eq!(got, vec![Ok(Frame::State(state()))]);
+}
+
+#[test]
+fn identities_name_what_differs() {
+    let a = hello(1);
+    assert_eq!(a.mismatch(&a.clone()), 0);
+    assert_eq!(a.mismatch(&hello(2)), mismatch::SCENARIO);
+    let mut b = hello(1);
+    b.group = 1;
+    b.period = 0.01;
+    assert_eq!(a.mismatch(&b), mismatch::GROUP | mismatch::PERIOD);
+}
+
+proptest! {
+    /// Random bytes on the line: nothing panics; whatever decodes re-encodes to the bytes it
+    /// came from (so nothing is half-read).
+    #[test]
+    fn line_noise_never_panics(noise in proptest::collection::vec(any::<u8>(), 0..2000)) {
+        let mut d = Deframer::new();
+        let mut start = 0;
+        for (i, b) in noise.iter().enumerate() {
+            if let Some(Ok(f)) = d.push(*b) {
+                let again = encoded(&f);
+                prop_assert_eq!(&again[..again.len() - 1], &noise[start..i]);
+            }
+            if *b == 0 {
+                start = i + 1;
+            }
+        }
+    }
+
+    /// A valid frame with random bytes spliced in at a random place: it is refused (or, if
+    /// the noise holds a zero, split and refused), never mistaken for another frame.
+    #[test]
+    fn spliced_noise_is_refused(
+        at in 0usize..200,
+        noise in proptest::collection::vec(1u8..=255, 1..16),
+    ) {
+        let good = encoded(&Frame::Command(command()));
+        let at = at % (good.len() - 1);
+        let mut bad = good[..at].to_vec();
+        bad.extend_from_slice(&noise);
+        bad.extend_from_slice(&good[at..]);
+        let mut d = Deframer::new();
+        let results: Vec<_> = bad.iter().filter_map(|b| d.push(*b)).collect();
+        prop_assert!(results.iter().all(|r| r.is_err()), "{:?}", results);
+    }
+}
+
+/// The encoded sizes the docs give (bytes on the line, with COBS and the zero).
+#[test]
+fn frame_sizes_are_what_the_docs_say() {
+    let seed_state = Frame::State(StateFrame {
+        seq: 1999,
+        t: 19.99,
+        q: vec(&[0.3; 9]),
+        v: vec(&[0.1; 3]),
+        applied: vec(&[0.0; 3]),
+        samples: None,
+    });
+    let seed_command = Frame::Command(CommandFrame {
+        seq: 1999,
+        tau: vec(&[0.2; 3]),
+        lyapunov: 0.01,
+        observer: heapless::Vec::new(),
+        integral: heapless::Vec::new(),
+        estimate: None,
+        allocation: None,
+    });
+    let sizes: Vec<usize> = [
+        seed_state,
+        seed_command,
+        Frame::State(state()),
+        Frame::Command(command()),
+    ]
+    .iter()
+    .map(|f| encoded(f).len())
+    .collect();
+    assert_eq!(sizes, vec![82, 31, 222, 301]);
+}
