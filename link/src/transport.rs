@@ -23,6 +23,13 @@ pub trait Transport<Out: Message, In: Message> {
     fn wait(&mut self, timeout: Duration);
 }
 
+/// The largest encoded message a socket transport carries (the command, since protocol 7).
+pub const MAX_ENCODED: usize = if ipc_types::COMMAND_BYTES > ipc_types::STATE_BYTES {
+    ipc_types::COMMAND_BYTES
+} else {
+    ipc_types::STATE_BYTES
+};
+
 /// A message that can travel on either transport: fixed-size, copyable, zero-copy-sendable
 /// for iceoryx2 and byte-encodable for sockets.
 pub trait Message: Copy + core::fmt::Debug + ZeroCopySend + 'static {
@@ -33,7 +40,7 @@ pub trait Message: Copy + core::fmt::Debug + ZeroCopySend + 'static {
     /// Sets the publication stamp.
     fn set_stamp(&mut self, ns: u64);
     /// The little-endian encoding into `buf`; returns its length.
-    fn encode(&self, buf: &mut [u8; 512]) -> usize;
+    fn encode(&self, buf: &mut [u8; MAX_ENCODED]) -> usize;
     /// Decodes [`Message::encode`].
     fn decode(buf: &[u8]) -> Result<Self, DecodeError>;
 }
@@ -54,7 +61,7 @@ macro_rules! message {
             fn set_stamp(&mut self, ns: u64) {
                 self.stamp_ns = ns;
             }
-            fn encode(&self, buf: &mut [u8; 512]) -> usize {
+            fn encode(&self, buf: &mut [u8; MAX_ENCODED]) -> usize {
                 let b = self.to_bytes();
                 buf[..b.len()].copy_from_slice(&b);
                 b.len()

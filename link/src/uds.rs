@@ -20,7 +20,7 @@ pub struct Uds<Out, In> {
     own: PathBuf,
     peer: PathBuf,
     /// The last message sent, and whether the peer has not received it yet (no socket there).
-    last: ([u8; 512], usize),
+    last: ([u8; crate::transport::MAX_ENCODED], usize),
     undelivered: bool,
     last_in: (u64, u64),
     _types: core::marker::PhantomData<(Out, In)>,
@@ -43,7 +43,7 @@ impl<Out: Message, In: Message> Uds<Out, In> {
             sock,
             peer: socket_path(run, role.peer()),
             own,
-            last: ([0; 512], 0),
+            last: ([0; crate::transport::MAX_ENCODED], 0),
             undelivered: false,
             last_in: (0, 0),
             _types: core::marker::PhantomData,
@@ -90,7 +90,7 @@ impl<Out: Message, In: Message> Transport<Out, In> for Uds<Out, In> {
         if self.undelivered {
             let _ = self.deliver();
         }
-        let mut buf = [0u8; 512];
+        let mut buf = [0u8; crate::transport::MAX_ENCODED];
         while let Ok(n) = self.sock.recv(&mut buf) {
             if let Ok(m) = In::decode(&buf[..n])
                 && m.write_id() != self.last_in

@@ -544,8 +544,9 @@ fn a_vehicle_runs_in_sim_and_in_the_pair() {
 }
 
 /// The Monte Carlo study with a vehicle: the spacecraft's thrusters carry every run's torque
-/// (allocation in the loop, so the numbers differ from the same study without them), the
-/// result does not depend on the thread count, and no value is NaN.
+/// (allocation in the loop: the runs that saturate them differ from the same study without
+/// them, the others not by a bit), the result does not depend on the thread count, and no
+/// value is NaN.
 #[test]
 fn the_monte_carlo_study_flies_a_vehicle_through_its_thrusters() {
     let dir = tempfile::tempdir().unwrap();
@@ -578,10 +579,18 @@ fn the_monte_carlo_study_flies_a_vehicle_through_its_thrusters() {
             .iter()
             .all(|x| x.is_finite())
     );
-    // the same samples, another plant: the thrusters' bounds change every run's effort
+    // the same samples, another plant: where the law asks for more than the thrusters give,
+    // the effort changes; where it does not, the thrusters give the law's torque exactly (their
+    // arms are 0.5 m, so B u_cmd reproduces the demand bit for bit) and the run is the same
+    let differ = effort
+        .iter()
+        .zip(&plain_effort)
+        .filter(|(a, b)| a != b)
+        .count();
     assert!(
-        effort.iter().zip(&plain_effort).all(|(a, b)| a != b),
-        "{effort:?} vs {plain_effort:?}"
+        differ >= 6 && differ < effort.len(),
+        "{differ} of {} runs differ: {effort:?} vs {plain_effort:?}",
+        effort.len()
     );
     assert_ne!(one, plain);
 }

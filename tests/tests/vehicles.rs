@@ -42,6 +42,27 @@ fn lockstep_with_a_vehicle_equals_the_simulation_bit_for_bit_and_allocates_nothi
             text.contains("commands compared, 0 differ"),
             "{name}: {text}"
         );
+        // the Unix-socket transport carries the same commands (728 bytes each)
+        let uds = d.join(&format!("{name}-uds"));
+        let (code, text) = plant(&[
+            "run",
+            "--scenario",
+            file.to_str().unwrap(),
+            "--mode",
+            "lockstep",
+            "--transport",
+            "uds",
+            "--name",
+            &format!("t-{name}-uds"),
+            "--out",
+            &uds,
+        ]);
+        assert_eq!(code, 0, "{name}: {text}");
+        assert!(
+            std::fs::read(format!("{sim}/trajectory.csv")).unwrap()
+                == std::fs::read(format!("{uds}/trajectory.csv")).unwrap(),
+            "{name}: the pair over uds differs from the simulation"
+        );
     }
 }
 
