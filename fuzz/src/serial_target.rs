@@ -1,7 +1,8 @@
 //! The serial target: bytes on the processor-in-the-loop line through `serial_wire`'s
 //! `Deframer` and `decode` (COBS, CRC, version, postcard). Every frame that decodes must
-//! re-encode and decode to itself, byte for byte (a frame may carry NaN: the receiver's
-//! checks refuse it, not the framing); a `Hello` goes through the identity check. Cases are
+//! re-encode, and that encoding must decode and encode to the same bytes again (a frame may
+//! carry NaN, which is not equal to itself: the receiver's checks refuse it, not the
+//! framing); a `Hello` goes through the identity check. Cases are
 //! streams of valid frames with byte mutations (which the CRC refuses), and valid envelopes
 //! (a correct CRC, sometimes another version) around mutated postcard messages, which reach
 //! the message decoder.

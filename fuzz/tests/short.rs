@@ -47,6 +47,23 @@ fn scenario_inputs_never_panic() {
             .keys()
             .any(|k| k.starts_with("ScenarioError::Parse"))
     );
+    // the vehicle seeds' mutations reach every bad vehicle table: a geometry that loses a
+    // direction or has too many actuators, a zero or non-finite axis, min > max, a failure
+    // of an actuator that is not there, a bad allocation table
+    for key in [
+        "vehicle.actuator",
+        "vehicle.actuator[*].axis",
+        "vehicle.actuator[*].min",
+        "vehicle.failure[*].actuator",
+        "allocation.weights",
+    ] {
+        assert!(
+            r.rejected
+                .keys()
+                .any(|k| k == &format!("ScenarioError::Invalid ({key})")),
+            "{key} never refused\n{r}"
+        );
+    }
 }
 
 #[test]

@@ -594,3 +594,75 @@ fn the_monte_carlo_study_flies_a_vehicle_through_its_thrusters() {
     );
     assert_ne!(one, plain);
 }
+
+/// Bad vehicle tables are refused at load with exit 2, naming the key and what is wrong: a
+/// geometry that loses a torque direction, min > max, a zero axis, a NaN, thirteen
+/// actuators, a failure of an actuator that is not there.
+#[test]
+fn bad_vehicle_tables_exit_2_naming_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = std::fs::read_to_string(repo("scenarios/spacecraft.toml")).unwrap();
+    let first = good.find("[[vehicle.actuator]]").unwrap();
+    let blocks: Vec<&str> = good[first..]
+        .split("[[vehicle.actuator]]")
+        .filter(|b| !b.trim().is_empty())
+        .collect();
+    assert_eq!(blocks.len(), 12);
+    let with = |blocks: &[&str]| {
+        let mut s = good[..first].to_owned();
+        for b in blocks {
+            s += "[[vehicle.actuator]]";
+            s += b;
+        }
+        s
+    };
+    // the thrusters about ±x (0, 1, 6, 7) gone: no torque about x
+    let no_x: Vec<&str> = blocks
+        .iter()
+        .enumerate()
+        .filter(|(j, _)| ![0, 1, 6, 7].contains(j))
+        .map(|(_, b)| *b)
+        .collect();
+    let thirteen: Vec<&str> = blocks.iter().chain(&blocks[..1]).copied().collect();
+    let cases = [
+        ("lost", with(&no_x), "vehicle.actuator", "miss τx"),
+        (
+            "min-max",
+            good.replacen("min = 0.0", "min = 4.0", 1),
+            "min",
+            "max",
+        ),
+        (
+            "zero-axis",
+            good.replacen("axis = [0.0, 0.0, 1.0]", "axis = [0.0, 0.0, 0.0]", 1),
+            "axis",
+            "zero",
+        ),
+        (
+            "nan",
+            good.replacen("position = [0, 0.5, 0]", "position = [nan, 0.5, 0]", 1),
+            "position",
+            "finite",
+        ),
+        ("thirteen", with(&thirteen), "vehicle.actuator", "12"),
+        (
+            "failure",
+            format!("{good}\n[[vehicle.failure]]\nactuator = 12\nt = 1.0\n"),
+            "vehicle.failure",
+            "12",
+        ),
+    ];
+    for (name, text, key, what) in cases {
+        assert_ne!(text, good, "{name}: the case changes the file");
+        let path = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&path, &text).unwrap();
+        let out = run(&["sim", "--scenario", path.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{name}: {err}");
+        assert!(
+            err.contains(key) && err.contains(what),
+            "{name}: the message names neither `{key}` nor `{what}`: {err}"
+        );
+        assert!(!err.contains("panicked"), "{name}: {err}");
+    }
+}

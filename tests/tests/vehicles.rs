@@ -216,3 +216,71 @@ fn a_stalled_controller_leaves_the_vehicle_in_the_plants_safe_mode_not_falling()
     assert_eq!(code, 0, "{text}");
     assert!(text.contains(" 0 differ"), "{text}");
 }
+
+#[test]
+fn a_rate_limited_vehicle_flies_the_pair_bit_for_bit_and_replay_checks_the_limits_memory() {
+    let _g = serial();
+    let d = TempDir::new("vehicle-rate");
+    // rov_failure with its thrusters limited to 20 N/s (0.2 N a period)
+    let dir = Path::new(&d.join("scenario")).to_path_buf();
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(
+        repo("scenarios/rov_failure.csv"),
+        dir.join("rov_failure.csv"),
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(repo("scenarios/rov_failure.toml")).unwrap();
+    let limited = text.replacen(
+        "actuator_time_constant = 0.05",
+        "actuator_time_constant = 0.05\nactuator_rate_limit = 20.0",
+        1,
+    );
+    assert_ne!(limited, text);
+    let file = dir.join("rov_rate.toml");
+    std::fs::write(&file, limited).unwrap();
+    let (sim, pair) = sim_equals_lockstep(&d, "rov_rate", file.to_str().unwrap());
+    // the limit binds: some commands move by exactly 0.2 N, none by more (but the failed
+    // thruster, which jumps to its stuck value)
+    let csv = Csv::read(&Path::new(&sim).join("trajectory.csv"));
+    let (t, mut binding) = (csv.col("t"), 0);
+    for j in 0..8 {
+        let u = csv.col(&format!("u_cmd_{j}"));
+        for k in 1..u.len() {
+            let step = (u[k] - u[k - 1]).abs();
+            binding += usize::from((step - 0.2).abs() < 1e-9);
+            let failed = j == 5 && (t[k] - 20.0).abs() < 0.006;
+            assert!(
+                failed || step <= 0.2 + 1e-9,
+                "u_cmd_{j} moved {step} N at t = {}",
+                t[k]
+            );
+        }
+    }
+    assert!(binding >= 1, "the rate limit never binds");
+    let (code, text) = run("plant_sim", &["replay", &pair], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("commands compared, 0 differ"), "{text}");
+    // a record that lies about the command the limit narrowed around is found
+    let planted = format!("{pair}-planted");
+    std::fs::create_dir_all(&planted).unwrap();
+    for entry in std::fs::read_dir(&pair).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_owned();
+        if path.is_file() && name != "messages.log" {
+            std::fs::copy(&path, Path::new(&planted).join(name)).unwrap();
+        }
+    }
+    let mut log = std::fs::read(format!("{pair}/messages.log")).unwrap();
+    let header = recorder::Header::from_bytes(&log).unwrap();
+    let k = 100;
+    let at = recorder::HEADER_BYTES + k * header.record_bytes() + recorder::RECORD_COMMAND_OFFSET;
+    let mut cmd =
+        ipc_types::CommandMsg::from_bytes(&log[at..at + ipc_types::COMMAND_BYTES]).unwrap();
+    cmd.u_previous[2] += 1e-9;
+    log[at..at + ipc_types::COMMAND_BYTES].copy_from_slice(&cmd.to_bytes());
+    std::fs::write(format!("{planted}/messages.log"), log).unwrap();
+    let (code, text) = run("plant_sim", &["replay", &planted], LONG);
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains("u_previous[2]"), "{text}");
+    assert!(text.contains(&format!("cycle {k} ")), "{text}");
+}

@@ -102,6 +102,9 @@ struct ReplayRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     /// gets no command in replay either.
     last_seq: Option<u64>,
     period: Option<f64>,
+    /// The last replayed answer (its `u_cmd` is what the next one's rate limit narrows
+    /// around).
+    last_answer: Option<CommandMsg>,
     rows: Vec<Row>,
     report: ReplayReport,
 }
@@ -154,6 +157,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             next: 0,
             last_seq: None,
             period: None,
+            last_answer: None,
             rows: Vec::new(),
             report,
         })
@@ -192,7 +196,16 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             self.states.retain(|k, _| *k >= c.previous_seq);
         }
         self.states.insert(r.state.seq, r.state);
-        let replayed = self.answer(r, at)?;
+        let mut replayed = self.answer(r, at)?;
+        if let (Some(now), Some(before)) = (&mut replayed, &self.last_answer)
+            && before.seq == now.previous_seq
+        {
+            // the limit's memory as replay made it, not as the record restored it
+            now.u_previous = before.u_cmd;
+        }
+        if replayed.is_some() {
+            self.last_answer = replayed;
+        }
         let recorded = r.command.map(|c| c.0);
         if let Some(rec) = &recorded {
             compare::<M>(&mut self.report, r, rec, replayed.as_ref());
@@ -387,8 +400,10 @@ fn check_estimate<const N: usize, const M: usize>(
 }
 
 /// A vehicle's fields of a recorded and a replayed command, side by side: the actuator
-/// count and status (as numbers), the demand, the wrench the law counts as applied, and the
-/// actuator commands.
+/// count and status (as numbers), the demand, `B u_cmd`, the wrench the law counts as
+/// applied, the actuator commands, and the command the rate limit narrowed around (the
+/// replayed one is the previous replayed answer's, where replay made it: a record whose
+/// `u_previous` is not what the controller had commanded is found).
 fn vehicle_fields<const M: usize>(
     recorded: &CommandMsg,
     c: &CommandMsg,
@@ -409,6 +424,11 @@ fn vehicle_fields<const M: usize>(
         [
             (format!("demand[{i}]"), recorded.demand[i], c.demand[i]),
             (
+                format!("achieved[{i}]"),
+                recorded.achieved[i],
+                c.achieved[i],
+            ),
+            (
                 format!("accounted[{i}]"),
                 recorded.accounted[i],
                 c.accounted[i],
@@ -416,7 +436,16 @@ fn vehicle_fields<const M: usize>(
         ]
     });
     let count = (recorded.actuators as usize).min(ipc_types::MAX_ACTUATORS);
-    let commands = (0..count).map(move |j| (format!("u_cmd[{j}]"), recorded.u_cmd[j], c.u_cmd[j]));
+    let commands = (0..count).flat_map(move |j| {
+        [
+            (format!("u_cmd[{j}]"), recorded.u_cmd[j], c.u_cmd[j]),
+            (
+                format!("u_previous[{j}]"),
+                recorded.u_previous[j],
+                c.u_previous[j],
+            ),
+        ]
+    });
     counts.into_iter().chain(wrenches).chain(commands)
 }
 

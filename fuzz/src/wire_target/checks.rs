@@ -263,8 +263,12 @@ fn check_command_bytes(bytes: &[u8], r: &Receiver, ctx: &Context) -> Outcome {
     check_command_grid(&msg);
     match check_command(&msg, wire_group(r.group), r.awaited, r.actuators) {
         Err(k) => Outcome::Rejected(format!("check_command: Invalid::{k:?}")),
+        // a command for the ROV's eight thrusters drives them; another vehicle's (accepted by
+        // a receiver of its count) has no plant model here
         Ok(()) if msg.actuators > 0 => {
-            vehicle_on_command(&ctx.vehicle, &msg);
+            if r.group == GroupKind::Se3 && msg.actuators == 8 {
+                vehicle_on_command(&ctx.vehicle, &msg);
+            }
             Outcome::Accepted
         }
         Ok(()) => {

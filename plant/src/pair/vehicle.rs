@@ -89,6 +89,8 @@ impl<const M: usize> PairVehicle<M> {
         body: &RigidBody<f64, G, N, M>,
     ) {
         let r = G::rotation(body.configuration());
+        // the rate limit narrows around what the actuators were last commanded
+        self.run.control.set_previous(Some(self.u_cmd));
         let a = self.run.control.actuate(wrench, &r);
         self.accounted = a.applied(&self.run.control.restoring(&r));
         self.command(&a);
