@@ -666,3 +666,178 @@ fn bad_vehicle_tables_exit_2_naming_the_key() {
         assert!(!err.contains("panicked"), "{name}: {err}");
     }
 }
+
+/// The Monte Carlo study in shards: three shards (each on its own thread count) merged give
+/// every file of the unsharded study byte for byte; bad shard arguments and bad merges are
+/// refused with exit 2, naming what is wrong.
+#[test]
+fn shards_merge_into_the_unsharded_study_byte_for_byte() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
+    let study = [
+        "montecarlo",
+        "--runs",
+        "7",
+        "--seed",
+        "3",
+        "--laws",
+        "eqt,gt",
+    ];
+    let with = |extra: &[&str]| {
+        let mut a: Vec<&str> = study.to_vec();
+        a.extend_from_slice(extra);
+        run(&a)
+    };
+    ok(&with(&["--out", &d("whole")]));
+    for (i, threads) in [(0, "1"), (1, "2"), (2, "1")] {
+        ok(&with(&[
+            "--shard",
+            &format!("{i}/3"),
+            "--threads",
+            threads,
+            "--out",
+            &d(&format!("s{i}")),
+        ]));
+    }
+    // any order of the shard directories
+    ok(&with(&[
+        "--merge",
+        &d("s2"),
+        &d("s0"),
+        &d("s1"),
+        "--out",
+        &d("merged"),
+    ]));
+    for f in [
+        "runs.csv",
+        "mean.csv",
+        "summary.json",
+        "figure.svg",
+        "figure.png",
+    ] {
+        let a = std::fs::read(dir.path().join("whole").join(f)).unwrap();
+        let b = std::fs::read(dir.path().join("merged").join(f)).unwrap();
+        assert!(
+            a == b,
+            "{f}: the merged study differs from the unsharded one"
+        );
+    }
+    // a shard holds its share only: run indices 1 and 4 for shard 1 of 3 (7 runs)
+    let (h, rows) = read_csv(&dir.path().join("s1/runs.csv"));
+    assert_eq!(column(&h, &rows, "run"), vec![1.0, 1.0, 4.0, 4.0]);
+    let refused = |args: &[&str], says: &str| {
+        let out = with(args);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: `{says}` not in {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    };
+    refused(&["--shard", "3/3"], "I must be less than N");
+    refused(&["--shard", "0/0"], "N must be at least 1");
+    refused(&["--shard", "a/2"], "I is not a whole number");
+    refused(&["--shard", "1"], "no `/`");
+    refused(&["--merge", &d("s0"), &d("s1")], "shard 2 of 3 is missing");
+    refused(&["--merge", &d("s0"), &d("s0"), &d("s1")], "given twice");
+    refused(&["--merge", &d("whole")], "cannot read it");
+    let other = run(&[
+        "montecarlo",
+        "--runs",
+        "7",
+        "--seed",
+        "4",
+        "--laws",
+        "eqt,gt",
+        "--merge",
+        &d("s0"),
+        &d("s1"),
+        &d("s2"),
+        "--out",
+        &d("other"),
+    ]);
+    assert_eq!(other.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&other.stderr).contains("another study"));
+    // a shard file cut short or padded is refused, not misread
+    let bin = dir.path().join("s1/shard.bin");
+    let bytes = std::fs::read(&bin).unwrap();
+    std::fs::write(&bin, &bytes[..bytes.len() - 5]).unwrap();
+    refused(
+        &["--merge", &d("s0"), &d("s1"), &d("s2")],
+        "more than the file holds",
+    );
+    let mut padded = bytes.clone();
+    padded.extend_from_slice(&[0; 3]);
+    std::fs::write(&bin, &padded).unwrap();
+    refused(&["--merge", &d("s0"), &d("s1"), &d("s2")], "bytes over");
+    std::fs::write(&bin, b"EQTRKMCS").unwrap();
+    refused(&["--merge", &d("s0"), &d("s1"), &d("s2")], "cut short");
+}
+
+/// The Slurm example, its tasks run by hand with the variables Slurm sets and a stand-in
+/// `sbatch` that records the merge job: the merged study equals the unsharded one.
+#[test]
+fn the_slurm_example_shards_and_merges_the_study() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = dir.path().join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let recorded = dir.path().join("sbatch.args");
+    let fake = bin.join("sbatch");
+    std::fs::write(
+        &fake,
+        format!(
+            "#!/bin/sh\nfor a in \"$@\"; do printf '%s\\n' \"$a\"; done > {}\n",
+            recorded.display()
+        ),
+    )
+    .unwrap();
+    std::process::Command::new("chmod")
+        .args(["+x", fake.to_str().unwrap()])
+        .status()
+        .unwrap();
+    let script = repo("examples/slurm/montecarlo.sbatch");
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let out = dir.path().join("study");
+    for task in 0..3 {
+        let status = Command::new("bash")
+            .arg(&script)
+            .current_dir(dir.path())
+            .env("PATH", &path)
+            .env("PLANT_SIM", env!("CARGO_BIN_EXE_plant_sim"))
+            .env("RUNS", "5")
+            .env("OUT", &out)
+            .env("SLURM_ARRAY_TASK_ID", task.to_string())
+            .env("SLURM_ARRAY_TASK_COUNT", "3")
+            .env("SLURM_ARRAY_JOB_ID", "77")
+            .status()
+            .unwrap();
+        assert!(status.success(), "task {task}");
+    }
+    // the last task asked for the merge job, after the whole array
+    let args = std::fs::read_to_string(&recorded).unwrap();
+    let lines: Vec<&str> = args.lines().collect();
+    assert!(lines.contains(&"--dependency=afterok:77"), "{args}");
+    let wrap = lines[lines.iter().position(|l| *l == "--wrap").unwrap() + 1];
+    let status = Command::new("sh")
+        .args(["-c", wrap])
+        .current_dir(dir.path())
+        .status()
+        .unwrap();
+    assert!(status.success(), "{wrap}");
+    let whole = dir.path().join("whole");
+    ok(&run(&[
+        "montecarlo",
+        "--runs",
+        "5",
+        "--out",
+        whole.to_str().unwrap(),
+    ]));
+    for f in ["runs.csv", "mean.csv", "summary.json"] {
+        assert!(
+            std::fs::read(whole.join(f)).unwrap() == std::fs::read(out.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+}

@@ -16,3 +16,4 @@ pub mod montecarlo;
 pub mod noise;
 pub mod reference;
 pub mod rejection;
+pub mod shard;

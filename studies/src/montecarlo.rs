@@ -143,6 +143,20 @@ pub fn run_all(
     on_done: &(dyn Fn() + Sync),
     stop: &link::StopFlag,
 ) -> Result<Vec<RunResult>, SimError> {
+    let indexed: Vec<(usize, Sample)> = samples.iter().copied().enumerate().collect();
+    run_indexed(base, &indexed, laws, threads, on_done, stop)
+}
+
+/// [`run_all`] on the runs `(index, sample)` given (a shard of the study: each run keeps its
+/// index, so its sensors and its place in the merged study are those of the whole study).
+pub fn run_indexed(
+    base: &Scenario,
+    samples: &[(usize, Sample)],
+    laws: &[Law],
+    threads: Option<usize>,
+    on_done: &(dyn Fn() + Sync),
+    stop: &link::StopFlag,
+) -> Result<Vec<RunResult>, SimError> {
     if base.group != GroupKind::So3 {
         return Err(SimError::Input(format!(
             "scenario `{}`: the Monte Carlo study is defined on so3, not {}",
@@ -153,16 +167,17 @@ pub fn run_all(
     for law in laws {
         base.clone().with_law(*law)?;
     }
-    let jobs: Vec<(usize, Law)> = (0..samples.len())
-        .flat_map(|i| laws.iter().map(move |l| (i, *l)))
+    let jobs: Vec<(usize, Sample, Law)> = samples
+        .iter()
+        .flat_map(|(i, sample)| laws.iter().map(move |l| (*i, *sample, *l)))
         .collect();
     let work = || {
         jobs.par_iter()
-            .map(|(i, law)| {
+            .map(|(i, sample, law)| {
                 if stop.requested().is_some() {
                     return Ok(None);
                 }
-                let r = one_run(base, *i, samples[*i], *law);
+                let r = one_run(base, *i, *sample, *law);
                 on_done();
                 r.map(Some)
             })

@@ -42,6 +42,16 @@ pub(crate) struct McArgs {
     /// from the true attitude instead of TRIAD, and time its convergence.
     #[arg(long, value_name = "RAD", requires = "estimators")]
     initial_error: Option<f64>,
+    /// Fly only shard I of N: the runs whose index is I modulo N (a Slurm array task:
+    /// `--shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT`), written whole to
+    /// OUT/shard.bin for --merge.
+    #[arg(long, value_name = "I/N", value_parser = clap::value_parser!(studies::shard::Shard), conflicts_with_all = ["merge", "estimators"])]
+    shard: Option<studies::shard::Shard>,
+    /// Join the shards in these directories into the study's outputs (the same bytes as
+    /// the unsharded run); give the same --scenario, --runs, --seed (or --samples) and
+    /// --laws as the shards.
+    #[arg(long, value_name = "DIR", num_args = 1.., conflicts_with = "estimators")]
+    merge: Vec<PathBuf>,
 }
 
 pub(crate) fn estimator_parser(text: &str) -> Result<scenario::EstimatorKind, String> {
@@ -57,7 +67,7 @@ pub(crate) fn montecarlo_cmd(args: McArgs, stop: &StopFlag) -> Result<(), SimErr
         Some(p) => Scenario::from_file(p)?,
         None => Scenario::builtin("montecarlo")?,
     };
-    let laws = args.laws;
+    let laws = args.laws.clone();
     if args.threads == Some(0) {
         return Err(SimError::Input("--threads: must be at least 1".to_owned()));
     }
@@ -72,16 +82,19 @@ pub(crate) fn montecarlo_cmd(args: McArgs, stop: &StopFlag) -> Result<(), SimErr
     };
     let out = args
         .out
+        .clone()
         .unwrap_or_else(|| Path::new("out").join("montecarlo"));
     ensure_dir(&out)?;
     if !args.estimators.is_empty() {
         let study = (args.estimators.as_slice(), args.initial_error, args.threads);
         return estimator_study(&base, &samples, study, laws[0], &out, stop);
     }
-    let bar = progress((samples.len() * laws.len()) as u64, "montecarlo");
-    let results = montecarlo::run_all(&base, &samples, &laws, args.threads, &|| bar.inc(1), stop)?;
-    bar.finish_and_clear();
+    let study = studies::shard::Study::new(base.fingerprint(), &samples, &laws);
+    let results = study_results(&args, &base, &samples, &study, stop)?;
     montecarlo::write_runs_csv(&results, &out.join("runs.csv"))?;
+    if let (Some(shard), None) = (args.shard, stop.requested()) {
+        return finish_shard(&base, shard, &study, &results, &out);
+    }
     if let Some(sig) = stop.requested() {
         eprintln!(
             "{sig}: stopped after {} of {} runs; wrote {}/runs.csv",
@@ -113,6 +126,53 @@ pub(crate) fn montecarlo_cmd(args: McArgs, stop: &StopFlag) -> Result<(), SimErr
     println!(
         "wrote {}/{{runs.csv, mean.csv, summary.json, figure.png, figure.svg}}",
         out.display()
+    );
+    Ok(())
+}
+
+/// The study's results: the shards of `--merge` joined, or the runs of `--shard` (all runs
+/// without one) flown.
+fn study_results(
+    args: &McArgs,
+    base: &Scenario,
+    samples: &[montecarlo::Sample],
+    study: &studies::shard::Study,
+    stop: &StopFlag,
+) -> Result<Vec<montecarlo::RunResult>, SimError> {
+    if !args.merge.is_empty() {
+        let dirs: Vec<&Path> = args.merge.iter().map(PathBuf::as_path).collect();
+        return studies::shard::merge(&dirs, study);
+    }
+    let (laws, threads) = (&study.laws, args.threads);
+    let share = match args.shard {
+        Some(shard) => shard.select(samples),
+        None => samples.iter().copied().enumerate().collect(),
+    };
+    let bar = progress((share.len() * laws.len()) as u64, "montecarlo");
+    let results = montecarlo::run_indexed(base, &share, laws, threads, &|| bar.inc(1), stop)?;
+    bar.finish_and_clear();
+    Ok(results)
+}
+
+/// A shard's end: its runs written whole to `shard.bin` beside `runs.csv`.
+fn finish_shard(
+    base: &Scenario,
+    shard: studies::shard::Shard,
+    study: &studies::shard::Study,
+    results: &[montecarlo::RunResult],
+    out: &Path,
+) -> Result<(), SimError> {
+    studies::shard::write_shard(out, shard, study, results)?;
+    println!(
+        "Monte Carlo on `{}`: shard {} of {}, {} of {} runs x {} laws; wrote {}/{{runs.csv, {}}} (join the shards with --merge)",
+        base.name,
+        shard.index,
+        shard.count,
+        results.len() / study.laws.len().max(1),
+        study.runs,
+        study.laws.len(),
+        out.display(),
+        studies::shard::SHARD_FILE
     );
     Ok(())
 }
