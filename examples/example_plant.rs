@@ -239,12 +239,10 @@ fn fly<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     mut filter: Option<Filter>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let mut plant = PlantEndpoint::open(PlantEndpointConfig::new(run, group, PERIOD))?;
-    let mut policy = DeadlinePolicy::new(MISS_LIMIT);
+    let mut ticks = Ticks::new(realtime);
     let kd = SMatrix::<f64, M, M>::identity() * KD_SAFE;
     let limit = SVector::<f64, M>::repeat(TORQUE_LIMIT);
     let mut torque = SVector::<f64, M>::zeros();
-    let period_ns = (PERIOD * 1e9) as u64;
-    let mut t0 = 0; // the clock starts with the controller's first answer
     for k in 0..=steps {
         // 1. Read the sensors and publish the state: the exact one, or the filter's estimate
         //    from the IMU (SO(3): n = m = 3), with the torque applied over the last period.
@@ -261,29 +259,10 @@ fn fly<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
                 plant.publish(k, &q_hat, &v_hat, &torque)?;
             }
         }
-        // 2. Wait for the torque: until the tick ends in real time; in lockstep (and for
-        //    the first command) as long as it takes, up to 10 s.
-        let deadline = if realtime && k > 0 {
-            t0 + (k + 1) * period_ns
-        } else {
-            clock::monotonic_ns() + 10_000_000_000
-        };
-        let got = match plant.wait_command(k, deadline) {
-            Ok(cmd) => Some(cmd),
-            Err(NoCommand::Missed) if realtime && k > 0 => None,
-            Err(NoCommand::Missed) => return Err(format!("no command for tick {k}").into()),
-            Err(NoCommand::Refused(r)) => return Err(r.to_string().into()),
-        };
-        if k == 0 {
-            t0 = clock::monotonic_ns();
-        }
-        // 3. Apply it, hold the last one, or fall back to the safe-mode torque (real time;
-        //    lockstep applies every command it waited for).
-        let step = if realtime {
-            policy.step(k, deadline, got.as_ref().map(|c| c.arrival()))
-        } else {
-            Step::LOCKSTEP
-        };
+        // 2. Wait for the torque (until the tick ends in real time; in lockstep as long as it
+        //    takes, up to 10 s), then apply it, hold the last one, or fall back to the
+        //    safe-mode torque (real time; lockstep applies every command it waited for).
+        let (got, step) = ticks.command(&mut plant, k)?;
         torque = match (step.decision, got) {
             (Decision::Fresh, Some(cmd)) => cmd.torque(),
             (Decision::Safe, _) => safe_mode_torque(&kd, &v, Some(&limit)),
@@ -295,12 +274,70 @@ fn fly<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         if k < steps {
             body.drive_motors(&torque);
         }
-        if realtime {
-            clock::sleep_until(t0 + (k + 1) * period_ns);
-        }
+        ticks.end(k);
     }
     plant.shutdown();
     Ok(())
+}
+
+/// The plant's clock and deadline policy: when a tick ends, and what it applies.
+struct Ticks {
+    realtime: bool,
+    policy: DeadlinePolicy,
+    /// The clock starts with the controller's first answer.
+    t0: u64,
+}
+
+impl Ticks {
+    fn new(realtime: bool) -> Ticks {
+        Ticks {
+            realtime,
+            policy: DeadlinePolicy::new(MISS_LIMIT),
+            t0: 0,
+        }
+    }
+
+    fn period_ns() -> u64 {
+        (PERIOD * 1e9) as u64
+    }
+
+    /// Command k: waited for until the tick ends in real time; in lockstep (and for the
+    /// first command) as long as it takes, up to 10 s. With the policy's decision (lockstep
+    /// applies every command it waited for).
+    fn command(
+        &mut self,
+        plant: &mut PlantEndpoint,
+        k: u64,
+    ) -> Result<(Option<Command>, Step), Box<dyn std::error::Error>> {
+        let deadline = if self.realtime && k > 0 {
+            self.t0 + (k + 1) * Self::period_ns()
+        } else {
+            clock::monotonic_ns() + 10_000_000_000
+        };
+        let got = match plant.wait_command(k, deadline) {
+            Ok(cmd) => Some(cmd),
+            Err(NoCommand::Missed) if self.realtime && k > 0 => None,
+            Err(NoCommand::Missed) => return Err(format!("no command for tick {k}").into()),
+            Err(NoCommand::Refused(r)) => return Err(r.to_string().into()),
+        };
+        if k == 0 {
+            self.t0 = clock::monotonic_ns();
+        }
+        let step = if self.realtime {
+            self.policy
+                .step(k, deadline, got.as_ref().map(|c| c.arrival()))
+        } else {
+            Step::LOCKSTEP
+        };
+        Ok((got, step))
+    }
+
+    /// Waits for tick k's end (real time only).
+    fn end(&self, k: u64) {
+        if self.realtime {
+            clock::sleep_until(self.t0 + (k + 1) * Self::period_ns());
+        }
+    }
 }
 
 /// [`fly`] for the spacecraft: the commands carry thruster commands, which drive the
@@ -315,40 +352,18 @@ fn fly_vehicle(
     let mut config = PlantEndpointConfig::new(run, GroupKind::So3, PERIOD);
     config.actuators = thrusters.allocator.geometry().count() as u32;
     let mut plant = PlantEndpoint::open(config)?;
-    let mut policy = DeadlinePolicy::new(MISS_LIMIT);
-    let period_ns = (PERIOD * 1e9) as u64;
-    let mut t0 = 0;
+    let mut ticks = Ticks::new(realtime);
     for k in 0..=steps {
         let (q, v) = body.read_sensors();
         plant.publish(k, &q, &v, &thrusters.accounted)?;
-        let deadline = if realtime && k > 0 {
-            t0 + (k + 1) * period_ns
-        } else {
-            clock::monotonic_ns() + 10_000_000_000
-        };
-        let got = match plant.wait_command(k, deadline) {
-            Ok(cmd) => Some(cmd),
-            Err(NoCommand::Missed) if realtime && k > 0 => None,
-            Err(NoCommand::Missed) => return Err(format!("no command for tick {k}").into()),
-            Err(NoCommand::Refused(r)) => return Err(r.to_string().into()),
-        };
-        if k == 0 {
-            t0 = clock::monotonic_ns();
-        }
-        let step = if realtime {
-            policy.step(k, deadline, got.as_ref().map(|c| c.arrival()))
-        } else {
-            Step::LOCKSTEP
-        };
+        let (got, step) = ticks.command(&mut plant, k)?;
         let wrench = thrusters.decide(step.decision, got, &v);
         let (t, qs, vs, ts) = (k as f64 * PERIOD, q.transpose(), csv(&v), csv(&wrench));
         println!("{k},{t:?},{},{vs},{ts},{}", csv(&qs), step.decision.code());
         if k < steps {
             body.drive_thrusters(&wrench);
         }
-        if realtime {
-            clock::sleep_until(t0 + (k + 1) * period_ns);
-        }
+        ticks.end(k);
     }
     plant.shutdown();
     Ok(())

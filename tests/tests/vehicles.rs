@@ -8,6 +8,34 @@ use std::time::Duration;
 
 const LONG: Duration = Duration::from_secs(120);
 
+/// A copy of the run in `out` (scenario, waypoints) beside `out`, whose `messages.log` has
+/// the command recorded at cycle `k` changed by `edit` (handed the command and its recorded
+/// bytes); returns the copy's directory.
+fn planted_copy(
+    out: &str,
+    k: usize,
+    edit: impl FnOnce(&mut ipc_types::CommandMsg, &[u8]),
+) -> String {
+    let planted = format!("{out}-planted");
+    std::fs::create_dir_all(&planted).unwrap();
+    for entry in std::fs::read_dir(out).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_owned();
+        if path.is_file() && name != "messages.log" {
+            std::fs::copy(&path, Path::new(&planted).join(name)).unwrap();
+        }
+    }
+    let mut log = std::fs::read(format!("{out}/messages.log")).unwrap();
+    let header = recorder::Header::from_bytes(&log).unwrap();
+    let at = recorder::HEADER_BYTES + k * header.record_bytes() + recorder::RECORD_COMMAND_OFFSET;
+    let bytes = log[at..at + ipc_types::COMMAND_BYTES].to_vec();
+    let mut cmd = ipc_types::CommandMsg::from_bytes(&bytes).unwrap();
+    edit(&mut cmd, &bytes);
+    log[at..at + ipc_types::COMMAND_BYTES].copy_from_slice(&cmd.to_bytes());
+    std::fs::write(format!("{planted}/messages.log"), log).unwrap();
+    planted
+}
+
 /// The vehicle scenarios, each flown by the lockstep pair.
 const VEHICLES: [&str; 2] = ["hexarotor_eqf", "rov_failure"];
 
@@ -86,30 +114,14 @@ fn a_changed_actuator_command_in_the_log_is_found_by_replay() {
         &out,
     ]);
     assert_eq!(code, 0, "{text}");
-    let planted = format!("{out}-planted");
-    std::fs::create_dir_all(&planted).unwrap();
-    // the scenario and its waypoints, beside the changed log
-    for entry in std::fs::read_dir(&out).unwrap() {
-        let path = entry.unwrap().path();
-        let name = path.file_name().unwrap().to_owned();
-        if path.is_file() && name != "messages.log" {
-            std::fs::copy(&path, Path::new(&planted).join(name)).unwrap();
-        }
-    }
-    let mut log = std::fs::read(format!("{out}/messages.log")).unwrap();
-    let header = recorder::Header::from_bytes(&log).unwrap();
     // u_cmd[3] of the command recorded at cycle 40, nudged by one part in 10^12
     let k = 40;
-    let cmd = recorder::HEADER_BYTES + k * header.record_bytes() + recorder::RECORD_COMMAND_OFFSET;
-    let at = cmd + 632 + 3 * 8;
-    let mut decoded =
-        ipc_types::CommandMsg::from_bytes(&log[cmd..cmd + ipc_types::COMMAND_BYTES]).unwrap();
-    assert_eq!(decoded.actuators, 8);
-    let u = f64::from_le_bytes(log[at..at + 8].try_into().unwrap());
-    assert_eq!(u.to_bits(), decoded.u_cmd[3].to_bits());
-    decoded.u_cmd[3] = u * (1.0 + 1e-12) + 1e-15;
-    log[cmd..cmd + ipc_types::COMMAND_BYTES].copy_from_slice(&decoded.to_bytes());
-    std::fs::write(format!("{planted}/messages.log"), log).unwrap();
+    let planted = planted_copy(&out, k, |cmd, bytes| {
+        assert_eq!(cmd.actuators, 8);
+        let u = f64::from_le_bytes(bytes[632 + 3 * 8..632 + 4 * 8].try_into().unwrap());
+        assert_eq!(u.to_bits(), cmd.u_cmd[3].to_bits());
+        cmd.u_cmd[3] = u * (1.0 + 1e-12) + 1e-15;
+    });
     let (code, text) = run("plant_sim", &["replay", &planted], LONG);
     assert_eq!(code, 1, "{text}");
     assert!(text.contains("u_cmd[3]"), "{text}");
@@ -261,24 +273,8 @@ fn a_rate_limited_vehicle_flies_the_pair_bit_for_bit_and_replay_checks_the_limit
     assert_eq!(code, 0, "{text}");
     assert!(text.contains("commands compared, 0 differ"), "{text}");
     // a record that lies about the command the limit narrowed around is found
-    let planted = format!("{pair}-planted");
-    std::fs::create_dir_all(&planted).unwrap();
-    for entry in std::fs::read_dir(&pair).unwrap() {
-        let path = entry.unwrap().path();
-        let name = path.file_name().unwrap().to_owned();
-        if path.is_file() && name != "messages.log" {
-            std::fs::copy(&path, Path::new(&planted).join(name)).unwrap();
-        }
-    }
-    let mut log = std::fs::read(format!("{pair}/messages.log")).unwrap();
-    let header = recorder::Header::from_bytes(&log).unwrap();
     let k = 100;
-    let at = recorder::HEADER_BYTES + k * header.record_bytes() + recorder::RECORD_COMMAND_OFFSET;
-    let mut cmd =
-        ipc_types::CommandMsg::from_bytes(&log[at..at + ipc_types::COMMAND_BYTES]).unwrap();
-    cmd.u_previous[2] += 1e-9;
-    log[at..at + ipc_types::COMMAND_BYTES].copy_from_slice(&cmd.to_bytes());
-    std::fs::write(format!("{planted}/messages.log"), log).unwrap();
+    let planted = planted_copy(&pair, k, |cmd, _| cmd.u_previous[2] += 1e-9);
     let (code, text) = run("plant_sim", &["replay", &planted], LONG);
     assert_eq!(code, 1, "{text}");
     assert!(text.contains("u_previous[2]"), "{text}");
