@@ -102,9 +102,9 @@ struct ReplayRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     /// gets no command in replay either.
     last_seq: Option<u64>,
     period: Option<f64>,
-    /// The last replayed answer (its `u_cmd` is what the next one's rate limit narrows
-    /// around).
-    last_answer: Option<CommandMsg>,
+    /// The last recorded command (its `u_cmd` is what the controller's next rate limit
+    /// narrowed around).
+    last_recorded: Option<CommandMsg>,
     rows: Vec<Row>,
     report: ReplayReport,
 }
@@ -157,7 +157,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             next: 0,
             last_seq: None,
             period: None,
-            last_answer: None,
+            last_recorded: None,
             rows: Vec::new(),
             report,
         })
@@ -197,14 +197,16 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         }
         self.states.insert(r.state.seq, r.state);
         let mut replayed = self.answer(r, at)?;
-        if let (Some(now), Some(before)) = (&mut replayed, &self.last_answer)
+        if let (Some(now), Some(before)) = (&mut replayed, &self.last_recorded)
             && before.seq == now.previous_seq
         {
-            // the limit's memory as replay made it, not as the record restored it
+            // the limit's memory as the controller's own previous command says it was, not as
+            // this record restores it (a replayed answer to a state whose command was not
+            // recorded may differ from the one the controller sent)
             now.u_previous = before.u_cmd;
         }
-        if replayed.is_some() {
-            self.last_answer = replayed;
+        if let Some((c, _)) = &r.command {
+            self.last_recorded = Some(*c);
         }
         let recorded = r.command.map(|c| c.0);
         if let Some(rec) = &recorded {
@@ -402,8 +404,9 @@ fn check_estimate<const N: usize, const M: usize>(
 /// A vehicle's fields of a recorded and a replayed command, side by side: the actuator
 /// count and status (as numbers), the demand, `B u_cmd`, the wrench the law counts as
 /// applied, the actuator commands, and the command the rate limit narrowed around (the
-/// replayed one is the previous replayed answer's, where replay made it: a record whose
-/// `u_previous` is not what the controller had commanded is found).
+/// replayed one is the previous recorded command's `u_cmd`, where that command is the one
+/// `previous_seq` names: a record whose `u_previous` is not what the controller had
+/// commanded is found).
 fn vehicle_fields<const M: usize>(
     recorded: &CommandMsg,
     c: &CommandMsg,
