@@ -33,6 +33,23 @@ pub fn rkmk4_step<G, T, F, const N: usize, const M: usize>(
     x: &Phase<T, N, M>,
     t: T,
     h: T,
+    field: F,
+) -> Phase<T, N, M>
+where
+    G: MatrixLieGroup<N, M>,
+    T: Real,
+    F: FnMut(T, &SMatrix<T, N, N>, &SVector<T, M>) -> (SVector<T, M>, SVector<T, M>),
+{
+    rkmk4::<G, T, F, N, M, true>(x, t, h, field)
+}
+
+/// [`rkmk4_step`]; when `STAGE_Q` is false the field does not read its configuration
+/// argument (it is handed `Q(t)` at every stage), so the stages' configurations
+/// `Q·exp(hat(u_i))` are not formed: the same numbers, three exponentials fewer per step.
+fn rkmk4<G, T, F, const N: usize, const M: usize, const STAGE_Q: bool>(
+    x: &Phase<T, N, M>,
+    t: T,
+    h: T,
     mut field: F,
 ) -> Phase<T, N, M>
 where
@@ -40,20 +57,23 @@ where
     T: Real,
     F: FnMut(T, &SMatrix<T, N, N>, &SVector<T, M>) -> (SVector<T, M>, SVector<T, M>),
 {
+    let stage_q = |u: &SVector<T, M>| {
+        if STAGE_Q { x.q * G::exp(u) } else { x.q }
+    };
     let half = h * real(0.5);
     let (v1, pd1) = field(t, &x.q, &x.p);
     let k1 = v1;
 
     let u2 = k1 * half;
-    let (v2, pd2) = field(t + half, &(x.q * G::exp(&u2)), &(x.p + pd1 * half));
+    let (v2, pd2) = field(t + half, &stage_q(&u2), &(x.p + pd1 * half));
     let k2 = dexp_inv_neg::<G, T, N, M>(&u2, &v2);
 
     let u3 = k2 * half;
-    let (v3, pd3) = field(t + half, &(x.q * G::exp(&u3)), &(x.p + pd2 * half));
+    let (v3, pd3) = field(t + half, &stage_q(&u3), &(x.p + pd2 * half));
     let k3 = dexp_inv_neg::<G, T, N, M>(&u3, &v3);
 
     let u4 = k3 * h;
-    let (v4, pd4) = field(t + h, &(x.q * G::exp(&u4)), &(x.p + pd3 * h));
+    let (v4, pd4) = field(t + h, &stage_q(&u4), &(x.p + pd3 * h));
     let k4 = dexp_inv_neg::<G, T, N, M>(&u4, &v4);
 
     let sixth = h / real(6.0);
@@ -80,7 +100,8 @@ where
     T: Real,
     F: Fn(T) -> SVector<T, M>,
 {
-    rkmk4_step::<G, T, _, N, M>(x, t, h, |s, _q, p| {
+    // The field does not depend on Q: its stages need no configuration.
+    rkmk4::<G, T, _, N, M, false>(x, t, h, |s, _q, p| {
         let v = inertia_inv * p;
         (v, G::ad(&v).tr_mul(p) + torque(s))
     })

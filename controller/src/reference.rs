@@ -297,3 +297,70 @@ where
         self.step_once();
     }
 }
+
+/// A desired trajectory computed once and replayed: the states `desired[k]` at
+/// `t_k = k·period`, read from a borrowed table (docs/maths.md, "Integrating on the group":
+/// the table holds what a source produced, so a loop flown against it computes the same
+/// numbers as one flown against the source). Many runs of one reference (a Monte Carlo
+/// study) share one table instead of integrating the reference again for each run.
+///
+/// Past the table's end, [`Trajectory::desired`] repeats its last entry: make the table one
+/// entry longer than the number of steps flown (the loop reads `t_0 … t_N`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tabulated<'a, T: Real, const N: usize, const M: usize> {
+    table: &'a [Desired<T, N, M>],
+    period: T,
+    step: u64,
+}
+
+impl<'a, T: Real, const N: usize, const M: usize> Tabulated<'a, T, N, M> {
+    /// Records `steps + 1` desired states of `source`, at `t_0 … t_steps`.
+    pub fn record<S: Trajectory<T, N, M>>(
+        source: &mut S,
+        steps: usize,
+        out: &mut impl Extend<Desired<T, N, M>>,
+    ) {
+        for k in 0..=steps {
+            out.extend(core::iter::once(source.desired()));
+            if k < steps {
+                source.advance();
+            }
+        }
+    }
+
+    /// Replays `table` from `t_0 = 0` at `period`; an empty table is refused.
+    pub fn new(table: &'a [Desired<T, N, M>], period: T) -> Result<Self, Error> {
+        crate::validate::period(period)?;
+        if table.is_empty() {
+            return Err(Error::WrongShape {
+                quantity: Quantity::Reference,
+                expected: 1,
+                found: 0,
+            });
+        }
+        Ok(Tabulated {
+            table,
+            period,
+            step: 0,
+        })
+    }
+}
+
+impl<T: Real, const N: usize, const M: usize> Trajectory<T, N, M> for Tabulated<'_, T, N, M> {
+    fn time(&self) -> T {
+        real::<T>(self.step as f64) * self.period
+    }
+    fn period(&self) -> T {
+        self.period
+    }
+    fn step_index(&self) -> u64 {
+        self.step
+    }
+    fn desired(&self) -> Desired<T, N, M> {
+        let last = self.table.len() - 1;
+        self.table[(self.step as usize).min(last)]
+    }
+    fn advance(&mut self) {
+        self.step += 1;
+    }
+}

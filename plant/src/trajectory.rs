@@ -6,6 +6,7 @@ use controller::closed_loop::{ClosedLoop, Sample};
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::integrator::RigidBody;
 use controller::law::Desired;
+use controller::reference::Trajectory;
 use controller::semidirect::Phase;
 use controller::tracking::{error_norms, lyapunov, tracking_error};
 use nalgebra::{SMatrix, SVector};
@@ -309,12 +310,30 @@ pub fn simulate_with_planted<G: MatrixLieGroup<N, M>, const N: usize, const M: u
     faults: &[(u64, crate::sensors::SampleFault)],
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
 ) -> Result<SimulatedTrajectory, SimError> {
+    let reference = s.reference_source::<G, N, M>().map_err(input(s))?;
+    simulate_against::<G, N, M, _>(s, plant, reference, faults, on_step)
+}
+
+/// [`simulate_with_planted`] against a given desired trajectory instead of the scenario's
+/// own source: a reference computed once and shared by many runs
+/// ([`controller::reference::Tabulated`]; the Monte Carlo study) gives the same numbers as
+/// the source it was recorded from.
+pub fn simulate_against<G, const N: usize, const M: usize, R>(
+    s: &Scenario,
+    plant: RigidBody<f64, G, N, M>,
+    reference: R,
+    faults: &[(u64, crate::sensors::SampleFault)],
+    on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
+) -> Result<SimulatedTrajectory, SimError>
+where
+    G: MatrixLieGroup<N, M>,
+    R: Trajectory<f64, N, M>,
+{
     if let Some(run) = crate::vehicle::VehicleRun::<M>::of(s)? {
-        return crate::vehicle::simulate::<G, N, M>(s, plant, run, faults, on_step);
+        return crate::vehicle::simulate::<G, N, M, R>(s, plant, reference, run, faults, on_step);
     }
     let mut estimation = crate::estimation::Estimation::new(s, s.control_period, faults)?;
     let controller = s.controller::<G, N, M>().map_err(input(s))?;
-    let reference = s.reference_source::<G, N, M>().map_err(input(s))?;
     let mut sim = ClosedLoop::new(controller, reference, plant, s.plant_substeps)
         .and_then(|l| l.with_disturbance(s.disturbance_vector()))
         .and_then(|l| l.with_rejection(s.rejection_config()))

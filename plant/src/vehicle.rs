@@ -300,16 +300,20 @@ impl<const M: usize> VehicleRun<M> {
 /// (docs/maths.md, "Vehicle physics"): each tick the law's wrench (with its rejection terms) goes through the
 /// controller's allocation, and the plant integrates the actuators' output with gravity,
 /// buoyancy, drag and the disturbances. The rows carry the vehicle columns.
-pub fn simulate<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub fn simulate<G, const N: usize, const M: usize, R>(
     s: &Scenario,
     plant: RigidBody<f64, G, N, M>,
+    reference: R,
     mut run: VehicleRun<M>,
     faults: &[(u64, crate::sensors::SampleFault)],
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
-) -> Result<SimulatedTrajectory, SimError> {
+) -> Result<SimulatedTrajectory, SimError>
+where
+    G: MatrixLieGroup<N, M>,
+    R: controller::reference::Trajectory<f64, N, M>,
+{
     let mut estimation = crate::estimation::Estimation::new(s, s.control_period, faults)?;
     let controller = s.controller::<G, N, M>().map_err(input(s))?;
-    let reference = s.reference_source::<G, N, M>().map_err(input(s))?;
     let mut sim = ClosedLoop::new(controller, reference, plant, s.plant_substeps)
         .and_then(|l| l.with_rejection(s.rejection_config()))
         .map_err(input(s))?;

@@ -6,7 +6,9 @@
 //! the runs the EqF's average NEES at each tick against its 95 % χ² band, and with
 //! `--initial-error` the time each filter takes to converge from that attitude error.
 
-use crate::montecarlo::{Sample, fly, in_pool, initial_state, run_sensors};
+use crate::montecarlo::{
+    Sample, fly_against, in_pool, initial_state, reference_table, run_sensors,
+};
 use controller::Law;
 use controller::group::so3::{exp_so3, log_so3};
 use nalgebra::Vector3;
@@ -140,6 +142,7 @@ pub fn run_study(
     let jobs: Vec<(usize, EstimatorKind)> = (0..samples.len())
         .flat_map(|i| estimators.iter().map(move |k| (i, *k)))
         .collect();
+    let table = reference_table(&base)?;
     let work = || {
         jobs.par_iter()
             .map(|&(run, kind)| {
@@ -147,7 +150,7 @@ pub fn run_study(
                     return Ok(None);
                 }
                 let s = variant(&base, run, samples[run], kind, initial_error)?;
-                let t = fly(&s, run, samples[run])?;
+                let t = fly_against(&s, &table, run, samples[run])?;
                 on_done();
                 let series: Vec<[f64; 3]> = t
                     .rows

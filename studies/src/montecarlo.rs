@@ -8,12 +8,14 @@
 use controller::group::So3;
 use controller::group::so3::{exp_so3, log_so3};
 use controller::integrator::RigidBody;
+use controller::law::Desired;
+use controller::reference::Tabulated;
 use controller::{GroupKind, Law};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use plant::SimError;
 use plant::output::num;
 use plant::plot::{Line, Panel, law_color, render};
-use plant::trajectory::{effort, settling_time, simulate_with};
+use plant::trajectory::{effort, settling_time, simulate_against};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal, Uniform};
@@ -167,6 +169,8 @@ pub fn run_indexed(
     for law in laws {
         base.clone().with_law(*law)?;
     }
+    // The reference is the same for every run and law: integrated once, replayed by each.
+    let table = reference_table(base)?;
     let jobs: Vec<(usize, Sample, Law)> = samples
         .iter()
         .flat_map(|(i, sample)| laws.iter().map(move |l| (*i, *sample, *l)))
@@ -177,7 +181,7 @@ pub fn run_indexed(
                 if stop.requested().is_some() {
                     return Ok(None);
                 }
-                let r = one_run(base, *i, *sample, *law);
+                let r = one_run(base, &table, *i, *sample, *law);
                 on_done();
                 r.map(Some)
             })
@@ -219,10 +223,32 @@ pub fn run_sensors(s: &mut Scenario, run: usize) {
     }
 }
 
+/// The scenario's desired trajectory at `t_0 … t_N`, integrated once (what every run of a
+/// study replays through [`Tabulated`]).
+pub fn reference_table(s: &Scenario) -> Result<Vec<Desired<f64, 3, 3>>, SimError> {
+    let mut source = s
+        .reference_source::<So3, 3, 3>()
+        .map_err(plant::trajectory::input(s))?;
+    let mut table = Vec::with_capacity(s.steps() as usize + 1);
+    Tabulated::record(&mut source, s.steps() as usize, &mut table);
+    Ok(table)
+}
+
 /// Run `run` of the study on `s` (its sensors already the run's): the body starts at
 /// `R(0) = R_d(0)·exp(hat(r))`, `ω(0) = ω_d(0) + w` and the closed loop is simulated.
 pub fn fly(
     s: &Scenario,
+    run: usize,
+    sample: Sample,
+) -> Result<plant::trajectory::SimulatedTrajectory, SimError> {
+    fly_against(s, &reference_table(s)?, run, sample)
+}
+
+/// [`fly`] against the scenario's reference recorded once by [`reference_table`] (the same
+/// numbers, without integrating the reference again).
+pub fn fly_against(
+    s: &Scenario,
+    table: &[Desired<f64, 3, 3>],
     run: usize,
     sample: Sample,
 ) -> Result<plant::trajectory::SimulatedTrajectory, SimError> {
@@ -233,7 +259,8 @@ pub fn fly(
         SVector::from(w0),
     )
     .map_err(|e| SimError::Input(format!("run {run}: {e}")))?;
-    simulate_with::<So3, 3, 3>(s, plant, &|_| Ok(()))
+    let reference = Tabulated::new(table, s.control_period).map_err(plant::trajectory::input(s))?;
+    simulate_against::<So3, 3, 3, _>(s, plant, reference, &[], &|_| Ok(()))
         .map_err(|e| SimError::Run(format!("run {run}, law {}: {e}", s.law.name())))
 }
 
@@ -247,11 +274,17 @@ pub fn initial_state(s: &Scenario, sample: Sample) -> (Matrix3<f64>, Vector3<f64
     )
 }
 
-fn one_run(base: &Scenario, run: usize, sample: Sample, law: Law) -> Result<RunResult, SimError> {
+fn one_run(
+    base: &Scenario,
+    table: &[Desired<f64, 3, 3>],
+    run: usize,
+    sample: Sample,
+    law: Law,
+) -> Result<RunResult, SimError> {
     let mut s = base.clone();
     s.law = law;
     run_sensors(&mut s, run);
-    let traj = fly(&s, run, sample)?;
+    let traj = fly_against(&s, table, run, sample)?;
     let h = traj.control_period;
     Ok(RunResult {
         run,
