@@ -68,38 +68,39 @@ pub fn estimate_header(n: usize, directions: usize, se3: bool, covariance: bool)
 
 /// The values of [`estimate_header`]'s columns for one row (empty `pos_i` on ticks without
 /// a fix).
-fn estimate_fields(e: &crate::trajectory::EstimateRow, n: usize, rec: &mut Vec<String>) {
+fn estimate_fields(e: &crate::trajectory::EstimateRow, n: usize, rec: &mut Vec<Cell>) {
     let se3 = n == 4;
     let s = &e.samples;
-    rec.extend(s.gyro.iter().map(|x| num(*x)));
+    let nums = |xs: &[f64]| xs.iter().map(|x| Cell::Num(*x)).collect::<Vec<_>>();
+    rec.extend(nums(s.gyro.as_slice()));
     for d in &s.directions[..s.count] {
-        rec.extend(d.iter().map(|x| num(*x)));
+        rec.extend(nums(d.as_slice()));
     }
     if se3 {
-        match s.accel {
-            Some(a) => rec.extend(a.iter().map(|x| num(*x))),
-            None => rec.extend(std::iter::repeat_n(String::new(), 3)),
-        }
-        match s.position {
-            Some(p) => rec.extend(p.iter().map(|x| num(*x))),
-            None => rec.extend(std::iter::repeat_n(String::new(), 3)),
+        for v in [s.accel, s.position] {
+            match v {
+                Some(a) => rec.extend(nums(a.as_slice())),
+                None => rec.extend([Cell::Empty; 3]),
+            }
         }
     }
-    rec.extend(e.q_hat[..n * n].iter().map(|x| num(*x)));
-    rec.extend(e.bias_hat.iter().map(|x| num(*x)));
+    rec.extend(nums(&e.q_hat[..n * n]));
+    rec.extend(nums(&e.bias_hat));
     if se3 {
-        rec.extend((0..3).map(|i| num(e.q_hat[i * 4 + 3])));
+        rec.extend((0..3).map(|i| Cell::Num(e.q_hat[i * 4 + 3])));
         // world velocity R̂ v̂ from the body twist's linear part
         rec.extend((0..3).map(|i| {
-            num((0..3)
-                .map(|j| e.q_hat[i * 4 + j] * e.v_hat[3 + j])
-                .sum::<f64>())
+            Cell::Num(
+                (0..3)
+                    .map(|j| e.q_hat[i * 4 + j] * e.v_hat[3 + j])
+                    .sum::<f64>(),
+            )
         }));
     }
-    rec.push(num(e.estimate_error));
+    rec.push(Cell::Num(e.estimate_error));
     if let Some(c) = e.covariance {
-        rec.extend(c.iter().map(|x| num(*x)));
-        rec.push(e.nees.map(num).unwrap_or_default());
+        rec.extend(nums(&c));
+        rec.push(e.nees.map_or(Cell::Empty, Cell::Num));
     }
 }
 
@@ -116,12 +117,11 @@ pub fn vehicle_header(n: usize, m: usize) -> Vec<String> {
 }
 
 /// The values of [`vehicle_header`]'s columns for one row.
-fn vehicle_fields(v: &crate::trajectory::VehicleRow, n: usize, m: usize, rec: &mut Vec<String>) {
-    rec.extend(v.demand[..n].iter().map(|x| num(*x)));
-    rec.extend(v.u_cmd[..m].iter().map(|x| num(*x)));
-    rec.extend(v.u[..m].iter().map(|x| num(*x)));
-    rec.extend(v.achieved[..n].iter().map(|x| num(*x)));
-    rec.push(v.status.to_string());
+fn vehicle_fields(v: &crate::trajectory::VehicleRow, n: usize, m: usize, rec: &mut Vec<Cell>) {
+    for xs in [&v.demand[..n], &v.u_cmd[..m], &v.u[..m], &v.achieved[..n]] {
+        rec.extend(xs.iter().map(|x| Cell::Num(*x)));
+    }
+    rec.push(Cell::Int(u64::from(v.status)));
 }
 
 fn io(path: &Path) -> impl Fn(std::io::Error) -> SimError + '_ {
@@ -132,82 +132,166 @@ fn csv_err(path: &Path) -> impl Fn(csv::Error) -> SimError + '_ {
     move |e| SimError::Run(format!("cannot write {}: {e}", path.display()))
 }
 
-/// Writes `trajectory.csv`, one row per control step, numbers in full round-trip precision.
-pub fn write_trajectory_csv(traj: &SimulatedTrajectory, path: &Path) -> Result<(), SimError> {
-    let (n, m) = traj.dims();
-    let mut w = csv::Writer::from_path(path).map_err(csv_err(path))?;
-    let mut header = trajectory_header(n, m);
-    let with_status = !traj.status.is_empty();
-    let directions = traj.estimator.as_ref().map(|e| e.directions);
-    let covariance = traj
-        .estimator
-        .as_ref()
-        .is_some_and(|e| e.mean_nees.is_some());
-    if let Some(d) = directions {
-        header.extend(estimate_header(n, d, n == 4, covariance));
+/// One cell of `trajectory.csv`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Cell {
+    /// A number, written in full round-trip precision ([`num`]).
+    Num(f64),
+    /// A code or a count.
+    Int(u64),
+    /// Nothing at this tick (a position fix that did not arrive).
+    Empty,
+}
+
+impl Cell {
+    /// The cell as `trajectory.csv` writes it.
+    pub fn text(&self) -> String {
+        match self {
+            Cell::Num(x) => num(*x),
+            Cell::Int(i) => i.to_string(),
+            Cell::Empty => String::new(),
+        }
     }
-    let with_terms = traj.rows.first().is_some_and(|r| r.terms.is_some());
-    if with_terms {
-        header.extend((0..m).map(|i| format!("dhat_{i}")));
-        header.extend((0..m).map(|i| format!("integral_{i}")));
+
+    /// The number the CSV's text reads back as (`NaN` for an empty cell): the same bits as
+    /// parsing [`Cell::text`].
+    pub fn value(&self) -> f64 {
+        match self {
+            Cell::Num(x) => *x,
+            Cell::Int(i) => *i as f64,
+            Cell::Empty => f64::NAN,
+        }
     }
-    let vehicle = traj.rows.first().and_then(|r| r.vehicle).map(|v| v.count);
-    if let Some(count) = vehicle {
-        header.extend(vehicle_header(m, count));
+}
+
+/// The columns `trajectory.csv` has for `traj`, and which optional blocks they hold.
+struct Layout {
+    n: usize,
+    m: usize,
+    directions: Option<usize>,
+    covariance: bool,
+    terms: bool,
+    vehicle: Option<usize>,
+    status: bool,
+}
+
+impl Layout {
+    fn of(traj: &SimulatedTrajectory) -> Layout {
+        let (n, m) = traj.dims();
+        Layout {
+            n,
+            m,
+            directions: traj.estimator.as_ref().map(|e| e.directions),
+            covariance: traj
+                .estimator
+                .as_ref()
+                .is_some_and(|e| e.mean_nees.is_some()),
+            terms: traj.rows.first().is_some_and(|r| r.terms.is_some()),
+            vehicle: traj.rows.first().and_then(|r| r.vehicle).map(|v| v.count),
+            status: !traj.status.is_empty(),
+        }
     }
-    if with_status {
-        header.push("command_status".to_owned());
+
+    fn header(&self) -> Vec<String> {
+        let (n, m) = (self.n, self.m);
+        let mut header = trajectory_header(n, m);
+        if let Some(d) = self.directions {
+            header.extend(estimate_header(n, d, n == 4, self.covariance));
+        }
+        if self.terms {
+            header.extend((0..m).map(|i| format!("dhat_{i}")));
+            header.extend((0..m).map(|i| format!("integral_{i}")));
+        }
+        if let Some(count) = self.vehicle {
+            header.extend(vehicle_header(m, count));
+        }
+        if self.status {
+            header.push("command_status".to_owned());
+        }
+        header
     }
-    w.write_record(header).map_err(csv_err(path))?;
-    let mut rec: Vec<String> = Vec::with_capacity(7 + m * 2 + n * n);
-    for (k, r) in traj.rows.iter().enumerate() {
+
+    fn cells(
+        &self,
+        traj: &SimulatedTrajectory,
+        k: usize,
+        rec: &mut Vec<Cell>,
+    ) -> Result<(), SimError> {
+        let (n, m) = (self.n, self.m);
+        let r = &traj.rows[k];
         rec.clear();
-        for x in [
-            r.t,
-            r.lyapunov,
-            r.config_error,
-            r.momentum_error,
-            r.attitude_error,
-            r.velocity_error,
-            r.torque_norm,
-        ] {
-            rec.push(num(x));
+        rec.extend(
+            [
+                r.t,
+                r.lyapunov,
+                r.config_error,
+                r.momentum_error,
+                r.attitude_error,
+                r.velocity_error,
+                r.torque_norm,
+            ]
+            .map(Cell::Num),
+        );
+        for xs in [&r.tau[..m], &r.q[..n * n], &r.v[..m]] {
+            rec.extend(xs.iter().map(|x| Cell::Num(*x)));
         }
-        rec.extend(r.tau[..m].iter().map(|x| num(*x)));
-        rec.extend(r.q[..n * n].iter().map(|x| num(*x)));
-        rec.extend(r.v[..m].iter().map(|x| num(*x)));
-        if directions.is_some() {
-            match &r.estimate {
-                Some(e) => estimate_fields(e, n, &mut rec),
-                None => {
-                    return Err(SimError::Run(format!(
-                        "row {k} of a run with sensors has no samples"
-                    )));
-                }
-            }
+        if self.directions.is_some() {
+            let e = r.estimate.as_ref().ok_or_else(|| {
+                SimError::Run(format!("row {k} of a run with sensors has no samples"))
+            })?;
+            estimate_fields(e, n, rec);
         }
-        if with_terms {
+        if self.terms {
             let t = r.terms.unwrap_or(crate::trajectory::Terms {
                 observer: [f64::NAN; 6],
                 integral: [f64::NAN; 6],
             });
-            rec.extend(t.observer[..m].iter().map(|x| num(*x)));
-            rec.extend(t.integral[..m].iter().map(|x| num(*x)));
-        }
-        if let Some(count) = vehicle {
-            match &r.vehicle {
-                Some(v) => vehicle_fields(v, m, count, &mut rec),
-                None => {
-                    return Err(SimError::Run(format!(
-                        "row {k} of a run with a vehicle has no allocation"
-                    )));
-                }
+            for xs in [&t.observer[..m], &t.integral[..m]] {
+                rec.extend(xs.iter().map(|x| Cell::Num(*x)));
             }
         }
-        if with_status {
-            rec.push(traj.status.get(k).copied().unwrap_or(0).to_string());
+        if let Some(count) = self.vehicle {
+            let v = r.vehicle.as_ref().ok_or_else(|| {
+                SimError::Run(format!("row {k} of a run with a vehicle has no allocation"))
+            })?;
+            vehicle_fields(v, m, count, rec);
         }
-        w.write_record(&rec).map_err(csv_err(path))?;
+        if self.status {
+            rec.push(Cell::Int(u64::from(
+                traj.status.get(k).copied().unwrap_or(0),
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The table `trajectory.csv` holds: its header, then `row(cells)` for each control step in
+/// order. The CSV and the Python package's columns are both made from it.
+pub fn trajectory_table(
+    traj: &SimulatedTrajectory,
+    mut row: impl FnMut(&[Cell]) -> Result<(), SimError>,
+) -> Result<Vec<String>, SimError> {
+    let layout = Layout::of(traj);
+    let mut rec = Vec::new();
+    for k in 0..traj.rows.len() {
+        layout.cells(traj, k, &mut rec)?;
+        row(&rec)?;
+    }
+    Ok(layout.header())
+}
+
+/// Writes `trajectory.csv`, one row per control step, numbers in full round-trip precision.
+pub fn write_trajectory_csv(traj: &SimulatedTrajectory, path: &Path) -> Result<(), SimError> {
+    let mut w = csv::Writer::from_path(path).map_err(csv_err(path))?;
+    let layout = Layout::of(traj);
+    w.write_record(layout.header()).map_err(csv_err(path))?;
+    let mut rec = Vec::new();
+    let mut text: Vec<String> = Vec::new();
+    for k in 0..traj.rows.len() {
+        layout.cells(traj, k, &mut rec)?;
+        text.clear();
+        text.extend(rec.iter().map(Cell::text));
+        w.write_record(&text).map_err(csv_err(path))?;
     }
     w.flush().map_err(io(path))
 }

@@ -50,6 +50,17 @@ impl Scenario {
         Validator { origin, base: None }.parse(text, default_name)
     }
 
+    /// [`Scenario::from_toml`] for text read from a file in `base` (its waypoint files are
+    /// relative to it), as [`Scenario::from_file`] parses the file's own text.
+    pub fn from_toml_in(
+        text: &str,
+        origin: &str,
+        default_name: &str,
+        base: Option<&Path>,
+    ) -> Result<Scenario, ScenarioError> {
+        Validator { origin, base }.parse(text, default_name)
+    }
+
     /// Overrides the law (checked against the group).
     pub fn with_law(mut self, law: Law) -> Result<Scenario, ScenarioError> {
         self.law = parse_law(law.name(), self.group, "--law", "the command line")?;

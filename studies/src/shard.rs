@@ -114,6 +114,14 @@ pub fn write_shard(
     study: &Study,
     results: &[RunResult],
 ) -> Result<(), SimError> {
+    let path = dir.join(SHARD_FILE);
+    std::fs::write(&path, encode_shard(shard, study, results))
+        .map_err(|e| SimError::Run(format!("cannot write {}: {e}", path.display())))
+}
+
+/// The bytes of `shard.bin` for shard `shard` of `study` (a Ray task returns them instead of
+/// writing a file).
+pub fn encode_shard(shard: Shard, study: &Study, results: &[RunResult]) -> Vec<u8> {
     let mut b = Vec::new();
     b.extend_from_slice(MAGIC);
     for x in [VERSION, shard.index as u32, shard.count as u32] {
@@ -147,9 +155,7 @@ pub fn write_shard(
             put_f64s(&mut b, row);
         }
     }
-    let path = dir.join(SHARD_FILE);
-    std::fs::write(&path, b)
-        .map_err(|e| SimError::Run(format!("cannot write {}: {e}", path.display())))
+    b
 }
 
 /// Reads a `shard.bin` field by field; every shortfall is an error naming the file.
@@ -208,14 +214,25 @@ impl Reader<'_> {
 
 /// Reads `dir/shard.bin`: its shard, its study and its results.
 pub fn read_shard(dir: &Path) -> Result<(Shard, Study, Vec<RunResult>), SimError> {
+    let (shown, b) = read_file(dir)?;
+    decode_shard(&b, &shown)
+}
+
+fn read_file(dir: &Path) -> Result<(String, Vec<u8>), SimError> {
     let path = dir.join(SHARD_FILE);
     let shown = path.display().to_string();
     let b = std::fs::read(&path)
         .map_err(|e| SimError::Input(format!("shard {shown}: cannot read it: {e}")))?;
+    Ok((shown, b))
+}
+
+/// Decodes [`encode_shard`]'s bytes (`shown` names them in errors): its shard, its study and
+/// its results. Every shortfall or inconsistency is an error, never a panic.
+pub fn decode_shard(b: &[u8], shown: &str) -> Result<(Shard, Study, Vec<RunResult>), SimError> {
     let mut r = Reader {
-        b: &b,
+        b,
         at: 0,
-        path: &shown,
+        path: shown,
     };
     if r.take(8)? != MAGIC {
         return Err(SimError::Input(format!(
@@ -281,11 +298,26 @@ pub fn read_shard(dir: &Path) -> Result<(Shard, Study, Vec<RunResult>), SimError
 /// run, then by law in the study's order). Refuses shards of different studies, a shard
 /// given twice, a missing shard, or a shard whose runs are not its share, naming which.
 pub fn merge(dirs: &[&Path], expected: &Study) -> Result<Vec<RunResult>, SimError> {
-    let mut seen: Vec<Option<&Path>> = Vec::new();
+    let shards = dirs
+        .iter()
+        .map(|dir| {
+            let (_, b) = read_file(dir)?;
+            Ok((dir.display().to_string(), b))
+        })
+        .collect::<Result<Vec<_>, SimError>>()?;
+    merge_encoded(&shards, expected)
+}
+
+/// [`merge`] over shards already in memory: `(name, bytes)` pairs, each the bytes of
+/// [`encode_shard`] (a Ray driver's results), named in errors.
+pub fn merge_encoded(
+    shards: &[(String, Vec<u8>)],
+    expected: &Study,
+) -> Result<Vec<RunResult>, SimError> {
+    let mut seen: Vec<Option<&str>> = Vec::new();
     let mut all = Vec::new();
-    for dir in dirs {
-        let (shard, study, results) = read_shard(dir)?;
-        let name = dir.display();
+    for (name, bytes) in shards {
+        let (shard, study, results) = decode_shard(bytes, &format!("{name}/{SHARD_FILE}"))?;
         if study != *expected {
             return Err(SimError::Input(format!(
                 "shard {name}: another study ({} runs, laws {:?}, scenario {:016x}, samples {:016x}) than this one ({} runs, laws {:?}, scenario {:016x}, samples {:016x}): give --merge the same --scenario, --runs, --seed (or --samples) and --laws as the shards",
@@ -312,12 +344,10 @@ pub fn merge(dirs: &[&Path], expected: &Study) -> Result<Vec<RunResult>, SimErro
         if let Some(first) = seen[shard.index] {
             return Err(SimError::Input(format!(
                 "shard {} of {} given twice: {} and {name}",
-                shard.index,
-                shard.count,
-                first.display()
+                shard.index, shard.count, first
             )));
         }
-        seen[shard.index] = Some(dir);
+        seen[shard.index] = Some(name);
         let wanted = shard.select(&vec![
             Sample {
                 r: [0.0; 3],
