@@ -689,38 +689,47 @@ fn shards_merge_into_the_unsharded_study_byte_for_byte() {
         run(&a)
     };
     ok(&with(&["--out", &d("whole")]));
-    for (i, threads) in [(0, "1"), (1, "2"), (2, "1")] {
-        ok(&with(&[
-            "--shard",
-            &format!("{i}/3"),
-            "--threads",
-            threads,
-            "--out",
-            &d(&format!("s{i}")),
-        ]));
+    // N = 1, 3 and 7 (7 runs: one run a shard), each shard on its own thread count, merged
+    // in reverse order
+    for n in [1usize, 3, 7] {
+        for i in 0..n {
+            let threads = if i % 2 == 0 { "1" } else { "2" };
+            ok(&with(&[
+                "--shard",
+                &format!("{i}/{n}"),
+                "--threads",
+                threads,
+                "--out",
+                &d(&format!("n{n}/s{i}")),
+            ]));
+        }
+        let dirs: Vec<String> = (0..n).rev().map(|i| d(&format!("n{n}/s{i}"))).collect();
+        let merged = d(&format!("merged{n}"));
+        let mut args: Vec<&str> = vec!["--merge"];
+        args.extend(dirs.iter().map(String::as_str));
+        args.extend(["--out", &merged]);
+        ok(&with(&args));
+        for f in [
+            "runs.csv",
+            "mean.csv",
+            "summary.json",
+            "figure.svg",
+            "figure.png",
+        ] {
+            let a = std::fs::read(dir.path().join("whole").join(f)).unwrap();
+            let b = std::fs::read(dir.path().join(format!("merged{n}")).join(f)).unwrap();
+            assert!(
+                a == b,
+                "{f}: the study merged from {n} shards differs from the unsharded one"
+            );
+        }
     }
-    // any order of the shard directories
-    ok(&with(&[
-        "--merge",
-        &d("s2"),
-        &d("s0"),
-        &d("s1"),
-        "--out",
-        &d("merged"),
-    ]));
-    for f in [
-        "runs.csv",
-        "mean.csv",
-        "summary.json",
-        "figure.svg",
-        "figure.png",
-    ] {
-        let a = std::fs::read(dir.path().join("whole").join(f)).unwrap();
-        let b = std::fs::read(dir.path().join("merged").join(f)).unwrap();
-        assert!(
-            a == b,
-            "{f}: the merged study differs from the unsharded one"
-        );
+    for i in 0..3 {
+        std::fs::rename(
+            dir.path().join(format!("n3/s{i}")),
+            dir.path().join(format!("s{i}")),
+        )
+        .unwrap();
     }
     // a shard holds its share only: run indices 1 and 4 for shard 1 of 3 (7 runs)
     let (h, rows) = read_csv(&dir.path().join("s1/runs.csv"));

@@ -1,6 +1,6 @@
 //! The building blocks from Python, each stepping on numpy arrays: the law
 //! (docs/maths.md, "The EqT law" and the comparison laws), the complementary filter and the
-//! equivariant filter (docs/maths.md, "Sensors and the estimator"), and a vehicle's allocator
+//! equivariant filter (docs/maths.md, "Estimators"), and a vehicle's allocator
 //! (docs/maths.md, "Control allocation").
 
 use crate::arrays::{matrix, out1, out2, read_into, rows, rows3, vector};
@@ -23,8 +23,8 @@ fn value_err(e: impl std::fmt::Display) -> PyErr {
 }
 
 enum Either {
-    So3(Law<f64, So3, 3, 3>),
-    Se3(Law<f64, Se3, 4, 6>),
+    So3(Box<Law<f64, So3, 3, 3>>),
+    Se3(Box<Law<f64, Se3, 4, 6>>),
 }
 
 /// The scenario's controller (its law, gains, model inertia and torque limit).
@@ -69,8 +69,12 @@ impl Controller {
     fn new(scenario: &Bound<'_, PyAny>, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
         let s = source::load(scenario, overrides)?;
         let law = match s.group {
-            GroupKind::So3 => Either::So3(s.controller::<So3, 3, 3>().map_err(value_err)?),
-            GroupKind::Se3 => Either::Se3(s.controller::<Se3, 4, 6>().map_err(value_err)?),
+            GroupKind::So3 => {
+                Either::So3(Box::new(s.controller::<So3, 3, 3>().map_err(value_err)?))
+            }
+            GroupKind::Se3 => {
+                Either::Se3(Box::new(s.controller::<Se3, 4, 6>().map_err(value_err)?))
+            }
         };
         Ok(Controller {
             law,
@@ -234,9 +238,12 @@ impl EquivariantFilter {
 }
 
 enum Alloc {
-    Three(allocation::Allocator<f64, 3>),
-    Six(allocation::Allocator<f64, 6>),
+    Three(Box<allocation::Allocator<f64, 3>>),
+    Six(Box<allocation::Allocator<f64, 6>>),
 }
+
+/// `(u_cmd, B u_cmd, status)`.
+type Allocated<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, u8);
 
 /// A vehicle's allocator, from its scenario's `[vehicle]`.
 #[pyclass(module = "eqtrack._native", name = "Allocator", frozen)]
@@ -248,7 +255,7 @@ fn allocate<'py, const K: usize>(
     py: Python<'py>,
     a: &allocation::Allocator<f64, K>,
     demand: &Bound<'py, PyAny>,
-) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, u8)> {
+) -> PyResult<Allocated<'py>> {
     let d = vector::<K>(demand, "demand")?;
     let r = a.allocate(&d);
     let count = a.geometry().count();
@@ -270,8 +277,8 @@ impl Allocator {
             PyValueError::new_err(format!("scenario `{}` has no [vehicle]", s.name))
         })?;
         let alloc = match s.group {
-            GroupKind::So3 => Alloc::Three(v.allocator::<3>().map_err(value_err)?),
-            GroupKind::Se3 => Alloc::Six(v.allocator::<6>().map_err(value_err)?),
+            GroupKind::So3 => Alloc::Three(Box::new(v.allocator::<3>().map_err(value_err)?)),
+            GroupKind::Se3 => Alloc::Six(Box::new(v.allocator::<6>().map_err(value_err)?)),
         };
         Ok(Allocator { alloc })
     }
@@ -291,7 +298,7 @@ impl Allocator {
         &self,
         py: Python<'py>,
         demand: &Bound<'py, PyAny>,
-    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, u8)> {
+    ) -> PyResult<Allocated<'py>> {
         match &self.alloc {
             Alloc::Three(a) => allocate(py, a, demand),
             Alloc::Six(a) => allocate(py, a, demand),

@@ -1,7 +1,7 @@
 //! The Python package `eqtrack`'s native module (`eqtrack._native`; docs/python.md): thin
 //! bindings over the libraries the command line uses, so that Python gets the same numbers.
 //!
-//! - [`simulate`]: `plant_sim sim`'s closed loop, its `trajectory.csv` columns (from the one
+//! - `simulate`: `plant_sim sim`'s closed loop, its `trajectory.csv` columns (from the one
 //!   table the CSV is written from) and its `summary.json`.
 //! - `montecarlo`, `montecarlo_shard`, `montecarlo_merge`: the Monte Carlo study, whole or in
 //!   the seed-indexed shards of `plant_sim montecarlo --shard` (the Ray engine's tasks).

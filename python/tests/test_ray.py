@@ -15,7 +15,7 @@ import pytest
 import eqtrack
 from conftest import cli, read_csv, same_bits
 
-ray = pytest.importorskip("ray")
+import ray
 ENV = dict(os.environ, RAY_AUTH_MODE="disabled", RAY_USAGE_STATS_ENABLED="0")
 os.environ.update(RAY_AUTH_MODE="disabled", RAY_USAGE_STATS_ENABLED="0")
 

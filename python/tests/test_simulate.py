@@ -87,8 +87,8 @@ def test_a_bad_value_and_a_missing_file_raise_the_cli_message(plant_sim, tmp_pat
         eqtrack.simulate(42)
 
 
-def test_to_pandas_where_pandas_is_installed():
-    pd = pytest.importorskip("pandas")
+def test_to_pandas():
+    import pandas as pd
     run = eqtrack.simulate(eqtrack.builtin_scenario("seed"), duration=0.5)
     df = run.to_pandas()
     assert isinstance(df, pd.DataFrame)
