@@ -31,6 +31,9 @@
 //!   and decoder (COBS, CRC, version, postcard); a decoded frame must re-encode to itself.
 //!   Seeds: every frame kind, alone and back to back; a third of the cases wrap a mutated
 //!   message in a valid envelope so that the message decoder is reached past the CRC.
+//! * **shard** — a Monte Carlo shard's bytes (`shard.bin`, and what a Ray task returns)
+//!   through `studies::shard::decode_shard` and `merge_encoded`; a decoded shard must
+//!   re-encode to itself. Seeds: the shards of a small real study.
 //!
 //! Each case is one corpus item with 1–8 random mutations (byte-level: bit flips, byte
 //! overwrite, insert, delete, truncation, chunk duplication, splicing; TOML: number and string
@@ -57,6 +60,7 @@ mod recording_target;
 mod rng;
 mod scenario_target;
 mod serial_target;
+mod shard_target;
 mod wire_target;
 
 use controller::GroupKind;
@@ -83,16 +87,19 @@ pub enum Target {
     Recording,
     /// The processor-in-the-loop serial line: frames through the deframer and decoder.
     Serial,
+    /// A Monte Carlo shard's bytes: decoder and merge.
+    Shard,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 5] = [
+    pub const ALL: [Target; 6] = [
         Target::Scenario,
         Target::Wire,
         Target::Path,
         Target::Recording,
         Target::Serial,
+        Target::Shard,
     ];
 
     /// Lower-case name (`"scenario"`, `"wire"`, `"path"`), as on the command line.
@@ -103,6 +110,7 @@ impl Target {
             Target::Path => "path",
             Target::Recording => "recording",
             Target::Serial => "serial",
+            Target::Shard => "shard",
         }
     }
 }
@@ -162,13 +170,19 @@ pub enum Case {
     Recording(Vec<u8>),
     /// Bytes on the processor-in-the-loop serial line.
     Serial(Vec<u8>),
+    /// A Monte Carlo shard's bytes.
+    Shard(Vec<u8>),
 }
 
 impl Case {
     /// The raw input bytes (TOML text, or the message bytes).
     pub fn bytes(&self) -> &[u8] {
         match self {
-            Case::Scenario(b) | Case::Path(b) | Case::Recording(b) | Case::Serial(b) => b,
+            Case::Scenario(b)
+            | Case::Path(b)
+            | Case::Recording(b)
+            | Case::Serial(b)
+            | Case::Shard(b) => b,
             Case::Wire(w) => &w.bytes,
         }
     }
@@ -176,9 +190,11 @@ impl Case {
     /// What besides the bytes defines the case (the wire receiver), for reports.
     pub fn context(&self) -> String {
         match self {
-            Case::Scenario(_) | Case::Path(_) | Case::Recording(_) | Case::Serial(_) => {
-                String::new()
-            }
+            Case::Scenario(_)
+            | Case::Path(_)
+            | Case::Recording(_)
+            | Case::Serial(_)
+            | Case::Shard(_) => String::new(),
             Case::Wire(w) => format!("{:?} message, receiver {:?}", w.kind, w.receiver),
         }
     }
@@ -252,7 +268,7 @@ impl fmt::Display for Finding {
                 write!(f, "  input:\n{}", String::from_utf8_lossy(b))
             }
             Case::Wire(w) => write!(f, "  input ({} bytes): {}", w.bytes.len(), hex(&w.bytes)),
-            Case::Recording(b) | Case::Serial(b) => {
+            Case::Recording(b) | Case::Serial(b) | Case::Shard(b) => {
                 write!(f, "  input ({} bytes): {}", b.len(), hex(b))
             }
         }
@@ -446,6 +462,7 @@ pub fn check(case: &Case) -> Outcome {
         Case::Wire(w) => wire_target::check(w),
         Case::Recording(bytes) => recording_target::check(bytes),
         Case::Serial(bytes) => serial_target::check(bytes),
+        Case::Shard(bytes) => shard_target::check(bytes),
     }
 }
 
@@ -458,6 +475,7 @@ pub struct Generator {
     wire: Option<wire_target::Corpus>,
     recordings: Option<recording_target::Corpus>,
     serial: Option<serial_target::Corpus>,
+    shards: Option<shard_target::Corpus>,
 }
 
 impl Generator {
@@ -471,6 +489,7 @@ impl Generator {
             wire: (target == Target::Wire).then(wire_target::Corpus::new),
             recordings: (target == Target::Recording).then(recording_target::Corpus::new),
             serial: (target == Target::Serial).then(serial_target::Corpus::new),
+            shards: (target == Target::Shard).then(shard_target::Corpus::new),
         }
     }
 
@@ -479,6 +498,9 @@ impl Generator {
         let mut g = self.streams.case(case);
         if let Some(c) = &self.serial {
             return Case::Serial(c.generate(&mut g));
+        }
+        if let Some(c) = &self.shards {
+            return Case::Shard(c.generate(&mut g));
         }
         match (&self.scenarios, &self.wire, &self.paths, &self.recordings) {
             (Some(c), _, _, _) => Case::Scenario(c.generate(&mut g)),

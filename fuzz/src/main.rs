@@ -29,6 +29,8 @@ enum Which {
     Recording,
     /// The processor-in-the-loop serial line's frames.
     Serial,
+    /// A Monte Carlo shard's bytes.
+    Shard,
     /// Every target.
     All,
 }
@@ -65,6 +67,7 @@ fn targets(which: Which) -> Vec<Target> {
         Which::Path => vec![Target::Path],
         Which::Recording => vec![Target::Recording],
         Which::Serial => vec![Target::Serial],
+        Which::Shard => vec![Target::Shard],
         Which::All => Target::ALL.to_vec(),
     }
 }
@@ -125,7 +128,8 @@ fn print_input(input: &fuzz::Case) {
         }
         fuzz::Case::Wire(fuzz::WireCase { bytes, .. })
         | fuzz::Case::Recording(bytes)
-        | fuzz::Case::Serial(bytes) => {
+        | fuzz::Case::Serial(bytes)
+        | fuzz::Case::Shard(bytes) => {
             let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
             println!("  input ({} bytes): {hex}", bytes.len())
         }

@@ -102,6 +102,22 @@ fn serial_inputs_never_panic() {
 }
 
 #[test]
+fn shard_inputs_never_panic() {
+    let r = fuzz::run(Target::Shard, CASES, SEED);
+    assert_sound(&r, 3);
+    // the decoder's refusals and the merge's are reached
+    for kind in [
+        "shard: CutShort",
+        "shard: Magic",
+        "shard: Version",
+        "shard: NotWhole",
+        "merge: NotItsShare",
+    ] {
+        assert!(r.rejected.contains_key(kind), "{kind} never seen\n{r}");
+    }
+}
+
+#[test]
 fn recording_inputs_never_panic() {
     let r = fuzz::run(Target::Recording, CASES, SEED);
     assert_sound(&r, 8);

@@ -743,6 +743,7 @@ fn shards_merge_into_the_unsharded_study_byte_for_byte() {
     };
     refused(&["--shard", "3/3"], "I must be less than N");
     refused(&["--shard", "0/0"], "N must be at least 1");
+    refused(&["--shard", "0/2000000"], "N must be at most 1048576");
     refused(&["--shard", "a/2"], "I is not a whole number");
     refused(&["--shard", "1"], "no `/`");
     refused(&["--merge", &d("s0"), &d("s1")], "shard 2 of 3 is missing");

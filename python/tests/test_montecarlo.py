@@ -37,3 +37,69 @@ def test_bad_study_inputs_raise(plant_sim):
         eqtrack.montecarlo(runs=2, workers=3)
     with pytest.raises(ValueError, match="defined on so3"):
         eqtrack.montecarlo(scenario=eqtrack.builtin_scenario("se3_circle"), runs=2)
+
+
+def test_the_gil_is_released_while_rust_works():
+    import threading
+
+    done = threading.Event()
+    ticks = 0
+
+    def study():
+        eqtrack.montecarlo(runs=200, seed=1, threads=1)
+        done.set()
+
+    t = threading.Thread(target=study)
+    t.start()
+    # Python keeps running beside the study: with the GIL held it would not count at all
+    # until the study ended
+    while not done.is_set():
+        ticks += 1
+    t.join()
+    assert ticks > 10_000, f"the main thread ran only {ticks} times during the study"
+
+
+def test_garbage_shards_are_refused_never_a_crash():
+    import os
+    import random
+
+    from eqtrack import _native
+
+    good = _native.montecarlo_shard(None, 4, 1, ["eqt"], 0, 2)
+    other = _native.montecarlo_shard(None, 4, 1, ["eqt"], 1, 2)
+    merged = _native.montecarlo_merge(None, 4, 1, ["eqt"], [other, good])
+    assert list(merged["run"]) == [0, 1, 2, 3]
+    with pytest.raises(ValueError, match="shard 1 of 2 is missing"):
+        _native.montecarlo_merge(None, 4, 1, ["eqt"], [good])
+    with pytest.raises(ValueError, match="another study"):
+        _native.montecarlo_merge(None, 5, 1, ["eqt"], [good, other])
+    rng = random.Random(7)
+    for _ in range(300):
+        b = bytearray(good)
+        for _ in range(rng.randint(1, 8)):
+            i = rng.randrange(len(b))
+            b[i] = rng.randrange(256)
+        if rng.random() < 0.3:
+            b = b[: rng.randrange(len(b))]
+        try:
+            _native.montecarlo_merge(None, 4, 1, ["eqt"], [bytes(b), other])
+        except ValueError:
+            pass
+    for n in (0, 1, 7, 64, 4096):
+        with pytest.raises(ValueError):
+            _native.montecarlo_merge(None, 4, 1, ["eqt"], [os.urandom(n), other])
+    with pytest.raises(ValueError, match="I must be less than N"):
+        _native.montecarlo_shard(None, 4, 1, ["eqt"], 2, 2)
+
+
+def test_odd_overrides_are_refused_with_a_message():
+    with pytest.raises(ValueError, match="cannot be written as TOML"):
+        eqtrack.simulate(eqtrack.builtin_scenario("seed"), duration=object())
+    with pytest.raises(ValueError, match="integer out of range"):
+        eqtrack.simulate(eqtrack.builtin_scenario("seed"), plant_substeps=2**70)
+    with pytest.raises(ValueError):
+        eqtrack.simulate(eqtrack.builtin_scenario("seed"), controller=[1, 2])
+    with pytest.raises(ValueError):
+        eqtrack.simulate(eqtrack.builtin_scenario("seed"), controller={"kp": float("nan")})
+    with pytest.raises(ValueError):
+        eqtrack.montecarlo(runs=2, overrides={"duration": -1.0})

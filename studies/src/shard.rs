@@ -22,6 +22,9 @@ pub const SHARD_FILE: &str = "shard.bin";
 const MAGIC: &[u8; 8] = b"EQTRKMCS";
 const VERSION: u32 = 1;
 
+/// The most shards a study is split into (a merge keeps one slot per shard).
+pub const MAX_SHARDS: usize = 1 << 20;
+
 /// Which share of the study: the runs whose index is `index` modulo `count`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Shard {
@@ -47,6 +50,9 @@ impl std::str::FromStr for Shard {
             .map_err(|_| bad("N is not a whole number"))?;
         if count == 0 {
             return Err(bad("N must be at least 1"));
+        }
+        if count > MAX_SHARDS {
+            return Err(bad(&format!("N must be at most {MAX_SHARDS}")));
         }
         if index >= count {
             return Err(bad("I must be less than N"));
@@ -279,7 +285,7 @@ pub fn decode_shard(b: &[u8], shown: &str) -> Result<(Shard, Study, Vec<RunResul
             series,
         });
     }
-    if r.at != b.len() || count == 0 || index >= count || n_laws > 16 {
+    if r.at != b.len() || count == 0 || count > MAX_SHARDS || index >= count || n_laws > 16 {
         return Err(SimError::Input(format!(
             "shard {shown}: not a whole shard file (shard {index} of {count}, {} bytes over)",
             b.len() - r.at
@@ -348,20 +354,15 @@ pub fn merge_encoded(
             )));
         }
         seen[shard.index] = Some(name);
-        let wanted = shard.select(&vec![
-            Sample {
-                r: [0.0; 3],
-                w: [0.0; 3]
-            };
-            study.runs
-        ]);
-        let mine: Vec<usize> = results.iter().map(|r| r.run).collect();
+        // its share: runs index, index + count, ... below the study's run count, each once
+        // per law (counted, not listed: the run count comes from the file)
+        let share = (shard.index..study.runs).step_by(shard.count).len();
         let laws = study.laws.len();
-        if mine.len() != wanted.len() * laws
-            || mine
+        if results.len() != share.saturating_mul(laws)
+            || results
                 .iter()
                 .enumerate()
-                .any(|(k, run)| *run != wanted[k / laws].0)
+                .any(|(k, r)| r.run != shard.index + (k / laws) * shard.count)
         {
             return Err(SimError::Input(format!(
                 "shard {name}: its runs are not shard {} of {}'s share (interrupted?)",
