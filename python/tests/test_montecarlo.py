@@ -41,22 +41,28 @@ def test_bad_study_inputs_raise(plant_sim):
 
 def test_the_gil_is_released_while_rust_works():
     import threading
+    import time
 
-    done = threading.Event()
+    started, done = threading.Event(), threading.Event()
     ticks = 0
 
     def study():
-        eqtrack.montecarlo(runs=200, seed=1, threads=1)
+        started.set()
+        eqtrack.montecarlo(runs=200, seed=1, threads=1)  # about 1.4 s of Rust on one thread
         done.set()
 
     t = threading.Thread(target=study)
     t.start()
-    # Python keeps running beside the study: with the GIL held it would not count at all
-    # until the study ended
+    started.wait()
+    t0 = time.perf_counter()
+    # Python keeps running beside the study: with the GIL held, this thread would wait
+    # until the study returned and count almost nothing
     while not done.is_set():
         ticks += 1
+    elapsed = time.perf_counter() - t0
     t.join()
-    assert ticks > 10_000, f"the main thread ran only {ticks} times during the study"
+    assert elapsed > 0.3, f"the study took only {elapsed:.2f} s: too short to tell"
+    assert ticks > 1_000_000, f"the main thread ran only {ticks} times in {elapsed:.2f} s"
 
 
 def test_garbage_shards_are_refused_never_a_crash():
