@@ -57,48 +57,10 @@ step() { printf '[%4ds] %s\n' "$SECONDS" "$*" >&2; }
 
 # --- 1. the private toolchain ------------------------------------------------------------
 
-# shellcheck source=scripts/lib/debian.sh
-source "$REPO/scripts/lib/debian.sh"
-QEMU=$PREFIX/usr/bin/qemu-system-arm
-debian_fetch "${PACKAGES[@]}"
-# build-std reads only library/ of the source tree: drop the compiler's and the tools'
-# sources (about 370 MB) and the documentation.
-rm -rf "$PREFIX"/usr/src/rustc-*/{src,compiler,tests} "$PREFIX"/usr/share/doc
-debian_fix_libs "$QEMU" "$RUSTC_PRIVATE"
-step "toolchain: in $CACHE"
-
-# build-std reads the library sources from <sysroot>/lib/rustlib/src/rust (the package links
-# it to /usr/src/rustc-<version>; make sure the link exists).
-SRC_LINK=$PREFIX/usr/lib/rustlib/src/rust
-if [[ ! -d $SRC_LINK/library/core ]]; then
-	src=$(ls -d "$PREFIX"/usr/src/rustc-* 2>/dev/null | head -1)
-	[[ -n $src && -d $src/library/core ]] || die "rust-web-src did not provide library sources under $PREFIX/usr/src"
-	mkdir -p "$(dirname "$SRC_LINK")"
-	ln -sfn "$src" "$SRC_LINK"
-fi
-
-# The linker: rust-lld from the machine's rustup toolchain (Debian's rustc-web has none).
-HOST_SYSROOT=$(env -u RUSTC rustc --print sysroot 2>/dev/null || true)
-LLD=$(ls "$HOST_SYSROOT"/lib/rustlib/*/bin/rust-lld 2>/dev/null | head -1 || true)
-[[ -n $LLD ]] || LLD=$(ls "${RUSTUP_HOME:-$HOME/.rustup}"/toolchains/*/lib/rustlib/*/bin/rust-lld 2>/dev/null | head -1 || true)
-[[ -n $LLD ]] || die "rust-lld not found (expected in the rustup toolchain: $HOST_SYSROOT/lib/rustlib/<host>/bin)"
-
-echo "toolchain: $(LD_LIBRARY_PATH=$LIBS "$RUSTC_PRIVATE" --version); $(LD_LIBRARY_PATH=$LIBS "$QEMU" --version | head -1); linker $LLD"
+# shellcheck source=scripts/lib/cortex-m-toolchain.sh
+source "$REPO/scripts/lib/cortex-m-toolchain.sh"
 
 # --- 2. firmware: build and run under QEMU ---------------------------------------------------
-
-# Only the firmware's commands see the private toolchain; RUSTFLAGS from the caller would
-# replace the config's `-Tlink.x`, so they are dropped.
-fw_env() {
-	(cd "$FW" && exec env -u RUSTFLAGS -u CARGO_ENCODED_RUSTFLAGS -u CARGO_BUILD_RUSTFLAGS \
-		-u CARGO_BUILD_TARGET \
-		CARGO_TARGET_DIR="$FW/target" \
-		LD_LIBRARY_PATH="$LIBS${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}" \
-		PATH="$PREFIX/usr/bin:$PATH" \
-		RUSTC="$RUSTC_PRIVATE" RUSTC_BOOTSTRAP=1 \
-		CARGO_TARGET_THUMBV7EM_NONE_EABIHF_LINKER="$LLD" \
-		"$@")
-}
 
 mkdir -p "$OUT"
 step "building the firmware ($TARGET, -Z build-std=core)"

@@ -142,6 +142,7 @@ fn case_options(
         wake,
         transport,
         spawn: true,
+        serial: None,
         run: format!("bench-loop-{i}"),
         out,
         miss_limit: 3,

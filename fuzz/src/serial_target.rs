@@ -54,6 +54,7 @@ fn seed_frames() -> Vec<Frame> {
     };
     let command = CommandFrame {
         seq: 4000,
+        law: 0,
         tau: v(&[0.1; 6]),
         lyapunov: 1e-3,
         observer: v(&[0.01; 6]),

@@ -56,6 +56,7 @@ pub mod plan;
 pub mod plant_side;
 pub mod process;
 pub mod rt;
+pub mod serial;
 pub mod status;
 pub mod transport;
 pub mod uds;
@@ -194,6 +195,14 @@ pub enum LinkError {
     Io {
         /// The socket's path.
         path: std::path::PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// The serial link to a processor-in-the-loop firmware failed.
+    #[error("serial link: {what}: {source}")]
+    Serial {
+        /// What was being done.
+        what: String,
         /// The error.
         source: std::io::Error,
     },

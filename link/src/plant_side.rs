@@ -144,6 +144,12 @@ impl PlantEndpoint {
             });
         }
         let transport = open(config.transport, &config.run, Role::Plant)?;
+        Ok(PlantEndpoint::with_transport(config, transport))
+    }
+
+    /// The plant's side over a transport opened by the caller (the processor-in-the-loop
+    /// serial link, [`crate::serial::SerialTransport`]); `config.transport` is not used.
+    pub fn with_transport(config: PlantEndpointConfig, transport: PlantTransport) -> PlantEndpoint {
         let identity = Identity::new(
             crate::wire::wire_group(config.group),
             config.control_period,
@@ -160,7 +166,7 @@ impl PlantEndpoint {
         template.plant_pid = std::process::id();
         template.fingerprint = identity.fingerprint;
         template.scenario = identity.scenario;
-        Ok(PlantEndpoint {
+        PlantEndpoint {
             transport,
             config,
             identity,
@@ -168,7 +174,7 @@ impl PlantEndpoint {
             template,
             last_seq: 0,
             late: 0,
-        })
+        }
     }
 
     /// The configuration it was opened with.

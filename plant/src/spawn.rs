@@ -16,7 +16,7 @@ impl Spawned {
     /// name, transport and the controller's real-time settings; it writes what those did to
     /// `controller-realtime.json` in the output directory (nothing with `--no-spawn`).
     pub fn start(opts: &PairOptions) -> Result<Spawned, SimError> {
-        if !opts.spawn {
+        if !opts.spawn || opts.serial.is_some() {
             return Ok(Spawned(None, None));
         }
         let exe = std::env::current_exe()

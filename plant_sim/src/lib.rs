@@ -34,7 +34,9 @@ use std::process::ExitCode;
 
 mod cmd;
 
-use cmd::{bench_loop, export, monitor, montecarlo, noise, reference, rejection, replay, run, sim};
+use cmd::{
+    bench_loop, export, monitor, montecarlo, noise, pil, reference, rejection, replay, run, sim,
+};
 
 #[derive(Parser)]
 #[command(
@@ -80,6 +82,9 @@ enum Command {
     /// Watch a running pair live in the terminal: rate, round trip, misses, safe mode, the
     /// Lyapunov value. Read-only; exits when the run ends, or on q or Ctrl-C.
     Monitor(monitor::MonitorArgs),
+    /// Write the processor-in-the-loop firmware's configuration for a scenario (the bytes
+    /// scripts/pil.sh builds the firmware with), and print the identity it will greet with.
+    PilConfig(pil::PilConfigArgs),
 }
 
 /// Parses the command line and runs its subcommand (`sim` with the seed scenario when none
@@ -106,6 +111,7 @@ pub fn main() -> ExitCode {
         Some(Command::Export(a)) => export::export_cmd(a),
         Some(Command::Replay(a)) => replay::replay_cmd(a),
         Some(Command::Monitor(a)) => monitor::monitor_cmd(a, &stop),
+        Some(Command::PilConfig(a)) => pil::pil_config_cmd(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

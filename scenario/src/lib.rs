@@ -9,6 +9,7 @@
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod cli;
+mod firmware;
 pub mod rejection;
 pub mod sensing;
 pub mod vehicle;

@@ -106,6 +106,9 @@ pub struct Allocation {
 pub struct CommandFrame {
     /// The state's k.
     pub seq: u64,
+    /// The law that computed it: its index in `controller::Law::ALL` (0 EqT, 1 GT, 2 nog,
+    /// 3 asym).
+    pub law: u8,
     /// The law's wrench (m entries).
     pub tau: Vec<f32, 6>,
     /// The Lyapunov function at `t_k`.

@@ -42,6 +42,7 @@ fn state() -> StateFrame {
 fn command() -> CommandFrame {
     CommandFrame {
         seq: u64::MAX,
+        law: 3,
         tau: vec(&[f32::MAX; 6]),
         lyapunov: 1.0e-7,
         observer: vec(&[0.01; 6]),
@@ -220,6 +221,7 @@ fn frame_sizes_are_what_the_docs_say() {
     });
     let seed_command = Frame::Command(CommandFrame {
         seq: 1999,
+        law: 0,
         tau: vec(&[0.2; 3]),
         lyapunov: 0.01,
         observer: heapless::Vec::new(),
@@ -236,5 +238,5 @@ fn frame_sizes_are_what_the_docs_say() {
     .iter()
     .map(|f| encoded(f).len())
     .collect();
-    assert_eq!(sizes, vec![82, 31, 222, 301]);
+    assert_eq!(sizes, vec![82, 32, 222, 302]);
 }

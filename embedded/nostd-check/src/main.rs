@@ -1,8 +1,8 @@
 //! Calls the controller for SO(3) and SE(3) in f32 and f64, runs short closed loops (one with
 //! the disturbance-rejection terms), builds a through-waypoint path, steps the estimators
 //! (`estimator`), allocates a wrench to a hexarotor's rotors (`allocation`) and uses the
-//! `ipc_types` wire contract and the serial link's frames (`serial_wire`), in a binary with no
-//! std, no alloc and no global allocator.
+//! `ipc_types` wire contract, the serial link's frames (`serial_wire`) and the firmware's
+//! cycle (`firmware_cycle`), in a binary with no std, no alloc and no global allocator.
 //! Exits 0 when every check holds.
 #![no_std]
 #![no_main]
@@ -334,8 +334,62 @@ fn serial_check() -> bool {
     round_trip && found && caught
 }
 
+/// The firmware's cycle without std: a configuration from its bytes, the handshake, and a
+/// command for a state.
+fn firmware_cycle_check() -> bool {
+    use firmware_cycle::{Axis, Config, Cycle, MAX_CONFIG, Series};
+    use heapless::Vec;
+    use serial_wire::{Frame, Hello, StateFrame};
+    let v = |xs: &[f32]| -> Vec<f32, 36> { Vec::from_slice(xs).unwrap_or_default() };
+    let eye = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    let axis = || Axis {
+        offset: 0.1,
+        terms: Vec::new(),
+    };
+    let config = Config {
+        identity: Hello {
+            group: 1,
+            period: 0.01,
+            fingerprint: 7,
+            scenario: heapless::String::new(),
+        },
+        law: 0,
+        inertia: v(&eye),
+        k: Vec::from_slice(&eye).unwrap_or_default(),
+        kd: v(&eye),
+        torque_limit: None,
+        reference: Series {
+            q0: Vec::from_slice(&eye).unwrap_or_default(),
+            v0: Vec::from_slice(&[0.0; 3]).unwrap_or_default(),
+            axes: Vec::from_iter([axis(), axis(), axis()]),
+            substeps: 2,
+        },
+        observer: None,
+        integral: None,
+    };
+    let mut bytes = [0u8; MAX_CONFIG];
+    let Ok(n) = config.to_bytes(&mut bytes) else {
+        return false;
+    };
+    let Ok(mut cycle) = Cycle::from_bytes(&bytes[..n]) else {
+        return false;
+    };
+    let greeted = cycle.on_frame(&Frame::Hello(config.identity.clone())) == Some(Frame::Hello(config.identity));
+    let state = Frame::State(StateFrame {
+        seq: 1,
+        t: 0.01,
+        q: Vec::from_slice(&eye).unwrap_or_default(),
+        v: Vec::from_slice(&[0.1, 0.0, 0.0]).unwrap_or_default(),
+        applied: Vec::from_slice(&[0.0; 3]).unwrap_or_default(),
+        samples: None,
+    });
+    let answered = matches!(cycle.on_frame(&state), Some(Frame::Command(c)) if c.seq == 1 && c.tau.iter().all(|x| x.is_finite()));
+    greeted && answered
+}
+
 fn run() -> i32 {
-    let checks: [(&str, bool); 17] = [
+    let checks: [(&str, bool); 18] = [
+        ("firmware_cycle", firmware_cycle_check()),
         ("serial_wire frames", serial_check()),
         ("allocation f32", allocation_check::<f32>()),
         ("allocation f64", allocation_check::<f64>()),

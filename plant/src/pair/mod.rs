@@ -24,7 +24,7 @@ mod plant_run;
 mod summary;
 mod vehicle;
 
-pub use options::{Mode, PairOptions, StateFault};
+pub use options::{Mode, PairOptions, SerialController, StateFault};
 use plant_run::PlantRun;
 use summary::Stats;
 pub use summary::{LOCKSTEP_NOTE, PairSummary, Percentiles, Realtime};

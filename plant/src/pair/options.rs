@@ -25,6 +25,32 @@ pub enum StateFault {
     Nan,
 }
 
+/// The controller on a serial link (processor in the loop, docs/pil.md) instead of a
+/// `controller_node` process: how to open the byte stream, what the link counts, and the
+/// test hook that corrupts one received frame.
+#[derive(Clone)]
+pub struct SerialController {
+    /// What it is, for the log (`tcp:127.0.0.1:5555`, `the in-process f32 controller`).
+    pub name: String,
+    /// Opens the byte stream.
+    pub open: std::sync::Arc<
+        dyn Fn() -> Result<Box<dyn link::serial::ByteLink>, link::LinkError> + Send + Sync,
+    >,
+    /// The link's counts (corrupted frames, resets, commands).
+    pub counts: std::sync::Arc<link::serial::SerialCounts>,
+    /// Test hook: flip a bit in this received frame.
+    pub corrupt: Option<link::serial::CorruptCommand>,
+}
+
+impl std::fmt::Debug for SerialController {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SerialController")
+            .field("name", &self.name)
+            .field("corrupt", &self.corrupt)
+            .finish_non_exhaustive()
+    }
+}
+
 /// Everything `plant_sim run` needs.
 #[derive(Debug, Clone)]
 pub struct PairOptions {
@@ -43,6 +69,9 @@ pub struct PairOptions {
     pub transport: TransportKind,
     /// Spawn `controller_node` (else wait for one started by hand).
     pub spawn: bool,
+    /// The controller on a serial link instead (no `controller_node`; `transport` and
+    /// `spawn` unused).
+    pub serial: Option<SerialController>,
     /// Run name.
     pub run: String,
     /// Output directory.

@@ -86,7 +86,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         let reference = s.reference_source::<G, N, M>().map_err(input(&s))?;
         let cfg = s.controller_config::<N, M>();
         let vehicle = super::vehicle::PairVehicle::of(&s)?;
-        let ep = PlantEndpoint::open(PlantEndpointConfig {
+        let config = PlantEndpointConfig {
             actuators: vehicle.as_ref().map_or(0, |v| v.count()),
             run: opts.run.clone(),
             group: s.group,
@@ -95,7 +95,18 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             wake: opts.wake,
             fingerprint,
             scenario: s.name.clone(),
-        })?;
+        };
+        let ep = match &opts.serial {
+            None => PlantEndpoint::open(config)?,
+            Some(c) => {
+                let transport = link::serial::SerialTransport::new(
+                    (c.open)()?,
+                    std::sync::Arc::clone(&c.counts),
+                    c.corrupt,
+                );
+                PlantEndpoint::with_transport(config, Box::new(transport))
+            }
+        };
         Ok(PlantRun {
             opts,
             steps,
@@ -367,7 +378,10 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             },
             deadline_note: (!realtime).then(|| LOCKSTEP_NOTE.to_owned()),
             controller_exit,
-            transport: opts.transport.name().to_owned(),
+            transport: match &opts.serial {
+                Some(c) => c.name.clone(),
+                None => opts.transport.name().to_owned(),
+            },
             controller_heap_allocations: self.stats.last_allocations,
             realtime: self.rt.clone(),
             recording,

@@ -9,6 +9,7 @@ pub(crate) mod export;
 pub(crate) mod monitor;
 pub(crate) mod montecarlo;
 pub(crate) mod noise;
+pub(crate) mod pil;
 pub(crate) mod reference;
 pub(crate) mod rejection;
 pub(crate) mod replay;

@@ -28,9 +28,11 @@ pub(crate) struct RunArgs {
     /// Override the scenario's duration (s).
     #[arg(long, value_name = "S", value_parser = positive_seconds)]
     duration: Option<Duration>,
-    /// Transport: iceoryx2, or uds (the Unix-socket baseline; spawned controllers follow).
-    #[arg(long, value_enum, default_value_t = TransportKind::Iceoryx2)]
-    transport: TransportKind,
+    /// Transport: iceoryx2, uds (the Unix-socket baseline; spawned controllers follow), or
+    /// a processor-in-the-loop firmware on a serial link: tcp:HOST:PORT (QEMU's UART) or
+    /// serial:PATH[@BAUD] (a board's serial port, default 115200 baud; docs/pil.md).
+    #[arg(long, value_name = "T", default_value = "iceoryx2", value_parser = transport_parser)]
+    transport: Transport,
     /// Do not start controller_node; wait for one started by hand.
     #[arg(long)]
     no_spawn: bool,
@@ -77,6 +79,54 @@ pub(crate) struct RunArgs {
     #[cfg(feature = "fault-injection")]
     #[arg(long, value_name = "K:KIND", hide = true)]
     fault_sample: Vec<String>,
+    /// Test builds only, serial transports: flip one bit of the Nth frame received from the
+    /// firmware (1: its Hello; the command of state k is frame k + 2).
+    #[cfg(feature = "fault-injection")]
+    #[arg(long, value_name = "N", hide = true)]
+    fault_corrupt_frame: Option<u64>,
+}
+
+/// What `--transport` names: a process transport, or a firmware on a serial link.
+#[derive(Debug, Clone)]
+pub(crate) enum Transport {
+    /// iceoryx2 or uds, to a `controller_node`.
+    Process(TransportKind),
+    /// A processor-in-the-loop firmware.
+    Serial(link::serial::SerialTarget),
+}
+
+fn transport_parser(text: &str) -> Result<Transport, String> {
+    match text {
+        "iceoryx2" => Ok(Transport::Process(TransportKind::Iceoryx2)),
+        "uds" => Ok(Transport::Process(TransportKind::Uds)),
+        _ if text.starts_with("tcp:") || text.starts_with("serial:") => {
+            text.parse().map(Transport::Serial)
+        }
+        _ => Err(format!(
+            "`{text}`: expected iceoryx2, uds, tcp:HOST:PORT or serial:PATH[@BAUD]"
+        )),
+    }
+}
+
+/// The serial controller of `--transport tcp:…|serial:…` (`None` for a process transport).
+fn serial_controller(args: &RunArgs) -> Option<plant::pair::SerialController> {
+    let Transport::Serial(target) = &args.transport else {
+        return None;
+    };
+    #[cfg(feature = "fault-injection")]
+    let corrupt = args.fault_corrupt_frame.map(link::serial::CorruptCommand);
+    #[cfg(not(feature = "fault-injection"))]
+    let corrupt = None;
+    let target = target.clone();
+    Some(plant::pair::SerialController {
+        name: match &target {
+            link::serial::SerialTarget::Tcp(a) => format!("tcp:{a}"),
+            link::serial::SerialTarget::Device(p, b) => format!("serial:{}@{b}", p.display()),
+        },
+        open: std::sync::Arc::new(move || link::serial::connect(&target)),
+        counts: Default::default(),
+        corrupt,
+    })
 }
 
 pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
@@ -86,7 +136,8 @@ pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
         scenario.duration = d.as_secs_f64();
     }
     let state_faults = state_faults(&args)?;
-    let spawn = !args.no_spawn;
+    let serial = serial_controller(&args);
+    let spawn = !args.no_spawn && serial.is_none();
     let opts = PairOptions {
         scenario,
         source: args.source.clone(),
@@ -95,8 +146,12 @@ pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
         mode: args.mode,
         rate_hz: args.rate_hz,
         wake: args.wake,
-        transport: args.transport,
+        transport: match args.transport {
+            Transport::Process(kind) => kind,
+            Transport::Serial(_) => TransportKind::Iceoryx2,
+        },
         spawn,
+        serial: serial.clone(),
         run: args.name.clone(),
         out: args
             .out
@@ -125,6 +180,9 @@ pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
     };
     let (_, s) = run_pair(&opts)?;
     print_pair_summary(&s, &opts.out);
+    if let Some(c) = &serial {
+        print_serial_counts(c);
+    }
     match stop.requested() {
         Some(sig) if s.interrupted => Err(SimError::Interrupted(sig)),
         _ => Ok(()),
@@ -213,5 +271,18 @@ pub(crate) fn print_pair_summary(s: &plant::pair::PairSummary, out: &Path) {
         } else {
             ""
         }
+    );
+}
+
+/// What the serial link counted (processor in the loop).
+fn print_serial_counts(c: &plant::pair::SerialController) {
+    use std::sync::atomic::Ordering::Relaxed;
+    println!(
+        "serial link {}: {} commands, {} corrupted frames dropped, {} firmware resets, {} unexpected frames",
+        c.name,
+        c.counts.commands.load(Relaxed),
+        c.counts.corrupt.load(Relaxed),
+        c.counts.resets.load(Relaxed),
+        c.counts.unexpected.load(Relaxed)
     );
 }

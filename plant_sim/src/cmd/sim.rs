@@ -22,6 +22,12 @@ pub(crate) struct SimArgs {
     /// Output directory (created if needed); default out/<scenario name>.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// The controller's scalar: f64 (the simulation), or f32: the processor-in-the-loop
+    /// firmware's controller run in process, exactly as the firmware runs it (the plant of
+    /// the pair in lockstep, the controller's frames through the serial protocol; the
+    /// reference a processor-in-the-loop run must equal; docs/pil.md).
+    #[arg(long, value_enum, value_name = "S", default_value_t = Scalar::F64)]
+    controller_scalar: Scalar,
     /// Test builds only (feature `fault-injection`): K:KIND plants a bad sensor sample at
     /// tick K (gyro-nan, gyro-inf, gyro-spike, dir-nan, dir-inf, dir-zero, accel-far).
     #[cfg(feature = "fault-injection")]
@@ -29,10 +35,23 @@ pub(crate) struct SimArgs {
     fault_sample: Vec<String>,
 }
 
+/// The controller's scalar type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub(crate) enum Scalar {
+    /// Double precision, in process.
+    #[default]
+    F64,
+    /// Single precision, as the processor-in-the-loop firmware.
+    F32,
+}
+
 pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
     let mut s = args.source.load("seed")?;
     if let Some(l) = args.law {
         s = s.with_law(l)?;
+    }
+    if args.controller_scalar == Scalar::F32 {
+        return super::pil::sim_f32(s, &args.source, args.out, stop);
     }
     let out = args.out.unwrap_or_else(|| Path::new("out").join(&s.name));
     ensure_dir(&out)?;

@@ -1,0 +1,192 @@
+//! eqtrack's processor-in-the-loop firmware (docs/pil.md): the controller's cycle
+//! (`firmware_cycle`: the law with its rejection terms, in `f32`) on a Cortex-M4F, answering
+//! the plant over a UART with `serial_wire` frames. QEMU's mps2-an386 runs it with the UART on
+//! a TCP socket; a board runs it on its own UART.
+//!
+//! The shape of a real application, with RTIC:
+//!
+//! - `uart_rx`, the UART's receive interrupt (priority 2): drains the received bytes into a
+//!   channel. It does no other work, so a byte is never lost while the law runs.
+//! - `control`, an async task (priority 1): takes the bytes, finds the frames (COBS, CRC,
+//!   version: a corrupted frame is dropped and counted), and answers each one: its `Hello`
+//!   to the plant's, a command to each state (the reference stepped to the state's k, the law
+//!   and its terms), nothing to noise. It writes the answer to the UART.
+//! - `tick`, SysTick at 1 kHz: QEMU's UART model does not always wake the emulator when the
+//!   guest empties its receive register; a periodic interrupt does (measured: without it
+//!   one frame in a few thousand waited a second).
+//! - idle: `wfi`.
+//!
+//! The scenario's configuration is built in (`PIL_CONFIG`, from `plant_sim pil-config`).
+//! Over semihosting it prints `PIL READY <identity>` at start, and at each `Bye` the
+//! counts and the stack's high-water mark (`STACK <bytes>`).
+#![no_std]
+#![no_main]
+
+mod an386;
+mod stack;
+
+use core::panic::PanicInfo;
+use cortex_m_semihosting::debug::{self, EXIT_FAILURE};
+use cortex_m_semihosting::hprintln;
+
+/// The scenario's configuration (postcard bytes of `firmware_cycle::Config`).
+static CONFIG: &[u8] = include_bytes!(env!("PIL_CONFIG"));
+
+#[panic_handler]
+fn panic(info: &PanicInfo) -> ! {
+    hprintln!("PANIC {}", info);
+    debug::exit(EXIT_FAILURE);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[rtic::app(device = crate::an386, peripherals = true, dispatchers = [TIMER0, TIMER1])]
+mod app {
+    use crate::an386::uart0;
+    use crate::stack;
+    use cortex_m::peripheral::syst::SystClkSource;
+    use cortex_m_semihosting::debug::{self, EXIT_FAILURE};
+    use cortex_m_semihosting::hprintln;
+    use firmware_cycle::Cycle;
+    use rtic_sync::channel::{Receiver, Sender};
+    use rtic_sync::make_channel;
+    use serial_wire::{Deframer, Frame, MAX_ENCODED, encode};
+
+    /// Bytes the channel holds (rtic-sync's maximum).
+    const CAPACITY: usize = 255;
+    /// The core clock of QEMU's mps2 boards (Hz).
+    const CORE_HZ: u32 = 25_000_000;
+
+    #[shared]
+    struct Shared {
+        /// SysTick ticks since start (ms).
+        ticks: u64,
+    }
+
+    #[local]
+    struct Local {
+        tx: Sender<'static, u8, CAPACITY>,
+        rx: Receiver<'static, u8, CAPACITY>,
+        cycle: Cycle,
+        deframer: Deframer,
+        out: [u8; MAX_ENCODED],
+        painted: Option<stack::Painted>,
+        corrupt: u64,
+    }
+
+    #[init]
+    fn init(cx: init::Context) -> (Shared, Local) {
+        let painted = stack::paint();
+        let mut syst = cx.core.SYST;
+        syst.set_clock_source(SystClkSource::Core);
+        syst.set_reload(CORE_HZ / 1000 - 1);
+        syst.clear_current();
+        syst.enable_counter();
+        syst.enable_interrupt();
+        uart0::enable();
+        let cycle = match Cycle::from_bytes(crate::CONFIG) {
+            Ok(c) => c,
+            Err(e) => {
+                hprintln!("ERR configuration: {}", e);
+                debug::exit(EXIT_FAILURE);
+                loop {
+                    cortex_m::asm::wfi();
+                }
+            }
+        };
+        if let Frame::Hello(h) = cycle.hello() {
+            hprintln!(
+                "PIL READY group {} period {} fingerprint {:016x} scenario {}",
+                h.group,
+                h.period,
+                h.fingerprint,
+                h.scenario.as_str()
+            );
+        }
+        let (tx, rx) = make_channel!(u8, CAPACITY);
+        if control::spawn().is_err() {
+            hprintln!("ERR cannot start the control task");
+        }
+        (
+            Shared { ticks: 0 },
+            Local {
+                tx,
+                rx,
+                cycle,
+                deframer: Deframer::new(),
+                out: [0; MAX_ENCODED],
+                painted,
+                corrupt: 0,
+            },
+        )
+    }
+
+    #[idle]
+    fn idle(_: idle::Context) -> ! {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
+    /// The UART's receive interrupt: every waiting byte into the channel.
+    #[task(binds = UART0RX, priority = 2, local = [tx])]
+    fn uart_rx(cx: uart_rx::Context) {
+        uart0::clear_rx_interrupt();
+        while let Some(b) = uart0::try_read() {
+            // a full channel drops the byte: its frame then fails the CRC and is counted
+            let _ = cx.local.tx.try_send(b);
+        }
+    }
+
+    /// 1 kHz: keeps QEMU's event loop awake; counts time.
+    #[task(binds = SysTick, priority = 3, shared = [ticks])]
+    fn tick(mut cx: tick::Context) {
+        cx.shared.ticks.lock(|t| *t += 1);
+    }
+
+    /// Frames in, answers out.
+    #[task(priority = 1, local = [rx, cycle, deframer, out, painted, corrupt])]
+    async fn control(cx: control::Context) {
+        let control::LocalResources {
+            rx,
+            cycle,
+            deframer,
+            out,
+            painted,
+            corrupt,
+            ..
+        } = cx.local;
+        while let Ok(b) = rx.recv().await {
+            let frame = match deframer.push(b) {
+                None => continue,
+                Some(Err(_)) => {
+                    *corrupt += 1;
+                    continue;
+                }
+                Some(Ok(f)) => f,
+            };
+            let bye = frame == Frame::Bye;
+            if let Some(reply) = cycle.on_frame(&frame)
+                && let Ok(n) = encode(&reply, out)
+            {
+                uart0::write_all(&out[..n]);
+            }
+            if bye {
+                let c = cycle.counts();
+                hprintln!(
+                    "PIL BYE answered {} dropped {:?} refused {} corrupt {} overlong {}",
+                    c.answered,
+                    c.dropped,
+                    c.refused,
+                    *corrupt,
+                    deframer.too_long
+                );
+                match painted.and_then(stack::high_water) {
+                    Some(bytes) => hprintln!("STACK {}", bytes),
+                    None => hprintln!("STACK unmeasured"),
+                }
+            }
+        }
+    }
+}

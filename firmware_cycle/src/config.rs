@@ -1,0 +1,252 @@
+//! What the firmware is built with: the scenario's controller settings in `f32`, as postcard
+//! bytes (the host writes them from a scenario; the firmware's build includes them).
+
+use controller::group::MatrixLieGroup;
+use controller::reference::{AxisTorque, CosTerm, Feedforward};
+use controller::{
+    Controller, ControllerConfig, IntegralConfig, Law, ObserverConfig, Reference, RejectionConfig,
+};
+use heapless::Vec;
+use nalgebra::{SMatrix, SVector};
+use serde::{Deserialize, Serialize};
+use serial_wire::Hello;
+
+/// One cosine term of a feedforward axis: `amplitude·cos(frequency·t + phase)`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Term {
+    /// Amplitude.
+    pub amplitude: f32,
+    /// Angular frequency (rad/s).
+    pub frequency: f32,
+    /// Phase (rad).
+    pub phase: f32,
+}
+
+/// One feedforward axis: `offset + Σ terms`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Axis {
+    /// The constant part.
+    pub offset: f32,
+    /// The cosine terms (at most 8).
+    pub terms: Vec<Term, 8>,
+}
+
+/// The desired trajectory: the feedforward series integrated from `(Q_d(0), V_d(0))`
+/// (docs/maths.md, "Integrating on the group").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Series {
+    /// `Q_d(0)`, row-major (n² entries).
+    pub q0: Vec<f32, 16>,
+    /// `V_d(0)` (m entries).
+    pub v0: Vec<f32, 6>,
+    /// The feedforward torque, one axis per wrench component (m axes).
+    pub axes: Vec<Axis, 6>,
+    /// RKMK4 substeps per control period.
+    pub substeps: u32,
+}
+
+/// The momentum observer's settings (docs/maths.md, "The momentum observer").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Observer {
+    /// The gain `L` per axis.
+    pub gain: Vec<f32, 6>,
+    /// The clamp of the estimate per axis.
+    pub limit: Option<Vec<f32, 6>>,
+    /// World axes (else body axes).
+    pub world: bool,
+}
+
+/// The geometric integral's settings (docs/maths.md, "The geometric integral").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Integral {
+    /// `K_I` per axis.
+    pub ki: Vec<f32, 6>,
+    /// `c` per axis.
+    pub c: Vec<f32, 6>,
+    /// The clamp of `|K_I z|` per axis.
+    pub limit: Option<Vec<f32, 6>>,
+    /// Anti-windup.
+    pub anti_windup: bool,
+}
+
+/// The controller a firmware is built with.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Config {
+    /// The identity it answers a `Hello` with: group (1 SO(3), 2 SE(3)), the control period,
+    /// the scenario's fingerprint and name.
+    pub identity: Hello,
+    /// The law: its index in `controller::Law::ALL` (0 EqT, 1 GT, 2 nog, 3 asym).
+    pub law: u8,
+    /// The model inertia `I`, row-major (m² entries).
+    pub inertia: Vec<f32, 36>,
+    /// The potential weight `K`, row-major (n² entries).
+    pub k: Vec<f32, 16>,
+    /// The damping `K_d`, row-major (m² entries).
+    pub kd: Vec<f32, 36>,
+    /// The per-axis torque limit.
+    pub torque_limit: Option<Vec<f32, 6>>,
+    /// The desired trajectory.
+    pub reference: Series,
+    /// The momentum observer, if it runs.
+    pub observer: Option<Observer>,
+    /// The geometric integral, if it runs.
+    pub integral: Option<Integral>,
+}
+
+/// Why a [`Config`] cannot make a cycle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ConfigError {
+    /// The bytes are not a postcard `Config`.
+    Bytes,
+    /// Too long for the buffer given to [`Config::to_bytes`].
+    TooLong,
+    /// Not a group code (1 SO(3), 2 SE(3)).
+    Group(u8),
+    /// Not a law index.
+    Law(u8),
+    /// A vector with the wrong number of entries for the group: which, and how many.
+    Shape(&'static str, usize),
+    /// The controller refused the settings.
+    Controller(controller::Error),
+}
+
+impl core::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ConfigError::Bytes => f.write_str("not a firmware configuration (postcard)"),
+            ConfigError::TooLong => f.write_str("the configuration does not fit the buffer"),
+            ConfigError::Group(g) => write!(f, "group code {g} (expected 1 so3 or 2 se3)"),
+            ConfigError::Law(l) => write!(f, "law index {l} (expected 0 to 3)"),
+            ConfigError::Shape(what, n) => write!(f, "{what}: {n} entries, not the group's"),
+            ConfigError::Controller(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl From<controller::Error> for ConfigError {
+    fn from(e: controller::Error) -> Self {
+        ConfigError::Controller(e)
+    }
+}
+
+/// The largest encoded configuration.
+pub const MAX_CONFIG: usize = 2048;
+
+impl Config {
+    /// The postcard bytes, into `out`; returns their length.
+    pub fn to_bytes(&self, out: &mut [u8]) -> Result<usize, ConfigError> {
+        postcard::to_slice(self, out)
+            .map(|b| b.len())
+            .map_err(|_| ConfigError::TooLong)
+    }
+
+    /// A configuration from [`Config::to_bytes`]'s bytes (nothing may be left over).
+    pub fn from_bytes(bytes: &[u8]) -> Result<Config, ConfigError> {
+        match postcard::take_from_bytes::<Config>(bytes) {
+            Ok((c, [])) => Ok(c),
+            _ => Err(ConfigError::Bytes),
+        }
+    }
+
+    /// The law.
+    pub fn law(&self) -> Result<Law, ConfigError> {
+        Law::ALL
+            .get(usize::from(self.law))
+            .copied()
+            .ok_or(ConfigError::Law(self.law))
+    }
+
+    /// The controller on group `G`.
+    pub fn controller<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Result<Controller<f32, G, N, M>, ConfigError> {
+        Ok(Controller::new(ControllerConfig {
+            law: self.law()?,
+            inertia: matrix::<M, M>("inertia", &self.inertia)?,
+            k: matrix::<N, N>("k", &self.k)?,
+            kd: matrix::<M, M>("kd", &self.kd)?,
+            torque_limit: self
+                .torque_limit
+                .as_ref()
+                .map(|l| vector::<M>("torque_limit", l))
+                .transpose()?,
+        })?)
+    }
+
+    /// The reference generator on group `G`.
+    pub fn reference<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &self,
+    ) -> Result<Reference<f32, G, N, M>, ConfigError> {
+        let r = &self.reference;
+        if r.axes.len() != M {
+            return Err(ConfigError::Shape("reference.axes", r.axes.len()));
+        }
+        let mut ff = Feedforward::<f32, M>::zero();
+        for (i, axis) in r.axes.iter().enumerate() {
+            let mut terms: Vec<CosTerm<f32>, 8> = Vec::new();
+            for t in &axis.terms {
+                // at most 8 terms: the vectors have the same capacity
+                let _ = terms.push(CosTerm {
+                    amplitude: t.amplitude,
+                    frequency: t.frequency,
+                    phase: t.phase,
+                });
+            }
+            ff.axes[i] = AxisTorque::new(i, axis.offset, &terms)?;
+        }
+        Ok(Reference::new(
+            matrix::<N, N>("reference.q0", &r.q0)?,
+            vector::<M>("reference.v0", &r.v0)?,
+            matrix::<M, M>("inertia", &self.inertia)?,
+            ff,
+            self.identity.period as f32,
+            r.substeps as usize,
+        )?)
+    }
+
+    /// The disturbance-rejection terms.
+    pub fn rejection<const M: usize>(&self) -> Result<RejectionConfig<f32, M>, ConfigError> {
+        let limit =
+            |what, l: &Option<Vec<f32, 6>>| l.as_ref().map(|l| vector::<M>(what, l)).transpose();
+        Ok(RejectionConfig {
+            observer: match &self.observer {
+                None => None,
+                Some(o) => Some(ObserverConfig {
+                    gain: vector::<M>("observer.gain", &o.gain)?,
+                    limit: limit("observer.limit", &o.limit)?,
+                    frame: if o.world {
+                        controller::Frame::World
+                    } else {
+                        controller::Frame::Body
+                    },
+                }),
+            },
+            integral: match &self.integral {
+                None => None,
+                Some(i) => Some(IntegralConfig {
+                    ki: vector::<M>("integral.ki", &i.ki)?,
+                    c: vector::<M>("integral.c", &i.c)?,
+                    limit: limit("integral.limit", &i.limit)?,
+                    anti_windup: i.anti_windup,
+                }),
+            },
+        })
+    }
+}
+
+fn matrix<const R: usize, const C: usize>(
+    what: &'static str,
+    xs: &[f32],
+) -> Result<SMatrix<f32, R, C>, ConfigError> {
+    if xs.len() != R * C {
+        return Err(ConfigError::Shape(what, xs.len()));
+    }
+    Ok(SMatrix::from_row_slice(xs))
+}
+
+fn vector<const M: usize>(what: &'static str, xs: &[f32]) -> Result<SVector<f32, M>, ConfigError> {
+    if xs.len() != M {
+        return Err(ConfigError::Shape(what, xs.len()));
+    }
+    Ok(SVector::from_row_slice(xs))
+}

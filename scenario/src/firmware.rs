@@ -1,0 +1,105 @@
+//! The processor-in-the-loop firmware's configuration from a scenario (docs/pil.md): the
+//! controller's settings cast to `f32` once, here, so that the firmware and the in-process
+//! `f32` simulation start from the same numbers.
+
+use crate::{Scenario, ScenarioError};
+use controller::{Frame, GroupKind, Law};
+use firmware_cycle::{Axis, Config, Integral, Observer, Series, Term};
+use heapless::Vec as HVec;
+
+fn f32s<const C: usize>(xs: &[f64]) -> HVec<f32, C> {
+    // the scenario's vectors are the group's sizes (at most C entries), validated at load
+    xs.iter().take(C).map(|x| *x as f32).collect()
+}
+
+impl Scenario {
+    /// The configuration the processor-in-the-loop firmware is built with, and the
+    /// in-process `f32` controller runs: the law, `I`, `K`, `K_d`, the torque limit, the
+    /// reference's start and feedforward, the rejection terms, and the identity the
+    /// handshake compares (group, control period, fingerprint, name). Refused, naming the
+    /// key, for what the firmware does not run: a waypoint or set-point reference, sensors
+    /// (the firmware's estimator) and a vehicle (its allocation).
+    pub fn firmware_config(&self) -> Result<Config, ScenarioError> {
+        let refuse = |key: &str, what: &str| ScenarioError::Invalid {
+            origin: format!("scenario `{}`", self.name),
+            key: key.to_owned(),
+            message: format!("the processor-in-the-loop controller does not run {what} yet"),
+        };
+        if self.path.is_some() {
+            return Err(refuse("reference", "a waypoint or set-point reference"));
+        }
+        if self.sensors.is_some() {
+            return Err(refuse("sensors", "the estimator on simulated sensors"));
+        }
+        if self.vehicle.is_some() {
+            return Err(refuse("vehicle", "a vehicle's allocation"));
+        }
+        let (n, _) = self.group.dims();
+        let q0: Vec<f64> = match self.group {
+            GroupKind::So3 => Scenario::configuration::<3>(&self.reference)
+                .as_slice()
+                .to_vec(),
+            GroupKind::Se3 => Scenario::configuration::<4>(&self.reference)
+                .as_slice()
+                .to_vec(),
+        };
+        // nalgebra stores column-major: the config is row-major
+        let q0_rows: Vec<f64> = (0..n * n).map(|i| q0[(i % n) * n + i / n]).collect();
+        let name: String = self.name.chars().take(32).collect();
+        let mut scenario = heapless::String::<32>::new();
+        for c in name.chars() {
+            if scenario.push(c).is_err() {
+                break;
+            }
+        }
+        Ok(Config {
+            identity: serial_wire::Hello {
+                group: match self.group {
+                    GroupKind::So3 => 1,
+                    GroupKind::Se3 => 2,
+                },
+                period: self.control_period,
+                fingerprint: self.fingerprint(),
+                scenario,
+            },
+            law: Law::ALL.iter().position(|l| *l == self.law).unwrap_or(0) as u8,
+            inertia: f32s(&self.model_inertia),
+            k: f32s(&self.kp),
+            kd: f32s(&self.kd),
+            torque_limit: self.torque_limit.as_deref().map(f32s),
+            reference: Series {
+                q0: f32s(&q0_rows),
+                v0: f32s(&self.reference.velocity),
+                axes: self
+                    .feedforward
+                    .iter()
+                    .map(|a| Axis {
+                        offset: a.offset as f32,
+                        terms: a
+                            .terms
+                            .iter()
+                            .take(8)
+                            .map(|t| Term {
+                                amplitude: t.amplitude as f32,
+                                frequency: t.frequency as f32,
+                                phase: t.phase as f32,
+                            })
+                            .collect(),
+                    })
+                    .collect(),
+                substeps: self.reference_substeps as u32,
+            },
+            observer: self.rejection.observer.as_ref().map(|o| Observer {
+                gain: f32s(&o.gain),
+                limit: o.limit.as_deref().map(f32s),
+                world: o.frame == Frame::World,
+            }),
+            integral: self.rejection.integral.as_ref().map(|i| Integral {
+                ki: f32s(&i.ki),
+                c: f32s(&i.c),
+                limit: i.limit.as_deref().map(f32s),
+                anti_windup: i.anti_windup,
+            }),
+        })
+    }
+}

@@ -1,0 +1,354 @@
+//! Processor in the loop, with the firmware's cycle on the host (docs/pil.md): a TCP server
+//! in this test runs `firmware_cycle::Cycle` from the configuration bytes the firmware is
+//! built with, behind the serial protocol, as QEMU's UART would carry it. `plant_sim run
+//! --transport tcp:…` drives it. `scripts/pil.sh` does the same with the firmware on the
+//! emulated Cortex-M4F.
+
+use firmware_cycle::{Cycle, MAX_CONFIG};
+use pair_tests::{TempDir, plant, serial, summary};
+use serial_wire::{Deframer, Frame, MAX_ENCODED, encode};
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::thread::JoinHandle;
+
+/// How the fake firmware misbehaves.
+#[derive(Clone, Copy, PartialEq)]
+enum Behaviour {
+    /// It answers every frame.
+    Normal,
+    /// Before each reply it writes a burst of seeded random bytes (line noise, a truncated
+    /// frame, a frame of another version).
+    Garbage,
+    /// After answering state `at` it is silent for `silence` states (it resets), then
+    /// greets unasked with a fresh cycle.
+    ResetAfter { at: u64, silence: u64 },
+}
+
+struct Firmware {
+    port: u16,
+    thread: JoinHandle<(firmware_cycle::Counts, u64)>,
+}
+
+fn config_bytes(s: &scenario::Scenario) -> Vec<u8> {
+    let mut buf = [0u8; MAX_CONFIG];
+    let n = s.firmware_config().unwrap().to_bytes(&mut buf).unwrap();
+    buf[..n].to_vec()
+}
+
+fn send(stream: &mut TcpStream, frame: &Frame) {
+    let mut out = [0u8; MAX_ENCODED];
+    let n = encode(frame, &mut out).unwrap();
+    // the plant may have gone: the test's assertions are on the plant's side
+    let _ = stream.write_all(&out[..n]);
+}
+
+/// Starts a fake firmware for `config` on a free port; the thread returns the cycle's
+/// counts and the frames it could not decode.
+fn firmware(config: Vec<u8>, behaviour: Behaviour) -> Firmware {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let thread = std::thread::spawn(move || {
+        let (mut stream, _) = listener.accept().unwrap();
+        stream.set_nodelay(true).unwrap();
+        let mut cycle = Cycle::from_bytes(&config).unwrap();
+        let mut deframer = Deframer::new();
+        let mut bad = 0u64;
+        let mut rng = 0x2545_f491_4f6c_dd1du64;
+        let mut silent_until = None;
+        let mut back = false;
+        let mut buf = [0u8; 512];
+        loop {
+            let n = match stream.read(&mut buf) {
+                Ok(0) | Err(_) => break,
+                Ok(n) => n,
+            };
+            for b in &buf[..n] {
+                let frame = match deframer.push(*b) {
+                    None => continue,
+                    Some(Err(_)) => {
+                        bad += 1;
+                        continue;
+                    }
+                    Some(Ok(f)) => f,
+                };
+                if let (Behaviour::ResetAfter { at, silence }, Frame::State(s)) =
+                    (behaviour, &frame)
+                    && !back
+                {
+                    match silent_until {
+                        None if s.seq > at => {
+                            silent_until = Some(s.seq + silence);
+                            continue;
+                        }
+                        Some(end) if s.seq < end => continue,
+                        Some(_) => {
+                            // back from the reset: a fresh cycle, not greeted yet, answers
+                            // the state with its Hello
+                            cycle = Cycle::from_bytes(&config).unwrap();
+                            back = true;
+                        }
+                        None => {}
+                    }
+                }
+                if behaviour == Behaviour::Garbage {
+                    let mut noise = [0u8; 24];
+                    for x in &mut noise {
+                        rng ^= rng << 13;
+                        rng ^= rng >> 7;
+                        rng ^= rng << 17;
+                        *x = rng as u8;
+                    }
+                    let _ = stream.write_all(&noise[..(rng % 24) as usize]);
+                    let _ = stream.write_all(&[0]);
+                }
+                if let Some(reply) = cycle.on_frame(&frame) {
+                    send(&mut stream, &reply);
+                }
+            }
+        }
+        (cycle.counts(), bad)
+    });
+    Firmware { port, thread }
+}
+
+/// A copy of `scenarios/<name>.toml` lasting `seconds`, with `edit` applied, in `d`
+/// (`<name>_<seconds>.toml`; a second copy with another edit needs [`short_as`]).
+fn short(d: &TempDir, name: &str, seconds: &str, edit: &dyn Fn(String) -> String) -> String {
+    short_as(d, &format!("{name}_{seconds}"), name, seconds, edit)
+}
+
+/// [`short`], written to `d/<file>.toml`.
+fn short_as(
+    d: &TempDir,
+    file: &str,
+    name: &str,
+    seconds: &str,
+    edit: &dyn Fn(String) -> String,
+) -> String {
+    let text = std::fs::read_to_string(pair_tests::scenario(name)).unwrap();
+    let (before, after) = text.split_once("duration = ").unwrap();
+    let rest = after.split_once('\n').unwrap().1;
+    let path = d.join(&format!("{file}.toml"));
+    std::fs::write(&path, edit(format!("{before}duration = {seconds}\n{rest}"))).unwrap();
+    path
+}
+
+fn read(path: &str) -> Vec<u8> {
+    std::fs::read(path).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+#[test]
+fn pil_in_lockstep_equals_the_in_process_f32_simulation_byte_for_byte() {
+    let _g = serial();
+    let d = TempDir::new("pil-lockstep");
+    for name in ["seed", "se3_circle", "reject_se3"] {
+        let file = short(&d, name, "2.0", &|t| t);
+        let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
+        let fw = firmware(config_bytes(&s), Behaviour::Normal);
+        let f32_out = d.join(&format!("{name}-f32"));
+        let (code, text) = plant(&[
+            "sim",
+            "--scenario",
+            &file,
+            "--controller-scalar",
+            "f32",
+            "--out",
+            &f32_out,
+        ]);
+        assert_eq!(code, 0, "{text}");
+        let pil_out = d.join(&format!("{name}-pil"));
+        let tcp = format!("tcp:127.0.0.1:{}", fw.port);
+        let (code, text) = plant(&[
+            "run",
+            "--mode",
+            "lockstep",
+            "--scenario",
+            &file,
+            "--transport",
+            &tcp,
+            "--no-record",
+            "--out",
+            &pil_out,
+        ]);
+        assert_eq!(code, 0, "{name}: {text}");
+        assert!(text.contains("0 corrupted frames dropped"), "{text}");
+        let (counts, bad) = fw.thread.join().unwrap();
+        assert_eq!(bad, 0);
+        assert_eq!(
+            counts.answered,
+            s.steps() + 1,
+            "{name}: every state answered once"
+        );
+        let a = read(&format!("{f32_out}/trajectory.csv"));
+        let b = read(&format!("{pil_out}/trajectory.csv"));
+        assert!(
+            a == b,
+            "{name}: the PIL run's trajectory.csv differs from the f32 simulation's"
+        );
+        // and f32 is not f64: the simulation in f64 differs, by f32's rounding
+        let f64_out = d.join(&format!("{name}-f64"));
+        let (code, text) = plant(&["sim", "--scenario", &file, "--out", &f64_out]);
+        assert_eq!(code, 0, "{text}");
+        assert!(
+            read(&format!("{f64_out}/trajectory.csv")) != a,
+            "{name}: f32 equals f64?"
+        );
+        let (l32, l64) = (
+            summary(std::path::Path::new(&f32_out))["final"]["lyapunov"]
+                .as_f64()
+                .unwrap(),
+            summary(std::path::Path::new(&f64_out))["final"]["lyapunov"]
+                .as_f64()
+                .unwrap(),
+        );
+        assert!(
+            (l32 - l64).abs() <= 1e-3 * l64.abs().max(1e-3),
+            "{name}: L {l32} (f32) vs {l64} (f64)"
+        );
+    }
+}
+
+#[test]
+fn a_fingerprint_mismatch_is_refused_on_both_sides() {
+    let _g = serial();
+    let d = TempDir::new("pil-mismatch");
+    let file = short(&d, "seed", "1.0", &|t| t);
+    let other = short_as(&d, "other", "seed", "1.0", &|t| {
+        t.replace("kd = 0.5", "kd = 0.6")
+    });
+    assert_ne!(read(&file), read(&other));
+    let built = scenario::Scenario::from_file(std::path::Path::new(&other)).unwrap();
+    let fw = firmware(config_bytes(&built), Behaviour::Normal);
+    let tcp = format!("tcp:127.0.0.1:{}", fw.port);
+    let (code, text) = plant(&[
+        "run",
+        "--mode",
+        "lockstep",
+        "--scenario",
+        &file,
+        "--transport",
+        &tcp,
+        "--no-record",
+        "--out",
+        &d.join("out"),
+    ]);
+    assert_eq!(code, 2, "{text}");
+    assert!(text.contains("configuration mismatch (scenario)"), "{text}");
+    let (counts, _) = fw.thread.join().unwrap();
+    assert_eq!(counts.refused, 1, "the firmware refused the plant's Hello");
+    assert_eq!(counts.answered, 0, "and answered no state");
+}
+
+/// The seed at a 20 ms period: real time under a loaded test machine.
+fn slow_seed(d: &TempDir, seconds: &str) -> String {
+    short(d, "seed", seconds, &|t| {
+        t.replace("control_period = 0.01", "control_period = 0.02")
+    })
+}
+
+fn realtime(
+    d: &TempDir,
+    file: &str,
+    port: u16,
+    extra: &[&str],
+) -> (i32, String, serde_json::Value) {
+    let out = d.join("rt");
+    let tcp = format!("tcp:127.0.0.1:{port}");
+    let mut args = vec![
+        "run",
+        "--mode",
+        "realtime",
+        "--rate-hz",
+        "50",
+        "--scenario",
+        file,
+        "--transport",
+        &tcp,
+        "--no-record",
+        "--out",
+        &out,
+    ];
+    args.extend_from_slice(extra);
+    let (code, text) = plant(&args);
+    let s = if code == 0 {
+        summary(std::path::Path::new(&out))
+    } else {
+        serde_json::Value::Null
+    };
+    (code, text, s)
+}
+
+#[test]
+fn a_corrupted_frame_is_caught_by_the_crc_counted_and_treated_as_a_missing_command() {
+    let _g = serial();
+    let d = TempDir::new("pil-corrupt");
+    let file = slow_seed(&d, "2.0");
+    let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
+    let fw = firmware(config_bytes(&s), Behaviour::Normal);
+    // frame 12: the command of state 10
+    let (code, text, summ) = realtime(&d, &file, fw.port, &["--fault-corrupt-frame", "12"]);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("1 corrupted frames dropped"), "{text}");
+    assert!(summ["deadline_misses"].as_u64().unwrap() >= 1, "{summ}");
+    assert_eq!(summ["commands_rejected"], 0);
+    assert_eq!(
+        summ["cycles"].as_u64().unwrap(),
+        101,
+        "the run went on to its end"
+    );
+    fw.thread.join().unwrap();
+}
+
+#[test]
+fn a_firmware_reset_enters_safe_mode_and_the_handshake_brings_it_back() {
+    let _g = serial();
+    let d = TempDir::new("pil-reset");
+    let file = slow_seed(&d, "3.0");
+    let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
+    let fw = firmware(
+        config_bytes(&s),
+        Behaviour::ResetAfter {
+            at: 40,
+            silence: 15,
+        },
+    );
+    let (code, text, summ) = realtime(&d, &file, fw.port, &[]);
+    let (counts, _) = fw.thread.join().unwrap();
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("1 firmware resets"), "{text}");
+    assert!(summ["safe_mode_entries"].as_u64().unwrap() >= 1, "{summ}");
+    let safe = summ["safe_mode_cycles"].as_u64().unwrap();
+    assert!(
+        (3..60).contains(&safe),
+        "safe mode for {safe} cycles: it must end after the reset\n{counts:?}\n{text}\n{summ}"
+    );
+    // states 41 to 55 go unanswered (the reset), state 56 is answered with the fresh
+    // cycle's Hello, and 57 to 150 with commands
+    assert_eq!(
+        counts.answered, 94,
+        "the reset firmware answers every state after the handshake: {counts:?}"
+    );
+}
+
+#[test]
+fn garbage_on_the_line_never_panics_either_side() {
+    let _g = serial();
+    let d = TempDir::new("pil-garbage");
+    let file = slow_seed(&d, "2.0");
+    let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
+    let fw = firmware(config_bytes(&s), Behaviour::Garbage);
+    let (code, text, summ) = realtime(&d, &file, fw.port, &[]);
+    assert_eq!(code, 0, "{text}");
+    assert_eq!(summ["cycles"].as_u64().unwrap(), 101, "{summ}");
+    let dropped: u64 = text
+        .split(" corrupted frames dropped")
+        .next()
+        .and_then(|t| t.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no count in {text}"));
+    assert!(
+        dropped > 20,
+        "the noise bursts were counted as corrupted frames: {dropped}\n{text}"
+    );
+    fw.thread.join().unwrap();
+}
