@@ -7,8 +7,9 @@
 //!   starts the run over (reference at `t = 0`, rejection terms cleared); different, it
 //!   answers `Refused` with the mismatch bits, as the iceoryx2 pair's controller does.
 //! - `State` (k, `t_k`, `Q`, `V`, the wrench applied): the reference stepped to k, the law
-//!   with its disturbance-rejection terms (docs/maths.md, "The EqT law" and "Disturbance
-//!   rejection"), and a `Command` with the wrench, `L` and the terms. Before a handshake it
+//!   (docs/maths.md, "The EqT law") with its rejection terms
+//!   (docs/maths.md, "Disturbance rejection"), and a `Command` with the wrench, `L` and the
+//!   terms. Before a handshake it
 //!   answers its `Hello` instead (a controller that has just reset asks to be greeted).
 //! - `Bye`: the run is over; it waits for the next `Hello`.
 //!
