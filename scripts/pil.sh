@@ -6,8 +6,8 @@
 #
 #   scripts/pil.sh [--scenario FILE] [--out DIR]
 #
-# For each scenario (default: the seed on SO(3), se3_circle on SE(3), reject_so3 with the
-# disturbance observer):
+# For each scenario (default: the seed on SO(3), se3_circle on SE(3), reject_se3 on SE(3)
+# with the disturbance observer and the integral):
 #  1. plant_sim pil-config writes the scenario's firmware configuration; the firmware is
 #     built with it (private toolchain of scripts/lib/cortex-m-toolchain.sh);
 #  2. QEMU starts with UART0 on a TCP socket (nodelay) and waits for the plant;
@@ -32,14 +32,15 @@ TARGET=thumbv7em-none-eabihf
 ELF=$FW/target/$TARGET/release/pil-firmware
 SCENARIOS=()
 OUT=$FW/target/pil
+DEFAULT=1
 while (($#)); do
 	case $1 in
-	--scenario) SCENARIOS+=("$(realpath "$2")"); shift 2 ;;
+	--scenario) SCENARIOS+=("$(realpath "$2")"); DEFAULT=0; shift 2 ;;
 	--out) OUT=$(realpath -m "$2"); shift 2 ;;
 	*) echo "usage: scripts/pil.sh [--scenario FILE]... [--out DIR]" >&2; exit 2 ;;
 	esac
 done
-((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_so3.toml")
+((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_se3.toml")
 
 skip() {
 	echo "SKIPPED: $*"
@@ -146,4 +147,109 @@ for file in "${SCENARIOS[@]}"; do
 	fi
 done
 ((fails == 0)) || die "$fails scenario(s) differ"
+
+# the line's faults, on the seed (the default suite only)
+if ((DEFAULT)); then
+	seed=$REPO/scenarios/seed.toml
+	step "seed: noise on the line before every frame the plant sends (lockstep)"
+	start seed
+	"$PLANT" run --mode lockstep --scenario "$seed" --transport "tcp:127.0.0.1:$PORT" --no-record \
+		--lockstep-timeout 30 --fault-line-noise 7 --out "$OUT/seed-noise" >"$OUT/seed-noise.log" 2>&1 ||
+		die "seed with line noise: the run failed (log: $OUT/seed-noise.log)"
+	sleep 0.2
+	stop_qemu
+	why=$(compare "$OUT/seed-noise/trajectory.csv" "$OUT/seed-f32/trajectory.csv" 2>&1) ||
+		die "seed with line noise: $why"
+	grep -q "^PIL BYE answered 2001 .* corrupt [1-9]" "$OUT/seed.qemu.out" ||
+		die "seed with line noise: the firmware did not count the noise as corrupted frames: $(grep '^PIL' "$OUT/seed.qemu.out")"
+	echo "PIL: line noise before every frame: dropped by the firmware ($(grep -o 'corrupt [0-9]*' "$OUT/seed.qemu.out")), the run still equal to the f32 simulation"
+
+	# the seed at a 20 ms period, for real time under the emulator (a round trip takes ~6 ms)
+	slow=$OUT/seed_slow.toml
+	sed -e 's/^control_period = 0.01$/control_period = 0.02/' -e 's/^duration = 20.0$/duration = 4.0/' "$seed" >"$slow"
+	grep -q '^control_period = 0.02$' "$slow" && grep -q '^duration = 4.0$' "$slow" || die "the seed's template changed"
+	step "seed_slow: building the firmware"
+	build "$slow" seed_slow
+
+	step "a scenario mismatch is refused on both sides"
+	start seed
+	set +e
+	"$PLANT" run --mode lockstep --scenario "$slow" --transport "tcp:127.0.0.1:$PORT" --no-record \
+		--out "$OUT/mismatch" >"$OUT/mismatch.log" 2>&1
+	rc=$?
+	set -e
+	sleep 0.3
+	stop_qemu
+	((rc == 2)) || die "mismatch: exit $rc, expected 2 (log: $OUT/mismatch.log)"
+	grep -q "configuration mismatch (control period, scenario)" "$OUT/mismatch.log" || die "mismatch: $(tail -2 "$OUT/mismatch.log")"
+	grep -q "^PIL REFUSED mismatch 6" "$OUT/seed.qemu.out" || die "mismatch: the firmware did not refuse: $(cat "$OUT/seed.qemu.out")"
+	echo "PIL: mismatch refused by the firmware (PIL REFUSED mismatch 6) and by the plant (exit 2: $(grep -o 'configuration mismatch ([^)]*)' "$OUT/mismatch.log"))"
+
+	step "real time at 50 Hz: a frame corrupted on the line"
+	start seed_slow
+	"$PLANT" run --mode realtime --rate-hz 50 --scenario "$slow" --transport "tcp:127.0.0.1:$PORT" --no-record \
+		--fault-corrupt-frame 12 --out "$OUT/corrupt" >"$OUT/corrupt.log" 2>&1 ||
+		die "corrupted frame: the run failed (log: $OUT/corrupt.log)"
+	stop_qemu
+	grep -q ", 1 corrupted frames dropped" "$OUT/corrupt.log" || die "corrupted frame: not counted: $(grep 'serial link' "$OUT/corrupt.log")"
+	python3 - "$OUT/corrupt/summary.json" <<'PY' || die "corrupted frame: see $OUT/corrupt/summary.json"
+import json, sys
+s = json.load(open(sys.argv[1]))
+assert s["cycles"] == 201, s["cycles"]
+assert s["deadline_misses"] >= 1, "the corrupted command was not a miss"
+print(f"PIL: a corrupted frame: caught by the CRC and counted, {s['deadline_misses']} deadline miss(es), the run went on ({s['cycles']} cycles)")
+PY
+
+	step "real time at 50 Hz: the firmware held 200 ms and reset through QEMU's monitor (stop, system_reset, cont)"
+	start seed_slow
+	"$PLANT" run --mode realtime --rate-hz 50 --scenario "$slow" --transport "tcp:127.0.0.1:$PORT" --no-record \
+		--out "$OUT/reset" >"$OUT/reset.log" 2>&1 &
+	plant=$!
+	sleep 1.5
+	python3 - "$OUT/seed_slow.monitor" <<'PY' || die "reset: cannot reach QEMU's monitor"
+import socket, sys, time
+s = socket.socket(socket.AF_UNIX)
+s.connect(sys.argv[1])
+time.sleep(0.1)
+# a board takes a while to come back: the CPU held 200 ms (ten periods), then reset
+s.sendall(b"stop\n")
+time.sleep(0.2)
+s.sendall(b"system_reset\n")
+time.sleep(0.05)
+s.sendall(b"cont\n")
+time.sleep(0.1)
+s.close()
+PY
+	wait "$plant" || die "reset: the run failed (log: $OUT/reset.log)"
+	stop_qemu
+	grep -q ", 1 firmware resets" "$OUT/reset.log" || die "reset: $(grep 'serial link' "$OUT/reset.log")"
+	python3 - "$OUT/reset/summary.json" <<'PY' || die "reset: see $OUT/reset/summary.json"
+import json, sys
+s = json.load(open(sys.argv[1]))
+assert s["safe_mode_entries"] >= 1, "no safe mode during the reset"
+assert s["safe_mode_cycles"] < 150, f"safe mode did not end: {s['safe_mode_cycles']} cycles"
+print(f"PIL: a firmware reset: safe mode for {s['safe_mode_cycles']} cycles ({s['safe_mode_entries']} entry), then the firmware greeted again and the plant left safe mode")
+PY
+fi
+
+# --- footprint and stack -----------------------------------------------------------------------
+read -r text data bss < <(python3 - "$OUT/seed.elf" <<'PY'
+import struct, sys
+b = open(sys.argv[1], "rb").read()
+shoff, = struct.unpack_from("<I", b, 0x20)
+shentsize, shnum = struct.unpack_from("<HH", b, 0x2E)
+t = d = s = 0
+for i in range(shnum):
+    _, typ, flags, _, _, size = struct.unpack_from("<IIIIII", b, shoff + i * shentsize)
+    if flags & 2:
+        if typ == 8: s += size
+        elif flags & 1: d += size
+        else: t += size
+print(t, d, s)
+PY
+)
+echo "footprint (seed firmware, ELF sections): flash $((text + data)) bytes, static RAM $((data + bss)) bytes (data $data, bss $bss)"
+for f in "$OUT"/*.qemu.out; do
+	sed -n "s/^STACK \(.*\)/stack high-water mark ($(basename "$f" .qemu.out)): \1 bytes/p" "$f" | tail -1
+done
 echo "PIL: PASS"

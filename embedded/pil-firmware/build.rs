@@ -13,6 +13,8 @@ fn main() {
     match env::var("PIL_CONFIG") {
         Ok(p) if PathBuf::from(&p).is_file() => println!("cargo:rerun-if-changed={p}"),
         Ok(p) => panic!("PIL_CONFIG={p}: no such file (write it with plant_sim pil-config)"),
-        Err(_) => panic!("PIL_CONFIG is not set: the firmware needs a scenario's configuration (plant_sim pil-config --scenario FILE --out FILE)"),
+        Err(_) => panic!(
+            "PIL_CONFIG is not set: the firmware needs a scenario's configuration (plant_sim pil-config --scenario FILE --out FILE)"
+        ),
     }
 }

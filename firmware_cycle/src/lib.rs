@@ -9,8 +9,8 @@
 //! - `State` (k, `t_k`, `Q`, `V`, the wrench applied): the reference stepped to k, the law
 //!   (docs/maths.md, "The EqT law") with its rejection terms
 //!   (docs/maths.md, "Disturbance rejection"), and a `Command` with the wrench, `L` and the
-//!   terms. Before a handshake it
-//!   answers its `Hello` instead (a controller that has just reset asks to be greeted).
+//!   terms. Before a handshake it answers the first state with its `Hello` instead (a
+//!   controller that has just reset asks to be greeted) and the next ones with nothing.
 //! - `Bye`: the run is over; it waits for the next `Hello`.
 //!
 //! The firmware wraps this with its UART and its interrupts; `plant_sim sim
@@ -71,6 +71,8 @@ pub struct Cycle {
     identity: Hello,
     group: Group,
     greeted: bool,
+    /// A `Hello` was sent unasked since the last handshake (one is enough).
+    asked: bool,
     counts: Counts,
 }
 
@@ -86,6 +88,7 @@ impl Cycle {
             identity: config.identity.clone(),
             group,
             greeted: false,
+            asked: false,
             counts: Counts::default(),
         })
     }
@@ -124,16 +127,25 @@ impl Cycle {
                     });
                 }
                 self.greeted = true;
+                self.asked = false;
                 match &mut self.group {
                     Group::So3(e) => e.restart(),
                     Group::Se3(e) => e.restart(),
                 }
                 Some(self.hello())
             }
-            Frame::State(_) if !self.greeted => Some(self.hello()),
+            // states before the handshake (a reset, a plant that skipped it): one `Hello`
+            // asks to be greeted; the states queued behind that one get nothing, so the plant
+            // sees one request, not a storm of them
+            Frame::State(_) if !self.greeted => {
+                let first = !self.asked;
+                self.asked = true;
+                first.then(|| self.hello())
+            }
             Frame::State(state) => self.answer(state),
             Frame::Bye => {
                 self.greeted = false;
+                self.asked = false;
                 None
             }
             Frame::Command(_) | Frame::Refused { .. } => None,

@@ -111,11 +111,12 @@ fn the_configuration_round_trips_and_bad_bytes_are_refused() {
 fn the_handshake_refuses_a_mismatch_and_greets_a_match() {
     let config = seed_like();
     let mut c = Cycle::new(&config).unwrap();
-    // a state before any Hello: it asks to be greeted
+    // a state before any Hello: it asks to be greeted, once (the next get nothing)
     assert_eq!(
         c.on_frame(&Frame::State(state(0))),
         Some(Frame::Hello(config.identity.clone()))
     );
+    assert_eq!(c.on_frame(&Frame::State(state(1))), None);
     let mut other = config.identity.clone();
     other.fingerprint ^= 1;
     other.period = 0.02;

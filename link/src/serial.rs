@@ -219,6 +219,12 @@ pub struct SerialCounts {
     pub commands: AtomicU64,
 }
 
+/// Test hook: before every frame it sends, the transport writes a burst of noise (0 to 31
+/// pseudo-random bytes from this seed, then a zero that ends it): the firmware must drop
+/// the bursts and still decode every frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LineNoise(pub u64);
+
 /// Test hook: flip one bit of the `n`th frame received (from 1: the firmware's `Hello` is
 /// the first, the command of state k the (k + 2)th in a run without losses).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -241,6 +247,7 @@ pub struct SerialTransport {
     group: u32,
     counts: Arc<SerialCounts>,
     corrupt: Option<CorruptCommand>,
+    noise: Option<LineNoise>,
     frames_seen: u64,
     out: [u8; MAX_ENCODED],
     error: Option<io::Error>,
@@ -345,13 +352,41 @@ impl SerialTransport {
             group: 0,
             counts,
             corrupt,
+            noise: None,
             frames_seen: 0,
             out: [0; MAX_ENCODED],
             error: None,
         }
     }
 
+    /// The transport with line noise before every frame it sends (a test hook).
+    pub fn with_noise(mut self, noise: Option<LineNoise>) -> SerialTransport {
+        self.noise = noise;
+        self
+    }
+
     fn send_frame(&mut self, frame: &Frame) -> Result<(), LinkError> {
+        if let Some(LineNoise(seed)) = &mut self.noise {
+            let mut burst = [0u8; 32];
+            // xorshift64: the same bursts for the same seed
+            let mut next = || {
+                *seed ^= *seed << 13;
+                *seed ^= *seed >> 7;
+                *seed ^= *seed << 17;
+                *seed
+            };
+            let len = (next() % 32) as usize;
+            for b in burst.iter_mut().take(len) {
+                *b = next() as u8;
+            }
+            burst[len] = 0;
+            self.link
+                .write_all(&burst[..=len])
+                .map_err(|e| LinkError::Serial {
+                    what: "writing line noise to the firmware".to_owned(),
+                    source: e,
+                })?;
+        }
         let n = encode(frame, &mut self.out).map_err(|e| LinkError::Serial {
             what: "encoding a serial frame".to_owned(),
             source: io::Error::new(io::ErrorKind::InvalidData, e.to_string()),

@@ -7,8 +7,8 @@
 //! defines it.
 #![allow(non_camel_case_types, clippy::upper_case_acronyms)]
 
-pub use cortex_m_rt::interrupt;
 pub use self::Interrupt as interrupt;
+pub use cortex_m_rt::interrupt;
 
 /// The NVIC's implemented priority bits (3, as in Arm's CMSDK CM4 header).
 pub const NVIC_PRIO_BITS: u8 = 3;

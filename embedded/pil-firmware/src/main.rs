@@ -167,10 +167,13 @@ mod app {
                 Some(Ok(f)) => f,
             };
             let bye = frame == Frame::Bye;
-            if let Some(reply) = cycle.on_frame(&frame)
-                && let Ok(n) = encode(&reply, out)
-            {
-                uart0::write_all(&out[..n]);
+            if let Some(reply) = cycle.on_frame(&frame) {
+                if let Frame::Refused { mismatch, .. } = &reply {
+                    hprintln!("PIL REFUSED mismatch {}", mismatch);
+                }
+                if let Ok(n) = encode(&reply, out) {
+                    uart0::write_all(&out[..n]);
+                }
             }
             if bye {
                 let c = cycle.counts();

@@ -47,6 +47,7 @@ pub fn high_water(p: Painted) -> Option<usize> {
     let words = (p.top - p.bottom) / 4;
     // SAFETY: the words painted by `paint`; reading them races with nothing (a stack in use
     // lies above the lowest overwritten word).
-    let lowest = (0..words).find(|&i| unsafe { core::ptr::read_volatile(base.add(i)) } != PATTERN)?;
+    let lowest =
+        (0..words).find(|&i| unsafe { core::ptr::read_volatile(base.add(i)) } != PATTERN)?;
     (lowest > 0).then(|| p.top - (p.bottom + 4 * lowest))
 }

@@ -40,6 +40,8 @@ pub struct SerialController {
     pub counts: std::sync::Arc<link::serial::SerialCounts>,
     /// Test hook: flip a bit in this received frame.
     pub corrupt: Option<link::serial::CorruptCommand>,
+    /// Test hook: noise on the line before every frame sent.
+    pub noise: Option<link::serial::LineNoise>,
 }
 
 impl std::fmt::Debug for SerialController {

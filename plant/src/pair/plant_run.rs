@@ -103,7 +103,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                     (c.open)()?,
                     std::sync::Arc::clone(&c.counts),
                     c.corrupt,
-                );
+                )
+                .with_noise(c.noise);
                 PlantEndpoint::with_transport(config, Box::new(transport))
             }
         };

@@ -103,6 +103,7 @@ pub(crate) fn sim_f32(
             open: Arc::new(open),
             counts: Arc::new(SerialCounts::default()),
             corrupt: None,
+            noise: None,
         }),
         run: format!("f32-{}", std::process::id()),
         out,

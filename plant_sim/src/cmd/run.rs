@@ -84,6 +84,11 @@ pub(crate) struct RunArgs {
     #[cfg(feature = "fault-injection")]
     #[arg(long, value_name = "N", hide = true)]
     fault_corrupt_frame: Option<u64>,
+    /// Test builds only, serial transports: a burst of seeded noise on the line before every
+    /// frame sent to the firmware.
+    #[cfg(feature = "fault-injection")]
+    #[arg(long, value_name = "SEED", hide = true)]
+    fault_line_noise: Option<u64>,
 }
 
 /// What `--transport` names: a process transport, or a firmware on a serial link.
@@ -114,9 +119,12 @@ fn serial_controller(args: &RunArgs) -> Option<plant::pair::SerialController> {
         return None;
     };
     #[cfg(feature = "fault-injection")]
-    let corrupt = args.fault_corrupt_frame.map(link::serial::CorruptCommand);
+    let (corrupt, noise) = (
+        args.fault_corrupt_frame.map(link::serial::CorruptCommand),
+        args.fault_line_noise.map(link::serial::LineNoise),
+    );
     #[cfg(not(feature = "fault-injection"))]
-    let corrupt = None;
+    let (corrupt, noise) = (None, None);
     let target = target.clone();
     Some(plant::pair::SerialController {
         name: match &target {
@@ -126,6 +134,7 @@ fn serial_controller(args: &RunArgs) -> Option<plant::pair::SerialController> {
         open: std::sync::Arc::new(move || link::serial::connect(&target)),
         counts: Default::default(),
         corrupt,
+        noise,
     })
 }
 
