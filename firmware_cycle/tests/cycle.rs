@@ -217,3 +217,23 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    /// A configuration file damaged anywhere, or random bytes, is refused or builds a cycle;
+    /// never a panic.
+    #[test]
+    fn damaged_configurations_never_panic(flips in prop::collection::vec((0usize..400, any::<u8>()), 1..8), cut in 0usize..400, noise in prop::collection::vec(any::<u8>(), 0..300)) {
+        let mut buf = [0u8; MAX_CONFIG];
+        let n = seed_like().to_bytes(&mut buf).unwrap();
+        let mut bytes = buf[..n].to_vec();
+        for (i, x) in flips {
+            let i = i % bytes.len();
+            bytes[i] ^= x;
+        }
+        bytes.truncate(cut.max(1).min(bytes.len()));
+        let _ = Cycle::from_bytes(&bytes);
+        let _ = Cycle::from_bytes(&noise);
+    }
+}

@@ -496,3 +496,89 @@ impl Transport<StateMsg, CommandMsg> for SerialTransport {
         self.link.wait_readable(timeout);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn targets_parse_and_bad_ones_say_what_is_expected() {
+        assert_eq!(
+            "tcp:127.0.0.1:5555".parse(),
+            Ok(SerialTarget::Tcp("127.0.0.1:5555".to_owned()))
+        );
+        assert_eq!(
+            "serial:/dev/ttyACM0".parse(),
+            Ok(SerialTarget::Device(PathBuf::from("/dev/ttyACM0"), 115_200))
+        );
+        assert_eq!(
+            "serial:/dev/ttyUSB1@921600".parse(),
+            Ok(SerialTarget::Device(PathBuf::from("/dev/ttyUSB1"), 921_600))
+        );
+        for (bad, says) in [
+            ("tcp:localhost", "expected tcp:HOST:PORT"),
+            ("tcp::5555", "expected tcp:HOST:PORT"),
+            ("tcp:host:99999", "expected tcp:HOST:PORT"),
+            ("serial:", "expected serial:PATH[@BAUD]"),
+            ("serial:/dev/tty@fast", "`fast` is not a baud rate"),
+            (
+                "udp:1.2.3.4:5",
+                "expected tcp:HOST:PORT or serial:PATH[@BAUD]",
+            ),
+        ] {
+            let e = bad.parse::<SerialTarget>().unwrap_err();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn an_unsupported_baud_rate_or_a_missing_device_is_an_error_naming_it() {
+        let e = connect(&SerialTarget::Device(PathBuf::from("/dev/null"), 12_345))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("unsupported baud rate 12345"), "{e}");
+        let e = connect(&SerialTarget::Device(
+            PathBuf::from("/nonexistent/tty"),
+            115_200,
+        ))
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(e.contains("opening serial:/nonexistent/tty"), "{e}");
+        let e = connect(&SerialTarget::Tcp("127.0.0.1:1".to_owned()))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("connecting to the firmware at tcp:127.0.0.1:1"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_command_frame_of_the_wrong_length_is_not_a_command() {
+        let c = CommandFrame {
+            seq: 3,
+            law: 0,
+            tau: heapless::Vec::from_slice(&[0.5, 0.25, -1.0]).unwrap(),
+            lyapunov: 0.125,
+            observer: heapless::Vec::new(),
+            integral: heapless::Vec::new(),
+            estimate: None,
+            allocation: None,
+        };
+        let msg = command_msg(&c, WireGroup::So3.code()).unwrap();
+        assert_eq!(
+            (msg.seq, msg.tau[..3].to_vec(), msg.lyapunov),
+            (3, vec![0.5, 0.25, -1.0], 0.125)
+        );
+        assert!(
+            command_msg(&c, WireGroup::Se3.code()).is_none(),
+            "3 entries on SE(3)"
+        );
+        let mut short_terms = c.clone();
+        short_terms.observer = heapless::Vec::from_slice(&[1.0]).unwrap();
+        assert!(command_msg(&short_terms, WireGroup::So3.code()).is_none());
+    }
+}

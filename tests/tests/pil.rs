@@ -352,3 +352,70 @@ fn garbage_on_the_line_never_panics_either_side() {
     );
     fw.thread.join().unwrap();
 }
+
+#[test]
+fn bad_transports_and_scenarios_the_firmware_cannot_run_are_refused_naming_them() {
+    let d = TempDir::new("pil-bad");
+    for (args, says) in [
+        (
+            vec!["run", "--transport", "udp:1.2.3.4:5"],
+            "expected iceoryx2, uds, tcp:HOST:PORT or serial:PATH[@BAUD]",
+        ),
+        (
+            vec!["run", "--transport", "tcp:nohost"],
+            "expected tcp:HOST:PORT",
+        ),
+        (
+            vec!["run", "--transport", "serial:/dev/ttyX@fast"],
+            "`fast` is not a baud rate",
+        ),
+    ] {
+        let (code, text) = plant(&args);
+        assert_eq!(code, 2, "{args:?}: {text}");
+        assert!(text.contains(says), "{args:?}: {text}");
+    }
+    for (name, key) in [
+        ("sensors_so3", "key `sensors`"),
+        ("spacecraft", "key `vehicle`"),
+        ("slew_so3", "key `reference`"),
+    ] {
+        let file = pair_tests::scenario(name);
+        let (code, text) = plant(&[
+            "sim",
+            "--scenario",
+            &file,
+            "--controller-scalar",
+            "f32",
+            "--out",
+            &d.join(name),
+        ]);
+        assert_eq!(code, 2, "{name}: {text}");
+        assert!(
+            text.contains(key) && text.contains("processor-in-the-loop"),
+            "{name}: {text}"
+        );
+        let (code, text) = plant(&[
+            "pil-config",
+            "--scenario",
+            &file,
+            "--out",
+            &d.join(&format!("{name}.config")),
+        ]);
+        assert_eq!(code, 2, "{name}: {text}");
+    }
+    // a firmware that is not there: a clear error, exit 1
+    let (code, text) = plant(&[
+        "run",
+        "--mode",
+        "lockstep",
+        "--transport",
+        "tcp:127.0.0.1:1",
+        "--out",
+        &d.join("none"),
+    ]);
+    assert_eq!(code, 1, "{text}");
+    assert!(
+        text.contains("connecting to the firmware at tcp:127.0.0.1:1"),
+        "{text}"
+    );
+}

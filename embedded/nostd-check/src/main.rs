@@ -418,7 +418,7 @@ fn run() -> i32 {
         }
     }
     rt::write(if code == 0 {
-        b"nostd-check: controller, estimator, allocation, ipc_types and serial_wire run with no std, no alloc, no allocator\n"
+        b"nostd-check: controller, estimator, allocation, ipc_types, serial_wire and firmware_cycle run with no std, no alloc, no allocator\n"
     } else {
         b"nostd-check: FAILED\n"
     });
