@@ -178,21 +178,7 @@ fi
 if [[ -z $sizes ]]; then
 	# SHF_ALLOC sections: NOBITS = bss, writable = data, the rest = text (as `size` counts).
 	SIZE_TOOL="ELF section headers"
-	sizes=$(python3 - "$ELF" <<'PY'
-import struct, sys
-b = open(sys.argv[1], "rb").read()
-shoff, = struct.unpack_from("<I", b, 0x20)
-shentsize, shnum = struct.unpack_from("<HH", b, 0x2E)
-t = d = s = 0
-for i in range(shnum):
-    _, typ, flags, _, _, size = struct.unpack_from("<IIIIII", b, shoff + i * shentsize)
-    if flags & 2:  # SHF_ALLOC
-        if typ == 8: s += size        # SHT_NOBITS
-        elif flags & 1: d += size     # SHF_WRITE
-        else: t += size
-print(t, d, s)
-PY
-)
+	sizes=$(python3 "$REPO/scripts/lib/elf_sizes.py" "$ELF")
 fi
 read -r text data bss <<<"$sizes"
 echo "footprint ($SIZE_TOOL): flash $((text + data)) bytes (text+rodata+vectors $text, data initialisers $data)"

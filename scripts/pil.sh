@@ -234,21 +234,7 @@ PY
 fi
 
 # --- footprint and stack -----------------------------------------------------------------------
-read -r text data bss < <(python3 - "$OUT/seed.elf" <<'PY'
-import struct, sys
-b = open(sys.argv[1], "rb").read()
-shoff, = struct.unpack_from("<I", b, 0x20)
-shentsize, shnum = struct.unpack_from("<HH", b, 0x2E)
-t = d = s = 0
-for i in range(shnum):
-    _, typ, flags, _, _, size = struct.unpack_from("<IIIIII", b, shoff + i * shentsize)
-    if flags & 2:
-        if typ == 8: s += size
-        elif flags & 1: d += size
-        else: t += size
-print(t, d, s)
-PY
-)
+read -r text data bss < <(python3 "$REPO/scripts/lib/elf_sizes.py" "$OUT/seed.elf")
 echo "footprint (seed firmware, ELF sections): flash $((text + data)) bytes, static RAM $((data + bss)) bytes (data $data, bss $bss)"
 for f in "$OUT"/*.qemu.out; do
 	sed -n "s/^STACK \(.*\)/stack high-water mark ($(basename "$f" .qemu.out)): \1 bytes/p" "$f" | tail -1

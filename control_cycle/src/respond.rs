@@ -97,14 +97,7 @@ where
         controller: Controller<T, G, N, M>,
         rejection: RejectionConfig<T, M>,
     ) -> Result<Self, controller::Error> {
-        let rejection = if rejection.any() {
-            Some(Rejection::new(
-                rejection,
-                controller.config().torque_limit.as_ref(),
-            )?)
-        } else {
-            None
-        };
+        let rejection = Rejection::of(rejection, controller.config().torque_limit.as_ref())?;
         Ok(Responder {
             controller,
             rejection,

@@ -110,14 +110,7 @@ where
     /// "Disturbance rejection"), fed with the torque the loop applied over each period. A
     /// configuration with no term leaves the loop as it was.
     pub fn with_rejection(mut self, config: RejectionConfig<T, M>) -> Result<Self, Error> {
-        self.rejection = if config.any() {
-            Some(Rejection::new(
-                config,
-                self.controller.config().torque_limit.as_ref(),
-            )?)
-        } else {
-            None
-        };
+        self.rejection = Rejection::of(config, self.controller.config().torque_limit.as_ref())?;
         Ok(self)
     }
 

@@ -149,6 +149,18 @@ fn positive<T: Real, const M: usize>(q: Quantity, v: &SVector<T, M>) -> Result<(
 }
 
 impl<T: Real, const M: usize> Rejection<T, M> {
+    /// The terms of `config` if it has any ([`Rejection::new`]), else `None`: the plain law.
+    pub fn of(
+        config: RejectionConfig<T, M>,
+        torque_limit: Option<&SVector<T, M>>,
+    ) -> Result<Option<Self>, Error> {
+        if config.any() {
+            Rejection::new(config, torque_limit).map(Some)
+        } else {
+            Ok(None)
+        }
+    }
+
     /// Validates the settings (gains, `c`, limits: finite and > 0) against the controller's
     /// torque limit and starts with zero estimates.
     pub fn new(

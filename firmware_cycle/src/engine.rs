@@ -28,14 +28,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         let controller = config.controller::<G, N, M>()?;
         let reference = config.reference::<G, N, M>()?;
         let rejection = config.rejection::<M>()?;
-        let rejection = if rejection.any() {
-            Some(Rejection::new(
-                rejection,
-                controller.config().torque_limit.as_ref(),
-            )?)
-        } else {
-            None
-        };
+        let rejection = Rejection::of(rejection, controller.config().torque_limit.as_ref())?;
         Ok(Engine {
             controller,
             start: reference.clone(),

@@ -235,6 +235,8 @@ enum Greeting {
     None,
     Sent,
     Accepted,
+    /// The firmware refused the plant's identity: the run ends, nothing is greeted again.
+    Refused,
 }
 
 /// The plant's side of the serial link, as a [`Transport`].
@@ -404,6 +406,11 @@ impl SerialTransport {
             Frame::Hello(_) if self.greeting == Greeting::Sent => {
                 self.greeting = Greeting::Accepted
             }
+            // after a refusal the firmware may still ask to be greeted (for the state that
+            // followed the refused Hello): the plant is ending the run, so it is not greeted
+            Frame::Hello(_) if self.greeting == Greeting::Refused => {
+                self.counts.unexpected.fetch_add(1, Ordering::Relaxed);
+            }
             Frame::Hello(_) => {
                 // the firmware greets unasked: it has reset; greet it again
                 self.counts.resets.fetch_add(1, Ordering::Relaxed);
@@ -415,7 +422,7 @@ impl SerialTransport {
                 }
             }
             Frame::Refused { mismatch, identity } => {
-                self.greeting = Greeting::None;
+                self.greeting = Greeting::Refused;
                 let id = identity_of(&identity);
                 self.inbox
                     .push_back(CommandMsg::refusal(&id, 0, u32::from(mismatch)));

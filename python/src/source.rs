@@ -46,16 +46,7 @@ pub(crate) fn load(
     match overrides {
         None => Scenario::from_file(&path).map_err(value_err),
         Some(o) => {
-            let text = std::fs::read_to_string(&path).map_err(|source| {
-                value_err(scenario::ScenarioError::Io {
-                    path: path.display().to_string(),
-                    source,
-                })
-            })?;
-            let stem = path
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "scenario".to_owned());
+            let (text, stem) = Scenario::read_file(&path).map_err(value_err)?;
             let origin = path.display().to_string();
             parse(&text, &origin, &stem, path.parent(), Some(o))
         }

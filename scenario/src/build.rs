@@ -23,8 +23,9 @@ impl Scenario {
         Scenario::from_toml(text, &format!("built-in scenario `{name}`"), name)
     }
 
-    /// Loads and validates a scenario file.
-    pub fn from_file(path: &Path) -> Result<Scenario, ScenarioError> {
+    /// A scenario file's text and the name it gives a scenario without `name` (the file's
+    /// stem); what [`Scenario::from_file`] parses, for a caller that edits the text first.
+    pub fn read_file(path: &Path) -> Result<(String, String), ScenarioError> {
         let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
             path: path.display().to_string(),
             source,
@@ -33,6 +34,12 @@ impl Scenario {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "scenario".to_owned());
+        Ok((text, stem))
+    }
+
+    /// Loads and validates a scenario file.
+    pub fn from_file(path: &Path) -> Result<Scenario, ScenarioError> {
+        let (text, stem) = Scenario::read_file(path)?;
         Validator {
             origin: &path.display().to_string(),
             base: path.parent(),
