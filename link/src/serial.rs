@@ -12,7 +12,7 @@
 
 use crate::LinkError;
 use crate::transport::Transport;
-use ipc_types::{CommandMsg, Identity, NAME_BYTES, StateMsg, WireGroup, flags};
+use ipc_types::{CommandMsg, Identity, StateMsg, WireGroup, flags};
 use serial_wire::{CommandFrame, Deframer, Frame, Hello, MAX_ENCODED, StateFrame, encode};
 use std::io::{self, Read, Write};
 use std::path::PathBuf;
@@ -256,14 +256,8 @@ pub struct SerialTransport {
 }
 
 fn hello_of(id: &Identity) -> Hello {
-    let name_len = id
-        .scenario
-        .iter()
-        .position(|b| *b == 0)
-        .unwrap_or(NAME_BYTES);
-    let name = std::str::from_utf8(&id.scenario[..name_len]).unwrap_or("");
     let mut scenario = heapless::String::<32>::new();
-    for c in name.chars() {
+    for c in ipc_types::name_str(&id.scenario).chars() {
         if scenario.push(c).is_err() {
             break;
         }
