@@ -7,7 +7,8 @@
 #   scripts/pil.sh [--scenario FILE] [--out DIR]
 #
 # For each scenario (default: the seed on SO(3), se3_circle on SE(3), reject_se3 on SE(3)
-# with the disturbance observer and the integral):
+# with the disturbance observer and the integral, pil_hexarotor on SE(3) with sensors, the
+# equivariant filter, the disturbance observer and a vehicle's allocation):
 #  1. plant_sim pil-config writes the scenario's firmware configuration; the firmware is
 #     built with it (private toolchain of scripts/lib/cortex-m-toolchain.sh);
 #  2. QEMU starts with UART0 on a TCP socket (nodelay) and waits for the plant;
@@ -40,7 +41,7 @@ while (($#)); do
 	*) echo "usage: scripts/pil.sh [--scenario FILE]... [--out DIR]" >&2; exit 2 ;;
 	esac
 done
-((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_se3.toml")
+((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_se3.toml" "$REPO/scenarios/pil_hexarotor.toml")
 
 skip() {
 	echo "SKIPPED: $*"
@@ -234,8 +235,10 @@ PY
 fi
 
 # --- footprint and stack -----------------------------------------------------------------------
-read -r text data bss < <(python3 "$REPO/scripts/lib/elf_sizes.py" "$OUT/seed.elf")
-echo "footprint (seed firmware, ELF sections): flash $((text + data)) bytes, static RAM $((data + bss)) bytes (data $data, bss $bss)"
+for elf in "$OUT"/*.elf; do
+	read -r text data bss < <(python3 "$REPO/scripts/lib/elf_sizes.py" "$elf")
+	echo "footprint ($(basename "$elf" .elf) firmware, ELF sections): flash $((text + data)) bytes, static RAM $((data + bss)) bytes (data $data, bss $bss)"
+done
 for f in "$OUT"/*.qemu.out; do
 	sed -n "s/^STACK \(.*\)/stack high-water mark ($(basename "$f" .qemu.out)): \1 bytes/p" "$f" | tail -1
 done

@@ -11,6 +11,7 @@
 //! | [`ComplementaryFilter`] | Mahony–Hamel–Pflimlin's explicit complementary filter with gyro bias, on SO(3) |
 //! | [`EquivariantFilter`] | the equivariant filter (EqF) for attitude and gyro bias: a 6×6 covariance, gains from physical noise |
 //! | [`PoseFilter`] | SE(3): the same filter for attitude (the accelerometer one more direction), and a linear Kalman filter for position and velocity |
+//! | [`Settings`], [`Filter`] | a filter of either kind on either group from a scenario's numbers, one step of it as the law's `(Q̂, V̂)` |
 //! | [`StateEstimate`] | an estimate as the controller's `(Q̂, V̂)`: `(SMatrix<T, N, N>, SVector<T, M>)` |
 //!
 //! Bad samples never make a filter panic or publish a non-finite estimate: they are skipped
@@ -23,11 +24,13 @@
 mod complementary;
 pub mod eqf;
 mod pose;
+mod settings;
 mod triad;
 
 pub use complementary::{AttitudeEstimate, ComplementaryConfig, ComplementaryFilter};
 pub use eqf::{EqfConfig, EquivariantFilter};
 pub use pose::{MIN_VARIANCE, PoseConfig, PoseEstimate, PoseFilter, TranslationCovariance};
+pub use settings::{Filter, FilterKind, Settings, Step};
 pub use triad::triad;
 
 use nalgebra::{SMatrix, SVector};

@@ -91,6 +91,11 @@ pub struct Config {
     pub observer: Option<Observer>,
     /// The geometric integral, if it runs.
     pub integral: Option<Integral>,
+    /// The estimator, where the scenario has sensors: the states carry samples, and the law
+    /// is handed the estimate.
+    pub estimator: Option<crate::Estimator>,
+    /// The vehicle, where the scenario has one: the law's wrench is allocated to it.
+    pub vehicle: Option<crate::Vehicle>,
 }
 
 /// Why a [`Config`] cannot make a cycle.
@@ -108,6 +113,10 @@ pub enum ConfigError {
     Shape(&'static str, usize),
     /// The controller refused the settings.
     Controller(controller::Error),
+    /// The estimator refused its settings.
+    Estimator(estimator::EstimatorError),
+    /// The vehicle's actuators or allocation settings are refused (which).
+    Vehicle(&'static str),
 }
 
 impl core::fmt::Display for ConfigError {
@@ -119,6 +128,8 @@ impl core::fmt::Display for ConfigError {
             ConfigError::Law(l) => write!(f, "law index {l} (expected 0 to 3)"),
             ConfigError::Shape(what, n) => write!(f, "{what}: {n} entries, not the group's"),
             ConfigError::Controller(e) => write!(f, "{e}"),
+            ConfigError::Estimator(e) => write!(f, "estimator: {e}"),
+            ConfigError::Vehicle(what) => write!(f, "vehicle: its {what} are refused"),
         }
     }
 }
@@ -130,7 +141,7 @@ impl From<controller::Error> for ConfigError {
 }
 
 /// The largest encoded configuration.
-pub const MAX_CONFIG: usize = 2048;
+pub const MAX_CONFIG: usize = 4096;
 
 impl Config {
     /// The postcard bytes, into `out`; returns their length.

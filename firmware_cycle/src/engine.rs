@@ -1,12 +1,13 @@
 //! The law on one group: the reference, the controller and its rejection terms, and the last
 //! state answered (the terms update only on consecutive states, as in the pair).
 
-use crate::{Config, ConfigError, Dropped, MAX_SEQ_JUMP};
+use crate::{Config, ConfigError, Dropped, Failure, MAX_SEQ_JUMP};
+use allocation::VehicleControl;
 use controller::group::MatrixLieGroup;
 use controller::{Controller, Reference, Rejection};
 use heapless::Vec;
-use nalgebra::{SMatrix, SVector};
-use serial_wire::{CommandFrame, StateFrame};
+use nalgebra::{SMatrix, SVector, Vector3};
+use serial_wire::{Allocation, CommandFrame, Estimate, Samples, StateFrame};
 
 pub(crate) struct Engine<G, const N: usize, const M: usize> {
     controller: Controller<f32, G, N, M>,
@@ -16,6 +17,13 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     rejection: Option<Rejection<f32, M>>,
     previous: Option<u64>,
     law: u8,
+    filter_start: Option<estimator::Filter<f32>>,
+    filter: Option<estimator::Filter<f32>>,
+    vehicle_start: Option<VehicleControl<f32, M>>,
+    vehicle: Option<VehicleControl<f32, M>>,
+    /// The actuator count and the failures the controller is told of.
+    failures: Vec<Failure, 12>,
+    actuators: usize,
 }
 
 fn vec<const C: usize>(xs: &[f32]) -> Vec<f32, C> {
@@ -29,7 +37,25 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         let reference = config.reference::<G, N, M>()?;
         let rejection = config.rejection::<M>()?;
         let rejection = Rejection::of(rejection, controller.config().torque_limit.as_ref())?;
+        let filter = match &config.estimator {
+            None => None,
+            Some(e) => Some(e.settings().build(N == 4).map_err(ConfigError::Estimator)?),
+        };
+        let vehicle = match &config.vehicle {
+            None => None,
+            Some(v) => Some(v.control::<M>(config.identity.period as f32)?),
+        };
         Ok(Engine {
+            filter_start: filter,
+            filter,
+            vehicle_start: vehicle,
+            vehicle,
+            failures: config
+                .vehicle
+                .as_ref()
+                .map(|v| v.failures.clone())
+                .unwrap_or_default(),
+            actuators: config.vehicle.as_ref().map_or(0, |v| v.actuators.len()),
             controller,
             start: reference.clone(),
             reference,
@@ -44,11 +70,17 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
     pub(crate) fn restart(&mut self) {
         self.reference = self.start.clone();
         self.rejection = self.rejection_start;
+        self.filter = self.filter_start;
+        self.vehicle = self.vehicle_start;
         self.previous = None;
     }
 
     pub(crate) fn answer(&mut self, s: &StateFrame, period: f32) -> Result<CommandFrame, Dropped> {
-        if s.q.len() != N * N || s.v.len() != M || s.applied.len() != M {
+        let estimates = self.filter.is_some();
+        if s.applied.len() != M
+            || s.samples.is_some() != estimates
+            || (!estimates && (s.q.len() != N * N || s.v.len() != M))
+        {
             return Err(Dropped::Shape);
         }
         let at = self.reference.step_index();
@@ -61,8 +93,17 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         while self.reference.step_index() < s.seq {
             self.reference.advance();
         }
-        let q = SMatrix::<f32, N, N>::from_row_slice(&s.q);
-        let v = SVector::<f32, M>::from_row_slice(&s.v);
+        let (q, v, estimate) = match (&mut self.filter, &s.samples) {
+            (Some(f), Some(samples)) => {
+                let e = estimate::<N, M>(f, samples, period);
+                (e.q, e.v, Some(e))
+            }
+            _ => (
+                SMatrix::<f32, N, N>::from_row_slice(&s.q),
+                SVector::<f32, M>::from_row_slice(&s.v),
+                None,
+            ),
+        };
         let desired = self.reference.desired();
         let out = match &mut self.rejection {
             None => self.controller.compute(&q, &v, &desired),
@@ -77,6 +118,18 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         }
         .map_err(|_| Dropped::Law)?;
         self.previous = Some(s.seq);
+        let allocation = match &mut self.vehicle {
+            None => None,
+            Some(control) => Some(allocate::<G, N, M>(
+                control,
+                &self.failures,
+                self.actuators,
+                s.t,
+                period,
+                &q,
+                &out.torque,
+            )),
+        };
         let terms = self.rejection.is_some();
         Ok(CommandFrame {
             seq: s.seq,
@@ -93,8 +146,67 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             } else {
                 Vec::new()
             },
-            estimate: None,
-            allocation: None,
+            estimate: estimate.map(|e| Estimate {
+                q: SMatrix::<f32, N, N>::from(e.q)
+                    .transpose()
+                    .iter()
+                    .copied()
+                    .collect(),
+                v: vec(e.v.as_slice()),
+                bias: [e.bias[0], e.bias[1], e.bias[2]],
+            }),
+            allocation,
         })
+    }
+}
+
+/// One step of the estimator on a tick's samples (docs/maths.md, "Estimators").
+fn estimate<const N: usize, const M: usize>(
+    filter: &mut estimator::Filter<f32>,
+    samples: &Samples,
+    period: f32,
+) -> estimator::Step<f32, N, M> {
+    let mut directions = [Vector3::zeros(); 4];
+    for (d, x) in directions.iter_mut().zip(&samples.directions) {
+        *d = Vector3::from(*x);
+    }
+    let accel = samples.accel.map_or_else(Vector3::zeros, Vector3::from);
+    let position = samples.position.map(Vector3::from);
+    filter.step::<N, M>(
+        period,
+        &Vector3::from(samples.gyro),
+        &directions[..samples.directions.len()],
+        &accel,
+        position.as_ref(),
+    )
+}
+
+/// The law's wrench allocated to the vehicle's actuators at the attitude of `q`, after
+/// telling the allocator of the failures that have started at `t` (docs/maths.md,
+/// "Control allocation").
+fn allocate<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    control: &mut VehicleControl<f32, M>,
+    failures: &[Failure],
+    count: usize,
+    t: f64,
+    period: f32,
+    q: &SMatrix<f32, N, N>,
+    tau: &SVector<f32, M>,
+) -> Allocation {
+    let h = f64::from(period);
+    for f in failures {
+        if t >= f.t - h / 2.0 {
+            control.fail(usize::from(f.actuator), f.value);
+        }
+    }
+    let r_hat = G::rotation(q);
+    let a = control.actuate(tau, &r_hat);
+    let accounted = a.applied(&control.restoring(&r_hat));
+    Allocation {
+        status: a.allocation.status.code(),
+        u_cmd: Vec::from_slice(&a.allocation.u.as_slice()[..count.min(12)]).unwrap_or_default(),
+        demand: vec(a.demand.as_slice()),
+        achieved: vec(a.allocation.achieved.as_slice()),
+        accounted: vec(accounted.as_slice()),
     }
 }

@@ -22,8 +22,10 @@
 
 mod config;
 mod engine;
+mod onboard;
 
 pub use config::{Axis, Config, ConfigError, Integral, MAX_CONFIG, Observer, Series, Term};
+pub use onboard::{Estimator, Failure, Thruster, Vehicle};
 
 use controller::group::{Se3, So3};
 use engine::Engine;

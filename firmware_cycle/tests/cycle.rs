@@ -4,11 +4,14 @@
 
 use controller::group::{MatrixLieGroup, So3};
 use controller::{Controller, ControllerConfig, Law};
-use firmware_cycle::{Axis, Config, ConfigError, Cycle, Dropped, MAX_CONFIG, Series, Term};
+use firmware_cycle::{
+    Axis, Config, ConfigError, Cycle, Dropped, Estimator, Failure, MAX_CONFIG, Series, Term,
+    Thruster, Vehicle,
+};
 use heapless::Vec;
 use nalgebra::{Matrix3, Vector3};
 use proptest::prelude::*;
-use serial_wire::{Frame, Hello, StateFrame};
+use serial_wire::{Frame, Hello, Samples, StateFrame};
 
 fn v<const C: usize>(xs: &[f32]) -> Vec<f32, C> {
     Vec::from_slice(xs).unwrap()
@@ -51,6 +54,8 @@ fn seed_like() -> Config {
         },
         observer: None,
         integral: None,
+        estimator: None,
+        vehicle: None,
     }
 }
 
@@ -235,5 +240,251 @@ proptest! {
         bytes.truncate(cut.max(1).min(bytes.len()));
         let _ = Cycle::from_bytes(&bytes);
         let _ = Cycle::from_bytes(&noise);
+    }
+}
+
+/// The seed with the complementary filter on two directions and four reaction wheels (three
+/// on the axes, one along (1, 1, 1); the second fails at t = 0.05 s, stuck at 0.01 N m).
+fn on_board() -> Config {
+    Config {
+        estimator: Some(Estimator {
+            eqf: false,
+            gains: [2.0, 0.3],
+            values: v(&[1.0, 1.0]),
+            initial_std: [0.0; 2],
+            world: Vec::from_slice(&[[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]).unwrap(),
+            initial_attitude: None,
+            bias_limit: Some(0.2),
+            accel_gate: None,
+            accel_noise: 0.0,
+            position_noise: 0.0,
+        }),
+        vehicle: Some(Vehicle {
+            actuators: [
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [1.0, 1.0, 1.0],
+            ]
+            .iter()
+            .map(|axis| Thruster {
+                position: [0.0; 3],
+                axis: *axis,
+                torque_per_thrust: 1.0,
+                min: -0.5,
+                max: 0.5,
+            })
+            .collect(),
+            weights: Vec::new(),
+            preferred: Vec::new(),
+            torque_first: true,
+            weight: 0.0,
+            buoyancy: 0.0,
+            centre: [0.0; 3],
+            rate_limit: 0.0,
+            failures: Vec::from_slice(&[Failure {
+                actuator: 1,
+                t: 0.05,
+                value: 0.01,
+            }])
+            .unwrap(),
+        }),
+        ..seed_like()
+    }
+}
+
+fn samples(r: &Matrix3<f32>, gyro: [f32; 3]) -> Samples {
+    let body = |d: Vector3<f32>| {
+        let b = r.transpose() * d;
+        [b[0], b[1], b[2]]
+    };
+    Samples {
+        gyro,
+        directions: Vec::from_slice(&[body(Vector3::x()), body(Vector3::z())]).unwrap(),
+        accel: None,
+        position: None,
+    }
+}
+
+fn sampled(seq: u64, samples: Samples) -> StateFrame {
+    StateFrame {
+        seq,
+        t: seq as f64 * 0.01,
+        q: Vec::new(),
+        v: Vec::new(),
+        applied: v(&[0.0; 3]),
+        samples: Some(samples),
+    }
+}
+
+#[test]
+fn on_board_the_estimator_feeds_the_law_and_the_allocator_splits_its_torque() {
+    let config = on_board();
+    let mut c = Cycle::new(&config).unwrap();
+    c.on_frame(&Frame::Hello(config.identity.clone()));
+    // the estimator crate's filter, built from the same settings, beside it
+    let mut filter = config
+        .estimator
+        .as_ref()
+        .unwrap()
+        .settings()
+        .build(false)
+        .unwrap();
+    let r = So3::exp(&Vector3::new(0.3f32, -0.2, 1.0));
+    for k in 0..10u64 {
+        let smp = samples(&r, [0.01, -0.02, 0.03]);
+        let dirs = [
+            Vector3::from(smp.directions[0]),
+            Vector3::from(smp.directions[1]),
+        ];
+        let expected = filter.step::<3, 3>(
+            0.01,
+            &Vector3::from(smp.gyro),
+            &dirs,
+            &Vector3::zeros(),
+            None,
+        );
+        let Some(Frame::Command(cmd)) = c.on_frame(&Frame::State(sampled(k, smp))) else {
+            panic!("state {k}: no command");
+        };
+        let e = cmd.estimate.expect("the estimate");
+        let rows: std::vec::Vec<f32> = (0..9).map(|i| expected.q[(i / 3, i % 3)]).collect();
+        assert_eq!(e.q.as_slice(), rows.as_slice(), "state {k}");
+        assert_eq!(e.v.as_slice(), expected.v.as_slice(), "state {k}");
+        // TRIAD from two exact directions, then a biased gyro on a still body: the estimate
+        // stays near the attitude (the bias is 0.037 rad/s; 0.1 s of it is 4 mrad)
+        assert!(
+            (Matrix3::from_row_slice(&e.q) - r).norm() < 0.02,
+            "{:?}",
+            e.q
+        );
+        let a = cmd.allocation.expect("the allocation");
+        assert_eq!(a.u_cmd.len(), 4);
+        assert!(
+            a.u_cmd.iter().all(|u| u.abs() <= 0.5 + 1e-6),
+            "{:?}",
+            a.u_cmd
+        );
+        // the torque the commands achieve: B u with B the four unit axes
+        let skew = a.u_cmd[3] / 3f32.sqrt();
+        let achieved = Vector3::new(a.u_cmd[0] + skew, a.u_cmd[1] + skew, a.u_cmd[2] + skew);
+        assert!(
+            (achieved - Vector3::from_row_slice(&a.achieved)).norm() < 1e-5,
+            "{achieved:?} vs {:?}",
+            a.achieved
+        );
+        if a.status == 0 {
+            assert!(
+                (achieved - Vector3::from_row_slice(&cmd.tau)).norm() < 1e-4,
+                "state {k}: met, yet {achieved:?} vs {:?}",
+                cmd.tau
+            );
+        }
+        // from t = 0.05 s (k ≥ 5) the failed wheel is held at its stuck value
+        if k >= 5 {
+            assert_eq!(a.u_cmd[1], 0.01, "state {k}");
+        }
+    }
+}
+
+#[test]
+fn on_board_bad_samples_never_give_a_nan_and_missing_ones_are_dropped() {
+    let config = on_board();
+    let mut c = Cycle::new(&config).unwrap();
+    c.on_frame(&Frame::Hello(config.identity.clone()));
+    let r = So3::exp(&Vector3::new(0.1f32, 0.2, -0.3));
+    // a state without samples, for a controller that estimates: dropped as the wrong shape
+    assert_eq!(c.on_frame(&Frame::State(state(0))), None);
+    assert_eq!(c.counts().dropped[Dropped::Shape as usize], 1);
+    for (k, bad) in [f32::NAN, f32::INFINITY, -f32::INFINITY, 1e30, 0.0]
+        .into_iter()
+        .enumerate()
+    {
+        let mut smp = samples(&r, [bad, 0.0, 0.0]);
+        smp.directions[0] = [bad, bad, 0.0];
+        if k == 4 {
+            smp.directions.clear();
+        }
+        match c.on_frame(&Frame::State(sampled(k as u64, smp))) {
+            Some(Frame::Command(cmd)) => {
+                assert!(
+                    cmd.tau.iter().all(|x| x.is_finite()),
+                    "{bad}: {:?}",
+                    cmd.tau
+                );
+                let e = cmd.estimate.unwrap();
+                assert!(e.q.iter().chain(&e.v).all(|x| x.is_finite()), "{bad}");
+                assert!(cmd.allocation.unwrap().u_cmd.iter().all(|x| x.is_finite()));
+            }
+            None => {}
+            f => panic!("{bad}: {f:?}"),
+        }
+    }
+    // and a controller without an estimator drops a state that brings samples
+    let mut plain = greeted();
+    assert_eq!(
+        plain.on_frame(&Frame::State(sampled(0, samples(&r, [0.0; 3])))),
+        None
+    );
+    assert_eq!(plain.counts().dropped[Dropped::Shape as usize], 1);
+}
+
+#[test]
+fn an_estimator_or_a_vehicle_the_crates_refuse_is_a_configuration_error() {
+    let mut config = on_board();
+    config.estimator.as_mut().unwrap().world.clear();
+    assert!(matches!(
+        Cycle::new(&config).err(),
+        Some(ConfigError::Estimator(_))
+    ));
+    let mut config = on_board();
+    config.estimator.as_mut().unwrap().values[0] = -1.0;
+    assert!(matches!(
+        Cycle::new(&config).err(),
+        Some(ConfigError::Estimator(_))
+    ));
+    let mut config = on_board();
+    config.vehicle.as_mut().unwrap().actuators[0].axis = [0.0; 3];
+    let e = Cycle::new(&config).err();
+    assert!(matches!(e, Some(ConfigError::Vehicle(_))), "{e:?}");
+    assert!(e.unwrap().to_string().starts_with("vehicle:"));
+    let mut config = on_board();
+    config.vehicle.as_mut().unwrap().actuators[2].min = 1.0;
+    assert!(matches!(
+        Cycle::new(&config).err(),
+        Some(ConfigError::Vehicle(_))
+    ));
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// Random samples (any f32, any count of directions, fixes or not) never panic the
+    /// estimator on board and never answer a non-finite torque, estimate or command.
+    #[test]
+    fn random_samples_never_panic_and_never_answer_a_nan(
+        ticks in prop::collection::vec((
+            prop::array::uniform3(prop::num::f32::ANY),
+            prop::collection::vec(prop::array::uniform3(prop::num::f32::ANY), 0..=4),
+            prop::option::of(prop::array::uniform3(prop::num::f32::ANY)),
+        ), 1..20),
+    ) {
+        let config = on_board();
+        let mut c = Cycle::new(&config).unwrap();
+        c.on_frame(&Frame::Hello(config.identity.clone()));
+        for (k, (gyro, dirs, accel)) in ticks.into_iter().enumerate() {
+            let smp = Samples {
+                gyro,
+                directions: Vec::from_slice(&dirs).unwrap(),
+                accel,
+                position: None,
+            };
+            if let Some(Frame::Command(cmd)) = c.on_frame(&Frame::State(sampled(k as u64, smp))) {
+                prop_assert!(cmd.tau.iter().all(|x| x.is_finite()));
+                let e = cmd.estimate.unwrap();
+                prop_assert!(e.q.iter().chain(&e.v).all(|x| x.is_finite()));
+                prop_assert!(cmd.allocation.unwrap().u_cmd.iter().all(|x| x.is_finite()));
+            }
+        }
     }
 }

@@ -13,7 +13,9 @@
 use crate::LinkError;
 use crate::transport::Transport;
 use ipc_types::{CommandMsg, Identity, StateMsg, WireGroup, flags};
-use serial_wire::{CommandFrame, Deframer, Frame, Hello, MAX_ENCODED, StateFrame, encode};
+use serial_wire::{
+    CommandFrame, Deframer, Estimate, Frame, Hello, MAX_ENCODED, Samples, StateFrame, encode,
+};
 use std::io::{self, Read, Write};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -253,7 +255,22 @@ pub struct SerialTransport {
     frames_seen: u64,
     out: [u8; MAX_ENCODED],
     error: Option<io::Error>,
+    onboard: Option<OnboardSlot>,
 }
+
+/// What the plant and a controller that estimates on board exchange beside the pair's
+/// messages: the sensors' samples of the state about to go out, and the estimate the last
+/// command came back with (docs/pil.md, "Sensors and vehicles").
+#[derive(Debug, Default)]
+pub struct Onboard {
+    /// The samples for state `seq` (set by the plant before it publishes it).
+    pub samples: Option<(u64, Samples)>,
+    /// The estimate command `seq` came back with.
+    pub estimate: Option<(u64, Estimate)>,
+}
+
+/// The plant's and the transport's shared [`Onboard`].
+pub type OnboardSlot = Arc<std::sync::Mutex<Onboard>>;
 
 fn hello_of(id: &Identity) -> Hello {
     let mut scenario = heapless::String::<32>::new();
@@ -329,6 +346,18 @@ pub fn command_msg(c: &CommandFrame, group: u32) -> Option<CommandMsg> {
     widen(&mut msg.observer, &c.observer);
     widen(&mut msg.integral, &c.integral);
     msg.lyapunov = f64::from(c.lyapunov);
+    if let Some(a) = &c.allocation {
+        let m_ok = |xs: &[f32]| xs.len() == m;
+        if !m_ok(&a.demand) || !m_ok(&a.achieved) || !m_ok(&a.accounted) {
+            return None;
+        }
+        msg.actuators = a.u_cmd.len() as u32;
+        msg.alloc_status = u32::from(a.status);
+        widen(&mut msg.demand, &a.demand);
+        widen(&mut msg.achieved, &a.achieved);
+        widen(&mut msg.accounted, &a.accounted);
+        widen(&mut msg.u_cmd, &a.u_cmd);
+    }
     Some(msg)
 }
 
@@ -352,7 +381,16 @@ impl SerialTransport {
             frames_seen: 0,
             out: [0; MAX_ENCODED],
             error: None,
+            onboard: None,
         }
+    }
+
+    /// The transport of a controller that estimates on board: each state goes out with the
+    /// samples the plant put in `slot` for it (and without `Q`, `V`), and each command's
+    /// estimate is put back there.
+    pub fn with_onboard(mut self, slot: Option<OnboardSlot>) -> SerialTransport {
+        self.onboard = slot;
+        self
     }
 
     /// The transport with line noise before every frame it sends (a test hook).
@@ -422,6 +460,11 @@ impl SerialTransport {
                     .push_back(CommandMsg::refusal(&id, 0, u32::from(mismatch)));
             }
             Frame::Command(c) if self.greeting == Greeting::Accepted => {
+                if let (Some(slot), Some(e)) = (&self.onboard, &c.estimate)
+                    && let Ok(mut o) = slot.lock()
+                {
+                    o.estimate = Some((c.seq, e.clone()));
+                }
                 match command_msg(&c, self.group) {
                     Some(msg) if self.inbox.len() < self.inbox.capacity() => {
                         self.counts.commands.fetch_add(1, Ordering::Relaxed);
@@ -453,7 +496,17 @@ impl Transport<StateMsg, CommandMsg> for SerialTransport {
             self.send_frame(&Frame::Hello(hello))?;
             self.greeting = Greeting::Sent;
         }
-        self.send_frame(&Frame::State(state_frame(msg)))?;
+        let mut state = state_frame(msg);
+        if let Some(slot) = &self.onboard
+            && let Ok(o) = slot.lock()
+            && let Some((seq, samples)) = &o.samples
+            && *seq == msg.seq
+        {
+            state.samples = Some(samples.clone());
+            state.q.clear();
+            state.v.clear();
+        }
+        self.send_frame(&Frame::State(state))?;
         Ok(stamp)
     }
 

@@ -8,13 +8,11 @@ use crate::SimError;
 use crate::sensors::{SampleFault, Sensors};
 use crate::trajectory::{EstimateRow, Row};
 use controller::group::MatrixLieGroup;
-use controller::group::so3::{exp_so3, log_so3};
+use controller::group::so3::log_so3;
 use controller::integrator::RigidBody;
-use estimator::{
-    ComplementaryConfig, ComplementaryFilter, EqfConfig, EquivariantFilter, PoseConfig, PoseFilter,
-};
+use estimator::Filter;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
-use scenario::{EqfSpec, EstimatorKind, EstimatorSpec, Scenario, SensorsSpec};
+use scenario::{EstimatorKind, Scenario};
 use serde::Serialize;
 
 /// `summary.json` → `estimator`: the sensors, the filter, its faults and its error.
@@ -42,20 +40,13 @@ pub struct EstimatorReport {
     pub mean_nees: Option<f64>,
 }
 
-enum Filter {
-    Truth,
-    Attitude(Box<ComplementaryFilter<f64>>),
-    Pose(Box<PoseFilter<f64>>),
-    Eqf(Box<EquivariantFilter<f64>>),
-    PoseEqf(Box<PoseFilter<f64, EqfConfig<f64>>>),
-}
-
 /// The sensors and the filter of one run.
 pub struct Estimation {
     kind: EstimatorKind,
     seed: u64,
     sensors: Sensors,
-    filter: Filter,
+    /// `None`: the law sees the truth, or (processor in the loop) the controller filters.
+    filter: Option<Filter<f64>>,
     period: f64,
     faults: Vec<(u64, SampleFault)>,
     planted: u64,
@@ -63,138 +54,6 @@ pub struct Estimation {
 
 fn bad(e: estimator::EstimatorError) -> SimError {
     SimError::Input(format!("[estimator]: {e}"))
-}
-
-/// What a filter is built from: the scenario's `[estimator]` table and its sensors.
-struct FilterInputs<'a> {
-    e: &'a EstimatorSpec,
-    /// The direction sensors' world directions.
-    world: Vec<Vector3<f64>>,
-    /// The filter's start attitude, if the scenario gives one (else TRIAD).
-    initial: Option<Matrix3<f64>>,
-    /// The accelerometer's noise (0: none).
-    accel: f64,
-    /// The position sensor's noise (0: none).
-    position: f64,
-}
-
-impl<'a> FilterInputs<'a> {
-    fn of(s: &'a Scenario, spec: &SensorsSpec) -> Self {
-        FilterInputs {
-            e: &s.estimator,
-            world: spec
-                .directions
-                .iter()
-                .map(|d| Vector3::from(d.world))
-                .collect(),
-            initial: s
-                .estimator
-                .initial_attitude
-                .map(|r| exp_so3(&Vector3::from(r))),
-            accel: spec.accelerometer.unwrap_or(0.0),
-            position: spec.position.map_or(0.0, |p| p.noise),
-        }
-    }
-
-    /// The filter of the scenario's kind on `group`.
-    fn build(&self, group: controller::GroupKind) -> Result<Filter, SimError> {
-        use controller::GroupKind::{Se3, So3};
-        Ok(match (self.e.kind, group) {
-            (EstimatorKind::Truth, _) => Filter::Truth,
-            (EstimatorKind::Complementary, So3) => self.complementary()?,
-            (EstimatorKind::Complementary, Se3) => self.pose()?,
-            (EstimatorKind::Eqf, So3) => self.eqf()?,
-            (EstimatorKind::Eqf, Se3) => self.pose_eqf()?,
-        })
-    }
-
-    /// The complementary filter on SO(3).
-    fn complementary(&self) -> Result<Filter, SimError> {
-        let e = self.e;
-        let mut cfg = ComplementaryConfig::new(e.kp, e.ki, &self.world, &e.weights).map_err(bad)?;
-        if let Some(l) = e.bias_limit {
-            cfg = cfg.bias_limit(l).map_err(bad)?;
-        }
-        if let Some(r) = self.initial {
-            cfg = cfg.initial_attitude(r).map_err(bad)?;
-        }
-        Ok(Filter::Attitude(Box::new(ComplementaryFilter::new(cfg))))
-    }
-
-    /// The pose filter on SE(3): the complementary filter's attitude and a Kalman filter.
-    fn pose(&self) -> Result<Filter, SimError> {
-        let e = self.e;
-        let mut cfg = PoseConfig::new(
-            e.kp,
-            e.ki,
-            &self.world,
-            &e.weights,
-            self.accel,
-            self.position,
-        )
-        .map_err(bad)?;
-        if let Some(g) = e.accel_gate {
-            cfg = cfg.accel_gate(g).map_err(bad)?;
-        }
-        if let Some(l) = e.bias_limit {
-            cfg.attitude = cfg.attitude.bias_limit(l).map_err(bad)?;
-        }
-        if let Some(r) = self.initial {
-            cfg.attitude = cfg.attitude.initial_attitude(r).map_err(bad)?;
-        }
-        Ok(Filter::Pose(Box::new(PoseFilter::new(cfg))))
-    }
-
-    /// The EqF's noise model (`kind = "eqf"` needs it).
-    fn eqf_spec(&self) -> Result<&'a EqfSpec, SimError> {
-        self.e.eqf.as_ref().ok_or_else(|| {
-            SimError::Input("[estimator]: kind = \"eqf\" without its noise model".into())
-        })
-    }
-
-    /// The start and the clamp, on either group's attitude filter.
-    fn eqf_start(&self, cfg: EqfConfig<f64>) -> Result<EqfConfig<f64>, SimError> {
-        let q = self.eqf_spec()?;
-        let mut cfg = cfg
-            .initial_std(q.initial_attitude_std, q.initial_bias_std)
-            .map_err(bad)?;
-        if let Some(l) = self.e.bias_limit {
-            cfg = cfg.bias_limit(l).map_err(bad)?;
-        }
-        if let Some(r) = self.initial {
-            cfg = cfg.initial_attitude(r).map_err(bad)?;
-        }
-        Ok(cfg)
-    }
-
-    /// The equivariant filter on SO(3).
-    fn eqf(&self) -> Result<Filter, SimError> {
-        let q = self.eqf_spec()?;
-        let cfg = EqfConfig::new(q.gyro_noise, q.bias_walk, &self.world, &q.direction_noise)
-            .map_err(bad)?;
-        Ok(Filter::Eqf(Box::new(EquivariantFilter::new(
-            self.eqf_start(cfg)?,
-        ))))
-    }
-
-    /// The pose filter on SE(3) with the EqF for its attitude.
-    fn pose_eqf(&self) -> Result<Filter, SimError> {
-        let q = self.eqf_spec()?;
-        let mut cfg = PoseConfig::eqf(
-            q.gyro_noise,
-            q.bias_walk,
-            &self.world,
-            &q.direction_noise,
-            self.accel,
-            self.position,
-        )
-        .map_err(bad)?;
-        cfg.attitude = self.eqf_start(cfg.attitude)?;
-        if let Some(g) = self.e.accel_gate {
-            cfg = cfg.accel_gate(g).map_err(bad)?;
-        }
-        Ok(Filter::PoseEqf(Box::new(PoseFilter::new(cfg))))
-    }
 }
 
 impl Estimation {
@@ -209,7 +68,14 @@ impl Estimation {
             return Ok(None);
         };
         let e = &s.estimator;
-        let filter = FilterInputs::of(s, spec).build(s.group)?;
+        let filter = match s.filter_settings()? {
+            None => None,
+            Some(settings) => Some(
+                settings
+                    .build(s.group == controller::GroupKind::Se3)
+                    .map_err(bad)?,
+            ),
+        };
         Ok(Some(Estimation {
             kind: e.kind,
             seed: spec.seed,
@@ -230,12 +96,31 @@ impl Estimation {
         body: &RigidBody<f64, G, N, M>,
         held: &SVector<f64, M>,
     ) -> (SMatrix<f64, N, N>, SVector<f64, M>, EstimateRow) {
+        let samples = self.sample(k, body, held);
+        self.estimate(samples, body.configuration(), &body.velocity())
+    }
+
+    /// Tick k's samples from the true body (with the test's planted faults), without
+    /// stepping a filter: what a controller that estimates on board is sent.
+    pub fn sample<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+        &mut self,
+        k: u64,
+        body: &RigidBody<f64, G, N, M>,
+        held: &SVector<f64, M>,
+    ) -> crate::sensors::Samples {
         let mut samples = self.sensors.sample(k, body, held);
         for (_, fault) in self.faults.iter().filter(|(fk, _)| *fk == k) {
             fault.apply(&mut samples);
             self.planted += 1;
         }
-        self.estimate(samples, body.configuration(), &body.velocity())
+        samples
+    }
+
+    /// The filter runs on the controller (processor in the loop, docs/pil.md): this side
+    /// only samples, and the rows take the estimate the commands come back with.
+    pub fn on_board(mut self) -> Estimation {
+        self.filter = None;
+        self
     }
 
     /// Steps the filter on one tick's `samples` (drawn from the true state `(q, v)`) and
@@ -250,72 +135,26 @@ impl Estimation {
         let (q, v) = (*q, *v);
         let h = self.period;
         let dirs = &samples.directions[..samples.count];
-        let pose = |e: estimator::PoseEstimate<f64>| {
-            let lin = e.body_velocity();
-            (
-                SMatrix::from_fn(|i, j| match (i, j) {
-                    (3, 3) => 1.0,
-                    (3, _) => 0.0,
-                    (_, 3) => e.x[i],
-                    _ => e.r[(i, j)],
-                }),
-                SVector::from_fn(|i, _| if i < 3 { e.rate[i] } else { lin[i - 3] }),
-                e.bias,
-            )
-        };
-        let attitude = |e: estimator::AttitudeEstimate<f64>| {
-            (
-                SMatrix::from_fn(|i, j| e.r[(i, j)]),
-                SVector::from_fn(|i, _| e.rate[i]),
-                e.bias,
-            )
-        };
         let accel = samples.accel.unwrap_or_else(Vector3::zeros);
-        let r_true = Matrix3::from_fn(|i, j| q[(i, j)]);
-        let consistency = |f: &EquivariantFilter<f64>| {
-            let s = f.covariance();
-            (
-                Some(std::array::from_fn(|i| s[(i, i)])),
-                f.nees(&r_true, &samples.bias),
-            )
-        };
-        let ((q_hat, v_hat, bias), (covariance, nees)) = match &mut self.filter {
-            Filter::Truth => ((q, v, Vector3::zeros()), (None, None)),
-            Filter::Attitude(f) => (attitude(f.step(h, &samples.gyro, dirs)), (None, None)),
-            Filter::Pose(f) => {
-                let e = f.step(h, &samples.gyro, dirs, &accel, samples.position.as_ref());
-                (pose(e), (None, None))
-            }
-            Filter::Eqf(f) => {
-                let e = f.step(h, &samples.gyro, dirs);
-                (attitude(e), consistency(f))
-            }
-            Filter::PoseEqf(f) => {
-                let e = f.step(h, &samples.gyro, dirs, &accel, samples.position.as_ref());
-                (pose(e), consistency(f.attitude()))
+        let (q_hat, v_hat, bias, covariance, nees) = match &mut self.filter {
+            None => (q, v, Vector3::zeros(), None, None),
+            Some(f) => {
+                let e = f.step::<N, M>(h, &samples.gyro, dirs, &accel, samples.position.as_ref());
+                let (covariance, nees) = match f.eqf() {
+                    Some(eqf) => {
+                        let s = eqf.covariance();
+                        let r_true = Matrix3::from_fn(|i, j| q[(i, j)]);
+                        (
+                            Some(std::array::from_fn(|i| s[(i, i)])),
+                            eqf.nees(&r_true, &samples.bias),
+                        )
+                    }
+                    None => (None, None),
+                };
+                (e.q, e.v, e.bias, covariance, nees)
             }
         };
-        let rot = |m: &SMatrix<f64, N, N>| Matrix3::from_fn(|i, j| m[(i, j)]);
-        let estimate_error = log_so3(&(rot(&q_hat).transpose() * rot(&q))).norm();
-        let mut qh = [0.0; 16];
-        let mut vh = [0.0; 6];
-        for i in 0..N {
-            for j in 0..N {
-                qh[i * N + j] = q_hat[(i, j)];
-            }
-        }
-        for i in 0..M {
-            vh[i] = v_hat[i];
-        }
-        let row = EstimateRow {
-            samples,
-            q_hat: qh,
-            v_hat: vh,
-            bias_hat: [bias[0], bias[1], bias[2]],
-            estimate_error,
-            covariance,
-            nees,
-        };
+        let row = row(samples, &q, &q_hat, &v_hat, &bias, covariance, nees);
         (q_hat, v_hat, row)
     }
 
@@ -326,13 +165,10 @@ impl Estimation {
             .filter_map(|r| r.estimate.map(|e| e.estimate_error))
             .collect();
         let n = errors.len().max(1) as f64;
-        let faults = match &self.filter {
-            Filter::Truth => estimator::Faults::default(),
-            Filter::Attitude(f) => *f.faults(),
-            Filter::Pose(f) => *f.faults(),
-            Filter::Eqf(f) => *f.faults(),
-            Filter::PoseEqf(f) => *f.faults(),
-        };
+        let faults = self
+            .filter
+            .as_ref()
+            .map_or_else(estimator::Faults::default, |f| *f.faults());
         let nees: Vec<f64> = rows
             .iter()
             .filter_map(|r| r.estimate.and_then(|e| e.nees))
@@ -351,5 +187,39 @@ impl Estimation {
             max_estimate_error: errors.iter().copied().fold(0.0, f64::max),
             mean_nees,
         }
+    }
+}
+
+/// The row's sensor and estimate columns: the samples, the estimate `(Q̂, V̂, b̂)`, its
+/// attitude error against the true `q`, and the EqF's covariance and consistency.
+pub fn row<const N: usize, const M: usize>(
+    samples: crate::sensors::Samples,
+    q: &SMatrix<f64, N, N>,
+    q_hat: &SMatrix<f64, N, N>,
+    v_hat: &SVector<f64, M>,
+    bias: &Vector3<f64>,
+    covariance: Option<[f64; 6]>,
+    nees: Option<f64>,
+) -> EstimateRow {
+    let rot = |m: &SMatrix<f64, N, N>| Matrix3::from_fn(|i, j| m[(i, j)]);
+    let estimate_error = log_so3(&(rot(q_hat).transpose() * rot(q))).norm();
+    let mut qh = [0.0; 16];
+    let mut vh = [0.0; 6];
+    for i in 0..N {
+        for j in 0..N {
+            qh[i * N + j] = q_hat[(i, j)];
+        }
+    }
+    for i in 0..M {
+        vh[i] = v_hat[i];
+    }
+    EstimateRow {
+        samples,
+        q_hat: qh,
+        v_hat: vh,
+        bias_hat: [bias[0], bias[1], bias[2]],
+        estimate_error,
+        covariance,
+        nees,
     }
 }

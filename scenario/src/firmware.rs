@@ -2,9 +2,12 @@
 //! controller's settings cast to `f32` once, here, so that the firmware and the in-process
 //! `f32` simulation start from the same numbers.
 
+use crate::vehicle::VehicleSpec;
 use crate::{Scenario, ScenarioError};
 use controller::{Frame, GroupKind, Law};
-use firmware_cycle::{Axis, Config, Integral, Observer, Series, Term};
+use firmware_cycle::{
+    Axis, Config, Estimator, Failure, Integral, Observer, Series, Term, Thruster, Vehicle,
+};
 use heapless::Vec as HVec;
 
 fn f32s<const C: usize>(xs: &[f64]) -> HVec<f32, C> {
@@ -16,9 +19,10 @@ impl Scenario {
     /// The configuration the processor-in-the-loop firmware is built with, and the
     /// in-process `f32` controller runs: the law, `I`, `K`, `K_d`, the torque limit, the
     /// reference's start and feedforward, the rejection terms, and the identity the
-    /// handshake compares (group, control period, fingerprint, name). Refused, naming the
-    /// key, for what the firmware does not run: a waypoint or set-point reference, sensors
-    /// (the firmware's estimator) and a vehicle (its allocation).
+    /// handshake compares (group, control period, fingerprint, name), and where the scenario
+    /// has them the estimator (its filter on the sensors' samples) and the vehicle (its
+    /// allocation, with the failures the controller is told of). Refused, naming the key,
+    /// for what the firmware does not run: a waypoint or set-point reference.
     pub fn firmware_config(&self) -> Result<Config, ScenarioError> {
         let refuse = |key: &str, what: &str| ScenarioError::Invalid {
             origin: format!("scenario `{}`", self.name),
@@ -27,12 +31,6 @@ impl Scenario {
         };
         if self.path.is_some() {
             return Err(refuse("reference", "a waypoint or set-point reference"));
-        }
-        if self.sensors.is_some() {
-            return Err(refuse("sensors", "the estimator on simulated sensors"));
-        }
-        if self.vehicle.is_some() {
-            return Err(refuse("vehicle", "a vehicle's allocation"));
         }
         let (n, _) = self.group.dims();
         let q0: Vec<f64> = match self.group {
@@ -100,6 +98,44 @@ impl Scenario {
                 limit: i.limit.as_deref().map(f32s),
                 anti_windup: i.anti_windup,
             }),
+            estimator: self.filter_settings()?.as_ref().map(Estimator::of),
+            vehicle: self.vehicle.as_ref().map(firmware_vehicle),
         })
+    }
+}
+
+/// The vehicle's allocation settings in `f32`, with the failures the controller is told of.
+fn firmware_vehicle(v: &VehicleSpec) -> Vehicle {
+    Vehicle {
+        actuators: v
+            .actuators
+            .iter()
+            .take(12)
+            .map(|a| Thruster {
+                position: a.position.map(|x| x as f32),
+                axis: a.axis.map(|x| x as f32),
+                torque_per_thrust: a.torque_per_thrust as f32,
+                min: a.min as f32,
+                max: a.max as f32,
+            })
+            .collect(),
+        weights: v.weights.iter().take(12).map(|x| *x as f32).collect(),
+        preferred: v.preferred.iter().take(12).map(|x| *x as f32).collect(),
+        torque_first: v.priority == allocation::Priority::Torque,
+        weight: (v.mass * v.gravity) as f32,
+        buoyancy: v.buoyancy as f32,
+        centre: v.buoyancy_centre.map(|x| x as f32),
+        rate_limit: v.actuator_rate_limit as f32,
+        failures: v
+            .failures
+            .iter()
+            .filter(|f| f.reconfigure)
+            .take(12)
+            .map(|f| Failure {
+                actuator: f.actuator as u8,
+                t: f.t,
+                value: f.value as f32,
+            })
+            .collect(),
     }
 }

@@ -5,6 +5,9 @@
 
 use crate::{ScenarioError, Validator};
 use controller::GroupKind;
+use controller::group::so3::exp_so3;
+use estimator::{FilterKind, MAX_DIRECTIONS as SLOTS, Settings};
+use nalgebra::Vector3;
 use serde::Deserialize;
 
 /// At most this many direction sensors (the estimator's fixed capacity).
@@ -566,6 +569,67 @@ impl Validator<'_> {
             initial_attitude_std,
             initial_bias_std,
         })
+    }
+}
+
+impl crate::Scenario {
+    /// The scenario's `[estimator]` and sensors as the estimator's settings (`None`:
+    /// `truth`). The plant side builds its filter from them; the processor-in-the-loop
+    /// firmware's configuration casts the same numbers to `f32`.
+    pub fn filter_settings(&self) -> Result<Option<Settings<f64>>, ScenarioError> {
+        let s = self;
+        let (Some(spec), e) = (&s.sensors, &s.estimator) else {
+            return Ok(None);
+        };
+        let five = |xs: &[f64]| {
+            let mut out = [0.0; SLOTS + 1];
+            for (o, x) in out.iter_mut().zip(xs) {
+                *o = *x;
+            }
+            (out, xs.len())
+        };
+        let kind = match e.kind {
+            EstimatorKind::Truth => return Ok(None),
+            EstimatorKind::Complementary => {
+                let (weights, count) = five(&e.weights);
+                FilterKind::Complementary {
+                    kp: e.kp,
+                    ki: e.ki,
+                    weights,
+                    count,
+                }
+            }
+            EstimatorKind::Eqf => {
+                let q: &EqfSpec = e.eqf.as_ref().ok_or_else(|| ScenarioError::Invalid {
+                    origin: format!("scenario `{}`", s.name),
+                    key: "estimator.kind".to_owned(),
+                    message: "\"eqf\" without its noise model".to_owned(),
+                })?;
+                let (direction_noise, count) = five(&q.direction_noise);
+                FilterKind::Eqf {
+                    gyro_noise: q.gyro_noise,
+                    bias_walk: q.bias_walk,
+                    direction_noise,
+                    count,
+                    initial_attitude_std: q.initial_attitude_std,
+                    initial_bias_std: q.initial_bias_std,
+                }
+            }
+        };
+        let mut world = [Vector3::zeros(); SLOTS];
+        for (w, d) in world.iter_mut().zip(&spec.directions) {
+            *w = Vector3::from(d.world);
+        }
+        Ok(Some(Settings {
+            kind,
+            world,
+            directions: spec.directions.len(),
+            initial_attitude: e.initial_attitude.map(|r| exp_so3(&Vector3::from(r))),
+            bias_limit: e.bias_limit,
+            accel_gate: e.accel_gate,
+            accel_noise: spec.accelerometer.unwrap_or(0.0),
+            position_noise: spec.position.map_or(0.0, |p| p.noise),
+        }))
     }
 }
 

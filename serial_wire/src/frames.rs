@@ -97,6 +97,8 @@ pub struct Allocation {
     pub u_cmd: Vec<f32, 12>,
     /// The demand (m entries).
     pub demand: Vec<f32, 6>,
+    /// The wrench the commands achieve (m entries).
+    pub achieved: Vec<f32, 6>,
     /// `B u_cmd` plus the compensated restoring wrench (m entries).
     pub accounted: Vec<f32, 6>,
 }

@@ -141,7 +141,18 @@ fn read(path: &str) -> Vec<u8> {
 fn pil_in_lockstep_equals_the_in_process_f32_simulation_byte_for_byte() {
     let _g = serial();
     let d = TempDir::new("pil-lockstep");
-    for name in ["seed", "se3_circle", "reject_se3"] {
+    // the seed; SE(3); the rejection terms; the estimator on board (the complementary filter
+    // on SO(3), the EqF on SE(3)); a vehicle's allocation on SO(3) (reaction wheels) and on
+    // SE(3) (rotors, with the EqF and the observer)
+    for name in [
+        "seed",
+        "se3_circle",
+        "reject_se3",
+        "sensors_so3",
+        "eqf_se3",
+        "spacecraft",
+        "pil_hexarotor",
+    ] {
         let file = short(&d, name, "2.0", &|t| t);
         let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
         let fw = firmware(config_bytes(&s), Behaviour::Normal);
@@ -185,6 +196,25 @@ fn pil_in_lockstep_equals_the_in_process_f32_simulation_byte_for_byte() {
             a == b,
             "{name}: the PIL run's trajectory.csv differs from the f32 simulation's"
         );
+        // the estimate and the allocation came from the controller's side of the link
+        let header =
+            String::from_utf8_lossy(&a[..a.iter().position(|b| *b == b'\n').unwrap()]).into_owned();
+        assert_eq!(
+            header.contains("qhat_00"),
+            s.filter_settings().unwrap().is_some(),
+            "{name}: {header}"
+        );
+        assert_eq!(header.contains("u_cmd_0"), s.vehicle.is_some(), "{name}");
+        if s.filter_settings().unwrap().is_some() {
+            let csv =
+                pair_tests::Csv::read(std::path::Path::new(&format!("{pil_out}/trajectory.csv")));
+            let err = csv.col("estimate_error");
+            assert!(
+                err.iter().all(|e| e.is_finite()) && err[err.len() - 1] < 0.05,
+                "{name}: the on-board estimate's error {:?}",
+                err.last()
+            );
+        }
         // and f32 is not f64: the simulation in f64 differs, by f32's rounding
         let f64_out = d.join(&format!("{name}-f64"));
         let (code, text) = plant(&["sim", "--scenario", &file, "--out", &f64_out]);
@@ -375,9 +405,8 @@ fn bad_transports_and_scenarios_the_firmware_cannot_run_are_refused_naming_them(
         assert!(text.contains(says), "{args:?}: {text}");
     }
     for (name, key) in [
-        ("sensors_so3", "key `sensors`"),
-        ("spacecraft", "key `vehicle`"),
         ("slew_so3", "key `reference`"),
+        ("rov_failure", "key `reference`"),
     ] {
         let file = pair_tests::scenario(name);
         let (code, text) = plant(&[

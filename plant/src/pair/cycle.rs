@@ -119,6 +119,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             self.apply_wrench(step.decision, got.as_ref());
         }
         self.log_transition(k, step.transition, step.misses_in_row);
+        self.take_onboard_estimate(k);
         self.record(k, step.decision);
         if let Some(rec) = &mut self.recorder {
             let mut applied = [0.0; ipc_types::MAX_M];

@@ -48,6 +48,9 @@ pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M:
     pub(super) estimation: Option<crate::estimation::Estimation>,
     /// The samples and estimate of the state published last.
     pub(super) estimate: Option<crate::trajectory::EstimateRow>,
+    /// A controller that estimates on board: the slot its transport shares, and the samples
+    /// of the state published last (the rows take the estimate its command brings back).
+    pub(super) onboard: Option<(link::serial::OnboardSlot, Option<crate::sensors::Samples>)>,
     /// The same, with the true state, for the flight recorder.
     pub(super) sensor_record: Option<recorder::SensorRecord>,
     /// The vehicle (`None`: the command's wrench acts on the body directly).
@@ -96,6 +99,15 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             fingerprint,
             scenario: s.name.clone(),
         };
+        let mut estimation =
+            crate::estimation::Estimation::new(&s, s.control_period, &opts.sample_faults)?;
+        // a controller on a serial link runs the scenario's filter itself: it is sent the
+        // samples, and the rows take its estimate
+        let onboard = (opts.serial.is_some() && s.filter_settings()?.is_some())
+            .then(link::serial::OnboardSlot::default);
+        if onboard.is_some() {
+            estimation = estimation.map(crate::estimation::Estimation::on_board);
+        }
         let ep = match &opts.serial {
             None => PlantEndpoint::open(config)?,
             Some(c) => {
@@ -104,7 +116,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                     std::sync::Arc::clone(&c.counts),
                     c.corrupt,
                 )
-                .with_noise(c.noise);
+                .with_noise(c.noise)
+                .with_onboard(onboard.clone());
                 PlantEndpoint::with_transport(config, Box::new(transport))
             }
         };
@@ -130,11 +143,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             recorder: None,
             t0: 0,
             rt: Realtime::default(),
-            estimation: crate::estimation::Estimation::new(
-                &s,
-                s.control_period,
-                &opts.sample_faults,
-            )?,
+            estimation,
+            onboard: onboard.map(|slot| (slot, None)),
             estimate: None,
             sensor_record: None,
             vehicle,
@@ -209,14 +219,23 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                         self.tau + self.s.disturbance_wrench::<M>(k.saturating_sub(1), &r)
                     }
                 };
-                let (q_hat, v_hat, row) = e.measure(k, &self.plant, &held);
-                msg.set_state(&q_hat, &v_hat);
-                if self.recorder.is_some() {
-                    let mut truth = StateMsg::new(link::wire::wire_group(self.s.group));
-                    truth.set_state(self.plant.configuration(), &self.plant.velocity());
-                    self.sensor_record = Some(row.sensor_record(&truth));
+                if let Some((slot, sent)) = &mut self.onboard {
+                    let samples = e.sample(k, &self.plant, &held);
+                    if let Ok(mut o) = slot.lock() {
+                        o.samples = Some((k, wire_samples(&samples)));
+                    }
+                    *sent = Some(samples);
+                    msg.set_state(self.plant.configuration(), &self.plant.velocity());
+                } else {
+                    let (q_hat, v_hat, row) = e.measure(k, &self.plant, &held);
+                    msg.set_state(&q_hat, &v_hat);
+                    if self.recorder.is_some() {
+                        let mut truth = StateMsg::new(link::wire::wire_group(self.s.group));
+                        truth.set_state(self.plant.configuration(), &self.plant.velocity());
+                        self.sensor_record = Some(row.sensor_record(&truth));
+                    }
+                    self.estimate = Some(row);
                 }
-                self.estimate = Some(row);
             }
         }
         if let Some(&(_, fault)) = self.opts.state_faults.iter().find(|(fk, _)| *fk == k) {
@@ -229,6 +248,39 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         msg.stamp_ns = self.published;
         self.state = msg;
         Ok(())
+    }
+
+    /// A controller that estimates on board: the row's estimate columns for state k, from
+    /// the estimate its command k brought back (none came: the last one stays).
+    pub(super) fn take_onboard_estimate(&mut self, k: u64) {
+        let Some((slot, Some(samples))) = &self.onboard else {
+            return;
+        };
+        let got = slot.lock().ok().and_then(|mut o| o.estimate.take());
+        let Some((_, e)) = got.filter(|(seq, _)| *seq == k) else {
+            return;
+        };
+        let q_hat = nalgebra::SMatrix::<f64, N, N>::from_fn(|i, j| {
+            e.q.get(i * N + j).map_or(f64::NAN, |x| f64::from(*x))
+        });
+        let v_hat =
+            SVector::<f64, M>::from_fn(|i, _| e.v.get(i).map_or(f64::NAN, |x| f64::from(*x)));
+        let bias = nalgebra::Vector3::from(e.bias.map(f64::from));
+        let row = crate::estimation::row(
+            *samples,
+            self.plant.configuration(),
+            &q_hat,
+            &v_hat,
+            &bias,
+            None,
+            None,
+        );
+        if self.recorder.is_some() {
+            let mut truth = StateMsg::new(link::wire::wire_group(self.s.group));
+            truth.set_state(self.plant.configuration(), &self.plant.velocity());
+            self.sensor_record = Some(row.sensor_record(&truth));
+        }
+        self.estimate = Some(row);
     }
 
     /// Publishes state 0 and waits for command 0; the clock starts when it arrives.
@@ -411,4 +463,15 @@ fn figure_title(s: &Scenario, opts: &PairOptions, realtime: bool, interrupted: b
         opts.run,
         if interrupted { ", interrupted" } else { "" }
     )
+}
+
+/// The samples as the serial frame carries them (`f32`, as the board's sensors give them).
+fn wire_samples(s: &crate::sensors::Samples) -> serial_wire::Samples {
+    let f = |v: &nalgebra::Vector3<f64>| [v[0] as f32, v[1] as f32, v[2] as f32];
+    serial_wire::Samples {
+        gyro: f(&s.gyro),
+        directions: s.directions[..s.count.min(4)].iter().map(f).collect(),
+        accel: s.accel.as_ref().map(f),
+        position: s.position.as_ref().map(f),
+    }
 }

@@ -1,0 +1,220 @@
+//! The estimator and the vehicle a firmware carries: their settings in `f32` as postcard
+//! fields, and what they become on the board (the `estimator` crate's filter, the
+//! `allocation` crate's vehicle control).
+
+use crate::ConfigError;
+use allocation::{Actuator, Allocator, Geometry, Priority, Restoring, VehicleControl};
+use estimator::{FilterKind, MAX_DIRECTIONS, Settings};
+use heapless::Vec;
+use nalgebra::{Matrix3, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// The estimator's settings (docs/maths.md, "Estimators"), as [`estimator::Settings`] in
+/// `f32`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Estimator {
+    /// The equivariant filter (else the complementary filter).
+    pub eqf: bool,
+    /// Complementary: `(k_P, k_I)`; EqF: `(σ_ω, σ_b)`.
+    pub gains: [f32; 2],
+    /// Complementary: the weights; EqF: the directions' noises (on SE(3) the
+    /// accelerometer's last).
+    pub values: Vec<f32, 5>,
+    /// EqF: the attitude's and the bias's standard deviations at the start.
+    pub initial_std: [f32; 2],
+    /// The direction sensors' world directions.
+    pub world: Vec<[f32; 3], 4>,
+    /// The attitude to start from, row-major (`None`: TRIAD).
+    pub initial_attitude: Option<[f32; 9]>,
+    /// Clamp of each bias component.
+    pub bias_limit: Option<f32>,
+    /// SE(3): the accelerometer's gate.
+    pub accel_gate: Option<f32>,
+    /// SE(3): the accelerometer's noise.
+    pub accel_noise: f32,
+    /// SE(3): the position fixes' noise.
+    pub position_noise: f32,
+}
+
+impl Estimator {
+    /// The settings cast to `f32`.
+    pub fn of(s: &Settings<f64>) -> Estimator {
+        let cast = |xs: &[f64]| xs.iter().map(|x| *x as f32).collect::<Vec<f32, 5>>();
+        let (eqf, gains, values, initial_std) = match &s.kind {
+            FilterKind::Complementary {
+                kp,
+                ki,
+                weights,
+                count,
+            } => (
+                false,
+                [*kp as f32, *ki as f32],
+                cast(&weights[..*count]),
+                [0.0; 2],
+            ),
+            FilterKind::Eqf {
+                gyro_noise,
+                bias_walk,
+                direction_noise,
+                count,
+                initial_attitude_std,
+                initial_bias_std,
+            } => (
+                true,
+                [*gyro_noise as f32, *bias_walk as f32],
+                cast(&direction_noise[..*count]),
+                [*initial_attitude_std as f32, *initial_bias_std as f32],
+            ),
+        };
+        Estimator {
+            eqf,
+            gains,
+            values,
+            initial_std,
+            world: s.world[..s.directions]
+                .iter()
+                .map(|w| [w[0] as f32, w[1] as f32, w[2] as f32])
+                .collect(),
+            initial_attitude: s
+                .initial_attitude
+                .map(|r| core::array::from_fn(|i| r[(i / 3, i % 3)] as f32)),
+            bias_limit: s.bias_limit.map(|x| x as f32),
+            accel_gate: s.accel_gate.map(|x| x as f32),
+            accel_noise: s.accel_noise as f32,
+            position_noise: s.position_noise as f32,
+        }
+    }
+
+    /// The settings the firmware builds its filter from.
+    pub fn settings(&self) -> Settings<f32> {
+        let mut five = [0.0f32; MAX_DIRECTIONS + 1];
+        for (o, x) in five.iter_mut().zip(&self.values) {
+            *o = *x;
+        }
+        let count = self.values.len();
+        let [a, b] = self.gains;
+        let mut world = [Vector3::zeros(); MAX_DIRECTIONS];
+        for (o, w) in world.iter_mut().zip(&self.world) {
+            *o = Vector3::from(*w);
+        }
+        Settings {
+            kind: if self.eqf {
+                FilterKind::Eqf {
+                    gyro_noise: a,
+                    bias_walk: b,
+                    direction_noise: five,
+                    count,
+                    initial_attitude_std: self.initial_std[0],
+                    initial_bias_std: self.initial_std[1],
+                }
+            } else {
+                FilterKind::Complementary {
+                    kp: a,
+                    ki: b,
+                    weights: five,
+                    count,
+                }
+            },
+            world,
+            directions: self.world.len(),
+            initial_attitude: self.initial_attitude.map(|r| Matrix3::from_row_slice(&r)),
+            bias_limit: self.bias_limit,
+            accel_gate: self.accel_gate,
+            accel_noise: self.accel_noise,
+            position_noise: self.position_noise,
+        }
+    }
+}
+
+/// One actuator (docs/maths.md, "Control allocation").
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Thruster {
+    /// Where it acts (body, m).
+    pub position: [f32; 3],
+    /// Its thrust's direction.
+    pub axis: [f32; 3],
+    /// The reaction torque per unit thrust about its axis (m).
+    pub torque_per_thrust: f32,
+    /// The least command.
+    pub min: f32,
+    /// The largest command.
+    pub max: f32,
+}
+
+/// A failure the controller is told of: from the first `t_k ≥ t − h/2` the actuator is
+/// stuck at `value` and the allocator redistributes over the rest.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Failure {
+    /// The actuator.
+    pub actuator: u8,
+    /// When (s).
+    pub t: f64,
+    /// The stuck value.
+    pub value: f32,
+}
+
+/// The vehicle's allocation (docs/maths.md, "Control allocation").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Vehicle {
+    /// The actuators.
+    pub actuators: Vec<Thruster, 12>,
+    /// The allocation weights (empty: all 1).
+    pub weights: Vec<f32, 12>,
+    /// The preferred command (empty: 0).
+    pub preferred: Vec<f32, 12>,
+    /// Torque before force (else the whole wrench at once).
+    pub torque_first: bool,
+    /// The weight `m g` (N) the controller compensates.
+    pub weight: f32,
+    /// The buoyancy (N).
+    pub buoyancy: f32,
+    /// Where buoyancy acts (body, m).
+    pub centre: [f32; 3],
+    /// The actuators' rate limit (per second; 0: none).
+    pub rate_limit: f32,
+    /// The failures the controller is told of, in time order.
+    pub failures: Vec<Failure, 12>,
+}
+
+impl Vehicle {
+    /// The vehicle's control on a group of dimension `K`, over periods of `period`.
+    pub fn control<const K: usize>(
+        &self,
+        period: f32,
+    ) -> Result<VehicleControl<f32, K>, ConfigError> {
+        let actuators: Vec<Actuator<f32>, 12> = self
+            .actuators
+            .iter()
+            .map(|a| Actuator {
+                position: a.position,
+                axis: a.axis,
+                torque_per_thrust: a.torque_per_thrust,
+                min: a.min,
+                max: a.max,
+            })
+            .collect();
+        let geometry = Geometry::new(&actuators).map_err(|_| ConfigError::Vehicle("actuators"))?;
+        let allocator = Allocator::new(
+            geometry,
+            &self.weights,
+            &self.preferred,
+            if self.torque_first {
+                Priority::Torque
+            } else {
+                Priority::None
+            },
+        )
+        .map_err(|_| ConfigError::Vehicle("allocation"))?;
+        let restoring = Restoring {
+            weight: self.weight,
+            buoyancy: self.buoyancy,
+            centre: Vector3::from(self.centre),
+        };
+        Ok(VehicleControl::new(
+            allocator,
+            restoring,
+            self.rate_limit,
+            period,
+        ))
+    }
+}
