@@ -68,6 +68,7 @@ fn seed_frames() -> Vec<Frame> {
             status: 0,
             u_cmd: v(&[2.8; 6]),
             demand: v(&[0.0, 0.0, 0.0, 0.0, 0.0, 14.7]),
+            achieved: v(&[0.0, 0.0, 0.0, 0.0, 0.0, 14.7]),
             accounted: v(&[0.0; 6]),
         }),
     };

@@ -56,6 +56,7 @@ fn command() -> CommandFrame {
             status: 2,
             u_cmd: vec(&[8.0; 12]),
             demand: vec(&[1.0; 6]),
+            achieved: vec(&[0.5; 6]),
             accounted: vec(&[-1.0; 6]),
         }),
     }
@@ -238,5 +239,5 @@ fn frame_sizes_are_what_the_docs_say() {
     .iter()
     .map(|f| encoded(f).len())
     .collect();
-    assert_eq!(sizes, vec![82, 32, 222, 302]);
+    assert_eq!(sizes, vec![82, 32, 222, 327]);
 }

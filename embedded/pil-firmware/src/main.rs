@@ -1,5 +1,6 @@
 //! eqtrack's processor-in-the-loop firmware (docs/pil.md): the controller's cycle
-//! (`firmware_cycle`: the law with its rejection terms, in `f32`) on a Cortex-M4F, answering
+//! (`firmware_cycle`: the estimator, the law with its rejection terms and a vehicle's
+//! allocation, in `f32`) on a Cortex-M4F, answering
 //! the plant over a UART with `serial_wire` frames. QEMU's mps2-an386 runs it with the UART on
 //! a TCP socket; a board runs it on its own UART.
 //!
@@ -9,8 +10,8 @@
 //!   channel. It does no other work, so a byte is never lost while the law runs.
 //! - `control`, an async task (priority 1): takes the bytes, finds the frames (COBS, CRC,
 //!   version: a corrupted frame is dropped and counted), and answers each one: its `Hello`
-//!   to the plant's, a command to each state (the reference stepped to the state's k, the law
-//!   and its terms), nothing to noise. It writes the answer to the UART.
+//!   to the plant's, a command to each state (the estimator on its samples, the reference
+//!   stepped to the state's k, the law and its terms, the allocation), nothing to noise. It writes the answer to the UART.
 //! - `tick`, SysTick at 1 kHz: QEMU's UART model does not always wake the emulator when the
 //!   guest empties its receive register; a periodic interrupt does (measured: without it
 //!   one frame in a few thousand waited a second).
