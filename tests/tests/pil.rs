@@ -448,3 +448,20 @@ fn bad_transports_and_scenarios_the_firmware_cannot_run_are_refused_naming_them(
         "{text}"
     );
 }
+
+#[test]
+fn the_instruction_count_firmware_carries_pil_hexarotors_configuration() {
+    // scripts/cortex-m.sh counts one processor-in-the-loop cycle of pil_hexarotor from these
+    // bytes: they must be the scenario's, as `plant_sim pil-config` writes them
+    let file = pair_tests::scenario("pil_hexarotor");
+    let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
+    let committed = read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../embedded/firmware-cortex-m/pil_hexarotor.config"
+    ));
+    assert!(
+        config_bytes(&s) == committed,
+        "embedded/firmware-cortex-m/pil_hexarotor.config is stale: plant_sim pil-config \
+         --scenario scenarios/pil_hexarotor.toml --out embedded/firmware-cortex-m/pil_hexarotor.config"
+    );
+}

@@ -21,8 +21,14 @@
 //! | 24 → 25 | one allocation (`allocation`), the tilted hexarotor (6 rotors), a demand within reach, f32 |
 //! | 26 → 27 | one allocation, the eight-thruster ROV, a demand within reach, f32 |
 //! | 28 → 29 | one allocation, the hexarotor, a demand past its reach (saturated), f32 |
+//! | 30 → 31 | PIL framing in: a `pil_hexarotor` state frame with its samples (203 bytes) through the `Deframer` (COBS, CRC, postcard) |
+//! | 32 → 33 | PIL: `Cycle::on_frame` on it: the EqF pose filter, the reference's step, the SE(3) law with the observer, the allocation to six rotors |
+//! | 34 → 35 | PIL framing out: the command frame encoded (postcard, CRC, COBS) |
+//! | 36 → 37 | its estimator alone: the pose filter with the EqF (two directions, accelerometer, fix) |
+//! | 38 → 39 | its law alone: SE(3) EqT with the world-frame observer, `compute_rejecting` |
+//! | 40 → 41 | its allocation alone: `VehicleControl::actuate` (weight compensated, six rotors) |
 
-use controller::Trajectory;
+use controller::Trajectory as _;
 use core::hint::black_box;
 use cortex_m_semihosting::hprintln;
 use firmware_cases::{se3_cases, se3_controller, seed_reference, so3_cases, so3_controller};
@@ -179,6 +185,7 @@ pub fn run() -> bool {
     }
 
     ok &= allocations();
+    ok &= pil_cycle();
     hprintln!("ICOUNT done {}", ok);
     ok
 }
@@ -214,5 +221,147 @@ fn allocations() -> bool {
         icount_mark(first + 1);
         ok &= a.u.iter().all(|x| x.is_finite());
     }
+    ok
+}
+
+/// `pil_hexarotor`'s firmware configuration (`plant_sim pil-config`; a workspace test keeps
+/// it equal to the scenario's).
+static PIL_CONFIG: &[u8] = include_bytes!("../pil_hexarotor.config");
+
+/// A hovering hexarotor's samples at tick k: level, at rest, the gyro's bias, the two
+/// directions and gravity's specific force, a position fix every tenth tick.
+fn hover(k: u64) -> serial_wire::StateFrame {
+    let mut directions = heapless::Vec::new();
+    let _ = directions.push([1.0f32, 0.0, 0.0]);
+    let _ = directions.push([0.0f32, 0.6, 0.8]);
+    serial_wire::StateFrame {
+        seq: k,
+        t: k as f64 * 0.002,
+        q: heapless::Vec::new(),
+        v: heapless::Vec::new(),
+        applied: heapless::Vec::from_slice(&[0.0, 0.0, 0.0, 0.1, 0.0, 14.7]).unwrap_or_default(),
+        samples: Some(serial_wire::Samples {
+            gyro: [0.01, -0.02, 0.015],
+            directions,
+            accel: Some([0.0, 0.0, 9.81]),
+            position: (k % 10 == 0).then_some([0.0, 0.0, 0.0]),
+        }),
+    }
+}
+
+/// One processor-in-the-loop cycle of `pil_hexarotor` and its parts (marks 30 to 41); true
+/// when every answer was finite.
+fn pil_cycle() -> bool {
+    use firmware_cycle::{Config, Cycle};
+    use serial_wire::{Deframer, Frame, MAX_ENCODED, encode};
+    let (Ok(config), Ok(mut cycle)) = (Config::from_bytes(PIL_CONFIG), Cycle::from_bytes(PIL_CONFIG)) else {
+        hprintln!("ERR icount - the PIL configuration does not build");
+        return false;
+    };
+    let hello = cycle.hello();
+    cycle.on_frame(&hello);
+    // a running cycle: the estimator started, the observer anchored
+    for k in 0..20 {
+        cycle.on_frame(&Frame::State(hover(k)));
+    }
+    let mut bytes = [0u8; MAX_ENCODED];
+    let Ok(n) = encode(&Frame::State(hover(20)), &mut bytes) else {
+        hprintln!("ERR icount - the state frame does not encode");
+        return false;
+    };
+    let (mut cycle, bytes) = (black_box(cycle), black_box(bytes));
+    let mut deframer = black_box(Deframer::new());
+    let mut ok = true;
+
+    icount_mark(30);
+    let mut frame = None;
+    for b in &bytes[..n] {
+        if let Some(f) = deframer.push(*b) {
+            frame = Some(f);
+        }
+    }
+    icount_mark(31);
+    let Some(Ok(frame)) = black_box(frame) else {
+        hprintln!("ERR icount - the state frame does not decode");
+        return false;
+    };
+
+    icount_mark(32);
+    let answer = black_box(cycle.on_frame(black_box(&frame)));
+    icount_mark(33);
+    let Some(answer) = answer else {
+        hprintln!("ERR icount - no command");
+        return false;
+    };
+    // the law's wrench of this cycle: the allocation alone is measured on it
+    let mut wrench = nalgebra::SVector::<f32, 6>::repeat(f32::NAN);
+    if let Frame::Command(c) = &answer {
+        ok &= c.tau.iter().all(|x| x.is_finite());
+        ok &= c.allocation.as_ref().is_some_and(|a| a.u_cmd.iter().all(|x| x.is_finite()));
+        if c.tau.len() == 6 {
+            wrench = nalgebra::SVector::from_row_slice(&c.tau);
+        }
+    }
+
+    let mut out = black_box([0u8; MAX_ENCODED]);
+    icount_mark(34);
+    let encoded = black_box(encode(black_box(&answer), &mut out));
+    icount_mark(35);
+    ok &= encoded.is_ok();
+
+    // the parts alone, from the same configuration
+    let (Some(e), Ok(se3), Ok(terms), Some(v)) = (
+        config.estimator.as_ref(),
+        config.controller::<controller::group::Se3, 4, 6>(),
+        config.rejection::<6>(),
+        config.vehicle.as_ref(),
+    ) else {
+        hprintln!("ERR icount - the PIL parts do not build");
+        return false;
+    };
+    let (Ok(mut filter), Ok(Some(mut rejection)), Ok(mut control)) = (
+        e.settings().build(true),
+        controller::Rejection::of(terms, se3.config().torque_limit.as_ref()),
+        v.control::<6>(0.002),
+    ) else {
+        hprintln!("ERR icount - the PIL parts do not build");
+        return false;
+    };
+    let samples = hover(20).samples.unwrap_or_else(|| unreachable!());
+    let dirs = [nalgebra::Vector3::new(1.0f32, 0.0, 0.0), nalgebra::Vector3::new(0.0, 0.6, 0.8)];
+    let (gyro, accel) = (nalgebra::Vector3::from(samples.gyro), nalgebra::Vector3::new(0.0f32, 0.0, 9.81));
+    for _ in 0..20 {
+        filter.step::<4, 6>(0.002, &gyro, &dirs, &accel, None);
+    }
+    let d = se3_cases(&se3.config().inertia)[2];
+    let applied = nalgebra::SVector::<f32, 6>::from([0.0, 0.0, 0.0, 0.1, 0.0, 14.7]);
+    for _ in 0..2 {
+        let _ = se3.compute_rejecting(&mut rejection, &d.q, &d.v, &d.desired, &applied, 0.002, true);
+    }
+    let (mut filter, mut rejection) = (black_box(filter), black_box(rejection));
+
+    icount_mark(36);
+    let est = black_box(filter.step::<4, 6>(black_box(0.002), black_box(&gyro), black_box(&dirs), black_box(&accel), None));
+    icount_mark(37);
+    ok &= est.q.iter().all(|x| x.is_finite());
+
+    icount_mark(38);
+    let r = black_box(se3.compute_rejecting(
+        &mut rejection,
+        black_box(&d.q),
+        black_box(&d.v),
+        black_box(&d.desired),
+        black_box(&applied),
+        black_box(0.002),
+        true,
+    ));
+    icount_mark(39);
+    ok &= r.is_ok_and(|o| o.torque.iter().all(|x| x.is_finite()));
+
+    let r_hat = black_box(est.q.fixed_view::<3, 3>(0, 0).into_owned());
+    icount_mark(40);
+    let a = black_box(control.actuate(black_box(&wrench), &r_hat));
+    icount_mark(41);
+    ok &= a.allocation.u.iter().all(|x| x.is_finite());
     ok
 }
