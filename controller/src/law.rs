@@ -84,13 +84,11 @@ where
     G: MatrixLieGroup<N, M>,
     T: Real,
 {
-    let d = Phase {
-        q: desired.q,
-        p: desired.p,
-    };
-    let e = tracking_error::<G, T, N, M>(&Phase { q: *q, p: *p }, &d);
+    // Q_d⁻¹ and Ad_{Q_d⁻¹} once, for the error and the law (tracking_error forms the same)
+    let qd_inv = G::inverse(&desired.q);
+    let a_inv = G::adjoint(&qd_inv);
+    let e = crate::tracking::error_from::<G, T, N, M>(q, p, &qd_inv, &a_inv, &desired.p);
     let a = G::adjoint(&desired.q);
-    let a_inv = G::adjoint(&G::inverse(&desired.q));
     let v_e = a * (v - desired.v);
     let grad = potential_gradient::<G, T, N, M>(&e.q, k);
     let tau_e = -G::ad(&(a * desired.v)).tr_mul(&e.p) - kd * v_e - grad;
@@ -381,7 +379,10 @@ where
     }
 
     /// [`Controller::raw_torque`] between the checks: the state and the reference finite
-    /// before, the torque finite after.
+    /// before, the torque finite after. Inlined into its two callers: returned through a
+    /// `Result`, the error and the torque were copied twice more (on a Cortex-M4F some
+    /// hundreds of instructions of `memcpy` a cycle, BENCHMARKS.md section 17).
+    #[inline(always)]
     pub(crate) fn checked_raw_torque(
         &self,
         q: &SMatrix<T, N, N>,

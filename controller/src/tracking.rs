@@ -19,9 +19,31 @@ where
     T: Real,
 {
     let qd_inv = G::inverse(&desired.q);
+    error_from::<G, T, N, M>(
+        &state.q,
+        &state.p,
+        &qd_inv,
+        &G::adjoint(&qd_inv),
+        &desired.p,
+    )
+}
+
+/// [`tracking_error`] of `(q, p)` from `Q_d⁻¹` and `A⁻ = Ad_{Q_d⁻¹}` already formed (the EqT
+/// law needs them too, and forms them once): `(Q Q_d⁻¹, A⁻ᵀ(p − p_d))`.
+pub(crate) fn error_from<G, T, const N: usize, const M: usize>(
+    q: &SMatrix<T, N, N>,
+    p: &SVector<T, M>,
+    qd_inv: &SMatrix<T, N, N>,
+    a_inv: &SMatrix<T, M, M>,
+    p_d: &SVector<T, M>,
+) -> Phase<T, N, M>
+where
+    G: MatrixLieGroup<N, M>,
+    T: Real,
+{
     Phase {
-        q: G::compose(&state.q, &qd_inv),
-        p: G::adjoint(&qd_inv).tr_mul(&(state.p - desired.p)),
+        q: G::compose(q, qd_inv),
+        p: a_inv.tr_mul(&(p - p_d)),
     }
 }
 
