@@ -8,7 +8,7 @@ use crate::error::{Error, Quantity};
 use crate::group::{GroupKind, MatrixLieGroup};
 use crate::semidirect::Phase;
 use crate::tracking::{Lyapunov, lyapunov, potential_gradient, tracking_error};
-use crate::validate::{finite, spd_inverse};
+use crate::validate::{finite, spd_inverse, sum};
 use core::marker::PhantomData;
 use nalgebra::{SMatrix, SVector};
 
@@ -389,12 +389,22 @@ where
         v: &SVector<T, M>,
         desired: &Desired<T, N, M>,
     ) -> Result<(SVector<T, M>, Phase<T, N, M>), Error> {
-        finite(Quantity::State, q)?;
-        finite(Quantity::State, v)?;
-        finite(Quantity::Reference, &desired.q)?;
-        finite(Quantity::Reference, &desired.p)?;
-        finite(Quantity::Reference, &desired.v)?;
-        finite(Quantity::Reference, &desired.tau)?;
+        // one sum of every input: finite, every entry is (the usual case); else each input
+        // is looked at in turn, to name the one that is not
+        let inputs = sum(q)
+            + sum(v)
+            + sum(&desired.q)
+            + sum(&desired.p)
+            + sum(&desired.v)
+            + sum(&desired.tau);
+        if !inputs.is_finite() {
+            finite(Quantity::State, q)?;
+            finite(Quantity::State, v)?;
+            finite(Quantity::Reference, &desired.q)?;
+            finite(Quantity::Reference, &desired.p)?;
+            finite(Quantity::Reference, &desired.v)?;
+            finite(Quantity::Reference, &desired.tau)?;
+        }
         let (tau, error) = self.raw_torque(q, v, desired);
         finite(Quantity::Torque, &tau)?;
         Ok((tau, error))

@@ -17,6 +17,7 @@
 
 #[cfg(feature = "icount")]
 mod icount;
+mod memcopy;
 mod stack;
 
 use core::fmt::Write;

@@ -24,6 +24,10 @@
 #![no_main]
 
 mod an386;
+// the fast word copies and clears of the instruction-count firmware (BENCHMARKS.md, section
+// 17), shared, so that this firmware runs what was counted
+#[path = "../../firmware-cortex-m/src/memcopy.rs"]
+mod memcopy;
 mod stack;
 
 use core::panic::PanicInfo;
