@@ -19,6 +19,8 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     law: u8,
     filter_start: Option<estimator::Filter<f32>>,
     filter: Option<estimator::Filter<f32>>,
+    /// The step of the samples the filter took last (its next step spans the gap).
+    filtered: Option<u64>,
     vehicle_start: Option<VehicleControl<f32, M>>,
     vehicle: Option<VehicleControl<f32, M>>,
     /// The actuator count and the failures the controller is told of.
@@ -48,6 +50,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         Ok(Engine {
             filter_start: filter,
             filter,
+            filtered: None,
             vehicle_start: vehicle,
             vehicle,
             failures: config
@@ -71,6 +74,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         self.reference = self.start.clone();
         self.rejection = self.rejection_start;
         self.filter = self.filter_start;
+        self.filtered = None;
         self.vehicle = self.vehicle_start;
         self.previous = None;
     }
@@ -95,7 +99,13 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         }
         let (q, v, estimate) = match (&mut self.filter, &s.samples) {
             (Some(f), Some(samples)) => {
-                let e = estimate::<N, M>(f, samples, period);
+                // one period a state; after states lost on the line, the time since the
+                // samples it took last (at most MAX_FILTER_GAP periods)
+                let gap = self
+                    .filtered
+                    .map_or(1, |p| s.seq.saturating_sub(p).clamp(1, MAX_FILTER_GAP));
+                self.filtered = Some(s.seq);
+                let e = estimate::<N, M>(f, samples, period * gap as f32);
                 (e.q, e.v, Some(e))
             }
             _ => (
@@ -159,6 +169,10 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         })
     }
 }
+
+/// The most periods one filter step spans after states lost on the line (a longer gap is a
+/// restart of the samples, not a span to integrate over).
+const MAX_FILTER_GAP: u64 = 100;
 
 /// One step of the estimator on a tick's samples (docs/maths.md, "Estimators").
 fn estimate<const N: usize, const M: usize>(

@@ -320,6 +320,18 @@ pub fn state_frame(msg: &StateMsg) -> StateFrame {
     }
 }
 
+/// Whether an estimate has the group's lengths (n² and m) and finite numbers.
+fn estimate_fits(e: &Estimate, group: u32) -> bool {
+    let (n, m) = if group == WireGroup::Se3.code() {
+        (4, 6)
+    } else {
+        (3, 3)
+    };
+    e.q.len() == n * n
+        && e.v.len() == m
+        && e.q.iter().chain(&e.v).chain(&e.bias).all(|x| x.is_finite())
+}
+
 /// The command frame as the pair's command message of `group` (numbers widened to `f64`);
 /// `None` when its vectors are not the group's length.
 pub fn command_msg(c: &CommandFrame, group: u32) -> Option<CommandMsg> {
@@ -460,15 +472,19 @@ impl SerialTransport {
                     .push_back(CommandMsg::refusal(&id, 0, u32::from(mismatch)));
             }
             Frame::Command(c) if self.greeting == Greeting::Accepted => {
-                if let (Some(slot), Some(e)) = (&self.onboard, &c.estimate)
-                    && let Ok(mut o) = slot.lock()
-                {
-                    o.estimate = Some((c.seq, e.clone()));
-                }
                 match command_msg(&c, self.group) {
                     Some(msg) if self.inbox.len() < self.inbox.capacity() => {
                         self.counts.commands.fetch_add(1, Ordering::Relaxed);
                         self.inbox.push_back(msg);
+                        // the estimate of a command the transport passes on (the plant's
+                        // own checks follow; a command they refuse is a missing one, and
+                        // the row keeps the last estimate)
+                        if let (Some(slot), Some(e)) = (&self.onboard, &c.estimate)
+                            && estimate_fits(e, self.group)
+                            && let Ok(mut o) = slot.lock()
+                        {
+                            o.estimate = Some((c.seq, e.clone()));
+                        }
                     }
                     _ => {
                         self.counts.unexpected.fetch_add(1, Ordering::Relaxed);

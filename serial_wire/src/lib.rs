@@ -23,8 +23,10 @@ pub use frames::{Allocation, CommandFrame, Estimate, Frame, Hello, Samples, Stat
 
 use crc::{CRC_32_ISO_HDLC, Crc};
 
-/// The version byte every frame starts with; a frame of another version is refused.
-pub const SERIAL_VERSION: u8 = 1;
+/// The version byte every frame starts with; a frame of another version is refused (2: the
+/// allocation carries the achieved wrench, and states the sensors' samples for an estimator
+/// on board).
+pub const SERIAL_VERSION: u8 = 2;
 /// The largest decoded frame (version, postcard message and CRC), in bytes.
 pub const MAX_FRAME: usize = 384;
 /// The largest encoded frame: COBS's worst case for [`MAX_FRAME`] bytes, plus the zero.

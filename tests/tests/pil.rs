@@ -100,6 +100,16 @@ fn firmware(config: Vec<u8>, behaviour: Behaviour) -> Firmware {
                     }
                     let _ = stream.write_all(&noise[..(rng % 24) as usize]);
                     let _ = stream.write_all(&[0]);
+                    // a truncated frame (a Hello cut short, closed by a zero) and a whole
+                    // frame of another protocol version
+                    let mut out = [0u8; MAX_ENCODED];
+                    let n = encode(&cycle.hello(), &mut out).unwrap();
+                    let _ = stream.write_all(&out[..n / 2]);
+                    let _ = stream.write_all(&[0]);
+                    let n =
+                        serial_wire::encode_raw(serial_wire::SERIAL_VERSION + 1, &[4], &mut out)
+                            .unwrap();
+                    let _ = stream.write_all(&out[..n]);
                 }
                 if let Some(reply) = cycle.on_frame(&frame) {
                     send(&mut stream, &reply);
@@ -376,9 +386,11 @@ fn garbage_on_the_line_never_panics_either_side() {
         .and_then(|t| t.rsplit(' ').next())
         .and_then(|n| n.parse().ok())
         .unwrap_or_else(|| panic!("no count in {text}"));
+    // before each of its ~100 replies: a noise burst (when not empty), a truncated frame
+    // and a frame of another version, each refused and counted
     assert!(
-        dropped > 20,
-        "the noise bursts were counted as corrupted frames: {dropped}\n{text}"
+        dropped >= 180,
+        "the noise bursts, truncated frames and other versions were counted as corrupted frames: {dropped}\n{text}"
     );
     fw.thread.join().unwrap();
 }

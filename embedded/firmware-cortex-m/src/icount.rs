@@ -304,6 +304,9 @@ fn pil_cycle() -> bool {
         if c.tau.len() == 6 {
             wrench = nalgebra::SVector::from_row_slice(&c.tau);
         }
+    } else {
+        hprintln!("ERR icount - the PIL cycle did not answer with a command");
+        return false;
     }
 
     let mut out = black_box([0u8; MAX_ENCODED]);
@@ -344,7 +347,14 @@ fn pil_cycle() -> bool {
     let (mut filter, mut rejection) = (black_box(filter), black_box(rejection));
 
     icount_mark(36);
-    let est = black_box(filter.step::<4, 6>(black_box(0.002), black_box(&gyro), black_box(&dirs), black_box(&accel), None));
+    let fix = nalgebra::Vector3::<f32>::zeros();
+    let est = black_box(filter.step::<4, 6>(
+        black_box(0.002),
+        black_box(&gyro),
+        black_box(&dirs),
+        black_box(&accel),
+        Some(black_box(&fix)),
+    ));
     icount_mark(37);
     ok &= est.q.iter().all(|x| x.is_finite());
 

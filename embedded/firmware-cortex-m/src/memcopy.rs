@@ -4,7 +4,8 @@
 //! (BENCHMARKS.md, section 17: its copies were an eighth of a processor-in-the-loop cycle). `compiler_builtins` defines both symbols weak on ARM, so these
 //! strong definitions replace them in this binary; everything else keeps the builtins. Each
 //! keeps the ABI's contract (r0 the destination, r1 the source or the length, r2 the length;
-//! r4 and r5 saved), so the result is the builtins' byte for byte.
+//! only r0 to r3, r12 and the flags clobbered; the callee-saved r4 to r9 it uses pushed and
+//! popped), so the result is the builtins' byte for byte.
 //!
 //! Written in assembly: a copy loop in Rust would be recognised by LLVM as a `memcpy` and
 //! compiled into a call to itself.

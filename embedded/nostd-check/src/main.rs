@@ -366,6 +366,8 @@ fn firmware_cycle_check() -> bool {
         },
         observer: None,
         integral: None,
+        estimator: None,
+        vehicle: None,
     };
     let mut bytes = [0u8; MAX_CONFIG];
     let Ok(n) = config.to_bytes(&mut bytes) else {
@@ -384,7 +386,45 @@ fn firmware_cycle_check() -> bool {
         samples: None,
     });
     let answered = matches!(cycle.on_frame(&state), Some(Frame::Command(c)) if c.seq == 1 && c.tau.iter().all(|x| x.is_finite()));
-    greeted && answered
+    greeted && answered && firmware_cycle_on_board_check()
+}
+
+/// `pil_hexarotor`'s configuration (SE(3): the EqF, the observer, six rotors), as
+/// `plant_sim pil-config` writes it (a workspace test keeps it so).
+static HEXAROTOR: &[u8] = include_bytes!("../../firmware-cortex-m/pil_hexarotor.config");
+
+/// The cycle with its estimator and allocation on board, without std: samples in, an
+/// estimate and six rotor commands out.
+fn firmware_cycle_on_board_check() -> bool {
+    use firmware_cycle::Cycle;
+    use heapless::Vec;
+    use serial_wire::{Frame, Samples, StateFrame};
+    let Ok(mut cycle) = Cycle::from_bytes(HEXAROTOR) else {
+        return false;
+    };
+    let hello = cycle.hello();
+    let greeted = cycle.on_frame(&hello) == Some(hello);
+    let mut ok = greeted;
+    for k in 0..5u64 {
+        let state = Frame::State(StateFrame {
+            seq: k,
+            t: k as f64 * 0.002,
+            q: Vec::new(),
+            v: Vec::new(),
+            applied: Vec::from_slice(&[0.0; 6]).unwrap_or_default(),
+            samples: Some(Samples {
+                gyro: [0.01, -0.02, 0.015],
+                directions: Vec::from_slice(&[[1.0, 0.0, 0.0], [0.0, 0.6, 0.8]]).unwrap_or_default(),
+                accel: Some([0.0, 0.0, 9.81]),
+                position: Some([0.0; 3]),
+            }),
+        });
+        ok &= matches!(cycle.on_frame(&state), Some(Frame::Command(c))
+            if c.seq == k
+                && c.estimate.as_ref().is_some_and(|e| e.q.len() == 16 && e.q.iter().all(|x| x.is_finite()))
+                && c.allocation.as_ref().is_some_and(|a| a.u_cmd.len() == 6 && a.u_cmd.iter().all(|x| x.is_finite())));
+    }
+    ok
 }
 
 fn run() -> i32 {

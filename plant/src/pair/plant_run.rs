@@ -48,9 +48,14 @@ pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M:
     pub(super) estimation: Option<crate::estimation::Estimation>,
     /// The samples and estimate of the state published last.
     pub(super) estimate: Option<crate::trajectory::EstimateRow>,
-    /// A controller that estimates on board: the slot its transport shares, and the samples
-    /// of the state published last (the rows take the estimate its command brings back).
-    pub(super) onboard: Option<(link::serial::OnboardSlot, Option<crate::sensors::Samples>)>,
+    /// A controller that estimates on board: the slot its transport shares, the samples of
+    /// the state published last, and the last estimate a command brought back (the rows
+    /// take it).
+    pub(super) onboard: Option<(
+        link::serial::OnboardSlot,
+        Option<crate::sensors::Samples>,
+        Option<serial_wire::Estimate>,
+    )>,
     /// The same, with the true state, for the flight recorder.
     pub(super) sensor_record: Option<recorder::SensorRecord>,
     /// The vehicle (`None`: the command's wrench acts on the body directly).
@@ -144,7 +149,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             t0: 0,
             rt: Realtime::default(),
             estimation,
-            onboard: onboard.map(|slot| (slot, None)),
+            onboard: onboard.map(|slot| (slot, None, None)),
             estimate: None,
             sensor_record: None,
             vehicle,
@@ -219,7 +224,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                         self.tau + self.s.disturbance_wrench::<M>(k.saturating_sub(1), &r)
                     }
                 };
-                if let Some((slot, sent)) = &mut self.onboard {
+                if let Some((slot, sent, _)) = &mut self.onboard {
                     let samples = e.sample(k, &self.plant, &held);
                     if let Ok(mut o) = slot.lock() {
                         o.samples = Some((k, wire_samples(&samples)));
@@ -251,13 +256,17 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
     }
 
     /// A controller that estimates on board: the row's estimate columns for state k, from
-    /// the estimate its command k brought back (none came: the last one stays).
+    /// the estimate its command k brought back (none came, in real time: the last one, with
+    /// tick k's samples and its error against tick k's attitude).
     pub(super) fn take_onboard_estimate(&mut self, k: u64) {
-        let Some((slot, Some(samples))) = &self.onboard else {
+        let Some((slot, Some(samples), last)) = &mut self.onboard else {
             return;
         };
         let got = slot.lock().ok().and_then(|mut o| o.estimate.take());
-        let Some((_, e)) = got.filter(|(seq, _)| *seq == k) else {
+        if let Some((_, e)) = got.filter(|(seq, _)| *seq == k) {
+            *last = Some(e);
+        }
+        let (Some(e), samples) = (last.as_ref(), *samples) else {
             return;
         };
         let q_hat = nalgebra::SMatrix::<f64, N, N>::from_fn(|i, j| {
@@ -267,7 +276,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             SVector::<f64, M>::from_fn(|i, _| e.v.get(i).map_or(f64::NAN, |x| f64::from(*x)));
         let bias = nalgebra::Vector3::from(e.bias.map(f64::from));
         let row = crate::estimation::row(
-            *samples,
+            samples,
             self.plant.configuration(),
             &q_hat,
             &v_hat,
