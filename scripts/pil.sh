@@ -18,7 +18,8 @@
 #     column that differ.
 # Then, on the seed at a 20 ms period in real time: a scenario mismatch is refused on both
 # sides, a frame corrupted on the line is counted and held over, a firmware reset through
-# QEMU's monitor (system_reset) enters safe mode and the handshake brings it back. Last, the
+# QEMU's monitor (system_reset) enters safe mode and the handshake brings it back; and the
+# firmware built timer-driven (feature `timer`) equals the f32 simulation in lockstep. Last, the
 # firmware's flash, static RAM and stack high-water mark.
 #
 # Environment: TOOLCHAIN_CACHE (as scripts/cortex-m.sh), PLANT_SIM (default: the workspace's
@@ -77,12 +78,12 @@ trap stop_qemu EXIT
 
 free_port() { python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
 
-# build FILE TAG: the firmware for scenario FILE, copied to OUT/TAG.elf
+# build FILE TAG [FEATURES]: the firmware for scenario FILE, copied to OUT/TAG.elf
 build() {
-	local file=$1 tag=$2
+	local file=$1 tag=$2 features=${3:-}
 	"$PLANT" pil-config --scenario "$file" --out "$OUT/$tag.config" >"$OUT/$tag.config.log" 2>&1 ||
 		die "$tag: plant_sim pil-config failed: $(tail -2 "$OUT/$tag.config.log")"
-	PIL_CONFIG="$OUT/$tag.config" fw_env cargo build --release --locked -Z build-std=core \
+	PIL_CONFIG="$OUT/$tag.config" fw_env cargo build --release --locked -Z build-std=core ${features:+--features "$features"} \
 		>"$OUT/$tag.build.log" 2>&1 ||
 		{ tail -30 "$OUT/$tag.build.log" >&2; die "$tag: the firmware build failed (log: $OUT/$tag.build.log)"; }
 	cp "$ELF" "$OUT/$tag.elf"
@@ -248,6 +249,28 @@ after = status[max(i for i, x in enumerate(status) if x == 2) + 1:]
 assert len(after) >= 40 and all(x == 0 for x in after[-40:]), f"safe mode did not end: {after[-40:]}"
 print(f"PIL: a firmware reset: safe mode for {s['safe_mode_cycles']} cycles ({s['safe_mode_entries']} entry), then the firmware greeted again and the plant left safe mode")
 PY
+
+	# the timer-driven mode (feature `timer`): the 20 ms timer, not the frames, releases the
+	# cycle; in lockstep each state waits for a tick, is answered once, and the run equals the
+	# f32 simulation byte for byte
+	step "seed_slow, timer-driven: the control period's timer releases each cycle (lockstep)"
+	build "$slow" seed_timer timer
+	start seed_timer
+	"$PLANT" run --mode lockstep --scenario "$slow" --transport "tcp:127.0.0.1:$PORT" --no-record \
+		--lockstep-timeout 30 --out "$OUT/seed_timer-pil" >"$OUT/seed_timer-pil.log" 2>&1 ||
+		die "timer-driven: the run failed (log: $OUT/seed_timer-pil.log)"
+	sleep 0.2
+	stop_qemu
+	"$PLANT" sim --scenario "$slow" --controller-scalar f32 --out "$OUT/seed_timer-f32" >"$OUT/seed_timer-f32.log" 2>&1 ||
+		die "timer-driven: the f32 simulation failed"
+	grep -q "timer-driven" "$OUT/seed_timer.qemu.out" || die "timer-driven: the firmware was not built so: $(head -2 "$OUT/seed_timer.qemu.out")"
+	read -r ticks answered < <(sed -n 's/^PIL TIMER ticks \([0-9]*\) answered \([0-9]*\)$/\1 \2/p' "$OUT/seed_timer.qemu.out" | tail -1)
+	states=$(($(wc -l <"$OUT/seed_timer-pil/trajectory.csv") - 1))
+	[[ -n ${answered:-} ]] && ((answered == states && ticks >= answered)) ||
+		die "timer-driven: ${answered:-no} states answered on ${ticks:-no} ticks, for $states states"
+	why=$(compare "$OUT/seed_timer-pil/trajectory.csv" "$OUT/seed_timer-f32/trajectory.csv" 2>&1) ||
+		die "timer-driven: $why"
+	echo "PIL: timer-driven: $answered states answered on $ticks ticks of the 20 ms timer, the run equal to the f32 simulation byte for byte"
 fi
 
 # --- footprint and stack -----------------------------------------------------------------------

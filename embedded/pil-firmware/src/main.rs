@@ -17,6 +17,13 @@
 //!   one frame in a few thousand waited a second).
 //! - idle: `wfi`.
 //!
+//! With the feature `timer`, the timer-driven mode of a board: the control period, not the
+//! plant's frames, paces the cycle. A received state is kept as the newest sample set (what
+//! a board's sensor drivers would leave), and every control period `tick` releases the
+//! cycle on it; its command goes out then (what a board would write to its actuators). A
+//! state is answered once, on the first tick after it arrived. The handshake and `Bye` are
+//! answered at once, as before. At `Bye` it prints `PIL TIMER ticks <n> answered <n>`.
+//!
 //! The scenario's configuration is built in (`PIL_CONFIG`, from `plant_sim pil-config`).
 //! Over semihosting it prints `PIL READY <identity>` at start, and at each `Bye` the
 //! counts and the stack's high-water mark (`STACK <bytes>`).
@@ -58,8 +65,19 @@ mod app {
     use rtic_sync::make_channel;
     use serial_wire::{Deframer, Frame, MAX_ENCODED, encode};
 
-    /// Bytes the channel holds (rtic-sync's maximum).
+    /// Events the channel holds (rtic-sync's maximum).
     const CAPACITY: usize = 255;
+    /// Whether the control period's timer paces the cycle (the feature `timer`).
+    const TIMER: bool = cfg!(feature = "timer");
+
+    /// What wakes the control task.
+    #[derive(Clone, Copy)]
+    pub enum Event {
+        /// A byte from the UART.
+        Byte(u8),
+        /// A control period has passed (timer-driven mode).
+        Tick,
+    }
     /// The core clock of QEMU's mps2 boards (Hz).
     const CORE_HZ: u32 = 25_000_000;
 
@@ -71,8 +89,15 @@ mod app {
 
     #[local]
     struct Local {
-        tx: Sender<'static, u8, CAPACITY>,
-        rx: Receiver<'static, u8, CAPACITY>,
+        tx: Sender<'static, Event, CAPACITY>,
+        timer: Sender<'static, Event, CAPACITY>,
+        /// Milliseconds a control period (timer-driven mode).
+        period_ms: u64,
+        rx: Receiver<'static, Event, CAPACITY>,
+        /// The newest state not answered yet (timer-driven mode).
+        latest: Option<serial_wire::StateFrame>,
+        /// Timer ticks, and states answered on them (timer-driven mode).
+        released: (u64, u64),
         cycle: Cycle,
         deframer: Deframer,
         out: [u8; MAX_ENCODED],
@@ -100,16 +125,21 @@ mod app {
                 }
             }
         };
+        let mut period_ms = 1;
         if let Frame::Hello(h) = cycle.hello() {
+            // a whole number of milliseconds, at least one (SysTick counts them)
+            period_ms = ((h.period * 1000.0) as u64).max(1);
             hprintln!(
-                "PIL READY group {} period {} fingerprint {:016x} scenario {}",
+                "PIL READY group {} period {} fingerprint {:016x} scenario {}{}",
                 h.group,
                 h.period,
                 h.fingerprint,
-                h.scenario.as_str()
+                h.scenario.as_str(),
+                if TIMER { " timer-driven" } else { "" }
             );
         }
-        let (tx, rx) = make_channel!(u8, CAPACITY);
+        let (tx, rx) = make_channel!(Event, CAPACITY);
+        let timer = tx.clone();
         if control::spawn().is_err() {
             hprintln!("ERR cannot start the control task");
         }
@@ -117,7 +147,11 @@ mod app {
             Shared { ticks: 0 },
             Local {
                 tx,
+                timer,
+                period_ms,
                 rx,
+                latest: None,
+                released: (0, 0),
                 cycle,
                 deframer: Deframer::new(),
                 out: [0; MAX_ENCODED],
@@ -140,18 +174,26 @@ mod app {
         uart0::clear_rx_interrupt();
         while let Some(b) = uart0::try_read() {
             // a full channel drops the byte: its frame then fails the CRC and is counted
-            let _ = cx.local.tx.try_send(b);
+            let _ = cx.local.tx.try_send(Event::Byte(b));
         }
     }
 
-    /// 1 kHz: keeps QEMU's event loop awake; counts time.
-    #[task(binds = SysTick, priority = 3, shared = [ticks])]
+    /// 1 kHz: keeps QEMU's event loop awake; counts time; in the timer-driven mode releases
+    /// the cycle every control period.
+    #[task(binds = SysTick, priority = 3, shared = [ticks], local = [timer, period_ms])]
     fn tick(mut cx: tick::Context) {
-        cx.shared.ticks.lock(|t| *t += 1);
+        let now = cx.shared.ticks.lock(|t| {
+            *t += 1;
+            *t
+        });
+        if TIMER && now.is_multiple_of(*cx.local.period_ms) {
+            // a full channel drops the tick: the state waits for the next one
+            let _ = cx.local.timer.try_send(Event::Tick);
+        }
     }
 
     /// Frames in, answers out.
-    #[task(priority = 1, local = [rx, cycle, deframer, out, painted, corrupt])]
+    #[task(priority = 1, local = [rx, cycle, deframer, out, painted, corrupt, latest, released])]
     async fn control(cx: control::Context) {
         let control::LocalResources {
             rx,
@@ -160,9 +202,27 @@ mod app {
             out,
             painted,
             corrupt,
+            latest,
+            released,
             ..
         } = cx.local;
-        while let Ok(b) = rx.recv().await {
+        while let Ok(event) = rx.recv().await {
+            let b = match event {
+                Event::Byte(b) => b,
+                Event::Tick => {
+                    // timer-driven: the cycle on the newest state, once
+                    released.0 += 1;
+                    if let Some(state) = latest.take() {
+                        released.1 += 1;
+                        if let Some(reply) = cycle.on_frame(&Frame::State(state))
+                            && let Ok(n) = encode(&reply, out)
+                        {
+                            uart0::write_all(&out[..n]);
+                        }
+                    }
+                    continue;
+                }
+            };
             let frame = match deframer.push(b) {
                 None => continue,
                 Some(Err(_)) => {
@@ -172,6 +232,19 @@ mod app {
                 Some(Ok(f)) => f,
             };
             let bye = frame == Frame::Bye;
+            // timer-driven: a state of a greeted run waits for the next tick (a state before
+            // the handshake is answered at once: it asks to be greeted)
+            if TIMER && cycle.greeted() {
+                if let Frame::State(state) = &frame {
+                    *latest = Some(state.clone());
+                    continue;
+                }
+            }
+            if bye && TIMER {
+                hprintln!("PIL TIMER ticks {} answered {}", released.0, released.1);
+                *released = (0, 0);
+                *latest = None;
+            }
             if let Some(reply) = cycle.on_frame(&frame) {
                 if let Frame::Refused { mismatch, .. } = &reply {
                     hprintln!("PIL REFUSED mismatch {}", mismatch);
