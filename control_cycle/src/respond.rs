@@ -112,6 +112,36 @@ where
         self
     }
 
+    /// Puts run-time gains in force (docs/live.md, "Tuning a running pair"): `K`, `K_d`
+    /// and, for the terms the responder runs, the observer's `L` and the integral's `K_I`
+    /// and `c`, all at once, checked as at start-up (an error leaves the responder as it
+    /// was). The law, the model, the limit and the terms' state carry over. Allocation-free.
+    pub fn retune(&mut self, gains: &ipc_types::Gains) -> Result<(), controller::Error> {
+        let mut config = *self.controller.config();
+        config.k = nalgebra::SMatrix::from_fn(|i, j| controller::real(gains.k[i * N + j]));
+        config.kd = nalgebra::SMatrix::from_fn(|i, j| controller::real(gains.kd[i * M + j]));
+        let axes = |xs: &[f64; ipc_types::MAX_M]| {
+            nalgebra::SVector::<T, M>::from_fn(|i, _| controller::real(xs[i]))
+        };
+        let rejection = match &self.rejection {
+            None => None,
+            Some(r) => {
+                let mut c = *r.config();
+                if let Some(o) = &mut c.observer {
+                    o.gain = axes(&gains.observer);
+                }
+                if let Some(i) = &mut c.integral {
+                    i.ki = axes(&gains.ki);
+                    i.c = axes(&gains.c);
+                }
+                Some(r.retuned(c)?)
+            }
+        };
+        self.controller = Controller::new(config)?;
+        self.rejection = rejection;
+        Ok(())
+    }
+
     /// The controller.
     pub fn controller(&self) -> &Controller<T, G, N, M> {
         &self.controller

@@ -198,6 +198,20 @@ impl<T: Real, const M: usize> Rejection<T, M> {
         })
     }
 
+    /// The same terms under new settings (validated as [`Rejection::new`] validates them):
+    /// the estimate, the integral and the anchor carry over, so a retuned run continues
+    /// where it was (docs/live.md, "Tuning a running pair"). The clamp of the integral is
+    /// recomputed; the observer's discrete gain is recomputed at the next cycle.
+    pub fn retuned(&self, config: RejectionConfig<T, M>) -> Result<Self, Error> {
+        let fresh = Rejection::new(config, self.torque_limit.as_ref())?;
+        Ok(Rejection {
+            config: fresh.config,
+            z_max: fresh.z_max,
+            gain: None,
+            ..*self
+        })
+    }
+
     /// The settings.
     pub fn config(&self) -> &RejectionConfig<T, M> {
         &self.config

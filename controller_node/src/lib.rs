@@ -60,9 +60,66 @@ struct Cycles<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     refused: u64,
     /// Allocations counted at the end of the first cycle.
     baseline: Option<u64>,
+    /// A run with run-time gains: the `params` board (opened at the first such state) and
+    /// the gains in force (`None`: the scenario's).
+    params: Option<link::params::ParamsReader>,
+    tuned: Option<ipc_types::Gains>,
+    /// The scenario's fingerprint: only the `params` board of this run is taken.
+    fingerprint: u64,
+}
+
+/// Why a state of a run with run-time gains gets no answer.
+#[derive(Debug)]
+enum Untuned {
+    /// The `params` board could not be opened.
+    Open(link::LinkError),
+    /// The board cannot answer this state.
+    Board(ipc_types::ParamInvalid),
+    /// The gains on the board are refused by the law's checks.
+    Gains(controller::Error),
+}
+
+impl std::fmt::Display for Untuned {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Untuned::Open(e) => write!(f, "cannot read the run's params board: {e}"),
+            Untuned::Board(e) => write!(f, "{e}"),
+            Untuned::Gains(e) => write!(f, "run-time gains refused: {e}"),
+        }
+    }
 }
 
 impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M> {
+    /// A state of a run with run-time gains: puts the gains the `params` board gives for it
+    /// in force (docs/live.md, "Tuning a running pair"). Allocation-free after the board is
+    /// open; the gains change only when the board's set for this state differs.
+    fn retune(&mut self, msg: &StateMsg) -> Result<(), Untuned> {
+        let reader = match &mut self.params {
+            Some(r) => r,
+            None => self
+                .params
+                .insert(link::params::ParamsReader::open(&self.opts.run).map_err(Untuned::Open)?),
+        };
+        let board = reader
+            .latest()
+            .ok_or(Untuned::Board(ipc_types::ParamInvalid::Version))?;
+        let gains = *board
+            .gains_for(msg.seq, msg.group, self.fingerprint)
+            .map_err(Untuned::Board)?;
+        if self.tuned.is_some_and(|t| t == gains) {
+            return Ok(());
+        }
+        self.responder.retune(&gains).map_err(Untuned::Gains)?;
+        if self.tuned.is_some() || board.seq > 0 {
+            log(format_args!(
+                "state seq {}: run-time gains of change {} in force (from cycle {})",
+                msg.seq, board.seq, gains.cycle
+            ));
+        }
+        self.tuned = Some(gains);
+        Ok(())
+    }
+
     /// Answers one state; advances the reference to the next tick.
     fn answer(
         &mut self,
@@ -71,6 +128,13 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M
         received: u64,
         allocations: &dyn Fn() -> u64,
     ) -> Result<(), NodeError> {
+        // a run with run-time gains: the gains for this state first
+        let tunable = msg.flags & ipc_types::flags::TUNABLE != 0;
+        let untuned = if tunable {
+            self.retune(msg).err()
+        } else {
+            None
+        };
         let reference = match &mut self.reference {
             Some(r) => r,
             None => {
@@ -81,8 +145,18 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M
                 r
             }
         };
-        match self.responder.respond(reference, msg) {
+        let answer = match untuned {
+            Some(e) => Err(e.to_string()),
+            None => self
+                .responder
+                .respond(reference, msg)
+                .map_err(|e| e.to_string()),
+        };
+        match answer {
             Ok(mut cmd) => {
+                if tunable {
+                    cmd.flags |= ipc_types::flags::TUNED;
+                }
                 cmd.state_received_ns = received;
                 if let Some(stream) = &self.stream {
                     stream.intake.stamp(&mut cmd);
@@ -227,6 +301,9 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         cycles: 0,
         refused: 0,
         baseline: None,
+        params: None,
+        tuned: None,
+        fingerprint: s.fingerprint(),
     };
     let started = Instant::now();
     let stop = loop {

@@ -224,6 +224,21 @@ impl<T: Real> ComplementaryFilter<T> {
 
     filter_accessors!(ComplementaryConfig);
 
+    /// Changes `k_P` and `k_I` from the next step on, checked as
+    /// [`ComplementaryConfig::new`] checks them (an error changes nothing); the estimate and
+    /// the bias carry over (run-time parameters, docs/live.md, "Tuning a running pair").
+    pub fn set_gains(&mut self, kp: T, ki: T) -> Result<(), EstimatorError> {
+        if !kp.is_finite() || kp < T::zero() {
+            return Err(EstimatorError::BadGain("kp"));
+        }
+        if !ki.is_finite() || ki < T::zero() {
+            return Err(EstimatorError::BadGain("ki"));
+        }
+        self.cfg.kp = kp;
+        self.cfg.ki = ki;
+        Ok(())
+    }
+
     /// Checks and normalises the first `n` direction samples (see [`usable`]).
     pub(crate) fn usable(&mut self, directions: &[Vector3<T>], n: usize) -> Directions<T> {
         usable(directions, n, &mut self.faults)

@@ -312,6 +312,11 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
         &self.attitude
     }
 
+    /// The attitude filter, to change its gains.
+    pub fn attitude_mut(&mut self) -> &mut C::Filter {
+        &mut self.attitude
+    }
+
     /// One tick (docs/maths.md, "Position and velocity on SE(3)"): the attitude filter's
     /// step with the accelerometer as the direction "up" (unless gated or unusable), then
     /// the Kalman filter's prediction over `h` with `a_k = R̂(t_k) f_k + g` and, when a fix

@@ -241,6 +241,17 @@ impl<T: Real> Filter<T> {
         }
     }
 
+    /// Changes the complementary filter's `k_P` and `k_I` from the next step on (SO(3), or
+    /// the attitude part of SE(3)); the estimate carries over. The EqF has no such gains:
+    /// [`EstimatorError::BadGain`].
+    pub fn retune(&mut self, kp: T, ki: T) -> Result<(), EstimatorError> {
+        match self {
+            Filter::Complementary(f) => f.set_gains(kp, ki),
+            Filter::Pose(p) => p.attitude_mut().set_gains(kp, ki),
+            Filter::Eqf(_) | Filter::PoseEqf(_) => Err(EstimatorError::BadGain("kp")),
+        }
+    }
+
     /// What it has skipped, held and clamped.
     pub fn faults(&self) -> &Faults {
         match self {

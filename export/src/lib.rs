@@ -19,7 +19,9 @@
 //! Messages use the `ros2msg` schema encoding and the `cdr` message encoding (little-endian
 //! XCDR1, as ROS 2 writes it), which Foxglove, PlotJuggler's built-in ROS parser and Rerun
 //! decode without plugins. One list of fields per message ([`Message`]) gives both the schema
-//! text and the encoding, so the two cannot disagree. The log's header goes into an MCAP
+//! text and the encoding, so the two cannot disagree. The channels are the `channels` crate's,
+//! which the live Foxglove bridge (`live`) shows a running pair with: a topic carries the same
+//! fields in both. The log's header goes into an MCAP
 //! metadata record `eqtrack`, and the run's `scenario.toml` (when it is beside the log) into
 //! an attachment.
 //!
@@ -30,213 +32,12 @@
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
-mod channels;
-
-pub use channels::messages;
+pub use channels::{Message, Value, log_time, messages, plan_message};
 use ipc_types::WireGroup;
-use recorder::{Header, LogReader, PlanEntry, Record, read_plans};
+use recorder::{Header, LogReader, PlanEntry, read_plans};
 use std::collections::{BTreeMap, HashMap};
 use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
-
-/// One field's value.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Value {
-    /// `uint8`.
-    U8(u8),
-    /// `uint32`.
-    U32(u32),
-    /// `uint64`.
-    U64(u64),
-    /// `float64`.
-    F64(f64),
-    /// `bool`.
-    Bool(bool),
-    /// `string`.
-    Str(String),
-    /// `float64[]` (an unbounded sequence).
-    F64s(Vec<f64>),
-    /// `uint32[]` (an unbounded sequence).
-    U32s(Vec<u32>),
-}
-
-impl Value {
-    /// The field's type in a `.msg` definition.
-    fn ros_type(&self) -> &'static str {
-        match self {
-            Value::U8(_) => "uint8",
-            Value::U32(_) => "uint32",
-            Value::U64(_) => "uint64",
-            Value::F64(_) => "float64",
-            Value::Bool(_) => "bool",
-            Value::Str(_) => "string",
-            Value::F64s(_) => "float64[]",
-            Value::U32s(_) => "uint32[]",
-        }
-    }
-
-    /// The value as JSON: non-finite numbers as the strings `"NaN"`, `"inf"`, `"-inf"`
-    /// (JSON has no such numbers).
-    fn json(&self) -> serde_json::Value {
-        let num = |x: f64| {
-            if x.is_nan() {
-                serde_json::Value::from("NaN")
-            } else if x.is_infinite() {
-                serde_json::Value::from(if x > 0.0 { "inf" } else { "-inf" })
-            } else {
-                serde_json::Value::from(x)
-            }
-        };
-        match self {
-            Value::U8(x) => (*x).into(),
-            Value::U32(x) => (*x).into(),
-            Value::U64(x) => (*x).into(),
-            Value::F64(x) => num(*x),
-            Value::Bool(x) => (*x).into(),
-            Value::Str(x) => x.clone().into(),
-            Value::F64s(xs) => xs.iter().map(|x| num(*x)).collect(),
-            Value::U32s(xs) => xs.clone().into(),
-        }
-    }
-}
-
-/// One message of one channel: its schema name, topic and fields, in order.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Message {
-    /// `eqtrack_msgs/msg/<Name>`.
-    pub schema: &'static str,
-    /// The channel's topic.
-    pub topic: &'static str,
-    /// Name and value of each field, in the schema's order.
-    pub fields: Vec<(&'static str, Value)>,
-}
-
-impl Message {
-    /// The `.msg` definition (`ros2msg` schema text): one `type name` line per field.
-    pub fn schema_text(&self) -> String {
-        let mut text = String::new();
-        for (name, value) in &self.fields {
-            text.push_str(value.ros_type());
-            text.push(' ');
-            text.push_str(name);
-            text.push('\n');
-        }
-        text
-    }
-
-    /// The CDR encoding (little-endian XCDR1 with its 4-byte encapsulation header; every
-    /// primitive aligned to its size from the end of the header).
-    pub fn cdr(&self) -> Vec<u8> {
-        let mut out = vec![0x00, 0x01, 0x00, 0x00];
-        let align = |out: &mut Vec<u8>, n: usize| {
-            while !(out.len() - 4).is_multiple_of(n) {
-                out.push(0);
-            }
-        };
-        for (_, value) in &self.fields {
-            match value {
-                Value::U8(x) => out.push(*x),
-                Value::Bool(x) => out.push(u8::from(*x)),
-                Value::U32(x) => {
-                    align(&mut out, 4);
-                    out.extend_from_slice(&x.to_le_bytes());
-                }
-                Value::U64(x) => {
-                    align(&mut out, 8);
-                    out.extend_from_slice(&x.to_le_bytes());
-                }
-                Value::F64(x) => {
-                    align(&mut out, 8);
-                    out.extend_from_slice(&x.to_le_bytes());
-                }
-                Value::Str(s) => {
-                    align(&mut out, 4);
-                    out.extend_from_slice(&(s.len() as u32 + 1).to_le_bytes());
-                    out.extend_from_slice(s.as_bytes());
-                    out.push(0);
-                }
-                Value::F64s(xs) => {
-                    align(&mut out, 4);
-                    out.extend_from_slice(&(xs.len() as u32).to_le_bytes());
-                    if !xs.is_empty() {
-                        align(&mut out, 8);
-                    }
-                    for x in xs {
-                        out.extend_from_slice(&x.to_le_bytes());
-                    }
-                }
-                Value::U32s(xs) => {
-                    align(&mut out, 4);
-                    out.extend_from_slice(&(xs.len() as u32).to_le_bytes());
-                    for x in xs {
-                        out.extend_from_slice(&x.to_le_bytes());
-                    }
-                }
-            }
-        }
-        out
-    }
-
-    /// The fields as a JSON object.
-    pub fn json_fields(&self) -> serde_json::Value {
-        serde_json::Value::Object(
-            self.fields
-                .iter()
-                .map(|(n, v)| ((*n).to_owned(), v.json()))
-                .collect(),
-        )
-    }
-}
-
-/// The message of a recorded plan message: `cycle` is the cycle the controller took it in
-/// (the first whose command names it), or, if no command names it, the cycle after the one
-/// the recorder had reached when it saw it (`taken` false). Each piece's geometry follows its
-/// times and shape, for a group with `n`×`n` configurations and `m`-vectors: `start`, its
-/// pose at `t0` (n² entries, row-major), and `twists`, 5·m entries (`ξ` and four zero twists
-/// for a stop piece, `v_1 … v_5` for a through piece; docs/wire.md, "`PlanMsg` (3 176 bytes): a window of path segments from a planner").
-pub fn plan_message(e: &PlanEntry, cycle: u64, taken: bool, n: usize, m: usize) -> Message {
-    let msg = &e.msg;
-    let used = msg.used();
-    let twists = used
-        .iter()
-        .flat_map(|w| (0..5).flat_map(move |k| w.twist(k, m).iter().copied()))
-        .collect();
-    Message {
-        schema: "eqtrack_msgs/msg/Plan",
-        topic: "/eqtrack/plan",
-        fields: vec![
-            ("cycle", Value::U64(cycle)),
-            ("taken", Value::Bool(taken)),
-            ("planner_pid", Value::U32(msg.planner_pid)),
-            ("seq", Value::U64(msg.seq)),
-            ("stamp_ns", Value::U64(msg.stamp_ns)),
-            ("first_index", Value::U32(msg.first_index)),
-            ("t0", Value::F64s(used.iter().map(|w| w.t0).collect())),
-            ("t1", Value::F64s(used.iter().map(|w| w.t1).collect())),
-            ("shape", Value::U32s(used.iter().map(|w| w.shape).collect())),
-            (
-                "start",
-                Value::F64s(
-                    used.iter()
-                        .flat_map(|w| w.start[..n * n].to_vec())
-                        .collect(),
-                ),
-            ),
-            ("twists", Value::F64s(twists)),
-        ],
-    }
-}
-
-/// The sample time of a record in ns (`log_time` and `publish_time`): `t_k` rounded, never
-/// negative.
-pub fn log_time(r: &Record) -> u64 {
-    let t = r.state.t;
-    if t.is_finite() && t > 0.0 {
-        (t * 1e9).round() as u64
-    } else {
-        0
-    }
-}
 
 /// Export formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -534,42 +335,4 @@ fn write_mcap<W: Write + Seek>(
     }
     w.finish().map_err(mcap_err)?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn cdr_aligns_every_field_from_the_end_of_the_header() {
-        let msg = Message {
-            schema: "eqtrack_msgs/msg/T",
-            topic: "/t",
-            fields: vec![
-                ("a", Value::U8(7)),
-                ("b", Value::U64(1)),
-                ("c", Value::Str("ab".to_owned())),
-                ("d", Value::F64s(vec![2.0])),
-                ("e", Value::Bool(true)),
-            ],
-        };
-        let b = msg.cdr();
-        assert_eq!(&b[..4], &[0, 1, 0, 0]);
-        assert_eq!(b[4], 7);
-        // u64 at offset 8 of the body (12 in the buffer)
-        assert_eq!(&b[5..12], &[0; 7]);
-        assert_eq!(u64::from_le_bytes(b[12..20].try_into().unwrap()), 1);
-        // string: length 3 (with the NUL) at body offset 16, then "ab\0"
-        assert_eq!(u32::from_le_bytes(b[20..24].try_into().unwrap()), 3);
-        assert_eq!(&b[24..27], b"ab\0");
-        // sequence: length at body offset 24 (aligned 4), element at 32 (aligned 8)
-        assert_eq!(b[27], 0);
-        assert_eq!(u32::from_le_bytes(b[28..32].try_into().unwrap()), 1);
-        assert_eq!(f64::from_le_bytes(b[36..44].try_into().unwrap()), 2.0);
-        assert_eq!(b[44], 1);
-        assert_eq!(
-            msg.schema_text(),
-            "uint8 a\nuint64 b\nstring c\nfloat64[] d\nbool e\n"
-        );
-    }
 }

@@ -154,6 +154,7 @@ fn case_options(
         connect_timeout: Duration::from_secs(10),
         state_faults: Vec::new(),
         controller_fault_nan_torque: None,
+        tunable: false,
         stop: stop.clone(),
     }
 }

@@ -17,6 +17,8 @@ pub mod codes;
 pub use codes::{WireGroup, WireLaw};
 pub mod decision;
 pub use decision::Decision;
+pub mod params;
+pub use params::{Gains, ParamInvalid, ParamMsg, ParamRequest, ParamResponse, param_op};
 pub mod plan;
 pub use plan::{PLAN_BYTES, PLAN_WINDOW, PlanInvalid, PlanMsg, WireSegment, check_plan};
 pub mod status;
@@ -62,6 +64,13 @@ pub mod flags {
     /// [`CommandMsg::flags`](crate::CommandMsg::flags): the controller tracks a streamed reference (`--reference
     /// stream`); [`CommandMsg::plans_received`](crate::CommandMsg::plans_received) says what it had taken from the plan board.
     pub const STREAMED: u32 = 8;
+    /// [`StateMsg::flags`](crate::StateMsg::flags): the run's gains may change while it runs
+    /// (`plant_sim run --tunable`): read the run's `params` board ([`ParamMsg`](crate::ParamMsg))
+    /// before answering.
+    pub const TUNABLE: u32 = 16;
+    /// [`CommandMsg::flags`](crate::CommandMsg::flags): the controller answered with the
+    /// gains the `params` board gives for the state (the answer to [`TUNABLE`]).
+    pub const TUNED: u32 = 32;
 }
 
 /// Bits of [`CommandMsg::mismatch`]: what differs between the two sides' settings.

@@ -22,6 +22,12 @@ pub struct ServiceNames {
     pub plan: Name,
     /// The plant's flight recorder → monitors: the run's live status.
     pub status: Name,
+    /// Plant → controller: the gains in force ([`ParamMsg`](crate::ParamMsg)), in a run started
+    /// with `--tunable`.
+    pub params: Name,
+    /// The run's request-response service for reading and changing gains
+    /// ([`ParamRequest`](crate::ParamRequest)).
+    pub param: Name,
     /// The plant's node name.
     pub plant_node: Name,
     /// The controller's node name.
@@ -32,6 +38,13 @@ pub struct ServiceNames {
     pub recorder_node: Name,
     /// A monitor's node name.
     pub monitor_node: Name,
+    /// The live Foxglove bridge's node name (`plant_sim live`: a reader of the state, command
+    /// and status boards).
+    pub live_node: Name,
+    /// The node of the plant's parameter thread (the `param` service's server).
+    pub tuning_node: Name,
+    /// The node of a `plant_sim param` client.
+    pub param_node: Name,
 }
 
 /// Whether `run` is a usable run name: 1 to 64 characters of `[A-Za-z0-9_-]`.
@@ -61,10 +74,15 @@ pub fn service_names(run: &str) -> Option<ServiceNames> {
         command_event: make("eqtrack", "/", "/command_event"),
         plan: make("eqtrack", "/", "/plan"),
         status: make("eqtrack", "/", "/status"),
+        params: make("eqtrack", "/", "/params"),
+        param: make("eqtrack", "/", "/param"),
         plant_node: make("eqtrack-plant", "-", ""),
         controller_node: make("eqtrack-controller", "-", ""),
         planner_node: make("eqtrack-planner", "-", ""),
         recorder_node: make("eqtrack-recorder", "-", ""),
         monitor_node: make("eqtrack-monitor", "-", ""),
+        live_node: make("eqtrack-live", "-", ""),
+        tuning_node: make("eqtrack-tuning", "-", ""),
+        param_node: make("eqtrack-param", "-", ""),
     })
 }

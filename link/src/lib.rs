@@ -52,6 +52,7 @@ pub mod controller_side;
 pub mod deadline;
 pub mod iceoryx2;
 mod invalid;
+pub mod params;
 pub mod plan;
 pub mod plant_side;
 pub mod process;
@@ -60,13 +61,14 @@ pub mod serial;
 pub mod status;
 pub mod transport;
 pub mod uds;
+pub mod watch;
 pub mod wire;
 
 pub use controller_side::{ControllerEndpoint, ControllerEndpointConfig, Incoming};
 pub use deadline::{Arrival, DeadlinePolicy, Decision, Step, Transition};
 pub use invalid::InvalidMessage;
 pub use plant_side::{Command, NoCommand, PlantEndpoint, PlantEndpointConfig, Refusal};
-pub use process::{Exit, StopFlag, StopSignal, log_line, process_alive};
+pub use process::{Exit, StopFlag, StopSignal, log_line, process_alive, signal_process};
 pub use transport::{Message, Transport, open};
 
 use std::fmt;
@@ -198,6 +200,9 @@ pub enum LinkError {
         /// The error.
         source: std::io::Error,
     },
+    /// The run's parameter service could not be reached or answered nothing.
+    #[error("{0}")]
+    Param(String),
     /// The serial link to a processor-in-the-loop firmware failed.
     #[error("serial link: {what}: {source}")]
     Serial {

@@ -116,6 +116,21 @@ pub fn process_alive(pid: u32) -> bool {
     }
 }
 
+/// Sends stop signal `sig` to process `pid` (a child this process started, to pass on a
+/// SIGINT/SIGTERM it was sent); false if it could not be sent (no such process).
+pub fn signal_process(pid: u32, sig: StopSignal) -> bool {
+    use nix::sys::signal::{Signal, kill};
+    use nix::unistd::Pid;
+    let signal = match sig {
+        StopSignal::Int => Signal::SIGINT,
+        StopSignal::Term => Signal::SIGTERM,
+    };
+    match i32::try_from(pid) {
+        Ok(p) if p > 0 => kill(Pid::from_raw(p), signal).is_ok(),
+        _ => false,
+    }
+}
+
 /// Writes one line (`args` and a newline) to standard error in a single write, formatted
 /// first into a 1 KiB buffer on the stack (a longer line is cut). Two processes that share a
 /// pipe (a plant and the controller it spawned) then never interleave within a line, which
@@ -179,5 +194,15 @@ mod tests {
         child.wait().unwrap();
         assert!(!process_alive(pid), "a reaped child is gone");
         assert!(process_alive(0), "unknown counts as alive");
+    }
+
+    #[test]
+    fn a_stop_signal_is_passed_on_to_a_child() {
+        use std::os::unix::process::ExitStatusExt;
+        let mut child = std::process::Command::new("sleep").arg("10").spawn().unwrap();
+        assert!(signal_process(child.id(), StopSignal::Term));
+        assert_eq!(child.wait().unwrap().signal(), Some(15));
+        assert!(!signal_process(child.id(), StopSignal::Int), "a reaped child");
+        assert!(!signal_process(0, StopSignal::Int));
     }
 }

@@ -13,7 +13,7 @@ use iceoryx2::service::port_factory::blackboard::PortFactory as BoardFactory;
 use ipc_types::{PROTOCOL_VERSION, StatusMsg};
 
 /// An empty slot: version 0.
-fn empty_status() -> StatusMsg {
+pub(crate) fn empty_status() -> StatusMsg {
     let mut m = StatusMsg::new(ipc_types::WireGroup::So3, "");
     m.version = 0;
     m.group = 0;

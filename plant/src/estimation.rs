@@ -116,6 +116,15 @@ impl Estimation {
         samples
     }
 
+    /// Changes the complementary filter's `k_P` and `k_I` from the next tick on (run-time
+    /// parameters); nothing to change when the law sees the truth.
+    pub fn retune(&mut self, kp: f64, ki: f64) -> Result<(), SimError> {
+        match &mut self.filter {
+            Some(f) => f.retune(kp, ki).map_err(bad),
+            None => Ok(()),
+        }
+    }
+
     /// The filter runs on the controller (processor in the loop, docs/pil.md): this side
     /// only samples, and the rows take the estimate the commands come back with.
     pub fn on_board(mut self) -> Estimation {

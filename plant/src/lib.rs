@@ -25,6 +25,7 @@ pub mod sensors;
 pub mod spawn;
 pub mod status;
 pub mod trajectory;
+pub mod tuning;
 pub mod vehicle;
 
 /// Errors of the simulation front end, split by who is to blame (for the exit code).

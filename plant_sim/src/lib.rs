@@ -16,6 +16,7 @@
 //! plant_sim rejection [--scenario FILE | --builtin NAME] [--ki X] [--c X] [--gain X]
 //!                     [--runs N] [--magnitude X] [--seed S] [--out DIR]
 //! plant_sim monitor [--name RUN] [--plain]
+//! plant_sim live [--name RUN] [--listen ADDR] [--wait S]
 //! plant_sim bench-loop [--rates LIST] [--duration S] [--cyclictest PATH]
 //! plant_sim reference [--scenario FILE | --builtin NAME] [--out DIR] [--strict] [--compare-paths]
 //! plant_sim export OUT_DIR [--format mcap|jsonl] [--out FILE] [--compress]
@@ -34,8 +35,10 @@ use std::process::ExitCode;
 
 mod cmd;
 
+use cmd::live;
 use cmd::{
-    bench_loop, export, monitor, montecarlo, noise, pil, reference, rejection, replay, run, sim,
+    bench_loop, export, monitor, montecarlo, noise, param, pil, reference, rejection, replay, run,
+    sim,
 };
 
 #[derive(Parser)]
@@ -82,6 +85,15 @@ enum Command {
     /// Watch a running pair live in the terminal: rate, round trip, misses, safe mode, the
     /// Lyapunov value. Read-only; exits when the run ends, or on q or Ctrl-C.
     Monitor(monitor::MonitorArgs),
+    /// Serve a running pair to Foxglove as it flies: its state, command and status over the
+    /// Foxglove WebSocket protocol (ws://127.0.0.1:8765 by default). Read-only; runs
+    /// `eqtrack-live` from this binary's directory (the pair never links WebSocket code) and
+    /// exits when the run ends.
+    Live(live::LiveArgs),
+    /// Read or change a gain of a running pair started with `plant_sim run --tunable`:
+    /// `param --name RUN get KEY`, `param --name RUN set KEY VALUE` (checked as the scenario
+    /// key is; in force from the next cycle; recorded for replay).
+    Param(param::ParamArgs),
     /// Write the processor-in-the-loop firmware's configuration for a scenario (the bytes
     /// scripts/pil.sh builds the firmware with), and print the identity it will greet with.
     PilConfig(pil::PilConfigArgs),
@@ -111,6 +123,8 @@ pub fn main() -> ExitCode {
         Some(Command::Export(a)) => export::export_cmd(a),
         Some(Command::Replay(a)) => replay::replay_cmd(a),
         Some(Command::Monitor(a)) => monitor::monitor_cmd(a, &stop),
+        Some(Command::Live(a)) => live::live_cmd(a, &stop),
+        Some(Command::Param(a)) => param::param_cmd(a),
         Some(Command::PilConfig(a)) => pil::pil_config_cmd(a),
     };
     match result {

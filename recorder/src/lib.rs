@@ -45,6 +45,7 @@
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod format;
+pub mod params;
 pub mod reader;
 pub mod writer;
 
@@ -53,6 +54,7 @@ pub use format::{
     PlanEntry, RECORD_BYTES, RECORD_COMMAND_OFFSET, RECORD_STATE_OFFSET, Record, SENSOR_BYTES,
     Samples, SensorRecord, torque_byte_offset,
 };
+pub use params::{PARAMS_FILE, ParamChange, append_param, create_params, read_params};
 pub use reader::{LogReader, read_plans};
 pub use writer::{
     PlanSource, PlanSourceFactory, Recorder, RecordingReport, SinkFactory, StatusSink,

@@ -43,12 +43,13 @@ impl ScenarioSource {
 }
 
 impl ScenarioSource {
-    /// Writes the scenario this source loads, as text, to `dir/scenario.toml`, so that the
-    /// directory alone reproduces the controller's configuration (a run's flight recording
-    /// is replayed with it). A waypoint file is copied beside it and the copy's reference
-    /// points at it; a scenario without a `name` gets the one it was loaded under. Returns
-    /// the path written.
-    pub fn save(&self, default: &str, dir: &std::path::Path) -> Result<PathBuf, ScenarioError> {
+    /// The scenario this source loads as a TOML table, with the `name` it was loaded under,
+    /// the origin errors name, and the directory its waypoint files are relative to (what
+    /// [`ScenarioSource::save`] writes, and what run-time parameters are checked against).
+    pub fn table(
+        &self,
+        default: &str,
+    ) -> Result<(toml::Table, String, Option<PathBuf>), ScenarioError> {
         let io = |path: &std::path::Path| {
             let path = path.display().to_string();
             move |source| ScenarioError::Io { path, source }
@@ -60,7 +61,12 @@ impl ScenarioSource {
                     .file_stem()
                     .map(|s| s.to_string_lossy().into_owned())
                     .unwrap_or_else(|| "scenario".to_owned());
-                (text, p.display().to_string(), stem, p.parent())
+                (
+                    text,
+                    p.display().to_string(),
+                    stem,
+                    p.parent().map(std::path::Path::to_path_buf),
+                )
             }
             (None, b) => {
                 let name = b.as_deref().unwrap_or(default);
@@ -84,10 +90,27 @@ impl ScenarioSource {
         table
             .entry("name")
             .or_insert_with(|| toml::Value::String(name));
+        Ok((table, origin, base))
+    }
+
+    /// Writes the scenario this source loads, as text, to `dir/scenario.toml`, so that the
+    /// directory alone reproduces the controller's configuration (a run's flight recording
+    /// is replayed with it). A waypoint file is copied beside it and the copy's reference
+    /// points at it; a scenario without a `name` gets the one it was loaded under. Returns
+    /// the path written.
+    pub fn save(&self, default: &str, dir: &std::path::Path) -> Result<PathBuf, ScenarioError> {
+        let io = |path: &std::path::Path| {
+            let path = path.display().to_string();
+            move |source| ScenarioError::Io { path, source }
+        };
+        let (mut table, origin, base) = self.table(default)?;
         if let Some(toml::Value::Table(reference)) = table.get_mut("reference")
             && let Some(toml::Value::String(file)) = reference.get_mut("waypoints")
         {
-            let from = base.unwrap_or(std::path::Path::new(".")).join(&*file);
+            let from = base
+                .as_deref()
+                .unwrap_or(std::path::Path::new("."))
+                .join(&*file);
             let copy = "waypoints.csv";
             std::fs::copy(&from, dir.join(copy)).map_err(io(&from))?;
             *file = copy.to_owned();

@@ -18,6 +18,7 @@ pub mod waypoints;
 mod build;
 mod raw;
 mod spec;
+pub mod tuning;
 mod validate;
 
 use raw::*;

@@ -107,6 +107,13 @@ struct ReplayRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     last_recorded: Option<CommandMsg>,
     rows: Vec<Row>,
     report: ReplayReport,
+    /// `params.log`'s changes (a run started with `--tunable`), applied at their cycles with
+    /// the run's own check, the tuner of its stored scenario; the next one to apply.
+    params: Vec<recorder::ParamChange>,
+    next_param: usize,
+    tuner: Option<scenario::tuning::Tuner>,
+    /// The controller's gains in force after the last change (`None`: the scenario's).
+    gains: Option<ipc_types::Gains>,
 }
 
 impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, G, N, M> {
@@ -117,6 +124,24 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         plans: Option<&'a [PlanEntry]>,
     ) -> Result<Self, SimError> {
         let what_if = opts.what_if();
+        // run-time parameter changes: replayed at their cycles (a what-if keeps its own gains)
+        let params = if what_if {
+            Vec::new()
+        } else {
+            recorder::read_params(&opts.dir)?
+        };
+        let tuner = if params.is_empty() {
+            None
+        } else {
+            let source = scenario::cli::ScenarioSource {
+                scenario: Some(opts.dir.join("scenario.toml")),
+                builtin: None,
+            };
+            Some(
+                scenario::tuning::Tuner::from_source(&source, &s.name)
+                    .map_err(|e| SimError::Input(e.to_string()))?,
+            )
+        };
         let responders = vec![(s.law, responder_for::<G, N, M>(s, s.law)?)];
         let estimation = match (log.header.sensors, what_if) {
             (true, false) => {
@@ -160,7 +185,60 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             last_recorded: None,
             rows: Vec::new(),
             report,
+            params,
+            next_param: 0,
+            tuner,
+            gains: None,
         })
+    }
+
+    /// Puts in force every recorded parameter change that took effect by cycle `k`, as the
+    /// run did: checked by the scenario's own validation, the controller's gains (every
+    /// law's responder) and the estimator's, all at once. A change the check refuses, or
+    /// whose recorded numbers differ from what its value gives, stops replay naming its
+    /// cycle.
+    fn retune(&mut self, k: u64) -> Result<(), SimError> {
+        while let Some(p) = self.params.get(self.next_param).filter(|p| p.cycle <= k) {
+            let bad = |what: String| {
+                SimError::Input(format!(
+                    "params.log: the change at cycle {} ({} = {}): {what}",
+                    p.cycle, p.key, p.value
+                ))
+            };
+            let Some(tuner) = &mut self.tuner else {
+                return Err(bad("no tuner".to_owned()));
+            };
+            let change = tuner.apply(&p.key, &p.value).map_err(&bad)?;
+            let numbers = scenario::tuning::numbers(&change.scenario, change.key);
+            if numbers.len() != p.numbers.len()
+                || numbers
+                    .iter()
+                    .zip(&p.numbers)
+                    .any(|(a, b)| a.to_bits() != b.to_bits())
+            {
+                return Err(bad(format!(
+                    "the value gives {numbers:?}, the log says {:?}",
+                    p.numbers
+                )));
+            }
+            match change.acts() {
+                scenario::tuning::Acts::Controller => {
+                    let gains = plant::tuning::gains(&change.scenario, p.cycle);
+                    for (_, r) in &mut self.responders {
+                        r.retune(&gains).map_err(|e| bad(e.to_string()))?;
+                    }
+                    self.gains = Some(gains);
+                }
+                scenario::tuning::Acts::Estimator => {
+                    if let Some(e) = &mut self.estimation {
+                        let est = &change.scenario.estimator;
+                        e.retune(est.kp, est.ki)?;
+                    }
+                }
+            }
+            self.next_param += 1;
+        }
+        Ok(())
     }
 
     /// Replays one record: the estimator's check, the node's checks on the state, the
@@ -169,6 +247,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
     fn record(&mut self, r: &Record) -> Result<(), SimError> {
         self.report.cycles += 1;
         self.report.missing += r.cycle.saturating_sub(self.next);
+        self.retune(r.cycle)?;
         self.check_estimator(r);
         self.next = r.cycle + 1;
         if ipc_types::check_state(
@@ -256,7 +335,13 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             match self.responders.iter().position(|(l, _)| *l == self.law) {
                 Some(i) => i,
                 None => {
-                    let responder = responder_for::<G, N, M>(self.s, self.law)?;
+                    let mut responder = responder_for::<G, N, M>(self.s, self.law)?;
+                    if let Some(g) = &self.gains {
+                        // the run-time gains in force reach a law first named after a change
+                        responder
+                            .retune(g)
+                            .map_err(|e| SimError::Input(format!("run-time gains: {e}")))?;
+                    }
                     self.responders.push((self.law, responder));
                     self.responders.len() - 1
                 }

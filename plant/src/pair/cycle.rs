@@ -110,6 +110,14 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             (Some(c), link::Step::LOCKSTEP, (k + 1) * self.period_ns)
         };
         self.log_invalid();
+        if self.params.is_some()
+            && let Some(c) = &got
+            && c.msg.flags & ipc_types::flags::TUNED == 0
+        {
+            return Err(SimError::Run(format!(
+                "--tunable: the controller's command for step {k} was not computed with the run's params board (its flags lack TUNED): start a controller_node of this build"
+            )));
+        }
         if let Some(c) = &got {
             self.stats.command(c, self.published, k == 0);
         }

@@ -70,6 +70,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     if opts.record {
         run.start_recorder()?;
     }
+    run.start_tuning()?;
     let mut child = Spawned::start(opts)?;
     run.rt.plant = opts.rt.apply();
     for line in run.rt.plant.lines() {
@@ -117,6 +118,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     }
     let loop_allocations = allocations.map(|(count, at_start)| count() - at_start);
     run.live_status_end();
+    run.param_changes = run.tuning.take().map(crate::tuning::Tuning::finish);
     let wall = started.elapsed();
     let (rejected, late) = (run.ep.invalid_commands(), run.ep.late_commands());
     // The run is over: tell the controller, then reap it.

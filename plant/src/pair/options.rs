@@ -105,6 +105,9 @@ pub struct PairOptions {
     pub controller_fault_nan_torque: Option<u64>,
     /// Test only: faults planted in the sensors' samples at these ticks.
     pub sample_faults: Vec<(u64, crate::sensors::SampleFault)>,
+    /// `--tunable`: serve the run's `param` service and let gains change while it runs
+    /// (docs/live.md, "Tuning a running pair").
+    pub tunable: bool,
     /// Set by SIGINT/SIGTERM.
     pub stop: StopFlag,
 }

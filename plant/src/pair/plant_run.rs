@@ -60,6 +60,11 @@ pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M:
     pub(super) sensor_record: Option<recorder::SensorRecord>,
     /// The vehicle (`None`: the command's wrench acts on the body directly).
     pub(super) vehicle: Option<super::vehicle::PairVehicle<M>>,
+    /// `--tunable`: the `params` board the loop writes, and the parameter thread.
+    pub(super) params: Option<link::params::ParamsWriter>,
+    pub(super) tuning: Option<crate::tuning::Tuning>,
+    /// The changes that took effect (set when the loop has ended).
+    pub(super) param_changes: Option<Vec<recorder::ParamChange>>,
 }
 
 /// Corrupts a state as a test asks.
@@ -113,6 +118,21 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         if onboard.is_some() {
             estimation = estimation.map(crate::estimation::Estimation::on_board);
         }
+        if opts.tunable && opts.serial.is_some() {
+            return Err(SimError::Input(
+                "--tunable: run-time parameters travel on the run's iceoryx2 services; the processor-in-the-loop serial link does not carry them".to_owned(),
+            ));
+        }
+        let params = if opts.tunable {
+            let first = ipc_types::ParamMsg::new(
+                link::wire::wire_group(s.group),
+                fingerprint,
+                crate::tuning::gains(&s, 0),
+            );
+            Some(link::params::ParamsWriter::open(&opts.run, first)?)
+        } else {
+            None
+        };
         let ep = match &opts.serial {
             None => PlantEndpoint::open(config)?,
             Some(c) => {
@@ -153,8 +173,55 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             estimate: None,
             sensor_record: None,
             vehicle,
+            params,
+            tuning: None,
+            param_changes: None,
             s,
         })
+    }
+
+    /// `--tunable`: starts the parameter thread (after the output directory exists, where
+    /// it records the changes).
+    pub(super) fn start_tuning(&mut self) -> Result<(), SimError> {
+        if self.params.is_none() {
+            return Ok(());
+        }
+        let opts = self.opts;
+        let tuner = scenario::tuning::Tuner::from_source(&opts.source, "seed")
+            .map_err(|e| SimError::Input(e.to_string()))?;
+        self.tuning = Some(crate::tuning::Tuning::start(
+            &opts.run,
+            tuner,
+            opts.record.then(|| opts.out.clone()),
+            self.s.control_period,
+        )?);
+        Ok(())
+    }
+
+    /// Before state k goes out: a change waiting is put in force from cycle k on, at once
+    /// for everything it touches (the plant's damping and Lyapunov gains, the estimator,
+    /// the `params` board the controller reads). Allocation-free.
+    fn retune(&mut self, k: u64) {
+        let Some(r) = self.tuning.as_ref().and_then(crate::tuning::Tuning::take) else {
+            return;
+        };
+        if let Some(g) = r.gains {
+            self.cfg.k = nalgebra::SMatrix::from_fn(|i, j| g.k[i * N + j]);
+            self.cfg.kd = nalgebra::SMatrix::from_fn(|i, j| g.kd[i * M + j]);
+            if let Some(board) = &mut self.params {
+                board.change(ipc_types::Gains { cycle: k, ..g });
+            }
+        }
+        if let (Some((kp, ki)), Some(e)) = (r.estimator, &mut self.estimation)
+            && let Err(e) = e.retune(kp, ki)
+        {
+            log(format_args!(
+                "warning: the estimator refused its new gains: {e}"
+            ));
+        }
+        if let Some(t) = &self.tuning {
+            t.applied(k);
+        }
     }
 
     pub(super) fn realtime(&self) -> bool {
@@ -208,7 +275,11 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
 
     /// Publishes state k (or the test's corrupted version of it).
     pub(super) fn publish(&mut self, k: u64) -> Result<(), SimError> {
+        self.retune(k);
         let mut msg = self.ep.state_template();
+        if self.params.is_some() {
+            msg.flags |= ipc_types::flags::TUNABLE;
+        }
         msg.seq = k;
         msg.t = k as f64 * self.s.control_period;
         // the torque applied over the last period (zero at k = 0): the rejection terms' input
@@ -448,6 +519,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             realtime: self.rt.clone(),
             recording,
             plant_loop_heap_allocations: loop_allocations,
+            parameter_changes: self.param_changes.take(),
         };
         write_trajectory_csv(&traj, &opts.out.join("trajectory.csv"))?;
         write_json(&summary, &opts.out.join("summary.json"))?;

@@ -102,6 +102,10 @@ pub struct PairSummary {
     /// first state published to the connected controller) to the end of the loop (`None`:
     /// not counted).
     pub plant_loop_heap_allocations: Option<u64>,
+    /// `--tunable`: the gains changed while the run ran, each with the cycle it took effect
+    /// at (absent without `--tunable`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub parameter_changes: Option<Vec<recorder::ParamChange>>,
 }
 
 /// What the real-time settings did in each process

@@ -6,9 +6,11 @@ use plant::SimError;
 
 pub(crate) mod bench_loop;
 pub(crate) mod export;
+pub(crate) mod live;
 pub(crate) mod monitor;
 pub(crate) mod montecarlo;
 pub(crate) mod noise;
+pub(crate) mod param;
 pub(crate) mod pil;
 pub(crate) mod reference;
 pub(crate) mod rejection;

@@ -116,6 +116,7 @@ pub(crate) fn sim_f32(
         state_faults: Vec::new(),
         controller_fault_nan_torque: None,
         sample_faults: Vec::new(),
+        tunable: false,
         stop: stop.clone(),
         scenario: s,
     };

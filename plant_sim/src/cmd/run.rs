@@ -49,6 +49,12 @@ pub(crate) struct RunArgs {
     /// `plant_sim monitor` (the loop then runs exactly as it would without the recorder).
     #[arg(long)]
     no_record: bool,
+    /// Let gains change while the run flies: serve the run's parameter service
+    /// (`plant_sim param --name RUN get|set KEY VALUE`), write the `params` board the
+    /// controller reads, record each change in `params.log` (docs/live.md, "Tuning a running
+    /// pair"). Off by default.
+    #[arg(long)]
+    tunable: bool,
     /// Keep every Nth cycle in trajectory.csv (and the last one): for long runs, whose rows
     /// are otherwise all held in memory until the end.
     #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
@@ -185,6 +191,7 @@ pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
         sample_faults: Vec::new(),
         #[cfg(not(feature = "fault-injection"))]
         controller_fault_nan_torque: None,
+        tunable: args.tunable,
         stop: stop.clone(),
     };
     let (_, s) = run_pair(&opts)?;

@@ -1,0 +1,488 @@
+//! The WebSocket side: the listener, one session thread per client, and the hub through
+//! which the poller offers each sample to the clients that subscribed to its channel.
+//!
+//! Nothing here can hold up the poller: it offers a sample with `try_send` to each
+//! subscribed client's bounded queue and, when the queue is full, counts the sample as
+//! dropped for that client. A session thread writes its queue to its socket, which is
+//! non-blocking after the handshake; tungstenite's write buffer is bounded too
+//! (`max_write_buffer_size`), and a write that does not fit is another drop. So a client
+//! that stops reading costs at most its queue and its write buffer, whatever it does.
+
+use crate::poller::Sample;
+use crate::protocol::{
+    self, ChannelInfo, ClientOp, Level, Subscriptions, choose_subprotocol, message_data,
+};
+use std::collections::BTreeMap;
+use std::io::ErrorKind;
+use std::net::{SocketAddr, TcpStream};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+use tungstenite::handshake::server::{ErrorResponse, Request, Response};
+use tungstenite::http::{HeaderValue, StatusCode};
+use tungstenite::protocol::WebSocketConfig;
+use tungstenite::{Error as WsError, Message as WsMessage, WebSocket};
+
+/// The largest message or frame a client may send (the bridge expects only small JSON).
+pub const MAX_CLIENT_MESSAGE: usize = 64 * 1024;
+/// tungstenite's write buffer: written out past this many bytes, and never larger than
+/// [`MAX_WRITE_BUFFER`] (a frame that would not fit is dropped).
+const WRITE_BUFFER: usize = 16 * 1024;
+/// The write buffer's bound per client.
+pub const MAX_WRITE_BUFFER: usize = 256 * 1024;
+/// A client must finish its handshake within this.
+const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
+/// A session thread wakes at least this often to read its client.
+const SESSION_TICK: Duration = Duration::from_millis(5);
+/// At the end, how long a session tries to hand its last messages and the close over.
+const CLOSE_GRACE: Duration = Duration::from_secs(1);
+/// Drops are logged (and told to the client) at most this often per client.
+const DROP_REPORT_EVERY: Duration = Duration::from_secs(1);
+
+/// What a client's queue carries.
+#[derive(Debug, Clone)]
+pub(crate) enum Item {
+    /// A message of a channel.
+    Sample(Arc<Sample>),
+    /// A `status` message's level and text.
+    Notice(Level, Arc<str>),
+}
+
+/// A connected client as the hub sees it.
+struct Client {
+    tx: SyncSender<Item>,
+    /// Bit `channel id` set: subscribed.
+    mask: Arc<AtomicU32>,
+    /// Samples dropped for it.
+    dropped: Arc<AtomicU64>,
+}
+
+/// What the poller, the listener and the sessions share.
+pub(crate) struct Shared {
+    clients: Mutex<Vec<Client>>,
+    /// serverInfo's metadata: the run, and once found its scenario, group and rate.
+    pub(crate) metadata: Mutex<BTreeMap<String, String>>,
+    /// Set once: the last word to every client, then the sessions close.
+    end: Mutex<Option<(Level, String)>>,
+    ending: AtomicBool,
+    pub(crate) channels: Vec<ChannelInfo>,
+    pub(crate) session_id: String,
+    pub(crate) queue: usize,
+    pub(crate) sessions: AtomicUsize,
+    pub(crate) served: AtomicU64,
+    pub(crate) sent: AtomicU64,
+    pub(crate) dropped: AtomicU64,
+    pub(crate) offered: AtomicU64,
+}
+
+pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+impl Shared {
+    pub(crate) fn new(
+        channels: Vec<ChannelInfo>,
+        metadata: BTreeMap<String, String>,
+        queue: usize,
+    ) -> Shared {
+        let unix_ms = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_millis());
+        Shared {
+            clients: Mutex::new(Vec::new()),
+            metadata: Mutex::new(metadata),
+            end: Mutex::new(None),
+            ending: AtomicBool::new(false),
+            channels,
+            session_id: format!("{}-{unix_ms}", std::process::id()),
+            queue: queue.max(1),
+            sessions: AtomicUsize::new(0),
+            served: AtomicU64::new(0),
+            sent: AtomicU64::new(0),
+            dropped: AtomicU64::new(0),
+            offered: AtomicU64::new(0),
+        }
+    }
+
+    /// Offers `sample` to every client subscribed to its channel: never blocks; a full
+    /// queue drops it for that client (counted).
+    pub(crate) fn offer(&self, sample: Arc<Sample>) {
+        self.offered.fetch_add(1, Ordering::Relaxed);
+        let bit = 1u32 << (sample.channel + 1);
+        lock(&self.clients).retain(|c| {
+            if c.mask.load(Ordering::Relaxed) & bit == 0 {
+                return true;
+            }
+            match c.tx.try_send(Item::Sample(Arc::clone(&sample))) {
+                Ok(()) => true,
+                Err(TrySendError::Full(_)) => {
+                    c.dropped.fetch_add(1, Ordering::Relaxed);
+                    true
+                }
+                Err(TrySendError::Disconnected(_)) => false,
+            }
+        });
+    }
+
+    /// A `status` message to every client (not queued for a client whose queue is full).
+    pub(crate) fn notify(&self, level: Level, text: &str) {
+        let text: Arc<str> = Arc::from(text);
+        lock(&self.clients).retain(|c| {
+            !matches!(
+                c.tx.try_send(Item::Notice(level, Arc::clone(&text))),
+                Err(TrySendError::Disconnected(_))
+            )
+        });
+    }
+
+    /// The last word: every session sends it, closes, and ends.
+    pub(crate) fn finish(&self, level: Level, text: String) {
+        lock(&self.end).get_or_insert((level, text));
+        self.ending.store(true, Ordering::Release);
+    }
+
+    fn end_notice(&self) -> Option<(Level, String)> {
+        if !self.ending.load(Ordering::Acquire) {
+            return None;
+        }
+        lock(&self.end).clone()
+    }
+}
+
+/// The handshake's answer: the client's first subprotocol of ours, or HTTP 400.
+#[allow(clippy::result_large_err)] // tungstenite's callback type
+fn negotiate(req: &Request, mut resp: Response) -> Result<(Response, &'static str), ErrorResponse> {
+    let offered = req
+        .headers()
+        .get_all("Sec-WebSocket-Protocol")
+        .iter()
+        .filter_map(|v| v.to_str().ok());
+    match choose_subprotocol(offered) {
+        Some(p) => {
+            resp.headers_mut()
+                .insert("Sec-WebSocket-Protocol", HeaderValue::from_static(p));
+            Ok((resp, p))
+        }
+        None => {
+            let body = format!(
+                "eqtrack-live speaks the Foxglove WebSocket protocol: offer the subprotocol {} or {}\n",
+                protocol::SUBPROTOCOLS[0],
+                protocol::SUBPROTOCOLS[1]
+            );
+            let mut refusal = ErrorResponse::new(Some(body.clone()));
+            *refusal.status_mut() = StatusCode::BAD_REQUEST;
+            let h = refusal.headers_mut();
+            h.insert("Content-Type", HeaderValue::from_static("text/plain"));
+            h.insert("Connection", HeaderValue::from_static("close"));
+            if let Ok(len) = HeaderValue::from_str(&body.len().to_string()) {
+                h.insert("Content-Length", len);
+            }
+            Err(refusal)
+        }
+    }
+}
+
+fn ws_config() -> WebSocketConfig {
+    WebSocketConfig::default()
+        .read_buffer_size(4096)
+        .write_buffer_size(WRITE_BUFFER)
+        .max_write_buffer_size(MAX_WRITE_BUFFER)
+        .max_message_size(Some(MAX_CLIENT_MESSAGE))
+        .max_frame_size(Some(MAX_CLIENT_MESSAGE))
+}
+
+/// Refuses a connection over the client limit: HTTP 503, without reading its request.
+pub(crate) fn refuse_busy(mut stream: TcpStream, limit: usize) {
+    use std::io::Write;
+    let body = format!("eqtrack-live serves at most {limit} clients at once\n");
+    let _ = stream.set_write_timeout(Some(Duration::from_millis(100)));
+    let _ = write!(
+        stream,
+        "HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    );
+}
+
+/// One client, from its handshake to its end (a thread of its own).
+pub(crate) fn session(stream: TcpStream, peer: SocketAddr, shared: Arc<Shared>) {
+    shared.sessions.fetch_add(1, Ordering::AcqRel);
+    if let Some(mut s) = Session::open(stream, peer, &shared) {
+        s.run();
+        shared.sent.fetch_add(s.sent, Ordering::Relaxed);
+        let dropped = s.dropped.load(Ordering::Relaxed);
+        shared.dropped.fetch_add(dropped, Ordering::Relaxed);
+        println!(
+            "live: client {peer} left after {:.1} s: {} messages sent, {dropped} dropped{}",
+            s.since.elapsed().as_secs_f64(),
+            s.sent,
+            s.gone
+                .as_deref()
+                .map_or(String::new(), |w| format!(" ({w})"))
+        );
+    }
+    shared.sessions.fetch_sub(1, Ordering::AcqRel);
+}
+
+/// A session's state.
+struct Session {
+    ws: WebSocket<TcpStream>,
+    peer: SocketAddr,
+    shared: Arc<Shared>,
+    rx: Receiver<Item>,
+    mask: Arc<AtomicU32>,
+    dropped: Arc<AtomicU64>,
+    subs: Subscriptions,
+    sent: u64,
+    since: Instant,
+    /// Drops reported so far, and when.
+    reported: (u64, Instant),
+    /// Why the client is gone, once it is.
+    gone: Option<String>,
+}
+
+impl Session {
+    /// The handshake, `serverInfo` and `advertise`; `None` (logged) if the client is
+    /// refused or leaves.
+    fn open(stream: TcpStream, peer: SocketAddr, shared: &Arc<Shared>) -> Option<Session> {
+        let _ = stream.set_nonblocking(false);
+        let _ = stream.set_read_timeout(Some(HANDSHAKE_TIMEOUT));
+        let _ = stream.set_write_timeout(Some(HANDSHAKE_TIMEOUT));
+        let _ = stream.set_nodelay(true);
+        let mut chosen = "";
+        // tungstenite's callback type: its error is an HTTP response
+        #[allow(clippy::result_large_err)]
+        let callback = |req: &Request, resp: Response| {
+            negotiate(req, resp).map(|(resp, p)| {
+                chosen = p;
+                resp
+            })
+        };
+        let mut ws = match tungstenite::accept_hdr_with_config(stream, callback, Some(ws_config()))
+        {
+            Ok(ws) => ws,
+            Err(e) => {
+                println!("live: client {peer} refused: {e}");
+                return None;
+            }
+        };
+        if ws.get_mut().set_nonblocking(true).is_err() {
+            return None;
+        }
+        let (tx, rx) = sync_channel(shared.queue);
+        let mask = Arc::new(AtomicU32::new(0));
+        let dropped = Arc::new(AtomicU64::new(0));
+        let metadata = lock(&shared.metadata).clone();
+        // registered before the greeting, so no notice between the two is missed
+        lock(&shared.clients).push(Client {
+            tx,
+            mask: Arc::clone(&mask),
+            dropped: Arc::clone(&dropped),
+        });
+        shared.served.fetch_add(1, Ordering::Relaxed);
+        println!("live: client {peer} connected ({chosen})");
+        let mut s = Session {
+            ws,
+            peer,
+            shared: Arc::clone(shared),
+            rx,
+            mask,
+            dropped,
+            subs: Subscriptions::new(),
+            sent: 0,
+            since: Instant::now(),
+            reported: (0, Instant::now()),
+            gone: None,
+        };
+        s.text(protocol::server_info(
+            "eqtrack-live",
+            &metadata,
+            &shared.session_id,
+        ));
+        s.text(protocol::advertise(&shared.channels));
+        if !metadata.contains_key("scenario") {
+            let run = metadata.get("run").cloned().unwrap_or_default();
+            s.text(protocol::status(
+                Level::Info,
+                &format!("waiting for run `{run}` to start"),
+            ));
+        }
+        Some(s)
+    }
+
+    /// Until the client leaves or the bridge ends.
+    fn run(&mut self) {
+        while self.gone.is_none() {
+            if let Some((level, text)) = self.shared.end_notice() {
+                self.close(level, &text);
+                return;
+            }
+            match self.rx.recv_timeout(SESSION_TICK) {
+                Ok(item) => {
+                    self.write_item(item);
+                    // whatever else is queued, up to a batch, before the flush
+                    for _ in 0..256 {
+                        match self.rx.try_recv() {
+                            Ok(item) => self.write_item(item),
+                            Err(_) => break,
+                        }
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => return,
+            }
+            self.flush();
+            self.read();
+            self.report_drops(false);
+        }
+    }
+
+    /// Writes a queued item (a sample of a channel it no longer subscribes to is skipped).
+    fn write_item(&mut self, item: Item) {
+        match item {
+            Item::Sample(s) => {
+                let Some(sub) = self.subs.subscription_of(s.channel as u32 + 1) else {
+                    return;
+                };
+                let frame = message_data(sub, s.log_time, &s.cdr);
+                if self.write(WsMessage::binary(frame)) {
+                    self.sent += 1;
+                } else {
+                    self.dropped.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+            Item::Notice(level, text) => self.text(protocol::status(level, &text)),
+        }
+    }
+
+    fn text(&mut self, text: String) {
+        self.write(WsMessage::text(text));
+    }
+
+    /// Hands a message to tungstenite: true if it took it (written or buffered); false if
+    /// its write buffer is full (the message is dropped) or the client is gone.
+    fn write(&mut self, msg: WsMessage) -> bool {
+        if self.gone.is_some() {
+            return false;
+        }
+        match self.ws.write(msg) {
+            Ok(()) => true,
+            // buffered; the socket will take it later
+            Err(WsError::Io(e)) if e.kind() == ErrorKind::WouldBlock => true,
+            Err(WsError::WriteBufferFull(_)) => false,
+            Err(e) => {
+                self.gone = Some(format!("write: {e}"));
+                false
+            }
+        }
+    }
+
+    fn flush(&mut self) {
+        if self.gone.is_some() {
+            return;
+        }
+        match self.ws.flush() {
+            Ok(()) => {}
+            Err(WsError::Io(e)) if e.kind() == ErrorKind::WouldBlock => {}
+            Err(e) => self.gone = Some(format!("write: {e}")),
+        }
+    }
+
+    /// Reads and answers what the client sent, until nothing is left to read.
+    fn read(&mut self) {
+        while self.gone.is_none() {
+            match self.ws.read() {
+                Ok(WsMessage::Text(t)) => self.on_text(t.as_str()),
+                Ok(WsMessage::Binary(_)) => self.text(protocol::status(
+                    Level::Error,
+                    "eqtrack-live takes no binary messages (it does not offer clientPublish or services)",
+                )),
+                Ok(WsMessage::Close(_)) => self.gone = Some("it closed the connection".into()),
+                Ok(_) => {}
+                Err(WsError::Io(e)) if e.kind() == ErrorKind::WouldBlock => return,
+                Err(WsError::Capacity(e)) => {
+                    self.gone = Some(format!("it sent too much: {e}"));
+                    let _ = self.ws.close(Some(tungstenite::protocol::CloseFrame {
+                        code: tungstenite::protocol::frame::coding::CloseCode::Size,
+                        reason: "messages to eqtrack-live are at most 64 KiB".into(),
+                    }));
+                    let _ = self.ws.flush();
+                }
+                Err(WsError::ConnectionClosed | WsError::AlreadyClosed) => {
+                    self.gone = Some("it closed the connection".into());
+                }
+                Err(e) => self.gone = Some(format!("read: {e}")),
+            }
+        }
+    }
+
+    /// Answers one text message; a problem is told back in a `status` message.
+    fn on_text(&mut self, text: &str) {
+        let known = |c: u32| (1..=crate::LIVE_CHANNELS.len() as u32).contains(&c);
+        let problems = match protocol::parse_client_message(text) {
+            Ok(ClientOp::Subscribe { ok, mut bad }) => {
+                bad.extend(self.subs.subscribe(&ok, known));
+                bad
+            }
+            Ok(ClientOp::Unsubscribe { ok, mut bad }) => {
+                bad.extend(self.subs.unsubscribe(&ok));
+                bad
+            }
+            Ok(ClientOp::Other(op)) => {
+                vec![format!(
+                    "op `{op}` is not supported by eqtrack-live (it only publishes)"
+                )]
+            }
+            Err(e) => vec![format!("cannot read a client message: {e}")],
+        };
+        self.mask.store(self.subs.mask(), Ordering::Relaxed);
+        if !problems.is_empty() {
+            let shown: Vec<&str> = problems.iter().take(8).map(String::as_str).collect();
+            self.text(protocol::status(Level::Error, &shown.join("; ")));
+        }
+    }
+
+    /// At most once per [`DROP_REPORT_EVERY`] (or now, with `now`): the drops since the last
+    /// report, logged and told to the client.
+    fn report_drops(&mut self, now: bool) {
+        let total = self.dropped.load(Ordering::Relaxed);
+        let (before, at) = self.reported;
+        if total == before || (!now && at.elapsed() < DROP_REPORT_EVERY) {
+            return;
+        }
+        let text = format!(
+            "{} messages dropped for this client in the last {:.1} s ({total} in all): it reads slower than the run",
+            total - before,
+            at.elapsed().as_secs_f64()
+        );
+        println!("live: client {}: {text}", self.peer);
+        self.text(protocol::status(Level::Warning, &text));
+        self.reported = (total, Instant::now());
+    }
+
+    /// The end: what is queued, the last word, the close; given at most [`CLOSE_GRACE`].
+    fn close(&mut self, level: Level, text: &str) {
+        while let Ok(item) = self.rx.try_recv() {
+            self.write_item(item);
+        }
+        self.report_drops(true);
+        self.text(protocol::status(level, text));
+        let until = Instant::now() + CLOSE_GRACE;
+        let _ = self.ws.close(None);
+        while self.gone.is_none() && Instant::now() < until {
+            match self.ws.flush() {
+                Ok(()) => {}
+                Err(WsError::Io(e)) if e.kind() == ErrorKind::WouldBlock => {}
+                Err(_) => break,
+            }
+            match self.ws.read() {
+                Err(WsError::Io(e)) if e.kind() == ErrorKind::WouldBlock => {
+                    std::thread::sleep(SESSION_TICK);
+                }
+                Ok(_) => {}
+                Err(_) => break,
+            }
+        }
+        self.gone.get_or_insert_with(|| "the bridge closed".into());
+    }
+}
