@@ -19,6 +19,7 @@
 //! | `/eqtrack/estimate` | `eqtrack_msgs/msg/Estimate` | [`messages`] | yes | |
 //! | `/eqtrack/plan` | `eqtrack_msgs/msg/Plan` | [`plan_message`] | yes | |
 //! | `/eqtrack/status` | `eqtrack_msgs/msg/Status` | [`status_message`] | | yes |
+//! | `/eqtrack/params` | `eqtrack_msgs/msg/Param` | [`param_message`] (`params.log`) | yes | |
 //!
 //! One list of fields per message ([`Message`]) gives both the schema text and the encoding,
 //! so the two cannot disagree.
@@ -27,8 +28,10 @@
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
+mod params;
 mod record;
 
+pub use params::param_message;
 pub use record::{
     command_message, log_time, messages, plan_message, state_message, status_message, time_ns,
 };

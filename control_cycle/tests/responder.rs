@@ -105,3 +105,70 @@ fn a_skipped_gap_and_an_unrecorded_late_command_do_not_stop_replay() {
     }
     assert!(differ > 0, "the test must be able to fail");
 }
+
+/// Run-time gains (docs/live.md, "Tuning a running pair"): a retune changes every gain at
+/// once and keeps the terms' state; gains the law refuses (not finite, not positive
+/// definite, a term's gain ≤ 0) leave the responder exactly as it was.
+#[test]
+fn retune_changes_the_gains_at_once_or_not_at_all() {
+    let s = scenario();
+    let mut live = responder(&s);
+    let mut reference: Source<f64, So3, 3, 3> = s.reference_source().unwrap();
+    let mut msg = StateMsg::new(ipc_types::WireGroup::So3);
+    msg.control_period = s.control_period;
+    let body = s.plant_body::<So3, 3, 3>().unwrap();
+    msg.set_state(body.configuration(), &body.velocity());
+    for k in 0..20 {
+        msg.seq = k;
+        msg.t = k as f64 * s.control_period;
+        live.respond(&mut reference, &msg).unwrap();
+    }
+    let gains = |kd: f64, observer: f64| {
+        let mut t = s.clone();
+        t.kd = vec![kd, 0.0, 0.0, 0.0, kd, 0.0, 0.0, 0.0, kd];
+        if let Some(o) = &mut t.rejection.observer {
+            o.gain = vec![observer; 3];
+        }
+        ipc_types::Gains::from_slices(
+            20,
+            &t.kp,
+            &t.kd,
+            t.rejection.observer.as_ref().map(|o| o.gain.as_slice()),
+            t.rejection
+                .integral
+                .as_ref()
+                .map(|i| (i.ki.as_slice(), i.c.as_slice())),
+        )
+    };
+    let before = live.clone();
+    for bad in [
+        gains(f64::NAN, 20.0),
+        gains(-1.0, 20.0),
+        gains(0.8, 0.0),
+        gains(0.8, f64::INFINITY),
+    ] {
+        assert!(live.retune(&bad).is_err(), "{bad:?}");
+        assert_eq!(
+            format!("{live:?}"),
+            format!("{before:?}"),
+            "a refused retune changed it"
+        );
+    }
+    live.retune(&gains(0.8, 7.0)).unwrap();
+    assert_eq!(live.controller().config().kd[(1, 1)], 0.8);
+    let r = live.rejection().unwrap();
+    assert_eq!(r.config().observer.unwrap().gain[2], 7.0);
+    // the terms' state carried over
+    let was = before.rejection().unwrap();
+    assert_eq!(r.estimate(), was.estimate());
+    assert_eq!(r.integral_state(), was.integral_state());
+    // and the next answer differs from the untuned one
+    msg.seq = 20;
+    msg.t = 20.0 * s.control_period;
+    msg.v[..3].copy_from_slice(&[0.05, -0.02, 0.01]);
+    let mut other = before.clone();
+    let mut ref2 = reference.clone();
+    let tuned = live.respond(&mut reference, &msg).unwrap();
+    let plain = other.respond(&mut ref2, &msg).unwrap();
+    assert_ne!(tuned.tau, plain.tau);
+}

@@ -490,6 +490,27 @@ pub(crate) fn orthonormalise<T: Real>(r: &Matrix3<T>) -> Matrix3<T> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn set_gains_checks_and_keeps_the_estimate() {
+        let world = [Vector3::new(0.0, 0.0, 1.0), Vector3::new(1.0, 0.0, 0.0)];
+        let cfg = ComplementaryConfig::new(1.0, 0.3, &world, &[1.0, 1.0]).unwrap();
+        let mut f = ComplementaryFilter::new(cfg);
+        let before = *f.estimate();
+        for (kp, ki) in [
+            (f64::NAN, 0.3),
+            (-1.0, 0.3),
+            (1.0, f64::INFINITY),
+            (1.0, -0.1),
+        ] {
+            assert!(f.set_gains(kp, ki).is_err());
+            assert_eq!((f.config().kp, f.config().ki), (1.0, 0.3));
+        }
+        f.set_gains(2.0, 0.5).unwrap();
+        assert_eq!((f.config().kp, f.config().ki), (2.0, 0.5));
+        assert_eq!(*f.estimate(), before);
+    }
+
     use super::*;
     use controller::group::so3::exp_so3;
 

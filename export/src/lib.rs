@@ -125,6 +125,12 @@ fn walk(
         .collect();
     plans.sort_by_key(|p| p.0);
     let mut next_plan = 0;
+    // run-time parameter changes (`params.log`), each at the record of its cycle
+    let params = match log.parent() {
+        Some(dir) => recorder::read_params(dir).map_err(|e| ExportError::Input(e.to_string()))?,
+        None => Vec::new(),
+    };
+    let mut next_param = 0;
     let mut last_time = 0;
     let emit = |f: &mut dyn FnMut(u64, u64, &Message) -> Result<(), ExportError>,
                 done: &mut Exported,
@@ -149,11 +155,18 @@ fn walk(
             )?;
             next_plan += 1;
         }
+        while let Some(c) = params.get(next_param).filter(|c| c.cycle <= r.cycle) {
+            emit(f, done, time, c.cycle, &channels::param_message(c))?;
+            next_param += 1;
+        }
         for msg in messages(&r, dims.0, dims.1, terms) {
             emit(f, done, time, r.cycle, &msg)?;
         }
         last_time = time;
         done.records += 1;
+    }
+    for c in &params[next_param..] {
+        emit(f, done, last_time, c.cycle, &channels::param_message(c))?;
     }
     for (k, taken, e) in &plans[next_plan..] {
         emit(

@@ -1,7 +1,7 @@
 /*
  * eqtrack_wire.h: the wire layout of eqtrack's messages, for C and C++ tools and for
  * Python ctypes. The Rust structs are `ipc_types::{StateMsg, CommandMsg, WireSegment,
- * PlanMsg, StatusMsg}` (#[repr(C)]); `ipc_types/tests/c_header.rs` compiles this header and checks
+ * PlanMsg, StatusMsg, Gains, ParamMsg}` (#[repr(C)]); `ipc_types/tests/c_header.rs` compiles this header and checks
  * every size and field offset against them. docs/wire.md explains the fields and how to
  * attach to a running pair.
  *
@@ -32,6 +32,8 @@
 #define EQTRACK_FLAG_SHUTDOWN 2u
 #define EQTRACK_FLAG_REFUSED 4u
 #define EQTRACK_FLAG_STREAMED 8u  /* CommandMsg: the controller tracks a streamed reference */
+#define EQTRACK_FLAG_TUNABLE 16u  /* StateMsg: the run's gains may change: read eqtrack/<run>/params */
+#define EQTRACK_FLAG_TUNED 32u    /* CommandMsg: answered with the params board's gains for the state */
 
 /* the plant's state at t_k */
 typedef struct eqtrack_StateMsg {
@@ -140,5 +142,26 @@ typedef struct eqtrack_StatusMsg {
     uint32_t plant_pid;
     uint8_t scenario[EQTRACK_NAME_BYTES];
 } eqtrack_StatusMsg;
+
+/* run-time parameters (plant_sim run --tunable): the controller's gains from one cycle on */
+typedef struct eqtrack_Gains {
+    uint64_t cycle;                                 /* the first cycle they answer */
+    double k[EQTRACK_MAX_N * EQTRACK_MAX_N];        /* K, n x n row-major */
+    double kd[EQTRACK_MAX_M * EQTRACK_MAX_M];       /* K_d, m x m row-major */
+    double observer[EQTRACK_MAX_M];                 /* the disturbance observer's L (0: none) */
+    double ki[EQTRACK_MAX_M];                       /* the integral's K_I (0: none) */
+    double c[EQTRACK_MAX_M];                        /* the integral's c (0: none) */
+} eqtrack_Gains;
+
+/* the eqtrack/<run>/params board ("eqtrack::ParamMsg1"), written by the plant */
+typedef struct eqtrack_ParamMsg {
+    uint32_t version;       /* EQTRACK_PROTOCOL_VERSION; 0: never written */
+    uint32_t group;
+    uint64_t seq;           /* changes so far */
+    uint64_t stamp_ns;
+    uint64_t fingerprint;   /* the run's scenario fingerprint */
+    eqtrack_Gains current;  /* in force from current.cycle on */
+    eqtrack_Gains previous; /* before that */
+} eqtrack_ParamMsg;
 
 #endif /* EQTRACK_WIRE_H */

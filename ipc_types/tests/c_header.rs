@@ -136,6 +136,28 @@ fn rust_layout() -> Layout {
             scenario,
         ]
     );
+    fields!(
+        m,
+        ipc_types::Gains::ZERO,
+        ipc_types::Gains,
+        "eqtrack_Gains",
+        [cycle, k, kd, observer, ki, c]
+    );
+    fields!(
+        m,
+        ipc_types::ParamMsg::new(So3, 0, ipc_types::Gains::ZERO),
+        ipc_types::ParamMsg,
+        "eqtrack_ParamMsg",
+        [
+            version,
+            group,
+            seq,
+            stamp_ns,
+            fingerprint,
+            current,
+            previous
+        ]
+    );
     m
 }
 
@@ -207,6 +229,8 @@ fn the_c_header_has_the_rust_layout() {
         "eqtrack_WireSegment",
         "eqtrack_PlanMsg",
         "eqtrack_StatusMsg",
+        "eqtrack_Gains",
+        "eqtrack_ParamMsg",
     ] {
         let total = rust[&(s.to_owned(), String::new())].1;
         let fields: usize = rust

@@ -146,6 +146,25 @@ fn param_set_in_lockstep_takes_effect_at_a_known_cycle_and_replays() {
     let (code, said) = replay(&out);
     assert_eq!(code, 0, "{said}");
     assert!(said.contains(" 0 differ"), "{said}");
+    // the MCAP export has the change on its parameters channel, at the cycle's time
+    let (code, said) = run("plant_sim", &["export", &out], Duration::from_secs(120));
+    assert_eq!(code, 0, "{said}");
+    let bytes = std::fs::read(Path::new(&out).join("run.mcap")).unwrap();
+    let params: Vec<_> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(Result::unwrap)
+        .filter(|m| m.channel.topic == "/eqtrack/params")
+        .collect();
+    assert_eq!(params.len(), 1);
+    assert_eq!(
+        params[0].log_time,
+        cycle * 10_000_000,
+        "t_k of cycle {cycle} in ns"
+    );
+    assert_eq!(
+        params[0].channel.schema.as_ref().map(|s| s.name.as_str()),
+        Some("eqtrack_msgs/msg/Param")
+    );
     // a planted cycle: the commands between the two cycles differ
     let moved = d.join("moved");
     copy_dir(&out, &moved);
@@ -364,6 +383,15 @@ fn gains_and_estimator_gains_change_in_real_time_and_replay() {
     assert_eq!(code, 0, "{said}");
     let status = plant.wait_timeout(Duration::from_secs(60));
     assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
+    assert!(
+        plant.output().contains("parameter changes: 2"),
+        "{}",
+        plant.output()
+    );
+    // a change costs the loops no allocation
+    let s = summary(Path::new(&out));
+    assert_eq!(s["plant_loop_heap_allocations"].as_u64(), Some(0), "{s}");
+    assert_eq!(s["controller_heap_allocations"].as_u64(), Some(0), "{s}");
     let log = recorder::read_params(Path::new(&out)).unwrap();
     assert_eq!(
         log.iter().map(|c| c.key.as_str()).collect::<Vec<_>>(),

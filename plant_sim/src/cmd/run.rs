@@ -279,11 +279,25 @@ pub(crate) fn print_pair_summary(s: &plant::pair::PairSummary, out: &Path) {
             s.late_commands
         ),
     }
+    if let Some(changes) = &s.parameter_changes {
+        println!("parameter changes: {}", changes.len());
+        for c in changes {
+            println!(
+                "  cycle {} (t = {:.3} s): {} = {} (was {})",
+                c.cycle, c.t, c.key, c.value, c.previous
+            );
+        }
+    }
     println!(
-        "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg{}}}",
+        "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg{}{}}}",
         out.display(),
         if s.recording.is_some() {
             ", messages.log, scenario.toml"
+        } else {
+            ""
+        },
+        if s.recording.is_some() && s.parameter_changes.is_some() {
+            ", params.log"
         } else {
             ""
         }
