@@ -1,7 +1,7 @@
 //! A fuzz harness for the project's untrusted input, on stable Rust (no libFuzzer, no
 //! nightly): deterministic, seeded, mutation-based.
 //!
-//! Five targets ([`Target`]):
+//! Seven targets ([`Target`]):
 //!
 //! * **scenario** — TOML text through [`scenario::Scenario::from_toml`] (parser and
 //!   validator); an accepted scenario then goes through what the processes do with it: its
@@ -34,13 +34,25 @@
 //! * **shard** — a Monte Carlo shard's bytes (`shard.bin`, and what a Ray task returns)
 //!   through `studies::shard::decode_shard` and `merge_encoded`; a decoded shard must
 //!   re-encode to itself. Seeds: the shards of a small real study.
+//! * **params** — the run-time parameters of a tunable run (docs/live.md, "Tuning a running
+//!   pair"), three inputs: the `params` board ([`ipc_types::ParamMsg`]) through `gains_for`
+//!   for a controller answering one state, the accepted gains through
+//!   `control_cycle::Responder::retune` and the retuned law on a state (a finite torque); a
+//!   `param` request ([`ipc_types::ParamRequest`]) through `link::params::read_request` and
+//!   `scenario::tuning::Tuner::get` / `check` (an accepted change's scenario validates again,
+//!   builds its controller, resolves to finite numbers, and the running pair takes it); and
+//!   `params.log` text through `recorder::params::parse_params` (an accepted file's changes
+//!   re-serialized parse back equal). Seeds: the boards of four scenarios before and after
+//!   changes made with the tuner, requests for every tunable key, real `params.log` files.
 //!
 //! Each case is one corpus item with 1–8 random mutations (byte-level: bit flips, byte
 //! overwrite, insert, delete, truncation, chunk duplication, splicing; TOML: number and string
 //! tokens replaced by interesting values, lines deleted, duplicated, swapped or inserted,
 //! known keys set, list lengths changed; wire: f64 fields set to NaN, infinities,
 //! subnormals, extremes, integer fields to boundary or random values, odd names, wrong
-//! lengths), or a fully random input. Case `i` of seed `s` draws from ChaCha8 stream `i` of
+//! lengths; params: a board's numbers and integers the same way, its gain sets scaled,
+//! perturbed, crossed or swapped, a request's key and value replaced, a `params.log`'s
+//! lines, numbers, strings and fields), or a fully random input. Case `i` of seed `s` draws from ChaCha8 stream `i` of
 //! key `s`, so it can be regenerated alone ([`generate`], [`replay`]).
 //!
 //! The oracle: no panic, and every rejection a typed error. Each case runs under
@@ -55,6 +67,7 @@
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 mod mutate;
+mod params_target;
 mod path_target;
 mod recording_target;
 mod rng;
@@ -89,17 +102,20 @@ pub enum Target {
     Serial,
     /// A Monte Carlo shard's bytes: decoder and merge.
     Shard,
+    /// Run-time parameters: the `params` board, `param` requests, `params.log`.
+    Params,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 6] = [
+    pub const ALL: [Target; 7] = [
         Target::Scenario,
         Target::Wire,
         Target::Path,
         Target::Recording,
         Target::Serial,
         Target::Shard,
+        Target::Params,
     ];
 
     /// Lower-case name (`"scenario"`, `"wire"`, `"path"`), as on the command line.
@@ -111,6 +127,7 @@ impl Target {
             Target::Recording => "recording",
             Target::Serial => "serial",
             Target::Shard => "shard",
+            Target::Params => "params",
         }
     }
 }
@@ -157,6 +174,43 @@ pub struct WireCase {
     pub bytes: Vec<u8>,
 }
 
+/// Which run-time parameter input a params case's bytes are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParamsKind {
+    /// A [`ipc_types::ParamMsg`] (the `params` board), its fields in order, little-endian.
+    Board,
+    /// A [`ipc_types::ParamRequest`] (the `param` service), its fields in order,
+    /// little-endian.
+    Request,
+    /// The text of a `params.log`.
+    Log,
+}
+
+/// The side reading a params case: the controller of a run of `scenario` answering state
+/// `seq` (a board; `fingerprint` is the one it checks the board against), the plant's
+/// parameter thread of a run of `scenario` (a request), or replay (a log; `seq` and
+/// `fingerprint` unused).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ParamsReceiver {
+    /// The run's scenario (one of the target's seed scenarios).
+    pub scenario: &'static str,
+    /// A board: the sequence number of the state answered.
+    pub seq: u64,
+    /// A board: the run's scenario fingerprint, as the receiver knows it.
+    pub fingerprint: u64,
+}
+
+/// One params case: an input and the side that reads it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamsCase {
+    /// What the bytes are.
+    pub kind: ParamsKind,
+    /// Who reads them.
+    pub receiver: ParamsReceiver,
+    /// The bytes.
+    pub bytes: Vec<u8>,
+}
+
 /// One generated input.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Case {
@@ -172,6 +226,8 @@ pub enum Case {
     Serial(Vec<u8>),
     /// A Monte Carlo shard's bytes.
     Shard(Vec<u8>),
+    /// A run-time parameter input and its reader.
+    Params(ParamsCase),
 }
 
 impl Case {
@@ -184,6 +240,7 @@ impl Case {
             | Case::Serial(b)
             | Case::Shard(b) => b,
             Case::Wire(w) => &w.bytes,
+            Case::Params(p) => &p.bytes,
         }
     }
 
@@ -196,6 +253,7 @@ impl Case {
             | Case::Serial(_)
             | Case::Shard(_) => String::new(),
             Case::Wire(w) => format!("{:?} message, receiver {:?}", w.kind, w.receiver),
+            Case::Params(p) => format!("params {:?}, receiver {:?}", p.kind, p.receiver),
         }
     }
 }
@@ -268,9 +326,13 @@ impl fmt::Display for Finding {
                 write!(f, "  input:\n{}", String::from_utf8_lossy(b))
             }
             Case::Wire(w) => write!(f, "  input ({} bytes): {}", w.bytes.len(), hex(&w.bytes)),
+            Case::Params(p) if p.kind == ParamsKind::Log => {
+                write!(f, "  input:\n{}", String::from_utf8_lossy(&p.bytes))
+            }
             Case::Recording(b) | Case::Serial(b) | Case::Shard(b) => {
                 write!(f, "  input ({} bytes): {}", b.len(), hex(b))
             }
+            Case::Params(p) => write!(f, "  input ({} bytes): {}", p.bytes.len(), hex(&p.bytes)),
         }
     }
 }
@@ -463,6 +525,7 @@ pub fn check(case: &Case) -> Outcome {
         Case::Recording(bytes) => recording_target::check(bytes),
         Case::Serial(bytes) => serial_target::check(bytes),
         Case::Shard(bytes) => shard_target::check(bytes),
+        Case::Params(p) => params_target::check(p),
     }
 }
 
@@ -476,6 +539,7 @@ pub struct Generator {
     recordings: Option<recording_target::Corpus>,
     serial: Option<serial_target::Corpus>,
     shards: Option<shard_target::Corpus>,
+    params: Option<params_target::Corpus>,
 }
 
 impl Generator {
@@ -490,6 +554,7 @@ impl Generator {
             recordings: (target == Target::Recording).then(recording_target::Corpus::new),
             serial: (target == Target::Serial).then(serial_target::Corpus::new),
             shards: (target == Target::Shard).then(shard_target::Corpus::new),
+            params: (target == Target::Params).then(params_target::Corpus::new),
         }
     }
 
@@ -501,6 +566,9 @@ impl Generator {
         }
         if let Some(c) = &self.shards {
             return Case::Shard(c.generate(&mut g));
+        }
+        if let Some(c) = &self.params {
+            return Case::Params(c.generate(&mut g));
         }
         match (&self.scenarios, &self.wire, &self.paths, &self.recordings) {
             (Some(c), _, _, _) => Case::Scenario(c.generate(&mut g)),

@@ -1,8 +1,8 @@
-//! `fuzz`: runs the stable-Rust fuzz harness on the scenario, wire and path targets, prints a report
-//! per target, and exits 1 if any case panicked.
+//! `fuzz`: runs the stable-Rust fuzz harness on its targets, prints a report per target, and
+//! exits 1 if any case panicked.
 //!
 //! ```text
-//! fuzz [--target scenario|wire|path|recording|all] [--cases N] [--seed S] [--save]
+//! fuzz [--target scenario|wire|path|recording|serial|shard|params|all] [--cases N] [--seed S] [--save]
 //! fuzz --target wire --seed S --case I     # replay one case, panics not caught
 //! ```
 #![forbid(unsafe_code)]
@@ -31,11 +31,13 @@ enum Which {
     Serial,
     /// A Monte Carlo shard's bytes.
     Shard,
+    /// Run-time parameters: the params board, param requests, params.log.
+    Params,
     /// Every target.
     All,
 }
 
-/// Fuzz the untrusted inputs (scenario TOML, wire messages) on stable Rust: deterministic,
+/// Fuzz the untrusted inputs (scenario TOML, wire messages, …) on stable Rust: deterministic,
 /// seeded, mutation-based; fails when a case panics.
 #[derive(Debug, Parser)]
 #[command(name = "fuzz", version)]
@@ -68,6 +70,7 @@ fn targets(which: Which) -> Vec<Target> {
         Which::Recording => vec![Target::Recording],
         Which::Serial => vec![Target::Serial],
         Which::Shard => vec![Target::Shard],
+        Which::Params => vec![Target::Params],
         Which::All => Target::ALL.to_vec(),
     }
 }
@@ -123,13 +126,20 @@ fn print_replay(target: Target, seed: u64, case: u64) {
 /// Prints a replayed case's input: text inputs as (lossy) text, binary inputs as hex.
 fn print_input(input: &fuzz::Case) {
     match input {
-        fuzz::Case::Scenario(b) | fuzz::Case::Path(b) => {
+        fuzz::Case::Scenario(b)
+        | fuzz::Case::Path(b)
+        | fuzz::Case::Params(fuzz::ParamsCase {
+            kind: fuzz::ParamsKind::Log,
+            bytes: b,
+            ..
+        }) => {
             println!("  input:\n{}", String::from_utf8_lossy(b))
         }
         fuzz::Case::Wire(fuzz::WireCase { bytes, .. })
         | fuzz::Case::Recording(bytes)
         | fuzz::Case::Serial(bytes)
-        | fuzz::Case::Shard(bytes) => {
+        | fuzz::Case::Shard(bytes)
+        | fuzz::Case::Params(fuzz::ParamsCase { bytes, .. }) => {
             let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
             println!("  input ({} bytes): {hex}", bytes.len())
         }

@@ -1,6 +1,10 @@
-//! Byte-level mutations shared by both targets.
+//! Mutations shared by the targets: byte-level ones, and the special values a number field
+//! is set to.
 
 use crate::rng::Gen;
+use controller::GroupKind;
+use ipc_types::PROTOCOL_VERSION;
+use link::wire::group_code;
 
 /// Inputs are cut to this many bytes after mutation (chunk duplication can grow them).
 pub(crate) const MAX_INPUT: usize = 16 * 1024;
@@ -86,6 +90,75 @@ pub(crate) fn byte_op(g: &mut Gen, op: ByteOp, data: &mut Vec<u8>, other: &[u8])
         }
     }
     data.truncate(MAX_INPUT);
+}
+
+/// Special f64 values: NaNs (quiet, negative, signalling payload), infinities, zeros,
+/// subnormals, extremes, and ordinary magnitudes.
+pub(crate) const F64S: [f64; 22] = [
+    f64::NAN,
+    -f64::NAN,
+    f64::from_bits(0x7ff0_0000_0000_0001),
+    f64::INFINITY,
+    f64::NEG_INFINITY,
+    0.0,
+    -0.0,
+    f64::MIN_POSITIVE,
+    5e-324,
+    -5e-324,
+    1e-310,
+    f64::MAX,
+    f64::MIN,
+    1e308,
+    -1e308,
+    1e300,
+    1.0,
+    -1.0,
+    0.01,
+    0.001,
+    1e-9,
+    1e9,
+];
+
+/// A special f64 value ([`F64S`]) or, one time in five, random bits.
+pub(crate) fn f64_value(g: &mut Gen) -> f64 {
+    if g.chance(1, 5) {
+        f64::from_bits(g.u64())
+    } else {
+        *g.pick(&F64S)
+    }
+}
+
+/// A u32 near a boundary (0, small, the protocol version ±1, the top bit, a group code), a
+/// change of the `old` value, or random.
+pub(crate) fn u32_value(g: &mut Gen, old: u32) -> u32 {
+    match g.below(10) {
+        0 => 0,
+        1 => *g.pick(&[1, 2, 3, 4]),
+        2 => PROTOCOL_VERSION
+            .wrapping_add(g.below(3) as u32)
+            .wrapping_sub(1),
+        3 => u32::MAX,
+        4 => 0x8000_0000,
+        5 => old ^ (1 << g.below(32)),
+        6 => group_code(*g.pick(&GroupKind::ALL)),
+        7 => old.wrapping_add(1),
+        _ => g.u32(),
+    }
+}
+
+/// A u64 near a boundary (0, the top bit, `i64::MAX`), a change of the `old` value, or random.
+pub(crate) fn u64_value(g: &mut Gen, old: u64) -> u64 {
+    match g.below(10) {
+        0 => 0,
+        1 => old.wrapping_add(1),
+        2 => old.wrapping_sub(1),
+        3 => u64::MAX,
+        4 => 1 << 63,
+        5 => old ^ (1 << g.below(64)),
+        6 => i64::MAX as u64,
+        7 => old.wrapping_add(g.below(1000) as u64),
+        _ => g.u64(),
+    }
 }
 
 #[cfg(test)]

@@ -137,6 +137,42 @@ fn recording_inputs_never_panic() {
     }
 }
 
+#[test]
+fn run_time_parameters_never_panic() {
+    let r = fuzz::run(Target::Params, CASES, SEED);
+    assert_sound(&r, 30);
+    // the board's every refusal, the controller's refusal of its gains, the request
+    // reader's and the tuner's refusals, and the log reader's are reached
+    for kind in [
+        "ParamMsg::gains_for: ParamInvalid::Version",
+        "ParamMsg::gains_for: ParamInvalid::Group",
+        "ParamMsg::gains_for: ParamInvalid::Fingerprint",
+        "ParamMsg::gains_for: ParamInvalid::NotFinite",
+        "ParamMsg::gains_for: ParamInvalid::TooOld",
+        "Responder::retune: controller::Error::NotPositiveDefinite",
+        "Responder::retune: controller::Error::NotSymmetric",
+        "read_request: Version",
+        "read_request: Operation",
+        "read_request: KeyNotUtf8",
+        "read_request: ValueNotUtf8",
+        "Tuner::get: NotTunable",
+        "Tuner::check: ValueUnreadable",
+        "Tuner::check: NotTunable",
+        "Tuner::check: TermAbsent",
+        "Tuner::check: scenario (controller.kp)",
+        "Tuner::check: scenario (controller.kd)",
+        "parse_params: header",
+        "parse_params: format or version",
+        "parse_params: change line",
+        "parse_params: cycles",
+    ] {
+        assert!(
+            r.rejected.keys().any(|k| k.starts_with(kind)),
+            "{kind} never seen\n{r}"
+        );
+    }
+}
+
 /// A bug planted in the checked code (a panic on a NaN control period in an accepted-length
 /// state, deep in the generated inputs) is caught: the run fails, the finding names the
 /// planted panic and its location, and its input regenerates from (seed, case).

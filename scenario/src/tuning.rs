@@ -54,6 +54,9 @@ pub struct Change {
     pub previous: String,
     /// The scenario with the change.
     pub scenario: Scenario,
+    /// The value as the scenario holds it (what [`Tuner::commit`] puts in force: the text
+    /// read again could differ in type, `1_000` an integer, `1000` a float).
+    parsed: toml::Value,
 }
 
 impl Change {
@@ -231,7 +234,7 @@ impl Tuner {
             .ok_or_else(|| absent(key))?
             .to_string();
         let mut table = self.table.clone();
-        set(&mut table, &path, parsed)?;
+        set(&mut table, &path, parsed.clone())?;
         let scenario = parse(&table, &self.origin, self.base.as_deref()).map_err(|e| {
             let m = message(&e, &self.origin);
             // a value of the wrong shape fails in the TOML reader, whose message names a line
@@ -269,13 +272,14 @@ impl Tuner {
             value,
             previous,
             scenario,
+            parsed,
         })
     }
 
     /// Puts a checked change in force (for the checks of the next one).
     pub fn commit(&mut self, change: &Change) -> Result<(), String> {
         let path: Vec<&str> = change.key.split('.').collect();
-        set(&mut self.table, &path, parse_value(&change.value)?)?;
+        set(&mut self.table, &path, change.parsed.clone())?;
         self.scenario = change.scenario.clone();
         Ok(())
     }
@@ -354,6 +358,11 @@ mod tests {
         // the fingerprint covers the gains: a tuned scenario has another one
         assert_ne!(c.scenario.fingerprint(), before.fingerprint());
         assert_eq!(t.get("controller.kd").unwrap().1, "0.8");
+        // a value the TOML reader takes as an integer stays one once in force
+        let i = t.check("kd", "1_000").unwrap();
+        assert_eq!(i.value, "1000");
+        t.commit(&i).unwrap();
+        assert_eq!(t.get("kd").unwrap().1, "1000");
         // a matrix
         let m = t
             .check("kp", "[[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 3.0]]")

@@ -21,7 +21,7 @@ mod text;
 pub(crate) use checks::{check, controller_error_kind};
 pub(crate) use mutation::random_number;
 pub(crate) use tables::INTERESTING;
-pub(crate) use text::{join_lines, number_spans, split_lines};
+pub(crate) use text::{join_lines, number_spans, split_lines, string_spans};
 
 /// The seed corpus and the mutator of the scenario target.
 pub(crate) struct Corpus {

@@ -34,7 +34,7 @@ pub(crate) fn number_spans(data: &[u8]) -> Vec<(usize, usize)> {
 }
 
 /// The spans of the text of strings (between two quotes on one line).
-pub(super) fn string_spans(data: &[u8]) -> Vec<(usize, usize)> {
+pub(crate) fn string_spans(data: &[u8]) -> Vec<(usize, usize)> {
     let mut spans = Vec::new();
     let mut open = None;
     for (i, b) in data.iter().enumerate() {

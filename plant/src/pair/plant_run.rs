@@ -67,6 +67,28 @@ pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M:
     pub(super) param_changes: Option<Vec<recorder::ParamChange>>,
 }
 
+/// `--tunable`: the run's `params` board with the scenario's gains (`None` without).
+fn params_board(
+    opts: &PairOptions,
+    s: &Scenario,
+    fingerprint: u64,
+) -> Result<Option<link::params::ParamsWriter>, SimError> {
+    if !opts.tunable {
+        return Ok(None);
+    }
+    if opts.serial.is_some() {
+        return Err(SimError::Input(
+            "--tunable: run-time parameters travel on the run's iceoryx2 services; the processor-in-the-loop serial link does not carry them".to_owned(),
+        ));
+    }
+    let first = ipc_types::ParamMsg::new(
+        link::wire::wire_group(s.group),
+        fingerprint,
+        crate::tuning::gains(s, 0),
+    );
+    Ok(Some(link::params::ParamsWriter::open(&opts.run, first)?))
+}
+
 /// Corrupts a state as a test asks.
 pub(super) fn corrupt(msg: &mut StateMsg, fault: StateFault, group: controller::GroupKind) {
     match fault {
@@ -118,21 +140,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         if onboard.is_some() {
             estimation = estimation.map(crate::estimation::Estimation::on_board);
         }
-        if opts.tunable && opts.serial.is_some() {
-            return Err(SimError::Input(
-                "--tunable: run-time parameters travel on the run's iceoryx2 services; the processor-in-the-loop serial link does not carry them".to_owned(),
-            ));
-        }
-        let params = if opts.tunable {
-            let first = ipc_types::ParamMsg::new(
-                link::wire::wire_group(s.group),
-                fingerprint,
-                crate::tuning::gains(&s, 0),
-            );
-            Some(link::params::ParamsWriter::open(&opts.run, first)?)
-        } else {
-            None
-        };
+        let params = params_board(opts, &s, fingerprint)?;
         let ep = match &opts.serial {
             None => PlantEndpoint::open(config)?,
             Some(c) => {
