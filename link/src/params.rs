@@ -206,19 +206,34 @@ pub fn response(a: &Answer) -> ParamResponse {
     }
 }
 
+/// The builder of the run's `param` service (request and response types set).
+fn param_service(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<
+    iceoryx2::service::builder::request_response::Builder<
+        ParamRequest,
+        (),
+        ParamResponse,
+        (),
+        ipc::Service,
+    >,
+    LinkError,
+> {
+    let name: ServiceName = name
+        .try_into()
+        .map_err(|e| LinkError::iceoryx2("service name", e))?;
+    Ok(node
+        .service_builder(&name)
+        .request_response::<ParamRequest, ParamResponse>())
+}
+
 impl ParamServer {
     /// Creates run `run`'s `param` service (its node on the calling thread).
     pub fn create(run: &str) -> Result<ParamServer, LinkError> {
         let names = check_run_name(run)?;
         let node = create_node(&names.tuning_node)?;
-        let name: ServiceName = names
-            .param
-            .as_str()
-            .try_into()
-            .map_err(|e| LinkError::iceoryx2("service name", e))?;
-        let service = node
-            .service_builder(&name)
-            .request_response::<ParamRequest, ParamResponse>()
+        let service = param_service(&node, &names.param)?
             .open_or_create()
             .map_err(|e| LinkError::iceoryx2(names.param.as_str(), e))?;
         let server = service
@@ -275,14 +290,7 @@ pub fn ask(
             "cannot reach run `{run}`'s parameter service ({e}): iceoryx2's files and shared memory belong to the user who started the run, and only that user may change its parameters"
         ))
     })?;
-    let name: ServiceName = names
-        .param
-        .as_str()
-        .try_into()
-        .map_err(|e| LinkError::iceoryx2("service name", e))?;
-    let service = node
-        .service_builder(&name)
-        .request_response::<ParamRequest, ParamResponse>()
+    let service = param_service(&node, &names.param)?
         .open()
         .map_err(|e| {
             LinkError::Param(format!(

@@ -35,6 +35,30 @@ fn copy_dir(from: &str, to: &str) {
     }
 }
 
+/// A lockstep plant with `--tunable` and no controller yet (`--no-spawn`), waiting for one
+/// with state 0 published.
+fn waiting_plant(name: &str, out: &str, extra: &[&str]) -> Proc {
+    let mut args = vec![
+        "run",
+        "--mode",
+        "lockstep",
+        "--tunable",
+        "--no-spawn",
+        "--name",
+        name,
+        "--out",
+        out,
+    ];
+    args.extend_from_slice(extra);
+    let plant = Proc::start("plant_sim", &args);
+    assert!(
+        plant.wait_for_line("waiting up to", Duration::from_secs(20)),
+        "{}",
+        plant.output()
+    );
+    plant
+}
+
 /// Edits `dir/params.log` with `edit` on its text.
 fn plant_in_params(dir: &str, edit: impl Fn(&str) -> String) {
     let path = Path::new(dir).join("params.log");
@@ -55,27 +79,7 @@ fn param_set_in_lockstep_takes_effect_at_a_known_cycle_and_replays() {
     let _s = serial();
     let d = TempDir::new("params-lockstep");
     let (out, base) = (d.join("tuned"), d.join("base"));
-    let mut plant = Proc::start(
-        "plant_sim",
-        &[
-            "run",
-            "--mode",
-            "lockstep",
-            "--tunable",
-            "--no-spawn",
-            "--name",
-            "tp-lock",
-            "--duration",
-            "300",
-            "--out",
-            &out,
-        ],
-    );
-    assert!(
-        plant.wait_for_line("waiting up to", Duration::from_secs(20)),
-        "{}",
-        plant.output()
-    );
+    let mut plant = waiting_plant("tp-lock", &out, &["--duration", "300"]);
     let mut ctl = Proc::start(
         "controller_node",
         &["--name", "tp-lock", "--builtin", "seed"],
@@ -221,25 +225,7 @@ fn bad_param_values_are_refused_with_the_scenarios_messages_and_the_run_goes_on(
     let _s = serial();
     let d = TempDir::new("params-bad");
     let out = d.join("run");
-    let mut plant = Proc::start(
-        "plant_sim",
-        &[
-            "run",
-            "--mode",
-            "lockstep",
-            "--tunable",
-            "--no-spawn",
-            "--name",
-            "tp-bad",
-            "--out",
-            &out,
-        ],
-    );
-    assert!(
-        plant.wait_for_line("waiting up to", Duration::from_secs(20)),
-        "{}",
-        plant.output()
-    );
+    let mut plant = waiting_plant("tp-bad", &out, &[]);
     let (code, said) = param("tp-bad", &["set", "kp", "-1"]);
     assert_eq!(code, 2, "{said}");
     let want = file_message("kp", toml::Value::Float(-1.0));
@@ -304,25 +290,7 @@ fn another_users_param_set_is_refused() {
     );
     let d = TempDir::new("params-user");
     let out = d.join("run");
-    let mut plant = Proc::start(
-        "plant_sim",
-        &[
-            "run",
-            "--mode",
-            "lockstep",
-            "--tunable",
-            "--no-spawn",
-            "--name",
-            "tp-user",
-            "--out",
-            &out,
-        ],
-    );
-    assert!(
-        plant.wait_for_line("waiting up to", Duration::from_secs(20)),
-        "{}",
-        plant.output()
-    );
+    let mut plant = waiting_plant("tp-user", &out, &[]);
     let bin = pair_tests::bin("plant_sim");
     let other = std::process::Command::new("setpriv")
         .args(["--reuid=nobody", "--regid=nogroup", "--clear-groups"])
