@@ -2,10 +2,13 @@
 # The dependency arrows docs/architecture.md promises, checked from `cargo tree` (normal
 # dependencies, resolved for the crate alone):
 #   * export links none of iceoryx2, plotters, ratatui, rayon, hdrhistogram, nor plant_sim,
-#     link or controller_node: the offline exporter needs only the recorder and the wire;
+#     link or controller_node: the offline exporter needs only the channels, the recorder and
+#     the wire; channels (the messages the export and the live bridge share) none of those
+#     either, nor mcap, tungstenite or tokio;
 #   * recorder depends, of our crates, only on ipc_types (and what ipc_types needs): a
 #     recording is read without the plant, the controller process or a transport;
-#   * no control process (plant_sim, controller_node, link) links mcap, and export does;
+#   * no control process (plant_sim, controller_node, link) links mcap, and export does; none
+#     links the live bridge (live, tungstenite, channels): plant_sim runs eqtrack-live;
 #   * the wire (ipc_types) depends on no crate of ours: it owns its codes, and link::wire
 #     converts them to and from the maths crate's types;
 #   * the plant process's library (plant) depends on no crate of the controller process
@@ -33,7 +36,7 @@ tree() {
 check() {
 	local dir=$1 bad=0 p c
 	local -A trees
-	for c in export recorder ipc_types plant plant_sim fuzz controller_node link flight_tools; do
+	for c in export channels live recorder ipc_types plant plant_sim fuzz controller_node link flight_tools; do
 		trees[$c]=$(tree "$dir" "$c")
 		[[ -n ${trees[$c]} ]] || { echo "cargo tree failed for $c in $dir" >&2; return 2; }
 	done
@@ -52,9 +55,25 @@ check() {
 			bad=1
 		fi
 	done
-	for p in iceoryx2 plotters ratatui rayon hdrhistogram plant plant_sim studies flight_tools floors link controller_node control_cycle; do
+	for p in iceoryx2 plotters ratatui rayon hdrhistogram plant plant_sim studies flight_tools floors link controller_node control_cycle live; do
 		if grep -qx "$p" <<<"${trees[export]}"; then
-			echo "arrow: export depends on $p (the exporter needs only recorder and ipc_types)"
+			echo "arrow: export depends on $p (the exporter needs only channels, recorder and ipc_types)"
+			bad=1
+		fi
+		if grep -qx "$p" <<<"${trees[channels]}"; then
+			echo "arrow: channels depends on $p (the channels need only recorder and ipc_types)"
+			bad=1
+		fi
+	done
+	for p in mcap tungstenite tokio; do
+		if grep -qx "$p" <<<"${trees[channels]}"; then
+			echo "arrow: channels links $p (the channels are messages: no file format, network or runtime)"
+			bad=1
+		fi
+	done
+	for p in plant plant_sim controller_node control_cycle mcap tokio; do
+		if grep -qx "$p" <<<"${trees[live]}"; then
+			echo "arrow: live depends on $p (the bridge reads the boards through link and the messages from channels)"
 			bad=1
 		fi
 	done
@@ -79,8 +98,15 @@ check() {
 			echo "arrow: $p links mcap (only the export crate may)"
 			bad=1
 		fi
+		for q in live tungstenite channels; do
+			if grep -qx "$q" <<<"${trees[$p]}"; then
+				echo "arrow: $p links $q (the live bridge is a process of its own: plant_sim runs eqtrack-live)"
+				bad=1
+			fi
+		done
 	done
 	grep -qx mcap <<<"${trees[export]}" || { echo "the check cannot see mcap in export's tree" >&2; return 2; }
+	grep -qx tungstenite <<<"${trees[live]}" || { echo "the check cannot see tungstenite in live's tree" >&2; return 2; }
 	if [[ ${2:-} != --no-docs ]]; then
 		(cd "$dir" && cargo metadata --format-version 1 --no-deps --offline | python3 scripts/crate-arrows.py --check docs/architecture.md README.md) || bad=1
 	fi
@@ -89,14 +115,15 @@ check() {
 
 if [[ ${1:-} != --self-test ]]; then
 	check "$REPO"
-	echo "arrows: OK (export, recorder, the wire, mcap, plant, fuzz, and the docs' block)"
+	echo "arrows: OK (export, channels, live, recorder, the wire, mcap, plant, fuzz, and the docs' block)"
 	exit 0
 fi
 
 # Self-test: each planted arrow must be caught.
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-(cd "$REPO" && git ls-files -z | xargs -0 tar -cf - 2>/dev/null) | (cd "$work" && tar -xf -)
+# the working tree's files (tracked, and new ones git does not ignore)
+(cd "$REPO" && git ls-files -z --cached --others --exclude-standard | xargs -0 tar -cf - 2>/dev/null) | (cd "$work" && tar -xf -)
 check "$work" >/dev/null || { echo "check-arrows self-test: the unplanted copy fails" >&2; exit 1; }
 # plant FILE LINE WANT [--no-docs]: add LINE to FILE's [dependencies], check (the rule
 # checks alone with --no-docs), require a failure with a line that holds WANT, restore
@@ -119,6 +146,11 @@ plant export/Cargo.toml 'plant_sim = { path = "../plant_sim" }' "export depends 
 plant export/Cargo.toml 'plant = { path = "../plant" }' "export depends on plant" --no-docs
 plant export/Cargo.toml 'rayon = "1"' "export depends on rayon" --no-docs
 plant export/Cargo.toml 'iceoryx2 = "=0.10.0"' "export depends on iceoryx2" --no-docs
+plant channels/Cargo.toml 'link = { path = "../link" }' "channels depends on link" --no-docs
+plant channels/Cargo.toml 'mcap = { version = "0.26", default-features = false }' "channels links mcap" --no-docs
+plant live/Cargo.toml 'plant = { path = "../plant" }' "live depends on plant" --no-docs
+plant plant_sim/Cargo.toml 'tungstenite = "0.30"' "plant_sim links tungstenite" --no-docs
+plant controller_node/Cargo.toml 'live = { path = "../live" }' "controller_node links live" --no-docs
 plant ipc_types/Cargo.toml 'allocation = { path = "../allocation" }' "ipc_types depends on allocation" --no-docs
 plant recorder/Cargo.toml 'controller = { path = "../controller" }' "recorder depends on controller" --no-docs
 plant recorder/Cargo.toml 'link = { path = "../link" }' "recorder depends on link" --no-docs

@@ -51,10 +51,10 @@ fi
 if [[ $(cat "$NODE/.pinned" 2>/dev/null) != "$NODE_PACKAGES" ]]; then
 	rm -rf "$NODE/node_modules" "$NODE/package.json" "$NODE/package-lock.json" "$NODE/.pinned"
 	if (cd "$NODE" && npm init -y >/dev/null 2>&1 &&
-		npm install --silent --no-audit --no-fund $NODE_PACKAGES >"$OUT/npm.log" 2>&1); then
+		npm install --no-audit --no-fund --loglevel=error $NODE_PACKAGES >"$OUT/npm.log" 2>&1); then
 		echo "$NODE_PACKAGES" >"$NODE/.pinned"
 	else
-		echo "SKIPPED: npm could not install $NODE_PACKAGES: $(tail -1 "$OUT/npm.log")"
+		echo "SKIPPED: npm could not install $NODE_PACKAGES: $(grep -m1 -E 'ERR|error (code|network|request)|ECONN' "$OUT/npm.log" || head -1 "$OUT/npm.log")"
 		exit 0
 	fi
 fi

@@ -34,8 +34,8 @@
 //! * **shard** — a Monte Carlo shard's bytes (`shard.bin`, and what a Ray task returns)
 //!   through `studies::shard::decode_shard` and `merge_encoded`; a decoded shard must
 //!   re-encode to itself. Seeds: the shards of a small real study.
-//! * **params** — the run-time parameters of a tunable run (docs/live.md, "Tuning a running
-//!   pair"), three inputs: the `params` board ([`ipc_types::ParamMsg`]) through `gains_for`
+//! * **params** — the run-time parameters of a tunable run, three inputs (see
+//!   docs/live.md, "Tuning a running pair"): the `params` board ([`ipc_types::ParamMsg`]) through `gains_for`
 //!   for a controller answering one state, the accepted gains through
 //!   `control_cycle::Responder::retune` and the retuned law on a state (a finite torque); a
 //!   `param` request ([`ipc_types::ParamRequest`]) through `link::params::read_request` and

@@ -199,10 +199,16 @@ mod tests {
     #[test]
     fn a_stop_signal_is_passed_on_to_a_child() {
         use std::os::unix::process::ExitStatusExt;
-        let mut child = std::process::Command::new("sleep").arg("10").spawn().unwrap();
+        let mut child = std::process::Command::new("sleep")
+            .arg("10")
+            .spawn()
+            .unwrap();
         assert!(signal_process(child.id(), StopSignal::Term));
         assert_eq!(child.wait().unwrap().signal(), Some(15));
-        assert!(!signal_process(child.id(), StopSignal::Int), "a reaped child");
+        assert!(
+            !signal_process(child.id(), StopSignal::Int),
+            "a reaped child"
+        );
         assert!(!signal_process(0, StopSignal::Int));
     }
 }

@@ -13,7 +13,7 @@
 //!   `seq` and stamp) into one CDR message of the channel's schema (the `channels` crate's,
 //!   the MCAP export's), and offers it to every subscribed client's bounded queue with
 //!   `try_send`: a full queue drops it for that client, counted.
-//! * Each client has a **session** thread ([`server`]) that writes its queue to its
+//! * Each client has a **session** thread (`server.rs`) that writes its queue to its
 //!   non-blocking socket through a bounded write buffer, and answers its `subscribe`,
 //!   `unsubscribe` and anything else (unknown ops, garbage, binary frames, oversized
 //!   messages) without ever panicking.
@@ -151,6 +151,27 @@ impl std::fmt::Display for LiveError {
 
 impl std::error::Error for LiveError {}
 
+/// Lowers the calling thread's scheduling priority below the pair's: SCHED_BATCH (the
+/// scheduler does not let its wake-ups preempt other work) at nice 9. Threads started
+/// afterwards inherit it, so call it first. A pair at normal priority sharing the bridge's
+/// CPUs then wins them (one with `--rt-priority` does anyway). `Err`: the OS's refusal (the
+/// bridge then runs as it is).
+pub fn yield_to_the_pair() -> Result<(), String> {
+    use thread_priority::unix::{
+        NormalThreadSchedulePolicy, ThreadSchedulePolicy, set_thread_priority_and_policy,
+        thread_native_id,
+    };
+    use thread_priority::{ThreadPriority, ThreadPriorityValue};
+    // thread-priority maps 0..=99 onto nice 19..=-20: 24 is nice 9
+    let value = ThreadPriorityValue::try_from(24u8).map_err(|e| e.to_string())?;
+    set_thread_priority_and_policy(
+        thread_native_id(),
+        ThreadPriority::Crossplatform(value),
+        ThreadSchedulePolicy::Normal(NormalThreadSchedulePolicy::Batch),
+    )
+    .map_err(|e| format!("{e:?}"))
+}
+
 /// Serves run `opts.run` on `opts.listen` until the run ends, no run comes within
 /// `opts.wait`, or a stop signal.
 pub fn serve(opts: &Options) -> Result<Report, LiveError> {
@@ -252,11 +273,15 @@ fn accept_until_end(
                     );
                     server::refuse_busy(stream, opts.max_clients);
                 } else {
-                    let shared = Arc::clone(shared);
+                    // counted here, before its thread runs: a burst of connections cannot
+                    // pass the limit
+                    shared.sessions.fetch_add(1, Ordering::AcqRel);
+                    let mine = Arc::clone(shared);
                     let spawned = std::thread::Builder::new()
                         .name("live-session".into())
-                        .spawn(move || server::session(stream, peer, shared));
+                        .spawn(move || server::session(stream, peer, mine));
                     if let Err(e) = spawned {
+                        shared.sessions.fetch_sub(1, Ordering::AcqRel);
                         eprintln!("live: cannot serve client {peer}: {e}");
                     }
                 }
@@ -335,5 +360,120 @@ fn poll_boards(
             }
         }
         std::thread::sleep(POLL_PERIOD);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The panels a layout tree names.
+    fn panels(node: &serde_json::Value, out: &mut Vec<String>) {
+        match node {
+            serde_json::Value::String(id) => out.push(id.clone()),
+            serde_json::Value::Object(split) => {
+                panels(&split["first"], out);
+                panels(&split["second"], out);
+            }
+            other => panic!("not a layout node: {other}"),
+        }
+    }
+
+    #[test]
+    fn the_foxglove_layout_shows_only_fields_the_channels_have() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../docs/foxglove/eqtrack-live.json"
+        );
+        let layout: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+        let configs = layout["configById"].as_object().unwrap();
+        let mut named = Vec::new();
+        panels(&layout["layout"], &mut named);
+        named.sort();
+        let mut ids: Vec<String> = configs.keys().cloned().collect();
+        ids.sort();
+        assert_eq!(named, ids, "the layout's tree and its panels differ");
+        let infos = channel_infos();
+        let field_of = |path: &str| -> (String, String) {
+            let (topic, field) = path.split_once('.').unwrap_or((path, ""));
+            let field = field.split('[').next().unwrap();
+            (topic.to_owned(), field.to_owned())
+        };
+        let mut plotted = Vec::new();
+        for (id, config) in configs {
+            if id.starts_with("Plot!") {
+                for p in config["paths"].as_array().unwrap() {
+                    plotted.push(p["value"].as_str().unwrap().to_owned());
+                }
+            } else if id.starts_with("RawMessages!") {
+                plotted.push(config["topicPath"].as_str().unwrap().to_owned());
+            } else {
+                panic!("unexpected panel {id}");
+            }
+        }
+        for path in &plotted {
+            let (topic, field) = field_of(path);
+            let info = infos
+                .iter()
+                .find(|c| c.topic == topic)
+                .unwrap_or_else(|| panic!("{path}: no channel {topic}"));
+            assert!(
+                field.is_empty()
+                    || info
+                        .schema
+                        .lines()
+                        .any(|l| l.ends_with(&format!(" {field}"))),
+                "{path}: {topic} has no field {field}"
+            );
+        }
+        for want in [
+            "/eqtrack/state.v[0]",
+            "/eqtrack/command.tau[0]",
+            "/eqtrack/command.lyapunov",
+            "/eqtrack/status.rtt_p99_ns",
+            "/eqtrack/status",
+        ] {
+            assert!(
+                plotted.iter().any(|p| p == want),
+                "the layout does not show {want}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_bridge_yields_the_cpu_to_the_pair() {
+        // in a thread of its own: the test harness's threads keep their priority
+        std::thread::spawn(|| {
+            yield_to_the_pair().unwrap();
+            let stat = std::fs::read_to_string("/proc/thread-self/stat").unwrap();
+            // the fields after the command's closing parenthesis: nice is field 19, the
+            // policy field 41 (3: SCHED_BATCH)
+            let rest: Vec<&str> = stat
+                .rsplit(')')
+                .next()
+                .unwrap()
+                .split_whitespace()
+                .collect();
+            assert_eq!(rest[19 - 3], "9", "{stat}");
+            assert_eq!(rest[41 - 3], "3", "{stat}");
+        })
+        .join()
+        .unwrap();
+    }
+
+    #[test]
+    fn the_advertised_channels_are_the_exports_state_and_command_and_the_status() {
+        let infos = channel_infos();
+        let ids: Vec<u32> = infos.iter().map(|c| c.id).collect();
+        assert_eq!(ids, [1, 2, 3]);
+        assert_eq!(infos[0].schema_name, "eqtrack_msgs/msg/State");
+        assert!(infos[0].schema.starts_with("uint64 cycle\nfloat64 t\n"));
+        assert!(
+            infos[1]
+                .schema
+                .contains("float64[] tau\nfloat64 lyapunov\n")
+        );
+        assert!(infos[2].schema.contains("uint64 rtt_p99_ns\n"));
     }
 }

@@ -72,6 +72,9 @@ fn seconds(s: &str) -> Result<Duration, String> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Err(e) = live::yield_to_the_pair() {
+        eprintln!("eqtrack-live: cannot lower its own priority ({e}); it runs as it is");
+    }
     let stop = match StopFlag::install() {
         Ok(s) => s,
         Err(e) => {

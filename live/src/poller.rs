@@ -118,6 +118,9 @@ pub struct Poller<B: Boards> {
     seen_status: Option<Id>,
     /// The last cycle whose state was seen.
     last_cycle: u64,
+    /// The last cycle as the run's end says it: the shutdown state's `seq` less one, or the
+    /// status board's last `cycle`.
+    end_cycle: u64,
     /// `(seq, t)` of recent states, for the commands' times.
     times: [(u64, f64); 64],
     period: f64,
@@ -139,6 +142,7 @@ impl<B: Boards> Poller<B> {
             seen_command: None,
             seen_status: None,
             last_cycle: 0,
+            end_cycle: 0,
             times: [(u64::MAX, 0.0); 64],
             period: 0.0,
         }
@@ -200,6 +204,8 @@ impl<B: Boards> Poller<B> {
         let mut shutdown_at = shutdown_at;
         if let Some(s) = self.new_state() {
             if s.flags & flags::SHUTDOWN != 0 {
+                // its seq is the last state's plus one (link::PlantEndpoint::shutdown)
+                self.end_cycle = self.end_cycle.max(s.seq.saturating_sub(1));
                 shutdown_at.get_or_insert(now);
             } else {
                 self.offer_state(&s, out);
@@ -211,6 +217,9 @@ impl<B: Boards> Poller<B> {
         let mut ended = false;
         if let Some(st) = self.new_status(pid) {
             ended = st.flags & status_flags::ENDED != 0;
+            if ended {
+                self.end_cycle = self.end_cycle.max(st.cycle);
+            }
             out.push(Event::Sample(Sample {
                 channel: 2,
                 cycle: st.cycle,
@@ -225,14 +234,15 @@ impl<B: Boards> Poller<B> {
             gone = !(self.alive)(pid);
             if gone && !ended && shutdown_at.is_none() {
                 // a last look: the plant may have ended the run just before it exited
-                if self
-                    .new_state()
-                    .is_some_and(|s| s.flags & flags::SHUTDOWN != 0)
-                {
+                if let Some(s) = self.new_state().filter(|s| s.flags & flags::SHUTDOWN != 0) {
+                    self.end_cycle = self.end_cycle.max(s.seq.saturating_sub(1));
                     shutdown_at = Some(now);
                 }
                 if let Some(st) = self.new_status(pid) {
                     ended = st.flags & status_flags::ENDED != 0;
+                    if ended {
+                        self.end_cycle = self.end_cycle.max(st.cycle);
+                    }
                 }
             }
         }
@@ -240,7 +250,7 @@ impl<B: Boards> Poller<B> {
             || shutdown_at.is_some_and(|at| gone || now.duration_since(at) >= SHUTDOWN_GRACE)
         {
             Some(RunEnd::Ended {
-                cycle: self.last_cycle,
+                cycle: self.last_cycle.max(self.end_cycle),
             })
         } else if gone {
             Some(RunEnd::PlantGone { pid })
@@ -487,6 +497,18 @@ mod tests {
         assert_eq!(samples(&out), [(0, 1)], "the shutdown state is not a state");
         p.poll(t0 + SHUTDOWN_GRACE, &mut out);
         assert_eq!(out.last(), Some(&Event::Ended(RunEnd::Ended { cycle: 1 })));
+        // a last state the poller missed: the shutdown state says which it was
+        let fake = Fake::default();
+        *fake.state.borrow_mut() = Some(state(1, PLANT));
+        let mut p = Poller::new(&fake, alive);
+        let mut out = Vec::new();
+        p.poll(t0, &mut out);
+        let mut bye = state(9, PLANT);
+        bye.flags |= flags::SHUTDOWN;
+        *fake.state.borrow_mut() = Some(bye);
+        p.poll(t0, &mut out);
+        p.poll(t0 + SHUTDOWN_GRACE, &mut out);
+        assert_eq!(out.last(), Some(&Event::Ended(RunEnd::Ended { cycle: 8 })));
         // a plant that dies without a word
         let fake = Fake::default();
         *fake.state.borrow_mut() = Some(state(1, DEAD + 1));

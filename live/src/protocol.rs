@@ -1,5 +1,5 @@
-//! The Foxglove WebSocket protocol, the part a viewer needs (the specification is
-//! `docs/spec.md` of the foxglove/ws-protocol repository): the subprotocol, the server's JSON
+//! The Foxglove WebSocket protocol, the part a viewer needs (its specification is in the
+//! github.com/foxglove/ws-protocol repository): the subprotocol, the server's JSON
 //! messages (`serverInfo`, `advertise`, `status`), the binary `messageData` frame, and the
 //! client's `subscribe` and `unsubscribe`, parsed defensively: nothing a client sends can
 //! make the bridge panic.

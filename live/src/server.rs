@@ -16,7 +16,7 @@ use std::collections::BTreeMap;
 use std::io::ErrorKind;
 use std::net::{SocketAddr, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
-use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
+use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 use tungstenite::handshake::server::{ErrorResponse, Request, Response};
@@ -31,12 +31,20 @@ pub const MAX_CLIENT_MESSAGE: usize = 64 * 1024;
 const WRITE_BUFFER: usize = 16 * 1024;
 /// The write buffer's bound per client.
 pub const MAX_WRITE_BUFFER: usize = 256 * 1024;
+/// The kernel's send buffer of a client's socket (`SO_SNDBUF`; Linux doubles it for its own
+/// bookkeeping). Fixed, so the kernel does not grow it to `tcp_wmem`'s maximum (4 MiB here)
+/// for a client that does not read: that client's messages are dropped within a second or
+/// two, rather than after many seconds of ever staler data queued in the kernel.
+pub const SOCKET_SEND_BUFFER: usize = 256 * 1024;
 /// A client must finish its handshake within this.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
-/// A session thread wakes at least this often to read its client.
-const SESSION_TICK: Duration = Duration::from_millis(5);
+/// A session thread wakes this often: it writes what was queued since, and reads its client.
+/// The messages reach the client up to this late, in one write instead of one each.
+const SESSION_TICK: Duration = Duration::from_millis(10);
 /// At the end, how long a session tries to hand its last messages and the close over.
 const CLOSE_GRACE: Duration = Duration::from_secs(1);
+/// A session reads at most this many client messages per tick.
+const READS_PER_TICK: usize = 64;
 /// Drops are logged (and told to the client) at most this often per client.
 const DROP_REPORT_EVERY: Duration = Duration::from_secs(1);
 
@@ -51,6 +59,8 @@ pub(crate) enum Item {
 
 /// A connected client as the hub sees it.
 struct Client {
+    /// Its session's number.
+    id: u64,
     tx: SyncSender<Item>,
     /// Bit `channel id` set: subscribed.
     mask: Arc<AtomicU32>,
@@ -204,11 +214,12 @@ pub(crate) fn refuse_busy(mut stream: TcpStream, limit: usize) {
     );
 }
 
-/// One client, from its handshake to its end (a thread of its own).
+/// One client, from its handshake to its end (a thread of its own). The listener counted
+/// it in `shared.sessions` before starting it; it counts itself out.
 pub(crate) fn session(stream: TcpStream, peer: SocketAddr, shared: Arc<Shared>) {
-    shared.sessions.fetch_add(1, Ordering::AcqRel);
     if let Some(mut s) = Session::open(stream, peer, &shared) {
         s.run();
+        lock(&shared.clients).retain(|c| c.id != s.id);
         shared.sent.fetch_add(s.sent, Ordering::Relaxed);
         let dropped = s.dropped.load(Ordering::Relaxed);
         shared.dropped.fetch_add(dropped, Ordering::Relaxed);
@@ -226,6 +237,7 @@ pub(crate) fn session(stream: TcpStream, peer: SocketAddr, shared: Arc<Shared>) 
 
 /// A session's state.
 struct Session {
+    id: u64,
     ws: WebSocket<TcpStream>,
     peer: SocketAddr,
     shared: Arc<Shared>,
@@ -261,27 +273,40 @@ impl Session {
         let mut ws = match tungstenite::accept_hdr_with_config(stream, callback, Some(ws_config()))
         {
             Ok(ws) => ws,
+            Err(tungstenite::HandshakeError::Failure(WsError::Http(r))) => {
+                println!(
+                    "live: client {peer} refused (HTTP {}): no subprotocol of ours offered",
+                    r.status().as_u16()
+                );
+                return None;
+            }
             Err(e) => {
-                println!("live: client {peer} refused: {e}");
+                println!("live: client {peer}: no WebSocket handshake ({e})");
                 return None;
             }
         };
         if ws.get_mut().set_nonblocking(true).is_err() {
             return None;
         }
+        let sndbuf = nix::sys::socket::sockopt::SndBuf;
+        if let Err(e) = nix::sys::socket::setsockopt(ws.get_ref(), sndbuf, &SOCKET_SEND_BUFFER) {
+            println!("live: client {peer}: cannot bound its socket's send buffer ({e})");
+        }
         let (tx, rx) = sync_channel(shared.queue);
         let mask = Arc::new(AtomicU32::new(0));
         let dropped = Arc::new(AtomicU64::new(0));
         let metadata = lock(&shared.metadata).clone();
+        let id = shared.served.fetch_add(1, Ordering::Relaxed);
         // registered before the greeting, so no notice between the two is missed
         lock(&shared.clients).push(Client {
+            id,
             tx,
             mask: Arc::clone(&mask),
             dropped: Arc::clone(&dropped),
         });
-        shared.served.fetch_add(1, Ordering::Relaxed);
         println!("live: client {peer} connected ({chosen})");
         let mut s = Session {
+            id,
             ws,
             peer,
             shared: Arc::clone(shared),
@@ -317,23 +342,19 @@ impl Session {
                 self.close(level, &text);
                 return;
             }
-            match self.rx.recv_timeout(SESSION_TICK) {
-                Ok(item) => {
-                    self.write_item(item);
-                    // whatever else is queued, up to a batch, before the flush
-                    for _ in 0..256 {
-                        match self.rx.try_recv() {
-                            Ok(item) => self.write_item(item),
-                            Err(_) => break,
-                        }
-                    }
+            // what was queued since the last tick, as one batch and one flush: the thread
+            // wakes once a tick, not once a message, and so does the client
+            for _ in 0..self.shared.queue {
+                match self.rx.try_recv() {
+                    Ok(item) => self.write_item(item),
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => return,
                 }
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => return,
             }
             self.flush();
             self.read();
             self.report_drops(false);
+            std::thread::sleep(SESSION_TICK);
         }
     }
 
@@ -388,16 +409,24 @@ impl Session {
         }
     }
 
-    /// Reads and answers what the client sent, until nothing is left to read.
+    /// Reads and answers what the client sent, until nothing is left to read (at most
+    /// [`READS_PER_TICK`] messages: a client that floods the bridge still gets its data).
     fn read(&mut self) {
-        while self.gone.is_none() {
+        for _ in 0..READS_PER_TICK {
+            if self.gone.is_some() {
+                return;
+            }
             match self.ws.read() {
                 Ok(WsMessage::Text(t)) => self.on_text(t.as_str()),
                 Ok(WsMessage::Binary(_)) => self.text(protocol::status(
                     Level::Error,
                     "eqtrack-live takes no binary messages (it does not offer clientPublish or services)",
                 )),
-                Ok(WsMessage::Close(_)) => self.gone = Some("it closed the connection".into()),
+                Ok(WsMessage::Close(_)) => {
+                    // tungstenite queued the close's answer: hand it over
+                    let _ = self.ws.flush();
+                    self.gone = Some("it closed the connection".into());
+                }
                 Ok(_) => {}
                 Err(WsError::Io(e)) if e.kind() == ErrorKind::WouldBlock => return,
                 Err(WsError::Capacity(e)) => {
@@ -484,5 +513,72 @@ impl Session {
             }
         }
         self.gone.get_or_insert_with(|| "the bridge closed".into());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(channel: usize, cycle: u64) -> Arc<Sample> {
+        Arc::new(Sample {
+            channel,
+            cycle,
+            log_time: cycle * 1_000_000,
+            cdr: vec![0, 1, 0, 0],
+        })
+    }
+
+    #[test]
+    fn a_full_queue_drops_for_that_client_only_and_a_gone_client_is_forgotten() {
+        let shared = Shared::new(crate::channel_infos(), BTreeMap::new(), 2);
+        let mut clients = Vec::new();
+        for id in 0..2 {
+            let (tx, rx) = sync_channel(shared.queue);
+            let mask = Arc::new(AtomicU32::new(0b0010)); // channel 1: states
+            let dropped = Arc::new(AtomicU64::new(0));
+            lock(&shared.clients).push(Client {
+                id,
+                tx,
+                mask,
+                dropped: Arc::clone(&dropped),
+            });
+            clients.push((rx, dropped));
+        }
+        for k in 0..5 {
+            shared.offer(sample(0, k));
+            // the second client reads as it comes; the first never does
+            while let Ok(Item::Sample(s)) = clients[1].0.try_recv() {
+                assert_eq!(s.cycle, k);
+            }
+        }
+        // a command: nobody subscribed, nobody gets it
+        shared.offer(sample(1, 5));
+        assert_eq!(
+            clients[0].1.load(Ordering::Relaxed),
+            3,
+            "5 offered, 2 queued"
+        );
+        assert_eq!(clients[1].1.load(Ordering::Relaxed), 0);
+        assert!(clients[1].0.try_recv().is_err());
+        assert_eq!(shared.offered.load(Ordering::Relaxed), 6);
+        // the first client leaves: the next offer forgets it
+        let (rx, _) = clients.remove(0);
+        drop(rx);
+        shared.offer(sample(0, 6));
+        assert_eq!(lock(&shared.clients).len(), 1);
+        assert_eq!(lock(&shared.clients)[0].id, 1);
+    }
+
+    #[test]
+    fn the_end_is_said_once_with_the_first_word() {
+        let shared = Shared::new(crate::channel_infos(), BTreeMap::new(), 4);
+        assert!(shared.end_notice().is_none());
+        shared.finish(Level::Info, "run `x` ended at cycle 9".into());
+        shared.finish(Level::Warning, "stopped".into());
+        assert_eq!(
+            shared.end_notice(),
+            Some((Level::Info, "run `x` ended at cycle 9".to_owned()))
+        );
     }
 }

@@ -1,5 +1,5 @@
-//! The params target: the run-time parameters of a tunable run (docs/live.md, "Tuning a
-//! running pair"), three inputs, a third of the cases each.
+//! The params target: the run-time parameters of a tunable run, three inputs, a third of
+//! the cases each (docs/live.md, "Tuning a running pair").
 //!
 //! * `board`: the `params` board ([`ipc_types::ParamMsg`]) a controller reads before it
 //!   answers a state, through `gains_for` for that state; accepted gains through

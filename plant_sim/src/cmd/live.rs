@@ -32,7 +32,14 @@ pub(crate) fn live_cmd(args: LiveArgs, stop: &StopFlag) -> Result<(), SimError> 
         )));
     }
     let mut child = std::process::Command::new(&path)
-        .args(["--name", &args.name, "--listen", &args.listen, "--wait", &args.wait])
+        .args([
+            "--name",
+            &args.name,
+            "--listen",
+            &args.listen,
+            "--wait",
+            &args.wait,
+        ])
         .spawn()
         .map_err(|e| SimError::Run(format!("cannot start {}: {e}", path.display())))?;
     let mut passed_on = false;

@@ -1,5 +1,5 @@
-//! `plant_sim param`: read or change a gain of a running pair (docs/live.md, "Tuning a
-//! running pair").
+//! `plant_sim param`: read or change a gain of a running pair, as
+//! docs/live.md, "Tuning a running pair" describes.
 
 use clap::{Args, Subcommand};
 use plant::SimError;

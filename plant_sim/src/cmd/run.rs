@@ -51,8 +51,8 @@ pub(crate) struct RunArgs {
     no_record: bool,
     /// Let gains change while the run flies: serve the run's parameter service
     /// (`plant_sim param --name RUN get|set KEY VALUE`), write the `params` board the
-    /// controller reads, record each change in `params.log` (docs/live.md, "Tuning a running
-    /// pair"). Off by default.
+    /// controller reads, record each change in `params.log`. Off by default. See
+    /// docs/live.md, "Tuning a running pair".
     #[arg(long)]
     tunable: bool,
     /// Keep every Nth cycle in trajectory.csv (and the last one): for long runs, whose rows
