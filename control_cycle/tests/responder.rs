@@ -162,6 +162,23 @@ fn retune_changes_the_gains_at_once_or_not_at_all() {
     let was = before.rejection().unwrap();
     assert_eq!(r.estimate(), was.estimate());
     assert_eq!(r.integral_state(), was.integral_state());
+    // a new K_I keeps the integral's torque −K_I z where it was
+    let mut doubled = gains(0.8, 7.0);
+    for x in &mut doubled.ki[..3] {
+        *x *= 2.0;
+    }
+    let mut twice = live.clone();
+    twice.retune(&doubled).unwrap();
+    let torque = |r: &control_cycle::Responder<f64, So3, 3, 3>| {
+        let t = r.rejection().unwrap();
+        -t.config()
+            .integral
+            .unwrap()
+            .ki
+            .component_mul(t.integral_state())
+    };
+    assert!(live.rejection().unwrap().integral_state().norm() > 0.0);
+    assert!((torque(&twice) - torque(&live)).norm() <= 1e-15 * torque(&live).norm());
     // and the next answer differs from the untuned one
     msg.seq = 20;
     msg.t = 20.0 * s.control_period;

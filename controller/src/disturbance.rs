@@ -198,16 +198,23 @@ impl<T: Real, const M: usize> Rejection<T, M> {
         })
     }
 
-    /// The same terms under new settings (validated as [`Rejection::new`] validates them):
-    /// the estimate, the integral and the anchor carry over, so a retuned run continues
-    /// where it was (docs/live.md, "Tuning a running pair"). The clamp of the integral is
-    /// recomputed; the observer's discrete gain is recomputed at the next cycle.
+    /// The same terms under new settings (validated as [`Rejection::new`] validates them),
+    /// continuing where they were (docs/live.md, "Tuning a running pair"): the observer's
+    /// estimate and the anchor carry over, and the integral `z` is rescaled by
+    /// `K_I / K_I'` per axis so that its torque `−K_I z` does not jump when `K_I` changes
+    /// (it then moves at the new rate). The clamp of `z` is recomputed (and applies from
+    /// the next update); the observer's discrete gain is recomputed at the next cycle.
     pub fn retuned(&self, config: RejectionConfig<T, M>) -> Result<Self, Error> {
         let fresh = Rejection::new(config, self.torque_limit.as_ref())?;
+        let z = match (&self.config.integral, &fresh.config.integral) {
+            (Some(old), Some(new)) => self.z.component_mul(&old.ki.component_div(&new.ki)),
+            _ => self.z,
+        };
         Ok(Rejection {
             config: fresh.config,
             z_max: fresh.z_max,
             gain: None,
+            z,
             ..*self
         })
     }

@@ -79,6 +79,28 @@ enum Untuned {
     Gains(controller::Error),
 }
 
+/// Why a state gets no answer: the law's refusal, or the run-time gains'.
+#[derive(Debug)]
+enum Refusal {
+    Law(controller::Error),
+    Untuned(Untuned),
+}
+
+impl Untuned {
+    fn into_refusal(self) -> Refusal {
+        Refusal::Untuned(self)
+    }
+}
+
+impl std::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Refusal::Law(e) => write!(f, "{e}"),
+            Refusal::Untuned(e) => write!(f, "{e}"),
+        }
+    }
+}
+
 impl std::fmt::Display for Untuned {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
@@ -145,12 +167,10 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M
                 r
             }
         };
+        // no allocation on a refusal either: the reason is formatted only when logged
         let answer = match untuned {
-            Some(e) => Err(e.to_string()),
-            None => self
-                .responder
-                .respond(reference, msg)
-                .map_err(|e| e.to_string()),
+            Some(e) => Err(Untuned::into_refusal(e)),
+            None => self.responder.respond(reference, msg).map_err(Refusal::Law),
         };
         match answer {
             Ok(mut cmd) => {

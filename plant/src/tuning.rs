@@ -16,7 +16,7 @@ use recorder::ParamChange;
 use scenario::Scenario;
 use scenario::tuning::{Acts, Change, Tuner};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -67,14 +67,23 @@ pub fn gains(s: &Scenario, cycle: u64) -> Gains {
     )
 }
 
-/// Between the thread and the loop.
+/// The hand-over's states ([`Shared::state`]).
+const EMPTY: u8 = 0;
+/// `pending` holds a change for the loop.
+const PENDING: u8 = 1;
+/// The loop took it and is putting it in force.
+const TAKEN: u8 = 2;
+/// In force from `applied_cycle` on.
+const APPLIED: u8 = 3;
+
+/// Between the thread and the loop. The loop never waits for the thread: it moves the state
+/// with compare-and-swap (`PENDING` → `TAKEN` → `APPLIED`), and touches the change's mutex
+/// only once it owns the change (`TAKEN`), when nobody else holds it.
 #[derive(Default)]
 struct Shared {
-    /// Set when `pending` holds a change for the loop.
-    has: AtomicBool,
+    state: AtomicU8,
     pending: Mutex<Option<Retune>>,
-    /// The cycle the last change took effect at (taken by the thread).
-    applied: Mutex<Option<u64>>,
+    applied_cycle: AtomicU64,
     /// The loop has ended: no change can take effect any more.
     ended: AtomicBool,
 }
@@ -147,21 +156,35 @@ impl Tuning {
     }
 
     /// The loop, before it publishes the state of a cycle: a change waiting to take effect
-    /// at this cycle, if any. Allocation-free (one atomic load when there is none).
+    /// at this cycle, if any. Allocation-free and wait-free (one atomic load when there is
+    /// none; the change's mutex is free once the loop owns the change).
     pub fn take(&self) -> Option<Retune> {
-        if !self.shared.has.load(Ordering::Acquire) {
+        if self.shared.state.load(Ordering::Acquire) != PENDING
+            || self
+                .shared
+                .state
+                .compare_exchange(PENDING, TAKEN, Ordering::AcqRel, Ordering::Acquire)
+                .is_err()
+        {
             return None;
         }
-        let got = self.shared.pending.lock().ok()?.take();
-        self.shared.has.store(false, Ordering::Release);
+        let got = self
+            .shared
+            .pending
+            .try_lock()
+            .ok()
+            .and_then(|mut p| p.take());
+        if got.is_none() {
+            // cannot happen (the thread holds the mutex only outside PENDING); give it back
+            self.shared.state.store(EMPTY, Ordering::Release);
+        }
         got
     }
 
     /// The loop: the change [`Tuning::take`] gave is in force from `cycle` on.
     pub fn applied(&self, cycle: u64) {
-        if let Ok(mut a) = self.shared.applied.lock() {
-            *a = Some(cycle);
-        }
+        self.shared.applied_cycle.store(cycle, Ordering::Release);
+        self.shared.state.store(APPLIED, Ordering::Release);
     }
 
     /// Ends the thread (the loop is over) and returns the changes that took effect.
@@ -188,6 +211,10 @@ struct Thread {
     period: f64,
     changes: Vec<ParamChange>,
 }
+
+/// How long a change waits for the loop's next cycle before it is withdrawn (shorter than
+/// `plant_sim param`'s default 10 s wait, so the client hears either way).
+const GIVE_UP: Duration = Duration::from_secs(8);
 
 fn refused(text: String) -> Answer {
     Answer {
@@ -224,35 +251,40 @@ impl Thread {
             }
         };
         let retune = Retune::of(&change);
-        if let Ok(mut a) = self.shared.applied.lock() {
-            *a = None;
-        }
         match self.shared.pending.lock() {
             Ok(mut p) => *p = Some(retune),
             Err(_) => return refused("the plant's loop is gone".to_owned()),
         }
-        self.shared.has.store(true, Ordering::Release);
-        // the loop takes it at its next cycle boundary
-        let give_up = Instant::now() + Duration::from_secs(30);
+        self.shared.state.store(PENDING, Ordering::Release);
+        // the loop takes it at its next cycle boundary; the client waits 10 s by default
+        let give_up = Instant::now() + GIVE_UP;
         let cycle = loop {
-            if let Some(k) = self.shared.applied.lock().ok().and_then(|mut a| a.take()) {
-                break k;
-            }
-            if self.shared.ended.load(Ordering::Acquire) || Instant::now() > give_up {
-                if let Ok(mut p) = self.shared.pending.lock() {
-                    *p = None;
-                }
-                self.shared.has.store(false, Ordering::Release);
-                // the loop may have taken it meanwhile
-                if let Some(k) = self.shared.applied.lock().ok().and_then(|mut a| a.take()) {
+            match self.shared.state.load(Ordering::Acquire) {
+                APPLIED => {
+                    let k = self.shared.applied_cycle.load(Ordering::Acquire);
+                    self.shared.state.store(EMPTY, Ordering::Release);
                     break k;
                 }
-                return refused(
-                    "the run ended before the change could take effect: nothing was changed"
-                        .to_owned(),
-                );
+                PENDING
+                    if (self.shared.ended.load(Ordering::Acquire) || Instant::now() > give_up)
+                        && self
+                            .shared
+                            .state
+                            .compare_exchange(PENDING, EMPTY, Ordering::AcqRel, Ordering::Acquire)
+                            .is_ok() =>
+                {
+                    // withdrawn before the loop took it: nothing changed
+                    if let Ok(mut p) = self.shared.pending.lock() {
+                        *p = None;
+                    }
+                    return refused(format!(
+                        "the run did not reach its next cycle within {} s (ended, or its controller is stopped): nothing was changed",
+                        GIVE_UP.as_secs()
+                    ));
+                }
+                // TAKEN: the loop is putting it in force, within the cycle
+                _ => std::thread::sleep(Duration::from_micros(200)),
             }
-            std::thread::sleep(Duration::from_micros(200));
         };
         let previous_numbers = scenario::tuning::numbers(self.tuner.scenario(), change.key);
         if let Err(e) = self.tuner.commit(&change) {

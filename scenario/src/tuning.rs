@@ -112,11 +112,18 @@ pub struct Tuner {
 /// `NaN`, `inf`), else a TOML value (`[[1.0, 0.0], [0.0, 1.0]]`, `[1.0, 2.0, 3.0]`).
 pub fn parse_value(text: &str) -> Result<toml::Value, String> {
     let t = text.trim();
+    if t.contains(['\n', '\r']) {
+        return Err(format!(
+            "value `{}`: one line, please (a number or a TOML value)",
+            t.escape_debug()
+        ));
+    }
     if let Ok(x) = t.parse::<f64>() {
         return Ok(toml::Value::Float(x));
     }
     toml::from_str::<toml::Table>(&format!("v = {t}"))
         .ok()
+        .filter(|table| table.len() == 1)
         .and_then(|mut table| table.remove("v"))
         .ok_or_else(|| {
             format!(
@@ -206,10 +213,22 @@ impl Tuner {
     /// The value of `name` in force, as TOML text.
     pub fn get(&self, name: &str) -> Result<(&'static str, String), String> {
         let key = resolve(name).ok_or_else(|| not_tunable(name))?;
+        self.value_of(key).map(|v| (key, v))
+    }
+
+    /// The value of a tunable key in force as TOML text: as the scenario file gives it, or,
+    /// for a key its table leaves to a default (`estimator.kp`), the default.
+    fn value_of(&self, key: &'static str) -> Result<String, String> {
         let path: Vec<&str> = key.split('.').collect();
-        match get(&self.table, &path) {
-            Some(v) => Ok((key, v.to_string())),
-            None => Err(absent(key)),
+        if let Some(v) = get(&self.table, &path) {
+            return Ok(v.to_string());
+        }
+        let parent_exists = path.split_last().is_some_and(|(_, parents)| {
+            get(&self.table, parents).is_some_and(toml::Value::is_table)
+        });
+        match numbers(&self.scenario, key).as_slice() {
+            [x] if parent_exists => Ok(toml::Value::Float(*x).to_string()),
+            _ => Err(absent(key)),
         }
     }
 
@@ -230,9 +249,7 @@ impl Tuner {
             });
         };
         let path: Vec<&str> = key.split('.').collect();
-        let previous = get(&self.table, &path)
-            .ok_or_else(|| absent(key))?
-            .to_string();
+        let previous = self.value_of(key)?;
         let mut table = self.table.clone();
         set(&mut table, &path, parsed.clone())?;
         let scenario = parse(&table, &self.origin, self.base.as_deref()).map_err(|e| {
@@ -427,6 +444,14 @@ mod tests {
         }
         // kp, kd and the observer's gain (the scenario's integral is checked too, if any)
         assert!(tuned >= 3, "{tuned}");
+        // a gain the file leaves to its default is tunable too, from the default
+        let mut table = tuner("sensors_so3").table.clone();
+        table["estimator"].as_table_mut().unwrap().remove("ki");
+        let d = Tuner::new(table, "param set", None).unwrap();
+        assert_eq!(d.get("estimator.ki").unwrap().1, "0.3");
+        assert_eq!(d.check("estimator.ki", "0.5").unwrap().previous, "0.3");
+        assert!(parse_value("0.8\n[x]").is_err());
+        assert!(parse_value("[1.0, 2.0] # fine").is_ok());
         let mut e = tuner("sensors_so3");
         let c = e.apply("estimator.kp", "3.0").unwrap();
         assert_eq!(c.acts(), Acts::Estimator);

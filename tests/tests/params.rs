@@ -188,6 +188,16 @@ fn param_set_in_lockstep_takes_effect_at_a_known_cycle_and_replays() {
     let (code, said) = replay(&valued);
     assert_eq!(code, 1, "{said}");
     assert!(said.contains(&format!("first at cycle {cycle} ")), "{said}");
+    // params.log gone: replay says so instead of reporting the differences
+    let gone = d.join("gone");
+    copy_dir(&out, &gone);
+    std::fs::remove_file(Path::new(&gone).join("params.log")).unwrap();
+    let (code, said) = replay(&gone);
+    assert_ne!(code, 0, "{said}");
+    assert!(
+        said.contains("params.log") && said.contains("missing"),
+        "{said}"
+    );
     // a planted value alone: its numbers disagree, refused naming the cycle
     let bare = d.join("bare");
     copy_dir(&out, &bare);
@@ -308,6 +318,24 @@ fn another_users_param_set_is_refused() {
         "another user changed a gain: {said}"
     );
     assert!(said.contains("parameter service"), "{said}");
+    // what keeps it out: the run's shared memory is its user's alone (no group or other
+    // bits), whatever layer refused it first
+    let shm: Vec<_> = std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .filter_map(Result::ok)
+        .filter(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            // iceoryx2's one global node counter (16 bytes, shared by every user's nodes by
+            // design) is world-writable; every service's memory is not
+            name.starts_with("iox2_") && !name.ends_with(".global_mgmt")
+        })
+        .collect();
+    assert!(!shm.is_empty(), "no iceoryx2 shared memory in /dev/shm");
+    for e in &shm {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = e.metadata().unwrap().permissions().mode();
+        assert_eq!(mode & 0o077, 0, "{:?} is mode {mode:o}", e.path());
+    }
     // as the run's own user it works, and the gain was not changed by the other one
     let (code, said) = param("tp-user", &["get", "kd"]);
     assert_eq!((code, said.trim()), (0, "controller.kd = 0.5"));
@@ -345,6 +373,9 @@ fn gains_and_estimator_gains_change_in_real_time_and_replay() {
         ],
     );
     wait_for_cycles(&out, 500, Duration::from_secs(30));
+    // mid-flight, a bad value is refused and changes nothing
+    let (code, said) = param("tp-rt", &["set", "kd", "NaN"]);
+    assert_eq!(code, 2, "{said}");
     let (code, said) = param("tp-rt", &["set", "kd", "0.8"]);
     assert_eq!(code, 0, "{said}");
     let (code, said) = param("tp-rt", &["set", "estimator.kp", "2.0"]);

@@ -114,6 +114,8 @@ struct ReplayRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     tuner: Option<scenario::tuning::Tuner>,
     /// The controller's gains in force after the last change (`None`: the scenario's).
     gains: Option<ipc_types::Gains>,
+    /// Not a what-if, and the recording has no `params.log`.
+    params_missing: bool,
 }
 
 impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, G, N, M> {
@@ -130,6 +132,9 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         } else {
             recorder::read_params(&opts.dir)?
         };
+        // a tunable run (its states say so) whose params.log is gone cannot replay its
+        // changes: say so rather than report the differences they make
+        let params_missing = !what_if && !opts.dir.join(recorder::PARAMS_FILE).exists();
         let tuner = if params.is_empty() {
             None
         } else {
@@ -189,6 +194,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             next_param: 0,
             tuner,
             gains: None,
+            params_missing,
         })
     }
 
@@ -197,7 +203,14 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
     /// law's responder) and the estimator's, all at once. A change the check refuses, or
     /// whose recorded numbers differ from what its value gives, stops replay naming its
     /// cycle.
-    fn retune(&mut self, k: u64) -> Result<(), SimError> {
+    fn retune(&mut self, r: &Record) -> Result<(), SimError> {
+        if self.params_missing && r.state.flags & ipc_types::flags::TUNABLE != 0 {
+            return Err(SimError::Input(format!(
+                "{}: the run was started with --tunable (its states say so), and its params.log, which holds the gains it changed, is missing: it cannot be replayed without it",
+                self.opts.dir.display()
+            )));
+        }
+        let k = r.cycle;
         while let Some(p) = self.params.get(self.next_param).filter(|p| p.cycle <= k) {
             let bad = |what: String| {
                 SimError::Input(format!(
@@ -247,7 +260,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
     fn record(&mut self, r: &Record) -> Result<(), SimError> {
         self.report.cycles += 1;
         self.report.missing += r.cycle.saturating_sub(self.next);
-        self.retune(r.cycle)?;
+        self.retune(r)?;
         self.check_estimator(r);
         self.next = r.cycle + 1;
         if ipc_types::check_state(
