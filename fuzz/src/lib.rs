@@ -1,7 +1,7 @@
 //! A fuzz harness for the project's untrusted input, on stable Rust (no libFuzzer, no
 //! nightly): deterministic, seeded, mutation-based.
 //!
-//! Seven targets ([`Target`]):
+//! Eight targets ([`Target`]):
 //!
 //! * **scenario** — TOML text through [`scenario::Scenario::from_toml`] (parser and
 //!   validator); an accepted scenario then goes through what the processes do with it: its
@@ -44,6 +44,14 @@
 //!   `params.log` text through `recorder::params::parse_params` (an accepted file's changes
 //!   re-serialized parse back equal). Seeds: the boards of four scenarios before and after
 //!   changes made with the tuner, requests for every tunable key, real `params.log` files.
+//! * **live** — what a Foxglove client sends the live bridge (`eqtrack-live`): a sequence
+//!   of WebSocket text and binary messages through one client session
+//!   ([`live::protocol::SessionState::handle`]: the client-message parser, then the
+//!   session's subscriptions); every refusal a [`live::protocol::Refusal`], the answer an
+//!   error `status` message in valid JSON exactly when something was refused, and the
+//!   subscriptions consistent and those of a reference model of the protocol's rules (an
+//!   `unsubscribe` of all leaves none). Seeds: the `subscribe` and `unsubscribe` messages
+//!   FoxgloveClient and Foxglove's app send, the other ops and binary messages clients send.
 //!
 //! Each case is one corpus item with 1–8 random mutations (byte-level: bit flips, byte
 //! overwrite, insert, delete, truncation, chunk duplication, splicing; TOML: number and string
@@ -52,7 +60,9 @@
 //! subnormals, extremes, integer fields to boundary or random values, odd names, wrong
 //! lengths; params: a board's numbers and integers the same way, its gain sets scaled,
 //! perturbed, crossed or swapped, a request's key and value replaced, a `params.log`'s
-//! lines, numbers, strings and fields), or a fully random input. Case `i` of seed `s` draws from ChaCha8 stream `i` of
+//! lines, numbers, strings and fields; live: JSON numbers, strings and values replaced,
+//! removed, duplicated, nested deep, long lists, messages duplicated, removed, swapped,
+//! inserted or turned binary), or a fully random input. Case `i` of seed `s` draws from ChaCha8 stream `i` of
 //! key `s`, so it can be regenerated alone ([`generate`], [`replay`]).
 //!
 //! The oracle: no panic, and every rejection a typed error. Each case runs under
@@ -66,6 +76,7 @@
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
+mod live_target;
 mod mutate;
 mod params_target;
 mod path_target;
@@ -104,11 +115,13 @@ pub enum Target {
     Shard,
     /// Run-time parameters: the `params` board, `param` requests, `params.log`.
     Params,
+    /// The live bridge's client messages: parser and session subscriptions.
+    Live,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 7] = [
+    pub const ALL: [Target; 8] = [
         Target::Scenario,
         Target::Wire,
         Target::Path,
@@ -116,6 +129,7 @@ impl Target {
         Target::Serial,
         Target::Shard,
         Target::Params,
+        Target::Live,
     ];
 
     /// Lower-case name (`"scenario"`, `"wire"`, `"path"`), as on the command line.
@@ -128,6 +142,7 @@ impl Target {
             Target::Serial => "serial",
             Target::Shard => "shard",
             Target::Params => "params",
+            Target::Live => "live",
         }
     }
 }
@@ -211,6 +226,37 @@ pub struct ParamsCase {
     pub bytes: Vec<u8>,
 }
 
+/// One client message of a live case.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum LiveMessage {
+    /// A text message.
+    Text(String),
+    /// A binary message.
+    Binary(Vec<u8>),
+}
+
+/// The client messages a live case's bytes hold: per message a tag byte (bit 0 set:
+/// binary), its length (u32, little-endian) and its bytes (a length past the end takes the
+/// rest; a text message's invalid UTF-8 is replaced).
+pub fn live_messages(bytes: &[u8]) -> Vec<LiveMessage> {
+    let mut out = Vec::new();
+    let mut rest = bytes;
+    while let Some((&tag, after)) = rest.split_first() {
+        let len = after
+            .get(..4)
+            .map_or(0, |l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]) as usize);
+        let after = after.get(4..).unwrap_or(&[]);
+        let (body, next) = after.split_at(len.min(after.len()));
+        out.push(if tag & 1 == 1 {
+            LiveMessage::Binary(body.to_vec())
+        } else {
+            LiveMessage::Text(String::from_utf8_lossy(body).into_owned())
+        });
+        rest = next;
+    }
+    out
+}
+
 /// One generated input.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Case {
@@ -228,6 +274,8 @@ pub enum Case {
     Shard(Vec<u8>),
     /// A run-time parameter input and its reader.
     Params(ParamsCase),
+    /// A live bridge client's messages ([`live_messages`] reads them).
+    Live(Vec<u8>),
 }
 
 impl Case {
@@ -238,7 +286,8 @@ impl Case {
             | Case::Path(b)
             | Case::Recording(b)
             | Case::Serial(b)
-            | Case::Shard(b) => b,
+            | Case::Shard(b)
+            | Case::Live(b) => b,
             Case::Wire(w) => &w.bytes,
             Case::Params(p) => &p.bytes,
         }
@@ -252,6 +301,7 @@ impl Case {
             | Case::Recording(_)
             | Case::Serial(_)
             | Case::Shard(_) => String::new(),
+            Case::Live(b) => format!("{} client messages", live_messages(b).len()),
             Case::Wire(w) => format!("{:?} message, receiver {:?}", w.kind, w.receiver),
             Case::Params(p) => format!("params {:?}, receiver {:?}", p.kind, p.receiver),
         }
@@ -333,6 +383,16 @@ impl fmt::Display for Finding {
                 write!(f, "  input ({} bytes): {}", b.len(), hex(b))
             }
             Case::Params(p) => write!(f, "  input ({} bytes): {}", p.bytes.len(), hex(&p.bytes)),
+            Case::Live(b) => {
+                write!(f, "  input ({} bytes):", b.len())?;
+                for m in live_messages(b) {
+                    match m {
+                        LiveMessage::Text(t) => write!(f, "\n    text {t:?}")?,
+                        LiveMessage::Binary(b) => write!(f, "\n    binary {}", hex(&b))?,
+                    }
+                }
+                Ok(())
+            }
         }
     }
 }
@@ -516,7 +576,7 @@ pub fn run_case<I: ?Sized, F: FnOnce(&I) -> Outcome>(
     })
 }
 
-/// The real checks: the scenario or wire oracle, by the case's kind.
+/// The real checks: each target's oracle, by the case's kind.
 pub fn check(case: &Case) -> Outcome {
     match case {
         Case::Scenario(bytes) => scenario_target::check(bytes),
@@ -526,6 +586,7 @@ pub fn check(case: &Case) -> Outcome {
         Case::Serial(bytes) => serial_target::check(bytes),
         Case::Shard(bytes) => shard_target::check(bytes),
         Case::Params(p) => params_target::check(p),
+        Case::Live(bytes) => live_target::check(bytes),
     }
 }
 
@@ -540,6 +601,7 @@ pub struct Generator {
     serial: Option<serial_target::Corpus>,
     shards: Option<shard_target::Corpus>,
     params: Option<params_target::Corpus>,
+    live: Option<live_target::Corpus>,
 }
 
 impl Generator {
@@ -555,6 +617,7 @@ impl Generator {
             serial: (target == Target::Serial).then(serial_target::Corpus::new),
             shards: (target == Target::Shard).then(shard_target::Corpus::new),
             params: (target == Target::Params).then(params_target::Corpus::new),
+            live: (target == Target::Live).then(live_target::Corpus::new),
         }
     }
 
@@ -569,6 +632,9 @@ impl Generator {
         }
         if let Some(c) = &self.params {
             return Case::Params(c.generate(&mut g));
+        }
+        if let Some(c) = &self.live {
+            return Case::Live(c.generate(&mut g));
         }
         match (&self.scenarios, &self.wire, &self.paths, &self.recordings) {
             (Some(c), _, _, _) => Case::Scenario(c.generate(&mut g)),

@@ -2,7 +2,7 @@
 //! exits 1 if any case panicked.
 //!
 //! ```text
-//! fuzz [--target scenario|wire|path|recording|serial|shard|params|all] [--cases N] [--seed S] [--save]
+//! fuzz [--target scenario|wire|path|recording|serial|shard|params|live|all] [--cases N] [--seed S] [--save]
 //! fuzz --target wire --seed S --case I     # replay one case, panics not caught
 //! ```
 #![forbid(unsafe_code)]
@@ -33,6 +33,8 @@ enum Which {
     Shard,
     /// Run-time parameters: the params board, param requests, params.log.
     Params,
+    /// The live bridge's client messages: parser and session subscriptions.
+    Live,
     /// Every target.
     All,
 }
@@ -71,6 +73,7 @@ fn targets(which: Which) -> Vec<Target> {
         Which::Serial => vec![Target::Serial],
         Which::Shard => vec![Target::Shard],
         Which::Params => vec![Target::Params],
+        Which::Live => vec![Target::Live],
         Which::All => Target::ALL.to_vec(),
     }
 }
@@ -134,6 +137,18 @@ fn print_input(input: &fuzz::Case) {
             ..
         }) => {
             println!("  input:\n{}", String::from_utf8_lossy(b))
+        }
+        fuzz::Case::Live(b) => {
+            println!("  input ({} bytes):", b.len());
+            for m in fuzz::live_messages(b) {
+                match m {
+                    fuzz::LiveMessage::Text(t) => println!("    text {t:?}"),
+                    fuzz::LiveMessage::Binary(b) => {
+                        let hex: String = b.iter().map(|x| format!("{x:02x}")).collect();
+                        println!("    binary {hex}");
+                    }
+                }
+            }
         }
         fuzz::Case::Wire(fuzz::WireCase { bytes, .. })
         | fuzz::Case::Recording(bytes)

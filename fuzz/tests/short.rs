@@ -173,6 +173,29 @@ fn run_time_parameters_never_panic() {
     }
 }
 
+#[test]
+fn live_bridge_client_messages_never_panic() {
+    let r = fuzz::run(Target::Live, CASES, SEED);
+    assert_sound(&r, 10);
+    // every refusal of the parser and of the session's subscriptions is reached
+    for kind in [
+        "NotJson",
+        "NoOp",
+        "NoList",
+        "BadSubscription",
+        "BadSubscriptionId",
+        "UnknownChannel",
+        "IdInUse",
+        "ChannelTaken",
+        "NotSubscribed",
+        "Unsupported",
+        "Binary",
+    ] {
+        let key = format!("live: {kind}");
+        assert!(r.rejected.contains_key(&key), "{key} never seen\n{r}");
+    }
+}
+
 /// A bug planted in the checked code (a panic on a NaN control period in an accepted-length
 /// state, deep in the generated inputs) is caught: the run fails, the finding names the
 /// planted panic and its location, and its input regenerates from (seed, case).

@@ -12,11 +12,14 @@
 //!   [`POLL_PERIOD`] (a sleep, not a spin), turns each write it has not seen (keyed on its
 //!   `seq` and stamp) into one CDR message of the channel's schema (the `channels` crate's,
 //!   the MCAP export's), and offers it to every subscribed client's bounded queue with
-//!   `try_send`: a full queue drops it for that client, counted.
+//!   `try_send`: a full queue drops it for that client, counted. The boards hold the newest
+//!   value only, so a state or command the pair replaced before the poller read it is not
+//!   shown: the poller counts those too (the gaps in their `seq`) and the bridge reports them.
 //! * Each client has a **session** thread (`server.rs`) that writes its queue to its
 //!   non-blocking socket through a bounded write buffer, and answers its `subscribe`,
 //!   `unsubscribe` and anything else (unknown ops, garbage, binary frames, oversized
-//!   messages) without ever panicking.
+//!   messages) without ever panicking ([`protocol::SessionState`]). A connection has
+//!   [`HANDSHAKE_DEADLINE`] in all to finish its WebSocket handshake, then is closed.
 //! * The protocol's pieces are in [`protocol`]: both subprotocol names
 //!   (`foxglove.websocket.v1` and `foxglove.sdk.v1`; another is refused with HTTP 400),
 //!   `serverInfo`, `advertise`, `status`, `messageData`.
@@ -50,7 +53,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-pub use server::{MAX_CLIENT_MESSAGE, MAX_WRITE_BUFFER};
+pub use server::{EXTRA_HANDSHAKES, HANDSHAKE_DEADLINE, MAX_CLIENT_MESSAGE, MAX_WRITE_BUFFER};
 
 /// The channels the bridge advertises, in id order: channel id = index + 1.
 pub const LIVE_CHANNELS: [channels::Channel; 3] =
@@ -61,6 +64,10 @@ pub const POLL_PERIOD: Duration = Duration::from_micros(500);
 
 /// A client's queue, in messages: about half a second of a 1 kHz run's state and command.
 pub const DEFAULT_QUEUE: usize = 1024;
+
+/// States and commands replaced on the boards before the bridge read them are logged at most
+/// this often (and only when their count grew).
+pub const REPLACED_REPORT_EVERY: Duration = Duration::from_secs(1);
 
 /// The advertised channels: each one's schema text from a message of its own builder.
 pub fn channel_infos() -> Vec<ChannelInfo> {
@@ -130,6 +137,12 @@ pub struct Report {
     pub sent: u64,
     /// Messages dropped for clients that did not keep up, all together.
     pub dropped: u64,
+    /// States the plant replaced on the board before the bridge read them (never shown):
+    /// the gaps in the `seq` of the states read ([`poller::SeqGaps`]).
+    pub replaced_states: u64,
+    /// Commands replaced on the board before the bridge read them, the same way (a cycle
+    /// the controller did not answer is a gap too).
+    pub replaced_commands: u64,
 }
 
 /// Why the bridge could not serve.
@@ -192,7 +205,12 @@ pub fn serve(opts: &Options) -> Result<Report, LiveError> {
         "eqtrack_version".to_owned(),
         env!("CARGO_PKG_VERSION").to_owned(),
     );
-    let shared = Arc::new(Shared::new(channel_infos(), metadata, opts.queue));
+    let shared = Arc::new(Shared::new(
+        channel_infos(),
+        metadata,
+        opts.queue,
+        opts.max_clients,
+    ));
     let quit = Arc::new(AtomicBool::new(false));
     let (ready_tx, ready_rx) = mpsc::channel();
     let (end_tx, end_rx) = mpsc::channel();
@@ -214,7 +232,35 @@ pub fn serve(opts: &Options) -> Result<Report, LiveError> {
         opts.run
     );
     let outcome = accept_until_end(&listener, opts, &shared, &end_rx);
-    let text = match outcome {
+    // the poller first, so the last word has its final counts
+    quit.store(true, Ordering::Release);
+    let _ = poller.join();
+    let replaced = (
+        shared.replaced_states.load(Ordering::Relaxed),
+        shared.replaced_commands.load(Ordering::Relaxed),
+    );
+    let (level, text) = last_word(opts, outcome, replaced);
+    shared.finish(level, text);
+    // the sessions send their last word and close; give them a little longer than they take
+    let until = Instant::now() + Duration::from_secs(2);
+    while shared.sessions.load(Ordering::Acquire) > 0 && Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    Ok(Report {
+        outcome,
+        clients: shared.served.load(Ordering::Relaxed),
+        offered: shared.offered.load(Ordering::Relaxed),
+        sent: shared.sent.load(Ordering::Relaxed),
+        dropped: shared.dropped.load(Ordering::Relaxed),
+        replaced_states: replaced.0,
+        replaced_commands: replaced.1,
+    })
+}
+
+/// What every client is told when the bridge ends: how, and the states and commands
+/// replaced on the boards before the bridge read them, if any.
+fn last_word(opts: &Options, outcome: Outcome, replaced: (u64, u64)) -> (Level, String) {
+    let (level, mut text) = match outcome {
         Outcome::Run(RunEnd::Ended { cycle }) => (
             Level::Info,
             format!("run `{}` ended at cycle {cycle}", opts.run),
@@ -236,21 +282,13 @@ pub fn serve(opts: &Options) -> Result<Report, LiveError> {
         ),
         Outcome::Stopped(sig) => (Level::Warning, format!("eqtrack-live stopped by {sig}")),
     };
-    shared.finish(text.0, text.1);
-    quit.store(true, Ordering::Release);
-    let _ = poller.join();
-    // the sessions send their last word and close; give them a little longer than they take
-    let until = Instant::now() + Duration::from_secs(2);
-    while shared.sessions.load(Ordering::Acquire) > 0 && Instant::now() < until {
-        std::thread::sleep(Duration::from_millis(5));
+    if replaced != (0, 0) {
+        text.push_str(&format!(
+            " ({} states and {} commands were replaced on the boards before the bridge read them, and not shown)",
+            replaced.0, replaced.1
+        ));
     }
-    Ok(Report {
-        outcome,
-        clients: shared.served.load(Ordering::Relaxed),
-        offered: shared.offered.load(Ordering::Relaxed),
-        sent: shared.sent.load(Ordering::Relaxed),
-        dropped: shared.dropped.load(Ordering::Relaxed),
-    })
+    (level, text)
 }
 
 /// Accepts clients (a session thread each) until the poller reports the run's end, no run
@@ -263,32 +301,44 @@ fn accept_until_end(
 ) -> Outcome {
     let started = Instant::now();
     let mut attached = false;
+    // whether the handshakes are full (said once each time they fill)
+    let mut full = false;
     loop {
-        match listener.accept() {
-            Ok((stream, peer)) => {
-                if shared.sessions.load(Ordering::Acquire) >= opts.max_clients {
-                    println!(
-                        "live: client {peer} refused: {} clients already",
-                        opts.max_clients
-                    );
-                    server::refuse_busy(stream, opts.max_clients);
-                } else {
+        // a connection takes a client slot (of `max_clients`) when its handshake is
+        // answered; until then it is one of at most `max_clients` + EXTRA_HANDSHAKES
+        // handshakes, each given HANDSHAKE_DEADLINE in all. When they are full, new
+        // connections wait in the listen backlog until one ends.
+        if !shared.handshake_room() {
+            if !full {
+                println!(
+                    "live: {} connections in their handshake: the next wait to be accepted (each has {:.0} s)",
+                    opts.max_clients + EXTRA_HANDSHAKES,
+                    HANDSHAKE_DEADLINE.as_secs_f64()
+                );
+            }
+            full = true;
+        } else {
+            full = false;
+            match listener.accept() {
+                Ok((stream, peer)) => {
                     // counted here, before its thread runs: a burst of connections cannot
                     // pass the limit
                     shared.sessions.fetch_add(1, Ordering::AcqRel);
+                    shared.handshakes.fetch_add(1, Ordering::AcqRel);
                     let mine = Arc::clone(shared);
                     let spawned = std::thread::Builder::new()
                         .name("live-session".into())
                         .spawn(move || server::session(stream, peer, mine));
                     if let Err(e) = spawned {
+                        shared.handshakes.fetch_sub(1, Ordering::AcqRel);
                         shared.sessions.fetch_sub(1, Ordering::AcqRel);
                         eprintln!("live: cannot serve client {peer}: {e}");
                     }
+                    continue;
                 }
-                continue;
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                Err(e) => eprintln!("live: accept: {e}"),
             }
-            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
-            Err(e) => eprintln!("live: accept: {e}"),
         }
         if let Some(sig) = opts.stop.requested() {
             return Outcome::Stopped(sig);
@@ -329,8 +379,27 @@ fn poll_boards(
     };
     let mut poller = Poller::new(watch, link::process_alive);
     let mut events = Vec::new();
+    // the counts of states and commands replaced before the poller read them, last logged,
+    // and when
+    let mut logged = ((0, 0), Instant::now());
     while !quit.load(Ordering::Acquire) {
         poller.poll(Instant::now(), &mut events);
+        let replaced = (poller.replaced_states(), poller.replaced_commands());
+        shared.replaced_states.store(replaced.0, Ordering::Relaxed);
+        shared
+            .replaced_commands
+            .store(replaced.1, Ordering::Relaxed);
+        if replaced != logged.0 && logged.1.elapsed() >= REPLACED_REPORT_EVERY {
+            println!(
+                "live: {} states and {} commands replaced on the boards before the bridge read them in the last {:.1} s ({} and {} in all)",
+                replaced.0 - logged.0.0,
+                replaced.1 - logged.0.1,
+                logged.1.elapsed().as_secs_f64(),
+                replaced.0,
+                replaced.1
+            );
+            logged = (replaced, Instant::now());
+        }
         for e in events.drain(..) {
             match e {
                 Event::Sample(s) => shared.offer(Arc::new(s)),
@@ -352,6 +421,7 @@ fn poll_boards(
                     drop(m);
                     shared.notify(Level::Info, &text);
                     let _ = end.send(None);
+                    logged.1 = Instant::now();
                 }
                 Event::Ended(e) => {
                     let _ = end.send(Some(e));

@@ -117,8 +117,13 @@ fn main() -> ExitCode {
                 Outcome::Stopped(sig) => (Exit::Signal(sig), format!("stopped by {sig}")),
             };
             println!(
-                "live: {what}; {} clients served, {} messages read from the boards, {} sent, {} dropped in all",
-                report.clients, report.offered, report.sent, report.dropped
+                "live: {what}; {} clients served, {} messages read from the boards, {} sent, {} dropped in all; {} states and {} commands replaced on the boards before the bridge read them",
+                report.clients,
+                report.offered,
+                report.sent,
+                report.dropped,
+                report.replaced_states,
+                report.replaced_commands
             );
             exit.into()
         }

@@ -1,7 +1,8 @@
 //! The poller: what the bridge makes of the run's boards. Each poll reads the newest state,
 //! command and status; a write already seen (same `seq` and stamp) is not sent again, and
-//! each new one becomes one [`Sample`], encoded once for every client. It also follows the
-//! run: it waits for a live plant (a previous run's last state, left on a board some
+//! each new one becomes one [`Sample`], encoded once for every client. The boards hold the
+//! newest write only: a state or command replaced before the poller read it is not shown, and
+//! is counted ([`SeqGaps`], [`Poller::replaced_states`]). It also follows the run: it waits for a live plant (a previous run's last state, left on a board some
 //! process kept open, is not taken for it), and notices the run's end (see [`RunEnd`]).
 
 use ipc_types::{CommandMsg, StateMsg, StatusMsg, WireGroup, flags, name_str, status_flags};
@@ -92,6 +93,40 @@ const LIVENESS_EVERY: Duration = Duration::from_millis(100);
 /// `(seq, stamp)`: one write.
 type Id = (u64, u64);
 
+/// Counts the writes of a board that a reader did not see, from the `seq` of those it did:
+/// a state's `seq` is its cycle, one more each cycle, and a command's the cycle it answers,
+/// so between two writes read with `seq` `a` and `b > a`, `b - a - 1` were replaced before
+/// the reader came. A `seq` that does not grow (the same write again, or a smaller one: a
+/// restarted plant counting from 0) counts nothing and is the new reference.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SeqGaps {
+    last: Option<u64>,
+    total: u64,
+}
+
+impl SeqGaps {
+    /// None read yet.
+    pub fn new() -> SeqGaps {
+        SeqGaps::default()
+    }
+
+    /// Notes a write read with `seq`; returns how many were skipped since the last one read.
+    pub fn read(&mut self, seq: u64) -> u64 {
+        let gap = match self.last {
+            Some(last) if seq > last => seq - last - 1,
+            _ => 0,
+        };
+        self.last = Some(seq);
+        self.total = self.total.saturating_add(gap);
+        gap
+    }
+
+    /// All skipped so far.
+    pub fn total(&self) -> u64 {
+        self.total
+    }
+}
+
 enum Phase {
     /// No live plant yet. `stale`: the state on the board when the poller came, if it was a
     /// finished run's.
@@ -116,6 +151,10 @@ pub struct Poller<B: Boards> {
     seen_state: Option<Id>,
     seen_command: Option<Id>,
     seen_status: Option<Id>,
+    /// States replaced on the board before they were read.
+    state_gaps: SeqGaps,
+    /// Commands replaced on the board before they were read.
+    command_gaps: SeqGaps,
     /// The last cycle whose state was seen.
     last_cycle: u64,
     /// The last cycle as the run's end says it: the shutdown state's `seq` less one, or the
@@ -141,6 +180,8 @@ impl<B: Boards> Poller<B> {
             seen_state: None,
             seen_command: None,
             seen_status: None,
+            state_gaps: SeqGaps::new(),
+            command_gaps: SeqGaps::new(),
             last_cycle: 0,
             end_cycle: 0,
             times: [(u64::MAX, 0.0); 64],
@@ -151,6 +192,18 @@ impl<B: Boards> Poller<B> {
     /// Whether the run has been found (and not yet ended).
     pub fn attached(&self) -> bool {
         matches!(self.phase, Phase::Live { .. })
+    }
+
+    /// States of the run the plant replaced on the board before the poller read them (never
+    /// shown): the gaps in the `seq` of the states read, the shutdown state's included.
+    pub fn replaced_states(&self) -> u64 {
+        self.state_gaps.total()
+    }
+
+    /// Commands replaced on the board before the poller read them, the same way (a cycle the
+    /// controller did not answer leaves a gap too).
+    pub fn replaced_commands(&self) -> u64 {
+        self.command_gaps.total()
     }
 
     /// Reads the boards once; appends what it found to `out`.
@@ -277,6 +330,7 @@ impl<B: Boards> Poller<B> {
         let id = (s.seq, s.stamp_ns);
         (self.seen_state != Some(id)).then(|| {
             self.seen_state = Some(id);
+            self.state_gaps.read(s.seq);
             s
         })
     }
@@ -287,6 +341,7 @@ impl<B: Boards> Poller<B> {
         let id = (c.seq, c.stamp_ns);
         (self.seen_command != Some(id) && c.stamp_ns > since).then(|| {
             self.seen_command = Some(id);
+            self.command_gaps.read(c.seq);
             c
         })
     }
@@ -438,6 +493,82 @@ mod tests {
             s.cdr,
             channels::state_message(6, &state(6, PLANT), 3, 3).cdr()
         );
+    }
+
+    #[test]
+    fn seq_gaps_count_the_writes_not_read_and_a_restart_counts_none() {
+        let mut g = SeqGaps::new();
+        assert_eq!(g.read(5), 0, "the first read has nothing before it");
+        assert_eq!(g.read(6), 0);
+        assert_eq!(g.read(9), 2, "7 and 8 replaced");
+        assert_eq!(g.read(9), 0, "the same write again");
+        assert_eq!(g.total(), 2);
+        // a restarted plant counts from 0 again: no gap, no overflow, and its own gaps count
+        assert_eq!(g.read(0), 0);
+        assert_eq!(g.read(3), 2);
+        assert_eq!(g.total(), 4);
+        // the extremes: a seq that goes back from the top, and the largest jump
+        let mut g = SeqGaps::new();
+        assert_eq!(g.read(u64::MAX), 0);
+        assert_eq!(g.read(0), 0);
+        assert_eq!(g.read(u64::MAX), u64::MAX - 1);
+        assert_eq!(g.read(1), 0);
+        assert_eq!(g.read(u64::MAX), u64::MAX - 2);
+        assert_eq!(g.total(), u64::MAX, "the total saturates");
+    }
+
+    #[test]
+    fn the_poller_counts_states_and_commands_replaced_before_it_read_them() {
+        let fake = Fake::default();
+        let mut p = Poller::new(&fake, alive);
+        let mut out = Vec::new();
+        let t0 = Instant::now();
+        // before the run is found, nothing counts: the first state read is the reference
+        *fake.state.borrow_mut() = Some(state(10, PLANT));
+        *fake.command.borrow_mut() = Some(command(10));
+        p.poll(t0, &mut out);
+        p.poll(t0, &mut out);
+        assert_eq!((p.replaced_states(), p.replaced_commands()), (0, 0));
+        // 11 and 12 replaced before the poller came back; the command of 11 too
+        *fake.state.borrow_mut() = Some(state(13, PLANT));
+        *fake.command.borrow_mut() = Some(command(12));
+        p.poll(t0, &mut out);
+        assert_eq!((p.replaced_states(), p.replaced_commands()), (2, 1));
+        for k in 14..20 {
+            *fake.state.borrow_mut() = Some(state(k, PLANT));
+            *fake.command.borrow_mut() = Some(command(k));
+            p.poll(t0, &mut out);
+        }
+        assert_eq!((p.replaced_states(), p.replaced_commands()), (2, 2));
+        assert_eq!(
+            samples(&out).iter().filter(|s| s.0 == 0).count(),
+            8,
+            "states 10, 13 and 14 to 19 shown"
+        );
+        // a plant restarted under the run's name (seq back to 0): no gap counted, no panic
+        // (its clock's stamps are later than the first plant's)
+        let later = |mut c: CommandMsg| {
+            c.stamp_ns += 1_000_000_000_000;
+            c
+        };
+        *fake.state.borrow_mut() = Some(state(0, PLANT));
+        *fake.command.borrow_mut() = Some(later(command(0)));
+        p.poll(t0, &mut out);
+        *fake.state.borrow_mut() = Some(state(1, PLANT));
+        *fake.command.borrow_mut() = Some(later(command(1)));
+        p.poll(t0, &mut out);
+        assert_eq!((p.replaced_states(), p.replaced_commands()), (2, 2));
+        assert_eq!(
+            samples(&out).iter().filter(|s| s.0 == 1).count(),
+            10,
+            "commands 10, 12 and 14 to 19, then 0 and 1 of the new plant"
+        );
+        // a missed last state: the shutdown state's seq (the last state's plus one) shows it
+        let mut bye = state(4, PLANT);
+        bye.flags |= flags::SHUTDOWN;
+        *fake.state.borrow_mut() = Some(bye);
+        p.poll(t0, &mut out);
+        assert_eq!(p.replaced_states(), 4, "states 2 and 3 replaced");
     }
 
     #[test]

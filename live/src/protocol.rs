@@ -119,24 +119,25 @@ pub enum ClientOp {
     Subscribe {
         /// Entries with integer `id` and `channelId` in the u32 range.
         ok: Vec<Subscription>,
-        /// One line per malformed entry.
-        bad: Vec<String>,
+        /// One [`Refusal::BadSubscription`] per malformed entry.
+        bad: Vec<Refusal>,
     },
     /// `unsubscribe`: the well-formed ids, and what is wrong with the others.
     Unsubscribe {
         /// Integer ids in the u32 range.
         ok: Vec<u32>,
-        /// One line per malformed id.
-        bad: Vec<String>,
+        /// One [`Refusal::BadSubscriptionId`] per malformed id.
+        bad: Vec<Refusal>,
     },
-    /// Any other `op` (the bridge declares no capability, so it supports none).
+    /// Any other `op` (the bridge declares no capability, so it supports none), cut to 64
+    /// characters.
     Other(String),
 }
 
 /// Why a client's text message means nothing.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ParseError {
-    /// Not JSON.
+    /// Not JSON (serde_json's message: a syntax error, nesting deeper than 128, ...).
     NotJson(String),
     /// JSON, but not an object with a string `op`.
     NoOp,
@@ -154,6 +155,123 @@ impl std::fmt::Display for ParseError {
         }
     }
 }
+
+impl std::error::Error for ParseError {}
+
+/// What the bridge refuses of a client's message, one part each; its text is what the
+/// client is told (in an error `status` message), its [`kind`](Refusal::kind) a name.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Refusal {
+    /// The text message means nothing.
+    Unreadable(ParseError),
+    /// Entry `index` of a `subscribe` has no integer `id` and `channelId` in the u32 range.
+    BadSubscription {
+        /// Its place in `subscriptions`.
+        index: usize,
+    },
+    /// Entry `index` of an `unsubscribe` is not an integer in the u32 range.
+    BadSubscriptionId {
+        /// Its place in `subscriptionIds`.
+        index: usize,
+    },
+    /// Subscription `id` names a channel that was not advertised.
+    UnknownChannel {
+        /// The subscription id.
+        id: u32,
+        /// The channel it names.
+        channel_id: u32,
+    },
+    /// Subscription id `id` is in use.
+    IdInUse {
+        /// The subscription id.
+        id: u32,
+    },
+    /// Channel `channel_id` is already subscribed, as `existing` (one subscription per
+    /// channel).
+    ChannelTaken {
+        /// The subscription id asked for.
+        id: u32,
+        /// The channel.
+        channel_id: u32,
+        /// Its subscription.
+        existing: u32,
+    },
+    /// `unsubscribe` of an id that is not subscribed.
+    NotSubscribed {
+        /// The id.
+        id: u32,
+    },
+    /// An `op` the bridge does not support (at most 64 characters of it).
+    Unsupported {
+        /// The op.
+        op: String,
+    },
+    /// A binary message (the bridge takes none: no `clientPublish`, no services).
+    Binary,
+}
+
+impl Refusal {
+    /// The refusal's name: `NotJson`, `NoOp`, `NoList`, `BadSubscription`,
+    /// `BadSubscriptionId`, `UnknownChannel`, `IdInUse`, `ChannelTaken`, `NotSubscribed`,
+    /// `Unsupported` or `Binary`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Refusal::Unreadable(ParseError::NotJson(_)) => "NotJson",
+            Refusal::Unreadable(ParseError::NoOp) => "NoOp",
+            Refusal::Unreadable(ParseError::NoList(_)) => "NoList",
+            Refusal::BadSubscription { .. } => "BadSubscription",
+            Refusal::BadSubscriptionId { .. } => "BadSubscriptionId",
+            Refusal::UnknownChannel { .. } => "UnknownChannel",
+            Refusal::IdInUse { .. } => "IdInUse",
+            Refusal::ChannelTaken { .. } => "ChannelTaken",
+            Refusal::NotSubscribed { .. } => "NotSubscribed",
+            Refusal::Unsupported { .. } => "Unsupported",
+            Refusal::Binary => "Binary",
+        }
+    }
+}
+
+impl std::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Refusal::Unreadable(e) => write!(f, "cannot read a client message: {e}"),
+            Refusal::BadSubscription { index } => write!(
+                f,
+                "subscription {index}: `id` and `channelId` must be integers from 0 to 4294967295"
+            ),
+            Refusal::BadSubscriptionId { index } => write!(
+                f,
+                "subscription id {index}: must be an integer from 0 to 4294967295"
+            ),
+            Refusal::UnknownChannel { id, channel_id } => write!(
+                f,
+                "subscription {id}: no channel {channel_id} was advertised"
+            ),
+            Refusal::IdInUse { id } => write!(
+                f,
+                "subscription {id}: the id is in use (unsubscribe it first)"
+            ),
+            Refusal::ChannelTaken {
+                id,
+                channel_id,
+                existing,
+            } => write!(
+                f,
+                "subscription {id}: channel {channel_id} is already subscribed as {existing}"
+            ),
+            Refusal::NotSubscribed { id } => write!(f, "subscription {id}: not subscribed"),
+            Refusal::Unsupported { op } => write!(
+                f,
+                "op `{op}` is not supported by eqtrack-live (it only publishes)"
+            ),
+            Refusal::Binary => f.write_str(
+                "eqtrack-live takes no binary messages (it does not offer clientPublish or services)",
+            ),
+        }
+    }
+}
+
+impl std::error::Error for Refusal {}
 
 /// A JSON number that is an integer in the u32 range.
 fn as_u32(v: Option<&Json>) -> Option<u32> {
@@ -174,9 +292,7 @@ pub fn parse_client_message(text: &str) -> Result<ClientOp, ParseError> {
             for (i, s) in list.iter().enumerate() {
                 match (as_u32(s.get("id")), as_u32(s.get("channelId"))) {
                     (Some(id), Some(channel_id)) => ok.push(Subscription { id, channel_id }),
-                    _ => bad.push(format!(
-                        "subscription {i}: `id` and `channelId` must be integers from 0 to 4294967295"
-                    )),
+                    _ => bad.push(Refusal::BadSubscription { index: i }),
                 }
             }
             Ok(ClientOp::Subscribe { ok, bad })
@@ -190,9 +306,7 @@ pub fn parse_client_message(text: &str) -> Result<ClientOp, ParseError> {
             for (i, s) in list.iter().enumerate() {
                 match as_u32(Some(s)) {
                     Some(id) => ok.push(id),
-                    None => bad.push(format!(
-                        "subscription id {i}: must be an integer from 0 to 4294967295"
-                    )),
+                    None => bad.push(Refusal::BadSubscriptionId { index: i }),
                 }
             }
             Ok(ClientOp::Unsubscribe { ok, bad })
@@ -214,27 +328,29 @@ impl Subscriptions {
         Subscriptions::default()
     }
 
-    /// Adds `subs`; `known` says which channel ids were advertised. Returns one line per
+    /// Adds `subs`; `known` says which channel ids were advertised. Returns one refusal per
     /// entry refused (an unknown channel, an id in use, a channel already subscribed); the
     /// others are taken.
-    pub fn subscribe(&mut self, subs: &[Subscription], known: impl Fn(u32) -> bool) -> Vec<String> {
+    pub fn subscribe(
+        &mut self,
+        subs: &[Subscription],
+        known: impl Fn(u32) -> bool,
+    ) -> Vec<Refusal> {
         let mut refused = Vec::new();
         for s in subs {
             if !known(s.channel_id) {
-                refused.push(format!(
-                    "subscription {}: no channel {} was advertised",
-                    s.id, s.channel_id
-                ));
+                refused.push(Refusal::UnknownChannel {
+                    id: s.id,
+                    channel_id: s.channel_id,
+                });
             } else if self.by_id.contains_key(&s.id) {
-                refused.push(format!(
-                    "subscription {}: the id is in use (unsubscribe it first)",
-                    s.id
-                ));
-            } else if let Some(id) = self.subscription_of(s.channel_id) {
-                refused.push(format!(
-                    "subscription {}: channel {} is already subscribed as {id}",
-                    s.id, s.channel_id
-                ));
+                refused.push(Refusal::IdInUse { id: s.id });
+            } else if let Some(existing) = self.subscription_of(s.channel_id) {
+                refused.push(Refusal::ChannelTaken {
+                    id: s.id,
+                    channel_id: s.channel_id,
+                    existing,
+                });
             } else {
                 self.by_id.insert(s.id, s.channel_id);
             }
@@ -242,12 +358,19 @@ impl Subscriptions {
         refused
     }
 
-    /// Removes `ids`; returns one line per id that was not subscribed.
-    pub fn unsubscribe(&mut self, ids: &[u32]) -> Vec<String> {
+    /// Removes `ids`; returns one refusal per id that was not subscribed.
+    pub fn unsubscribe(&mut self, ids: &[u32]) -> Vec<Refusal> {
         ids.iter()
             .filter(|id| self.by_id.remove(id).is_none())
-            .map(|id| format!("subscription {id}: not subscribed"))
+            .map(|&id| Refusal::NotSubscribed { id })
             .collect()
+    }
+
+    /// The active subscriptions, by id.
+    pub fn iter(&self) -> impl Iterator<Item = Subscription> + '_ {
+        self.by_id
+            .iter()
+            .map(|(&id, &channel_id)| Subscription { id, channel_id })
     }
 
     /// The subscription id of channel `channel_id`, if it is subscribed.
@@ -274,6 +397,89 @@ impl Subscriptions {
     /// Whether none is.
     pub fn is_empty(&self) -> bool {
         self.by_id.is_empty()
+    }
+}
+
+/// A client message as a session reads it from its WebSocket.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Incoming<'a> {
+    /// A text message (valid UTF-8: the WebSocket library refuses others).
+    Text(&'a str),
+    /// A binary message.
+    Binary(&'a [u8]),
+}
+
+/// What a session does with one client message.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Answer {
+    /// What was refused, in order (empty: all of it was taken).
+    pub refusals: Vec<Refusal>,
+    /// The text message sent back: an error `status` naming the first [`SHOWN_REFUSALS`]
+    /// refusals; `None` when nothing was refused.
+    pub reply: Option<String>,
+}
+
+/// At most this many refusals are named in one `status` answer.
+pub const SHOWN_REFUSALS: usize = 8;
+
+/// A client session's subscriptions and how it answers its client's messages: `subscribe`
+/// and `unsubscribe` change the subscriptions; anything else (an unknown op, text that is not
+/// JSON, a subscription to a channel that was not advertised, an id in use, a binary
+/// message) is refused, answered with an error `status` message and otherwise ignored.
+#[derive(Debug, Clone)]
+pub struct SessionState {
+    subs: Subscriptions,
+    /// The advertised channel ids.
+    advertised: Vec<u32>,
+}
+
+impl SessionState {
+    /// A session with no subscription, over the advertised `channels`.
+    pub fn new(channels: &[ChannelInfo]) -> SessionState {
+        SessionState {
+            subs: Subscriptions::new(),
+            advertised: channels.iter().map(|c| c.id).collect(),
+        }
+    }
+
+    /// Its subscriptions.
+    pub fn subscriptions(&self) -> &Subscriptions {
+        &self.subs
+    }
+
+    /// Whether channel `channel_id` was advertised.
+    pub fn advertised(&self, channel_id: u32) -> bool {
+        self.advertised.contains(&channel_id)
+    }
+
+    /// Takes one client message: changes the subscriptions as it asks, and says what was
+    /// refused and what to answer.
+    pub fn handle(&mut self, msg: Incoming<'_>) -> Answer {
+        let refusals = match msg {
+            Incoming::Binary(_) => vec![Refusal::Binary],
+            Incoming::Text(text) => match parse_client_message(text) {
+                Ok(ClientOp::Subscribe { ok, mut bad }) => {
+                    let advertised = &self.advertised;
+                    bad.extend(self.subs.subscribe(&ok, |c| advertised.contains(&c)));
+                    bad
+                }
+                Ok(ClientOp::Unsubscribe { ok, mut bad }) => {
+                    bad.extend(self.subs.unsubscribe(&ok));
+                    bad
+                }
+                Ok(ClientOp::Other(op)) => vec![Refusal::Unsupported { op }],
+                Err(e) => vec![Refusal::Unreadable(e)],
+            },
+        };
+        let reply = (!refusals.is_empty()).then(|| {
+            let shown: Vec<String> = refusals
+                .iter()
+                .take(SHOWN_REFUSALS)
+                .map(ToString::to_string)
+                .collect();
+            status(Level::Error, &shown.join("; "))
+        });
+        Answer { refusals, reply }
     }
 }
 
@@ -375,7 +581,8 @@ mod tests {
             }]
         );
         assert_eq!(bad.len(), 5, "{bad:?}");
-        assert!(bad[0].starts_with("subscription 1:"));
+        assert_eq!(bad[0], Refusal::BadSubscription { index: 1 });
+        assert!(bad[0].to_string().starts_with("subscription 1:"));
         let ClientOp::Unsubscribe { ok, bad } =
             parse_client_message(r#"{"op":"unsubscribe","subscriptionIds":[3, "x", 2.5, 9]}"#)
                 .unwrap()
@@ -411,9 +618,9 @@ mod tests {
         assert!(s.subscribe(&[sub(0, 1), sub(1, 2)], known).is_empty());
         let refused = s.subscribe(&[sub(2, 9), sub(0, 3), sub(5, 1), sub(6, 3)], known);
         assert_eq!(refused.len(), 3, "{refused:?}");
-        assert!(refused[0].contains("no channel 9"));
-        assert!(refused[1].contains("in use"));
-        assert!(refused[2].contains("already subscribed as 0"));
+        assert!(refused[0].to_string().contains("no channel 9"));
+        assert!(refused[1].to_string().contains("in use"));
+        assert!(refused[2].to_string().contains("already subscribed as 0"));
         assert_eq!(s.len(), 3);
         assert_eq!(s.subscription_of(3), Some(6));
         assert_eq!(s.mask(), 0b1110);
@@ -423,6 +630,72 @@ mod tests {
         // after unsubscribing, the id may be reused
         assert!(s.subscribe(&[sub(0, 1)], known).is_empty());
         assert_eq!(s.subscription_of(1), Some(0));
+    }
+
+    #[test]
+    fn a_session_answers_refusals_with_one_error_status_and_takes_the_rest() {
+        let channels: Vec<ChannelInfo> = (1..=3)
+            .map(|id| ChannelInfo {
+                id,
+                topic: "/t",
+                schema_name: "s",
+                schema: String::new(),
+            })
+            .collect();
+        let mut s = SessionState::new(&channels);
+        // as FoxgloveClient sends them
+        let a = s.handle(Incoming::Text(
+            r#"{"op":"subscribe","subscriptions":[{"id":0,"channelId":1}]}"#,
+        ));
+        assert_eq!(
+            a,
+            Answer {
+                refusals: vec![],
+                reply: None
+            }
+        );
+        let a = s.handle(Incoming::Text(
+            r#"{"op":"subscribe","subscriptions":[{"id":1,"channelId":2},{"id":0,"channelId":3},{"id":2,"channelId":7}]}"#,
+        ));
+        let kinds: Vec<&str> = a.refusals.iter().map(Refusal::kind).collect();
+        assert_eq!(kinds, ["IdInUse", "UnknownChannel"]);
+        let reply: Json = serde_json::from_str(a.reply.as_deref().unwrap()).unwrap();
+        assert_eq!(
+            reply,
+            json!({"op": "status", "level": 2, "message":
+                "subscription 0: the id is in use (unsubscribe it first); subscription 2: no channel 7 was advertised"})
+        );
+        assert_eq!(s.subscriptions().mask(), 0b0110);
+        let texts = [
+            (
+                Incoming::Binary(&[1, 0, 0, 0, 0]),
+                "eqtrack-live takes no binary messages (it does not offer clientPublish or services)",
+            ),
+            (
+                Incoming::Text(r#"{"op":"subscribeConnectionGraph"}"#),
+                "op `subscribeConnectionGraph` is not supported by eqtrack-live (it only publishes)",
+            ),
+            (
+                Incoming::Text("[1]"),
+                "cannot read a client message: not a JSON object with a string `op`",
+            ),
+        ];
+        for (msg, want) in texts {
+            let a = s.handle(msg);
+            assert_eq!(a.reply, Some(status(Level::Error, want)));
+        }
+        // more than SHOWN_REFUSALS are counted, not all named
+        let a = s.handle(Incoming::Text(
+            r#"{"op":"unsubscribe","subscriptionIds":[9,9,9,9,9,9,9,9,9,9,0,1]}"#,
+        ));
+        assert_eq!(a.refusals.len(), 10);
+        let reply: Json = serde_json::from_str(a.reply.as_deref().unwrap()).unwrap();
+        assert_eq!(
+            reply["message"].as_str().unwrap().matches("; ").count(),
+            SHOWN_REFUSALS - 1
+        );
+        assert!(s.subscriptions().is_empty());
+        assert_eq!(s.subscriptions().mask(), 0);
     }
 
     proptest! {

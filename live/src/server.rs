@@ -7,13 +7,21 @@
 //! non-blocking after the handshake; tungstenite's write buffer is bounded too
 //! (`max_write_buffer_size`), and a write that does not fit is another drop. So a client
 //! that stops reading costs at most its queue and its write buffer, whatever it does.
+//!
+//! A connection has [`HANDSHAKE_DEADLINE`] from its acceptance to finish its WebSocket
+//! handshake, however slowly its bytes come; then it is closed. Until its handshake is done it
+//! does not count against `--max-clients` (a slot is taken when the handshake is answered,
+//! and refused with HTTP 503 if none is free), and at most `--max-clients` +
+//! [`EXTRA_HANDSHAKES`] connections are in their handshake at once (more wait in the listen
+//! backlog until one ends): idle or trickling connections cannot shut real clients out for
+//! longer than the deadline.
 
 use crate::poller::Sample;
 use crate::protocol::{
-    self, ChannelInfo, ClientOp, Level, Subscriptions, choose_subprotocol, message_data,
+    self, ChannelInfo, Incoming, Level, SessionState, choose_subprotocol, message_data,
 };
 use std::collections::BTreeMap;
-use std::io::ErrorKind;
+use std::io::{self, ErrorKind, Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};
@@ -36,8 +44,12 @@ pub const MAX_WRITE_BUFFER: usize = 256 * 1024;
 /// for a client that does not read: that client's messages are dropped within a second or
 /// two, rather than after many seconds of ever staler data queued in the kernel.
 pub const SOCKET_SEND_BUFFER: usize = 256 * 1024;
-/// A client must finish its handshake within this.
-const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
+/// A connection must finish its WebSocket handshake within this of its acceptance (the
+/// whole handshake, not each read), or it is closed.
+pub const HANDSHAKE_DEADLINE: Duration = Duration::from_secs(5);
+/// Connections in their handshake at once: at most `--max-clients` plus this many; more
+/// wait in the listen backlog (not accepted) until one ends.
+pub const EXTRA_HANDSHAKES: usize = 16;
 /// A session thread wakes this often: it writes what was queued since, and reads its client.
 /// The messages reach the client up to this late, in one write instead of one each.
 const SESSION_TICK: Duration = Duration::from_millis(10);
@@ -79,11 +91,23 @@ pub(crate) struct Shared {
     pub(crate) channels: Vec<ChannelInfo>,
     pub(crate) session_id: String,
     pub(crate) queue: usize,
+    /// Clients past their handshake at once, at most.
+    pub(crate) max_clients: usize,
+    /// Session threads (in their handshake or serving).
     pub(crate) sessions: AtomicUsize,
+    /// Connections in their handshake.
+    pub(crate) handshakes: AtomicUsize,
+    /// Clients past their handshake ([`ClientSlot`]s taken).
+    open: AtomicUsize,
     pub(crate) served: AtomicU64,
     pub(crate) sent: AtomicU64,
     pub(crate) dropped: AtomicU64,
     pub(crate) offered: AtomicU64,
+    /// States and commands replaced on the boards before the poller read them (the gaps in
+    /// their `seq`), as the poller last counted them.
+    pub(crate) replaced_states: AtomicU64,
+    /// See `replaced_states`.
+    pub(crate) replaced_commands: AtomicU64,
 }
 
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -95,6 +119,7 @@ impl Shared {
         channels: Vec<ChannelInfo>,
         metadata: BTreeMap<String, String>,
         queue: usize,
+        max_clients: usize,
     ) -> Shared {
         let unix_ms = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
@@ -107,12 +132,22 @@ impl Shared {
             channels,
             session_id: format!("{}-{unix_ms}", std::process::id()),
             queue: queue.max(1),
+            max_clients,
             sessions: AtomicUsize::new(0),
+            handshakes: AtomicUsize::new(0),
+            open: AtomicUsize::new(0),
             served: AtomicU64::new(0),
             sent: AtomicU64::new(0),
             dropped: AtomicU64::new(0),
             offered: AtomicU64::new(0),
+            replaced_states: AtomicU64::new(0),
+            replaced_commands: AtomicU64::new(0),
         }
+    }
+
+    /// Whether another connection may start its handshake.
+    pub(crate) fn handshake_room(&self) -> bool {
+        self.handshakes.load(Ordering::Acquire) < self.max_clients + EXTRA_HANDSHAKES
     }
 
     /// Offers `sample` to every client subscribed to its channel: never blocks; a full
@@ -174,23 +209,29 @@ fn negotiate(req: &Request, mut resp: Response) -> Result<(Response, &'static st
                 .insert("Sec-WebSocket-Protocol", HeaderValue::from_static(p));
             Ok((resp, p))
         }
-        None => {
-            let body = format!(
+        None => Err(refusal(
+            StatusCode::BAD_REQUEST,
+            format!(
                 "eqtrack-live speaks the Foxglove WebSocket protocol: offer the subprotocol {} or {}\n",
                 protocol::SUBPROTOCOLS[0],
                 protocol::SUBPROTOCOLS[1]
-            );
-            let mut refusal = ErrorResponse::new(Some(body.clone()));
-            *refusal.status_mut() = StatusCode::BAD_REQUEST;
-            let h = refusal.headers_mut();
-            h.insert("Content-Type", HeaderValue::from_static("text/plain"));
-            h.insert("Connection", HeaderValue::from_static("close"));
-            if let Ok(len) = HeaderValue::from_str(&body.len().to_string()) {
-                h.insert("Content-Length", len);
-            }
-            Err(refusal)
-        }
+            ),
+        )),
     }
+}
+
+/// An HTTP refusal of a handshake, with `body` as plain text.
+fn refusal(status: StatusCode, body: String) -> ErrorResponse {
+    let len = HeaderValue::from_str(&body.len().to_string());
+    let mut refusal = ErrorResponse::new(Some(body));
+    *refusal.status_mut() = status;
+    let h = refusal.headers_mut();
+    h.insert("Content-Type", HeaderValue::from_static("text/plain"));
+    h.insert("Connection", HeaderValue::from_static("close"));
+    if let Ok(len) = len {
+        h.insert("Content-Length", len);
+    }
+    refusal
 }
 
 fn ws_config() -> WebSocketConfig {
@@ -202,22 +243,95 @@ fn ws_config() -> WebSocketConfig {
         .max_frame_size(Some(MAX_CLIENT_MESSAGE))
 }
 
-/// Refuses a connection over the client limit: HTTP 503, without reading its request.
-pub(crate) fn refuse_busy(mut stream: TcpStream, limit: usize) {
-    use std::io::Write;
-    let body = format!("eqtrack-live serves at most {limit} clients at once\n");
-    let _ = stream.set_write_timeout(Some(Duration::from_millis(100)));
-    let _ = write!(
-        stream,
-        "HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
-        body.len()
-    );
+/// A client's socket, with a deadline while its handshake lasts: a read or write then waits
+/// at most until the deadline, and fails (`TimedOut`) once it has passed, so the handshake
+/// as a whole takes at most [`HANDSHAKE_DEADLINE`] however slowly the client's bytes come.
+/// Without a deadline (after the handshake) it is the socket itself.
+struct Conn {
+    stream: TcpStream,
+    deadline: Option<Instant>,
+}
+
+impl Conn {
+    /// The time left before the deadline (`None`: no deadline), or `TimedOut`.
+    fn left(&self) -> io::Result<Option<Duration>> {
+        let Some(until) = self.deadline else {
+            return Ok(None);
+        };
+        let left = until.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(io::Error::new(
+                ErrorKind::TimedOut,
+                "the handshake's deadline passed",
+            ));
+        }
+        Ok(Some(left))
+    }
+
+    /// A would-block (the socket's timeout) during the handshake is the deadline.
+    fn timed_out<T>(&self, r: io::Result<T>) -> io::Result<T> {
+        match r {
+            Err(e) if self.deadline.is_some() && e.kind() == ErrorKind::WouldBlock => Err(
+                io::Error::new(ErrorKind::TimedOut, "the handshake's deadline passed"),
+            ),
+            r => r,
+        }
+    }
+}
+
+impl Read for Conn {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        if let Some(left) = self.left()? {
+            self.stream.set_read_timeout(Some(left))?;
+        }
+        let r = self.stream.read(buf);
+        self.timed_out(r)
+    }
+}
+
+impl Write for Conn {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        if let Some(left) = self.left()? {
+            self.stream.set_write_timeout(Some(left))?;
+        }
+        let r = self.stream.write(buf);
+        self.timed_out(r)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.stream.flush()
+    }
+}
+
+/// A client's place among the `max_clients`: taken when its handshake is answered, given
+/// back when dropped.
+struct ClientSlot(Arc<Shared>);
+
+impl ClientSlot {
+    /// A free slot, if there is one.
+    fn take(shared: &Arc<Shared>) -> Option<ClientSlot> {
+        shared
+            .open
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| {
+                (n < shared.max_clients).then_some(n + 1)
+            })
+            .ok()
+            .map(|_| ClientSlot(Arc::clone(shared)))
+    }
+}
+
+impl Drop for ClientSlot {
+    fn drop(&mut self) {
+        self.0.open.fetch_sub(1, Ordering::AcqRel);
+    }
 }
 
 /// One client, from its handshake to its end (a thread of its own). The listener counted
-/// it in `shared.sessions` before starting it; it counts itself out.
+/// it in `shared.sessions` and `shared.handshakes` before starting it; it counts itself out.
 pub(crate) fn session(stream: TcpStream, peer: SocketAddr, shared: Arc<Shared>) {
-    if let Some(mut s) = Session::open(stream, peer, &shared) {
+    let opened = Session::open(stream, peer, &shared);
+    shared.handshakes.fetch_sub(1, Ordering::AcqRel);
+    if let Some(mut s) = opened {
         s.run();
         lock(&shared.clients).retain(|c| c.id != s.id);
         shared.sent.fetch_add(s.sent, Ordering::Relaxed);
@@ -235,16 +349,87 @@ pub(crate) fn session(stream: TcpStream, peer: SocketAddr, shared: Arc<Shared>) 
     shared.sessions.fetch_sub(1, Ordering::AcqRel);
 }
 
+/// The WebSocket handshake of a client just accepted, within [`HANDSHAKE_DEADLINE`] of now:
+/// the socket, the subprotocol chosen and the client's slot; `None` (logged) if the client is
+/// refused (no subprotocol of ours: HTTP 400; no free slot: HTTP 503), leaves, or does not
+/// finish in time (its connection is then closed).
+fn handshake(
+    stream: TcpStream,
+    peer: SocketAddr,
+    shared: &Arc<Shared>,
+) -> Option<(WebSocket<Conn>, &'static str, ClientSlot)> {
+    let _ = stream.set_nonblocking(false);
+    let _ = stream.set_nodelay(true);
+    let conn = Conn {
+        stream,
+        deadline: Some(Instant::now() + HANDSHAKE_DEADLINE),
+    };
+    let mut chosen = "";
+    let mut slot = None;
+    // tungstenite's callback type: its error is an HTTP response
+    #[allow(clippy::result_large_err)]
+    let callback = |req: &Request, resp: Response| {
+        let (resp, p) = negotiate(req, resp)?;
+        chosen = p;
+        slot = ClientSlot::take(shared);
+        if slot.is_some() {
+            Ok(resp)
+        } else {
+            Err(refusal(
+                StatusCode::SERVICE_UNAVAILABLE,
+                format!(
+                    "eqtrack-live serves at most {} clients at once\n",
+                    shared.max_clients
+                ),
+            ))
+        }
+    };
+    let ws = match tungstenite::accept_hdr_with_config(conn, callback, Some(ws_config())) {
+        Ok(ws) => ws,
+        Err(tungstenite::HandshakeError::Failure(WsError::Http(r))) => {
+            let code = r.status().as_u16();
+            if r.status() == StatusCode::SERVICE_UNAVAILABLE {
+                println!(
+                    "live: client {peer} refused (HTTP {code}): {} clients already",
+                    shared.max_clients
+                );
+            } else {
+                println!(
+                    "live: client {peer} refused (HTTP {code}): no subprotocol of ours offered"
+                );
+            }
+            return None;
+        }
+        Err(tungstenite::HandshakeError::Failure(WsError::Io(e)))
+            if e.kind() == ErrorKind::TimedOut =>
+        {
+            println!(
+                "live: client {peer}: no WebSocket handshake within {:.0} s; closed",
+                HANDSHAKE_DEADLINE.as_secs_f64()
+            );
+            return None;
+        }
+        Err(e) => {
+            println!("live: client {peer}: no WebSocket handshake ({e})");
+            return None;
+        }
+    };
+    Some((ws, chosen, slot?))
+}
+
 /// A session's state.
 struct Session {
     id: u64,
-    ws: WebSocket<TcpStream>,
+    ws: WebSocket<Conn>,
     peer: SocketAddr,
     shared: Arc<Shared>,
     rx: Receiver<Item>,
     mask: Arc<AtomicU32>,
     dropped: Arc<AtomicU64>,
-    subs: Subscriptions,
+    /// Its subscriptions, and how it answers its client.
+    state: SessionState,
+    /// Its place among the `max_clients`.
+    _slot: ClientSlot,
     sent: u64,
     since: Instant,
     /// Drops reported so far, and when.
@@ -254,42 +439,19 @@ struct Session {
 }
 
 impl Session {
-    /// The handshake, `serverInfo` and `advertise`; `None` (logged) if the client is
-    /// refused or leaves.
+    /// The handshake (within [`HANDSHAKE_DEADLINE`] of now), `serverInfo` and
+    /// `advertise`; `None` (logged) if the client is refused, leaves, or does not finish its
+    /// handshake in time (its connection is then closed).
     fn open(stream: TcpStream, peer: SocketAddr, shared: &Arc<Shared>) -> Option<Session> {
-        let _ = stream.set_nonblocking(false);
-        let _ = stream.set_read_timeout(Some(HANDSHAKE_TIMEOUT));
-        let _ = stream.set_write_timeout(Some(HANDSHAKE_TIMEOUT));
-        let _ = stream.set_nodelay(true);
-        let mut chosen = "";
-        // tungstenite's callback type: its error is an HTTP response
-        #[allow(clippy::result_large_err)]
-        let callback = |req: &Request, resp: Response| {
-            negotiate(req, resp).map(|(resp, p)| {
-                chosen = p;
-                resp
-            })
-        };
-        let mut ws = match tungstenite::accept_hdr_with_config(stream, callback, Some(ws_config()))
-        {
-            Ok(ws) => ws,
-            Err(tungstenite::HandshakeError::Failure(WsError::Http(r))) => {
-                println!(
-                    "live: client {peer} refused (HTTP {}): no subprotocol of ours offered",
-                    r.status().as_u16()
-                );
-                return None;
-            }
-            Err(e) => {
-                println!("live: client {peer}: no WebSocket handshake ({e})");
-                return None;
-            }
-        };
-        if ws.get_mut().set_nonblocking(true).is_err() {
+        let (mut ws, chosen, slot) = handshake(stream, peer, shared)?;
+        ws.get_mut().deadline = None;
+        if ws.get_mut().stream.set_nonblocking(true).is_err() {
             return None;
         }
         let sndbuf = nix::sys::socket::sockopt::SndBuf;
-        if let Err(e) = nix::sys::socket::setsockopt(ws.get_ref(), sndbuf, &SOCKET_SEND_BUFFER) {
+        if let Err(e) =
+            nix::sys::socket::setsockopt(&ws.get_ref().stream, sndbuf, &SOCKET_SEND_BUFFER)
+        {
             println!("live: client {peer}: cannot bound its socket's send buffer ({e})");
         }
         let (tx, rx) = sync_channel(shared.queue);
@@ -313,7 +475,8 @@ impl Session {
             rx,
             mask,
             dropped,
-            subs: Subscriptions::new(),
+            state: SessionState::new(&shared.channels),
+            _slot: slot,
             sent: 0,
             since: Instant::now(),
             reported: (0, Instant::now()),
@@ -362,7 +525,11 @@ impl Session {
     fn write_item(&mut self, item: Item) {
         match item {
             Item::Sample(s) => {
-                let Some(sub) = self.subs.subscription_of(s.channel as u32 + 1) else {
+                let Some(sub) = self
+                    .state
+                    .subscriptions()
+                    .subscription_of(s.channel as u32 + 1)
+                else {
                     return;
                 };
                 let frame = message_data(sub, s.log_time, &s.cdr);
@@ -417,11 +584,8 @@ impl Session {
                 return;
             }
             match self.ws.read() {
-                Ok(WsMessage::Text(t)) => self.on_text(t.as_str()),
-                Ok(WsMessage::Binary(_)) => self.text(protocol::status(
-                    Level::Error,
-                    "eqtrack-live takes no binary messages (it does not offer clientPublish or services)",
-                )),
+                Ok(WsMessage::Text(t)) => self.answer(Incoming::Text(t.as_str())),
+                Ok(WsMessage::Binary(b)) => self.answer(Incoming::Binary(&b)),
                 Ok(WsMessage::Close(_)) => {
                     // tungstenite queued the close's answer: hand it over
                     let _ = self.ws.flush();
@@ -445,29 +609,14 @@ impl Session {
         }
     }
 
-    /// Answers one text message; a problem is told back in a `status` message.
-    fn on_text(&mut self, text: &str) {
-        let known = |c: u32| (1..=crate::LIVE_CHANNELS.len() as u32).contains(&c);
-        let problems = match protocol::parse_client_message(text) {
-            Ok(ClientOp::Subscribe { ok, mut bad }) => {
-                bad.extend(self.subs.subscribe(&ok, known));
-                bad
-            }
-            Ok(ClientOp::Unsubscribe { ok, mut bad }) => {
-                bad.extend(self.subs.unsubscribe(&ok));
-                bad
-            }
-            Ok(ClientOp::Other(op)) => {
-                vec![format!(
-                    "op `{op}` is not supported by eqtrack-live (it only publishes)"
-                )]
-            }
-            Err(e) => vec![format!("cannot read a client message: {e}")],
-        };
-        self.mask.store(self.subs.mask(), Ordering::Relaxed);
-        if !problems.is_empty() {
-            let shown: Vec<&str> = problems.iter().take(8).map(String::as_str).collect();
-            self.text(protocol::status(Level::Error, &shown.join("; ")));
+    /// Answers one client message ([`SessionState::handle`]): its subscriptions change as it
+    /// asks, and a problem is told back in a `status` message.
+    fn answer(&mut self, msg: Incoming<'_>) {
+        let answer = self.state.handle(msg);
+        self.mask
+            .store(self.state.subscriptions().mask(), Ordering::Relaxed);
+        if let Some(reply) = answer.reply {
+            self.text(reply);
         }
     }
 
@@ -531,7 +680,7 @@ mod tests {
 
     #[test]
     fn a_full_queue_drops_for_that_client_only_and_a_gone_client_is_forgotten() {
-        let shared = Shared::new(crate::channel_infos(), BTreeMap::new(), 2);
+        let shared = Shared::new(crate::channel_infos(), BTreeMap::new(), 2, 8);
         let mut clients = Vec::new();
         for id in 0..2 {
             let (tx, rx) = sync_channel(shared.queue);
@@ -572,7 +721,7 @@ mod tests {
 
     #[test]
     fn the_end_is_said_once_with_the_first_word() {
-        let shared = Shared::new(crate::channel_infos(), BTreeMap::new(), 4);
+        let shared = Shared::new(crate::channel_infos(), BTreeMap::new(), 4, 8);
         assert!(shared.end_notice().is_none());
         shared.finish(Level::Info, "run `x` ended at cycle 9".into());
         shared.finish(Level::Warning, "stopped".into());
