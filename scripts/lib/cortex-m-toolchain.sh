@@ -9,9 +9,6 @@
 source "$REPO/scripts/lib/debian.sh"
 QEMU=$PREFIX/usr/bin/qemu-system-arm
 debian_fetch "${PACKAGES[@]}"
-# build-std reads only library/ of the source tree: drop the compiler's and the tools'
-# sources (about 370 MB) and the documentation.
-rm -rf "$PREFIX"/usr/src/rustc-*/{src,compiler,tests} "$PREFIX"/usr/share/doc
 debian_fix_libs "$QEMU" "$RUSTC_PRIVATE"
 step "toolchain: in $CACHE"
 

@@ -1,8 +1,8 @@
 # Private toolchains from Debian packages, shared by scripts/cortex-m.sh and scripts/aarch64.sh
 # (sourced, not run). Packages are fetched with
 # `apt-get install --download-only -o Dir::Cache::archives=$DEBS` into one cache and unpacked
-# with `dpkg -x` into one prefix, each .deb once: the compiler both scripts use (rustc-web) is
-# fetched and unpacked a single time. Nothing is installed system-wide; the one system change
+# into one prefix, each .deb once (then removed): the compiler both scripts use (rustc-web) is
+# unpacked a single time. Nothing is installed system-wide; the one system change
 # is `dpkg --add-architecture` when a script asks for a foreign architecture's package.
 #
 # The caller defines skip (prints `SKIPPED: ...`, exits 0), die and step, and sets REPO.
@@ -21,7 +21,7 @@ NEED_RUST=$(sed -n 's/^rust-version *= *"\([0-9.]*\)".*/\1/p' "$REPO/Cargo.toml"
 NEED_RUST=${NEED_RUST:-1.85}
 
 mkdir -p "$CACHE" "$LOGS" "$DEBS" "$PREFIX/.unpacked"
-# The cache (about 1 GiB) must never be committed, whatever the repository's .gitignore says.
+# The cache (about 2 GiB with both scripts' toolchains) must never be committed, whatever the repository's .gitignore says.
 [[ -f $CACHE/.gitignore ]] ||
 	printf '# Written by scripts/lib/debian.sh: the private toolchain cache is never committed.\n*\n' >"$CACHE/.gitignore"
 # One script at a time per cache.
@@ -99,11 +99,29 @@ debian_fetch() {
 	fi
 	local d n=0
 	for d in "$DEBS"/*.deb; do
-		[[ -f $PREFIX/.unpacked/$(basename "$d") ]] && continue
-		dpkg -x "$d" "$PREFIX" && touch "$PREFIX/.unpacked/$(basename "$d")"
+		[[ -f $d ]] || continue # none left: all unpacked and removed
+		if [[ -f $PREFIX/.unpacked/$(basename "$d") ]]; then
+			rm -f "$d" # fetched again for another package set, unpacked before
+			continue
+		fi
+		debian_unpack "$d"
 		n=$((n + 1))
 	done
 	((n == 0)) || step "unpacked $n packages into $PREFIX"
+}
+
+# Unpacks one .deb into $PREFIX (as `dpkg -x` does), marks it unpacked and removes it: the
+# prefix is the cache, the archive is not needed again. The compiler's and the tools' sources
+# of rust-web-src (build-std reads only library/) and the documentation are left out while
+# unpacking, so the disk never holds them. A failure (a full disk) stops the script.
+debian_unpack() {
+	local d=$1
+	dpkg-deb --fsys-tarfile "$d" | tar -x -C "$PREFIX" --no-same-owner \
+		--anchored --no-wildcards-match-slash --exclude='./usr/src/rustc-*/src' --exclude='./usr/src/rustc-*/compiler' \
+		--exclude='./usr/src/rustc-*/tests' --exclude='./usr/share/doc' ||
+		die "could not unpack $(basename "$d") into $PREFIX ($(df -h --output=avail "$PREFIX" | tail -1 | tr -d ' ') free on its disk)"
+	touch "$PREFIX/.unpacked/$(basename "$d")"
+	rm -f "$d"
 }
 
 # Writes $CACHE/bin/NAME, a wrapper that runs the private binary BIN with the prefix's
@@ -138,7 +156,7 @@ debian_fix_libs() {
 		pkg=${pkg,,}
 		(cd "$DEBS" && apt-get download "$pkg" >>"$LOGS/apt-download.log" 2>&1) ||
 			skip "could not download $pkg (for $lib): $(tail -1 "$LOGS/apt-download.log")"
-		dpkg -x "$DEBS/${pkg}"_*.deb "$PREFIX" && touch "$PREFIX/.unpacked/$(basename "$DEBS/${pkg}"_*.deb)"
+		debian_unpack "$(compgen -G "$DEBS/${pkg}_*.deb" | head -1)"
 	done
 	for bin in "$@"; do
 		[[ -z $(debian_missing_libs "$bin") ]] || die "$bin still lacks: $(debian_missing_libs "$bin" | tr '\n' ' ')"
