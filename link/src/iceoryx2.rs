@@ -22,6 +22,7 @@ use iceoryx2::service::port_factory::blackboard::PortFactory as BoardFactory;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 use iceoryx2_bb_posix::file_descriptor_set::{FileDescriptorSet, FileEvent};
+use ipc_types::WireGroup;
 use std::time::{Duration, Instant};
 
 /// Writer slots (entries) per board.
@@ -89,27 +90,17 @@ fn node_name(names: &ipc_types::ServiceNames, role: Role) -> &str {
     }
 }
 
-/// The services a side keeps open while it runs: two boards, two event services.
-type Services = (
-    BoardFactory<ipc::Service, u32>,
-    BoardFactory<ipc::Service, u32>,
-    EventFactory<ipc::Service>,
-    EventFactory<ipc::Service>,
-);
-
-/// One side's ports of a run over iceoryx2. Fields drop in order: ports, then the services,
-/// then the node.
+/// One side's ports of a run over iceoryx2. Fields drop in order: the boards (each its
+/// ports, then its service), the event ports, the event services, then the node.
 pub struct Iceoryx2<Out: Message, In: Message> {
-    out: EntryHandleMut<ipc::Service, u32, Out>,
-    inp: Slots<In>,
+    out: BoardWriter<Out>,
+    inp: BoardReader<In>,
     notifier: Notifier<ipc::Service>,
     /// Holds the listener's descriptor (added once at start-up, so waiting never allocates).
     wait_set: FileDescriptorSet,
     listener: Listener<ipc::Service>,
-    _ports: (Writer<ipc::Service, u32>, Reader<ipc::Service, u32>),
-    _services: Services,
+    _events: (EventFactory<ipc::Service>, EventFactory<ipc::Service>),
     _node: Node<ipc::Service>,
-    slot: u32,
 }
 
 impl<Out: Message, In: Message> Iceoryx2<Out, In> {
@@ -132,22 +123,10 @@ impl<Out: Message, In: Message> Iceoryx2<Out, In> {
                 &names.state_event,
             ),
         };
-        let out_board = board(&node, out_name, Out::empty())?;
-        let in_board = board(&node, in_name, In::empty())?;
+        let out = BoardWriter::open(&node, out_name, " (is another process writing this run?)")?;
+        let inp = BoardReader::open(&node, in_name, "")?;
         let notify = event(&node, notify_name)?;
         let listen = event(&node, listen_name)?;
-        let writer = out_board.writer_builder().create().map_err(|e| {
-            LinkError::iceoryx2(
-                format!("{out_name}: writer (is another process writing this run?)"),
-                e,
-            )
-        })?;
-        let reader = in_board
-            .reader_builder()
-            .create()
-            .map_err(|e| LinkError::iceoryx2(format!("{in_name}: reader"), e))?;
-        let (slot, out) = free_slot::<Out>(&writer, out_name)?;
-        let inp = Slots::new(entries::<In>(&reader, in_name)?, In::empty().write_id());
         let listener = listen
             .listener_builder()
             .create()
@@ -169,16 +148,14 @@ impl<Out: Message, In: Message> Iceoryx2<Out, In> {
                 .map_err(|e| LinkError::iceoryx2(format!("{notify_name}: notifier"), e))?,
             wait_set,
             listener,
-            _ports: (writer, reader),
-            _services: (out_board, in_board, notify, listen),
+            _events: (notify, listen),
             _node: node,
-            slot,
         })
     }
 
     /// The writer slot this side took (0 unless crashed processes hold earlier ones).
     pub fn slot(&self) -> u32 {
-        self.slot
+        self.out.slot()
     }
 }
 
@@ -187,7 +164,7 @@ impl<Out: Message, In: Message> Transport<Out, In> for Iceoryx2<Out, In> {
         let mut m = *msg;
         let stamp = clock::monotonic_ns();
         m.set_stamp(stamp);
-        self.out.update_with_copy(m);
+        self.out.write(m);
         if wake_peer {
             // no listener (a peer that crashed or has not come yet) is not an error: the
             // slot keeps the message for it
@@ -202,7 +179,7 @@ impl<Out: Message, In: Message> Transport<Out, In> for Iceoryx2<Out, In> {
     }
 
     fn receive(&mut self) -> Option<In> {
-        self.inp.receive(|m: &In| m.write_id())
+        self.inp.receive()
     }
 
     fn wait(&mut self, timeout: Duration) {
@@ -229,7 +206,7 @@ pub(crate) fn create_node(name: &str) -> Result<Node<ipc::Service>, LinkError> {
 }
 
 /// The first writer slot of a board nobody holds (crashed writers keep theirs).
-pub(crate) fn free_slot<T: Slot>(
+fn free_slot<T: Slot>(
     writer: &Writer<ipc::Service, u32>,
     service: &str,
 ) -> Result<(u32, EntryHandleMut<ipc::Service, u32, T>), LinkError> {
@@ -242,7 +219,7 @@ pub(crate) fn free_slot<T: Slot>(
 }
 
 /// Read handles on every slot of a board.
-pub(crate) fn entries<T: Slot>(
+fn entries<T: Slot>(
     reader: &Reader<ipc::Service, u32>,
     service: &str,
 ) -> Result<Vec<EntryHandle<ipc::Service, u32, T>>, LinkError> {
@@ -255,26 +232,12 @@ pub(crate) fn entries<T: Slot>(
         .collect()
 }
 
-/// The newest write on any of a board's slots: the largest stamp among the slots that
-/// `stamp` accepts (it returns `None` for a slot never written or of another protocol).
-pub(crate) fn newest<T: Slot>(
-    entries: &[EntryHandle<ipc::Service, u32, T>],
-    stamp: impl Fn(&T) -> Option<u64>,
-) -> Option<T> {
-    entries
-        .iter()
-        .map(|e| *e.get())
-        .filter_map(|m| stamp(&m).map(|s| (s, m)))
-        .max_by_key(|(s, _)| *s)
-        .map(|(_, m)| m)
-}
-
 /// A reader's view of a board's writer slots. The slot that delivered last is read alone at
 /// each poll, so a busy-polling wait reads one entry per poll instead of all of them. Every
 /// slot is read after a wake-up ([`Slots::woken`]), after a message found by such a scan
 /// (until one finds nothing), and every [`FULL_SCAN_EVERY`] polls, so a peer restarted into
 /// another slot is found within microseconds. Allocation-free after `new`.
-pub(crate) struct Slots<T: Slot> {
+struct Slots<T: Slot> {
     entries: Vec<EntryHandle<ipc::Service, u32, T>>,
     /// Per slot, the `(seq, stamp)` of the last write seen.
     seen: Vec<(u64, u64)>,
@@ -289,8 +252,9 @@ pub(crate) struct Slots<T: Slot> {
 }
 
 impl<T: Slot> Slots<T> {
-    /// Read handles on every slot; `empty` identifies a slot never written.
-    pub(crate) fn new(entries: Vec<EntryHandle<ipc::Service, u32, T>>, empty: (u64, u64)) -> Self {
+    /// Read handles on every slot.
+    fn new(entries: Vec<EntryHandle<ipc::Service, u32, T>>) -> Self {
+        let empty = T::empty().write_id();
         Slots {
             seen: vec![empty; entries.len()],
             entries,
@@ -302,13 +266,13 @@ impl<T: Slot> Slots<T> {
     }
 
     /// Read every slot at the next poll (a notification came).
-    pub(crate) fn woken(&mut self) {
+    fn woken(&mut self) {
         self.scan_all = true;
     }
 
-    /// A write not seen yet (`id` identifies a write), or `None`; call until `None`.
-    pub(crate) fn receive(&mut self, id: impl Fn(&T) -> (u64, u64)) -> Option<T> {
-        if let Some(m) = self.read(self.active, &id) {
+    /// A write not seen yet, or `None`; call until `None`.
+    fn receive(&mut self) -> Option<T> {
+        if let Some(m) = self.read(self.active) {
             return Some(m);
         }
         self.polls = self.polls.wrapping_add(1);
@@ -316,7 +280,7 @@ impl<T: Slot> Slots<T> {
             return None;
         }
         for slot in 0..self.entries.len() {
-            if let Some(m) = self.read(slot, &id) {
+            if let Some(m) = self.read(slot) {
                 self.active = slot;
                 self.scan_all = true;
                 return Some(m);
@@ -327,9 +291,9 @@ impl<T: Slot> Slots<T> {
     }
 
     /// Slot `slot`'s value if it holds a write not seen yet (remembered as seen).
-    fn read(&mut self, slot: usize, id: &impl Fn(&T) -> (u64, u64)) -> Option<T> {
+    fn read(&mut self, slot: usize) -> Option<T> {
         let m: T = *self.entries[slot].get();
-        let this = id(&m);
+        let this = m.write_id();
         if this != self.seen[slot] && this != self.empty {
             self.seen[slot] = this;
             return Some(m);
@@ -338,12 +302,149 @@ impl<T: Slot> Slots<T> {
     }
 }
 
-/// What a board's slots hold: a fixed-size, copyable, zero-copy-sendable value.
-pub(crate) trait Slot: Copy + core::fmt::Debug + ZeroCopySend + 'static {}
-impl<T: Copy + core::fmt::Debug + ZeroCopySend + 'static> Slot for T {}
+/// What a board's slots hold: a fixed-size, copyable, zero-copy-sendable message with a
+/// protocol version, a sequence number and a stamp.
+pub trait Slot: Copy + core::fmt::Debug + ZeroCopySend + 'static {
+    /// A slot nobody wrote: version 0.
+    fn empty() -> Self;
+    /// `(seq, stamp)`: tells a write from the one before it.
+    fn write_id(&self) -> (u64, u64);
+    /// The stamp of a write of the current protocol; `None` for a slot never written or
+    /// written by another protocol's process.
+    fn current_stamp(&self) -> Option<u64>;
+}
+
+macro_rules! slot {
+    ($msg:ty, $new:expr) => {
+        impl Slot for $msg {
+            fn empty() -> Self {
+                let mut m: $msg = $new;
+                m.version = 0;
+                m.group = 0;
+                m
+            }
+            fn write_id(&self) -> (u64, u64) {
+                (self.seq, self.stamp_ns)
+            }
+            fn current_stamp(&self) -> Option<u64> {
+                (self.version == ipc_types::PROTOCOL_VERSION).then_some(self.stamp_ns)
+            }
+        }
+    };
+}
+slot!(
+    ipc_types::StateMsg,
+    ipc_types::StateMsg::new(WireGroup::So3)
+);
+slot!(
+    ipc_types::CommandMsg,
+    ipc_types::CommandMsg::new(WireGroup::So3)
+);
+slot!(
+    ipc_types::StatusMsg,
+    ipc_types::StatusMsg::new(WireGroup::So3, "")
+);
+slot!(ipc_types::PlanMsg, ipc_types::PlanMsg::new(WireGroup::So3));
+slot!(
+    ipc_types::ParamMsg,
+    ipc_types::ParamMsg::new(WireGroup::So3, 0, ipc_types::Gains::ZERO)
+);
+
+/// One board opened for writing on a node its owner keeps (declared after this, so that it
+/// drops after): the entry of a free writer slot, the writer port and the service. Fields
+/// drop in that order.
+pub(crate) struct BoardWriter<T: Slot> {
+    entry: EntryHandleMut<ipc::Service, u32, T>,
+    slot: u32,
+    _writer: Writer<ipc::Service, u32>,
+    _service: BoardFactory<ipc::Service, u32>,
+}
+
+impl<T: Slot> BoardWriter<T> {
+    /// Opens (or creates) board `name` on `node` and takes its first free writer slot;
+    /// `hint` follows the error when the writer port is refused.
+    pub(crate) fn open(
+        node: &Node<ipc::Service>,
+        name: &str,
+        hint: &str,
+    ) -> Result<Self, LinkError> {
+        let service = board(node, name, T::empty())?;
+        let writer = service
+            .writer_builder()
+            .create()
+            .map_err(|e| LinkError::iceoryx2(format!("{name}: writer{hint}"), e))?;
+        let (slot, entry) = free_slot::<T>(&writer, name)?;
+        Ok(BoardWriter {
+            entry,
+            slot,
+            _writer: writer,
+            _service: service,
+        })
+    }
+
+    /// Writes `m` into this writer's slot: an atomic copy, no allocation.
+    pub(crate) fn write(&mut self, m: T) {
+        self.entry.update_with_copy(m);
+    }
+
+    /// The writer slot taken (0 unless crashed processes hold earlier ones).
+    pub(crate) fn slot(&self) -> u32 {
+        self.slot
+    }
+}
+
+/// One board opened for reading on a node its owner keeps (declared after this): the read
+/// handles on every slot, the reader port and the service. Fields drop in that order.
+pub(crate) struct BoardReader<T: Slot> {
+    slots: Slots<T>,
+    _reader: Reader<ipc::Service, u32>,
+    _service: BoardFactory<ipc::Service, u32>,
+}
+
+impl<T: Slot> BoardReader<T> {
+    /// Opens (or creates, empty) board `name` on `node` for reading; `hint` follows the
+    /// error when the reader port is refused.
+    pub(crate) fn open(
+        node: &Node<ipc::Service>,
+        name: &str,
+        hint: &str,
+    ) -> Result<Self, LinkError> {
+        let service = board(node, name, T::empty())?;
+        let reader = service
+            .reader_builder()
+            .create()
+            .map_err(|e| LinkError::iceoryx2(format!("{name}: reader{hint}"), e))?;
+        Ok(BoardReader {
+            slots: Slots::new(entries::<T>(&reader, name)?),
+            _reader: reader,
+            _service: service,
+        })
+    }
+
+    /// The newest write of the current protocol on any slot (the largest stamp), if any.
+    pub(crate) fn newest(&self) -> Option<T> {
+        self.slots
+            .entries
+            .iter()
+            .map(|e| *e.get())
+            .filter_map(|m| m.current_stamp().map(|s| (s, m)))
+            .max_by_key(|(s, _)| *s)
+            .map(|(_, m)| m)
+    }
+
+    /// A write not seen yet, or `None`; call until `None` (see [`Slots`]).
+    pub(crate) fn receive(&mut self) -> Option<T> {
+        self.slots.receive()
+    }
+
+    /// Read every slot at the next [`BoardReader::receive`] (a notification came).
+    pub(crate) fn woken(&mut self) {
+        self.slots.woken();
+    }
+}
 
 /// Opens the board `name`, or creates it with [`SLOTS`] entries holding `empty`.
-pub(crate) fn board<T: Slot>(
+fn board<T: Slot>(
     node: &Node<ipc::Service>,
     name: &str,
     empty: T,

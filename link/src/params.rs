@@ -11,39 +11,19 @@
 //! writable by their owner only, so another user's process cannot open the service, and
 //! cannot change a gain.
 
-use crate::iceoryx2::{Slots, board, create_node, entries, free_slot};
+use crate::iceoryx2::{BoardReader, BoardWriter, create_node};
 use crate::{LinkError, check_run_name, clock};
-use iceoryx2::port::reader::Reader;
 use iceoryx2::port::server::Server;
-use iceoryx2::port::writer::{EntryHandleMut, Writer};
 use iceoryx2::prelude::*;
-use iceoryx2::service::port_factory::blackboard::PortFactory as BoardFactory;
 use iceoryx2::service::port_factory::request_response::PortFactory as RrFactory;
-use ipc_types::{
-    Gains, PROTOCOL_VERSION, ParamMsg, ParamRequest, ParamResponse, WireGroup, padded_bytes,
-};
+use ipc_types::{Gains, PROTOCOL_VERSION, ParamMsg, ParamRequest, ParamResponse, padded_bytes};
 use std::time::{Duration, Instant};
 
 pub use ipc_types::param_op;
 
-/// An empty slot: version 0.
-fn empty_params() -> ParamMsg {
-    let mut m = ParamMsg::new(WireGroup::So3, 0, Gains::ZERO);
-    m.version = 0;
-    m.group = 0;
-    m
-}
-
-/// `(seq, stamp)` of a write.
-fn params_id(m: &ParamMsg) -> (u64, u64) {
-    (m.seq, m.stamp_ns)
-}
-
 /// The plant's side of the `params` board.
 pub struct ParamsWriter {
-    out: EntryHandleMut<ipc::Service, u32, ParamMsg>,
-    _writer: Writer<ipc::Service, u32>,
-    _service: BoardFactory<ipc::Service, u32>,
+    out: BoardWriter<ParamMsg>,
     _node: Node<ipc::Service>,
     msg: ParamMsg,
 }
@@ -55,16 +35,8 @@ impl ParamsWriter {
         let names = check_run_name(run)?;
         // the plant's own node: the board is written on the loop's thread
         let node = create_node(&format!("{}-params", names.plant_node))?;
-        let service = board(&node, &names.params, empty_params())?;
-        let writer = service
-            .writer_builder()
-            .create()
-            .map_err(|e| LinkError::iceoryx2(format!("{}: writer", names.params), e))?;
-        let (_, out) = free_slot::<ParamMsg>(&writer, &names.params)?;
         let mut w = ParamsWriter {
-            out,
-            _writer: writer,
-            _service: service,
+            out: BoardWriter::open(&node, &names.params, "")?,
             _node: node,
             msg: first,
         };
@@ -74,7 +46,7 @@ impl ParamsWriter {
 
     fn write(&mut self) {
         self.msg.stamp_ns = clock::monotonic_ns();
-        self.out.update_with_copy(self.msg);
+        self.out.write(self.msg);
     }
 
     /// Puts `gains` in force from `gains.cycle` on (the previous set stays on the board for
@@ -92,10 +64,8 @@ impl ParamsWriter {
 
 /// The controller's side of the `params` board.
 pub struct ParamsReader {
-    slots: Slots<ParamMsg>,
+    board: BoardReader<ParamMsg>,
     newest: Option<ParamMsg>,
-    _reader: Reader<ipc::Service, u32>,
-    _service: BoardFactory<ipc::Service, u32>,
     _node: Node<ipc::Service>,
 }
 
@@ -104,27 +74,16 @@ impl ParamsReader {
     pub fn open(run: &str) -> Result<ParamsReader, LinkError> {
         let names = check_run_name(run)?;
         let node = create_node(&format!("{}-params", names.controller_node))?;
-        let service = board(&node, &names.params, empty_params())?;
-        let reader = service
-            .reader_builder()
-            .create()
-            .map_err(|e| LinkError::iceoryx2(format!("{}: reader", names.params), e))?;
-        let slots = Slots::new(
-            entries::<ParamMsg>(&reader, &names.params)?,
-            params_id(&empty_params()),
-        );
         Ok(ParamsReader {
-            slots,
+            board: BoardReader::open(&node, &names.params, "")?,
             newest: None,
-            _reader: reader,
-            _service: service,
             _node: node,
         })
     }
 
     /// The newest write on the board (`None`: nothing written yet). Allocation-free.
     pub fn latest(&mut self) -> Option<&ParamMsg> {
-        while let Some(m) = self.slots.receive(params_id) {
+        while let Some(m) = self.board.receive() {
             if self.newest.is_none_or(|n| m.stamp_ns >= n.stamp_ns) {
                 self.newest = Some(m);
             }

@@ -1,8 +1,8 @@
 //! The one transport trait, the messages that travel on it, and [`open`], which picks an
 //! implementation at run time.
 
+use crate::iceoryx2::Slot;
 use crate::{LinkError, Role, TransportKind};
-use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 use ipc_types::{CommandMsg, DecodeError, StateMsg};
 use std::time::Duration;
 
@@ -30,13 +30,9 @@ pub const MAX_ENCODED: usize = if ipc_types::COMMAND_BYTES > ipc_types::STATE_BY
     ipc_types::STATE_BYTES
 };
 
-/// A message that can travel on either transport: fixed-size, copyable, zero-copy-sendable
-/// for iceoryx2 and byte-encodable for sockets.
-pub trait Message: Copy + core::fmt::Debug + ZeroCopySend + 'static {
-    /// What a blackboard slot holds before anything was written (version 0: nothing yet).
-    fn empty() -> Self;
-    /// `(seq, stamp_ns)`: identifies one write.
-    fn write_id(&self) -> (u64, u64);
+/// A message that can travel on either transport: a board's [`Slot`] for iceoryx2 (its
+/// empty value and write id) and byte-encodable for sockets.
+pub trait Message: Slot {
     /// Sets the publication stamp.
     fn set_stamp(&mut self, ns: u64);
     /// The little-endian encoding into `buf`; returns its length.
@@ -45,19 +41,10 @@ pub trait Message: Copy + core::fmt::Debug + ZeroCopySend + 'static {
     fn decode(buf: &[u8]) -> Result<Self, DecodeError>;
 }
 
-/// Both messages share their layout's identifying fields and byte encoding: one impl.
+/// Both messages share their byte encoding: one impl.
 macro_rules! message {
     ($msg:ty) => {
         impl Message for $msg {
-            fn empty() -> Self {
-                let mut m = <$msg>::new(ipc_types::WireGroup::So3);
-                m.version = 0;
-                m.group = 0;
-                m
-            }
-            fn write_id(&self) -> (u64, u64) {
-                (self.seq, self.stamp_ns)
-            }
             fn set_stamp(&mut self, ns: u64) {
                 self.stamp_ns = ns;
             }

@@ -10,22 +10,17 @@
 //! the bridge (three), the command board the plant and the bridge (two), the status board
 //! the monitors and the bridge; room is left for the Python observers.
 
-use crate::iceoryx2::{board, create_node, entries, newest};
-use crate::status::empty_status;
-use crate::{LinkError, Message, check_run_name};
-use iceoryx2::port::reader::{EntryHandle, Reader};
+use crate::iceoryx2::{BoardReader, create_node};
+use crate::{LinkError, check_run_name};
 use iceoryx2::prelude::*;
-use iceoryx2::service::port_factory::blackboard::PortFactory as BoardFactory;
-use ipc_types::{CommandMsg, PROTOCOL_VERSION, StateMsg, StatusMsg};
+use ipc_types::{CommandMsg, StateMsg, StatusMsg};
 
-/// The newest state, command and status of a run, read only. Fields drop in order: entries,
-/// readers, services, node.
+/// The newest state, command and status of a run, read only. Fields drop in order: the
+/// boards, then the node.
 pub struct PairWatch {
-    states: Vec<EntryHandle<ipc::Service, u32, StateMsg>>,
-    commands: Vec<EntryHandle<ipc::Service, u32, CommandMsg>>,
-    statuses: Vec<EntryHandle<ipc::Service, u32, StatusMsg>>,
-    _readers: [Reader<ipc::Service, u32>; 3],
-    _services: [BoardFactory<ipc::Service, u32>; 3],
+    states: BoardReader<StateMsg>,
+    commands: BoardReader<CommandMsg>,
+    statuses: BoardReader<StatusMsg>,
     _node: Node<ipc::Service>,
 }
 
@@ -35,53 +30,30 @@ impl PairWatch {
     pub fn open(run: &str) -> Result<PairWatch, LinkError> {
         let names = check_run_name(run)?;
         let node = create_node(&names.live_node)?;
-        let state = board(&node, &names.state, StateMsg::empty())?;
-        let command = board(&node, &names.command, CommandMsg::empty())?;
-        let status = board(&node, &names.status, empty_status())?;
-        let reader = |service: &BoardFactory<ipc::Service, u32>, name: &str| {
-            service.reader_builder().create().map_err(|e| {
-                LinkError::iceoryx2(
-                    format!("{name}: reader (does the board admit one more?)"),
-                    e,
-                )
-            })
-        };
-        let readers = [
-            reader(&state, &names.state)?,
-            reader(&command, &names.command)?,
-            reader(&status, &names.status)?,
-        ];
+        let hint = " (does the board admit one more?)";
         Ok(PairWatch {
-            states: entries::<StateMsg>(&readers[0], &names.state)?,
-            commands: entries::<CommandMsg>(&readers[1], &names.command)?,
-            statuses: entries::<StatusMsg>(&readers[2], &names.status)?,
-            _readers: readers,
-            _services: [state, command, status],
+            states: BoardReader::open(&node, &names.state, hint)?,
+            commands: BoardReader::open(&node, &names.command, hint)?,
+            statuses: BoardReader::open(&node, &names.status, hint)?,
             _node: node,
         })
     }
 
     /// The newest state of the current protocol on any slot, if the plant published one.
     pub fn state(&self) -> Option<StateMsg> {
-        newest(&self.states, |m| {
-            (m.version == PROTOCOL_VERSION).then_some(m.stamp_ns)
-        })
+        self.states.newest()
     }
 
     /// The newest command of the current protocol on any slot, if a controller published
     /// one.
     pub fn command(&self) -> Option<CommandMsg> {
-        newest(&self.commands, |m| {
-            (m.version == PROTOCOL_VERSION).then_some(m.stamp_ns)
-        })
+        self.commands.newest()
     }
 
     /// The newest status of the current protocol on any slot, if the plant's flight recorder
     /// published one (a run with `--no-record` publishes none).
     pub fn status(&self) -> Option<StatusMsg> {
-        newest(&self.statuses, |m| {
-            (m.version == PROTOCOL_VERSION).then_some(m.stamp_ns)
-        })
+        self.statuses.newest()
     }
 }
 

@@ -166,6 +166,20 @@ impl Proc {
         }
     }
 
+    /// Waits for exit up to `timeout` and asserts that the exit code is `code` (the panic
+    /// shows the status and the output); returns the output.
+    #[track_caller]
+    pub fn expect_exit(&mut self, code: i32, timeout: Duration) -> String {
+        let status = self.wait_timeout(timeout);
+        let out = self.output();
+        assert_eq!(
+            status.and_then(|s| s.code()),
+            Some(code),
+            "exit status {status:?} (None: still running after {timeout:?}):\n{out}"
+        );
+        out
+    }
+
     /// SIGKILL, then reap (a zombie's iceoryx2 node would never look dead).
     pub fn kill(&mut self) {
         if let Some(mut c) = self.child.take() {

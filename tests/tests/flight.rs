@@ -23,8 +23,7 @@ fn lockstep_run(name: &str, out: &str, seconds: &str, extra: &[&str]) {
     let mut args = vec!["--mode", "lockstep"];
     args.extend_from_slice(extra);
     let mut plant = start_run(name, out, seconds, &args);
-    let status = plant.wait_timeout(Duration::from_secs(60));
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
+    plant.expect_exit(0, Duration::from_secs(60));
 }
 
 fn copy_dir(from: &str, to: &str) {
@@ -74,8 +73,7 @@ fn a_real_time_run_with_misses_and_safe_mode_replays_bit_for_bit() {
     ctl.signal("STOP");
     std::thread::sleep(Duration::from_millis(20));
     ctl.signal("CONT");
-    let status = plant.wait_timeout(Duration::from_secs(30));
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
+    plant.expect_exit(0, Duration::from_secs(30));
     let s = summary(Path::new(&out));
     assert!(s["deadline_misses"].as_u64().unwrap() >= 10, "{s}");
     assert!(s["safe_mode_entries"].as_u64().unwrap() >= 1, "{s}");
@@ -431,8 +429,7 @@ fn a_run_answered_by_a_hand_started_controller_with_another_law_replays_bit_for_
         &["--name", "t-flight-law", "--law", "gt"],
     );
     lockstep_run("t-flight-law", &out, "2", &["--no-spawn"]);
-    let status = ctl.wait_timeout(Duration::from_secs(10));
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", ctl.output());
+    ctl.expect_exit(0, Duration::from_secs(10));
     let (records, log) = read_log(&out);
     assert_eq!(log.header.law, "eqt", "the plant's scenario says EqT");
     assert!(

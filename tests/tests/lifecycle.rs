@@ -124,8 +124,7 @@ fn sigterm_to_the_controller_makes_it_leave_and_the_plant_goes_to_safe_mode() {
     let (mut p, mut ctl) = start_pair("t-ctl-term", "3", &out_dir);
     wait_for_cycles(&out_dir, 1000, Duration::from_secs(60));
     ctl.signal("TERM");
-    let status = ctl.wait_timeout(Duration::from_secs(10));
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", ctl.output());
+    ctl.expect_exit(0, Duration::from_secs(10));
     assert!(
         ctl.output().contains("SIGTERM received, leaving the run"),
         "{}",
@@ -221,9 +220,7 @@ fn the_controller_allocates_nothing_when_the_plant_is_killed() {
     let (mut p, mut ctl) = start_pair("t-alloc-kill", "30", &out_dir);
     wait_for_cycles(&out_dir, 1000, Duration::from_secs(60));
     p.kill();
-    let status = ctl.wait_timeout(Duration::from_secs(5));
-    let out = ctl.output();
-    assert_eq!(status.and_then(|s| s.code()), Some(1), "{out}");
+    let out = ctl.expect_exit(1, Duration::from_secs(5));
     assert!(out.contains("is gone"), "{out}");
     assert_eq!(allocations(&out), 0, "{out}");
 }

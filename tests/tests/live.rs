@@ -278,15 +278,8 @@ fn the_bridge_serves_good_clients_whatever_bad_ones_do_and_exits_0_at_the_runs_e
     }
     assert_eq!(ended, Some(0));
     assert!(after > 500, "only {after} states after the bad clients");
-    let status = plant.wait_timeout(Duration::from_secs(60));
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
-    let status = bridge.wait_timeout(Duration::from_secs(20));
-    assert_eq!(
-        status.and_then(|s| s.code()),
-        Some(0),
-        "{}",
-        bridge.output()
-    );
+    plant.expect_exit(0, Duration::from_secs(60));
+    bridge.expect_exit(0, Duration::from_secs(20));
     let log = bridge.output();
     assert!(log.contains("the run ended at cycle 6000"), "{log}");
     assert_eq!(log.matches("refused (HTTP 400)").count(), 3, "{log}");
@@ -311,8 +304,7 @@ fn start_pair(name: &str, out: &str, seconds: &str, rt: &[&str]) -> Proc {
 
 /// Waits for a pair to end (exit 0): its deadline misses.
 fn misses(mut plant: Proc, out: &str) -> u64 {
-    let status = plant.wait_timeout(Duration::from_secs(120));
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
+    plant.expect_exit(0, Duration::from_secs(120));
     summary(Path::new(out))["deadline_misses"].as_u64().unwrap()
 }
 
@@ -373,13 +365,7 @@ fn a_client_that_never_reads_costs_bounded_memory_and_the_pair_no_misses() {
     let base = misses(base_pair, &base_out);
     done.store(true, Ordering::Relaxed);
     sampler.join().unwrap();
-    let status = bridge.wait_timeout(Duration::from_secs(20));
-    assert_eq!(
-        status.and_then(|s| s.code()),
-        Some(0),
-        "{}",
-        bridge.output()
-    );
+    bridge.expect_exit(0, Duration::from_secs(20));
     drop(stalled);
     reader.join().unwrap();
     let log = bridge.output();
@@ -468,13 +454,7 @@ fn plant_sim_live_refuses_bad_input_and_passes_a_sigterm_on() {
     );
     served_at(&live);
     live.signal("TERM");
-    let status = live.wait_timeout(Duration::from_secs(20));
-    assert_eq!(
-        status.and_then(|s| s.code()),
-        Some(143),
-        "{}",
-        live.output()
-    );
+    live.expect_exit(143, Duration::from_secs(20));
     let out = live.output();
     assert!(
         out.contains("live: stopped by SIGTERM") && out.contains("0 dropped in all"),

@@ -103,8 +103,7 @@ fn param_set_in_lockstep_takes_effect_at_a_known_cycle_and_replays() {
         cycle > 2000,
         "{cycle}: the controller was stopped after 2000 cycles"
     );
-    let status = plant.wait_timeout(Duration::from_secs(120));
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
+    plant.expect_exit(0, Duration::from_secs(120));
     let _ = ctl.wait_timeout(Duration::from_secs(10));
     // recorded: params.log and the summary name the same cycle
     let log = recorder::read_params(Path::new(&out)).unwrap();
@@ -260,8 +259,7 @@ fn bad_param_values_are_refused_with_the_scenarios_messages_and_the_run_goes_on(
         "controller_node",
         &["--name", "tp-bad", "--builtin", "seed"],
     );
-    let status = plant.wait_timeout(Duration::from_secs(120));
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
+    plant.expect_exit(0, Duration::from_secs(120));
     let _ = ctl.wait_timeout(Duration::from_secs(10));
     let changes = &summary(Path::new(&out))["parameter_changes"];
     assert_eq!(changes.as_array().map(Vec::len), Some(0), "{changes}");
@@ -380,8 +378,7 @@ fn gains_and_estimator_gains_change_in_real_time_and_replay() {
     assert_eq!(code, 0, "{said}");
     let (code, said) = param("tp-rt", &["set", "estimator.kp", "2.0"]);
     assert_eq!(code, 0, "{said}");
-    let status = plant.wait_timeout(Duration::from_secs(60));
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
+    plant.expect_exit(0, Duration::from_secs(60));
     assert!(
         plant.output().contains("parameter changes: 2"),
         "{}",

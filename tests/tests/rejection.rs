@@ -112,8 +112,7 @@ fn a_stopped_controller_with_the_observer_replays_bit_for_bit_and_winds_nothing_
     ctl.signal("STOP");
     std::thread::sleep(Duration::from_millis(30));
     ctl.signal("CONT");
-    let status = plant.wait_timeout(Duration::from_secs(30));
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
+    plant.expect_exit(0, Duration::from_secs(30));
     let s = summary(Path::new(&out));
     assert!(s["deadline_misses"].as_u64().unwrap() >= 5, "{s}");
     assert!(s["safe_mode_entries"].as_u64().unwrap() >= 1, "{s}");

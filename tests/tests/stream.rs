@@ -72,8 +72,7 @@ fn streamed_lockstep_from(planned: &str, scenario: &str, run_name: &str, out: &s
     );
     assert_eq!(code, 0, "{plant_out}");
     for p in [&mut ctl, &mut planner] {
-        let status = p.wait_timeout(Duration::from_secs(5));
-        assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", p.output());
+        p.expect_exit(0, Duration::from_secs(5));
     }
     ctl.output()
 }
@@ -318,8 +317,7 @@ fn killing_the_planner_holds_the_last_pose_and_a_new_planner_resumes() {
         plant.output()
     );
     for p in [&mut ctl, &mut second] {
-        let status = p.wait_timeout(Duration::from_secs(5));
-        assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", p.output());
+        p.expect_exit(0, Duration::from_secs(5));
     }
     let (log, planner_log) = (ctl.output(), second.output());
     assert!(

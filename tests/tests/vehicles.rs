@@ -208,8 +208,7 @@ fn a_stalled_controller_leaves_the_vehicle_in_the_plants_safe_mode_not_falling()
     ctl.signal("STOP");
     std::thread::sleep(Duration::from_millis(100));
     ctl.signal("CONT");
-    let status = plant.wait_timeout(Duration::from_secs(60));
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "{}", plant.output());
+    plant.expect_exit(0, Duration::from_secs(60));
     let s = summary(Path::new(&out));
     assert!(s["safe_mode_entries"].as_u64().unwrap() >= 1, "{s}");
     assert!(s["safe_mode_cycles"].as_u64().unwrap() >= 10, "{s}");

@@ -6,7 +6,7 @@
 //! swapped, bits flipped in its encoding. The receiver: the run's controller (now and then
 //! another run's) answering a state near a set's first cycle, or anywhere.
 
-use super::{BOARD_RUNS, CHANGE_CYCLES, Run, changes, gains, runs};
+use super::{BOARD_RUNS, CHANGE_CYCLES, Run, Seed, changes, gains, runs};
 use crate::mutate::{ByteOp, byte_op, f64_value, u32_value, u64_value};
 use crate::rng::Gen;
 use crate::scenario_target::controller_error_kind;
@@ -120,16 +120,9 @@ fn array(g: &mut Gains, which: usize, (n, m): (usize, usize)) -> (&mut [f64], us
     }
 }
 
-/// One seed board and the run it is of.
-#[derive(Debug, Clone)]
-struct Seed {
-    run: usize,
-    board: ParamMsg,
-}
-
 /// The seed boards.
 pub(super) struct Seeds {
-    items: Vec<Seed>,
+    items: Vec<Seed<ParamMsg>>,
 }
 
 impl Seeds {
@@ -141,13 +134,19 @@ impl Seeds {
             let s = &run.scenario;
             let mut board = ParamMsg::new(wire_group(s.group), s.fingerprint(), gains(s, 0));
             board.stamp_ns = 5_000_000_000;
-            items.push(Seed { run: i, board });
+            items.push(Seed {
+                run: i,
+                input: board,
+            });
             let mut tuner = run.tuner.clone();
             for ((key, value), cycle) in changes(run.name).iter().zip(CHANGE_CYCLES) {
                 let change = tuner.apply(key, value).expect("a seed change is accepted");
                 board = board.changed(gains(&change.scenario, cycle));
                 board.stamp_ns += cycle * 10_000_000;
-                items.push(Seed { run: i, board });
+                items.push(Seed {
+                    run: i,
+                    input: board,
+                });
             }
         }
         Seeds { items }
@@ -156,7 +155,7 @@ impl Seeds {
     /// One case: a seed board with 1–8 mutations, for a receiver that mostly expects it.
     pub(super) fn generate(&self, g: &mut Gen) -> ParamsCase {
         let seed = g.pick(&self.items);
-        let mut board = seed.board;
+        let mut board = seed.input;
         let d = dims(runs()[seed.run].scenario.group);
         let weights: Vec<u32> = BOARD_OPS.iter().map(|(_, w)| *w).collect();
         for _ in 0..g.mutation_count() {
@@ -245,7 +244,7 @@ impl Seeds {
                 xs[i] += eps * scale.max(f64::MIN_POSITIVE);
             }
             BoardOp::Cross => {
-                let donor = g.pick(&self.items).board;
+                let donor = g.pick(&self.items).input;
                 *gains = if g.chance(1, 2) {
                     donor.current
                 } else {

@@ -6,7 +6,7 @@
 //! swapped or taken from another file, a number or a string replaced, a change's fields
 //! removed, added, duplicated or given another JSON type.
 
-use super::{CHANGE_CYCLES, Run, changes, runs};
+use super::{CHANGE_CYCLES, Run, Seed, changes, runs};
 use crate::mutate::{ByteOp, MAX_INPUT, byte_op};
 use crate::rng::Gen;
 use crate::scenario_target::{join_lines, number_spans, random_number, split_lines, string_spans};
@@ -80,16 +80,9 @@ fn odd_change(cycle: u64, numbers: Vec<f64>) -> ParamChange {
     }
 }
 
-/// One seed file and the run it is of.
-#[derive(Debug, Clone)]
-struct Seed {
-    run: usize,
-    text: Vec<u8>,
-}
-
 /// The seed files.
 pub(super) struct Seeds {
-    items: Vec<Seed>,
+    items: Vec<Seed<Vec<u8>>>,
 }
 
 impl Seeds {
@@ -100,11 +93,11 @@ impl Seeds {
             let cs = seed_changes(run);
             items.push(Seed {
                 run: i,
-                text: recorded(&cs[..1]),
+                input: recorded(&cs[..1]),
             });
             items.push(Seed {
                 run: i,
-                text: recorded(&cs),
+                input: recorded(&cs),
             });
         }
         let line = |c: &ParamChange| serde_json::to_string(c).expect("a change serializes");
@@ -135,7 +128,7 @@ impl Seeds {
         ];
         items.extend(texts.into_iter().map(|t| Seed {
             run: 0,
-            text: t.into_bytes(),
+            input: t.into_bytes(),
         }));
         Seeds { items }
     }
@@ -143,13 +136,13 @@ impl Seeds {
     /// The seed files' texts.
     #[cfg(test)]
     pub(super) fn texts(&self) -> Vec<Vec<u8>> {
-        self.items.iter().map(|s| s.text.clone()).collect()
+        self.items.iter().map(|s| s.input.clone()).collect()
     }
 
     /// One case: a seed file with 1–8 mutations, read by replay of its run.
     pub(super) fn generate(&self, g: &mut Gen) -> ParamsCase {
         let seed = g.pick(&self.items);
-        let mut text = seed.text.clone();
+        let mut text = seed.input.clone();
         let weights: Vec<u32> = LOG_OPS.iter().map(|(_, w)| *w).collect();
         for _ in 0..g.mutation_count() {
             let op = LOG_OPS[g.weighted(&weights)].0;
@@ -171,7 +164,7 @@ impl Seeds {
     fn log_op(&self, g: &mut Gen, op: LogOp, text: &mut Vec<u8>) {
         match op {
             LogOp::Byte(b) => {
-                let other = &g.pick(&self.items).text;
+                let other = &g.pick(&self.items).input;
                 byte_op(g, b, text, other);
             }
             LogOp::Line => {
@@ -190,7 +183,7 @@ impl Seeds {
                         lines.swap(i, j);
                     }
                     _ => {
-                        let other = split_lines(&g.pick(&self.items).text);
+                        let other = split_lines(&g.pick(&self.items).input);
                         lines.insert(i, g.pick(&other).clone());
                     }
                 }

@@ -94,6 +94,14 @@ fn runs() -> &'static [Run] {
     })
 }
 
+/// One seed input (a board, a request or a `params.log` text) and the index of the run it
+/// is for in [`runs`].
+#[derive(Debug, Clone)]
+struct Seed<T> {
+    run: usize,
+    input: T,
+}
+
 /// The run named `name` (`None`: not one of [`RUNS`]).
 fn run_named(name: &str) -> Option<&'static Run> {
     runs().iter().find(|r| r.name == name)

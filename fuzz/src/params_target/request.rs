@@ -7,10 +7,10 @@
 //! in it replaced; the version and the operation; bytes of the encoding.
 
 use super::board::Retuned;
-use super::{Run, gains, runs};
+use super::{Run, Seed, gains, runs};
 use crate::mutate::{ByteOp, byte_op, u32_value};
 use crate::rng::Gen;
-use crate::scenario_target::{INTERESTING, number_spans, random_number};
+use crate::scenario_target::{INTERESTING, number_spans, parse_class, random_number};
 use crate::{Outcome, ParamsCase, ParamsKind, ParamsReceiver};
 use controller::group::OnGroup;
 use controller::{GroupKind, MatrixLieGroup};
@@ -83,16 +83,9 @@ fn rows_of(key: &str, n: usize) -> usize {
     }
 }
 
-/// One seed request and the run it is for.
-#[derive(Debug, Clone)]
-struct Seed {
-    run: usize,
-    request: ParamRequest,
-}
-
 /// The seed requests.
 pub(super) struct Seeds {
-    items: Vec<Seed>,
+    items: Vec<Seed<ParamRequest>>,
 }
 
 impl Seeds {
@@ -104,7 +97,7 @@ impl Seeds {
             let mut push = |op: u32, key: &str, value: &str| {
                 items.push(Seed {
                     run: i,
-                    request: request(op, key, value),
+                    input: request(op, key, value),
                 });
             };
             for (key, short) in TUNABLE {
@@ -132,7 +125,7 @@ impl Seeds {
     /// One case: a seed request with 1–8 mutations, read by the plant of its run.
     pub(super) fn generate(&self, g: &mut Gen) -> ParamsCase {
         let seed = g.pick(&self.items);
-        let mut r = seed.request;
+        let mut r = seed.input;
         let weights: Vec<u32> = REQUEST_OPS.iter().map(|(_, w)| *w).collect();
         for _ in 0..g.mutation_count() {
             let op = REQUEST_OPS[g.weighted(&weights)].0;
@@ -184,7 +177,7 @@ impl Seeds {
             RequestOp::Version => r.version = u32_value(g, r.version),
             RequestOp::Byte(b) => {
                 let mut bytes = encode(r);
-                let other = encode(&g.pick(&self.items).request);
+                let other = encode(&g.pick(&self.items).input);
                 byte_op(g, b, &mut bytes, &other);
                 bytes.resize(REQUEST_BYTES, 0);
                 *r = decode(&bytes).expect("resized to a whole request");
@@ -445,28 +438,15 @@ const TUNER_REFUSALS: [(&str, &str); 6] = [
     ("an empty key", "EmptyKey"),
 ];
 
-/// Coarse classes of the TOML reader's messages.
-const PARSE_CLASSES: [(&str, &str); 8] = [
-    ("unknown field", "unknown field"),
-    ("missing field", "missing field"),
-    ("invalid type", "invalid type"),
-    ("duplicate key", "duplicate key"),
-    ("did not match any variant", "untagged: no variant matched"),
-    ("invalid length", "invalid length"),
-    ("invalid value", "invalid value"),
-    ("TOML parse error", "syntax"),
-];
-
 /// The report's name of a refusal of the tuner: its own refusals by name, the scenario's by
 /// the tunable key it names (or "another key") and the reader's class (or `Invalid`).
 pub(super) fn tuner_kind(why: &str) -> String {
     if let Some((_, k)) = TUNER_REFUSALS.iter().find(|(n, _)| why.contains(n)) {
         return (*k).to_owned();
     }
-    let class = PARSE_CLASSES
-        .iter()
-        .find(|(n, _)| why.contains(n))
-        .map_or("Invalid", |(_, c)| c);
+    let class = parse_class(why)
+        .or_else(|| why.contains("TOML parse error").then_some("syntax"))
+        .unwrap_or("Invalid");
     let key = why
         .strip_prefix("key `")
         .and_then(|rest| rest.split('`').next())

@@ -13,24 +13,29 @@ const CYCLES: usize = 3;
 /// step), so a case stays cheap whatever `plant_substeps` says.
 const SUBSTEP_BUDGET: usize = 2_000;
 
+/// A coarse class of a TOML reader's message (`None`: none of these).
+pub(crate) fn parse_class(message: &str) -> Option<&'static str> {
+    [
+        ("unknown field", "unknown field"),
+        ("missing field", "missing field"),
+        ("invalid type", "invalid type"),
+        ("duplicate key", "duplicate key"),
+        ("did not match any variant", "untagged: no variant matched"),
+        ("invalid length", "invalid length"),
+        ("invalid value", "invalid value"),
+    ]
+    .iter()
+    .find(|(needle, _)| message.contains(needle))
+    .map(|(_, class)| *class)
+}
+
 /// The report's name of a scenario error: the variant, and for `Invalid` the key (indices
 /// shown as `*`); for `Parse` a coarse class of the parser's message.
 pub(super) fn scenario_error_kind(e: &ScenarioError) -> String {
     match e {
         ScenarioError::Io { .. } => "ScenarioError::Io".to_owned(),
         ScenarioError::Parse { message, .. } => {
-            let class = [
-                ("unknown field", "unknown field"),
-                ("missing field", "missing field"),
-                ("invalid type", "invalid type"),
-                ("duplicate key", "duplicate key"),
-                ("did not match any variant", "untagged: no variant matched"),
-                ("invalid length", "invalid length"),
-                ("invalid value", "invalid value"),
-            ]
-            .iter()
-            .find(|(needle, _)| message.contains(needle))
-            .map_or("syntax or value", |(_, class)| class);
+            let class = parse_class(message).unwrap_or("syntax or value");
             format!("ScenarioError::Parse ({class})")
         }
         ScenarioError::Invalid { key, .. } => {

@@ -18,7 +18,7 @@ mod tables;
 mod tests;
 mod text;
 
-pub(crate) use checks::{check, controller_error_kind};
+pub(crate) use checks::{check, controller_error_kind, parse_class};
 pub(crate) use mutation::random_number;
 pub(crate) use tables::INTERESTING;
 pub(crate) use text::{join_lines, number_spans, split_lines, string_spans};
