@@ -86,12 +86,6 @@ enum Refusal {
     Untuned(Untuned),
 }
 
-impl Untuned {
-    fn into_refusal(self) -> Refusal {
-        Refusal::Untuned(self)
-    }
-}
-
 impl std::fmt::Display for Refusal {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
@@ -169,7 +163,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M
         };
         // no allocation on a refusal either: the reason is formatted only when logged
         let answer = match untuned {
-            Some(e) => Err(Untuned::into_refusal(e)),
+            Some(e) => Err(Refusal::Untuned(e)),
             None => self.responder.respond(reference, msg).map_err(Refusal::Law),
         };
         match answer {

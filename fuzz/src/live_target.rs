@@ -271,9 +271,8 @@ impl Corpus {
     /// One case: a seed sequence with 1–8 mutations, encoded.
     pub(crate) fn generate(&self, g: &mut Gen) -> Vec<u8> {
         let mut msgs = g.pick(&self.sequences).clone();
-        let weights: Vec<u32> = OPS.iter().map(|(_, w)| *w).collect();
         for _ in 0..g.mutation_count() {
-            let op = OPS[g.weighted(&weights)].0;
+            let op = g.pick_weighted(&OPS);
             self.mutate(g, op, &mut msgs);
         }
         msgs.truncate(MAX_MESSAGES);

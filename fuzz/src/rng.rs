@@ -59,15 +59,27 @@ impl Gen {
 
     /// An index into `weights`, drawn with those weights (not all zero).
     pub(crate) fn weighted(&mut self, weights: &[u32]) -> usize {
-        let total: u32 = weights.iter().sum();
+        self.weighted_index(weights.iter().copied())
+    }
+
+    /// The first item of an entry of `table` drawn with the entry's weight, the second item
+    /// (the same draw as [`Gen::weighted`] of the weights).
+    pub(crate) fn pick_weighted<T: Copy>(&mut self, table: &[(T, u32)]) -> T {
+        table[self.weighted_index(table.iter().map(|(_, w)| *w))].0
+    }
+
+    fn weighted_index(&mut self, weights: impl Iterator<Item = u32> + Clone) -> usize {
+        let total: u32 = weights.clone().sum();
         let mut x = self.u32() % total;
-        for (i, w) in weights.iter().enumerate() {
-            if x < *w {
+        let mut last = 0;
+        for (i, w) in weights.enumerate() {
+            if x < w {
                 return i;
             }
             x -= w;
+            last = i;
         }
-        weights.len() - 1
+        last
     }
 
     /// `n` random bytes.

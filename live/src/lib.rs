@@ -234,11 +234,7 @@ pub fn serve(opts: &Options) -> Result<Report, LiveError> {
     let outcome = accept_until_end(&listener, opts, &shared, &end_rx);
     // the poller first, so the last word has its final counts
     quit.store(true, Ordering::Release);
-    let _ = poller.join();
-    let replaced = (
-        shared.replaced_states.load(Ordering::Relaxed),
-        shared.replaced_commands.load(Ordering::Relaxed),
-    );
+    let replaced = poller.join().unwrap_or((0, 0));
     let (level, text) = last_word(opts, outcome, replaced);
     shared.finish(level, text);
     // the sessions send their last word and close; give them a little longer than they take
@@ -359,14 +355,15 @@ fn accept_until_end(
 
 /// The poller thread: opens the boards (says so on `ready`), polls them every
 /// [`POLL_PERIOD`], offers each sample, and reports on `end`: `None` when the run is found,
-/// then `Some` when it ends.
+/// then `Some` when it ends. Returns the counts of states and commands replaced on the
+/// boards before it read them.
 fn poll_boards(
     run: &str,
     shared: &Shared,
     quit: &AtomicBool,
     ready: &mpsc::Sender<Result<(), String>>,
     end: &mpsc::Sender<Option<RunEnd>>,
-) {
+) -> (u64, u64) {
     let watch = match link::watch::PairWatch::open(run) {
         Ok(w) => {
             let _ = ready.send(Ok(()));
@@ -374,7 +371,7 @@ fn poll_boards(
         }
         Err(e) => {
             let _ = ready.send(Err(format!("cannot open run `{run}`'s boards: {e}")));
-            return;
+            return (0, 0);
         }
     };
     let mut poller = Poller::new(watch, link::process_alive);
@@ -382,13 +379,10 @@ fn poll_boards(
     // the counts of states and commands replaced before the poller read them, last logged,
     // and when
     let mut logged = ((0, 0), Instant::now());
+    let mut replaced = (0, 0);
     while !quit.load(Ordering::Acquire) {
         poller.poll(Instant::now(), &mut events);
-        let replaced = (poller.replaced_states(), poller.replaced_commands());
-        shared.replaced_states.store(replaced.0, Ordering::Relaxed);
-        shared
-            .replaced_commands
-            .store(replaced.1, Ordering::Relaxed);
+        replaced = (poller.replaced_states(), poller.replaced_commands());
         if replaced != logged.0 && logged.1.elapsed() >= REPLACED_REPORT_EVERY {
             println!(
                 "live: {} states and {} commands replaced on the boards before the bridge read them in the last {:.1} s ({} and {} in all)",
@@ -425,12 +419,13 @@ fn poll_boards(
                 }
                 Event::Ended(e) => {
                     let _ = end.send(Some(e));
-                    return;
+                    return replaced;
                 }
             }
         }
         std::thread::sleep(POLL_PERIOD);
     }
+    replaced
 }
 
 #[cfg(test)]

@@ -103,11 +103,6 @@ pub(crate) struct Shared {
     pub(crate) sent: AtomicU64,
     pub(crate) dropped: AtomicU64,
     pub(crate) offered: AtomicU64,
-    /// States and commands replaced on the boards before the poller read them (the gaps in
-    /// their `seq`), as the poller last counted them.
-    pub(crate) replaced_states: AtomicU64,
-    /// See `replaced_states`.
-    pub(crate) replaced_commands: AtomicU64,
 }
 
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -140,8 +135,6 @@ impl Shared {
             sent: AtomicU64::new(0),
             dropped: AtomicU64::new(0),
             offered: AtomicU64::new(0),
-            replaced_states: AtomicU64::new(0),
-            replaced_commands: AtomicU64::new(0),
         }
     }
 

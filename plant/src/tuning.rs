@@ -175,7 +175,8 @@ impl Tuning {
             .ok()
             .and_then(|mut p| p.take());
         if got.is_none() {
-            // cannot happen (the thread holds the mutex only outside PENDING); give it back
+            // cannot happen (the thread holds the mutex only outside PENDING); hand it back
+            // as withdrawn: the thread answers that nothing changed
             self.shared.state.store(EMPTY, Ordering::Release);
         }
         got
@@ -281,6 +282,13 @@ impl Thread {
                         "the run did not reach its next cycle within {} s (ended, or its controller is stopped): nothing was changed",
                         GIVE_UP.as_secs()
                     ));
+                }
+                // the loop could not take it (see `take`): nothing changed
+                EMPTY => {
+                    return refused(
+                        "the plant's loop could not take the change: nothing was changed"
+                            .to_owned(),
+                    );
                 }
                 // TAKEN: the loop is putting it in force, within the cycle
                 _ => std::thread::sleep(Duration::from_micros(200)),

@@ -157,9 +157,8 @@ impl Seeds {
         let seed = g.pick(&self.items);
         let mut board = seed.input;
         let d = dims(runs()[seed.run].scenario.group);
-        let weights: Vec<u32> = BOARD_OPS.iter().map(|(_, w)| *w).collect();
         for _ in 0..g.mutation_count() {
-            let op = BOARD_OPS[g.weighted(&weights)].0;
+            let op = g.pick_weighted(&BOARD_OPS);
             self.board_op(g, op, &mut board, d);
         }
         let run = if g.chance(9, 10) {

@@ -143,9 +143,8 @@ impl Seeds {
     pub(super) fn generate(&self, g: &mut Gen) -> ParamsCase {
         let seed = g.pick(&self.items);
         let mut text = seed.input.clone();
-        let weights: Vec<u32> = LOG_OPS.iter().map(|(_, w)| *w).collect();
         for _ in 0..g.mutation_count() {
-            let op = LOG_OPS[g.weighted(&weights)].0;
+            let op = g.pick_weighted(&LOG_OPS);
             self.log_op(g, op, &mut text);
         }
         text.truncate(MAX_INPUT);

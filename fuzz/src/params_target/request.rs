@@ -126,9 +126,8 @@ impl Seeds {
     pub(super) fn generate(&self, g: &mut Gen) -> ParamsCase {
         let seed = g.pick(&self.items);
         let mut r = seed.input;
-        let weights: Vec<u32> = REQUEST_OPS.iter().map(|(_, w)| *w).collect();
         for _ in 0..g.mutation_count() {
-            let op = REQUEST_OPS[g.weighted(&weights)].0;
+            let op = g.pick_weighted(&REQUEST_OPS);
             self.request_op(g, op, &mut r, seed.run);
         }
         ParamsCase {

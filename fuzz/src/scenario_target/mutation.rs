@@ -66,9 +66,8 @@ impl Corpus {
             _ => {}
         }
         let mut data = g.pick(&self.items).clone();
-        let weights: Vec<u32> = TOML_OPS.iter().map(|(_, w)| *w).collect();
         for _ in 0..g.mutation_count() {
-            let op = TOML_OPS[g.weighted(&weights)].0;
+            let op = g.pick_weighted(&TOML_OPS);
             let other = g.pick(&self.items);
             toml_op(g, op, &mut data, other);
         }

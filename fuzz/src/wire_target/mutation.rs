@@ -76,9 +76,8 @@ impl Corpus {
             receiver,
             bytes: base.bytes.clone(),
         };
-        let weights: Vec<u32> = WIRE_OPS.iter().map(|(_, w)| *w).collect();
         for _ in 0..g.mutation_count() {
-            let op = WIRE_OPS[g.weighted(&weights)].0;
+            let op = g.pick_weighted(&WIRE_OPS);
             self.wire_op(g, op, &mut case);
         }
         case
