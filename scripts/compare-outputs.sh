@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # Byte-for-byte comparison of what two builds write: a refactoring must change no output byte.
 #
-#   bash scripts/compare-outputs.sh BASE_BIN_DIR NEW_BIN_DIR
+#   bash scripts/compare-outputs.sh [--world] BASE_BIN_DIR NEW_BIN_DIR
+#
+# --world: the new build flies every scenario with `[controller] error_frame = "world"` (the
+# papers' law as written), the base each scenario as it is: for a base from before the key
+# existed, the new build must then write exactly what the base wrote.
 #
 # Each directory holds a plant_sim and a controller_node (e.g. two target/debug directories,
 # one of them built from a `git worktree` of the base commit). Compared with cmp, file by
@@ -20,12 +24,48 @@
 # and exit status 1.
 set -euo pipefail
 REPO=$(cd -- "$(dirname -- "${BASH_SOURCE[0]}")/.." && pwd)
-[[ $# -eq 2 ]] || { echo "usage: $0 BASE_BIN_DIR NEW_BIN_DIR" >&2; exit 2; }
+WORLD=0
+[[ ${1:-} == --world ]] && { WORLD=1; shift; }
+[[ $# -eq 2 ]] || { echo "usage: $0 [--world] BASE_BIN_DIR NEW_BIN_DIR" >&2; exit 2; }
 BASE=$(cd "$1" && pwd)
 NEW=$(cd "$2" && pwd)
 OUT=$(mktemp -d)
 trap 'rm -rf "$OUT"' EXIT
 die() { echo "compare-outputs: FAIL: $*" >&2; exit 1; }
+
+# the scenarios the new build flies: scenarios/ itself, or with --world a copy (waypoint files
+# beside it) whose every [controller] table says error_frame = "world"
+NEW_SCENARIOS=$REPO/scenarios
+if [[ $WORLD -eq 1 ]]; then
+	NEW_SCENARIOS=$OUT/world-scenarios
+	cp -r "$REPO/scenarios" "$NEW_SCENARIOS"
+	for f in "$NEW_SCENARIOS"/*.toml; do
+		grep -q '^error_frame *=' "$f" && sed -i 's/^error_frame *=.*/error_frame = "world"/' "$f" ||
+			sed -i 's/^\[controller\]$/[controller]\nerror_frame = "world"/' "$f"
+		grep -q '^error_frame = "world"$' "$f" || die "--world: cannot set error_frame in $f"
+	done
+	echo "compare-outputs: the new build flies every scenario with error_frame = \"world\""
+fi
+# the scenarios the base flies: with --world, as a base from before the key reads them (no
+# error_frame line)
+BASE_SCENARIOS=$REPO/scenarios
+if [[ $WORLD -eq 1 ]]; then
+	BASE_SCENARIOS=$OUT/base-scenarios
+	cp -r "$REPO/scenarios" "$BASE_SCENARIOS"
+	sed -i '/^error_frame *=/d' "$BASE_SCENARIOS"/*.toml
+fi
+# the new build's arguments: scenario files from NEW_SCENARIOS, built-ins as their files there
+new_args() {
+	local prev=""
+	for a in "$@"; do
+		if [[ $WORLD -eq 1 && $prev == --builtin ]]; then
+			printf '%s\n' "$NEW_SCENARIOS/$a.toml"
+		else
+			printf '%s\n' "${a/#$REPO\/scenarios/$NEW_SCENARIOS}"
+		fi
+		prev=$a
+	done
+}
 
 # run `plant_sim ARGS...` of both builds, each into its own directory, then compare FILES
 # (default: every file the base wrote). A scenario the base refuses as bad input (exit 2: a
@@ -36,14 +76,17 @@ both() {
 	while [[ $1 != -- ]]; do files+=("$1"); shift; done
 	shift
 	local status=0
-	"$BASE/plant_sim" "$@" --out "$OUT/base/$tag" >"$OUT/base/$tag.txt" 2>&1 || status=$?
+	"$BASE/plant_sim" "${@/#$REPO\/scenarios/$BASE_SCENARIOS}" --out "$OUT/base/$tag" >"$OUT/base/$tag.txt" 2>&1 || status=$?
 	if [[ $status -eq 2 ]]; then
 		echo "compare-outputs: $tag: skipped, the base refuses it (new input): $(tail -1 "$OUT/base/$tag.txt")"
 		return 0
 	fi
 	[[ $status -eq 0 ]] || die "base: plant_sim $*: $(cat "$OUT/base/$tag.txt")"
-	"$NEW/plant_sim" "$@" --out "$OUT/new/$tag" >"$OUT/new/$tag.txt" 2>&1 ||
-		die "new: plant_sim $*: $(cat "$OUT/new/$tag.txt")"
+	local -a args
+	mapfile -t args < <(new_args "$@")
+	[[ $WORLD -eq 1 ]] && args=("${args[@]/#--builtin/--scenario}")
+	"$NEW/plant_sim" "${args[@]}" --out "$OUT/new/$tag" >"$OUT/new/$tag.txt" 2>&1 ||
+		die "new: plant_sim ${args[*]}: $(cat "$OUT/new/$tag.txt")"
 	[[ ${#files[@]} -gt 0 ]] || mapfile -t files < <(cd "$OUT/base/$tag" && find . -type f | sort)
 	local compared=0
 	for f in "${files[@]}"; do

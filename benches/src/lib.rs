@@ -111,6 +111,7 @@ pub fn seed_controller<T: Real>(law: Law) -> Controller<T, So3, 3, 3> {
     let h = real::<T>(0.5);
     Controller::new(ControllerConfig {
         law,
+        error_frame: controller::ErrorFrame::World,
         inertia: fixed_wing(),
         k: Matrix3::identity() * h,
         kd: Matrix3::identity() * h,
@@ -145,6 +146,7 @@ pub fn se3_controller<T: Real>() -> Controller<T, Se3, 4, 6> {
     let (_, _, _, _, k, kd) = se3_generic::<T>();
     Controller::new(ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia: se3_inertia(),
         k,
         kd,

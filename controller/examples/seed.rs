@@ -13,6 +13,7 @@ fn main() -> Result<(), controller::Error> {
     let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759);
     let controller = Controller::new(ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia,
         k: Matrix3::identity() * 0.5,
         kd: Matrix3::identity() * 0.5,

@@ -16,7 +16,7 @@
 use crate::Real;
 use crate::error::{Error, Quantity};
 use crate::group::MatrixLieGroup;
-use crate::law::{Controller, Desired, LawOutput, saturate};
+use crate::law::{Controller, Desired, ErrorFrame, Formed, Law, LawOutput, saturate};
 use crate::tracking::{lyapunov, potential_gradient};
 use crate::validate::finite;
 use nalgebra::{Matrix3, SMatrix, SVector};
@@ -398,7 +398,11 @@ where
         h: T,
         follows: bool,
     ) -> Result<LawOutput<T, N, M>, Error> {
-        let (tau, error) = self.checked_raw_torque(q, v, desired)?;
+        let Formed {
+            torque: tau,
+            error,
+            velocity_error,
+        } = self.checked_raw_torque(q, v, desired)?;
         finite(Quantity::AppliedTorque, applied)?;
         rejection.set_period(h)?;
         let update = follows && rejection.anchor.is_some();
@@ -409,12 +413,15 @@ where
         let mu = c.inertia * v;
         let gyro = G::ad_transpose_mul(v, &mu);
         let observer = rejection.observe::<G, N>(&mu, &gyro, q, applied, h);
-        let velocity_error = v - desired.v;
         let mut torque = tau - observer;
         let integral = match &rejection.config.integral {
             Some(i) => {
                 let grad = potential_gradient::<G, T, N, M>(&error.q, &c.k);
-                let eps = G::adjoint(&desired.q).tr_mul(&grad);
+                // the gradient in the body frame: at the reference it already is
+                let eps = match (c.law, c.error_frame) {
+                    (Law::Eqt, ErrorFrame::Reference | ErrorFrame::Recentred) => grad,
+                    _ => G::adjoint(&desired.q).tr_mul(&grad),
+                };
                 let integrand = velocity_error + i.c.component_mul(&eps);
                 let integral = rejection.integrate(&integrand, applied, h, update);
                 torque += integral;

@@ -50,6 +50,50 @@ impl Law {
     }
 }
 
+/// Where the EqT law forms its tracking error and applies its gains
+/// (docs/maths.md, "World-frame invariance").
+///
+/// A scenario's `[controller] error_frame`; the default is [`ErrorFrame::Reference`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum ErrorFrame {
+    /// The transported-error law: the left-invariant error `Q_L = Q_d⁻¹Q` and the velocity
+    /// error `e = V − Ad_{Q_L⁻¹}V_d`, gains acting on both. Moving the world by any rigid
+    /// motion leaves its wrench unchanged, and `L̇ = −eᵀK_d e` exactly ([`eqt_transported`]).
+    #[default]
+    Reference,
+    /// The papers' law as written ([`eqt`]): the right-invariant error `Q_E = Q Q_d⁻¹` with
+    /// gains in world axes. On SE(3) its damping grows with the reference's distance from
+    /// the world origin.
+    World,
+    /// The papers' law evaluated in a world frame placed at the reference's current pose
+    /// ([`eqt_recentred`]): invariant, and on SO(3) with isotropic gains equal to
+    /// [`ErrorFrame::World`]; its `L̇` carries a term that damping does not dominate.
+    Recentred,
+}
+
+impl ErrorFrame {
+    /// Every error frame, the default first.
+    pub const ALL: [ErrorFrame; 3] = [
+        ErrorFrame::Reference,
+        ErrorFrame::World,
+        ErrorFrame::Recentred,
+    ];
+
+    /// The lower-case name used in scenario files (`"reference"`, `"world"`, `"recentred"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ErrorFrame::Reference => "reference",
+            ErrorFrame::World => "world",
+            ErrorFrame::Recentred => "recentred",
+        }
+    }
+
+    /// Parses a lower-case name.
+    pub fn from_name(name: &str) -> Option<ErrorFrame> {
+        ErrorFrame::ALL.iter().copied().find(|f| f.name() == name)
+    }
+}
+
 /// The desired state at the current time, as the law needs it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Desired<T: Real, const N: usize, const M: usize> {
@@ -94,6 +138,110 @@ where
     let tau_e = -G::ad(&(a * desired.v)).tr_mul(&e.p) - kd * v_e - grad;
     let tau = desired.tau + a.tr_mul(&(tau_e - G::ad(&v_e).tr_mul(&a_inv.tr_mul(&desired.p))));
     (tau, e)
+}
+
+/// What the EqT law forms besides its torque: the tracking error and the velocity error
+/// that the Lyapunov function reads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Formed<T: Real, const N: usize, const M: usize> {
+    /// The torque before saturation.
+    pub torque: SVector<T, M>,
+    /// The tracking error: `(Q_E, p_E)` in the world frame, `(Q_L, I e)` at the reference.
+    pub error: Phase<T, N, M>,
+    /// The velocity error: `V − V_d` in the world frame, `e = V − Ad_{Q_L⁻¹}V_d` at the
+    /// reference ([`ErrorFrame::Reference`]).
+    pub velocity_error: SVector<T, M>,
+}
+
+/// The transported-error law, [`ErrorFrame::Reference`] (docs/maths.md, "The law at the
+/// reference"):
+///
+/// ```text
+/// Q_L = Q_d⁻¹Q,   W = Ad_{Q_L⁻¹} V_d,   e = V − W,   V̇_d = I⁻¹(τ_d + ad_{V_d}ᵀ p_d)
+/// τ = −ad_Wᵀ I V + I (Ad_{Q_L⁻¹} V̇_d − ad_e W) − K_d e − grad Υ(Q_L)
+/// ```
+///
+/// with the left-trivialised gradient `grad_i = ⟨Q_Lᵀ(Q_L − I)K, E_i⟩_F`. Every quantity is
+/// in the body frame, so moving the world (`Q ↦ TQ`, `Q_d ↦ TQ_d`) changes nothing; along the
+/// continuous closed loop `L = ½eᵀIe + Υ(Q_L)` has `L̇ = −eᵀK_d e`. `p = I V` is the momentum
+/// with the model inertia `I`, `inertia_inv` its inverse.
+#[allow(clippy::too_many_arguments)]
+pub fn eqt_transported<G, T, const N: usize, const M: usize>(
+    q: &SMatrix<T, N, N>,
+    v: &SVector<T, M>,
+    p: &SVector<T, M>,
+    desired: &Desired<T, N, M>,
+    k: &SMatrix<T, N, N>,
+    kd: &SMatrix<T, M, M>,
+    inertia: &SMatrix<T, M, M>,
+    inertia_inv: &SMatrix<T, M, M>,
+) -> Formed<T, N, M>
+where
+    G: MatrixLieGroup<N, M>,
+    T: Real,
+{
+    let q_l = G::compose(&G::inverse(&desired.q), q);
+    let b = G::adjoint(&G::inverse(&q_l));
+    let w = b * desired.v;
+    let e = v - w;
+    let vd_dot = inertia_inv * (desired.tau + G::ad_transpose_mul(&desired.v, &desired.p));
+    let grad = potential_gradient::<G, T, N, M>(&q_l, k);
+    let torque =
+        inertia * (b * vd_dot - G::ad(&e) * w) - G::ad_transpose_mul(&w, p) - kd * e - grad;
+    Formed {
+        torque,
+        error: Phase {
+            q: q_l,
+            p: inertia * e,
+        },
+        velocity_error: e,
+    }
+}
+
+/// The papers' law evaluated in a world frame placed at the reference's current pose,
+/// [`ErrorFrame::Recentred`] (docs/maths.md, "World-frame invariance", route 1): [`eqt`] at
+/// `Q' = Q_d⁻¹Q` with `Q_d' = I`, that is
+///
+/// ```text
+/// τ = τ_d − ad_{V_d}ᵀ I ṽ − K_d ṽ − grad Υ(Q_L) − ad_ṽᵀ p_d,   ṽ = V − V_d,   Q_L = Q_d⁻¹Q
+/// ```
+pub fn eqt_recentred<G, T, const N: usize, const M: usize>(
+    q: &SMatrix<T, N, N>,
+    v: &SVector<T, M>,
+    p: &SVector<T, M>,
+    desired: &Desired<T, N, M>,
+    k: &SMatrix<T, N, N>,
+    kd: &SMatrix<T, M, M>,
+) -> (SVector<T, M>, Phase<T, N, M>)
+where
+    G: MatrixLieGroup<N, M>,
+    T: Real,
+{
+    let q_l = G::compose(&G::inverse(&desired.q), q);
+    let at_identity = Desired {
+        q: G::identity(),
+        ..*desired
+    };
+    eqt::<G, T, N, M>(&q_l, v, p, &at_identity, k, kd)
+}
+
+/// Whether the papers' world-frame damping stays stable under the zero-order hold at the
+/// reference pose `q_d` (docs/maths.md, "Where the world-frame law breaks"): held over a
+/// period `h`, the damping alone maps `V ↦ (1 − h I⁻¹D) V` with `D = Ad_{Q_d}ᵀ K_d Ad_{Q_d}`,
+/// stable while `h·λ_max(I⁻¹D) < 2`, that is while `2I − hD` is positive definite.
+pub fn world_damping_holds<G, T, const N: usize, const M: usize>(
+    q_d: &SMatrix<T, N, N>,
+    inertia: &SMatrix<T, M, M>,
+    kd: &SMatrix<T, M, M>,
+    h: T,
+) -> bool
+where
+    G: MatrixLieGroup<N, M>,
+    T: Real,
+{
+    let a = G::adjoint(q_d);
+    let d = a.tr_mul(&(kd * a));
+    nalgebra::Cholesky::new(inertia * crate::real::<T>(2.0) - d * h).is_some()
 }
 
 /// Clamps each axis of `tau` to `[−l_i, l_i]` (no limit: unchanged); true when any axis was
@@ -265,6 +413,9 @@ pub mod so3 {
 pub struct ControllerConfig<T: Real, const N: usize, const M: usize> {
     /// The law.
     pub law: Law,
+    /// Where EqT forms its error and applies its gains (the comparison laws GT, nog and asym
+    /// are the extended paper's closed forms and always act in the world frame).
+    pub error_frame: ErrorFrame,
     /// The model inertia `I` (m×m, symmetric positive definite).
     pub inertia: SMatrix<T, M, M>,
     /// The potential weight `K` (n×n, symmetric positive definite). A scenario file calls it
@@ -288,7 +439,8 @@ pub struct LawOutput<T: Real, const N: usize, const M: usize> {
     pub lyapunov: Lyapunov<T>,
     /// The tracking error `(Q_E, p_E)`.
     pub error: Phase<T, N, M>,
-    /// `V − V_d`.
+    /// The velocity error: `V − V_d`, or `e = V − Ad_{Q_L⁻¹}V_d` with
+    /// [`ErrorFrame::Reference`].
     pub velocity_error: SVector<T, M>,
     /// The disturbance observer's estimate `d̂_b` (body frame), subtracted from the law's
     /// torque (zero without the observer; see [`crate::disturbance`]).
@@ -347,19 +499,40 @@ where
         &self.inertia_inv
     }
 
-    /// The torque before saturation, and the tracking error, for the measured configuration
-    /// `q` and body velocity `v` (no checks; see [`Controller::compute`]).
+    /// The torque before saturation, the tracking error and the velocity error, for the
+    /// measured configuration `q` and body velocity `v` (no checks; see
+    /// [`Controller::compute`]).
     pub fn raw_torque(
         &self,
         q: &SMatrix<T, N, N>,
         v: &SVector<T, M>,
         desired: &Desired<T, N, M>,
-    ) -> (SVector<T, M>, Phase<T, N, M>) {
+    ) -> Formed<T, N, M> {
         let c = &self.config;
         let p = c.inertia * v;
-        match c.law {
-            Law::Eqt => eqt::<G, T, N, M>(q, v, &p, desired, &c.k, &c.kd),
-            law => {
+        let world = |(torque, error)| Formed {
+            torque,
+            error,
+            velocity_error: v - desired.v,
+        };
+        match (c.law, c.error_frame) {
+            (Law::Eqt, ErrorFrame::Reference) => eqt_transported::<G, T, N, M>(
+                q,
+                v,
+                &p,
+                desired,
+                &c.k,
+                &c.kd,
+                &c.inertia,
+                &self.inertia_inv,
+            ),
+            (Law::Eqt, ErrorFrame::World) => {
+                world(eqt::<G, T, N, M>(q, v, &p, desired, &c.k, &c.kd))
+            }
+            (Law::Eqt, ErrorFrame::Recentred) => {
+                world(eqt_recentred::<G, T, N, M>(q, v, &p, desired, &c.k, &c.kd))
+            }
+            (law, _) => {
                 let e = tracking_error::<G, T, N, M>(
                     &Phase { q: *q, p },
                     &Phase {
@@ -367,7 +540,7 @@ where
                         p: desired.p,
                     },
                 );
-                (so3::dispatch(law, q, v, desired, c), e)
+                world((so3::dispatch(law, q, v, desired, c), e))
             }
         }
     }
@@ -388,7 +561,7 @@ where
         q: &SMatrix<T, N, N>,
         v: &SVector<T, M>,
         desired: &Desired<T, N, M>,
-    ) -> Result<(SVector<T, M>, Phase<T, N, M>), Error> {
+    ) -> Result<Formed<T, N, M>, Error> {
         // one sum of every input: finite, every entry is (the usual case); else each input
         // is looked at in turn, to name the one that is not
         let inputs = sum(q)
@@ -405,9 +578,9 @@ where
             finite(Quantity::Reference, &desired.v)?;
             finite(Quantity::Reference, &desired.tau)?;
         }
-        let (tau, error) = self.raw_torque(q, v, desired);
-        finite(Quantity::Torque, &tau)?;
-        Ok((tau, error))
+        let formed = self.raw_torque(q, v, desired);
+        finite(Quantity::Torque, &formed.torque)?;
+        Ok(formed)
     }
 
     /// One evaluation of the law: checks the state is finite, computes the torque, saturates
@@ -419,12 +592,13 @@ where
     /// ```
     /// use controller::group::{MatrixLieGroup, So3};
     /// use controller::law::Desired;
-    /// use controller::{Controller, ControllerConfig, Law};
+    /// use controller::{Controller, ControllerConfig, ErrorFrame, Law};
     /// use nalgebra::{Matrix3, Vector3};
     ///
     /// let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759);
     /// let law = Controller::<f64, So3, 3, 3>::new(ControllerConfig {
     ///     law: Law::Eqt,
+    ///     error_frame: ErrorFrame::Reference,
     ///     inertia,
     ///     k: Matrix3::identity() * 0.5,
     ///     kd: Matrix3::identity() * 0.5,
@@ -449,9 +623,12 @@ where
         v: &SVector<T, M>,
         desired: &Desired<T, N, M>,
     ) -> Result<LawOutput<T, N, M>, Error> {
-        let (mut tau, error) = self.checked_raw_torque(q, v, desired)?;
+        let Formed {
+            torque: mut tau,
+            error,
+            velocity_error,
+        } = self.checked_raw_torque(q, v, desired)?;
         let saturated = saturate(&mut tau, self.config.torque_limit.as_ref());
-        let velocity_error = v - desired.v;
         let lyapunov = lyapunov(
             &error.q,
             &velocity_error,

@@ -30,6 +30,7 @@ fn se3_loop(period: f64, substeps: usize, feedforward: bool) -> ClosedLoop<f64, 
     kd[(1, 0)] = 0.1;
     let config = ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia,
         k,
         kd,

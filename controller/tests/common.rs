@@ -18,6 +18,7 @@ pub fn seed_loop<T: Real>(law: Law, period: f64, substeps: usize) -> ClosedLoop<
     let half: T = controller::real(0.5);
     let config = ControllerConfig {
         law,
+        error_frame: controller::ErrorFrame::World,
         inertia,
         k: Matrix3::identity() * half,
         kd: Matrix3::identity() * half,

@@ -51,6 +51,7 @@ fn setpoint(
 ) -> ClosedLoop<f64, So3, 3, 3, PathReference<f64, So3, 3, 3>> {
     let controller = Controller::new(ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia: body(),
         k: Matrix3::identity(),
         kd: Matrix3::identity() * 0.28,
@@ -197,6 +198,7 @@ fn yawing(frame: Option<Frame>) -> f64 {
         .copy_from(&(Matrix3::identity() * 0.28));
     let controller = Controller::<f64, Se3, 4, 6>::new(ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia,
         k: SMatrix::identity(),
         kd,

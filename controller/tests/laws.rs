@@ -98,6 +98,7 @@ proptest! {
 fn config3(law: Law) -> ControllerConfig<f64, 3, 3> {
     ControllerConfig {
         law,
+        error_frame: controller::ErrorFrame::World,
         inertia: common::fixed_wing(),
         k: Matrix3::identity(),
         kd: Matrix3::identity() * 0.5,
@@ -108,6 +109,7 @@ fn config3(law: Law) -> ControllerConfig<f64, 3, 3> {
 fn config6(law: Law) -> ControllerConfig<f64, 4, 6> {
     ControllerConfig {
         law,
+        error_frame: controller::ErrorFrame::World,
         inertia: SMatrix::<f64, 6, 6>::identity() * 2.0,
         k: SMatrix::<f64, 4, 4>::identity(),
         kd: SMatrix::<f64, 6, 6>::identity(),
@@ -278,6 +280,7 @@ fn saturation_clamps_each_axis() {
 fn the_law_works_in_f32_on_both_groups() {
     let c = Controller::<f32, So3, 3, 3>::new(ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia: common::fixed_wing(),
         k: Matrix3::identity(),
         kd: Matrix3::identity(),
@@ -315,6 +318,7 @@ fn the_law_works_in_f32_on_both_groups() {
     }
     let c6 = Controller::<f32, Se3, 4, 6>::new(ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia: SMatrix::<f32, 6, 6>::identity(),
         k: SMatrix::<f32, 4, 4>::identity(),
         kd: SMatrix::<f32, 6, 6>::identity(),

@@ -242,6 +242,7 @@ fn converges<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 ) -> (f64, f64) {
     let controller = Controller::<f64, G, N, M>::new(ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia,
         k: SMatrix::identity() * 2.0,
         kd: SMatrix::identity() * 2.0,

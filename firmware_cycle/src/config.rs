@@ -4,7 +4,8 @@
 use controller::group::MatrixLieGroup;
 use controller::reference::{AxisTorque, CosTerm, Feedforward};
 use controller::{
-    Controller, ControllerConfig, IntegralConfig, Law, ObserverConfig, Reference, RejectionConfig,
+    Controller, ControllerConfig, ErrorFrame, IntegralConfig, Law, ObserverConfig, Reference,
+    RejectionConfig,
 };
 use heapless::Vec;
 use nalgebra::{SMatrix, SVector};
@@ -77,6 +78,9 @@ pub struct Config {
     pub identity: Hello,
     /// The law: its index in `controller::Law::ALL` (0 EqT, 1 GT, 2 nog, 3 asym).
     pub law: u8,
+    /// Where EqT forms its error: its index in `controller::ErrorFrame::ALL` (0 reference,
+    /// 1 world, 2 recentred).
+    pub error_frame: u8,
     /// The model inertia `I`, row-major (m² entries).
     pub inertia: Vec<f32, 36>,
     /// The potential weight `K`, row-major (n² entries).
@@ -109,6 +113,8 @@ pub enum ConfigError {
     Group(u8),
     /// Not a law index.
     Law(u8),
+    /// Not an error-frame index.
+    ErrorFrame(u8),
     /// A vector with the wrong number of entries for the group: which, and how many.
     Shape(&'static str, usize),
     /// The controller refused the settings.
@@ -126,6 +132,7 @@ impl core::fmt::Display for ConfigError {
             ConfigError::TooLong => f.write_str("the configuration does not fit the buffer"),
             ConfigError::Group(g) => write!(f, "group code {g} (expected 1 so3 or 2 se3)"),
             ConfigError::Law(l) => write!(f, "law index {l} (expected 0 to 3)"),
+            ConfigError::ErrorFrame(i) => write!(f, "error-frame index {i} (expected 0 to 2)"),
             ConfigError::Shape(what, n) => write!(f, "{what}: {n} entries, not the group's"),
             ConfigError::Controller(e) => write!(f, "{e}"),
             ConfigError::Estimator(e) => write!(f, "estimator: {e}"),
@@ -167,12 +174,21 @@ impl Config {
             .ok_or(ConfigError::Law(self.law))
     }
 
+    /// Where EqT forms its error.
+    pub fn error_frame(&self) -> Result<ErrorFrame, ConfigError> {
+        ErrorFrame::ALL
+            .get(usize::from(self.error_frame))
+            .copied()
+            .ok_or(ConfigError::ErrorFrame(self.error_frame))
+    }
+
     /// The controller on group `G`.
     pub fn controller<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         &self,
     ) -> Result<Controller<f32, G, N, M>, ConfigError> {
         Ok(Controller::new(ControllerConfig {
             law: self.law()?,
+            error_frame: self.error_frame()?,
             inertia: matrix::<M, M>("inertia", &self.inertia)?,
             k: matrix::<N, N>("k", &self.k)?,
             kd: matrix::<M, M>("kd", &self.kd)?,

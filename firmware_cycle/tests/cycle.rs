@@ -37,6 +37,7 @@ fn seed_like() -> Config {
             scenario: heapless::String::try_from("seed").unwrap(),
         },
         law: 0,
+        error_frame: 1,
         inertia: v(&INERTIA),
         k: v(&[0.5, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.5]),
         kd: v(&[0.5, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.5]),
@@ -153,6 +154,7 @@ fn the_answer_is_the_f32_laws_and_bad_states_are_dropped() {
     // the same law and reference built directly
     let law = Controller::<f32, So3, 3, 3>::new(ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia: Matrix3::from_row_slice(&INERTIA),
         k: Matrix3::identity() * 0.5,
         kd: Matrix3::identity() * 0.5,

@@ -175,6 +175,7 @@ pub(crate) fn unit_controller<G: MatrixLieGroup<N, M>, const N: usize, const M: 
 -> controller::Controller<f64, G, N, M> {
     controller::Controller::<f64, G, N, M>::new(controller::ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia: SMatrix::identity(),
         k: SMatrix::identity(),
         kd: SMatrix::identity(),

@@ -320,6 +320,10 @@ pub struct Summary {
     pub group: String,
     /// Law name.
     pub law: String,
+    /// Where EqT formed its error, when not the papers' world frame (`reference`,
+    /// `recentred`; absent: the world frame, or a comparison law).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_frame: Option<String>,
     /// Duration T (s).
     pub duration: f64,
     /// Control period (s).
@@ -355,6 +359,7 @@ impl Summary {
             scenario: scenario.to_owned(),
             group: traj.group.name().to_owned(),
             law: law.to_owned(),
+            error_frame: None,
             duration: traj.duration,
             control_period: traj.control_period,
             rows: traj.rows.len(),
@@ -376,6 +381,12 @@ impl Summary {
             estimator: traj.estimator.clone(),
             vehicle: traj.vehicle.clone(),
         }
+    }
+
+    /// The summary with the scenario's error frame noted (see [`Summary::error_frame`]).
+    pub fn with_error_frame(mut self, s: &scenario::Scenario) -> Summary {
+        self.error_frame = s.error_frame_note().map(str::to_owned);
+        self
     }
 }
 

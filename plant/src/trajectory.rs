@@ -247,6 +247,56 @@ pub struct SimulatedTrajectory {
     pub vehicle: Option<crate::vehicle::VehicleReport>,
 }
 
+/// A run of the papers' world-frame law on SE(3): the first time `t_k` (k ≤ `steps`), and the
+/// reference's distance from the world origin then, at which the law's damping, held over a
+/// control period, stops being stable ([`controller::law::world_damping_holds`];
+/// docs/maths.md, "Where the world-frame law breaks"). `None` for any other run, or when the
+/// reference stays where the damping holds. It steps the scenario's own reference again, off
+/// the control loop.
+pub fn world_frame_finding(s: &Scenario, steps: u64) -> Option<(f64, f64)> {
+    (s.group == controller::GroupKind::Se3
+        && s.law == controller::Law::Eqt
+        && s.error_frame == controller::ErrorFrame::World)
+        .then(|| s.group.dispatch(WorldFrameFinding { s, steps }))
+        .flatten()
+}
+
+struct WorldFrameFinding<'a> {
+    s: &'a Scenario,
+    steps: u64,
+}
+
+impl OnGroup for WorldFrameFinding<'_> {
+    type Output = Option<(f64, f64)>;
+    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+        let s = self.s;
+        let mut reference = s.reference_source::<G, N, M>().ok()?;
+        let inertia = SMatrix::<f64, M, M>::from_row_slice(&s.model_inertia);
+        let kd = SMatrix::<f64, M, M>::from_row_slice(&s.kd);
+        for _ in 0..=self.steps {
+            let q_d = reference.desired().q;
+            if !controller::law::world_damping_holds::<G, f64, N, M>(
+                &q_d,
+                &inertia,
+                &kd,
+                s.control_period,
+            ) {
+                let x = q_d.fixed_view::<3, 1>(0, N - 1).norm();
+                return Some((reference.time(), x));
+            }
+            reference.advance();
+        }
+        None
+    }
+}
+
+/// The one-line warning of a [`SimulatedTrajectory::world_frame_unstable`] finding.
+pub fn world_frame_warning((t, distance): (f64, f64)) -> String {
+    format!(
+        "warning: t = {t} s: the reference is {distance:.3} m from the world origin, where error_frame = \"world\" loses stability (see docs/maths.md); error_frame = \"reference\" does not depend on it"
+    )
+}
+
 impl SimulatedTrajectory {
     /// `(n, m)` of the group.
     pub fn dims(&self) -> (usize, usize) {

@@ -57,7 +57,8 @@ fn simulate<'py>(
                 }
                 Ok(())
             })?;
-            let summary = plant::output::Summary::of(&traj, &s.name, s.law.name());
+            let summary =
+                plant::output::Summary::of(&traj, &s.name, s.law.name()).with_error_frame(&s);
             let json = serde_json::to_string(&summary)
                 .map_err(|e| plant::SimError::Run(format!("cannot encode the summary: {e}")))?;
             Ok((header, columns, json))

@@ -8,7 +8,8 @@ use controller::group::so3::exp_so3;
 use controller::integrator::RigidBody;
 use controller::reference::{AxisTorque, CosTerm, Feedforward};
 use controller::{
-    Controller, ControllerConfig, Law, Path as GroupPath, PathReference, Reference, Source,
+    Controller, ControllerConfig, ErrorFrame, Law, Path as GroupPath, PathReference, Reference,
+    Source,
 };
 use nalgebra::{SMatrix, SVector, Vector3};
 use std::path::Path;
@@ -74,6 +75,22 @@ impl Scenario {
         Ok(self)
     }
 
+    /// The error frame EqT flies when it is not the papers' world frame (`"reference"`,
+    /// `"recentred"`); `None` for the world frame and for the comparison laws, which have no
+    /// other. Summaries and the printed run line name it.
+    pub fn error_frame_note(&self) -> Option<&'static str> {
+        (self.law == Law::Eqt && self.error_frame != ErrorFrame::World)
+            .then(|| self.error_frame.name())
+    }
+
+    /// The law as a run's first line names it: `eqt`, or `eqt, error frame reference`.
+    pub fn law_label(&self) -> String {
+        match self.error_frame_note() {
+            None => self.law.name().to_owned(),
+            Some(f) => format!("{}, error frame {f}", self.law.name()),
+        }
+    }
+
     /// The number of control steps N = duration / control_period.
     pub fn steps(&self) -> u64 {
         (self.duration / self.control_period).round() as u64
@@ -99,6 +116,7 @@ impl Scenario {
     pub fn controller_config<const N: usize, const M: usize>(&self) -> ControllerConfig<f64, N, M> {
         ControllerConfig {
             law: self.law,
+            error_frame: self.error_frame,
             inertia: SMatrix::from_row_slice(&self.model_inertia),
             k: SMatrix::from_row_slice(&self.kp),
             kd: SMatrix::from_row_slice(&self.kd),
@@ -194,7 +212,8 @@ impl Scenario {
     /// the group, the control period and reference substeps, the model inertia, `K`, `K_d`,
     /// the torque limit, the reference's initial state and its feedforward. Not the law (a
     /// controller may override it), the duration, the name, nor the plant's own initial state,
-    /// inertia or disturbances. The disturbance-rejection terms when there are any. Two processes of a pair compare it on their first message
+    /// inertia or disturbances. The error frame when it is not `world`, the
+    /// disturbance-rejection terms when there are any. Two processes of a pair compare it on their first message
     /// (docs/architecture.md, "Configuration identity").
     pub fn fingerprint(&self) -> u64 {
         let mut h = Fnv(0xcbf2_9ce4_8422_2325);
@@ -234,6 +253,12 @@ impl Scenario {
                     }
                 }
             }
+        }
+        // only when not the papers' world frame, so logs written before the key existed
+        // (which flew the world frame) keep their fingerprints
+        if self.error_frame != ErrorFrame::World {
+            h.bytes(b"error frame ");
+            h.bytes(self.error_frame.name().as_bytes());
         }
         // only when present, so scenarios without them keep their fingerprints
         if let Some(o) = &self.rejection.observer {

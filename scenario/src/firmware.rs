@@ -4,7 +4,7 @@
 
 use crate::vehicle::VehicleSpec;
 use crate::{Scenario, ScenarioError};
-use controller::{Frame, GroupKind, Law};
+use controller::{ErrorFrame, Frame, GroupKind, Law};
 use firmware_cycle::{
     Axis, Config, Estimator, Failure, Integral, Observer, Series, Term, Thruster, Vehicle,
 };
@@ -61,6 +61,10 @@ impl Scenario {
                 scenario,
             },
             law: Law::ALL.iter().position(|l| *l == self.law).unwrap_or(0) as u8,
+            error_frame: ErrorFrame::ALL
+                .iter()
+                .position(|f| *f == self.error_frame)
+                .unwrap_or(0) as u8,
             inertia: f32s(&self.model_inertia),
             k: f32s(&self.kp),
             kd: f32s(&self.kd),

@@ -31,7 +31,7 @@ pub use sensing::{
     DirectionSpec, EqfSpec, EstimatorKind, EstimatorSpec, GyroSpec, PositionSpec, SensorsSpec,
 };
 
-use controller::{GroupKind, Law};
+use controller::{ErrorFrame, GroupKind, Law};
 
 /// The built-in scenarios, shipped as TOML files in `scenarios/`.
 pub const BUILTINS: [(&str, &str); 3] = [
@@ -121,6 +121,9 @@ pub struct Scenario {
     pub disturbance_world: Option<Vec<f64>>,
     /// Steps of the body disturbance, in time order.
     pub disturbance_steps: Vec<StepSpec>,
+    /// `controller.error_frame`: where EqT forms its error (default
+    /// [`ErrorFrame::Reference`]).
+    pub error_frame: ErrorFrame,
     /// The controller's model inertia (m×m).
     pub model_inertia: Vec<f64>,
     /// The potential weight K (n×n).

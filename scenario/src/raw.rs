@@ -36,6 +36,7 @@ pub(crate) struct RawPlant {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawController {
+    pub(crate) error_frame: Option<String>,
     pub(crate) inertia: Option<Vec<Vec<f64>>>,
     pub(crate) kp: NumberOrMatrix,
     pub(crate) kd: NumberOrMatrix,

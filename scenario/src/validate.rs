@@ -7,7 +7,7 @@ use crate::{
 };
 use controller::reference::MAX_TERMS;
 use controller::validate::spd_inverse;
-use controller::{GroupKind, Law, Quantity};
+use controller::{ErrorFrame, GroupKind, Law, Quantity};
 use nalgebra::SMatrix;
 use std::path::Path;
 
@@ -270,6 +270,7 @@ impl Validator<'_> {
             disturbance: plant.disturbance,
             disturbance_world: plant.disturbance_world,
             disturbance_steps: plant.disturbance_steps,
+            error_frame: controller.error_frame,
             model_inertia: controller.model_inertia,
             kp: controller.kp,
             kd: controller.kd,
@@ -395,15 +396,33 @@ impl Validator<'_> {
                 i
             }
         };
+        let error_frame = self.error_frame(raw.error_frame.as_deref())?;
         let kp = self.gain("controller.kp", &raw.kp, n, "n×n for the group")?;
         let kd = self.gain("controller.kd", &raw.kd, m, "m×m for the group")?;
         let rejection =
             self.rejection(raw.disturbance_observer.as_ref(), raw.integral.as_ref(), m)?;
         Ok(Controller {
+            error_frame,
             model_inertia,
             kp,
             kd,
             rejection,
+        })
+    }
+
+    /// `controller.error_frame`: `reference` (the default), `world` or `recentred`.
+    fn error_frame(&self, text: Option<&str>) -> Result<ErrorFrame, ScenarioError> {
+        let Some(text) = text else {
+            return Ok(ErrorFrame::default());
+        };
+        ErrorFrame::from_name(text).ok_or_else(|| {
+            self.err(
+                "controller.error_frame",
+                format!(
+                    "unknown error frame `{text}` (expected {})",
+                    ErrorFrame::ALL.map(ErrorFrame::name).join(", ")
+                ),
+            )
         })
     }
 
@@ -598,6 +617,8 @@ struct Plant {
 
 /// `[controller]`, checked.
 struct Controller {
+    /// `controller.error_frame`.
+    error_frame: ErrorFrame,
     /// `controller.inertia` (the plant's when absent).
     model_inertia: Vec<f64>,
     /// `controller.kp` (n×n).

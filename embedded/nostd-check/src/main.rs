@@ -20,6 +20,7 @@ fn so3_check<T: Real>(law: Law) -> bool {
     let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759).map(real::<T>);
     let c = match Controller::<T, So3, 3, 3>::new(ControllerConfig {
         law,
+        error_frame: controller::ErrorFrame::World,
         inertia,
         k: Matrix3::identity(),
         kd: Matrix3::identity() * real::<T>(0.5),
@@ -50,6 +51,7 @@ fn so3_check<T: Real>(law: Law) -> bool {
 fn se3_check<T: Real>() -> bool {
     let c = match Controller::<T, Se3, 4, 6>::new(ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia: SMatrix::<T, 6, 6>::identity(),
         k: SMatrix::<T, 4, 4>::identity(),
         kd: SMatrix::<T, 6, 6>::identity(),
@@ -78,6 +80,7 @@ fn closed_loop_check<T: Real>() -> bool {
     let build = || -> Result<ClosedLoop<T, So3, 3, 3>, controller::Error> {
         let c = Controller::new(ControllerConfig {
             law: Law::Eqt,
+            error_frame: controller::ErrorFrame::World,
             inertia,
             k: Matrix3::identity() * real::<T>(0.5),
             kd: Matrix3::identity() * real::<T>(0.5),
@@ -206,6 +209,7 @@ fn rejection_check<T: Real>() -> bool {
     let build = || -> Result<ClosedLoop<T, So3, 3, 3>, controller::Error> {
         let c = Controller::new(ControllerConfig {
             law: Law::Eqt,
+            error_frame: controller::ErrorFrame::World,
             inertia,
             k: Matrix3::identity() * real::<T>(0.5),
             kd: Matrix3::identity() * real::<T>(0.5),

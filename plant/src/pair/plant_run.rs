@@ -493,7 +493,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             ..traj
         };
         let summary = PairSummary {
-            sim: Summary::of(&traj, &s.name, s.law.name()),
+            sim: Summary::of(&traj, &s.name, s.law.name()).with_error_frame(s),
             mode: if realtime { "realtime" } else { "lockstep" }.to_owned(),
             wake: opts.wake.name().to_owned(),
             run: opts.run.clone(),

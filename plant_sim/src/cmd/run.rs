@@ -196,6 +196,9 @@ pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
     };
     let (_, s) = run_pair(&opts)?;
     print_pair_summary(&s, &opts.out);
+    if let Some(found) = plant::trajectory::world_frame_finding(&opts.scenario, s.cycles) {
+        eprintln!("{}", plant::trajectory::world_frame_warning(found));
+    }
     if let Some(c) = &serial {
         print_serial_counts(c);
     }
@@ -239,7 +242,10 @@ pub(crate) fn print_pair_summary(s: &plant::pair::PairSummary, out: &Path) {
         s.run,
         s.sim.scenario,
         s.sim.group,
-        s.sim.law,
+        match &s.sim.error_frame {
+            Some(f) => format!("{}, error frame {f}", s.sim.law),
+            None => s.sim.law.clone(),
+        },
         match s.rate_hz {
             Some(r) => format!("real time at {r} Hz"),
             None => "lockstep".to_owned(),

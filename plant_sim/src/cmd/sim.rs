@@ -68,8 +68,11 @@ pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
         Ok(())
     })?;
     bar.finish_and_clear();
+    if let Some(found) = plant::trajectory::world_frame_finding(&s, s.steps()) {
+        eprintln!("{}", plant::trajectory::world_frame_warning(found));
+    }
     write_trajectory_csv(&traj, &out.join("trajectory.csv"))?;
-    let summary = Summary::of(&traj, &s.name, s.law.name());
+    let summary = Summary::of(&traj, &s.name, s.law.name()).with_error_frame(&s);
     write_json(&summary, &out.join("summary.json"))?;
     let title = format!(
         "{} — {} on {}, T = {} s",
@@ -84,7 +87,7 @@ pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
         "scenario {} ({}, law {}), {} steps of {} s",
         s.name,
         s.group.name(),
-        s.law.name(),
+        s.law_label(),
         s.steps(),
         s.control_period
     );

@@ -45,6 +45,7 @@ pub fn so3_inertia() -> Matrix3<f32> {
 pub fn so3_controller() -> Result<Controller<f32, So3, 3, 3>, Error> {
     Controller::new(ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia: so3_inertia(),
         k: Matrix3::identity() * 0.5,
         kd: Matrix3::identity() * 0.5,
@@ -64,6 +65,7 @@ pub fn se3_controller() -> Result<Controller<f32, Se3, 4, 6>, Error> {
         .copy_from(&(Matrix3::identity() * 2.5));
     Controller::new(ControllerConfig {
         law: Law::Eqt,
+        error_frame: controller::ErrorFrame::World,
         inertia,
         k: SMatrix::<f32, 4, 4>::from_diagonal(&nalgebra::Vector4::new(0.5, 0.5, 0.5, 1.0)),
         kd: SMatrix::<f32, 6, 6>::from_diagonal(&Vector6::new(0.5, 0.5, 0.5, 1.0, 1.0, 1.0)),
