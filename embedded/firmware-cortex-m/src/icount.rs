@@ -7,8 +7,8 @@
 //! | marks | what |
 //! |---|---|
 //! | 0 → 1 | nothing: the cost of returning from one mark and calling the next (subtracted) |
-//! | 2 → 3 | `Controller::compute`, SO(3) EqT, f32 |
-//! | 4 → 5 | `Controller::compute`, SE(3) EqT (the generic law), f32 |
+//! | 2 → 3 | `Controller::compute`, SO(3) EqT, the papers' law (`error_frame` world), f32 |
+//! | 4 → 5 | `Controller::compute`, SE(3) EqT (the generic law), `error_frame` world, f32 |
 //! | 6 → 7 | one controller cycle: reference `desired()`, `compute`, reference `advance()` with 1 RKMK4 substep |
 //! | 8 → 9 | the same with the seed's 10 substeps |
 //! | 10 → 11 | one complementary-filter step (`estimator`), two directions, f32 |
@@ -25,13 +25,21 @@
 //! | 32 → 33 | PIL: `Cycle::on_frame` on it: the EqF pose filter, the reference's step, the SE(3) law with the observer, the allocation to six rotors |
 //! | 34 → 35 | PIL framing out: the command frame encoded (postcard, CRC, COBS) |
 //! | 36 → 37 | its estimator alone: the pose filter with the EqF (two directions, accelerometer, fix) |
-//! | 38 → 39 | its law alone: SE(3) EqT with the world-frame observer, `compute_rejecting` |
+//! | 38 → 39 | its law alone: SE(3) EqT (the configuration's, at the reference) with the world-frame observer, `compute_rejecting` |
 //! | 40 → 41 | its allocation alone: `VehicleControl::actuate` (weight compensated, six rotors) |
+//! | 42 → 43 | `Controller::compute`, SO(3) EqT at the reference (`error_frame` reference, the default), the state of 2 → 3 |
+//! | 44 → 45 | `Controller::compute`, SE(3) EqT at the reference, the state of 4 → 5 |
+//!
+//! The cycles (6 → 9) and the SO(3) rejection terms (16 → 23) fly the seed scenario's law, the
+//! papers' (world); the PIL cycle (30 → 41) flies `pil_hexarotor`'s, at the reference.
 
-use controller::Trajectory as _;
+use controller::{ErrorFrame, Trajectory as _};
 use core::hint::black_box;
 use cortex_m_semihosting::hprintln;
-use firmware_cases::{se3_cases, se3_controller, seed_reference, so3_cases, so3_controller};
+use firmware_cases::{
+    se3_cases, se3_controller, se3_controller_in, seed_reference, so3_cases, so3_controller,
+    so3_controller_in,
+};
 
 /// The marker the counting script looks for by name.
 #[inline(never)]
@@ -189,7 +197,37 @@ pub fn run() -> bool {
 
     ok &= allocations();
     ok &= pil_cycle();
+    ok &= at_the_reference();
     hprintln!("ICOUNT done {}", ok);
+    ok
+}
+
+/// The law at the reference (`error_frame` reference, what every shipped scenario but the
+/// seed's flies; marks 42 to 45): the same controllers and states as marks 2 to 5; true when
+/// every torque was finite.
+fn at_the_reference() -> bool {
+    let (Ok(so3), Ok(se3)) = (
+        so3_controller_in(ErrorFrame::Reference),
+        se3_controller_in(ErrorFrame::Reference),
+    ) else {
+        hprintln!("ERR icount - construction at the reference failed");
+        return false;
+    };
+    let c = so3_cases()[5];
+    let d = se3_cases(&se3.config().inertia)[2];
+    let (so3, se3, c, d) = (black_box(so3), black_box(se3), black_box(c), black_box(d));
+    let mut ok = true;
+
+    icount_mark(42);
+    let r = black_box(so3.compute(black_box(&c.q), black_box(&c.v), black_box(&c.desired)));
+    icount_mark(43);
+    ok &= r.is_ok_and(|o| o.torque.norm().is_finite());
+
+    icount_mark(44);
+    let r = se3.compute(black_box(&d.q), black_box(&d.v), black_box(&d.desired));
+    black_box(&r);
+    icount_mark(45);
+    ok &= r.is_ok_and(|o| o.torque.norm().is_finite());
     ok
 }
 

@@ -9,6 +9,7 @@
 //! TAU so3 <i> <τ0> <τ1> <τ2>            EqT torque for SO(3) test state i
 //! TAU se3 <i> <τ0> … <τ5>               EqT wrench for SE(3) test state i
 //! V   so3|se3 <i> <L>                   the Lyapunov function at that state
+//! TAU|V so3_reference|se3_reference …   the same with `error_frame` reference (the above: world)
 //! L   <t> <L>                           the seed closed loop's Lyapunov function at time t
 //! ERR <what> <i> <error>                the controller returned an error (a failure)
 //! DONE <finite>                         last line: 1 when every number above is finite
@@ -21,7 +22,9 @@ use controller::closed_loop::ClosedLoop;
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;
 use controller::law::Desired;
-use controller::{Controller, ControllerConfig, Error, Law, Reference, so3_seed_feedforward};
+use controller::{
+    Controller, ControllerConfig, Error, ErrorFrame, Law, Reference, so3_seed_feedforward,
+};
 use core::fmt::{self, Write};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3, Vector6};
 
@@ -41,11 +44,17 @@ pub fn so3_inertia() -> Matrix3<f32> {
     Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759)
 }
 
-/// The SO(3) EqT controller of the seed scenario: `K = K_d = 0.5·I`, no saturation.
+/// The SO(3) EqT controller of the seed scenario: `K = K_d = 0.5·I`, no saturation, the
+/// papers' law (`error_frame` world, as the seed scenario pins it).
 pub fn so3_controller() -> Result<Controller<f32, So3, 3, 3>, Error> {
+    so3_controller_in(ErrorFrame::World)
+}
+
+/// [`so3_controller`] with its error formed in `error_frame`.
+pub fn so3_controller_in(error_frame: ErrorFrame) -> Result<Controller<f32, So3, 3, 3>, Error> {
     Controller::new(ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame,
         inertia: so3_inertia(),
         k: Matrix3::identity() * 0.5,
         kd: Matrix3::identity() * 0.5,
@@ -54,8 +63,14 @@ pub fn so3_controller() -> Result<Controller<f32, So3, 3, 3>, Error> {
 }
 
 /// An SE(3) EqT controller: the seed inertia for rotation, mass 2.5 kg, `K = diag(0.5, 0.5,
-/// 0.5, 1)`, `K_d = diag(0.5, 0.5, 0.5, 1, 1, 1)`, no saturation.
+/// 0.5, 1)`, `K_d = diag(0.5, 0.5, 0.5, 1, 1, 1)`, no saturation; the papers' law
+/// (`error_frame` world).
 pub fn se3_controller() -> Result<Controller<f32, Se3, 4, 6>, Error> {
+    se3_controller_in(ErrorFrame::World)
+}
+
+/// [`se3_controller`] with its error formed in `error_frame`.
+pub fn se3_controller_in(error_frame: ErrorFrame) -> Result<Controller<f32, Se3, 4, 6>, Error> {
     let mut inertia = SMatrix::<f32, 6, 6>::zeros();
     inertia
         .fixed_view_mut::<3, 3>(0, 0)
@@ -65,7 +80,7 @@ pub fn se3_controller() -> Result<Controller<f32, Se3, 4, 6>, Error> {
         .copy_from(&(Matrix3::identity() * 2.5));
     Controller::new(ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame,
         inertia,
         k: SMatrix::<f32, 4, 4>::from_diagonal(&nalgebra::Vector4::new(0.5, 0.5, 0.5, 1.0)),
         kd: SMatrix::<f32, 6, 6>::from_diagonal(&Vector6::new(0.5, 0.5, 0.5, 1.0, 1.0, 1.0)),
@@ -300,25 +315,31 @@ fn closed_loop<W: Write>(out: &mut W, finite: &mut bool) -> fmt::Result {
     Ok(())
 }
 
-/// Writes the whole report (every case of both groups, then the closed loop, then `DONE`).
-/// Returns whether every number was finite and no call failed.
+/// Writes the whole report (every case of both groups with the papers' law, then with the law
+/// at the reference, then the closed loop, then `DONE`). Returns whether every number was
+/// finite and no call failed.
 pub fn report<W: Write>(out: &mut W) -> Result<bool, fmt::Error> {
     let mut finite = true;
-    match so3_controller() {
-        Ok(c) => cases(out, "so3", &c, &so3_cases(), &mut finite)?,
-        Err(e) => {
-            finite = false;
-            writeln!(out, "ERR so3 - {e}")?;
+    for (frame, so3, se3) in [
+        (ErrorFrame::World, "so3", "se3"),
+        (ErrorFrame::Reference, "so3_reference", "se3_reference"),
+    ] {
+        match so3_controller_in(frame) {
+            Ok(c) => cases(out, so3, &c, &so3_cases(), &mut finite)?,
+            Err(e) => {
+                finite = false;
+                writeln!(out, "ERR {so3} - {e}")?;
+            }
         }
-    }
-    match se3_controller() {
-        Ok(c) => {
-            let inertia = c.config().inertia;
-            cases(out, "se3", &c, &se3_cases(&inertia), &mut finite)?
-        }
-        Err(e) => {
-            finite = false;
-            writeln!(out, "ERR se3 - {e}")?;
+        match se3_controller_in(frame) {
+            Ok(c) => {
+                let inertia = c.config().inertia;
+                cases(out, se3, &c, &se3_cases(&inertia), &mut finite)?
+            }
+            Err(e) => {
+                finite = false;
+                writeln!(out, "ERR {se3} - {e}")?;
+            }
         }
     }
     closed_loop(out, &mut finite)?;
