@@ -135,6 +135,30 @@ fn every_validation_error_names_the_key_and_exits_2() {
             &["law", "not defined for group se3"],
         ),
         (
+            "unknown error frame",
+            se3_with("kd = 1.5", "kd = 1.5\nerror_frame = \"up\""),
+            &[
+                "controller.error_frame",
+                "unknown error frame `up`",
+                "reference, world, recentred",
+            ],
+        ),
+        (
+            "empty error frame",
+            se3_with("kd = 1.5", "kd = 1.5\nerror_frame = \"\""),
+            &["controller.error_frame", "unknown error frame ``"],
+        ),
+        (
+            "an error frame that is a number",
+            se3_with("kd = 1.5", "kd = 1.5\nerror_frame = 3"),
+            &["error_frame", "expected a string"],
+        ),
+        (
+            "an error frame in capitals",
+            base_with("error_frame = \"world\"", "error_frame = \"World\""),
+            &["controller.error_frame", "unknown error frame `World`"],
+        ),
+        (
             "unknown law",
             base_with("law = \"eqt\"", "law = \"pid\""),
             &["law", "unknown law `pid`"],

@@ -170,6 +170,7 @@ torque_limit = 10.0
 disturbance = [0.0, 0.0, 0.0, 0.1, 0.0, -9.81]
 
 [controller]
+error_frame = "world"
 kp = 2.0
 kd = [
   [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],

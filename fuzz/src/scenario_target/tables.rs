@@ -36,7 +36,11 @@ pub(crate) const INTERESTING: [&str; 30] = [
 ];
 
 /// What replaces the text of a string token.
-pub(super) const STRINGS: [&str; 12] = [
+pub(super) const STRINGS: [&str; 16] = [
+    "reference",
+    "world",
+    "recentred",
+    "up",
     "so3",
     "se3",
     "eqt",
@@ -52,8 +56,20 @@ pub(super) const STRINGS: [&str; 12] = [
 ];
 
 /// Known keys and values for [`TomlOp::SetKey`](super::mutation::TomlOp::SetKey).
-pub(super) const KEYS: [(&str, &[&str]); 22] = [
+pub(super) const KEYS: [(&str, &[&str]); 23] = [
     ("path", &["\"stop\"", "\"through\"", "\"curvy\"", "3"]),
+    (
+        "error_frame",
+        &[
+            "\"reference\"",
+            "\"world\"",
+            "\"recentred\"",
+            "\"up\"",
+            "\"\"",
+            "3",
+            "[\"world\"]",
+        ],
+    ),
     (
         "disturbance_observer",
         &[
@@ -193,7 +209,9 @@ pub(super) const KEYS: [(&str, &[&str]); 22] = [
 ];
 
 /// Whole lines for [`TomlOp::InsertLine`](super::mutation::TomlOp::InsertLine).
-pub(super) const LINES: [&str; 12] = [
+pub(super) const LINES: [&str; 14] = [
+    "error_frame = \"world\"",
+    "error_frame = \"up\"",
     "[[x]]",
     "[plant]",
     "[controller]",
