@@ -1,4 +1,5 @@
-//! Per-cycle latency, one control cycle per iteration. IDs are `<what>/<group>/<scalar>`.
+//! Per-cycle latency, one control cycle per iteration. IDs are `<what>/<group>/<scalar>`
+//! (`error_frame/<group>/<scalar>/<frame>`: the law at the reference against the papers').
 //!
 //! `cargo bench -p benches` (full) or `cargo bench -p benches -- --quick`.
 
@@ -82,6 +83,38 @@ fn laws<T: Real>(c: &mut Criterion, scalar: &str) {
             .0
         })
     });
+    g.finish();
+}
+
+/// EqT at the reference (`error_frame = Reference`, the default: the transported-error law)
+/// against the papers' form (`World`), through `Controller::compute` (the finiteness checks,
+/// the law, the Lyapunov function), on the states of `eqt_generic`: one group per group and
+/// scalar, `error_frame/<group>/<scalar>`, with the functions `reference` and `world`.
+fn error_frames<T: Real>(c: &mut Criterion, scalar: &str) {
+    use controller::ErrorFrame;
+    let frames = [
+        ("reference", ErrorFrame::Reference),
+        ("world", ErrorFrame::World),
+    ];
+    let mut g = c.benchmark_group(format!("error_frame/so3/{scalar}"));
+    g.throughput(Throughput::Elements(1));
+    let (q, v, _, d, ..) = so3_generic::<T>();
+    for (name, frame) in frames {
+        let ctl = so3_law_controller::<T>(frame);
+        g.bench_function(name, |b| {
+            b.iter(|| ctl.compute(black_box(&q), black_box(&v), black_box(&d)))
+        });
+    }
+    g.finish();
+    let mut g = c.benchmark_group(format!("error_frame/se3/{scalar}"));
+    g.throughput(Throughput::Elements(1));
+    let (q, v, _, d, ..) = se3_generic::<T>();
+    for (name, frame) in frames {
+        let ctl = se3_law_controller::<T>(frame);
+        g.bench_function(name, |b| {
+            b.iter(|| ctl.compute(black_box(&q), black_box(&v), black_box(&d)))
+        });
+    }
     g.finish();
 }
 
@@ -524,6 +557,8 @@ fn all(c: &mut Criterion) {
     allocations::<f32>(c, "f32");
     laws::<f64>(c, "f64");
     laws::<f32>(c, "f32");
+    error_frames::<f64>(c, "f64");
+    error_frames::<f32>(c, "f32");
     baseline(c);
     steps::<f64>(c, "f64");
     steps::<f32>(c, "f32");

@@ -141,6 +141,40 @@ pub fn seed_plant<T: Real>() -> RigidBody<T, So3, 3, 3> {
     RigidBody::new(fixed_wing(), r0, Vector3::new(4.0, -3.0, 2.0).map(real)).expect("valid plant")
 }
 
+/// EqT on SO(3) with the gains and inertia of [`so3_generic`] (non-diagonal `K`,
+/// `K_d = K/2`, no torque limit), its error formed in `error_frame`.
+pub fn so3_law_controller<T: Real>(
+    error_frame: controller::ErrorFrame,
+) -> Controller<T, So3, 3, 3> {
+    let x = so3_input::<T>();
+    Controller::new(ControllerConfig {
+        law: Law::Eqt,
+        error_frame,
+        inertia: x.inertia,
+        k: x.k,
+        kd: x.kd,
+        torque_limit: None,
+    })
+    .expect("valid configuration")
+}
+
+/// EqT on SE(3) with the gains and inertia of [`se3_generic`] (no torque limit), its error
+/// formed in `error_frame`.
+pub fn se3_law_controller<T: Real>(
+    error_frame: controller::ErrorFrame,
+) -> Controller<T, Se3, 4, 6> {
+    let (_, _, _, _, k, kd) = se3_generic::<T>();
+    Controller::new(ControllerConfig {
+        law: Law::Eqt,
+        error_frame,
+        inertia: se3_inertia(),
+        k,
+        kd,
+        torque_limit: None,
+    })
+    .expect("valid configuration")
+}
+
 /// The SE(3) controller of the se3_circle scenario.
 pub fn se3_controller<T: Real>() -> Controller<T, Se3, 4, 6> {
     let (_, _, _, _, k, kd) = se3_generic::<T>();
