@@ -450,6 +450,69 @@ pub struct LawOutput<T: Real, const N: usize, const M: usize> {
     pub integral: SVector<T, M>,
 }
 
+impl<T: Real, const N: usize, const M: usize> ControllerConfig<T, N, M> {
+    /// The error frame in force: [`ControllerConfig::error_frame`] for EqT, the world frame
+    /// for the comparison laws (their closed forms have no other).
+    pub fn error_frame_in_force(&self) -> ErrorFrame {
+        match self.law {
+            Law::Eqt => self.error_frame,
+            _ => ErrorFrame::World,
+        }
+    }
+
+    /// The tracking error and the velocity error this configuration's law forms at the state
+    /// `(q, v)` (the model inertia's momentum), as [`LawOutput::error`] and
+    /// [`LawOutput::velocity_error`] report them: `(Q Q_d⁻¹, A⁻ᵀ(p − p_d))` and `V − V_d` in
+    /// the world frame; `(Q_L, I e)` and `e = V − Ad_{Q_L⁻¹}V_d` at the reference;
+    /// `(Q_L, I(V − V_d))` and `V − V_d` re-centred. Records and summaries use it, so they
+    /// show what the law saw.
+    pub fn errors<G: MatrixLieGroup<N, M>>(
+        &self,
+        q: &SMatrix<T, N, N>,
+        v: &SVector<T, M>,
+        desired: &Desired<T, N, M>,
+    ) -> (Phase<T, N, M>, SVector<T, M>) {
+        let q_l = || G::compose(&G::inverse(&desired.q), q);
+        match self.error_frame_in_force() {
+            ErrorFrame::World => {
+                let state = Phase {
+                    q: *q,
+                    p: self.inertia * v,
+                };
+                let reference = Phase {
+                    q: desired.q,
+                    p: desired.p,
+                };
+                (
+                    tracking_error::<G, T, N, M>(&state, &reference),
+                    v - desired.v,
+                )
+            }
+            ErrorFrame::Reference => {
+                let q_l = q_l();
+                let e = v - G::adjoint(&G::inverse(&q_l)) * desired.v;
+                (
+                    Phase {
+                        q: q_l,
+                        p: self.inertia * e,
+                    },
+                    e,
+                )
+            }
+            ErrorFrame::Recentred => {
+                let e = v - desired.v;
+                (
+                    Phase {
+                        q: q_l(),
+                        p: self.inertia * e,
+                    },
+                    e,
+                )
+            }
+        }
+    }
+}
+
 /// A validated controller: gains and inertia are checked once, here; the per-cycle path
 /// checks only that the state is finite.
 #[derive(Debug, Clone, Copy, PartialEq)]

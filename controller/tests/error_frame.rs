@@ -134,7 +134,11 @@ fn world_motion(xs: &[f64], reach: f64) -> SMatrix<f64, 4, 4> {
     t.fixed_view_mut::<3, 3>(0, 0)
         .copy_from(&So3::exp(&(Vector3::from_row_slice(&xs[0..3]) * 1.8)));
     let dir = Vector3::from_row_slice(&xs[3..6]);
-    let dir = if dir.norm() > 1e-3 { dir.normalize() } else { Vector3::x() };
+    let dir = if dir.norm() > 1e-3 {
+        dir.normalize()
+    } else {
+        Vector3::x()
+    };
     t.fixed_view_mut::<3, 1>(0, 3)
         .copy_from(&(dir * reach * xs[6].abs()));
     t
@@ -203,14 +207,30 @@ fn the_world_law_depends_on_where_the_world_is() {
         let case = se3_case(&rng.take(86));
         let moved = case.moved(&world_motion(&rng.take(7), 10_000.0));
         let at = case.torque::<Se3, f64>(ErrorFrame::World);
-        se3_moved += usize::from(!within(&moved.torque::<Se3, f64>(ErrorFrame::World), &at, 1e-6));
+        se3_moved += usize::from(!within(
+            &moved.torque::<Se3, f64>(ErrorFrame::World),
+            &at,
+            1e-6,
+        ));
         let c3 = so3_case(&rng.take(42));
-        let t: SMatrix<f64, 3, 3> = world_motion(&rng.take(7), 0.0).fixed_view::<3, 3>(0, 0).into();
+        let t: SMatrix<f64, 3, 3> = world_motion(&rng.take(7), 0.0)
+            .fixed_view::<3, 3>(0, 0)
+            .into();
         let at = c3.torque::<So3, f64>(ErrorFrame::World);
-        so3_moved += usize::from(!within(&c3.moved(&t).torque::<So3, f64>(ErrorFrame::World), &at, 1e-6));
+        so3_moved += usize::from(!within(
+            &c3.moved(&t).torque::<So3, f64>(ErrorFrame::World),
+            &at,
+            1e-6,
+        ));
     }
-    assert!(se3_moved >= 45, "the world law moved with the world in {se3_moved} of 50 cases");
-    assert!(so3_moved >= 45, "the world law turned with the world in {so3_moved} of 50 cases");
+    assert!(
+        se3_moved >= 45,
+        "the world law moved with the world in {se3_moved} of 50 cases"
+    );
+    assert!(
+        so3_moved >= 45,
+        "the world law turned with the world in {so3_moved} of 50 cases"
+    );
 }
 
 /// On SO(3) with isotropic gains, re-centring is the papers' law, and the law at the reference
@@ -293,7 +313,14 @@ fn lyapunov_rates<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         out.push((now.lyapunov.total, stated, -(c.kd * e).dot(&e)));
         // RK4 in the algebra (frozen-frame increments, fine enough at small h)
         let k1 = rate(&q, &v, &q_d, &v_d);
-        let mid = |k: &(SVector<f64, M>, SVector<f64, M>, SVector<f64, M>, SVector<f64, M>, _), s: f64| {
+        let mid = |k: &(
+            SVector<f64, M>,
+            SVector<f64, M>,
+            SVector<f64, M>,
+            SVector<f64, M>,
+            _,
+        ),
+                   s: f64| {
             (
                 q * G::exp(&(k.0 * s)),
                 v + k.1 * s,
@@ -307,9 +334,10 @@ fn lyapunov_rates<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         let k3 = rate(&q3, &v3, &qd3, &vd3);
         let (q4, v4, qd4, vd4) = mid(&k3, h);
         let k4 = rate(&q4, &v4, &qd4, &vd4);
-        let avg = |a: SVector<f64, M>, b: SVector<f64, M>, c: SVector<f64, M>, d: SVector<f64, M>| {
-            (a + b * 2.0 + c * 2.0 + d) * (h / 6.0)
-        };
+        let avg =
+            |a: SVector<f64, M>, b: SVector<f64, M>, c: SVector<f64, M>, d: SVector<f64, M>| {
+                (a + b * 2.0 + c * 2.0 + d) * (h / 6.0)
+            };
         q *= G::exp(&avg(k1.0, k2.0, k3.0, k4.0));
         v += avg(k1.1, k2.1, k3.1, k4.1);
         q_d *= G::exp(&avg(k1.2, k2.2, k3.2, k4.2));
@@ -367,11 +395,17 @@ fn the_lyapunov_rate_is_the_stated_one_on_se3() {
         let case = se3_case(&rng.take(86));
         let accel = SVector::<f64, 6>::from_row_slice(&rng.take(6)) * 0.5;
         let (err, extra) = check_rate::<Se3, 4, 6>(&case, ErrorFrame::Reference, accel);
-        assert!(err < 1e-5, "at the reference: L̇ off the stated −eᵀK_d e by {err}");
+        assert!(
+            err < 1e-5,
+            "at the reference: L̇ off the stated −eᵀK_d e by {err}"
+        );
         assert_eq!(extra, 0.0);
         let (err, extra) = check_rate::<Se3, 4, 6>(&case, ErrorFrame::Recentred, accel);
         assert!(err < 1e-5, "re-centred: L̇ off the stated rate by {err}");
-        assert!(extra > 1e-3, "re-centred: the extra term is there ({extra})");
+        assert!(
+            extra > 1e-3,
+            "re-centred: the extra term is there ({extra})"
+        );
     }
 }
 
@@ -386,6 +420,9 @@ fn the_lyapunov_rate_is_the_stated_one_on_so3() {
         // with anisotropic K the re-centred law's extra term is there
         let (err, extra) = check_rate::<So3, 3, 3>(&case, ErrorFrame::Recentred, accel);
         assert!(err < 1e-5, "re-centred: L̇ off the stated rate by {err}");
-        assert!(extra > 1e-3, "re-centred: the extra term is there ({extra})");
+        assert!(
+            extra > 1e-3,
+            "re-centred: the extra term is there ({extra})"
+        );
     }
 }

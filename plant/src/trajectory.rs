@@ -5,10 +5,9 @@ use controller::GroupKind;
 use controller::closed_loop::{ClosedLoop, Sample};
 use controller::group::{MatrixLieGroup, OnGroup};
 use controller::integrator::RigidBody;
-use controller::law::Desired;
+use controller::law::{ControllerConfig, Desired};
 use controller::reference::Trajectory;
-use controller::semidirect::Phase;
-use controller::tracking::{error_norms, lyapunov, tracking_error};
+use controller::tracking::{error_norms, lyapunov};
 use nalgebra::{SMatrix, SVector};
 use scenario::Scenario;
 
@@ -128,30 +127,20 @@ impl EstimateRow {
 
 impl Row {
     /// The row at `t` for the plant state `(q, v)`, the desired state and the torque held
-    /// over `[t_k, t_{k+1})`. The tracking error and L use the controller's model inertia and
-    /// K through the same functions the controller uses, so the in-process simulation and the
-    /// plant process of the pair record identical numbers.
-    #[allow(clippy::too_many_arguments)]
+    /// over `[t_k, t_{k+1})`. The tracking error and L are the ones the controller of
+    /// configuration `c` forms (its error frame, model inertia and K), through the same
+    /// functions the controller uses, so the in-process simulation and the plant process of
+    /// the pair record identical numbers.
     pub fn new<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         t: f64,
         q: &SMatrix<f64, N, N>,
         v: &SVector<f64, M>,
         desired: &Desired<f64, N, M>,
         torque: &SVector<f64, M>,
-        model_inertia: &SMatrix<f64, M, M>,
-        k: &SMatrix<f64, N, N>,
+        c: &ControllerConfig<f64, N, M>,
     ) -> Row {
-        let error = tracking_error::<G, f64, N, M>(
-            &Phase {
-                q: *q,
-                p: model_inertia * v,
-            },
-            &Phase {
-                q: desired.q,
-                p: desired.p,
-            },
-        );
-        let velocity_error = v - desired.v;
+        let (model_inertia, k) = (&c.inertia, &c.k);
+        let (error, velocity_error) = c.errors::<G>(q, v, desired);
         let n = error_norms::<G, f64, N, M>(q, &desired.q, &error, &velocity_error);
         let mut tau = [0.0; 6];
         let mut vv = [0.0; 6];
@@ -212,18 +201,9 @@ impl Row {
     /// The row of a closed-loop sample.
     pub fn from_sample<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         s: &Sample<f64, N, M>,
-        model_inertia: &SMatrix<f64, M, M>,
-        k: &SMatrix<f64, N, N>,
+        c: &ControllerConfig<f64, N, M>,
     ) -> Row {
-        Row::new::<G, N, M>(
-            s.t,
-            &s.q,
-            &s.v,
-            &s.desired,
-            &s.output.torque,
-            model_inertia,
-            k,
-        )
+        Row::new::<G, N, M>(s.t, &s.q, &s.v, &s.desired, &s.output.torque, c)
     }
 }
 
@@ -414,7 +394,7 @@ where
             + s.disturbance_wrench::<M>(k, &G::rotation(sim.plant.configuration()));
         let c = sim.controller.config();
         rows.push(
-            Row::from_sample::<G, N, M>(&sample, &c.inertia, &c.k)
+            Row::from_sample::<G, N, M>(&sample, c)
                 .with_estimate(estimate)
                 .with_terms(
                     terms.then(|| Terms::of(&sample.output.observer, &sample.output.integral)),

@@ -366,7 +366,7 @@ where
             + s.disturbance_wrench::<M>(k, &r);
         let c = sim.controller.config();
         rows.push(
-            Row::from_sample::<G, N, M>(&sample, &c.inertia, &c.k)
+            Row::from_sample::<G, N, M>(&sample, c)
                 .with_estimate(estimate)
                 .with_terms(
                     terms.then(|| Terms::of(&sample.output.observer, &sample.output.integral)),

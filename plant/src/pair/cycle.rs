@@ -235,8 +235,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             &self.plant.velocity(),
             &self.reference.desired(),
             &self.tau,
-            &self.cfg.inertia,
-            &self.cfg.k,
+            &self.cfg,
         )
         .with_estimate(self.estimate)
         .with_terms(self.terms);
