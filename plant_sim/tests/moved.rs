@@ -43,7 +43,10 @@ fn turned(r: &[f64]) -> Vec<f64> {
 /// A position moved with the world: `R_T x + t`.
 fn moved(x: &[f64]) -> Vec<f64> {
     let (rt, t) = motion();
-    (rt * Vector3::from_row_slice(x) + t).iter().copied().collect()
+    (rt * Vector3::from_row_slice(x) + t)
+        .iter()
+        .copied()
+        .collect()
 }
 
 /// The text of a scenario with every pose in `[initial]` and `[reference]` (series, set-point)
@@ -198,5 +201,89 @@ fn with_error_frame_world_the_moved_flight_differs() {
         .replace("[controller]", "[controller]\nerror_frame = \"world\"")
         .replace("duration = 60.0", "duration = 5.0");
     let result = std::panic::catch_unwind(|| compare_moved("se3_circle, world", &text, None));
-    assert!(result.is_err(), "the world-frame law flew the same flight moved");
+    assert!(
+        result.is_err(),
+        "the world-frame law flew the same flight moved"
+    );
+}
+
+/// `error_frame = "world"` on SE(3) warns, once, where its damping under the zero-order hold
+/// stops being stable: `se3_circle` (h = 10 ms, K_d = 1.5) 15 m from the origin from the start,
+/// and not at the origin; the law at the reference never warns.
+#[test]
+fn the_world_form_warns_where_its_damping_loses_stability() {
+    let circle = std::fs::read_to_string(repo("scenarios/se3_circle.toml")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let fly = |name: &str, text: String| {
+        let file = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&file, text).unwrap();
+        let out = run(&[
+            "sim",
+            "--scenario",
+            file.to_str().unwrap(),
+            "--out",
+            dir.path().join(name).to_str().unwrap(),
+        ]);
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let world = circle.replace("[controller]", "[controller]\nerror_frame = \"world\"");
+    let far = |text: &str| {
+        text.replace("position = [0.0, 0.0, 0.0]", "position = [15.0, 0.0, 0.0]")
+            .replace(
+                "position = [2.0, -1.0, 1.2]",
+                "position = [17.0, -1.0, 1.2]",
+            )
+            .replace("duration = 60.0", "duration = 2.0")
+    };
+    let warned = fly("world-far", far(&world));
+    let lines: Vec<&str> = warned
+        .lines()
+        .filter(|l| l.starts_with("warning:"))
+        .collect();
+    assert_eq!(
+        lines,
+        [
+            "warning: t = 0 s: the reference is 15.000 m from the world origin, where error_frame = \"world\" loses stability (see docs/maths.md); error_frame = \"reference\" does not depend on it"
+        ],
+        "{warned}"
+    );
+    let near = fly(
+        "world-near",
+        world.replace("duration = 60.0", "duration = 2.0"),
+    );
+    assert!(!near.contains("warning:"), "{near}");
+    let reference = fly("reference-far", far(&circle));
+    assert!(!reference.contains("warning:"), "{reference}");
+}
+
+/// The bound itself: `h·λ_max(I⁻¹ Ad_{Q_d}ᵀ K_d Ad_{Q_d}) < 2`, against an eigenvalue
+/// computed directly, on `se3_circle`'s inertia and damping along the x axis.
+#[test]
+fn the_warning_bound_is_the_damping_eigenvalue() {
+    use controller::group::Se3;
+    use nalgebra::{SMatrix, SymmetricEigen};
+    let inertia =
+        SMatrix::<f64, 6, 6>::from_diagonal(&nalgebra::Vector6::new(0.8, 1.0, 1.2, 2.0, 2.0, 2.0));
+    let kd = SMatrix::<f64, 6, 6>::identity() * 1.5;
+    let h = 0.01;
+    let mut flips = 0;
+    let mut last = true;
+    for i in 0..400 {
+        let x = f64::from(i) * 0.05;
+        let mut q = Matrix4::identity();
+        q[(0, 3)] = x;
+        let a = Se3::adjoint(&q);
+        let s = inertia.map(|v| if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 });
+        let lambda = SymmetricEigen::new(s * a.transpose() * kd * a * s)
+            .eigenvalues
+            .max();
+        let holds = controller::law::world_damping_holds::<Se3, f64, 4, 6>(&q, &inertia, &kd, h);
+        assert_eq!(holds, h * lambda < 2.0, "x = {x}: λ_max = {lambda}");
+        flips += usize::from(holds != last);
+        last = holds;
+    }
+    assert_eq!(
+        flips, 1,
+        "the damping holds near the origin and fails far away"
+    );
 }

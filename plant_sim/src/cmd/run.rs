@@ -194,11 +194,14 @@ pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
         tunable: args.tunable,
         stop: stop.clone(),
     };
-    let (_, s) = run_pair(&opts)?;
-    print_pair_summary(&s, &opts.out);
-    if let Some(found) = plant::trajectory::world_frame_finding(&opts.scenario, s.cycles) {
+    if let Some(found) =
+        plant::trajectory::world_frame_finding(&opts.scenario, opts.scenario.steps())
+    {
         eprintln!("{}", plant::trajectory::world_frame_warning(found));
     }
+    let (_, s) = run_pair(&opts)?;
+    print_pair_summary(&s, &opts.out);
+
     if let Some(c) = &serial {
         print_serial_counts(c);
     }

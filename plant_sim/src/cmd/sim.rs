@@ -55,6 +55,10 @@ pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
     }
     let out = args.out.unwrap_or_else(|| Path::new("out").join(&s.name));
     ensure_dir(&out)?;
+    // before the flight, so that a run the warning explains still shows it when it fails
+    if let Some(found) = plant::trajectory::world_frame_finding(&s, s.steps()) {
+        eprintln!("{}", plant::trajectory::world_frame_warning(found));
+    }
     let bar = progress(s.steps() + 1, &format!("sim {}", s.name));
     #[cfg(feature = "fault-injection")]
     let planted = sample_faults(&args.fault_sample)?;
@@ -68,9 +72,6 @@ pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
         Ok(())
     })?;
     bar.finish_and_clear();
-    if let Some(found) = plant::trajectory::world_frame_finding(&s, s.steps()) {
-        eprintln!("{}", plant::trajectory::world_frame_warning(found));
-    }
     write_trajectory_csv(&traj, &out.join("trajectory.csv"))?;
     let summary = Summary::of(&traj, &s.name, s.law.name()).with_error_frame(&s);
     write_json(&summary, &out.join("summary.json"))?;

@@ -1,0 +1,141 @@
+//! The papers' law stays byte for byte: every scenario in `scenarios/`, flown with
+//! `[controller] error_frame = "world"`, and the extended paper's Monte Carlo write exactly the
+//! `trajectory.csv` and `summary.json` (and the study's CSVs and summary) they wrote before the
+//! key existed.
+//!
+//! `tests/data/world_outputs.txt` holds the FNV-1a digests of what commit a8344c4 (the last
+//! before `error_frame`) wrote for them. It was written by this test itself, run against that
+//! commit's build with the scenarios as they were then (no `error_frame` line):
+//!
+//! ```text
+//! PINNED_WORLD_BASE=/path/to/a8344c4/plant_sim cargo test -p plant_sim --test pinned_world
+//! ```
+//!
+//! (`scripts/compare-outputs.sh --world BASE NEW` compares every file, figures included, when
+//! both builds are at hand.)
+
+mod common;
+
+use common::ok;
+use pair_tests::repo;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const DIGESTS: &str = "tests/data/world_outputs.txt";
+
+/// FNV-1a, 64 bits.
+fn digest(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+        (h ^ u64::from(*b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+/// A copy of `scenarios/` in `dir`: every `[controller]` with `error_frame = "world"`, or
+/// (for the base, which does not know the key) with no `error_frame` line at all.
+fn scenarios(dir: &Path, world: bool) -> Vec<PathBuf> {
+    std::fs::create_dir_all(dir).unwrap();
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(repo("scenarios")).unwrap() {
+        let path = entry.unwrap().path();
+        let to = dir.join(path.file_name().unwrap());
+        if path.extension().is_some_and(|e| e == "toml") {
+            let text = std::fs::read_to_string(&path).unwrap();
+            let kept: Vec<&str> = text
+                .lines()
+                .filter(|l| !l.starts_with("error_frame"))
+                .collect();
+            let mut text = kept.join("\n") + "\n";
+            if world {
+                text = text.replacen(
+                    "[controller]\n",
+                    "[controller]\nerror_frame = \"world\"\n",
+                    1,
+                );
+                assert!(
+                    text.contains("error_frame = \"world\""),
+                    "{}",
+                    path.display()
+                );
+            }
+            std::fs::write(&to, text).unwrap();
+            files.push(to);
+        } else {
+            std::fs::copy(&path, &to).unwrap();
+        }
+    }
+    files.sort();
+    files
+}
+
+/// What `plant_sim` (at `bin`) writes for each pinned run: `(name, digest)` lines.
+fn outputs(bin: &Path, dir: &Path, world: bool) -> Vec<String> {
+    let files = scenarios(&dir.join("scenarios"), world);
+    let mut lines = Vec::new();
+    let mut fly = |tag: String, args: Vec<String>, written: &[&str]| {
+        let out = dir.join(&tag);
+        let result = Command::new(bin)
+            .args(&args)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        ok(&result);
+        for f in written {
+            let bytes = std::fs::read(out.join(f)).unwrap();
+            lines.push(format!("{tag}/{f} {:016x}", digest(&bytes)));
+        }
+    };
+    for f in &files {
+        let name = f.file_stem().unwrap().to_string_lossy().into_owned();
+        fly(
+            format!("sim-{name}"),
+            vec!["sim".into(), "--scenario".into(), f.display().to_string()],
+            &["trajectory.csv", "summary.json"],
+        );
+    }
+    fly(
+        "montecarlo".into(),
+        ["montecarlo", "--runs", "6", "--threads", "2", "--scenario"]
+            .iter()
+            .map(|s| s.to_string())
+            .chain([dir.join("scenarios/montecarlo.toml").display().to_string()])
+            .collect(),
+        &["runs.csv", "mean.csv", "summary.json"],
+    );
+    lines
+}
+
+#[test]
+fn every_scenario_flown_with_error_frame_world_writes_what_it_wrote_before_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    if let Ok(base) = std::env::var("PINNED_WORLD_BASE") {
+        let lines = outputs(Path::new(&base), dir.path(), false);
+        std::fs::write(
+            repo(&format!("plant_sim/{DIGESTS}")),
+            lines.join("\n") + "\n",
+        )
+        .unwrap();
+        return;
+    }
+    let expected = std::fs::read_to_string(repo(&format!("plant_sim/{DIGESTS}"))).unwrap();
+    let expected: Vec<&str> = expected.lines().collect();
+    let got = outputs(Path::new(env!("CARGO_BIN_EXE_plant_sim")), dir.path(), true);
+    // every output pinned then is written the same now (scenarios added since are new, not
+    // pinned)
+    assert!(
+        expected.len() >= 35,
+        "{DIGESTS} has {} lines",
+        expected.len()
+    );
+    for e in &expected {
+        let name = e.split(' ').next().unwrap();
+        let g = got
+            .iter()
+            .find(|g| g.split(' ').next() == Some(name))
+            .unwrap_or_else(|| panic!("{name}: pinned, and no longer written"));
+        assert_eq!(
+            g, e,
+            "flown with error_frame = \"world\", this output changed"
+        );
+    }
+}
