@@ -9,6 +9,8 @@
 //! plant_sim montecarlo [--scenario FILE] [--runs N] [--seed S] [--laws eqt,gt,nog,asym]
 //!                      [--samples FILE] [--threads N] [--out DIR]
 //!                      [--estimators truth,complementary,eqf] [--initial-error RAD]
+//! plant_sim frames [--scenario FILE] [--runs N] [--seed S] [--frames reference,world,recentred]
+//!                  [--duration S] [--threads N] [--world-radius M] [--world-turn RAD] [--out DIR]
 //! plant_sim run [--scenario FILE | --builtin NAME] [--mode lockstep|realtime] [--rate-hz F]
 //!               [--wake spin|event] [--no-spawn] [--name RUN] [--out DIR] [--no-record]
 //! plant_sim replay OUT_DIR [--law L] [--scenario FILE] [--kp X[,X...]] [--kd X[,X...]]
@@ -37,8 +39,8 @@ mod cmd;
 
 use cmd::live;
 use cmd::{
-    bench_loop, export, monitor, montecarlo, noise, param, pil, reference, rejection, replay, run,
-    sim,
+    bench_loop, export, frames, monitor, montecarlo, noise, param, pil, reference, rejection,
+    replay, run, sim,
 };
 
 #[derive(Parser)]
@@ -58,6 +60,10 @@ enum Command {
     Sim(sim::SimArgs),
     /// The extended paper's Monte Carlo study over the four laws.
     Montecarlo(montecarlo::McArgs),
+    /// Where EqT forms its error on SE(3): the error frames (reference, world, recentred)
+    /// flown from the same random starts in a world moved up to 10 km and turned about z
+    /// (frames.csv, table.md, a figure).
+    Frames(frames::FramesArgs),
     /// What sensor noise costs: truth-fed against filter-fed control over gyro noise levels,
     /// with and without the gyro bias, over seeded runs (a scenario with [sensors]).
     Noise(noise::NoiseArgs),
@@ -115,6 +121,7 @@ pub fn main() -> ExitCode {
         None => sim::sim(sim::SimArgs::default(), &stop),
         Some(Command::Sim(a)) => sim::sim(a, &stop),
         Some(Command::Montecarlo(a)) => montecarlo::montecarlo_cmd(a, &stop),
+        Some(Command::Frames(a)) => frames::frames_cmd(a, &stop),
         Some(Command::Noise(a)) => noise::noise_cmd(a),
         Some(Command::Rejection(a)) => rejection::rejection_cmd(a),
         Some(Command::Run(a)) => run::run_cmd(a, &stop),

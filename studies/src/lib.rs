@@ -3,6 +3,7 @@
 //!
 //! * [`montecarlo`]: the extended paper's Monte Carlo comparison of the laws;
 //! * [`estimator_study`]: the laws flown on estimated states, estimator against truth;
+//! * [`frames`]: where EqT forms its error (`error_frame`) on SE(3), with the world moved;
 //! * [`noise`]: the laws under sensor noise;
 //! * [`rejection`]: the disturbance-rejection terms against a disturbance;
 //! * [`reference`](mod@reference): the desired trajectory sampled for inspection, before it
@@ -12,6 +13,7 @@
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod estimator_study;
+pub mod frames;
 pub mod montecarlo;
 pub mod noise;
 pub mod reference;

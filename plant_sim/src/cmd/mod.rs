@@ -6,6 +6,7 @@ use plant::SimError;
 
 pub(crate) mod bench_loop;
 pub(crate) mod export;
+pub(crate) mod frames;
 pub(crate) mod live;
 pub(crate) mod monitor;
 pub(crate) mod montecarlo;
