@@ -153,8 +153,8 @@ pub struct Formed<T: Real, const N: usize, const M: usize> {
     pub velocity_error: SVector<T, M>,
 }
 
-/// The transported-error law, [`ErrorFrame::Reference`] (docs/maths.md, "The law at the
-/// reference"):
+/// The transported-error law, [`ErrorFrame::Reference`]
+/// (docs/maths.md, "The law at the reference"):
 ///
 /// ```text
 /// Q_L = Q_d⁻¹Q,   W = Ad_{Q_L⁻¹} V_d,   e = V − W,   V̇_d = I⁻¹(τ_d + ad_{V_d}ᵀ p_d)
@@ -199,7 +199,7 @@ where
 }
 
 /// The papers' law evaluated in a world frame placed at the reference's current pose,
-/// [`ErrorFrame::Recentred`] (docs/maths.md, "World-frame invariance", route 1): [`eqt`] at
+/// [`ErrorFrame::Recentred`] (docs/maths.md, "Re-centring, the other invariant form"): [`eqt`] at
 /// `Q' = Q_d⁻¹Q` with `Q_d' = I`, that is
 ///
 /// ```text
