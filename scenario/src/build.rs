@@ -83,11 +83,20 @@ impl Scenario {
             .then(|| self.error_frame.name())
     }
 
-    /// The law as a run's first line names it: `eqt`, or `eqt, error frame reference`.
+    /// The law as a run's first line names it: `eqt` (the papers' form, or a comparison law),
+    /// or EqT with its error frame and what that makes of it, e.g. `eqt, error frame reference
+    /// (the transported-velocity-error law, not the papers' form)`.
     pub fn law_label(&self) -> String {
         match self.error_frame_note() {
             None => self.law.name().to_owned(),
-            Some(f) => format!("{}, error frame {f}", self.law.name()),
+            Some(f) => format!(
+                "{}, error frame {f} ({})",
+                self.law.name(),
+                match self.error_frame {
+                    ErrorFrame::Recentred => "the papers' law evaluated at the reference pose",
+                    _ => "the transported-velocity-error law, not the papers' form",
+                }
+            ),
         }
     }
 

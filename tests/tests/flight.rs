@@ -458,3 +458,47 @@ fn a_run_answered_by_a_hand_started_controller_with_another_law_replays_bit_for_
     assert_eq!(code, 1, "{text}");
     assert!(!text.contains(" 0 differ"), "{text}");
 }
+
+/// A log written before `controller.error_frame` existed flew the papers' world frame and
+/// stored a scenario without the key: it replays as it flew (its fingerprint says world). A
+/// run of the default frame replays too, and its stored scenario edited to another frame is
+/// refused as not the scenario the run used.
+#[test]
+fn a_log_from_before_error_frame_replays_as_the_world_frame_it_flew() {
+    let _g = serial();
+    let d = TempDir::new("flight-frame");
+    let circle = std::fs::read_to_string(pair_tests::repo("scenarios/se3_circle.toml")).unwrap();
+    let world = d.join("world.toml");
+    std::fs::write(
+        &world,
+        circle.replace("[controller]", "[controller]\nerror_frame = \"world\""),
+    )
+    .unwrap();
+    let out = d.join("world");
+    lockstep_run("t-flight-frame", &out, "1", &["--scenario", &world]);
+    // the stored scenario as a build from before the key wrote it: no error_frame line
+    let stored = Path::new(&out).join("scenario.toml");
+    let text = std::fs::read_to_string(&stored).unwrap();
+    assert!(text.contains("error_frame = \"world\""), "{text}");
+    std::fs::write(&stored, text.replace("error_frame = \"world\"\n", "")).unwrap();
+    let (code, text) = replay(&[&out]);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(" 0 differ"), "{text}");
+
+    let file = d.join("reference.toml");
+    std::fs::write(&file, &circle).unwrap();
+    let out = d.join("reference");
+    lockstep_run("t-flight-frame", &out, "1", &["--scenario", &file]);
+    let (code, text) = replay(&[&out]);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(" 0 differ"), "{text}");
+    let stored = Path::new(&out).join("scenario.toml");
+    std::fs::write(
+        &stored,
+        circle.replace("[controller]", "[controller]\nerror_frame = \"world\""),
+    )
+    .unwrap();
+    let (code, text) = replay(&[&out]);
+    assert_eq!(code, 2, "{text}");
+    assert!(text.contains("not the scenario the run used"), "{text}");
+}

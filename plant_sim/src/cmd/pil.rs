@@ -121,7 +121,7 @@ pub(crate) fn sim_f32(
         scenario: s,
     };
     let (_, summary) = run_pair(&opts)?;
-    super::run::print_pair_summary(&summary, &opts.out);
+    super::run::print_pair_summary(&summary, &opts.scenario.law_label(), &opts.out);
     Ok(())
 }
 

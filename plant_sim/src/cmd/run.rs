@@ -200,7 +200,7 @@ pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
         eprintln!("{}", plant::trajectory::world_frame_warning(found));
     }
     let (_, s) = run_pair(&opts)?;
-    print_pair_summary(&s, &opts.out);
+    print_pair_summary(&s, &opts.scenario.law_label(), &opts.out);
 
     if let Some(c) = &serial {
         print_serial_counts(c);
@@ -238,17 +238,15 @@ pub(crate) fn state_faults(
 }
 
 /// Prints a finished (or interrupted) pair run's summary to stdout.
-pub(crate) fn print_pair_summary(s: &plant::pair::PairSummary, out: &Path) {
+/// `law` names the law as [`scenario::Scenario::law_label`] does.
+pub(crate) fn print_pair_summary(s: &plant::pair::PairSummary, law: &str, out: &Path) {
     let f = &s.sim.final_errors;
     println!(
         "run `{}`: scenario {} ({}, law {}), {}, {} cycles, {} wake-up",
         s.run,
         s.sim.scenario,
         s.sim.group,
-        match &s.sim.error_frame {
-            Some(f) => format!("{}, error frame {f}", s.sim.law),
-            None => s.sim.law.clone(),
-        },
+        law,
         match s.rate_hz {
             Some(r) => format!("real time at {r} Hz"),
             None => "lockstep".to_owned(),
