@@ -1,7 +1,8 @@
-//! The `error_frame` Monte Carlo on SE(3) (docs/simulations.md, "Where the world frame is:
-//! the error_frame Monte Carlo"): EqT with its error formed at the reference (`reference`),
-//! in the world frame (`world`, the papers' law) and in a world frame re-centred at the
-//! reference (`recentred`), flown from the same random starts in a world moved far away.
+//! The `error_frame` Monte Carlo on SE(3): EqT with its error formed at the reference
+//! (`reference`), in the world frame (`world`, the papers' law) and in a world frame
+//! re-centred at the reference (`recentred`), flown from the same random starts in a world
+//! moved far away. The results:
+//! docs/simulations.md, "Where the world frame is: the error_frame Monte Carlo".
 //!
 //! Run `i` draws, from one ChaCha8 stream seeded with `--seed`, in run order (so the numbers
 //! do not depend on the thread count): the attitude offset `Rz(a)Ry(b)Rx(c)` with `a, b, c`
