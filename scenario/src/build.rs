@@ -263,6 +263,37 @@ impl Scenario {
                 }
             }
         }
+        self.fingerprint_controller_terms(&mut h);
+        // only when present, so scenarios without one keep their fingerprints
+        if let Some(v) = &self.vehicle {
+            h.bytes(b"vehicle");
+            let r = v.restoring();
+            h.f64s(&[r.weight, r.buoyancy, r.centre.x, r.centre.y, r.centre.z]);
+            h.f64s(&[v.actuator_rate_limit, v.actuators.len() as f64]);
+            for a in &v.actuators {
+                h.f64s(&a.position);
+                h.f64s(&a.axis);
+                h.f64s(&[a.torque_per_thrust, a.min, a.max]);
+            }
+            h.f64s(&v.weights);
+            h.f64s(&v.preferred);
+            h.bytes(if v.priority == allocation::Priority::Torque {
+                b"torque first"
+            } else {
+                b"no priority"
+            });
+            for f in v.failures.iter().filter(|f| f.reconfigure) {
+                h.f64s(&[f.actuator as f64, f.t, f.value]);
+            }
+        }
+        h.0.max(1)
+    }
+
+    /// [`Scenario::fingerprint`]'s part for the controller's error frame and its
+    /// disturbance-rejection terms, each hashed only when it is not what a scenario from
+    /// before it meant (the world frame, no term), so older scenarios and logs keep their
+    /// fingerprints.
+    fn fingerprint_controller_terms(&self, h: &mut Fnv) {
         // only when not the papers' world frame, so logs written before the key existed
         // (which flew the world frame) keep their fingerprints
         if self.error_frame != ErrorFrame::World {
@@ -291,29 +322,6 @@ impl Scenario {
                 h.f64s(l);
             }
         }
-        // only when present, so scenarios without one keep their fingerprints
-        if let Some(v) = &self.vehicle {
-            h.bytes(b"vehicle");
-            let r = v.restoring();
-            h.f64s(&[r.weight, r.buoyancy, r.centre.x, r.centre.y, r.centre.z]);
-            h.f64s(&[v.actuator_rate_limit, v.actuators.len() as f64]);
-            for a in &v.actuators {
-                h.f64s(&a.position);
-                h.f64s(&a.axis);
-                h.f64s(&[a.torque_per_thrust, a.min, a.max]);
-            }
-            h.f64s(&v.weights);
-            h.f64s(&v.preferred);
-            h.bytes(if v.priority == allocation::Priority::Torque {
-                b"torque first"
-            } else {
-                b"no priority"
-            });
-            for f in v.failures.iter().filter(|f| f.reconfigure) {
-                h.f64s(&[f.actuator as f64, f.t, f.value]);
-            }
-        }
-        h.0.max(1)
     }
 
     /// The disturbance as a vector.

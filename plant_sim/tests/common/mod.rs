@@ -3,6 +3,7 @@
 use std::process::{Command, Output};
 
 /// Runs `plant_sim args...` to completion.
+#[allow(dead_code)] // not every test file uses it
 pub fn run(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_plant_sim"))
         .args(args)
