@@ -29,9 +29,9 @@ fn over_twenty_seeds_the_mean_rms_estimate_error_lies_in_the_documented_band() {
         .iter()
         .fold((f64::MAX, 0.0f64), |(a, b), x| (a.min(*x), b.max(*x)));
     eprintln!("RMS estimate error over 20 seeds: mean {mean:.4e} rad, range {lo:.4e} .. {hi:.4e}");
-    // docs/maths.md, "What noise costs": mean in [0.020, 0.035] rad (measured 0.0266, runs
-    // from 0.022 to 0.038)
-    assert!((0.020..=0.035).contains(&mean), "{mean}");
+    // docs/maths.md, "What noise costs": mean in [0.025, 0.045] rad (measured 0.0345, runs
+    // from 0.030 to 0.040, flying the default error frame; 0.0266 with the papers' form)
+    assert!((0.025..=0.045).contains(&mean), "{mean}");
     assert!(hi < 0.06, "{hi}");
 }
 
@@ -67,12 +67,21 @@ fn the_closed_loop_on_estimates_converges_on_so3_and_se3() {
         eprintln!(
             "{name}, t in [50, 60] s: attitude error max {att:.3e} (truth-fed {att_t:.3e}), |Q_E - I| max {cfg:.3e} (truth-fed {cfg_t:.3e}), estimate error max {est:.3e}"
         );
-        // documented: over t in [50, 60] s the attitude error stays below 0.1 rad on both
-        // groups (measured 0.070 on SO(3), 0.069 on SE(3)) and |Q_E − I| below 0.15 (0.107
-        // on SE(3)); the truth-fed loop is tighter (0.013 and 1.5e-4)
-        assert!(att < 0.1 && cfg < 0.15, "{name}: {att} {cfg}");
+        // documented (docs/maths.md, "What noise costs"), for t in [50, 60] s with the
+        // default error frame: on SO(3) the attitude error stays below 0.1 rad (measured
+        // 0.079; truth-fed 0.019) and the estimate error below 0.05 (0.036); on SE(3), with
+        // the complementary pose filter's 5 mm position fixes at 50 Hz, the attitude error
+        // stays below 0.2 (0.155), |Q_L − I| below 0.7 (0.595) and the estimate error below
+        // 0.1 (0.075), where the papers' form measured 0.069, 0.107 and 0.017 and
+        // re-centring 0.024, 0.096 and 0.018: the transported error's measured price on
+        // this filter; the truth-fed loops settle to 1e-7
+        let (att_max, cfg_max, est_max) = match name {
+            "sensors_so3" => (0.1, 0.15, 0.05),
+            _ => (0.2, 0.7, 0.1),
+        };
+        assert!(att < att_max && cfg < cfg_max, "{name}: {att} {cfg}");
         assert!(att_t < att, "{name}: the estimates cost something");
-        assert!(est < 0.05, "{name}: {est}");
+        assert!(est < est_max, "{name}: {est}");
     }
 }
 
