@@ -180,10 +180,7 @@ where
     G: MatrixLieGroup<N, M>,
     T: Real,
 {
-    let q_l = G::compose(&G::inverse(&desired.q), q);
-    let b = G::adjoint(&G::inverse(&q_l));
-    let w = b * desired.v;
-    let e = v - w;
+    let AtReference { q_l, b, w, e } = AtReference::of::<G>(q, v, desired);
     let vd_dot = inertia_inv * (desired.tau + G::ad_transpose_mul(&desired.v, &desired.p));
     let grad = potential_gradient::<G, T, N, M>(&q_l, k);
     let torque =
@@ -195,6 +192,35 @@ where
             p: inertia * e,
         },
         velocity_error: e,
+    }
+}
+
+/// The errors at the reference (docs/maths.md, "The law at the reference"): `Q_L = Q_d⁻¹Q`,
+/// `B = Ad_{Q_L⁻¹}`, `W = B V_d` and `e = V − W`, formed in one place for the law and for
+/// [`ControllerConfig::errors`].
+struct AtReference<T: Real, const N: usize, const M: usize> {
+    q_l: SMatrix<T, N, N>,
+    b: SMatrix<T, M, M>,
+    w: SVector<T, M>,
+    e: SVector<T, M>,
+}
+
+impl<T: Real, const N: usize, const M: usize> AtReference<T, N, M> {
+    #[inline(always)]
+    fn of<G: MatrixLieGroup<N, M>>(
+        q: &SMatrix<T, N, N>,
+        v: &SVector<T, M>,
+        desired: &Desired<T, N, M>,
+    ) -> Self {
+        let q_l = G::compose(&G::inverse(&desired.q), q);
+        let b = G::adjoint(&G::inverse(&q_l));
+        let w = b * desired.v;
+        AtReference {
+            q_l,
+            b,
+            w,
+            e: v - w,
+        }
     }
 }
 
@@ -489,8 +515,7 @@ impl<T: Real, const N: usize, const M: usize> ControllerConfig<T, N, M> {
                 )
             }
             ErrorFrame::Reference => {
-                let q_l = q_l();
-                let e = v - G::adjoint(&G::inverse(&q_l)) * desired.v;
+                let AtReference { q_l, e, .. } = AtReference::of::<G>(q, v, desired);
                 (
                     Phase {
                         q: q_l,
@@ -596,14 +621,12 @@ where
                 world(eqt_recentred::<G, T, N, M>(q, v, &p, desired, &c.k, &c.kd))
             }
             (law, _) => {
-                let e = tracking_error::<G, T, N, M>(
-                    &Phase { q: *q, p },
-                    &Phase {
-                        q: desired.q,
-                        p: desired.p,
-                    },
-                );
-                world((so3::dispatch(law, q, v, desired, c), e))
+                let (error, velocity_error) = c.errors::<G>(q, v, desired);
+                Formed {
+                    torque: so3::dispatch(law, q, v, desired, c),
+                    error,
+                    velocity_error,
+                }
             }
         }
     }

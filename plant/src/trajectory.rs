@@ -270,7 +270,15 @@ impl OnGroup for WorldFrameFinding<'_> {
     }
 }
 
-/// The one-line warning of a [`SimulatedTrajectory::world_frame_unstable`] finding.
+/// Prints [`world_frame_warning`] to stderr when scenario `s`, flown for `steps` periods, has a
+/// [`world_frame_finding`] (the one place `sim`, `run` and the PIL run warn from).
+pub fn warn_world_frame(s: &Scenario, steps: u64) {
+    if let Some(found) = world_frame_finding(s, steps) {
+        eprintln!("{}", world_frame_warning(found));
+    }
+}
+
+/// The one-line warning of a [`world_frame_finding`].
 pub fn world_frame_warning((t, distance): (f64, f64)) -> String {
     format!(
         "warning: t = {t} s: the reference is {distance:.3} m from the world origin, where error_frame = \"world\" loses stability (see docs/maths.md); error_frame = \"reference\" does not depend on it"

@@ -151,7 +151,11 @@ fn every_validation_error_names_the_key_and_exits_2() {
         (
             "an error frame that is a number",
             se3_with("kd = 1.5", "kd = 1.5\nerror_frame = 3"),
-            &["error_frame", "expected a string"],
+            &[
+                "controller.error_frame",
+                "must be a string, one of reference, world, recentred",
+                "integer",
+            ],
         ),
         (
             "an error frame in capitals",

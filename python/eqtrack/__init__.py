@@ -62,7 +62,9 @@ def simulate(scenario: Scenario, **overrides: Any) -> Run:
     """Runs ``scenario`` (a path, or TOML text) in this process, as ``plant_sim sim``.
 
     Keyword arguments override the scenario's keys before it is checked; a dict overrides a
-    table key by key: ``simulate("seed.toml", law="gt", controller={"kd": 2.0})``.
+    table key by key: ``simulate("seed.toml", law="gt", controller={"kd": 2.0})``, or
+    ``controller={"error_frame": "world"}`` for the papers' form of EqT (the default forms its
+    error at the reference; docs/maths.md, "World-frame invariance").
     """
     header, columns, summary = _native.simulate(scenario, overrides or None)
     return Run(header, columns, summary)

@@ -48,6 +48,27 @@ def test_overrides_are_the_scenarios_keys(plant_sim, tmp_path):
     assert len(short.columns["t"]) == 101
 
 
+def test_the_error_frame_is_a_controller_key(plant_sim, tmp_path):
+    """The default law forms its error at the reference; the papers' form is one key away,
+    exactly as the command line flies it, and a bad frame is refused naming the key."""
+    path = REPO / "scenarios" / "se3_circle.toml"
+    default = eqtrack.simulate(path, duration=5.0)
+    assert default.summary["error_frame"] == "reference"
+    world = eqtrack.simulate(path, duration=5.0, controller={"error_frame": "world"})
+    assert "error_frame" not in world.summary
+    assert not same_bits(default.columns["tau_0"], world.columns["tau_0"])
+    text = path.read_text().replace("[controller]", '[controller]\nerror_frame = "world"').replace(
+        "duration = 60.0", "duration = 5.0"
+    )
+    (tmp_path / "world.toml").write_text(text)
+    code, _, err = cli(plant_sim, "sim", "--scenario", str(tmp_path / "world.toml"), "--out", str(tmp_path / "w"))
+    assert code == 0, err
+    _, cols = read_csv(tmp_path / "w" / "trajectory.csv")
+    assert same_bits(world.columns["tau_0"], cols["tau_0"])
+    with pytest.raises(ValueError, match="controller.error_frame"):
+        eqtrack.simulate(path, controller={"error_frame": "up"})
+
+
 def _cli_error(plant_sim, tmp_path, text):
     bad = tmp_path / "bad.toml"
     bad.write_text(text)

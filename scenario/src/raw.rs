@@ -36,7 +36,8 @@ pub(crate) struct RawPlant {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawController {
-    pub(crate) error_frame: Option<String>,
+    /// Read as any value, so that a number or a list is refused naming the accepted strings.
+    pub(crate) error_frame: Option<toml::Value>,
     pub(crate) inertia: Option<Vec<Vec<f64>>>,
     pub(crate) kp: NumberOrMatrix,
     pub(crate) kd: NumberOrMatrix,

@@ -396,7 +396,7 @@ impl Validator<'_> {
                 i
             }
         };
-        let error_frame = self.error_frame(raw.error_frame.as_deref())?;
+        let error_frame = self.error_frame(raw.error_frame.as_ref())?;
         let kp = self.gain("controller.kp", &raw.kp, n, "n×n for the group")?;
         let kd = self.gain("controller.kd", &raw.kd, m, "m×m for the group")?;
         let rejection =
@@ -411,17 +411,25 @@ impl Validator<'_> {
     }
 
     /// `controller.error_frame`: `reference` (the default), `world` or `recentred`.
-    fn error_frame(&self, text: Option<&str>) -> Result<ErrorFrame, ScenarioError> {
-        let Some(text) = text else {
-            return Ok(ErrorFrame::default());
+    fn error_frame(&self, value: Option<&toml::Value>) -> Result<ErrorFrame, ScenarioError> {
+        let expected = ErrorFrame::ALL.map(ErrorFrame::name).join(", ");
+        let text = match value {
+            None => return Ok(ErrorFrame::default()),
+            Some(toml::Value::String(text)) => text,
+            Some(other) => {
+                return Err(self.err(
+                    "controller.error_frame",
+                    format!(
+                        "must be a string, one of {expected} (got the {} `{other}`)",
+                        other.type_str()
+                    ),
+                ));
+            }
         };
         ErrorFrame::from_name(text).ok_or_else(|| {
             self.err(
                 "controller.error_frame",
-                format!(
-                    "unknown error frame `{text}` (expected {})",
-                    ErrorFrame::ALL.map(ErrorFrame::name).join(", ")
-                ),
+                format!("unknown error frame `{text}` (expected {expected})"),
             )
         })
     }

@@ -120,6 +120,7 @@ pub(crate) fn sim_f32(
         stop: stop.clone(),
         scenario: s,
     };
+    plant::trajectory::warn_world_frame(&opts.scenario, opts.scenario.steps());
     let (_, summary) = run_pair(&opts)?;
     super::run::print_pair_summary(&summary, &opts.scenario.law_label(), &opts.out);
     Ok(())

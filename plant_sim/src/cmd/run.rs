@@ -194,11 +194,7 @@ pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
         tunable: args.tunable,
         stop: stop.clone(),
     };
-    if let Some(found) =
-        plant::trajectory::world_frame_finding(&opts.scenario, opts.scenario.steps())
-    {
-        eprintln!("{}", plant::trajectory::world_frame_warning(found));
-    }
+    plant::trajectory::warn_world_frame(&opts.scenario, opts.scenario.steps());
     let (_, s) = run_pair(&opts)?;
     print_pair_summary(&s, &opts.scenario.law_label(), &opts.out);
 

@@ -56,9 +56,7 @@ pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
     let out = args.out.unwrap_or_else(|| Path::new("out").join(&s.name));
     ensure_dir(&out)?;
     // before the flight, so that a run the warning explains still shows it when it fails
-    if let Some(found) = plant::trajectory::world_frame_finding(&s, s.steps()) {
-        eprintln!("{}", plant::trajectory::world_frame_warning(found));
-    }
+    plant::trajectory::warn_world_frame(&s, s.steps());
     let bar = progress(s.steps() + 1, &format!("sim {}", s.name));
     #[cfg(feature = "fault-injection")]
     let planted = sample_faults(&args.fault_sample)?;
