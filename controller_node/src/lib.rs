@@ -300,7 +300,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         "run `{}`: scenario `{}`, {} on {}, waiting for the plant",
         opts.run,
         s.name,
-        s.law.name(),
+        s.law_label(),
         s.group.name()
     ));
     let stream = match opts.reference {

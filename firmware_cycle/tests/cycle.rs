@@ -105,6 +105,13 @@ fn the_configuration_round_trips_and_bad_bytes_are_refused() {
     let mut bad = config.clone();
     bad.law = 4;
     assert!(matches!(Cycle::new(&bad), Err(ConfigError::Law(4))));
+    let mut bad = config.clone();
+    bad.error_frame = 3;
+    assert!(matches!(Cycle::new(&bad), Err(ConfigError::ErrorFrame(3))));
+    assert_eq!(
+        ConfigError::ErrorFrame(3).to_string(),
+        "error-frame index 3 (expected 0 to 2)"
+    );
     let mut bad = config;
     bad.kd = v(&[-1.0, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.5]);
     assert!(

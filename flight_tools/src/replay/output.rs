@@ -111,6 +111,9 @@ pub(super) fn figure<const M: usize>(
 /// The what-if, in words.
 fn describe(opts: &ReplayOptions, s: &Scenario) -> String {
     let mut parts = vec![s.law.name().to_uppercase()];
+    if let Some(f) = s.error_frame_note() {
+        parts.push(format!("error frame {f}"));
+    }
     if let Some(p) = &opts.scenario {
         parts.push(format!("scenario {}", p.display()));
     }
