@@ -18,12 +18,12 @@ use crate::montecarlo::{euler_zyx, in_pool};
 use crate::rejection::angle;
 use controller::closed_loop::{ClosedLoop, Sample};
 use controller::group::se3::{from_parts, rotation, translation};
-use controller::group::{GroupKind, MatrixLieGroup, Se3};
+use controller::group::{GroupKind, Se3};
 use controller::integrator::RigidBody;
 use controller::law::Desired;
 use controller::reference::{Tabulated, Trajectory};
 use controller::tracking::lyapunov;
-use controller::{ErrorFrame, Law};
+use controller::{ControllerConfig, ErrorFrame, Law};
 use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, Vector3};
 use plant::SimError;
 use plant::output::num;
@@ -199,24 +199,25 @@ pub fn series_stride(steps: u64) -> u64 {
 /// What a step of the study records, world-independent (the same for any world motion):
 /// the attitude error as the geodesic angle of `R_dᵀR` (rad, from `‖I − R_dᵀR‖_F` by
 /// [`angle`]), the position error `|x − x_d|` (m), `‖τ‖`, and the transported-error Lyapunov
-/// function `L = ½eᵀIe + Υ(Q_L)`, `Q_L = Q_d⁻¹Q`, `e = V − Ad_{Q_L⁻¹}V_d` (model inertia
-/// `I`, potential weight `K`): the same L for every frame, the one the `reference` law
+/// function `L = ½eᵀIe + Υ(Q_L)`, `Q_L = Q_d⁻¹Q`, `e = V − Ad_{Q_L⁻¹}V_d` (the errors
+/// `ControllerConfig::errors` forms at the reference, with the model inertia `I` and the
+/// potential weight `K` of `config`): the same L for every frame, the one the `reference` law
 /// decreases.
-pub fn metrics(
-    sample: &Sample<f64, 4, 6>,
-    inertia: &SMatrix<f64, 6, 6>,
-    k: &SMatrix<f64, 4, 4>,
-) -> [f64; 4] {
+pub fn metrics(sample: &Sample<f64, 4, 6>, config: &ControllerConfig<f64, 4, 6>) -> [f64; 4] {
     let d = &sample.desired;
     let r_err = rotation(&d.q).tr_mul(&rotation(&sample.q));
     let position = (translation(&sample.q) - translation(&d.q)).norm();
-    let q_l = Se3::compose(&Se3::inverse(&d.q), &sample.q);
-    let e = sample.v - Se3::adjoint(&Se3::inverse(&q_l)) * d.v;
+    let at_reference = ControllerConfig {
+        law: Law::Eqt,
+        error_frame: ErrorFrame::Reference,
+        ..*config
+    };
+    let (error, e) = at_reference.errors::<Se3>(&sample.q, &sample.v, d);
     [
         angle((Matrix3::identity() - r_err).norm()),
         position,
         sample.output.torque.norm(),
-        lyapunov(&q_l, &e, inertia, k).total,
+        lyapunov(&error.q, &e, &config.inertia, &config.k).total,
     ]
 }
 
@@ -442,7 +443,7 @@ fn fly(
     let mut sim = ClosedLoop::new(controller, reference, plant, s.plant_substeps)
         .and_then(|l| l.with_disturbance(s.disturbance_vector()))
         .map_err(input(s))?;
-    let (inertia, k) = (sim.controller.config().inertia, sim.controller.config().k);
+    let config = *sim.controller.config();
     let mut tally = Tally::new(s);
     let mut stopped = None;
     for step in 0..=tally.steps {
@@ -452,7 +453,7 @@ fn fly(
                 .map_err(input(s))?;
         }
         match sim.step() {
-            Ok(sample) => tally.record(step, t, metrics(&sample, &inertia, &k)),
+            Ok(sample) => tally.record(step, t, metrics(&sample, &config)),
             Err(e) => {
                 let last = match tally.flown {
                     0 => String::new(),
@@ -900,7 +901,7 @@ mod tests {
             desired,
             output,
         };
-        let m = metrics(&sample, &law.config().inertia, &law.config().k);
+        let m = metrics(&sample, law.config());
         assert_eq!(m[3], output.lyapunov.total);
         assert!((m[1] - Vector3::from(draw.offset).norm()).abs() < 1e-9);
         let r = euler_zyx(draw.euler[0], draw.euler[1], draw.euler[2]);

@@ -358,6 +358,7 @@ fn firmware_cycle_check() -> bool {
             scenario: heapless::String::new(),
         },
         law: 0,
+        error_frame: 0,
         inertia: v(&eye),
         k: Vec::from_slice(&eye).unwrap_or_default(),
         kd: v(&eye),
