@@ -3,20 +3,18 @@
 //! `trajectory.csv` and `summary.json` (and the study's CSVs and summary) they wrote before the
 //! key existed.
 //!
-//! `tests/data/world_outputs.txt` holds the FNV-1a digests of what commit a8344c4 (the last
+//! `plant_sim/tests/data/world_outputs.txt` holds the FNV-1a digests of what commit a8344c4 (the last
 //! before `error_frame`) wrote for them. It was written by this test itself, run against that
 //! commit's build with the scenarios as they were then (no `error_frame` line):
 //!
 //! ```text
-//! PINNED_WORLD_BASE=/path/to/a8344c4/plant_sim cargo test -p plant_sim --test pinned_world
+//! PINNED_WORLD_BASE=/path/to/a8344c4/plant_sim cargo test -p plant_sim --test error_frame pinned_world
 //! ```
 //!
 //! (`scripts/compare-outputs.sh --world BASE NEW` compares every file, figures included, when
 //! both builds are at hand.)
 
-mod common;
-
-use common::ok;
+use crate::common::ok;
 use pair_tests::repo;
 use std::path::{Path, PathBuf};
 use std::process::Command;

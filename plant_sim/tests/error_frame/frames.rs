@@ -2,9 +2,7 @@
 //! `reference` law's flights do not depend on where the world is, the papers' `world` law's
 //! do, the numbers do not depend on the thread count, and bad input exits 2.
 
-mod common;
-
-use common::{ok, run};
+use crate::common::{ok, run};
 use pair_tests::read_csv;
 use std::path::Path;
 

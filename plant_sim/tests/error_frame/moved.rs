@@ -3,9 +3,7 @@
 //! flight with the default `error_frame = "reference"`. The pose columns of `trajectory.csv`
 //! move with the world; every other column is unchanged.
 
-mod common;
-
-use common::{ok, run};
+use crate::common::{ok, run};
 use controller::group::{MatrixLieGroup, So3};
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use pair_tests::{read_csv, repo};
