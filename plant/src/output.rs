@@ -68,7 +68,12 @@ pub fn estimate_header(n: usize, directions: usize, se3: bool, covariance: bool)
 
 /// The values of [`estimate_header`]'s columns for one row (empty `pos_i` on ticks without
 /// a fix).
-fn estimate_fields(e: &crate::trajectory::EstimateRow, n: usize, rec: &mut Vec<Cell>) {
+fn estimate_fields(
+    e: &crate::trajectory::EstimateRow,
+    n: usize,
+    covariance: bool,
+    rec: &mut Vec<Cell>,
+) {
     let se3 = n == 4;
     let s = &e.samples;
     let nums = |xs: &[f64]| xs.iter().map(|x| Cell::Num(*x)).collect::<Vec<_>>();
@@ -98,8 +103,12 @@ fn estimate_fields(e: &crate::trajectory::EstimateRow, n: usize, rec: &mut Vec<C
         }));
     }
     rec.push(Cell::Num(e.estimate_error));
-    if let Some(c) = e.covariance {
-        rec.extend(nums(&c));
+    // the columns are the scenario's (an EqF has them), whatever this tick's values are
+    if covariance {
+        match e.covariance {
+            Some(c) => rec.extend(nums(&c)),
+            None => rec.extend([Cell::Empty; 6]),
+        }
         rec.push(e.nees.map_or(Cell::Empty, Cell::Num));
     }
 }
@@ -173,23 +182,30 @@ struct Layout {
     terms: bool,
     vehicle: Option<usize>,
     status: bool,
+    /// The number of columns: every row has exactly this many cells.
+    width: usize,
 }
 
 impl Layout {
     fn of(traj: &SimulatedTrajectory) -> Layout {
         let (n, m) = traj.dims();
-        Layout {
+        let mut layout = Layout {
             n,
             m,
             directions: traj.estimator.as_ref().map(|e| e.directions),
+            // from the filter's kind, never from its values: a run whose NEES was not finite
+            // once had rows wider than its header
             covariance: traj
                 .estimator
                 .as_ref()
-                .is_some_and(|e| e.mean_nees.is_some()),
+                .is_some_and(|e| e.kind == scenario::EstimatorKind::Eqf.name()),
             terms: traj.rows.first().is_some_and(|r| r.terms.is_some()),
             vehicle: traj.rows.first().and_then(|r| r.vehicle).map(|v| v.count),
             status: !traj.status.is_empty(),
-        }
+            width: 0,
+        };
+        layout.width = layout.header().len();
+        layout
     }
 
     fn header(&self) -> Vec<String> {
@@ -239,7 +255,7 @@ impl Layout {
             let e = r.estimate.as_ref().ok_or_else(|| {
                 SimError::Run(format!("row {k} of a run with sensors has no samples"))
             })?;
-            estimate_fields(e, n, rec);
+            estimate_fields(e, n, self.covariance, rec);
         }
         if self.terms {
             let t = r.terms.unwrap_or(crate::trajectory::Terms {
@@ -259,6 +275,13 @@ impl Layout {
         if self.status {
             rec.push(Cell::Int(u64::from(
                 traj.status.get(k).copied().unwrap_or(0),
+            )));
+        }
+        if rec.len() != self.width {
+            return Err(SimError::Run(format!(
+                "row {k} has {} cells but the table has {} columns",
+                rec.len(),
+                self.width
             )));
         }
         Ok(())
@@ -281,7 +304,14 @@ pub fn trajectory_table(
 }
 
 /// Writes `trajectory.csv`, one row per control step, numbers in full round-trip precision.
+/// A run that has flown never loses its rows to a writing error: when the table cannot be
+/// written, the rows are written as they were formed to a rescue file beside it (else in the
+/// system's temporary folder), and the error says where.
 pub fn write_trajectory_csv(traj: &SimulatedTrajectory, path: &Path) -> Result<(), SimError> {
+    write_table(traj, path).map_err(|e| SimError::Run(format!("{e}; {}", rescue(traj, path))))
+}
+
+fn write_table(traj: &SimulatedTrajectory, path: &Path) -> Result<(), SimError> {
     let mut w = csv::Writer::from_path(path).map_err(csv_err(path))?;
     let layout = Layout::of(traj);
     w.write_record(layout.header()).map_err(csv_err(path))?;
@@ -292,6 +322,52 @@ pub fn write_trajectory_csv(traj: &SimulatedTrajectory, path: &Path) -> Result<(
         text.clear();
         text.extend(rec.iter().map(Cell::text));
         w.write_record(&text).map_err(csv_err(path))?;
+    }
+    w.flush().map_err(io(path))
+}
+
+/// The rescue file of a table that could not be written: `path` with the extension
+/// `rescued.csv`, else the same name in the system's temporary folder. Each line holds a row's
+/// cells as far as they were formed (lines may differ in width); the first line is the header.
+/// Returns what happened, for the error message.
+fn rescue(traj: &SimulatedTrajectory, path: &Path) -> String {
+    let name = path
+        .file_stem()
+        .map_or_else(|| "trajectory".into(), |s| s.to_string_lossy().into_owned());
+    let file = format!("{name}.rescued.csv");
+    let places = [
+        path.with_file_name(&file),
+        std::env::temp_dir().join(format!("eqtrack-{}-{file}", std::process::id())),
+    ];
+    for place in &places {
+        if write_rescue(traj, place).is_ok() {
+            return format!(
+                "the run's {} rows were written as formed to {} (header first; a row's line may be shorter or longer than the header)",
+                traj.rows.len(),
+                place.display()
+            );
+        }
+    }
+    format!(
+        "the rows could not be rescued either ({} and {} are not writable)",
+        places[0].display(),
+        places[1].display()
+    )
+}
+
+fn write_rescue(traj: &SimulatedTrajectory, path: &Path) -> Result<(), SimError> {
+    let mut w = csv::WriterBuilder::new()
+        .flexible(true)
+        .from_path(path)
+        .map_err(csv_err(path))?;
+    let layout = Layout::of(traj);
+    w.write_record(layout.header()).map_err(csv_err(path))?;
+    let mut rec = Vec::new();
+    for k in 0..traj.rows.len() {
+        // whatever the row's cells were when forming it stopped
+        let _ = layout.cells(traj, k, &mut rec);
+        w.write_record(rec.iter().map(Cell::text))
+            .map_err(csv_err(path))?;
     }
     w.flush().map_err(io(path))
 }
@@ -405,4 +481,73 @@ pub fn ensure_dir(dir: &Path) -> Result<(), SimError> {
             dir.display()
         ))
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use scenario::Scenario;
+
+    /// A short EqF flight with position fixes (its table has every estimate column).
+    fn eqf_flight() -> SimulatedTrajectory {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios");
+        let text = std::fs::read_to_string(format!("{dir}/eqf_se3.toml"))
+            .unwrap()
+            .replace("duration = 60.0", "duration = 0.5");
+        let s = Scenario::from_toml(&text, "eqf", "eqf").unwrap();
+        crate::trajectory::simulate(&s, &|_| Ok(())).unwrap()
+    }
+
+    fn widths(traj: &SimulatedTrajectory) -> (usize, Vec<usize>) {
+        let mut rows = Vec::new();
+        let header = trajectory_table(traj, |r| {
+            rows.push(r.len());
+            Ok(())
+        })
+        .unwrap();
+        (header.len(), rows)
+    }
+
+    #[test]
+    fn a_tables_header_and_rows_agree_whatever_the_filters_values() {
+        let mut traj = eqf_flight();
+        let (h, rows) = widths(&traj);
+        assert!(rows.iter().all(|w| *w == h), "{h} vs {rows:?}");
+        // the values that once changed the header: no finite NEES at all (the mean is then
+        // not finite and is not reported), and ticks without a covariance
+        for (k, r) in traj.rows.iter_mut().enumerate() {
+            let e = r.estimate.as_mut().unwrap();
+            e.nees = None;
+            if k % 3 == 0 {
+                e.covariance = None;
+            }
+        }
+        traj.estimator.as_mut().unwrap().mean_nees = None;
+        let (h2, rows) = widths(&traj);
+        assert_eq!(h2, h, "the header changed with the filter's values");
+        assert!(rows.iter().all(|w| *w == h), "{h} vs {rows:?}");
+    }
+
+    #[test]
+    fn a_table_that_cannot_be_written_leaves_its_rows_in_a_rescue_file_and_says_so() {
+        let mut traj = eqf_flight();
+        let k = traj.rows.len() / 2;
+        traj.rows[k].estimate = None; // a row that cannot be formed
+        let dir = std::env::temp_dir().join(format!("eqtrack-rescue-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("trajectory.csv");
+        let e = write_trajectory_csv(&traj, &path).unwrap_err().to_string();
+        let rescued = dir.join("trajectory.rescued.csv");
+        assert!(
+            e.contains(&format!("row {k} of a run with sensors has no samples")),
+            "{e}"
+        );
+        assert!(e.contains(&rescued.display().to_string()), "{e}");
+        let text = std::fs::read_to_string(&rescued).unwrap();
+        assert_eq!(text.lines().count(), traj.rows.len() + 1);
+        // the row that failed keeps its time and state
+        let line = text.lines().nth(k + 1).unwrap();
+        assert!(line.starts_with(&num(traj.rows[k].t)), "{line}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -38,6 +38,9 @@ pub enum SampleFault {
     DirectionZero,
     /// An accelerometer sample far from `g` (10 g straight up in the body frame).
     AccelFar,
+    /// A position fix scaled by `1 + 1e-6` about the world origin: a reading that depends on
+    /// where the origin is (the moved-flight check must catch it).
+    PositionScaled,
 }
 
 impl SampleFault {
@@ -51,6 +54,7 @@ impl SampleFault {
             "dir-inf" => SampleFault::DirectionInf,
             "dir-zero" => SampleFault::DirectionZero,
             "accel-far" => SampleFault::AccelFar,
+            "pos-scaled" => SampleFault::PositionScaled,
             _ => return None,
         })
     }
@@ -67,6 +71,11 @@ impl SampleFault {
             SampleFault::AccelFar => {
                 if let Some(a) = &mut s.accel {
                     *a = Vector3::new(0.0, 0.0, 10.0 * GRAVITY);
+                }
+            }
+            SampleFault::PositionScaled => {
+                if let Some(x) = &mut s.position {
+                    *x *= 1.0 + 1e-6;
                 }
             }
         }

@@ -227,6 +227,17 @@ pub struct SimulatedTrajectory {
     pub vehicle: Option<crate::vehicle::VehicleReport>,
 }
 
+/// The time of the first row whose state, torque or Lyapunov value is not finite (`None`: the
+/// run stayed finite). A run that has diverged must not end as if it had flown.
+pub fn first_non_finite(traj: &SimulatedTrajectory) -> Option<f64> {
+    traj.rows
+        .iter()
+        .find(|r| {
+            !(r.lyapunov.is_finite() && r.q.iter().chain(&r.v).chain(&r.tau).all(|x| x.is_finite()))
+        })
+        .map(|r| r.t)
+}
+
 /// A run of the papers' world-frame law on SE(3): the first time `t_k` (k ≤ `steps`), and the
 /// reference's distance from the world origin then, at which the law's damping, held over a
 /// control period, stops being stable ([`controller::law::world_damping_holds`];

@@ -39,8 +39,8 @@ mod cmd;
 
 use cmd::live;
 use cmd::{
-    bench_loop, export, frames, monitor, montecarlo, noise, param, pil, reference, rejection,
-    replay, run, sim,
+    bench_loop, export, frames, monitor, montecarlo, moved, noise, param, pil, reference,
+    rejection, replay, run, sim,
 };
 
 #[derive(Parser)]
@@ -64,6 +64,10 @@ enum Command {
     /// flown from the same random starts in a world moved up to 10 km and turned about z
     /// (frames.csv, table.md, a figure).
     Frames(frames::FramesArgs),
+    /// A scenario moved with the world: turned by --heading about z and shifted by --offset,
+    /// with its waypoint file, world directions and world disturbances; with --check, flown
+    /// beside the original and compared column by column (docs/invariance.md).
+    Move(moved::MoveArgs),
     /// What sensor noise costs: truth-fed against filter-fed control over gyro noise levels,
     /// with and without the gyro bias, over seeded runs (a scenario with [sensors]).
     Noise(noise::NoiseArgs),
@@ -122,6 +126,7 @@ pub fn main() -> ExitCode {
         Some(Command::Sim(a)) => sim::sim(a, &stop),
         Some(Command::Montecarlo(a)) => montecarlo::montecarlo_cmd(a, &stop),
         Some(Command::Frames(a)) => frames::frames_cmd(a, &stop),
+        Some(Command::Move(a)) => moved::move_cmd(a),
         Some(Command::Noise(a)) => noise::noise_cmd(a),
         Some(Command::Rejection(a)) => rejection::rejection_cmd(a),
         Some(Command::Run(a)) => run::run_cmd(a, &stop),

@@ -10,6 +10,7 @@
 
 pub mod cli;
 mod firmware;
+pub mod moving;
 pub mod rejection;
 pub mod sensing;
 pub mod vehicle;

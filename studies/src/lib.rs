@@ -4,6 +4,7 @@
 //! * [`montecarlo`]: the extended paper's Monte Carlo comparison of the laws;
 //! * [`estimator_study`]: the laws flown on estimated states, estimator against truth;
 //! * [`frames`]: where EqT forms its error (`error_frame`) on SE(3), with the world moved;
+//! * [`moved`]: a flight and the same flight with the world moved, column by column;
 //! * [`noise`]: the laws under sensor noise;
 //! * [`rejection`]: the disturbance-rejection terms against a disturbance;
 //! * [`reference`](mod@reference): the desired trajectory sampled for inspection, before it
@@ -15,6 +16,7 @@
 pub mod estimator_study;
 pub mod frames;
 pub mod montecarlo;
+pub mod moved;
 pub mod noise;
 pub mod reference;
 pub mod rejection;

@@ -10,6 +10,7 @@ pub(crate) mod frames;
 pub(crate) mod live;
 pub(crate) mod monitor;
 pub(crate) mod montecarlo;
+pub(crate) mod moved;
 pub(crate) mod noise;
 pub(crate) mod param;
 pub(crate) mod pil;
@@ -41,7 +42,7 @@ pub(crate) fn sample_faults(
         .map(|text| {
             let bad = || {
                 SimError::Input(format!(
-                    "--fault-sample: expected K:gyro-nan|gyro-inf|gyro-spike|dir-nan|dir-inf|dir-zero|accel-far, got `{text}`"
+                    "--fault-sample: expected K:gyro-nan|gyro-inf|gyro-spike|dir-nan|dir-inf|dir-zero|accel-far|pos-scaled, got `{text}`"
                 ))
             };
             let (k, kind) = text.split_once(':').ok_or_else(bad)?;

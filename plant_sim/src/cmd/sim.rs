@@ -107,5 +107,11 @@ pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
         "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}",
         out.display()
     );
-    Ok(())
+    match plant::trajectory::first_non_finite(&traj) {
+        Some(t) => Err(SimError::Run(format!(
+            "the run diverged: its state is not finite from t = {t} s (its outputs are in {})",
+            out.display()
+        ))),
+        None => Ok(()),
+    }
 }

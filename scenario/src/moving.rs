@@ -1,0 +1,404 @@
+//! Moving a scenario with the world (docs/invariance.md): the same task written in a world
+//! frame that is turned by a heading about the vertical and shifted by an offset. Every
+//! quantity the scenario gives in world axes or at a world position moves with it:
+//!
+//! - poses (`[initial]` and `[reference]` `rotation` and `position`, the set-point, every
+//!   waypoint of the waypoint file): `(R, x) ↦ (R_T R, R_T x + t)`;
+//! - world directions and world wrenches (`[sensors] directions[].world`,
+//!   `[plant] disturbance_world`, `[estimator] initial_attitude` as a rotation): turned by
+//!   `R_T`;
+//! - body quantities (velocities, feedforward, body disturbances, the vehicle) and the
+//!   vertical (gravity, buoyancy, the accelerometer's "up") are unchanged: the turn is about
+//!   the vertical.
+//!
+//! A moved scenario flies the same flight as the original with the default
+//! `error_frame = "reference"`: its pose columns move with the world and every other column
+//! is unchanged. Noise drawn in world axes (position fixes) is drawn in the new axes, so a
+//! scenario with position fixes flies the same flight only when it is moved without a turn.
+
+use crate::{ScenarioError, waypoints};
+use controller::GroupKind;
+use controller::group::{MatrixLieGroup, So3};
+use nalgebra::{Matrix3, Vector3};
+use std::path::{Path, PathBuf};
+use toml::{Table, Value};
+
+/// A motion of the world frame: a turn by `heading` (rad) about the vertical `z`, then a
+/// shift by `offset` (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WorldMotion {
+    /// The turn about `z` (rad).
+    pub heading: f64,
+    /// The shift (m, in the new world axes).
+    pub offset: [f64; 3],
+}
+
+impl WorldMotion {
+    /// The turn `R_T`.
+    pub fn rotation(&self) -> Matrix3<f64> {
+        So3::exp(&Vector3::new(0.0, 0.0, self.heading))
+    }
+
+    /// A direction or a world-axes vector turned: `R_T v`.
+    pub fn turn(&self, v: [f64; 3]) -> [f64; 3] {
+        let w = self.rotation() * Vector3::from(v);
+        [w[0], w[1], w[2]]
+    }
+
+    /// A position moved: `R_T x + t`.
+    pub fn place(&self, x: [f64; 3]) -> [f64; 3] {
+        let w = self.turn(x);
+        [
+            w[0] + self.offset[0],
+            w[1] + self.offset[1],
+            w[2] + self.offset[2],
+        ]
+    }
+
+    /// An attitude given as a rotation vector turned: `log(R_T exp(r))`.
+    pub fn rotate(&self, r: [f64; 3]) -> [f64; 3] {
+        let w = So3::log(&(self.rotation() * So3::exp(&Vector3::from(r))));
+        [w[0], w[1], w[2]]
+    }
+
+    /// Whether this is the identity (no turn, no shift).
+    pub fn is_identity(&self) -> bool {
+        self.heading == 0.0 && self.offset == [0.0; 3]
+    }
+}
+
+/// A scenario moved with the world: its text and its moved waypoint file, if it has one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MovedScenario {
+    /// The moved scenario's TOML.
+    pub text: String,
+    /// The waypoint file's name as the scenario gives it, and its moved text.
+    pub waypoints: Option<(String, String)>,
+}
+
+impl MovedScenario {
+    /// Writes the scenario to `dir/<file_name>` and its waypoint file beside it (under the
+    /// name the scenario gives); returns the scenario's path.
+    pub fn write(&self, dir: &Path, file_name: &str) -> Result<PathBuf, ScenarioError> {
+        let io = |path: &Path| {
+            let path = path.display().to_string();
+            move |source| ScenarioError::Io { path, source }
+        };
+        std::fs::create_dir_all(dir).map_err(io(dir))?;
+        if let Some((name, text)) = &self.waypoints {
+            let path = dir.join(name);
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent).map_err(io(parent))?;
+            }
+            std::fs::write(&path, text).map_err(io(&path))?;
+        }
+        let path = dir.join(file_name);
+        std::fs::write(&path, &self.text).map_err(io(&path))?;
+        Ok(path)
+    }
+}
+
+fn invalid(origin: &str, key: &str, message: impl Into<String>) -> ScenarioError {
+    ScenarioError::Invalid {
+        origin: origin.to_owned(),
+        key: key.to_owned(),
+        message: message.into(),
+    }
+}
+
+/// The three numbers at `table[key]`, if the key is there.
+fn three(
+    origin: &str,
+    table: &Table,
+    prefix: &str,
+    key: &str,
+) -> Result<Option<[f64; 3]>, ScenarioError> {
+    let Some(v) = table.get(key) else {
+        return Ok(None);
+    };
+    let name = format!("{prefix}{key}");
+    let list = v
+        .as_array()
+        .ok_or_else(|| invalid(origin, &name, "expected a list of 3 numbers"))?;
+    let xs: Option<Vec<f64>> = list
+        .iter()
+        .map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
+        .collect();
+    match xs.as_deref() {
+        Some([a, b, c]) => Ok(Some([*a, *b, *c])),
+        _ => Err(invalid(origin, &name, "expected a list of 3 numbers")),
+    }
+}
+
+fn put(table: &mut Table, key: &str, xs: &[f64]) {
+    table.insert(
+        key.to_owned(),
+        Value::Array(xs.iter().map(|x| Value::Float(*x)).collect()),
+    );
+}
+
+/// Moves the pose `rotation` / `position` keys of `table`.
+fn move_pose(
+    m: &WorldMotion,
+    origin: &str,
+    table: &mut Table,
+    prefix: &str,
+) -> Result<(), ScenarioError> {
+    if let Some(r) = three(origin, table, prefix, "rotation")? {
+        put(table, "rotation", &m.rotate(r));
+    }
+    if let Some(x) = three(origin, table, prefix, "position")? {
+        put(table, "position", &m.place(x));
+    }
+    Ok(())
+}
+
+fn sub<'a>(table: &'a mut Table, key: &str) -> Option<&'a mut Table> {
+    table.get_mut(key).and_then(Value::as_table_mut)
+}
+
+/// Moves a scenario's text with the world by `m` (the module's list says what moves).
+/// `origin` names the scenario in errors and `base` is the folder its waypoint file is
+/// relative to. The scenario is validated first, so a scenario that does not load is refused
+/// with the loader's error; on SO(3) only a turn is accepted (it has no positions).
+pub fn move_scenario(
+    text: &str,
+    origin: &str,
+    base: Option<&Path>,
+    m: &WorldMotion,
+) -> Result<MovedScenario, ScenarioError> {
+    for (i, x) in [m.heading, m.offset[0], m.offset[1], m.offset[2]]
+        .iter()
+        .enumerate()
+    {
+        if !x.is_finite() {
+            let key = ["heading", "offset x", "offset y", "offset z"][i];
+            return Err(invalid(origin, key, format!("must be finite (got {x})")));
+        }
+    }
+    let scenario = crate::Scenario::from_toml_in(text, origin, origin, base)?;
+    if scenario.group == GroupKind::So3 && m.offset != [0.0; 3] {
+        return Err(invalid(
+            origin,
+            "offset",
+            "an SO(3) scenario has no positions: it can only be turned (give a heading, offset 0,0,0)",
+        ));
+    }
+    let mut doc: Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| ScenarioError::Parse {
+            origin: origin.to_owned(),
+            message: e.to_string(),
+        })?;
+    let waypoint_file = move_table(&mut doc, origin, m)?;
+    let waypoints = match waypoint_file {
+        None => None,
+        Some(name) => {
+            let path = base.map_or_else(|| PathBuf::from(&name), |b| b.join(&name));
+            let csv = std::fs::read_to_string(&path).map_err(|source| ScenarioError::Io {
+                path: path.display().to_string(),
+                source,
+            })?;
+            Some((name, move_waypoints(&csv, scenario.group, m)))
+        }
+    };
+    let body = toml::to_string(&doc).map_err(|e| ScenarioError::Parse {
+        origin: origin.to_owned(),
+        message: e.to_string(),
+    })?;
+    let [x, y, z] = m.offset;
+    let text = format!(
+        "# {origin} moved with the world: turned by {:?} rad about z, shifted by ({x:?}, {y:?}, {z:?}) m\n{body}",
+        m.heading
+    );
+    Ok(MovedScenario { text, waypoints })
+}
+
+/// Moves the world quantities of a scenario's table; returns its waypoint file's name.
+fn move_table(
+    doc: &mut Table,
+    origin: &str,
+    m: &WorldMotion,
+) -> Result<Option<String>, ScenarioError> {
+    if let Some(t) = sub(doc, "initial") {
+        move_pose(m, origin, t, "initial.")?;
+    }
+    let mut waypoint_file = None;
+    if let Some(t) = sub(doc, "reference") {
+        move_pose(m, origin, t, "reference.")?;
+        if let Some(s) = sub(t, "setpoint") {
+            move_pose(m, origin, s, "reference.setpoint.")?;
+        }
+        waypoint_file = t
+            .get("waypoints")
+            .and_then(Value::as_str)
+            .map(str::to_owned);
+    }
+    if let Some(t) = sub(doc, "plant")
+        && let Some(w) = t.get("disturbance_world").and_then(Value::as_array)
+    {
+        let xs: Vec<f64> = w.iter().filter_map(Value::as_float).collect();
+        let turned: Vec<f64> = xs
+            .chunks(3)
+            .flat_map(|c| m.turn([c[0], c[1], c[2]]))
+            .collect();
+        put(t, "disturbance_world", &turned);
+    }
+    if let Some(t) = sub(doc, "sensors")
+        && let Some(ds) = t.get_mut("directions").and_then(Value::as_array_mut)
+    {
+        for (j, d) in ds.iter_mut().enumerate() {
+            if let Some(d) = d.as_table_mut()
+                && let Some(w) = three(origin, d, &format!("sensors.directions[{j}]."), "world")?
+            {
+                put(d, "world", &m.turn(w));
+            }
+        }
+    }
+    if let Some(t) = sub(doc, "estimator")
+        && let Some(r) = three(origin, t, "estimator.", "initial_attitude")?
+    {
+        put(t, "initial_attitude", &m.rotate(r));
+    }
+    Ok(waypoint_file)
+}
+
+/// A waypoint file moved with the world: each pose moved, the optional body velocities and
+/// every other cell as they were. The file has been read by the loader, so it is well formed.
+pub fn move_waypoints(text: &str, group: GroupKind, m: &WorldMotion) -> String {
+    let se3 = group == GroupKind::Se3;
+    let width = waypoints::header(group).len();
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        let parsed: Option<Vec<f64>> = cells
+            .iter()
+            .take(width)
+            .map(|c| c.parse::<f64>().ok())
+            .collect();
+        let Some(xs) = parsed.filter(|xs| i > 0 && xs.len() == width) else {
+            out.push(line.to_owned()); // the header, or a blank line
+            continue;
+        };
+        let mut row: Vec<String> = vec![format!("{:?}", xs[0])];
+        row.extend(m.rotate([xs[1], xs[2], xs[3]]).map(|x| format!("{x:?}")));
+        if se3 {
+            row.extend(m.place([xs[4], xs[5], xs[6]]).map(|x| format!("{x:?}")));
+        }
+        row.extend(cells[width..].iter().map(|c| (*c).to_owned()));
+        out.push(row.join(","));
+    }
+    out.join("\n") + "\n"
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Scenario;
+
+    fn scenario_text(name: &str) -> String {
+        std::fs::read_to_string(format!(
+            "{}/../scenarios/{name}.toml",
+            env!("CARGO_MANIFEST_DIR")
+        ))
+        .unwrap()
+    }
+
+    fn dir() -> PathBuf {
+        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios"))
+    }
+
+    const KM: WorldMotion = WorldMotion {
+        heading: 0.7,
+        offset: [1000.0, -700.0, 300.0],
+    };
+
+    #[test]
+    fn every_world_quantity_moves_and_every_body_quantity_stays() {
+        let moved =
+            move_scenario(&scenario_text("pil_hexarotor"), "pil", Some(&dir()), &KM).unwrap();
+        let a = Scenario::from_toml_in(&scenario_text("pil_hexarotor"), "a", "a", Some(&dir()))
+            .unwrap();
+        let b = Scenario::from_toml_in(&moved.text, "b", "b", Some(&dir())).unwrap();
+        let close = |x: &[f64], y: &[f64]| {
+            x.iter()
+                .zip(y)
+                .all(|(p, q)| (p - q).abs() <= 1e-9 * (1.0 + p.abs()))
+        };
+        assert!(close(&b.initial.position, &KM.place(a.initial.position)));
+        assert!(close(&b.initial.rotation, &KM.rotate(a.initial.rotation)));
+        assert!(close(
+            &b.reference.position,
+            &KM.place(a.reference.position)
+        ));
+        assert_eq!(b.initial.velocity, a.initial.velocity);
+        let w = a.disturbance_world.clone().unwrap();
+        let turned: Vec<f64> = w
+            .chunks(3)
+            .flat_map(|c| KM.turn([c[0], c[1], c[2]]))
+            .collect();
+        assert!(close(b.disturbance_world.as_ref().unwrap(), &turned));
+        let (sa, sb) = (a.sensors.unwrap(), b.sensors.unwrap());
+        for (da, db) in sa.directions.iter().zip(&sb.directions) {
+            assert!(close(&db.world, &KM.turn(da.world)));
+        }
+        assert_eq!(a.plant_inertia, b.plant_inertia);
+        assert_eq!(a.vehicle, b.vehicle);
+    }
+
+    #[test]
+    fn a_waypoint_file_moves_pose_by_pose_and_keeps_its_velocities() {
+        let text = "t,rx,ry,rz,x,y,z,wx,wy,wz,vx,vy,vz\n0.0,0.1,0.0,0.0,1.0,2.0,3.0,,,,,,\n2.0,0.0,0.0,0.5,0.0,0.0,0.0,0.1,0.0,0.0,0.2,0.0,0.0\n";
+        let moved = move_waypoints(text, GroupKind::Se3, &KM);
+        let lines: Vec<&str> = moved.lines().collect();
+        assert_eq!(lines[0], "t,rx,ry,rz,x,y,z,wx,wy,wz,vx,vy,vz");
+        let cells: Vec<&str> = lines[2].split(',').collect();
+        assert_eq!(cells.len(), 13);
+        assert_eq!(&cells[7..], ["0.1", "0.0", "0.0", "0.2", "0.0", "0.0"]);
+        let x: Vec<f64> = cells[4..7].iter().map(|c| c.parse().unwrap()).collect();
+        assert_eq!(x, KM.offset.to_vec());
+        assert!(lines[1].ends_with(",,,,,,"));
+    }
+
+    #[test]
+    fn moving_by_nothing_keeps_the_scenario() {
+        let none = WorldMotion {
+            heading: 0.0,
+            offset: [0.0; 3],
+        };
+        assert!(none.is_identity());
+        let text = scenario_text("slew_se3");
+        let moved = move_scenario(&text, "slew", Some(&dir()), &none).unwrap();
+        let a = Scenario::from_toml_in(&text, "slew", "slew", Some(&dir())).unwrap();
+        let b = Scenario::from_toml_in(&moved.text, "slew", "slew", Some(&dir())).unwrap();
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn bad_motions_are_refused_naming_what_is_wrong() {
+        let so3 = scenario_text("slew_so3");
+        let e = move_scenario(&so3, "slew_so3", Some(&dir()), &KM).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("key `offset`: an SO(3) scenario has no positions"),
+            "{e}"
+        );
+        let turn = WorldMotion {
+            heading: 0.4,
+            offset: [0.0; 3],
+        };
+        assert!(move_scenario(&so3, "slew_so3", Some(&dir()), &turn).is_ok());
+        let nan = WorldMotion {
+            heading: f64::NAN,
+            offset: [0.0; 3],
+        };
+        let e = move_scenario(&scenario_text("se3_circle"), "c", None, &nan).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("key `heading`: must be finite (got NaN)"),
+            "{e}"
+        );
+        let e = move_scenario("group = 3", "bad", None, &turn).unwrap_err();
+        assert!(e.to_string().starts_with("bad:"), "{e}");
+    }
+}

@@ -1,0 +1,196 @@
+//! Flights moved with the world (docs/invariance.md), through `plant_sim move --check`: every
+//! SE(3) scenario in `scenarios/` moved about a kilometre (and turned about z when it has no
+//! position fixes) flies the same flight; a planted dependence on the origin fails the check;
+//! the figure-eight far away flies the same in the lockstep pair; `eqf_se3` moved writes its
+//! table; a run that diverges does not exit 0.
+
+use pair_tests::{Csv, TempDir, plant, repo, serial, sim_equals_lockstep};
+
+/// The kilometre of the issue: (1000, −700, 300) m.
+const OFFSET: &str = "1000,-700,300";
+
+/// The SE(3) scenarios of `scenarios/` and whether each has position fixes; those that pin
+/// the papers' world-frame law are not among them (they are not invariant by design).
+fn se3_scenarios() -> Vec<(String, bool)> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(repo("scenarios")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let s = scenario::Scenario::from_file(&path).unwrap();
+        if s.group != controller::GroupKind::Se3 {
+            continue;
+        }
+        assert_eq!(
+            s.error_frame,
+            controller::ErrorFrame::Reference,
+            "{}: an SE(3) scenario that pins another error frame is not checked here",
+            s.name
+        );
+        let fixes = s.sensors.as_ref().is_some_and(|x| x.position.is_some());
+        out.push((path.display().to_string(), fixes));
+    }
+    out.sort();
+    out
+}
+
+fn check(file: &str, heading: &str, out: &str, extra: &[&str]) -> (i32, String) {
+    let mut args = vec![
+        "move",
+        "--scenario",
+        file,
+        "--offset",
+        OFFSET,
+        "--heading",
+        heading,
+        "--out",
+        out,
+        "--check",
+    ];
+    args.extend(extra);
+    plant(&args)
+}
+
+#[test]
+fn every_se3_scenario_flies_the_same_flight_a_kilometre_away() {
+    let d = TempDir::new("moved-all");
+    let all = se3_scenarios();
+    assert!(all.len() >= 9, "{all:?}");
+    for (k, (file, fixes)) in all.iter().enumerate() {
+        // position fixes draw their noise in world axes: those scenarios are only shifted
+        let heading = if *fixes { "0" } else { "0.7" };
+        let (code, out) = check(file, heading, &d.join(&k.to_string()), &[]);
+        assert_eq!(
+            code, 0,
+            "{file} moved by {OFFSET}, heading {heading}:\n{out}"
+        );
+        assert!(out.contains("the same flight"), "{out}");
+        if *fixes {
+            assert!(
+                out.contains("positions moved"),
+                "{file}: no position column compared\n{out}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_planted_dependence_on_the_origin_fails_the_moved_flight() {
+    let d = TempDir::new("moved-planted");
+    let file = d.join("eqf.toml");
+    let text = std::fs::read_to_string(repo("scenarios/eqf_se3.toml"))
+        .unwrap()
+        .replace("duration = 60.0", "duration = 3.0");
+    std::fs::write(&file, text).unwrap();
+    // one position fix scaled by 1 + 1e-6 about the origin: 2 µm near it, 1.3 mm a km away
+    let (code, out) = check(
+        &file,
+        "0",
+        &d.join("planted"),
+        &["--fault-sample", "100:pos-scaled"],
+    );
+    assert_eq!(code, 1, "{out}");
+    assert!(out.contains("the moved flight differs: column"), "{out}");
+    // the same flight without it
+    let (code, out) = check(&file, "0", &d.join("clean"), &[]);
+    assert_eq!(code, 0, "{out}");
+}
+
+#[test]
+fn the_figure_eight_far_away_flies_in_the_lockstep_pair_as_in_the_simulation() {
+    let _g = serial();
+    let d = TempDir::new("moved-eight");
+    let file = repo("scenarios/hexarotor_eight.toml").display().to_string();
+    let dir = d.join("moved");
+    let (code, out) = check(&file, "0", &dir, &[]);
+    assert_eq!(code, 0, "{out}");
+    let moved = format!("{dir}/hexarotor_eight.toml");
+    let (sim, _) = sim_equals_lockstep(&d, "eight-far", &moved);
+    // and it tracks as at the origin: the same errors, not merely a finished run
+    let here = Csv::read(&std::path::Path::new(&dir).join("original/trajectory.csv"));
+    let there = Csv::read(&std::path::Path::new(&sim).join("trajectory.csv"));
+    for col in ["attitude_error", "config_error", "velocity_error"] {
+        let (a, b) = (here.col(col), there.col(col));
+        let worst = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        assert!(worst <= 1e-6, "{col}: {worst:e}");
+    }
+}
+
+#[test]
+fn eqf_se3_moved_writes_its_table_and_a_diverged_run_exits_1() {
+    let d = TempDir::new("moved-eqf");
+    let dir = d.join("moved");
+    let file = repo("scenarios/eqf_se3.toml").display().to_string();
+    let (code, out) = check(&file, "0", &dir, &[]);
+    assert_eq!(code, 0, "{out}");
+    // the table's header and every row agree
+    for flight in ["original", "moved"] {
+        let text = std::fs::read_to_string(format!("{dir}/{flight}/trajectory.csv")).unwrap();
+        let mut lines = text.lines();
+        let width = lines.next().unwrap().split(',').count();
+        assert!(lines.all(|l| l.split(',').count() == width), "{flight}");
+    }
+    // only the start moved a kilometre from its reference (the report that found the bug):
+    // the flight diverges; its table is written whole and the run exits 1 saying so
+    let text = std::fs::read_to_string(&file).unwrap().replace(
+        "position = [2.0, -1.0, 1.2]",
+        "position = [1002.0, -701.0, 301.2]",
+    );
+    let far = d.join("far.toml");
+    std::fs::write(&far, text).unwrap();
+    let out_dir = d.join("far");
+    let (code, out) = plant(&["sim", "--scenario", &far, "--out", &out_dir]);
+    assert_eq!(code, 1, "{out}");
+    assert!(
+        out.contains("the run diverged: its state is not finite from t ="),
+        "{out}"
+    );
+    let text = std::fs::read_to_string(format!("{out_dir}/trajectory.csv")).unwrap();
+    let mut lines = text.lines();
+    let width = lines.next().unwrap().split(',').count();
+    assert!(lines.all(|l| l.split(',').count() == width));
+}
+
+#[test]
+fn bad_motions_are_refused_naming_the_value() {
+    let d = TempDir::new("moved-bad");
+    let file = repo("scenarios/se3_circle.toml").display().to_string();
+    let so3 = repo("scenarios/slew_so3.toml").display().to_string();
+    for (args, needle) in [
+        (
+            vec!["--offset", "1,2"],
+            "expected three numbers X,Y,Z, got `1,2`",
+        ),
+        (vec!["--offset", "1,x,3"], "`x` is not a finite number"),
+        (vec!["--offset", "1,inf,3"], "`inf` is not a finite number"),
+        (
+            vec!["--heading", "nan"],
+            "--heading: must be a finite number",
+        ),
+    ] {
+        let mut all = vec!["move", "--scenario", &file, "--out"];
+        let out_dir = d.join("x");
+        all.push(&out_dir);
+        all.extend(&args);
+        let (code, out) = plant(&all);
+        assert_eq!(code, 2, "{args:?}: {out}");
+        assert!(out.contains(needle), "{args:?}: {out}");
+    }
+    let out_dir = d.join("so3");
+    let (code, out) = plant(&[
+        "move",
+        "--scenario",
+        &so3,
+        "--offset",
+        "1,0,0",
+        "--out",
+        &out_dir,
+    ]);
+    assert_eq!(code, 2, "{out}");
+    assert!(out.contains("an SO(3) scenario has no positions"), "{out}");
+}
