@@ -72,7 +72,8 @@ impl WorldMotion {
 pub struct MovedScenario {
     /// The moved scenario's TOML.
     pub text: String,
-    /// The waypoint file's name as the scenario gives it, and its moved text.
+    /// The moved waypoint file's name (the original's file name; the moved scenario names it
+    /// so, to be written beside it) and its text.
     pub waypoints: Option<(String, String)>,
 }
 
@@ -193,8 +194,8 @@ pub fn move_scenario(
     let waypoint_file = move_table(&mut doc, origin, m)?;
     let waypoints = match waypoint_file {
         None => None,
-        Some(name) => {
-            let path = base.map_or_else(|| PathBuf::from(&name), |b| b.join(&name));
+        Some((file, name)) => {
+            let path = base.map_or_else(|| PathBuf::from(&file), |b| b.join(&file));
             let csv = std::fs::read_to_string(&path).map_err(|source| ScenarioError::Io {
                 path: path.display().to_string(),
                 source,
@@ -214,12 +215,13 @@ pub fn move_scenario(
     Ok(MovedScenario { text, waypoints })
 }
 
-/// Moves the world quantities of a scenario's table; returns its waypoint file's name.
+/// Moves the world quantities of a scenario's table; returns its waypoint file as the scenario
+/// gave it and the name the moved scenario gives it.
 fn move_table(
     doc: &mut Table,
     origin: &str,
     m: &WorldMotion,
-) -> Result<Option<String>, ScenarioError> {
+) -> Result<Option<(String, String)>, ScenarioError> {
     if let Some(t) = sub(doc, "initial") {
         move_pose(m, origin, t, "initial.")?;
     }
@@ -229,10 +231,20 @@ fn move_table(
         if let Some(s) = sub(t, "setpoint") {
             move_pose(m, origin, s, "reference.setpoint.")?;
         }
-        waypoint_file = t
+        if let Some(file) = t
             .get("waypoints")
             .and_then(Value::as_str)
-            .map(str::to_owned);
+            .map(str::to_owned)
+        {
+            // the moved file is written beside the moved scenario, under its own name only:
+            // never over the original, wherever the original's path points
+            let name = Path::new(&file).file_name().map_or_else(
+                || "waypoints.csv".to_owned(),
+                |n| n.to_string_lossy().into_owned(),
+            );
+            t.insert("waypoints".to_owned(), Value::String(name.clone()));
+            waypoint_file = Some((file, name));
+        }
     }
     if let Some(t) = sub(doc, "plant")
         && let Some(w) = t.get("disturbance_world").and_then(Value::as_array)
@@ -358,6 +370,35 @@ mod tests {
         let x: Vec<f64> = cells[4..7].iter().map(|c| c.parse().unwrap()).collect();
         assert_eq!(x, KM.offset.to_vec());
         assert!(lines[1].ends_with(",,,,,,"));
+    }
+
+    #[test]
+    fn a_waypoint_file_given_by_a_path_is_written_beside_the_moved_scenario_never_over_it() {
+        let abs = dir().join("slew_se3.csv").canonicalize().unwrap();
+        let text = scenario_text("slew_se3").replace(
+            "waypoints = \"slew_se3.csv\"",
+            &format!("waypoints = {:?}", abs.display().to_string()),
+        );
+        assert!(
+            text.contains(&abs.display().to_string()),
+            "the template changed"
+        );
+        let moved = move_scenario(&text, "slew", None, &KM).unwrap();
+        let (name, _) = moved.waypoints.as_ref().unwrap();
+        assert_eq!(name, "slew_se3.csv");
+        assert!(
+            moved.text.contains("waypoints = \"slew_se3.csv\""),
+            "{}",
+            moved.text
+        );
+        let out = std::env::temp_dir().join(format!("eqtrack-moving-{}", std::process::id()));
+        let path = moved.write(&out, "slew.toml").unwrap();
+        assert!(out.join("slew_se3.csv").is_file());
+        let b = Scenario::from_file(&path).unwrap();
+        let a = Scenario::from_toml_in(&text, "slew", "slew", None).unwrap();
+        let (pa, pb) = (a.path.unwrap(), b.path.unwrap());
+        assert_eq!(pb.poses[1].position, KM.place(pa.poses[1].position));
+        std::fs::remove_dir_all(&out).unwrap();
     }
 
     #[test]

@@ -108,6 +108,30 @@ fn a_streamed_lockstep_run_equals_the_same_waypoints_from_the_file_bit_for_bit()
             (format!("{group}-through"), through_scenario(&d, group)),
         ]
     });
+    // the streamed planner a kilometre away, turned: it streams the same flight moved
+    // (the moved file's flight is the original's moved: `plant_sim move --check`)
+    let moved = d.join("moved");
+    let (code, out) = run(
+        "plant_sim",
+        &[
+            "move",
+            "--scenario",
+            &through_scenario(&d, "se3"),
+            "--offset",
+            "1000,-700,300",
+            "--heading",
+            "0.7",
+            "--out",
+            &moved,
+            "--check",
+        ],
+        LONG,
+    );
+    assert_eq!(code, 0, "{out}");
+    let cases = cases.chain([(
+        "se3-through-moved".to_owned(),
+        format!("{moved}/slew_se3.toml"),
+    )]);
     for (group, scenario) in cases {
         let (file, streamed) = (
             d.join(&format!("{group}-file")),
