@@ -1,7 +1,7 @@
 //! Flights moved with the world (docs/invariance.md), through `plant_sim move --check`: every
 //! SE(3) scenario in `scenarios/` moved about a kilometre (and turned about z when it has no
 //! position fixes) flies the same flight; a planted dependence on the origin fails the check;
-//! the figure-eight far away flies the same in the lockstep pair; `eqf_se3` moved writes its
+//! the figure-eight far away flies the same in the lockstep pair, replays and exports; `eqf_se3` moved writes its
 //! table; a run that diverges does not exit 0.
 
 use pair_tests::{Csv, TempDir, plant, repo, serial, sim_equals_lockstep};
@@ -106,7 +106,17 @@ fn the_figure_eight_far_away_flies_in_the_lockstep_pair_as_in_the_simulation() {
     let (code, out) = check(&file, "0", &dir, &[]);
     assert_eq!(code, 0, "{out}");
     let moved = format!("{dir}/hexarotor_eight.toml");
-    let (sim, _) = sim_equals_lockstep(&d, "eight-far", &moved);
+    let (sim, pair) = sim_equals_lockstep(&d, "eight-far", &moved);
+    // its flight recording replays bit for bit and exports to MCAP
+    let (code, text) = plant(&["replay", &pair]);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(", 0 differ"), "{text}");
+    let (code, text) = plant(&["export", &pair]);
+    assert_eq!(code, 0, "{text}");
+    assert!(
+        std::path::Path::new(&pair).join("run.mcap").is_file(),
+        "{text}"
+    );
     // and it tracks as at the origin: the same errors, not merely a finished run
     let here = Csv::read(&std::path::Path::new(&dir).join("original/trajectory.csv"));
     let there = Csv::read(&std::path::Path::new(&sim).join("trajectory.csv"));
