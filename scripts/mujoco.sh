@@ -3,7 +3,9 @@
 # examples/mujoco/hexarotor.xml as the plant process, in Python, speaking the wire through
 # iceoryx2's own Python bindings; the unchanged controller_node flies it in lockstep.
 # examples/mujoco/compare.py then puts the flight beside `plant_sim sim` of the same scenario
-# and requires the position and attitude to agree within 1e-6 over the whole run.
+# and requires the position and attitude to agree within 1e-6 over the whole run. Then the
+# same figure-eight moved (1000, -700, 300) m away (`plant_sim move`) flies in MuJoCo as in
+# `plant_sim sim` of the moved scenario, within the same 1e-6.
 #
 #   scripts/mujoco.sh [--figure FILE.png]
 #
@@ -43,9 +45,10 @@ BIN=$TARGET/debug
 	die "cannot build plant_sim and controller_node (log: $OUT/build.log)"
 
 SCENARIO=$REPO/scenarios/hexarotor_eight.toml
-# fly DIR [--perturb]: the MuJoCo plant and controller_node, in lockstep, writing DIR/mujoco.csv
+# fly DIR [--perturb]: the MuJoCo plant and controller_node on $SCENARIO, in lockstep, writing
+# DIR/mujoco.csv
 fly() {
-	local dir=$1 run=mujoco-$$-${2:-plain}
+	local dir=$1 run=mujoco-$$-${2:-plain}-$RANDOM
 	mkdir -p "$dir"
 	"$BIN/controller_node" --scenario "$SCENARIO" --name "$run" >"$dir/controller.log" 2>&1 &
 	local ctl=$!
@@ -69,4 +72,13 @@ if "$VENV/bin/python" "$REPO/examples/mujoco/compare.py" "$OUT/perturbed/mujoco.
 	die "a 0.1 % stronger rotor passed the comparison: it cannot fail"
 fi
 echo "  planted error caught: $(grep -m1 largest "$OUT/perturbed/compare.log")"
+# the figure-eight a kilometre and more from the origin
+"$BIN/plant_sim" move --scenario "$SCENARIO" --offset 1000,-700,300 --out "$OUT/far" >"$OUT/move.log" 2>&1 ||
+	die "plant_sim move failed: $(tail -3 "$OUT/move.log")"
+SCENARIO=$OUT/far/hexarotor_eight.toml
+fly "$OUT/far"
+"$BIN/plant_sim" sim --scenario "$SCENARIO" --out "$OUT/far/sim" >"$OUT/far/sim.log" 2>&1 ||
+	die "plant_sim sim of the moved scenario failed: $(tail -3 "$OUT/far/sim.log")"
+"$VENV/bin/python" "$REPO/examples/mujoco/compare.py" "$OUT/far/mujoco.csv" "$OUT/far/sim/trajectory.csv" \
+	--tol 1e-6 | sed 's/^/  far away: /' || die "MuJoCo and plant_sim disagree on the figure-eight moved far away"
 echo "mujoco: PASS"
