@@ -212,7 +212,7 @@ impl<T: Real, const N: usize, const M: usize> AtReference<T, N, M> {
         v: &SVector<T, M>,
         desired: &Desired<T, N, M>,
     ) -> Self {
-        let q_l = G::compose(&G::inverse(&desired.q), q);
+        let q_l = G::between(&desired.q, q);
         let b = G::adjoint(&G::inverse(&q_l));
         let w = b * desired.v;
         AtReference {
@@ -243,7 +243,7 @@ where
     G: MatrixLieGroup<N, M>,
     T: Real,
 {
-    let q_l = G::compose(&G::inverse(&desired.q), q);
+    let q_l = G::between(&desired.q, q);
     let at_identity = Desired {
         q: G::identity(),
         ..*desired
@@ -498,7 +498,7 @@ impl<T: Real, const N: usize, const M: usize> ControllerConfig<T, N, M> {
         v: &SVector<T, M>,
         desired: &Desired<T, N, M>,
     ) -> (Phase<T, N, M>, SVector<T, M>) {
-        let q_l = || G::compose(&G::inverse(&desired.q), q);
+        let q_l = || G::between(&desired.q, q);
         match self.error_frame_in_force() {
             ErrorFrame::World => {
                 let state = Phase {

@@ -426,3 +426,32 @@ fn the_lyapunov_rate_is_the_stated_one_on_so3() {
         );
     }
 }
+
+/// `Q_d⁻¹ Q` of two poses a centimetre apart a kilometre from the origin, in f32: formed
+/// with the difference of the positions first it keeps their digits; composed with the
+/// inverse it loses them to the kilometre.
+#[test]
+fn the_error_at_the_reference_forms_the_position_difference_first() {
+    use nalgebra::{Matrix4, Vector6};
+    let mut a = Se3::exp(&Vector6::new(0.3, -0.2, 0.5, 0.0, 0.0, 0.0));
+    a[(0, 3)] = 1000.0;
+    a[(1, 3)] = -700.0;
+    a[(2, 3)] = 300.0;
+    let b = a * Se3::exp(&Vector6::new(0.01, 0.0, -0.02, 0.01, 0.004, -0.007));
+    let (a32, b32): (Matrix4<f32>, Matrix4<f32>) = (a.cast(), b.cast());
+    // the truth from the same f32 inputs, in f64
+    let truth = Se3::between(&a32.cast::<f64>(), &b32.cast::<f64>());
+    let err = |m: Matrix4<f32>| (m.cast::<f64>() - truth).abs().max();
+    let first = err(Se3::between(&a32, &b32));
+    let composed = err(Se3::compose(&Se3::inverse(&a32), &b32));
+    assert!(first < 1e-6, "difference first: {first:e}");
+    assert!(
+        composed > 1e-5,
+        "composed: {composed:e} (the comparison cannot fail)"
+    );
+    // and in f64 the two forms agree
+    let f64_gap = (Se3::between(&a, &b) - Se3::compose(&Se3::inverse(&a), &b))
+        .abs()
+        .max();
+    assert!(f64_gap < 1e-9, "{f64_gap:e}");
+}

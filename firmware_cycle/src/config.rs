@@ -81,6 +81,13 @@ pub struct Config {
     /// Where EqT forms its error: its index in `controller::ErrorFrame::ALL` (0 reference,
     /// 1 world, 2 recentred).
     pub error_frame: u8,
+    /// The local origin (m, world axes; zero on SO(3) and for a law that depends on where the
+    /// world origin is): every position the firmware sees is relative to it, the
+    /// reference's start here and the states' and position fixes' on the line, so the `f32`
+    /// cycle works with small numbers however far from the world origin the vehicle flies
+    /// (docs/invariance.md, "In f32, far from the origin"). The firmware itself never adds
+    /// it back.
+    pub origin: [f64; 3],
     /// The model inertia `I`, row-major (m² entries).
     pub inertia: Vec<f32, 36>,
     /// The potential weight `K`, row-major (n² entries).

@@ -256,6 +256,8 @@ pub struct SerialTransport {
     out: [u8; MAX_ENCODED],
     error: Option<io::Error>,
     onboard: Option<OnboardSlot>,
+    /// The firmware's local origin: the states' positions go out relative to it.
+    origin: [f64; 3],
 }
 
 /// What the plant and a controller that estimates on board exchange beside the pair's
@@ -303,17 +305,26 @@ fn narrow<const C: usize>(xs: &[f64]) -> heapless::Vec<f32, C> {
     xs.iter().take(C).map(|x| *x as f32).collect()
 }
 
-/// The state as a frame: `Q` (n², row-major), `V` and the applied wrench (m), in `f32`.
-pub fn state_frame(msg: &StateMsg) -> StateFrame {
+/// The state as a frame: `Q` (n², row-major), `V` and the applied wrench (m), in `f32`; on
+/// SE(3) the position relative to `origin` (the firmware's local origin), the difference
+/// formed in `f64` before the cast.
+pub fn state_frame(msg: &StateMsg, origin: &[f64; 3]) -> StateFrame {
     let (n, m) = if msg.group == WireGroup::Se3.code() {
         (4, 6)
     } else {
         (3, 3)
     };
+    let mut q = [0.0; 16];
+    q[..n * n].copy_from_slice(&msg.q[..n * n]);
+    if n == 4 {
+        for (i, o) in origin.iter().enumerate() {
+            q[i * 4 + 3] -= o;
+        }
+    }
     StateFrame {
         seq: msg.seq,
         t: msg.t,
-        q: narrow(&msg.q[..n * n]),
+        q: narrow(&q[..n * n]),
         v: narrow(&msg.v[..m]),
         applied: narrow(&msg.applied[..m]),
         samples: None,
@@ -394,7 +405,15 @@ impl SerialTransport {
             out: [0; MAX_ENCODED],
             error: None,
             onboard: None,
+            origin: [0.0; 3],
         }
+    }
+
+    /// The transport of a firmware whose positions are relative to `origin` (its
+    /// configuration's local origin): each state's position goes out as `x − origin`.
+    pub fn with_origin(mut self, origin: [f64; 3]) -> SerialTransport {
+        self.origin = origin;
+        self
     }
 
     /// The transport of a controller that estimates on board: each state goes out with the
@@ -512,7 +531,7 @@ impl Transport<StateMsg, CommandMsg> for SerialTransport {
             self.send_frame(&Frame::Hello(hello))?;
             self.greeting = Greeting::Sent;
         }
-        let mut state = state_frame(msg);
+        let mut state = state_frame(msg, &self.origin);
         if let Some(slot) = &self.onboard
             && let Ok(o) = slot.lock()
             && let Some((seq, samples)) = &o.samples

@@ -33,13 +33,15 @@ impl Scenario {
             return Err(refuse("reference", "a waypoint or set-point reference"));
         }
         let (n, _) = self.group.dims();
+        // the reference's start relative to the local origin, formed in f64 before the cast
+        let origin = self.local_origin();
+        let mut local = self.reference.clone();
+        for (x, o) in local.position.iter_mut().zip(origin) {
+            *x -= o;
+        }
         let q0: Vec<f64> = match self.group {
-            GroupKind::So3 => Scenario::configuration::<3>(&self.reference)
-                .as_slice()
-                .to_vec(),
-            GroupKind::Se3 => Scenario::configuration::<4>(&self.reference)
-                .as_slice()
-                .to_vec(),
+            GroupKind::So3 => Scenario::configuration::<3>(&local).as_slice().to_vec(),
+            GroupKind::Se3 => Scenario::configuration::<4>(&local).as_slice().to_vec(),
         };
         // nalgebra stores column-major: the config is row-major
         let q0_rows: Vec<f64> = (0..n * n).map(|i| q0[(i % n) * n + i / n]).collect();
@@ -65,6 +67,7 @@ impl Scenario {
                 .iter()
                 .position(|f| *f == self.error_frame)
                 .unwrap_or(0) as u8,
+            origin,
             inertia: f32s(&self.model_inertia),
             k: f32s(&self.kp),
             kd: f32s(&self.kd),
@@ -105,6 +108,23 @@ impl Scenario {
             estimator: self.filter_settings()?.as_ref().map(Estimator::of),
             vehicle: self.vehicle.as_ref().map(firmware_vehicle),
         })
+    }
+
+    /// The local origin of the `f32` controller (m, world axes): the reference's start
+    /// position on SE(3) when the law in force does not depend on where the world origin is
+    /// (EqT with its error at the reference or re-centred), else zero (SO(3), the papers'
+    /// world-frame form, the comparison laws). The firmware's configuration and the serial
+    /// frames hold positions relative to it (docs/invariance.md, "In f32, far from the
+    /// origin").
+    pub fn local_origin(&self) -> [f64; 3] {
+        let invariant = self.law == Law::Eqt
+            && self.error_frame != ErrorFrame::World
+            && self.group == GroupKind::Se3;
+        if invariant {
+            self.reference.position
+        } else {
+            [0.0; 3]
+        }
     }
 }
 

@@ -204,3 +204,65 @@ fn bad_motions_are_refused_naming_the_value() {
     assert_eq!(code, 2, "{out}");
     assert!(out.contains("an SO(3) scenario has no positions"), "{out}");
 }
+
+/// The RMS position error (`√(‖Q_E − I‖² − ‖R_E − I‖²)`, the table's `config_error` without
+/// its `attitude_error`) and the RMS attitude error of a run's table.
+fn rms_errors(dir: &str) -> (f64, f64) {
+    let csv = Csv::read(&std::path::Path::new(dir).join("trajectory.csv"));
+    let (c, a) = (csv.col("config_error"), csv.col("attitude_error"));
+    let n = c.len() as f64;
+    let pos = c
+        .iter()
+        .zip(&a)
+        .map(|(c, a)| (c * c - a * a).max(0.0))
+        .sum::<f64>();
+    let att = a.iter().map(|a| a * a).sum::<f64>();
+    ((pos / n).sqrt(), (att / n).sqrt())
+}
+
+/// The `f32` controller (the firmware's cycle, in process) on `pil_hexarotor` a kilometre and
+/// a hundred kilometres away: it carries a local origin, so it tracks as at the origin (RMS
+/// position and attitude errors within twice the unmoved flight's). Without the local origin
+/// the hundred-kilometre flight's RMS position error is 17 times the unmoved one's (0.99 m against 0.058 m).
+#[test]
+fn the_f32_controller_far_from_the_origin_tracks_as_at_the_origin() {
+    let _g = serial();
+    let d = TempDir::new("moved-f32");
+    let file = repo("scenarios/pil_hexarotor.toml").display().to_string();
+    let fly = |file: &str, out: &str| {
+        let (code, text) = plant(&[
+            "sim",
+            "--scenario",
+            file,
+            "--controller-scalar",
+            "f32",
+            "--out",
+            out,
+        ]);
+        assert_eq!(code, 0, "{text}");
+        rms_errors(out)
+    };
+    let (pos0, att0) = fly(&file, &d.join("here"));
+    assert!(pos0 > 0.0 && att0 > 0.0);
+    for (k, offset) in ["1000,-700,300", "100000,0,0"].iter().enumerate() {
+        let dir = d.join(&format!("moved-{k}"));
+        let (code, text) = plant(&[
+            "move",
+            "--scenario",
+            &file,
+            "--offset",
+            offset,
+            "--out",
+            &dir,
+        ]);
+        assert_eq!(code, 0, "{text}");
+        let (pos, att) = fly(
+            &format!("{dir}/pil_hexarotor.toml"),
+            &d.join(&format!("far-{k}")),
+        );
+        assert!(
+            pos <= 2.0 * pos0 && att <= 2.0 * att0,
+            "moved by {offset}: RMS position {pos} (unmoved {pos0}), attitude {att} (unmoved {att0})"
+        );
+    }
+}

@@ -125,6 +125,14 @@ pub trait MatrixLieGroup<const N: usize, const M: usize>:
         a * b
     }
 
+    /// `a⁻¹ b`: `b` seen from `a` (the law's error at the reference, `Q_d⁻¹ Q`). The default
+    /// composes the inverse; a group with positions forms their difference before it rotates
+    /// it, so that two nearby poses far from the origin keep their digits (docs/maths.md,
+    /// "The law at the reference").
+    fn between<T: Real>(a: &SMatrix<T, N, N>, b: &SMatrix<T, N, N>) -> SMatrix<T, N, N> {
+        Self::compose(&Self::inverse(a), b)
+    }
+
     /// The coordinates of the Frobenius pairing with the basis, `(⟨X, E_i⟩_F)_i`.
     ///
     /// This is how the left-trivialised gradient (docs/maths.md, "The EqT law":

@@ -111,6 +111,15 @@ impl MatrixLieGroup<4, 6> for Se3 {
         rotation(q)
     }
 
+    /// `(R_aᵀ R_b, R_aᵀ (x_b − x_a))`: the difference of the positions first.
+    fn between<T: Real>(a: &SMatrix<T, 4, 4>, b: &SMatrix<T, 4, 4>) -> SMatrix<T, 4, 4> {
+        let rt = rotation(a).transpose();
+        from_parts(
+            &(rt * rotation(b)),
+            &(rt * (translation(b) - translation(a))),
+        )
+    }
+
     fn adjoint<T: Real>(q: &SMatrix<T, 4, 4>) -> SMatrix<T, 6, 6> {
         let r = rotation(q);
         blocks(&r, &(skew(&translation(q)) * r), &r)

@@ -359,6 +359,7 @@ fn firmware_cycle_check() -> bool {
         },
         law: 0,
         error_frame: 0,
+        origin: [0.0; 3],
         inertia: v(&eye),
         k: Vec::from_slice(&eye).unwrap_or_default(),
         kd: v(&eye),

@@ -150,7 +150,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                     c.corrupt,
                 )
                 .with_noise(c.noise)
-                .with_onboard(onboard.clone());
+                .with_onboard(onboard.clone())
+                .with_origin(s.local_origin());
                 PlantEndpoint::with_transport(config, Box::new(transport))
             }
         };
@@ -306,7 +307,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 if let Some((slot, sent, _)) = &mut self.onboard {
                     let samples = e.sample(k, &self.plant, &held);
                     if let Ok(mut o) = slot.lock() {
-                        o.samples = Some((k, wire_samples(&samples)));
+                        o.samples = Some((k, wire_samples(&samples, &self.s.local_origin())));
                     }
                     *sent = Some(samples);
                     msg.set_state(self.plant.configuration(), &self.plant.velocity());
@@ -348,8 +349,16 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         let (Some(e), samples) = (last.as_ref(), *samples) else {
             return;
         };
+        // the firmware's position is relative to its local origin: back in world coordinates
+        let origin = self.s.local_origin();
         let q_hat = nalgebra::SMatrix::<f64, N, N>::from_fn(|i, j| {
-            e.q.get(i * N + j).map_or(f64::NAN, |x| f64::from(*x))
+            let shift = if N == 4 && j == 3 && i < 3 {
+                origin[i]
+            } else {
+                0.0
+            };
+            e.q.get(i * N + j)
+                .map_or(f64::NAN, |x| f64::from(*x) + shift)
         });
         let v_hat =
             SVector::<f64, M>::from_fn(|i, _| e.v.get(i).map_or(f64::NAN, |x| f64::from(*x)));
@@ -554,13 +563,15 @@ fn figure_title(s: &Scenario, opts: &PairOptions, realtime: bool, interrupted: b
     )
 }
 
-/// The samples as the serial frame carries them (`f32`, as the board's sensors give them).
-fn wire_samples(s: &crate::sensors::Samples) -> serial_wire::Samples {
+/// The samples as the serial frame carries them (`f32`, as the board's sensors give them);
+/// a position fix relative to the firmware's local origin, the difference formed in `f64`.
+fn wire_samples(s: &crate::sensors::Samples, origin: &[f64; 3]) -> serial_wire::Samples {
     let f = |v: &nalgebra::Vector3<f64>| [v[0] as f32, v[1] as f32, v[2] as f32];
+    let o = nalgebra::Vector3::from(*origin);
     serial_wire::Samples {
         gyro: f(&s.gyro),
         directions: s.directions[..s.count.min(4)].iter().map(f).collect(),
         accel: s.accel.as_ref().map(f),
-        position: s.position.as_ref().map(f),
+        position: s.position.as_ref().map(|x| f(&(x - o))),
     }
 }
