@@ -122,6 +122,8 @@ pub enum ConfigError {
     Law(u8),
     /// Not an error-frame index.
     ErrorFrame(u8),
+    /// A local origin that is not finite, or not zero on SO(3) (which has no positions).
+    Origin,
     /// A vector with the wrong number of entries for the group: which, and how many.
     Shape(&'static str, usize),
     /// The controller refused the settings.
@@ -140,6 +142,9 @@ impl core::fmt::Display for ConfigError {
             ConfigError::Group(g) => write!(f, "group code {g} (expected 1 so3 or 2 se3)"),
             ConfigError::Law(l) => write!(f, "law index {l} (expected 0 to 3)"),
             ConfigError::ErrorFrame(i) => write!(f, "error-frame index {i} (expected 0 to 2)"),
+            ConfigError::Origin => f.write_str(
+                "the local origin: three finite numbers, and zero on so3 (it has no positions)",
+            ),
             ConfigError::Shape(what, n) => write!(f, "{what}: {n} entries, not the group's"),
             ConfigError::Controller(e) => write!(f, "{e}"),
             ConfigError::Estimator(e) => write!(f, "estimator: {e}"),
@@ -179,6 +184,15 @@ impl Config {
             .get(usize::from(self.law))
             .copied()
             .ok_or(ConfigError::Law(self.law))
+    }
+
+    /// The local origin, checked: finite, and zero on SO(3).
+    pub fn origin(&self) -> Result<[f64; 3], ConfigError> {
+        let finite = self.origin.iter().all(|x| x.is_finite());
+        let so3_at_zero = self.identity.group != 1 || self.origin == [0.0; 3];
+        (finite && so3_at_zero)
+            .then_some(self.origin)
+            .ok_or(ConfigError::Origin)
     }
 
     /// Where EqT forms its error.

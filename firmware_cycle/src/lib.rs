@@ -81,6 +81,7 @@ pub struct Cycle {
 impl Cycle {
     /// The cycle of `config` (checked: shapes, the controller's own checks).
     pub fn new(config: &Config) -> Result<Cycle, ConfigError> {
+        config.origin()?;
         let group = match config.identity.group {
             1 => Group::So3(Engine::new(config)?),
             2 => Group::Se3(Engine::new(config)?),

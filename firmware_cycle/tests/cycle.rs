@@ -113,6 +113,13 @@ fn the_configuration_round_trips_and_bad_bytes_are_refused() {
         ConfigError::ErrorFrame(3).to_string(),
         "error-frame index 3 (expected 0 to 2)"
     );
+    for origin in [[f64::NAN, 0.0, 0.0], [0.0, f64::INFINITY, 0.0], [1.0, 0.0, 0.0]] {
+        // not finite; and the seed is on SO(3), which has no positions to shift
+        let mut bad = config.clone();
+        bad.origin = origin;
+        assert!(matches!(Cycle::new(&bad), Err(ConfigError::Origin)), "{origin:?}");
+    }
+    assert!(ConfigError::Origin.to_string().contains("zero on so3"));
     let mut bad = config;
     bad.kd = v(&[-1.0, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.5]);
     assert!(
@@ -542,6 +549,25 @@ proptest! {
                 let a = cmd.allocation.unwrap();
                 prop_assert_eq!(a.u_cmd.len(), 6);
                 prop_assert!(a.u_cmd.iter().chain(&a.accounted).all(|x| x.is_finite()));
+            }
+        }
+    }
+}
+
+proptest! {
+    /// Any local origin in an SE(3) configuration: a finite one builds the cycle and it
+    /// answers with finite numbers; any other is refused as the origin, never a panic.
+    #[test]
+    fn any_local_origin_is_taken_or_refused_by_name(
+        origin in prop::array::uniform3(prop::num::f64::ANY),
+    ) {
+        let mut config = firmware_cycle::Config::from_bytes(HEXAROTOR).unwrap();
+        config.origin = origin;
+        match Cycle::new(&config) {
+            Ok(_) => prop_assert!(origin.iter().all(|x| x.is_finite())),
+            Err(e) => {
+                prop_assert!(matches!(e, ConfigError::Origin), "{e}");
+                prop_assert!(!origin.iter().all(|x| x.is_finite()));
             }
         }
     }
