@@ -8,7 +8,8 @@
 #
 # For each scenario (default: the seed on SO(3), se3_circle on SE(3), reject_se3 on SE(3)
 # with the disturbance observer and the integral, pil_hexarotor on SE(3) with sensors, the
-# equivariant filter, the disturbance observer and a vehicle's allocation):
+# equivariant filter, the disturbance observer and a vehicle's allocation, and pil_hexarotor
+# moved 1 km from the world origin by `plant_sim move`, whose firmware carries the local origin):
 #  1. plant_sim pil-config writes the scenario's firmware configuration; the firmware is
 #     built with it (private toolchain of scripts/lib/cortex-m-toolchain.sh);
 #  2. QEMU starts with UART0 on a TCP socket (nodelay) and waits for the plant;
@@ -16,6 +17,7 @@
 #  4. plant_sim sim --controller-scalar f32 writes the reference;
 #  5. the two trajectory.csv must be equal byte for byte: `PIL: PASS`, or the first row and
 #     column that differ.
+# The moved hexarotor's RMS position and attitude errors must be within twice the unmoved one's.
 # Then, on the seed at a 20 ms period in real time: a scenario mismatch is refused on both
 # sides, a frame corrupted on the line is counted and held over, a firmware reset through
 # QEMU's monitor (system_reset) enters safe mode and the handshake brings it back; and the
@@ -66,6 +68,14 @@ if [[ -z ${PLANT_SIM:-} ]]; then
 	step "building plant_sim (with the test-only flags)"
 	(cd "$REPO" && cargo build --locked -p plant_sim --features fault-injection >"$OUT/plant-build.log" 2>&1) ||
 		die "cannot build plant_sim (log: $OUT/plant-build.log)"
+fi
+
+if ((DEFAULT)); then
+	# pil_hexarotor a kilometre from the world origin (its own tag: pil_hexarotor_far)
+	"$PLANT" move --scenario "$REPO/scenarios/pil_hexarotor.toml" --offset 1000,0,0 --out "$OUT/far" \
+		>"$OUT/far.log" 2>&1 || die "plant_sim move failed: $(tail -2 "$OUT/far.log")"
+	cp "$OUT/far/pil_hexarotor.toml" "$OUT/pil_hexarotor_far.toml"
+	SCENARIOS+=("$OUT/pil_hexarotor_far.toml")
 fi
 
 QEMU_PID=""
@@ -150,6 +160,25 @@ for file in "${SCENARIOS[@]}"; do
 	fi
 done
 ((fails == 0)) || die "$fails scenario(s) differ"
+
+# far from the origin the firmware tracks as at it: RMS position error (the configuration
+# error without its attitude part) and RMS attitude error within twice the unmoved flight's
+if [[ -f $OUT/pil_hexarotor_far-pil/trajectory.csv ]]; then
+	why=$(python3 - "$OUT/pil_hexarotor-pil/trajectory.csv" "$OUT/pil_hexarotor_far-pil/trajectory.csv" <<'PY'
+import csv, math, sys
+def rms(path):
+    rows = list(csv.DictReader(open(path)))
+    c = [float(r["config_error"]) for r in rows]
+    a = [float(r["attitude_error"]) for r in rows]
+    pos = math.sqrt(sum(max(x * x - y * y, 0.0) for x, y in zip(c, a)) / len(c))
+    return pos, math.sqrt(sum(y * y for y in a) / len(a))
+(p0, a0), (p1, a1) = rms(sys.argv[1]), rms(sys.argv[2])
+print(f"RMS position {p1:.6f} m (at the origin {p0:.6f}), attitude {a1:.6f} (at the origin {a0:.6f})")
+sys.exit(0 if p1 <= 2 * p0 and a1 <= 2 * a0 else 1)
+PY
+) || die "pil_hexarotor 1 km away tracks worse than twice at the origin: $why"
+	echo "PIL: PASS pil_hexarotor 1 km away: $why"
+fi
 
 # the comparison can fail: the seed's PIL run against the f64 simulation (not the firmware's
 # arithmetic) must differ, and be named

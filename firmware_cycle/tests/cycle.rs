@@ -113,11 +113,18 @@ fn the_configuration_round_trips_and_bad_bytes_are_refused() {
         ConfigError::ErrorFrame(3).to_string(),
         "error-frame index 3 (expected 0 to 2)"
     );
-    for origin in [[f64::NAN, 0.0, 0.0], [0.0, f64::INFINITY, 0.0], [1.0, 0.0, 0.0]] {
+    for origin in [
+        [f64::NAN, 0.0, 0.0],
+        [0.0, f64::INFINITY, 0.0],
+        [1.0, 0.0, 0.0],
+    ] {
         // not finite; and the seed is on SO(3), which has no positions to shift
         let mut bad = config.clone();
         bad.origin = origin;
-        assert!(matches!(Cycle::new(&bad), Err(ConfigError::Origin)), "{origin:?}");
+        assert!(
+            matches!(Cycle::new(&bad), Err(ConfigError::Origin)),
+            "{origin:?}"
+        );
     }
     assert!(ConfigError::Origin.to_string().contains("zero on so3"));
     let mut bad = config;

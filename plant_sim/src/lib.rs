@@ -126,7 +126,7 @@ pub fn main() -> ExitCode {
         Some(Command::Sim(a)) => sim::sim(a, &stop),
         Some(Command::Montecarlo(a)) => montecarlo::montecarlo_cmd(a, &stop),
         Some(Command::Frames(a)) => frames::frames_cmd(a, &stop),
-        Some(Command::Move(a)) => moved::move_cmd(a),
+        Some(Command::Move(a)) => moved::move_cmd(a, &stop),
         Some(Command::Noise(a)) => noise::noise_cmd(a),
         Some(Command::Rejection(a)) => rejection::rejection_cmd(a),
         Some(Command::Run(a)) => run::run_cmd(a, &stop),

@@ -32,19 +32,8 @@ impl Scenario {
         if self.path.is_some() {
             return Err(refuse("reference", "a waypoint or set-point reference"));
         }
-        let (n, _) = self.group.dims();
-        // the reference's start relative to the local origin, formed in f64 before the cast
         let origin = self.local_origin();
-        let mut local = self.reference.clone();
-        for (x, o) in local.position.iter_mut().zip(origin) {
-            *x -= o;
-        }
-        let q0: Vec<f64> = match self.group {
-            GroupKind::So3 => Scenario::configuration::<3>(&local).as_slice().to_vec(),
-            GroupKind::Se3 => Scenario::configuration::<4>(&local).as_slice().to_vec(),
-        };
-        // nalgebra stores column-major: the config is row-major
-        let q0_rows: Vec<f64> = (0..n * n).map(|i| q0[(i % n) * n + i / n]).collect();
+        let q0_rows = self.local_start();
         let name: String = self.name.chars().take(32).collect();
         let mut scenario = heapless::String::<32>::new();
         for c in name.chars() {
@@ -110,12 +99,28 @@ impl Scenario {
         })
     }
 
+    /// `Q_d(0)` relative to the local origin, row-major: the position difference formed in
+    /// `f64`, before the configuration is cast.
+    fn local_start(&self) -> Vec<f64> {
+        let (n, _) = self.group.dims();
+        let mut local = self.reference.clone();
+        for (x, o) in local.position.iter_mut().zip(self.local_origin()) {
+            *x -= o;
+        }
+        let q0: Vec<f64> = match self.group {
+            GroupKind::So3 => Scenario::configuration::<3>(&local).as_slice().to_vec(),
+            GroupKind::Se3 => Scenario::configuration::<4>(&local).as_slice().to_vec(),
+        };
+        // nalgebra stores column-major: the config is row-major
+        (0..n * n).map(|i| q0[(i % n) * n + i / n]).collect()
+    }
+
     /// The local origin of the `f32` controller (m, world axes): the reference's start
     /// position on SE(3) when the law in force does not depend on where the world origin is
     /// (EqT with its error at the reference or re-centred), else zero (SO(3), the papers'
     /// world-frame form, the comparison laws). The firmware's configuration and the serial
-    /// frames hold positions relative to it (docs/invariance.md, "In f32, far from the
-    /// origin").
+    /// frames hold positions relative to it
+    /// (docs/invariance.md, "In f32, far from the origin").
     pub fn local_origin(&self) -> [f64; 3] {
         let invariant = self.law == Law::Eqt
             && self.error_frame != ErrorFrame::World

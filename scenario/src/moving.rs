@@ -55,8 +55,12 @@ impl WorldMotion {
         ]
     }
 
-    /// An attitude given as a rotation vector turned: `log(R_T exp(r))`.
+    /// An attitude given as a rotation vector turned: `log(R_T exp(r))` (without a turn, `r`
+    /// itself, to the bit).
     pub fn rotate(&self, r: [f64; 3]) -> [f64; 3] {
+        if self.heading == 0.0 {
+            return r;
+        }
         let w = So3::log(&(self.rotation() * So3::exp(&Vector3::from(r))));
         [w[0], w[1], w[2]]
     }
@@ -107,6 +111,38 @@ fn invalid(origin: &str, key: &str, message: impl Into<String>) -> ScenarioError
     }
 }
 
+/// The numbers at `table[key]` (whole numbers read as numbers, as the loader reads them), if
+/// the key is there; refused naming the key when it is not a list of `len` numbers (`len`
+/// 0: any multiple of 3).
+fn numbers(
+    origin: &str,
+    table: &Table,
+    prefix: &str,
+    key: &str,
+    len: usize,
+) -> Result<Option<Vec<f64>>, ScenarioError> {
+    let Some(v) = table.get(key) else {
+        return Ok(None);
+    };
+    let name = format!("{prefix}{key}");
+    let what = if len == 0 {
+        "a list of 3 or 6 numbers".to_owned()
+    } else {
+        format!("a list of {len} numbers")
+    };
+    let xs: Option<Vec<f64>> = v.as_array().and_then(|list| {
+        list.iter()
+            .map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
+            .collect()
+    });
+    match xs {
+        Some(xs) if (len == 0 && !xs.is_empty() && xs.len() % 3 == 0) || xs.len() == len => {
+            Ok(Some(xs))
+        }
+        _ => Err(invalid(origin, &name, format!("expected {what}"))),
+    }
+}
+
 /// The three numbers at `table[key]`, if the key is there.
 fn three(
     origin: &str,
@@ -114,21 +150,7 @@ fn three(
     prefix: &str,
     key: &str,
 ) -> Result<Option<[f64; 3]>, ScenarioError> {
-    let Some(v) = table.get(key) else {
-        return Ok(None);
-    };
-    let name = format!("{prefix}{key}");
-    let list = v
-        .as_array()
-        .ok_or_else(|| invalid(origin, &name, "expected a list of 3 numbers"))?;
-    let xs: Option<Vec<f64>> = list
-        .iter()
-        .map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
-        .collect();
-    match xs.as_deref() {
-        Some([a, b, c]) => Ok(Some([*a, *b, *c])),
-        _ => Err(invalid(origin, &name, "expected a list of 3 numbers")),
-    }
+    Ok(numbers(origin, table, prefix, key, 3)?.map(|x| [x[0], x[1], x[2]]))
 }
 
 fn put(table: &mut Table, key: &str, xs: &[f64]) {
@@ -200,7 +222,8 @@ pub fn move_scenario(
                 path: path.display().to_string(),
                 source,
             })?;
-            Some((name, move_waypoints(&csv, scenario.group, m)))
+            let file = path.display().to_string();
+            Some((name, move_waypoints(&csv, &file, scenario.group, m)?))
         }
     };
     let body = toml::to_string(&doc).map_err(|e| ScenarioError::Parse {
@@ -247,11 +270,10 @@ fn move_table(
         }
     }
     if let Some(t) = sub(doc, "plant")
-        && let Some(w) = t.get("disturbance_world").and_then(Value::as_array)
+        && let Some(xs) = numbers(origin, t, "plant.", "disturbance_world", 0)?
     {
-        let xs: Vec<f64> = w.iter().filter_map(Value::as_float).collect();
         let turned: Vec<f64> = xs
-            .chunks(3)
+            .chunks_exact(3)
             .flat_map(|c| m.turn([c[0], c[1], c[2]]))
             .collect();
         put(t, "disturbance_world", &turned);
@@ -275,32 +297,39 @@ fn move_table(
     Ok(waypoint_file)
 }
 
-/// A waypoint file moved with the world: each pose moved, the optional body velocities and
-/// every other cell as they were. The file has been read by the loader, so it is well formed.
-pub fn move_waypoints(text: &str, group: GroupKind, m: &WorldMotion) -> String {
+/// A waypoint file moved with the world, read as the loader reads it
+/// ([`waypoints::parse`]; `file` names it in errors): each pose moved, the times and the
+/// optional body velocities as they were (a velocity left to be chosen stays empty).
+pub fn move_waypoints(
+    text: &str,
+    file: &str,
+    group: GroupKind,
+    m: &WorldMotion,
+) -> Result<String, ScenarioError> {
+    let spec = waypoints::parse(text, file, group)?;
     let se3 = group == GroupKind::Se3;
-    let width = waypoints::header(group).len();
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-        let parsed: Option<Vec<f64>> = cells
-            .iter()
-            .take(width)
-            .map(|c| c.parse::<f64>().ok())
-            .collect();
-        let Some(xs) = parsed.filter(|xs| i > 0 && xs.len() == width) else {
-            out.push(line.to_owned()); // the header, or a blank line
-            continue;
-        };
-        let mut row: Vec<String> = vec![format!("{:?}", xs[0])];
-        row.extend(m.rotate([xs[1], xs[2], xs[3]]).map(|x| format!("{x:?}")));
+    let speeds = waypoints::velocity_header(group);
+    let given = spec.velocities.iter().any(Option::is_some);
+    let mut header: Vec<&str> = waypoints::header(group).to_vec();
+    if given {
+        header.extend(speeds);
+    }
+    let mut out = vec![header.join(",")];
+    for ((t, pose), v) in spec.times.iter().zip(&spec.poses).zip(&spec.velocities) {
+        let mut row: Vec<String> = vec![format!("{t:?}")];
+        row.extend(m.rotate(pose.rotation).map(|x| format!("{x:?}")));
         if se3 {
-            row.extend(m.place([xs[4], xs[5], xs[6]]).map(|x| format!("{x:?}")));
+            row.extend(m.place(pose.position).map(|x| format!("{x:?}")));
         }
-        row.extend(cells[width..].iter().map(|c| (*c).to_owned()));
+        if given {
+            match v {
+                Some(v) => row.extend(v.iter().map(|x| format!("{x:?}"))),
+                None => row.extend(speeds.iter().map(|_| String::new())),
+            }
+        }
         out.push(row.join(","));
     }
-    out.join("\n") + "\n"
+    Ok(out.join("\n") + "\n")
 }
 
 #[cfg(test)]
@@ -359,9 +388,44 @@ mod tests {
     }
 
     #[test]
+    fn whole_numbers_and_the_estimators_initial_attitude_move_too() {
+        // whole numbers where the loader takes them, and an initial attitude estimate
+        let text = scenario_text("eqf_se3")
+            .replace("[plant]", "[plant]\ndisturbance_world = [0, 0, 1, 2, 0, 0]")
+            .replace("position = [2.0, -1.0, 1.2]", "position = [2, -1, 1]")
+            .replace(
+                "kind = \"eqf\"",
+                "kind = \"eqf\"\ninitial_attitude = [0.1, 0.2, -0.3]",
+            );
+        let a = Scenario::from_toml_in(&text, "a", "a", None).unwrap();
+        let moved = move_scenario(&text, "a", None, &KM).unwrap();
+        let b = Scenario::from_toml_in(&moved.text, "b", "b", None).unwrap();
+        let close = |x: &[f64], y: &[f64]| {
+            x.iter()
+                .zip(y)
+                .all(|(p, q)| (p - q).abs() <= 1e-9 * (1.0 + p.abs()))
+        };
+        assert!(close(&b.initial.position, &KM.place([2.0, -1.0, 1.0])));
+        let w = b.disturbance_world.unwrap();
+        assert!(close(&w[..3], &KM.turn([0.0, 0.0, 1.0])));
+        assert!(close(&w[3..], &KM.turn([2.0, 0.0, 0.0])));
+        let (ra, rb) = (
+            a.estimator.initial_attitude.unwrap(),
+            b.estimator.initial_attitude.unwrap(),
+        );
+        assert!(close(&rb, &KM.rotate(ra)));
+        // a list of the wrong kind is refused naming the key, never a panic
+        let bad = text.replace(
+            "disturbance_world = [0, 0, 1, 2, 0, 0]",
+            "disturbance_world = [0, \"x\", 1]",
+        );
+        assert!(move_scenario(&bad, "a", None, &KM).is_err());
+    }
+
+    #[test]
     fn a_waypoint_file_moves_pose_by_pose_and_keeps_its_velocities() {
         let text = "t,rx,ry,rz,x,y,z,wx,wy,wz,vx,vy,vz\n0.0,0.1,0.0,0.0,1.0,2.0,3.0,,,,,,\n2.0,0.0,0.0,0.5,0.0,0.0,0.0,0.1,0.0,0.0,0.2,0.0,0.0\n";
-        let moved = move_waypoints(text, GroupKind::Se3, &KM);
+        let moved = move_waypoints(text, "w.csv", GroupKind::Se3, &KM).unwrap();
         let lines: Vec<&str> = moved.lines().collect();
         assert_eq!(lines[0], "t,rx,ry,rz,x,y,z,wx,wy,wz,vx,vy,vz");
         let cells: Vec<&str> = lines[2].split(',').collect();

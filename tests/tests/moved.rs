@@ -75,6 +75,69 @@ fn every_se3_scenario_flies_the_same_flight_a_kilometre_away() {
     }
 }
 
+/// The rejection terms the scenarios do not fly on SE(3), moved and turned: the momentum
+/// observer in the body frame, and the geometric integral with its anti-windup engaged (a
+/// torque limit the run saturates on more than a quarter of its ticks).
+#[test]
+fn the_body_observer_and_the_saturated_integral_fly_the_same_flight_moved_and_turned() {
+    let d = TempDir::new("moved-terms");
+    let text = std::fs::read_to_string(repo("scenarios/reject_se3.toml")).unwrap();
+    let observer = "disturbance_observer = { gain = 20.0, limit = [0.5, 0.5, 0.5, 2.0, 2.0, 2.0], frame = \"world\" }";
+    assert!(text.contains(observer), "the template changed");
+    let body = text.replace("frame = \"world\" }", "frame = \"body\" }");
+    let integral = text
+        .replace(
+            observer,
+            "integral = { ki = 2.0, c = 2.0, limit = 0.5, anti_windup = true }",
+        )
+        .replace(
+            "torque_limit = [1.0, 1.0, 1.0, 5.0, 5.0, 5.0]",
+            "torque_limit = [0.05, 0.05, 0.05, 0.6, 0.6, 0.6]",
+        )
+        .replace(
+            "velocity = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0]",
+            "velocity = [0.5, -0.4, 1.0, 0.8, 0.0, -0.5]",
+        );
+    for (name, text) in [("body", body), ("integral", integral)] {
+        let file = d.join(&format!("{name}.toml"));
+        std::fs::write(&file, text).unwrap();
+        let out = d.join(name);
+        let (code, text) = check(&file, "0.7", &out, &[]);
+        assert_eq!(code, 0, "{name}: {text}");
+        if name == "integral" {
+            let csv = Csv::read(&std::path::Path::new(&out).join("original/trajectory.csv"));
+            let limits = [0.05, 0.05, 0.05, 0.6, 0.6, 0.6];
+            let taus: Vec<Vec<f64>> = (0..6).map(|i| csv.col(&format!("tau_{i}"))).collect();
+            let rows = taus[0].len();
+            let saturated = (0..rows)
+                .filter(|&k| (0..6).any(|i| taus[i][k].abs() >= limits[i] - 1e-12))
+                .count();
+            assert!(
+                4 * saturated > rows,
+                "{saturated} of {rows} ticks saturated"
+            );
+            assert!(csv.col("integral_3").iter().any(|z| *z != 0.0));
+        }
+    }
+    // the anti-windup is engaged: without it the integral flies another flight
+    let free = std::fs::read_to_string(d.join("integral.toml"))
+        .unwrap()
+        .replace("anti_windup = true", "anti_windup = false");
+    let free_file = d.join("free.toml");
+    std::fs::write(&free_file, free).unwrap();
+    let free_out = d.join("free-sim");
+    let (code, text) = plant(&["sim", "--scenario", &free_file, "--out", &free_out]);
+    assert_eq!(code, 0, "{text}");
+    let with =
+        Csv::read(&std::path::Path::new(&d.join("integral")).join("original/trajectory.csv"));
+    let without = Csv::read(&std::path::Path::new(&free_out).join("trajectory.csv"));
+    assert_ne!(
+        with.col("integral_0"),
+        without.col("integral_0"),
+        "the anti-windup never acted"
+    );
+}
+
 #[test]
 fn a_planted_dependence_on_the_origin_fails_the_moved_flight() {
     let d = TempDir::new("moved-planted");
@@ -191,6 +254,50 @@ fn bad_motions_are_refused_naming_the_value() {
         assert_eq!(code, 2, "{args:?}: {out}");
         assert!(out.contains(needle), "{args:?}: {out}");
     }
+    // never over the scenario it was moved from, and only inside --out whatever its name
+    let src = d.join("src");
+    std::fs::create_dir_all(&src).unwrap();
+    let text = std::fs::read_to_string(repo("scenarios/slew_se3.toml")).unwrap();
+    std::fs::copy(
+        repo("scenarios/slew_se3.csv"),
+        format!("{src}/slew_se3.csv"),
+    )
+    .unwrap();
+    std::fs::write(format!("{src}/slew_se3.toml"), &text).unwrap();
+    let (code, out) = plant(&[
+        "move",
+        "--scenario",
+        &format!("{src}/slew_se3.toml"),
+        "--offset",
+        "1,0,0",
+        "--out",
+        &src,
+    ]);
+    assert_eq!(code, 2, "{out}");
+    assert!(out.contains("would replace"), "{out}");
+    assert_eq!(
+        std::fs::read_to_string(format!("{src}/slew_se3.toml")).unwrap(),
+        text
+    );
+    let escape = text.replace("name = \"slew_se3\"", "name = \"../../escaped\"");
+    assert_ne!(escape, text, "the template changed");
+    std::fs::write(format!("{src}/esc.toml"), escape).unwrap();
+    let inside = d.join("inside/deeper");
+    let (code, out) = plant(&[
+        "move",
+        "--scenario",
+        &format!("{src}/esc.toml"),
+        "--offset",
+        "1,0,0",
+        "--out",
+        &inside,
+    ]);
+    assert_eq!(code, 0, "{out}");
+    assert!(
+        std::path::Path::new(&inside).join("escaped.toml").is_file(),
+        "{out}"
+    );
+    assert!(!std::path::Path::new(&d.join("escaped.toml")).exists());
     let out_dir = d.join("so3");
     let (code, out) = plant(&[
         "move",
@@ -256,13 +363,116 @@ fn the_f32_controller_far_from_the_origin_tracks_as_at_the_origin() {
             &dir,
         ]);
         assert_eq!(code, 0, "{text}");
-        let (pos, att) = fly(
-            &format!("{dir}/pil_hexarotor.toml"),
-            &d.join(&format!("far-{k}")),
-        );
+        let far = d.join(&format!("far-{k}"));
+        let (pos, att) = fly(&format!("{dir}/pil_hexarotor.toml"), &far);
         assert!(
             pos <= 2.0 * pos0 && att <= 2.0 * att0,
             "moved by {offset}: RMS position {pos} (unmoved {pos0}), attitude {att} (unmoved {att0})"
         );
+        // the on-board estimate comes back in world coordinates: x̂ near the true position
+        let csv = Csv::read(&std::path::Path::new(&far).join("trajectory.csv"));
+        for i in 0..3 {
+            let (xhat, x) = (csv.col(&format!("xhat_{i}")), csv.col(&format!("q_{i}3")));
+            let worst = xhat
+                .iter()
+                .zip(&x)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 0.5, "moved by {offset}: x̂_{i} is {worst} m from x");
+        }
     }
+    // without a filter the states themselves carry the position over the line
+    let circle = repo("scenarios/se3_circle.toml").display().to_string();
+    let (pos0, att0) = fly(&circle, &d.join("circle-here"));
+    let dir = d.join("circle-moved");
+    let (code, text) = plant(&[
+        "move",
+        "--scenario",
+        &circle,
+        "--offset",
+        "100000,0,0",
+        "--out",
+        &dir,
+    ]);
+    assert_eq!(code, 0, "{text}");
+    let (pos, att) = fly(&format!("{dir}/se3_circle.toml"), &d.join("circle-far"));
+    assert!(
+        pos <= 2.0 * pos0 && att <= 2.0 * att0,
+        "se3_circle 100 km away: RMS position {pos} (unmoved {pos0}), attitude {att} (unmoved {att0})"
+    );
+}
+
+/// Two JSON values equal, numbers within 1e-9 of (1 + |value|).
+fn json_close(a: &serde_json::Value, b: &serde_json::Value, at: &str) {
+    use serde_json::Value as V;
+    match (a, b) {
+        (V::Number(x), V::Number(y)) => {
+            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            assert!((x - y).abs() <= 1e-9 * (1.0 + x.abs()), "{at}: {x} vs {y}");
+        }
+        (V::Array(x), V::Array(y)) => {
+            assert_eq!(x.len(), y.len(), "{at}");
+            for (i, (x, y)) in x.iter().zip(y).enumerate() {
+                json_close(x, y, &format!("{at}[{i}]"));
+            }
+        }
+        (V::Object(x), V::Object(y)) => {
+            assert_eq!(
+                x.keys().collect::<Vec<_>>(),
+                y.keys().collect::<Vec<_>>(),
+                "{at}"
+            );
+            for (k, v) in x {
+                json_close(v, &y[k], &format!("{at}.{k}"));
+            }
+        }
+        _ => assert_eq!(a, b, "{at}"),
+    }
+}
+
+/// The feasibility report of a waypoint path (`plant_sim reference`) judges speeds,
+/// accelerations and torques: moved a kilometre and turned, it is the same report.
+#[test]
+fn the_feasibility_report_is_the_same_a_kilometre_away_and_turned() {
+    let d = TempDir::new("moved-feasibility");
+    let text = std::fs::read_to_string(repo("scenarios/slew_se3.toml"))
+        .unwrap()
+        .replace(
+            "waypoints = \"slew_se3.csv\"",
+            "waypoints = \"slew_se3.csv\"\npath = \"through\"",
+        )
+        .replace(
+            "[plant]",
+            "[plant]\ntorque_limit = [0.6, 0.6, 0.6, 2.0, 2.0, 2.0]",
+        );
+    assert!(text.contains("path = \"through\""), "the template changed");
+    let here = d.join("here");
+    std::fs::create_dir_all(&here).unwrap();
+    std::fs::copy(
+        repo("scenarios/slew_se3.csv"),
+        format!("{here}/slew_se3.csv"),
+    )
+    .unwrap();
+    let file = format!("{here}/slew_se3.toml");
+    std::fs::write(&file, text).unwrap();
+    let moved = d.join("moved");
+    let (code, out) = check(&file, "0.7", &moved, &[]);
+    assert_eq!(code, 0, "{out}");
+    let mut reports = Vec::new();
+    for (scenario, out) in [
+        (file.clone(), d.join("ref-here")),
+        (format!("{moved}/slew_se3.toml"), d.join("ref-moved")),
+    ] {
+        let (code, text) = plant(&["reference", "--scenario", &scenario, "--out", &out]);
+        assert_eq!(code, 0, "{text}");
+        let json = std::fs::read_to_string(format!("{out}/reference.json")).unwrap();
+        reports.push(serde_json::from_str::<serde_json::Value>(&json).unwrap());
+    }
+    // the limit is exceeded somewhere, so the warnings are compared too
+    assert!(
+        !reports[0]["warnings"].as_array().unwrap().is_empty(),
+        "{}",
+        reports[0]
+    );
+    json_close(&reports[0], &reports[1], "reference.json");
 }

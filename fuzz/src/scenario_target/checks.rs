@@ -221,8 +221,37 @@ pub(crate) fn check(input: &[u8]) -> Outcome {
     for law in Law::ALL {
         let _ = std::hint::black_box(s.clone().with_law(law));
     }
+    moved(&text, &s);
     match s.group.dispatch(Exercise(&s)) {
         Ok(()) => Outcome::Accepted,
         Err(kind) => Outcome::Rejected(kind),
+    }
+}
+
+/// An accepted scenario moved with the world (`plant_sim move`): moved by nothing it is the
+/// same scenario; moved a kilometre (turned only, on SO(3)) it is moved or refused by name,
+/// never a panic, and a moved text the loader takes has the same group and length.
+fn moved(text: &str, s: &Scenario) {
+    use scenario::moving::{WorldMotion, move_scenario};
+    let none = WorldMotion {
+        heading: 0.0,
+        offset: [0.0; 3],
+    };
+    let same = move_scenario(text, "fuzz input", None, &none)
+        .unwrap_or_else(|e| panic!("an accepted scenario did not move by nothing: {e}"));
+    let back = Scenario::from_toml(&same.text, "fuzz input", "fuzz")
+        .unwrap_or_else(|e| panic!("a scenario moved by nothing does not load: {e}"));
+    assert_eq!(&back, s, "moved by nothing, the scenario changed");
+    let far = WorldMotion {
+        heading: 0.7,
+        offset: match s.group {
+            controller::GroupKind::So3 => [0.0; 3],
+            controller::GroupKind::Se3 => [1000.0, -700.0, 300.0],
+        },
+    };
+    if let Ok(m) = move_scenario(text, "fuzz input", None, &far)
+        && let Ok(t) = Scenario::from_toml(&m.text, "fuzz input", "fuzz")
+    {
+        assert_eq!((t.group, t.steps()), (s.group, s.steps()));
     }
 }

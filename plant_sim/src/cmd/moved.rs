@@ -2,6 +2,9 @@
 //! flown beside the original and compared column by column.
 
 use clap::Args;
+use controller::group::{MatrixLieGroup, So3};
+use link::StopFlag;
+use nalgebra::Vector3;
 use plant::SimError;
 use plant::output::{ensure_dir, write_json, write_trajectory_csv};
 use scenario::Scenario;
@@ -58,7 +61,7 @@ fn offset(text: &str) -> Result<[f64; 3], String> {
     Ok(out)
 }
 
-pub(crate) fn move_cmd(args: MoveArgs) -> Result<(), SimError> {
+pub(crate) fn move_cmd(args: MoveArgs, stop: &StopFlag) -> Result<(), SimError> {
     if !args.heading.is_finite() {
         return Err(SimError::Input(format!(
             "--heading: must be a finite number of radians, got {}",
@@ -73,13 +76,33 @@ pub(crate) fn move_cmd(args: MoveArgs) -> Result<(), SimError> {
     let (table_in, origin, base) = args.source.table("seed")?;
     let text = toml::to_string(&table_in).map_err(|e| SimError::Run(e.to_string()))?;
     let moved = move_scenario(&text, &origin, base.as_deref(), &m)?;
+    // a file name, whatever the scenario's `name` holds (no folder, never `..`)
+    let stem = Path::new(&original.name)
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .filter(|n| n != "..")
+        .unwrap_or_else(|| "scenario".to_owned());
     let out = args
         .out
         .clone()
-        .unwrap_or_else(|| Path::new("out").join(format!("{}-moved", original.name)));
+        .unwrap_or_else(|| Path::new("out").join(format!("{stem}-moved")));
     ensure_dir(&out)?;
-    let file = format!("{}.toml", original.name);
+    let file = format!("{stem}.toml");
+    let sources: Vec<PathBuf> = args
+        .source
+        .scenario
+        .iter()
+        .cloned()
+        .chain(original.path.as_ref().map(|p| PathBuf::from(&p.file)))
+        .collect();
+    let targets: Vec<PathBuf> = std::iter::once(out.join(&file))
+        .chain(moved.waypoints.iter().map(|(w, _)| out.join(w)))
+        .collect();
+    refuse_overwrite(&sources, &targets)?;
     let path = moved.write(&out, &file)?;
+    // what was written loads, and its path is the original's moved
+    let there = Scenario::from_file(&path)?;
+    same_path_moved(&original, &there, &m)?;
     println!(
         "moved `{}` with the world: turned by {} rad about z, shifted by ({}, {}, {}) m; wrote {}{}",
         original.name,
@@ -110,28 +133,88 @@ pub(crate) fn move_cmd(args: MoveArgs) -> Result<(), SimError> {
     if !args.check {
         return Ok(());
     }
-    fly_both(&original, &path, &m, &out, &args)
+    fly_both(&original, &there, &m, &out, &args, stop)
+}
+
+/// Refuses to write a moved file over the scenario or the waypoint file it was moved from.
+fn refuse_overwrite(sources: &[PathBuf], targets: &[PathBuf]) -> Result<(), SimError> {
+    let canonical = |p: &Path| std::fs::canonicalize(p).ok();
+    for t in targets {
+        let Some(t) = canonical(t) else { continue }; // not there yet: nothing to overwrite
+        if sources.iter().any(|s| canonical(s).as_ref() == Some(&t)) {
+            return Err(SimError::Input(format!(
+                "--out: writing the moved scenario there would replace {} it was moved from; give another folder",
+                t.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The moved scenario's waypoints are the original's moved by `m` (within 1e-9): the file
+/// written is read back as the loader reads it.
+fn same_path_moved(a: &Scenario, b: &Scenario, m: &WorldMotion) -> Result<(), SimError> {
+    let (Some(pa), Some(pb)) = (&a.path, &b.path) else {
+        return Ok(());
+    };
+    let close = |x: [f64; 3], y: [f64; 3]| {
+        x.iter()
+            .zip(&y)
+            .all(|(p, q)| (p - q).abs() <= 1e-9 * (1.0 + p.abs()))
+    };
+    let same = pa.poses.len() == pb.poses.len()
+        && pa.poses.iter().zip(&pb.poses).all(|(x, y)| {
+            close(m.place(x.position), y.position)
+                && (m.rotation() * So3::exp(&Vector3::from(x.rotation))
+                    - So3::exp(&Vector3::from(y.rotation)))
+                .abs()
+                .max()
+                    <= 1e-9
+        });
+    if same {
+        Ok(())
+    } else {
+        Err(SimError::Run(format!(
+            "the moved waypoints read back are not the original's moved ({})",
+            pb.file
+        )))
+    }
 }
 
 /// `--check`: flies the scenario and the moved scenario at `path` and compares them.
 fn fly_both(
     original: &Scenario,
-    path: &Path,
+    there: &Scenario,
     m: &WorldMotion,
     out: &Path,
     #[allow(unused_variables)] args: &MoveArgs,
+    stop: &StopFlag,
 ) -> Result<(), SimError> {
-    let there = Scenario::from_file(path)?;
     #[cfg(feature = "fault-injection")]
     let planted = super::sample_faults(&args.fault_sample)?;
     #[cfg(not(feature = "fault-injection"))]
     let planted = Vec::new();
     let mut tables = Vec::new();
-    for (s, dir) in [(original, "original"), (&there, "moved")] {
-        let traj = plant::trajectory::simulate_planted(s, &planted, &|_| Ok(()))?;
-        let dir = out.join(dir);
-        ensure_dir(&dir)?;
-        write_trajectory_csv(&traj, &dir.join("trajectory.csv"))?;
+    for (s, dir) in [(original, "original"), (there, "moved")] {
+        let bar = super::progress(s.steps() + 1, &format!("{dir} {}", s.name));
+        let traj = plant::trajectory::simulate_planted(s, &planted, &|k| {
+            if k % 256 == 0 {
+                bar.set_position(k);
+                SimError::check(stop)?;
+            }
+            Ok(())
+        })?;
+        bar.finish_and_clear();
+        let dir_path = out.join(dir);
+        ensure_dir(&dir_path)?;
+        write_trajectory_csv(&traj, &dir_path.join("trajectory.csv"))?;
+        // two flights that both diverged are not "the same flight"
+        if let Some(t) = plant::trajectory::first_non_finite(&traj) {
+            return Err(SimError::Run(format!(
+                "the {dir} flight diverged: its state is not finite from t = {t} s (its table is in {})",
+                dir_path.display()
+            )));
+        }
         tables.push(table(&traj)?);
     }
     let check = compare(original.group, m, &tables[0], &tables[1]).map_err(SimError::Run)?;
