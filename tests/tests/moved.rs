@@ -71,8 +71,62 @@ fn every_se3_scenario_flies_the_same_flight_a_kilometre_away() {
                 out.contains("positions moved"),
                 "{file}: no position column compared\n{out}"
             );
+            // without the fixes' world-axes noise the filters are turned with the world too
+            let text = std::fs::read_to_string(file).unwrap();
+            let quiet = text.replace("position = { noise = 0.005", "position = { noise = 0.0");
+            assert_ne!(
+                quiet, text,
+                "{file}: the fixes' noise is not 0.005 any more"
+            );
+            let path = std::path::Path::new(file);
+            let copy = format!("{}/quiet-{k}.toml", d.join(""));
+            std::fs::write(&copy, quiet).unwrap();
+            for entry in std::fs::read_dir(path.parent().unwrap()).unwrap() {
+                let p = entry.unwrap().path();
+                if p.extension().is_some_and(|e| e == "csv") {
+                    std::fs::copy(&p, d.join(p.file_name().unwrap().to_str().unwrap())).unwrap();
+                }
+            }
+            let (code, out) = check(&copy, "0.7", &d.join(&format!("quiet-{k}")), &[]);
+            assert_eq!(code, 0, "{file} without fix noise, turned:\n{out}");
         }
     }
+}
+
+/// The SO(3) scenarios that do not pin the papers' world-frame form, turned about z (their
+/// world has no positions): the same flights, attitudes turned.
+#[test]
+fn every_so3_scenario_flies_the_same_flight_turned() {
+    let d = TempDir::new("moved-so3");
+    let mut checked = 0;
+    for entry in std::fs::read_dir(repo("scenarios")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let s = scenario::Scenario::from_file(&path).unwrap();
+        if s.group != controller::GroupKind::So3 || s.error_frame == controller::ErrorFrame::World {
+            continue;
+        }
+        let file = path.display().to_string();
+        let args = [
+            "move",
+            "--scenario",
+            &file,
+            "--heading",
+            "0.7",
+            "--check",
+            "--out",
+        ];
+        let out_dir = d.join(&s.name);
+        let mut all = args.to_vec();
+        all.push(&out_dir);
+        let (code, out) = plant(&all);
+        assert_eq!(code, 0, "{file} turned:\n{out}");
+        assert!(out.contains("poses moved"), "{out}");
+        checked += 1;
+    }
+    assert!(checked >= 5, "{checked}");
 }
 
 /// The rejection terms the scenarios do not fly on SE(3), moved and turned: the momentum
@@ -196,6 +250,7 @@ fn the_figure_eight_far_away_flies_in_the_lockstep_pair_as_in_the_simulation() {
 
 #[test]
 fn eqf_se3_moved_writes_its_table_and_a_diverged_run_exits_1() {
+    let _g = serial();
     let d = TempDir::new("moved-eqf");
     let dir = d.join("moved");
     let file = repo("scenarios/eqf_se3.toml").display().to_string();
@@ -223,6 +278,21 @@ fn eqf_se3_moved_writes_its_table_and_a_diverged_run_exits_1() {
         out.contains("the run diverged: its state is not finite from t ="),
         "{out}"
     );
+    // and so do the lockstep pair and the f32 controller
+    for (k, extra) in [
+        vec!["run", "--mode", "lockstep", "--name", "t-diverged"],
+        vec!["sim", "--controller-scalar", "f32"],
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let dir = d.join(&format!("far-{k}"));
+        let mut args = extra;
+        args.extend(["--scenario", &far, "--out", &dir]);
+        let (code, out) = plant(&args);
+        assert_eq!(code, 1, "{args:?}: {out}");
+        assert!(out.contains("the run diverged"), "{args:?}: {out}");
+    }
     let text = std::fs::read_to_string(format!("{out_dir}/trajectory.csv")).unwrap();
     let mut lines = text.lines();
     let width = lines.next().unwrap().split(',').count();

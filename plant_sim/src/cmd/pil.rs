@@ -121,9 +121,9 @@ pub(crate) fn sim_f32(
         scenario: s,
     };
     plant::trajectory::warn_world_frame(&opts.scenario, opts.scenario.steps());
-    let (_, summary) = run_pair(&opts)?;
+    let (traj, summary) = run_pair(&opts)?;
     super::run::print_pair_summary(&summary, &opts.scenario.law_label(), &opts.out);
-    Ok(())
+    super::sim::diverged(&traj, &opts.out)
 }
 
 /// `plant_sim pil-config`.

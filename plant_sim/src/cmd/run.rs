@@ -195,7 +195,7 @@ pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
         stop: stop.clone(),
     };
     plant::trajectory::warn_world_frame(&opts.scenario, opts.scenario.steps());
-    let (_, s) = run_pair(&opts)?;
+    let (traj, s) = run_pair(&opts)?;
     print_pair_summary(&s, &opts.scenario.law_label(), &opts.out);
 
     if let Some(c) = &serial {
@@ -203,7 +203,7 @@ pub(crate) fn run_cmd(args: RunArgs, stop: &StopFlag) -> Result<(), SimError> {
     }
     match stop.requested() {
         Some(sig) if s.interrupted => Err(SimError::Interrupted(sig)),
-        _ => Ok(()),
+        _ => super::sim::diverged(&traj, &opts.out),
     }
 }
 

@@ -107,7 +107,16 @@ pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
         "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}",
         out.display()
     );
-    match plant::trajectory::first_non_finite(&traj) {
+    diverged(&traj, &out)
+}
+
+/// Exit 1 for a run whose state, torque or Lyapunov value stopped being finite (its outputs
+/// in `out` are written): a run that diverged never ends as if it had flown.
+pub(crate) fn diverged(
+    traj: &plant::trajectory::SimulatedTrajectory,
+    out: &Path,
+) -> Result<(), SimError> {
+    match plant::trajectory::first_non_finite(traj) {
         Some(t) => Err(SimError::Run(format!(
             "the run diverged: its state is not finite from t = {t} s (its outputs are in {})",
             out.display()
