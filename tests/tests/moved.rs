@@ -52,6 +52,11 @@ fn check(file: &str, heading: &str, out: &str, extra: &[&str]) -> (i32, String) 
     plant(&args)
 }
 
+/// `plant_sim move --scenario FILE --offset OFFSET --out DIR`, without a turn or a check.
+fn move_to(file: &str, offset: &str, out: &str) -> (i32, String) {
+    plant(&["move", "--scenario", file, "--offset", offset, "--out", out])
+}
+
 #[test]
 fn every_se3_scenario_flies_the_same_flight_a_kilometre_away() {
     let d = TempDir::new("moved-all");
@@ -334,15 +339,7 @@ fn bad_motions_are_refused_naming_the_value() {
     )
     .unwrap();
     std::fs::write(format!("{src}/slew_se3.toml"), &text).unwrap();
-    let (code, out) = plant(&[
-        "move",
-        "--scenario",
-        &format!("{src}/slew_se3.toml"),
-        "--offset",
-        "1,0,0",
-        "--out",
-        &src,
-    ]);
+    let (code, out) = move_to(&format!("{src}/slew_se3.toml"), "1,0,0", &src);
     assert_eq!(code, 2, "{out}");
     assert!(out.contains("would replace"), "{out}");
     assert_eq!(
@@ -353,15 +350,7 @@ fn bad_motions_are_refused_naming_the_value() {
     assert_ne!(escape, text, "the template changed");
     std::fs::write(format!("{src}/esc.toml"), escape).unwrap();
     let inside = d.join("inside/deeper");
-    let (code, out) = plant(&[
-        "move",
-        "--scenario",
-        &format!("{src}/esc.toml"),
-        "--offset",
-        "1,0,0",
-        "--out",
-        &inside,
-    ]);
+    let (code, out) = move_to(&format!("{src}/esc.toml"), "1,0,0", &inside);
     assert_eq!(code, 0, "{out}");
     assert!(
         std::path::Path::new(&inside).join("escaped.toml").is_file(),
@@ -369,15 +358,7 @@ fn bad_motions_are_refused_naming_the_value() {
     );
     assert!(!std::path::Path::new(&d.join("escaped.toml")).exists());
     let out_dir = d.join("so3");
-    let (code, out) = plant(&[
-        "move",
-        "--scenario",
-        &so3,
-        "--offset",
-        "1,0,0",
-        "--out",
-        &out_dir,
-    ]);
+    let (code, out) = move_to(&so3, "1,0,0", &out_dir);
     assert_eq!(code, 2, "{out}");
     assert!(out.contains("an SO(3) scenario has no positions"), "{out}");
 }
@@ -423,15 +404,7 @@ fn the_f32_controller_far_from_the_origin_tracks_as_at_the_origin() {
     assert!(pos0 > 0.0 && att0 > 0.0);
     for (k, offset) in ["1000,-700,300", "100000,0,0"].iter().enumerate() {
         let dir = d.join(&format!("moved-{k}"));
-        let (code, text) = plant(&[
-            "move",
-            "--scenario",
-            &file,
-            "--offset",
-            offset,
-            "--out",
-            &dir,
-        ]);
+        let (code, text) = move_to(&file, offset, &dir);
         assert_eq!(code, 0, "{text}");
         let far = d.join(&format!("far-{k}"));
         let (pos, att) = fly(&format!("{dir}/pil_hexarotor.toml"), &far);
@@ -455,15 +428,7 @@ fn the_f32_controller_far_from_the_origin_tracks_as_at_the_origin() {
     let circle = repo("scenarios/se3_circle.toml").display().to_string();
     let (pos0, att0) = fly(&circle, &d.join("circle-here"));
     let dir = d.join("circle-moved");
-    let (code, text) = plant(&[
-        "move",
-        "--scenario",
-        &circle,
-        "--offset",
-        "100000,0,0",
-        "--out",
-        &dir,
-    ]);
+    let (code, text) = move_to(&circle, "100000,0,0", &dir);
     assert_eq!(code, 0, "{text}");
     let (pos, att) = fly(&format!("{dir}/se3_circle.toml"), &d.join("circle-far"));
     assert!(

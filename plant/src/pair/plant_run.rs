@@ -48,6 +48,9 @@ pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M:
     pub(super) estimation: Option<crate::estimation::Estimation>,
     /// The samples and estimate of the state published last.
     pub(super) estimate: Option<crate::trajectory::EstimateRow>,
+    /// The firmware's local origin ([`scenario::Scenario::local_origin`]): a serial
+    /// controller's positions are relative to it.
+    pub(super) origin: [f64; 3],
     /// A controller that estimates on board: the slot its transport shares, the samples of
     /// the state published last, and the last estimate a command brought back (the rows
     /// take it).
@@ -135,6 +138,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             crate::estimation::Estimation::new(&s, s.control_period, &opts.sample_faults)?;
         // a controller on a serial link runs the scenario's filter itself: it is sent the
         // samples, and the rows take its estimate
+        // the firmware's local origin: positions cross the serial line relative to it
+        let origin = s.local_origin();
         let onboard = (opts.serial.is_some() && s.filter_settings()?.is_some())
             .then(link::serial::OnboardSlot::default);
         if onboard.is_some() {
@@ -151,7 +156,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 )
                 .with_noise(c.noise)
                 .with_onboard(onboard.clone())
-                .with_origin(s.local_origin());
+                .with_origin(origin);
                 PlantEndpoint::with_transport(config, Box::new(transport))
             }
         };
@@ -179,6 +184,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             rt: Realtime::default(),
             estimation,
             onboard: onboard.map(|slot| (slot, None, None)),
+            origin,
             estimate: None,
             sensor_record: None,
             vehicle,
@@ -307,7 +313,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 if let Some((slot, sent, _)) = &mut self.onboard {
                     let samples = e.sample(k, &self.plant, &held);
                     if let Ok(mut o) = slot.lock() {
-                        o.samples = Some((k, wire_samples(&samples, &self.s.local_origin())));
+                        o.samples = Some((k, wire_samples(&samples, &self.origin)));
                     }
                     *sent = Some(samples);
                     msg.set_state(self.plant.configuration(), &self.plant.velocity());
@@ -350,7 +356,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             return;
         };
         // the firmware's position is relative to its local origin: back in world coordinates
-        let origin = self.s.local_origin();
+        let origin = self.origin;
         let q_hat = nalgebra::SMatrix::<f64, N, N>::from_fn(|i, j| {
             let shift = if N == 4 && j == 3 && i < 3 {
                 origin[i]

@@ -32,6 +32,26 @@ pub(crate) fn progress(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
+/// One in-process flight of `s` with the planted sample faults, its progress shown as `label`
+/// and the stop flag checked every 256 steps (`sim`, and both flights of `move --check`).
+pub(crate) fn simulate_shown(
+    s: &scenario::Scenario,
+    planted: &[(u64, plant::sensors::SampleFault)],
+    label: &str,
+    stop: &link::StopFlag,
+) -> Result<plant::trajectory::SimulatedTrajectory, plant::SimError> {
+    let bar = progress(s.steps() + 1, label);
+    let traj = plant::trajectory::simulate_planted(s, planted, &|k| {
+        if k % 256 == 0 {
+            bar.set_position(k);
+            plant::SimError::check(stop)?;
+        }
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    Ok(traj)
+}
+
 /// The `--fault-sample K:KIND` injections (test builds only).
 #[cfg(feature = "fault-injection")]
 pub(crate) fn sample_faults(

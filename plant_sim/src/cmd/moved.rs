@@ -196,15 +196,7 @@ fn fly_both(
     let planted = Vec::new();
     let mut tables = Vec::new();
     for (s, dir) in [(original, "original"), (there, "moved")] {
-        let bar = super::progress(s.steps() + 1, &format!("{dir} {}", s.name));
-        let traj = plant::trajectory::simulate_planted(s, &planted, &|k| {
-            if k % 256 == 0 {
-                bar.set_position(k);
-                SimError::check(stop)?;
-            }
-            Ok(())
-        })?;
-        bar.finish_and_clear();
+        let traj = super::simulate_shown(s, &planted, &format!("{dir} {}", s.name), stop)?;
         let dir_path = out.join(dir);
         ensure_dir(&dir_path)?;
         write_trajectory_csv(&traj, &dir_path.join("trajectory.csv"))?;

@@ -1,8 +1,8 @@
 //! `plant_sim sim`: one scenario in process (the default command).
 
-use super::progress;
 #[cfg(feature = "fault-injection")]
 use super::sample_faults;
+use super::simulate_shown;
 use clap::Args;
 use controller::Law;
 use link::StopFlag;
@@ -57,19 +57,11 @@ pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
     ensure_dir(&out)?;
     // before the flight, so that a run the warning explains still shows it when it fails
     plant::trajectory::warn_world_frame(&s, s.steps());
-    let bar = progress(s.steps() + 1, &format!("sim {}", s.name));
     #[cfg(feature = "fault-injection")]
     let planted = sample_faults(&args.fault_sample)?;
     #[cfg(not(feature = "fault-injection"))]
     let planted = Vec::new();
-    let traj = plant::trajectory::simulate_planted(&s, &planted, &|k| {
-        if k % 256 == 0 {
-            bar.set_position(k);
-            SimError::check(stop)?;
-        }
-        Ok(())
-    })?;
-    bar.finish_and_clear();
+    let traj = simulate_shown(&s, &planted, &format!("sim {}", s.name), stop)?;
     write_trajectory_csv(&traj, &out.join("trajectory.csv"))?;
     let summary = Summary::of(&traj, &s.name, s.law.name()).with_error_frame(&s);
     write_json(&summary, &out.join("summary.json"))?;

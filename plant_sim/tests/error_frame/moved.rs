@@ -7,6 +7,7 @@ use crate::common::{ok, run};
 use controller::group::{MatrixLieGroup, So3};
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use pair_tests::{read_csv, repo};
+use scenario::moving::{WorldMotion, move_scenario};
 use std::path::Path;
 
 /// A motion of the world: a turn about z and a translation.
@@ -21,81 +22,13 @@ fn kilometre() -> Motion {
     )
 }
 
-fn numbers(list: &str) -> Vec<f64> {
-    list.trim_matches(|c| c == '[' || c == ']' || c == ' ')
-        .split(',')
-        .map(|x| x.trim().parse().unwrap())
-        .collect()
-}
-
-fn list(xs: &[f64]) -> String {
-    let parts: Vec<String> = xs.iter().map(|x| format!("{x:?}")).collect();
-    format!("[{}]", parts.join(", "))
-}
-
-/// A rotation vector turned with the world: `log(R_T exp(r))`.
-fn turned(m: &Motion, r: &[f64]) -> Vec<f64> {
-    let (rt, _) = m;
-    So3::log(&(rt * So3::exp(&Vector3::from_row_slice(r))))
-        .iter()
-        .copied()
-        .collect()
-}
-
-/// A position moved with the world: `R_T x + t`.
-fn moved(m: &Motion, x: &[f64]) -> Vec<f64> {
+/// The motion as `plant_sim move` takes it: the heading of the turn about z, and the shift.
+fn world(m: &Motion) -> WorldMotion {
     let (rt, t) = m;
-    (rt * Vector3::from_row_slice(x) + t)
-        .iter()
-        .copied()
-        .collect()
-}
-
-/// The text of a scenario with every pose in `[initial]` and `[reference]` (series, set-point)
-/// moved with the world; body velocities stay as they are.
-fn moved_scenario(m: &Motion, text: &str) -> String {
-    let mut table = String::new();
-    let mut out = Vec::new();
-    for line in text.lines() {
-        if line.starts_with('[') && !line.starts_with("[[") {
-            table = line.trim().to_owned();
-        }
-        let posed = table == "[initial]" || table == "[reference]";
-        let line = if posed && line.starts_with("rotation = [") {
-            format!("rotation = {}", list(&turned(m, &numbers(&line[11..]))))
-        } else if posed && line.starts_with("position = [") {
-            format!("position = {}", list(&moved(m, &numbers(&line[11..]))))
-        } else if posed && line.starts_with("setpoint = {") {
-            let r = &line[line.find("rotation = ").unwrap() + 11..];
-            let r = numbers(&r[..=r.find(']').unwrap()]);
-            let x = &line[line.find("position = ").unwrap() + 11..];
-            let x = numbers(&x[..=x.find(']').unwrap()]);
-            format!(
-                "setpoint = {{ rotation = {}, position = {} }}",
-                list(&turned(m, &r)),
-                list(&moved(m, &x))
-            )
-        } else {
-            line.to_owned()
-        };
-        out.push(line);
+    WorldMotion {
+        heading: rt[(1, 0)].atan2(rt[(0, 0)]),
+        offset: [t[0], t[1], t[2]],
     }
-    out.join("\n") + "\n"
-}
-
-/// A waypoint file (`t,rx,ry,rz,x,y,z`) moved with the world.
-fn moved_waypoints(m: &Motion, text: &str) -> String {
-    let mut lines = text.lines();
-    let mut out = vec![lines.next().unwrap().to_owned()];
-    for line in lines {
-        let xs: Vec<f64> = line.split(',').map(|x| x.trim().parse().unwrap()).collect();
-        let mut row = vec![xs[0]];
-        row.extend(turned(m, &xs[1..4]));
-        row.extend(moved(m, &xs[4..7]));
-        let parts: Vec<String> = row.iter().map(|x| format!("{x:?}")).collect();
-        out.push(parts.join(","));
-    }
-    out.join("\n") + "\n"
 }
 
 /// `plant_sim sim` of a scenario file; its trajectory.csv.
@@ -124,12 +57,12 @@ fn compare_moved(m: &Motion, name: &str, text: &str, waypoints: Option<&str>) ->
     std::fs::create_dir_all(&here).unwrap();
     std::fs::create_dir_all(&there).unwrap();
     std::fs::write(here.join("s.toml"), text).unwrap();
-    std::fs::write(there.join("s.toml"), moved_scenario(m, text)).unwrap();
     if let Some(w) = waypoints {
-        let csv = std::fs::read_to_string(repo(&format!("scenarios/{w}"))).unwrap();
-        std::fs::write(here.join(w), &csv).unwrap();
-        std::fs::write(there.join(w), moved_waypoints(m, &csv)).unwrap();
+        std::fs::copy(repo(&format!("scenarios/{w}")), here.join(w)).unwrap();
     }
+    // the scenario and its waypoint file moved as `plant_sim move` moves them
+    let moved = move_scenario(text, name, Some(&here), &world(m)).unwrap();
+    moved.write(&there, "s.toml").unwrap();
     let (h, a) = fly(&here.join("s.toml"), &dir.path().join("out-here"));
     let (h2, b) = fly(&there.join("s.toml"), &dir.path().join("out-there"));
     assert_eq!(h, h2);
