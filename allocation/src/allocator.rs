@@ -1,10 +1,10 @@
 //! The prioritised bounded allocation (docs/maths.md, "Control allocation").
 
 use crate::geometry::Geometry;
-use crate::qp::{MAX_EQ, Qp, least_squares, solve};
+use crate::qp::{MAX_EQ, Objective, Rows, Stage, solve};
 use crate::{Commands, MAX_ACTUATORS};
 use core::fmt;
-use nalgebra::{RealField, SMatrix, SVector};
+use nalgebra::{RealField, SVector};
 
 /// Which part of the wrench is met first when not all of it can be.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -26,8 +26,9 @@ pub enum Status {
     /// 2: the torque is met; the force cannot be, and the nearest achievable one (with that
     /// torque) is produced.
     ForceGivenUp = 2,
-    /// 3: the iteration cap stopped a stage before its optimum; the answer is the last
-    /// iterate (within the bounds, finite).
+    /// 3: the budget of iterations ran out before the optimum; the answer is the last
+    /// iterate (within the bounds, finite, no stage's objective above its start; a stage that
+    /// finished keeps its optimum).
     Stopped = 3,
     /// 4: the demand was not finite; the answer is the preferred command within the bounds.
     InvalidDemand = 4,
@@ -62,7 +63,7 @@ pub struct Allocation<T, const K: usize> {
     pub achieved: SVector<T, K>,
     /// How it went.
     pub status: Status,
-    /// Active-set iterations over all stages.
+    /// Active-set iterations (factorisations of a working set) over all stages.
     pub iterations: u32,
 }
 
@@ -151,8 +152,13 @@ pub struct Allocator<T, const K: usize> {
     weights: Commands<T>,
     preferred: Commands<T>,
     priority: Priority,
-    cap: u32,
+    budget: u32,
 }
+
+/// The default budget of active-set iterations per allocation (docs/vehicles.md, "Bounded
+/// time"): over the seeded demands of every preset and the twelve-thruster spacecraft, none
+/// needs more than a third of it.
+pub const DEFAULT_BUDGET: u32 = 3 * MAX_ACTUATORS as u32;
 
 impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     /// An allocator over `geometry` with weights `W` (positive; empty: all 1) and preferred
@@ -194,15 +200,21 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             weights: w / top,
             preferred: up,
             priority,
-            cap: 8 * MAX_ACTUATORS as u32,
+            budget: DEFAULT_BUDGET,
         })
     }
 
-    /// The same allocator with at most `cap` active-set iterations per stage (default
-    /// 8 × [`MAX_ACTUATORS`]); a stage that reaches it answers [`Status::Stopped`].
-    pub fn with_iteration_cap(mut self, cap: u32) -> Self {
-        self.cap = cap.max(1);
+    /// The same allocator with at most `budget` active-set iterations per allocation, over
+    /// all stages, spent on the torque stage first (default [`DEFAULT_BUDGET`]). An
+    /// allocation that spends it answers [`Status::Stopped`] with its last iterate.
+    pub fn with_budget(mut self, budget: u32) -> Self {
+        self.budget = budget.max(1);
         self
+    }
+
+    /// The budget of active-set iterations per allocation.
+    pub fn budget(&self) -> u32 {
+        self.budget
     }
 
     /// The geometry.
@@ -221,11 +233,25 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         self.allocate_within(demand, &self.bounds())
     }
 
+    /// Allocates `demand` within `bounds`, solved cold (docs/maths.md, "Control allocation"):
+    /// see [`Allocator::allocate_from`].
+    pub fn allocate_within(&self, demand: &SVector<T, K>, bounds: &Bounds<T>) -> Allocation<T, K> {
+        self.allocate_from(demand, bounds, None)
+    }
+
     /// Allocates `demand` within `bounds` (docs/maths.md, "Control allocation"): stage 1 the
     /// torque (or with [`Priority::None`], or on SO(3), the whole wrench), stage 2 the force
     /// keeping the torque achieved, stage 3 the command nearest `u_pref` in the `W`-norm
-    /// keeping the wrench achieved. Allocation-free; never NaN.
-    pub fn allocate_within(&self, demand: &SVector<T, K>, bounds: &Bounds<T>) -> Allocation<T, K> {
+    /// keeping the wrench achieved. With `previous` (the last cycle's command, which the
+    /// caller keeps), stage 1 starts from it, clamped into `bounds`, and its working set from
+    /// the actuators it held at a bound (a warm start: the same optimum, usually in fewer
+    /// iterations). Allocation-free; never NaN.
+    pub fn allocate_from(
+        &self,
+        demand: &SVector<T, K>,
+        bounds: &Bounds<T>,
+        previous: Option<&Commands<T>>,
+    ) -> Allocation<T, K> {
         let (lo, hi) = (bounds.lo, bounds.hi);
         let up = self
             .preferred
@@ -233,56 +259,87 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         if !demand.iter().all(|x| x.is_finite()) {
             return self.answer(up, Status::InvalidDemand, 0);
         }
-        let b = self.geometry.effectiveness();
         let split = K == 6 && self.priority == Priority::Torque;
-        let mut iterations = 0;
-        let mut stopped = false;
-        let mut run = |qp: &Qp<T>, start: Commands<T>| {
-            let s = solve(qp, &lo, &hi, start, self.cap);
-            iterations += s.iterations;
-            stopped |= s.stopped;
-            s.u
-        };
-        // stage 1: the torque (or the whole wrench)
-        let first = if split { 3 } else { K };
         let (start, inside) = self.start(demand, &up, bounds);
         if inside {
             // the command nearest u_pref producing the whole demand lies within the bounds:
             // it is every stage's optimum (docs/maths.md, "Control allocation")
             return self.answer(start, Status::Met, 0);
         }
-        let (a1, b1) = rows(b, demand, 0..first);
-        let (h, g) = least_squares(&a1, &b1);
-        let mut u = run(&stage(h, g, &SMatrix::zeros(), 0), start);
+        let start = match previous {
+            Some(p) if p.iter().all(|x| x.is_finite()) => {
+                p.zip_zip_map(&lo, &hi, |x, l, h| x.max(l).min(h))
+            }
+            _ => start,
+        };
+        let m = self.geometry.count();
+        let b = self.geometry.effectiveness();
+        let mut all: Rows<T> = [[T::zero(); MAX_ACTUATORS]; MAX_EQ];
+        let mut wanted = [T::zero(); MAX_EQ];
+        for r in 0..K {
+            for j in 0..m {
+                all[r][j] = b[(r, j)];
+            }
+            wanted[r] = demand[r];
+        }
+        let mut spent = 0;
+        let mut stopped = false;
+        let mut run = |objective: Objective<'_, T>, c: &Rows<T>, k: usize, from: Commands<T>| {
+            if stopped {
+                return from;
+            }
+            let stage = Stage {
+                objective,
+                c,
+                k,
+                m,
+                lo: &lo,
+                hi: &hi,
+            };
+            let s = solve(&stage, from, self.budget - spent);
+            spent += s.iterations;
+            stopped |= s.stopped;
+            s.u
+        };
+        // stage 1: the torque (or the whole wrench)
+        let first = if split { 3 } else { K };
+        let objective = Objective::LeastSquares {
+            a: &all,
+            b: &wanted,
+            q: first,
+        };
+        let mut u = run(objective, &all, 0, start);
         // stage 2: the force, keeping the torque
         if split {
-            let (a2, b2) = rows(b, demand, 3..6);
-            let (h, g) = least_squares(&a2, &b2);
-            u = run(&stage(h, g, &a1, 3), u);
+            let mut force: Rows<T> = [[T::zero(); MAX_ACTUATORS]; MAX_EQ];
+            let mut f = [T::zero(); MAX_EQ];
+            for r in 0..3 {
+                force[r] = all[r + 3];
+                f[r] = wanted[r + 3];
+            }
+            let objective = Objective::LeastSquares {
+                a: &force,
+                b: &f,
+                q: 3,
+            };
+            u = run(objective, &all, 3, u);
         }
         // stage 3: nearest u_pref, keeping the wrench achieved
-        let (all, _) = rows(b, demand, 0..K);
-        let mut h = SMatrix::<T, MAX_ACTUATORS, MAX_ACTUATORS>::zeros();
-        let mut g = Commands::zeros();
-        for i in 0..MAX_ACTUATORS {
-            h[(i, i)] = self.weights[i];
-            g[i] = -self.weights[i] * up[i];
-        }
-        let last = Qp {
-            definite: true,
-            ..stage(h, g, &all, K)
+        let objective = Objective::Nearest {
+            w: &self.weights,
+            up: &up,
         };
-        u = run(&last, u);
+        u = run(objective, &all, K, u);
         let u = u.zip_zip_map(&lo, &hi, |x, l, h| x.max(l).min(h));
         if !u.iter().all(|x| x.is_finite()) {
-            return self.answer(up, Status::Stopped, iterations);
+            return self.answer(up, Status::Stopped, spent);
         }
         let status = if stopped {
             Status::Stopped
         } else {
             self.met(&u, demand, split)
         };
-        self.answer(u, status, iterations)
+        self.answer(u, status, spent)
     }
 
     /// Where stage 1 starts: the command nearest `u_pref` in the `W`-norm that produces the
@@ -337,36 +394,5 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             status,
             iterations,
         }
-    }
-}
-
-/// The least-squares rows `range` of `B` and of the demand, padded to [`MAX_EQ`] rows.
-fn rows<T: RealField + Copy, const K: usize>(
-    b: &SMatrix<T, K, MAX_ACTUATORS>,
-    demand: &SVector<T, K>,
-    range: core::ops::Range<usize>,
-) -> (SMatrix<T, MAX_EQ, MAX_ACTUATORS>, SVector<T, MAX_EQ>) {
-    let mut a = SMatrix::<T, MAX_EQ, MAX_ACTUATORS>::zeros();
-    let mut v = SVector::<T, MAX_EQ>::zeros();
-    for (r, i) in range.enumerate() {
-        a.set_row(r, &b.row(i));
-        v[r] = demand[i];
-    }
-    (a, v)
-}
-
-/// A stage's programme: `H`, `g`, and the first `k` rows of `c` as equalities.
-fn stage<T: RealField + Copy>(
-    h: SMatrix<T, MAX_ACTUATORS, MAX_ACTUATORS>,
-    g: Commands<T>,
-    c: &SMatrix<T, MAX_EQ, MAX_ACTUATORS>,
-    k: usize,
-) -> Qp<T> {
-    Qp {
-        definite: false,
-        h,
-        g,
-        c: *c,
-        k,
     }
 }

@@ -98,7 +98,8 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     }
 
     /// One cycle: the demand `wrench − restoring(r̂)` allocated within the bounds, narrowed
-    /// to the rate limit around the previous command. Allocation-free; never NaN.
+    /// to the rate limit around the previous command, and warm-started from it (the same
+    /// optimum as a cold start; [`Allocator::allocate_from`]). Allocation-free; never NaN.
     pub fn actuate(&mut self, wrench: &SVector<T, K>, r_hat: &Matrix3<T>) -> Actuation<T, K> {
         let demand = wrench - self.restoring(r_hat);
         let mut bounds = self.bounds;
@@ -109,7 +110,9 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
                 }
             }
         }
-        let allocation = self.allocator.allocate_within(&demand, &bounds);
+        let allocation = self
+            .allocator
+            .allocate_from(&demand, &bounds, self.previous.as_ref());
         self.previous = Some(allocation.u);
         Actuation { demand, allocation }
     }

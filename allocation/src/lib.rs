@@ -49,7 +49,9 @@ pub mod presets;
 mod qp;
 mod restoring;
 
-pub use allocator::{Allocation, Allocator, AllocatorError, Bounds, Priority, Status};
+pub use allocator::{
+    Allocation, Allocator, AllocatorError, Bounds, DEFAULT_BUDGET, Priority, Status,
+};
 pub use control::{Actuation, VehicleControl};
 pub use geometry::{Actuator, Geometry, GeometryError, LostDirections};
 pub use restoring::Restoring;

@@ -1,4 +1,4 @@
-//! Two vehicles' actuator layouts, as sugar over the actuator tables (docs/maths.md,
+//! Three vehicles' actuator layouts, as sugar over the actuator tables (docs/maths.md,
 //! "Control allocation", "The presets").
 
 use crate::geometry::Actuator;
@@ -64,6 +64,38 @@ pub fn rov_heavy<T: RealField + Copy>(
                 min: -max_thrust,
                 max: max_thrust,
             }
+        }
+    })
+}
+
+/// Twelve one-way thrusters, `[0, max_thrust]` (N), at `arm` (m) from the centre of mass: two
+/// per signed body axis, pushing across the arm, so that each opposite pair is a couple about
+/// one body axis of up to `2 · arm · max_thrust` (N·m) (the spacecraft scenario's thrusters,
+/// in its order). On SO(3) only their torque counts.
+pub fn spacecraft_twelve<T: RealField + Copy>(arm: T, max_thrust: T) -> [Actuator<T>; 12] {
+    // (position, axis) in units of arm and of the unit axis
+    const TABLE: [([f64; 3], [f64; 3]); 12] = [
+        ([0.0, 1.0, 0.0], [0.0, 0.0, 1.0]),
+        ([0.0, -1.0, 0.0], [0.0, 0.0, 1.0]),
+        ([0.0, 0.0, 1.0], [1.0, 0.0, 0.0]),
+        ([0.0, 0.0, -1.0], [1.0, 0.0, 0.0]),
+        ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
+        ([-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
+        ([0.0, -1.0, 0.0], [0.0, 0.0, -1.0]),
+        ([0.0, 1.0, 0.0], [0.0, 0.0, -1.0]),
+        ([0.0, 0.0, -1.0], [-1.0, 0.0, 0.0]),
+        ([0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]),
+        ([-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]),
+        ([1.0, 0.0, 0.0], [0.0, -1.0, 0.0]),
+    ];
+    core::array::from_fn(|j| {
+        let (p, a) = TABLE[j];
+        Actuator {
+            position: p.map(|x| arm * c::<T>(x)),
+            axis: a.map(c::<T>),
+            torque_per_thrust: T::zero(),
+            min: T::zero(),
+            max: max_thrust,
         }
     })
 }

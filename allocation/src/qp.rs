@@ -1,36 +1,63 @@
-//! One stage of the allocation: the convex quadratic programme
-//! `min ½ uᵀHu + gᵀu` subject to `C u = d` and `lo ≤ u ≤ hi`, by a primal active-set method
-//! with the null-space step (docs/maths.md, "Control allocation": the active-set method).
+//! One stage of the allocation: a convex quadratic programme over the `m` real actuators,
+//!
+//! ```text
+//! min ½‖A u − b‖²  (a least-squares stage)   or   min ½ (u − u_pref)ᵀ W (u − u_pref)  (the last)
+//! subject to  C u = d  (the earlier stages' rows, met by the start),  lo ≤ u ≤ hi,
+//! ```
+//!
+//! by a primal active-set method with the bounds kept as a free/fixed mask (docs/maths.md,
+//! "Control allocation": the active-set method). Each working set is factored by modified
+//! Gram–Schmidt without normalisation: no square root, no matrix larger than the free
+//! actuators by the stage's rows (at most 6).
 
 use crate::{Commands, MAX_ACTUATORS};
-use nalgebra::{Cholesky, QR, RealField, SMatrix, SVector, SymmetricEigen};
+use nalgebra::RealField;
 
 const N: usize = MAX_ACTUATORS;
 
-/// The most equality rows a stage has (the whole wrench on SE(3)).
+/// The most rows a stage has (the whole wrench on SE(3)), for its objective or its equalities.
 pub(crate) const MAX_EQ: usize = 6;
 
-/// A stage's programme. `H` is positive semidefinite (definite on the last stage); the first `k` rows of `c` are the
-/// equality constraints (linearly independent), the rest zero.
-pub(crate) struct Qp<T> {
-    /// `H` is positive definite (the last stage): the reduced step by Cholesky.
-    pub(crate) definite: bool,
-    pub(crate) h: SMatrix<T, N, N>,
-    pub(crate) g: Commands<T>,
-    pub(crate) c: SMatrix<T, MAX_EQ, N>,
+/// Rows over the actuators (row `r`, actuator `j`).
+pub(crate) type Rows<T> = [[T; N]; MAX_EQ];
+
+/// A stage's objective.
+pub(crate) enum Objective<'a, T> {
+    /// `½‖A u − b‖²` over the first `q` rows of `a` and `b`.
+    LeastSquares {
+        a: &'a Rows<T>,
+        b: &'a [T; MAX_EQ],
+        q: usize,
+    },
+    /// `½ (u − u_pref)ᵀ W (u − u_pref)`, `W = diag(w)`, `w > 0`.
+    Nearest {
+        w: &'a Commands<T>,
+        up: &'a Commands<T>,
+    },
+}
+
+/// A stage's programme: the objective, the first `k` rows of `c` as equalities (the start
+/// meets them), the actuator count `m`, the bounds.
+pub(crate) struct Stage<'a, T> {
+    pub(crate) objective: Objective<'a, T>,
+    pub(crate) c: &'a Rows<T>,
     pub(crate) k: usize,
+    pub(crate) m: usize,
+    pub(crate) lo: &'a Commands<T>,
+    pub(crate) hi: &'a Commands<T>,
 }
 
 /// A stage's answer.
 pub(crate) struct Solved<T> {
     pub(crate) u: Commands<T>,
+    /// Factorisations of a working set (each change of the working set costs one).
     pub(crate) iterations: u32,
-    /// The iteration cap was reached (or a factorisation failed) before the optimum:
-    /// `u` is the last iterate, feasible and finite.
+    /// The budget ran out before the optimum: `u` is the last iterate, within the bounds,
+    /// and the objective no higher than at the start.
     pub(crate) stopped: bool,
 }
 
-/// Whether an actuator is in the working set, and at which bound.
+/// Whether an actuator is held at a bound.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Bound {
     Free,
@@ -38,139 +65,437 @@ enum Bound {
     Upper,
 }
 
-/// The working set's constraint normals as the columns of a matrix (`C`'s rows, then `+e_i`
-/// for a lower bound, `−e_i` for an upper one), factored `Aᵀ = Q R`.
-struct Factored<T: RealField + Copy> {
-    q: SMatrix<T, N, N>,
-    r: SMatrix<T, N, N>,
-    /// The number of constraints in the working set (its columns come first).
-    w: usize,
-    /// Which actuator each column past `k` fixes.
-    fixes: [usize; N],
+/// The free actuators, in order.
+struct Free {
+    idx: [usize; N],
+    n: usize,
 }
 
-/// The working set's normals, factored; `None` when they are not linearly independent.
-fn factor<T: RealField + Copy>(qp: &Qp<T>, work: &[Bound; N]) -> Option<Factored<T>> {
-    let mut at = SMatrix::<T, N, N>::zeros();
-    let mut fixes = [0; N];
-    let mut w = 0;
-    for i in 0..qp.k {
-        at.set_column(w, &qp.c.row(i).transpose());
-        w += 1;
+impl Free {
+    fn of(mask: &[Bound; N], m: usize) -> Self {
+        let mut f = Free { idx: [0; N], n: 0 };
+        for (j, b) in mask.iter().enumerate().take(m) {
+            if *b == Bound::Free {
+                f.idx[f.n] = j;
+                f.n += 1;
+            }
+        }
+        f
     }
-    for (i, b) in work.iter().enumerate() {
-        let sign = match b {
-            Bound::Free => continue,
-            Bound::Lower => T::one(),
-            Bound::Upper => -T::one(),
+
+    fn iter(&self) -> impl Iterator<Item = usize> + '_ {
+        self.idx[..self.n].iter().copied()
+    }
+}
+
+/// Rows made orthogonal over the free actuators by modified Gram–Schmidt, not normalised:
+/// input row `j` is `Σ_i l[j][i] q_i` on the free actuators. Each `q_i` is the same
+/// combination of the input rows on every actuator, free or not (the fixed ones give the
+/// multipliers of the bounds).
+struct Ortho<T> {
+    q: Rows<T>,
+    /// `⟨q_i, q_i⟩` in the inner product over the free actuators.
+    d: [T; MAX_EQ],
+    rank: usize,
+    l: [[T; MAX_EQ]; MAX_EQ],
+}
+
+/// The inner product over the free actuators, weighted by `metric` when given.
+fn dot<T: RealField + Copy>(a: &[T; N], b: &[T; N], free: &Free, metric: Option<&[T; N]>) -> T {
+    let mut s = T::zero();
+    match metric {
+        Some(w) => free.iter().for_each(|j| s += a[j] * b[j] * w[j]),
+        None => free.iter().for_each(|j| s += a[j] * b[j]),
+    }
+    s
+}
+
+/// Orthogonalises `rows` over the free actuators (modified Gram–Schmidt, in order; docs/maths.md,
+/// "Control allocation"). A row whose remainder has `⟨v, v⟩ ≤ tau · scale` adds nothing (it
+/// depends on the earlier ones). Updates run over the first `m` actuators.
+fn orthogonalise<T: RealField + Copy>(
+    rows: &[[T; N]],
+    free: &Free,
+    metric: Option<&[T; N]>,
+    m: usize,
+    tau: T,
+    scale: T,
+) -> Ortho<T> {
+    let mut o = Ortho {
+        q: [[T::zero(); N]; MAX_EQ],
+        d: [T::zero(); MAX_EQ],
+        rank: 0,
+        l: [[T::zero(); MAX_EQ]; MAX_EQ],
+    };
+    for (j, row) in rows.iter().enumerate() {
+        let mut v = *row;
+        for i in 0..o.rank {
+            let c = dot(&v, &o.q[i], free, metric) / o.d[i];
+            for (x, y) in v.iter_mut().zip(o.q[i].iter()).take(m) {
+                *x -= c * *y;
+            }
+            o.l[j][i] = c;
+        }
+        let vv = dot(&v, &v, free, metric);
+        if vv > tau * scale && vv > T::zero() {
+            o.q[o.rank] = v;
+            o.d[o.rank] = vv;
+            o.l[j][o.rank] = T::one();
+            o.rank += 1;
+        }
+    }
+    o
+}
+
+/// The largest `⟨r, r⟩` over the free actuators among `rows`.
+fn scale<T: RealField + Copy>(rows: &[[T; N]], free: &Free, metric: Option<&[T; N]>) -> T {
+    rows.iter()
+        .map(|r| dot(r, r, free, metric))
+        .fold(T::zero(), |a, b| a.max(b))
+}
+
+/// A working set, factored: the equalities' rows orthogonalised over the free actuators
+/// (in the metric `W⁻¹` on the last stage), and on a least-squares stage the objective's rows
+/// projected off them and orthogonalised in turn.
+struct Factored<T> {
+    free: Free,
+    eq: Ortho<T>,
+    /// Least-squares stages: the projected rows' basis and coefficients.
+    ls: Option<Ortho<T>>,
+}
+
+impl<'a, T: RealField + Copy> Stage<'a, T> {
+    /// The inverse weights of the last stage's metric.
+    fn metric(&self, inv_w: &[T; N]) -> Option<[T; N]> {
+        match self.objective {
+            Objective::Nearest { .. } => Some(*inv_w),
+            Objective::LeastSquares { .. } => None,
+        }
+    }
+
+    fn factor(&self, mask: &[Bound; N], inv_w: &[T; N], tau: T) -> Factored<T> {
+        let free = Free::of(mask, self.m);
+        let metric = self.metric(inv_w);
+        let c = &self.c[..self.k];
+        let eq = orthogonalise(
+            c,
+            &free,
+            metric.as_ref(),
+            self.m,
+            tau,
+            scale(c, &free, metric.as_ref()),
+        );
+        let ls = match self.objective {
+            Objective::LeastSquares { a, q, .. } => {
+                // the objective's rows with the equalities' directions taken out: their span is
+                // where a step may go
+                let mut projected = [[T::zero(); N]; MAX_EQ];
+                for (p, row) in projected.iter_mut().zip(a.iter()).take(q) {
+                    *p = *row;
+                    for i in 0..eq.rank {
+                        let c = dot(p, &eq.q[i], &free, None) / eq.d[i];
+                        free.iter().for_each(|j| p[j] -= c * eq.q[i][j]);
+                    }
+                }
+                let s = scale(&a[..q], &free, None);
+                Some(orthogonalise(&projected[..q], &free, None, self.m, tau, s))
+            }
+            Objective::Nearest { .. } => None,
         };
-        if w == N {
-            return None;
+        Factored { free, eq, ls }
+    }
+
+    /// The objective's gradient at `u` (`Aᵀ(Au − b)`, or `W(u − u_pref)`).
+    fn gradient(&self, u: &Commands<T>) -> [T; N] {
+        let mut g = [T::zero(); N];
+        match self.objective {
+            Objective::LeastSquares { a, b, q } => {
+                for r in 0..q {
+                    let res = residual(&a[r], b[r], u, self.m);
+                    for j in 0..self.m {
+                        g[j] += a[r][j] * res;
+                    }
+                }
+            }
+            Objective::Nearest { w, up } => {
+                for j in 0..self.m {
+                    g[j] = w[j] * (u[j] - up[j]);
+                }
+            }
         }
-        at[(i, w)] = sign;
-        fixes[w] = i;
-        w += 1;
+        g
     }
-    let qr = QR::new(at);
-    let r = qr.r();
-    let scale = at.amax().max(T::one());
-    let tol = T::default_epsilon().sqrt() * scale;
-    if (0..w).any(|j| r[(j, j)].abs() <= tol) {
-        return None;
+
+    /// The step `p` that minimises the objective from `u` over the working set's null space
+    /// (docs/maths.md, "Control allocation": the step). A least-squares stage takes the
+    /// minimum-norm one: `p = Mᵀ(MMᵀ)⁺(−r)` with `M` the objective's rows projected off the
+    /// equalities, `r = Au − b`; through `M = L S` (`S` orthogonal rows), `p = Sᵀ D⁻¹ t` with
+    /// `t` the least-squares solution of `L t = −r`. The last stage projects in the metric `W⁻¹`:
+    /// `p = −v + W⁻¹ Σ_i (q_i·v / ⟨q_i, q_i⟩) q_i` with `v = u − u_pref`.
+    fn step(&self, f: &Factored<T>, u: &Commands<T>) -> [T; N] {
+        let mut p = [T::zero(); N];
+        match (&self.objective, &f.ls) {
+            (Objective::LeastSquares { a, b, q }, Some(s)) => {
+                let q = *q;
+                let mut r = [T::zero(); MAX_EQ];
+                for (i, x) in r.iter_mut().enumerate().take(q) {
+                    *x = residual(&a[i], b[i], u, self.m);
+                }
+                let t = least_squares(&s.l, q, s.rank, &r);
+                for i in 0..s.rank {
+                    let c = t[i] / s.d[i];
+                    f.free.iter().for_each(|j| p[j] += c * s.q[i][j]);
+                }
+            }
+            (Objective::Nearest { w, up }, _) => {
+                let mut v = [T::zero(); N];
+                f.free.iter().for_each(|j| v[j] = u[j] - up[j]);
+                f.free.iter().for_each(|j| p[j] = -v[j]);
+                for i in 0..f.eq.rank {
+                    let beta = dot(&f.eq.q[i], &v, &f.free, None) / f.eq.d[i];
+                    f.free
+                        .iter()
+                        .for_each(|j| p[j] += beta * f.eq.q[i][j] / w[j]);
+                }
+            }
+            (Objective::LeastSquares { .. }, None) => {}
+        }
+        p
     }
-    Some(Factored {
-        q: qr.q(),
-        r,
-        w,
-        fixes,
-    })
+
+    /// At the working set's optimum, the fixed (and not locked) bound with the most negative
+    /// multiplier, if any: `∇ = Cᵀμ + Σ λ_j (±e_j)`, with `Cᵀμ = Σ_i β_i q_i` and `β_i` the
+    /// free part of `∇` projected on `q_i` (in the stage's metric).
+    fn release(
+        &self,
+        f: &Factored<T>,
+        mask: &[Bound; N],
+        u: &Commands<T>,
+        inv_w: &[T; N],
+        tol: T,
+    ) -> Option<usize> {
+        let g = self.gradient(u);
+        let metric = self.metric(inv_w);
+        let mut lambda = g;
+        for i in 0..f.eq.rank {
+            let beta = dot(&f.eq.q[i], &g, &f.free, metric.as_ref()) / f.eq.d[i];
+            for (l, q) in lambda.iter_mut().zip(f.eq.q[i].iter()).take(self.m) {
+                *l -= beta * *q;
+            }
+        }
+        let top = g.iter().fold(T::zero(), |a, x| a.max(x.abs()));
+        let mtol = T::from_subset(&1e3) * T::default_epsilon() * (T::one() + top);
+        let mut best: Option<(usize, T)> = None;
+        for j in 0..self.m {
+            let signed = match mask[j] {
+                Bound::Free => continue,
+                Bound::Lower => lambda[j],
+                Bound::Upper => -lambda[j],
+            };
+            if self.hi[j] - self.lo[j] > tol
+                && signed < -mtol
+                && best.is_none_or(|(_, b)| signed < b)
+            {
+                best = Some((j, signed));
+            }
+        }
+        best.map(|(j, _)| j)
+    }
+
+    /// The first working set at `u`: every actuator at a bound held there, then (on a stage
+    /// with equalities) as few of them freed, in order, as make the free actuators' columns of
+    /// `C` span what all the movable ones span, so that the multipliers are unique. A locked
+    /// actuator (`lo = hi`) is always held.
+    /// Returns the mask and the rank of the free actuators' columns of `C`.
+    fn initial(&self, u: &Commands<T>, tol: T, tau: T) -> ([Bound; N], usize) {
+        let mut mask = [Bound::Free; N];
+        for (j, b) in mask.iter_mut().enumerate().take(self.m) {
+            if u[j] <= self.lo[j] + tol {
+                *b = Bound::Lower;
+            } else if u[j] >= self.hi[j] - tol {
+                *b = Bound::Upper;
+            }
+        }
+        if self.k == 0 {
+            return (mask, 0);
+        }
+        // the columns' span, by Gram–Schmidt over the k equality rows
+        let column = |j: usize| {
+            let mut c = [T::zero(); MAX_EQ];
+            for (r, x) in c.iter_mut().enumerate().take(self.k) {
+                *x = self.c[r][j];
+            }
+            c
+        };
+        let mut basis = [[T::zero(); MAX_EQ]; MAX_EQ];
+        let mut norms = [T::zero(); MAX_EQ];
+        let mut rank = 0;
+        let mut add = |c: [T; MAX_EQ], basis: &mut [[T; MAX_EQ]; MAX_EQ], rank: &mut usize| {
+            if *rank == self.k {
+                return false;
+            }
+            let cc: T = c.iter().fold(T::zero(), |s, x| s + *x * *x);
+            let mut v = c;
+            for i in 0..*rank {
+                let d: T = (0..self.k).fold(T::zero(), |s, r| s + v[r] * basis[i][r]);
+                let d = d / norms[i];
+                for r in 0..self.k {
+                    v[r] -= d * basis[i][r];
+                }
+            }
+            let vv = v.iter().fold(T::zero(), |s, x| s + *x * *x);
+            if vv > tau * cc && vv > T::zero() {
+                basis[*rank] = v;
+                norms[*rank] = vv;
+                *rank += 1;
+                true
+            } else {
+                false
+            }
+        };
+        for j in 0..self.m {
+            if mask[j] == Bound::Free {
+                add(column(j), &mut basis, &mut rank);
+            }
+        }
+        for j in 0..self.m {
+            if mask[j] != Bound::Free
+                && self.hi[j] - self.lo[j] > tol
+                && add(column(j), &mut basis, &mut rank)
+            {
+                mask[j] = Bound::Free;
+            }
+        }
+        (mask, rank)
+    }
 }
 
-/// The step `p` that minimises the programme over the working set's null space: `p = Z y`
-/// with `y` the minimum-norm solution of `ZᵀHZ y = −Zᵀ∇`, `Z` the columns of `Q` past the
-/// working set. `H` may be only semidefinite (a least-squares stage): the system is
-/// consistent (the gradient of `½‖Au − b‖²` lies in the range of `AᵀA`), and the
-/// minimum-norm solution leaves the directions the objective does not see alone.
-fn step<T: RealField + Copy>(qp: &Qp<T>, f: &Factored<T>, grad: &Commands<T>) -> Commands<T> {
-    let mut reduced = f.q.transpose() * qp.h * f.q;
-    let mut rhs = -(f.q.transpose() * grad);
-    for i in 0..f.w {
-        for j in 0..N {
-            reduced[(i, j)] = T::zero();
-            reduced[(j, i)] = T::zero();
-        }
-        rhs[i] = T::zero();
+/// `aᵀu − b` over the first `m` actuators.
+fn residual<T: RealField + Copy>(a: &[T; N], b: T, u: &Commands<T>, m: usize) -> T {
+    let mut s = -b;
+    for j in 0..m {
+        s += a[j] * u[j];
     }
-    if qp.definite {
-        // the padded rows and columns get 1 on the diagonal (their right-hand side is 0)
-        let mut padded = reduced;
-        for i in 0..f.w {
-            padded[(i, i)] = T::one();
-        }
-        if let Some(ch) = Cholesky::new(padded) {
-            return f.q * ch.solve(&rhs);
-        }
-    }
-    let eig = SymmetricEigen::new(reduced);
-    let top = eig.eigenvalues.amax();
-    let floor = T::from_subset(&1e3) * T::default_epsilon() * top;
-    let mut y = Commands::<T>::zeros();
-    for (i, l) in eig.eigenvalues.iter().enumerate() {
-        if *l > floor {
-            let v = eig.eigenvectors.column(i);
-            y += v * (v.dot(&rhs) / *l);
-        }
-    }
-    f.q * y
+    s
 }
 
-/// The working set's multipliers at the subproblem's optimum: `Aᵀλ = ∇`, from `R λ = Qᵀ∇`.
-fn multipliers<T: RealField + Copy>(f: &Factored<T>, grad: &Commands<T>) -> Commands<T> {
-    let qg = f.q.transpose() * grad;
-    let mut lambda = Commands::<T>::zeros();
-    for i in (0..f.w).rev() {
-        let mut s = qg[i];
-        for j in i + 1..f.w {
-            s -= f.r[(i, j)] * lambda[j];
+/// The least-squares solution `t` of `L t = −r`, `L` the `q × rank` coefficients of the
+/// orthogonalised rows: by forward substitution when every row added a direction (`L` is
+/// then unit lower triangular), else from the normal equations `LᵀL t = −Lᵀr` by `LDLᵀ`.
+fn least_squares<T: RealField + Copy>(
+    l: &[[T; MAX_EQ]; MAX_EQ],
+    q: usize,
+    rank: usize,
+    r: &[T; MAX_EQ],
+) -> [T; MAX_EQ] {
+    let mut t = [T::zero(); MAX_EQ];
+    if rank == q {
+        for j in 0..q {
+            let mut s = -r[j];
+            for i in 0..j {
+                s -= l[j][i] * t[i];
+            }
+            t[j] = s;
         }
-        lambda[i] = s / f.r[(i, i)];
+        return t;
     }
-    lambda
+    let mut g = [[T::zero(); MAX_EQ]; MAX_EQ];
+    for a in 0..rank {
+        for b in 0..=a {
+            let s = (0..q).fold(T::zero(), |s, j| s + l[j][a] * l[j][b]);
+            g[a][b] = s;
+            g[b][a] = s;
+        }
+        t[a] = (0..q).fold(T::zero(), |s, j| s - l[j][a] * r[j]);
+    }
+    ldl_solve(&mut g, rank, &mut t);
+    t
 }
 
-/// Solves the stage from `start`, which must be feasible (within the bounds, on `C u = d`).
+/// Solves `G x = h` in place (`G` symmetric positive definite, `n × n`) by `G = L D Lᵀ`:
+/// no square root.
+fn ldl_solve<T: RealField + Copy>(g: &mut [[T; MAX_EQ]; MAX_EQ], n: usize, x: &mut [T; MAX_EQ]) {
+    for j in 0..n {
+        for k in 0..j {
+            let ljk = g[j][k];
+            g[j][j] -= ljk * ljk * g[k][k];
+        }
+        for i in j + 1..n {
+            let mut s = g[i][j];
+            for k in 0..j {
+                s -= g[i][k] * g[j][k] * g[k][k];
+            }
+            g[i][j] = s / g[j][j];
+        }
+    }
+    for i in 0..n {
+        for k in 0..i {
+            x[i] -= g[i][k] * x[k];
+        }
+    }
+    for i in 0..n {
+        x[i] /= g[i][i];
+    }
+    for i in (0..n).rev() {
+        for k in i + 1..n {
+            x[i] -= g[k][i] * x[k];
+        }
+    }
+}
+
+/// Solves the stage from `start`, which must be feasible (within the bounds, on `C u = d`),
+/// with at most `budget` factorisations.
 pub(crate) fn solve<T: RealField + Copy>(
-    qp: &Qp<T>,
-    lo: &Commands<T>,
-    hi: &Commands<T>,
+    stage: &Stage<'_, T>,
     start: Commands<T>,
-    cap: u32,
+    budget: u32,
 ) -> Solved<T> {
-    let scale = T::one() + lo.amax().max(hi.amax());
-    let tol = T::from_subset(&1e3) * T::default_epsilon() * scale;
+    let (lo, hi, m) = (stage.lo, stage.hi, stage.m);
+    let bound = (0..m).fold(T::zero(), |a, j| a.max(lo[j].abs()).max(hi[j].abs()));
+    let tol = T::from_subset(&1e3) * T::default_epsilon() * (T::one() + bound);
+    let tau = T::from_subset(&1e3) * T::default_epsilon();
+    let mut inv_w = [T::one(); N];
+    if let Objective::Nearest { w, .. } = stage.objective {
+        for j in 0..m {
+            inv_w[j] = T::one() / w[j];
+        }
+    }
     let mut u = start;
-    let mut work = initial_working_set(qp, lo, hi, &u, tol);
-    let mut iterations = 0;
-    while iterations < cap {
-        iterations += 1;
-        let Some(f) = factor(qp, &work) else {
-            break;
+    let (mut mask, rank) = stage.initial(&u, tol, tau);
+    // nothing can move and no bound can leave: the start is the answer (a stage with no free
+    // dimension is skipped)
+    if Free::of(&mask, m).n == rank && !movable_fixed(stage, &mask, tol) {
+        return Solved {
+            u,
+            iterations: 0,
+            stopped: false,
         };
-        let grad = qp.h * u + qp.g;
-        let p = step(qp, &f, &grad);
-        if p.amax() <= tol {
-            let lambda = multipliers(&f, &grad);
-            let mtol = T::from_subset(&1e3) * T::default_epsilon() * (T::one() + grad.amax());
-            // the most negative multiplier of a bound an actuator can leave
-            let release = (qp.k..f.w)
-                .filter(|&c| hi[f.fixes[c]] - lo[f.fixes[c]] > tol && lambda[c] < -mtol)
-                .min_by(|&a, &b| {
-                    lambda[a]
-                        .partial_cmp(&lambda[b])
-                        .unwrap_or(core::cmp::Ordering::Equal)
-                });
-            match release {
-                Some(c) => work[f.fixes[c]] = Bound::Free,
+    }
+    let mut iterations = 0;
+    let mut factored: Option<Factored<T>> = None;
+    // the full steps taken on one factorisation (the second and third refine the first)
+    let mut refinements = 0;
+    loop {
+        let f = match factored.take() {
+            Some(f) => f,
+            None => {
+                if iterations == budget {
+                    return Solved {
+                        u,
+                        iterations,
+                        stopped: true,
+                    };
+                }
+                iterations += 1;
+                refinements = 0;
+                stage.factor(&mask, &inv_w, tau)
+            }
+        };
+        let p = stage.step(&f, &u);
+        let size = p.iter().take(m).fold(T::zero(), |a, x| a.max(x.abs()));
+        if size <= tol || refinements == 3 {
+            match stage.release(&f, &mask, &u, &inv_w, tol) {
+                Some(j) => mask[j] = Bound::Free,
                 None => {
                     return Solved {
                         u,
@@ -181,36 +506,39 @@ pub(crate) fn solve<T: RealField + Copy>(
             }
             continue;
         }
-        let (alpha, block) = step_length(&work, lo, hi, &u, &p, tol);
-        u += p * alpha;
-        if let Some((i, b)) = block {
-            u[i] = if b == Bound::Lower { lo[i] } else { hi[i] };
-            work[i] = b;
+        let (alpha, block) = step_length(&f.free, lo, hi, &u, &p, tol);
+        f.free.iter().for_each(|j| u[j] += p[j] * alpha);
+        match block {
+            Some((j, b)) => {
+                u[j] = if b == Bound::Lower { lo[j] } else { hi[j] };
+                mask[j] = b;
+            }
+            None => {
+                refinements += 1;
+                factored = Some(f);
+            }
         }
     }
-    Solved {
-        u,
-        iterations,
-        stopped: true,
-    }
+}
+
+/// Whether some actuator held at a bound could leave it (its bounds differ).
+fn movable_fixed<T: RealField + Copy>(stage: &Stage<'_, T>, mask: &[Bound; N], tol: T) -> bool {
+    (0..stage.m).any(|j| mask[j] != Bound::Free && stage.hi[j] - stage.lo[j] > tol)
 }
 
 /// The longest step along `p` (at most 1) that keeps the free actuators within their bounds,
 /// and the bound that stops it (components of `p` within `tol` of 0 block nothing).
 fn step_length<T: RealField + Copy>(
-    work: &[Bound; N],
+    free: &Free,
     lo: &Commands<T>,
     hi: &Commands<T>,
     u: &Commands<T>,
-    p: &Commands<T>,
+    p: &[T; N],
     tol: T,
 ) -> (T, Option<(usize, Bound)>) {
     let mut alpha = T::one();
     let mut block = None;
-    for i in 0..N {
-        if work[i] != Bound::Free {
-            continue;
-        }
+    for i in free.iter() {
         // a component at rounding level moves nothing: it does not block
         let (room, bound) = if p[i] < -tol {
             ((lo[i] - u[i]) / p[i], Bound::Lower)
@@ -226,55 +554,4 @@ fn step_length<T: RealField + Copy>(
         }
     }
     (alpha, block)
-}
-
-/// The first working set: the equality rows, then each actuator at a bound (a fixed one
-/// first), as long as the normals stay linearly independent. All of them at once when they
-/// are (the usual case: one factorisation), else one by one.
-fn initial_working_set<T: RealField + Copy>(
-    qp: &Qp<T>,
-    lo: &Commands<T>,
-    hi: &Commands<T>,
-    u: &Commands<T>,
-    tol: T,
-) -> [Bound; N] {
-    let at_bound = |i: usize| {
-        if u[i] <= lo[i] + tol {
-            Some(Bound::Lower)
-        } else if u[i] >= hi[i] - tol {
-            Some(Bound::Upper)
-        } else {
-            None
-        }
-    };
-    let mut work = [Bound::Free; N];
-    for (i, w) in work.iter_mut().enumerate() {
-        *w = at_bound(i).unwrap_or(Bound::Free);
-    }
-    if factor(qp, &work).is_some() {
-        return work;
-    }
-    let mut work = [Bound::Free; N];
-    let order = (0..N)
-        .filter(|&i| hi[i] - lo[i] <= tol)
-        .chain((0..N).filter(|&i| hi[i] - lo[i] > tol));
-    for i in order {
-        let Some(b) = at_bound(i) else {
-            continue;
-        };
-        work[i] = b;
-        if factor(qp, &work).is_none() {
-            work[i] = Bound::Free;
-        }
-    }
-    work
-}
-
-/// A least-squares stage's matrices: `½‖Au − b‖²` is `½uᵀHu + gᵀu` (plus a constant) with
-/// `H = AᵀA`, `g = −Aᵀb`.
-pub(crate) fn least_squares<T: RealField + Copy>(
-    a: &SMatrix<T, MAX_EQ, N>,
-    b: &SVector<T, MAX_EQ>,
-) -> (SMatrix<T, N, N>, Commands<T>) {
-    (a.transpose() * a, -(a.transpose() * b))
 }

@@ -498,3 +498,43 @@ fn f32_allocates_like_f64() {
         );
     }
 }
+
+#[test]
+fn failed_actuators_held_at_a_value_meet_each_stage_optimum() {
+    // a failed actuator is a bound with min = max: one and two of them, on each preset and on
+    // random geometries, demands within reach and far past it
+    let mut rng = ChaCha8Rng::seed_from_u64(44);
+    let mut x = move || (rng.next_u64() as f64 / u64::MAX as f64) * 2.0 - 1.0;
+    let fail = |acts: &mut [Actuator<f64>], j: usize, at: f64| {
+        let a = &mut acts[j % acts.len()];
+        let v = a.min + (a.max - a.min) * (at + 1.0) / 2.0;
+        (a.min, a.max) = (v, v);
+    };
+    for i in 0..12 {
+        let size = [0.5, 5.0, 40.0][i % 3];
+        let mut hex = hexarotor();
+        fail(&mut hex, i, x());
+        if i % 2 == 1 {
+            fail(&mut hex, i + 3, x());
+        }
+        if Geometry::<f64, 6>::new(&hex).is_ok() {
+            let mut w = SVector::<f64, 6>::from_fn(|_, _| size * x());
+            w[5] += 20.0;
+            check(&hex, w, Priority::Torque, &[], &[]);
+        }
+        let mut r = rov();
+        fail(&mut r, i, x());
+        if i % 2 == 0 {
+            fail(&mut r, i + 5, x());
+        }
+        let w = SVector::<f64, 6>::from_fn(|_, _| 4.0 * size * x());
+        check(&r, w, Priority::Torque, &[], &[]);
+        check(
+            &r,
+            w,
+            Priority::None,
+            &[1.0, 2.0, 1.0, 0.5, 1.0, 1.0, 3.0, 1.0],
+            &[],
+        );
+    }
+}

@@ -1,0 +1,226 @@
+//! Bounded time (docs/vehicles.md, "Bounded time"): a warm start reaches the cold start's
+//! optimum in fewer iterations, and a budget that runs out still answers a command within the
+//! bounds that keeps what the finished stages reached.
+
+use allocation::{
+    Actuator, Allocator, Bounds, Commands, Geometry, MAX_ACTUATORS, Priority, Status, presets,
+};
+use nalgebra::SVector;
+use rand_chacha::ChaCha8Rng;
+use rand_chacha::rand_core::{Rng, SeedableRng};
+
+fn hexarotor() -> Allocator<f64, 6> {
+    let g = Geometry::<f64, 6>::new(&presets::hexarotor(0.25, 0.5, 0.016, 8.0)).unwrap();
+    Allocator::new(g, &[], &[], Priority::Torque).unwrap()
+}
+
+fn rov() -> Allocator<f64, 6> {
+    let g = Geometry::<f64, 6>::new(&presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0)).unwrap();
+    Allocator::new(g, &[], &[], Priority::Torque).unwrap()
+}
+
+fn spacecraft() -> Allocator<f64, 3> {
+    let g = Geometry::<f64, 3>::new(&presets::spacecraft_twelve(0.5, 3.0)).unwrap();
+    Allocator::new(g, &[], &[], Priority::Torque).unwrap()
+}
+
+fn within<const K: usize>(a: &allocation::Allocation<f64, K>, b: &Bounds<f64>) -> bool {
+    (0..MAX_ACTUATORS).all(|j| a.u[j].is_finite() && a.u[j] >= b.lo[j] && a.u[j] <= b.hi[j])
+}
+
+/// Along a trajectory of demands that saturate (and with a failed actuator), warm and cold
+/// answers agree to 1e-12 of the largest bound; the warm ones take fewer iterations.
+fn warm_equals_cold<const K: usize>(
+    alloc: &Allocator<f64, K>,
+    demand: impl Fn(f64) -> SVector<f64, K>,
+    failed: Option<(usize, f64)>,
+) -> (u32, u32) {
+    let mut bounds = alloc.bounds();
+    if let Some((j, v)) = failed {
+        bounds.fail(j, v);
+    }
+    let scale = 1.0 + bounds.hi.amax().max(bounds.lo.amax());
+    let (mut cold_iterations, mut warm_iterations, mut saturated) = (0, 0, 0);
+    let mut previous: Option<Commands<f64>> = None;
+    for k in 0..400 {
+        let d = demand(k as f64 * 0.01);
+        let cold = alloc.allocate_within(&d, &bounds);
+        let warm = alloc.allocate_from(&d, &bounds, previous.as_ref());
+        assert!(cold.status != Status::Stopped && warm.status != Status::Stopped);
+        assert!(within(&warm, &bounds), "{warm:?}");
+        assert!(
+            (warm.u - cold.u).amax() <= 1e-12 * scale,
+            "tick {k}: warm {:?} cold {:?} differ by {:e}",
+            warm.u,
+            cold.u,
+            (warm.u - cold.u).amax()
+        );
+        assert_eq!(warm.status, cold.status, "tick {k}");
+        cold_iterations += cold.iterations;
+        warm_iterations += warm.iterations;
+        saturated += u32::from(cold.iterations > 0);
+        previous = Some(warm.u);
+    }
+    assert!(
+        saturated > 100,
+        "the trajectory saturates: {saturated} ticks"
+    );
+    (cold_iterations, warm_iterations)
+}
+
+#[test]
+fn warm_starts_reach_the_cold_optimum_in_fewer_iterations() {
+    let hex = |t: f64| {
+        SVector::<f64, 6>::from([
+            0.8 * t.sin(),
+            0.6 * (1.3 * t).cos(),
+            0.4 * (0.7 * t).sin(),
+            2.0 * (0.5 * t).sin(),
+            1.5 * (0.9 * t).cos(),
+            38.0 + 8.0 * (0.6 * t).sin(),
+        ])
+    };
+    let rov_demand = |t: f64| {
+        SVector::<f64, 6>::from([
+            15.0 * t.sin(),
+            12.0 * (1.1 * t).cos(),
+            10.0 * (0.7 * t).sin(),
+            120.0 * (0.5 * t).cos(),
+            90.0 * (0.8 * t).sin(),
+            140.0 * (0.3 * t).cos(),
+        ])
+    };
+    let sc = |t: f64| {
+        SVector::<f64, 3>::from([
+            4.0 * t.sin(),
+            3.0 * (1.7 * t).cos(),
+            2.5 * (0.4 * t).sin() + 1.0,
+        ])
+    };
+    for (name, (cold, warm)) in [
+        ("hexarotor", warm_equals_cold(&hexarotor(), hex, None)),
+        (
+            "hexarotor, rotor 2 failed",
+            warm_equals_cold(&hexarotor(), hex, Some((2, 3.0))),
+        ),
+        ("rov", warm_equals_cold(&rov(), rov_demand, None)),
+        (
+            "rov, thruster 5 failed",
+            warm_equals_cold(&rov(), rov_demand, Some((5, 0.0))),
+        ),
+        ("spacecraft", warm_equals_cold(&spacecraft(), sc, None)),
+    ] {
+        assert!(warm < cold, "{name}: warm {warm} iterations, cold {cold}");
+        println!("{name}: {cold} iterations cold, {warm} warm");
+    }
+}
+
+/// `½‖B_r u − d_r‖²` over rows `r`.
+fn miss<const K: usize>(
+    alloc: &Allocator<f64, K>,
+    u: &Commands<f64>,
+    d: &SVector<f64, K>,
+    rows: core::ops::Range<usize>,
+) -> f64 {
+    let w = alloc.geometry().wrench(u) - d;
+    rows.map(|i| w[i] * w[i]).sum::<f64>() * 0.5
+}
+
+/// With budgets 1, 2, 3, …: every answer is finite and within the bounds; short of the
+/// iterations the optimum needs it says `Stopped`; the torque stage's objective never rises
+/// with the budget, and once the torque stage has finished its optimum is kept (the force's
+/// objective then never rises either).
+fn budgets<const K: usize>(alloc: &Allocator<f64, K>, d: &SVector<f64, K>, bounds: &Bounds<f64>) {
+    let full = alloc.allocate_within(d, bounds);
+    assert!(full.status != Status::Stopped, "{full:?}");
+    let torque = if K == 6 { 0..3 } else { 0..K };
+    let best = miss(alloc, &full.u, d, torque.clone());
+    let tol = 1e-9 * (1.0 + d.amax()).powi(2);
+    let mut last = (f64::INFINITY, f64::INFINITY);
+    let mut torque_done = false;
+    for b in 1..=full.iterations + 1 {
+        let a = alloc.with_budget(b).allocate_within(d, bounds);
+        assert!(within(&a, bounds), "budget {b}: {a:?}");
+        if b < full.iterations {
+            assert_eq!(
+                a.status,
+                Status::Stopped,
+                "budget {b} of {}",
+                full.iterations
+            );
+            assert_eq!(a.iterations, b);
+        } else {
+            assert_eq!((a.u, a.status), (full.u, full.status), "budget {b}");
+        }
+        let t = miss(alloc, &a.u, d, torque.clone());
+        let f = if K == 6 {
+            miss(alloc, &a.u, d, 3..6)
+        } else {
+            0.0
+        };
+        assert!(
+            t <= last.0 + tol,
+            "budget {b}: the torque's miss rose from {} to {t}",
+            last.0
+        );
+        if torque_done {
+            assert!(
+                (t - best).abs() <= tol,
+                "budget {b}: the torque stage's optimum {best} lost: {t}"
+            );
+            assert!(
+                f <= last.1 + tol,
+                "budget {b}: the force's miss rose from {} to {f}",
+                last.1
+            );
+        }
+        torque_done |= (t - best).abs() <= tol;
+        last = (t, f);
+    }
+    assert!(torque_done);
+}
+
+#[test]
+fn a_spent_budget_answers_within_the_bounds_and_keeps_the_finished_stages() {
+    let mut rng = ChaCha8Rng::seed_from_u64(43);
+    let mut x = move || (rng.next_u64() as f64 / u64::MAX as f64) * 2.0 - 1.0;
+    let (hex, rov, sc) = (hexarotor(), rov(), spacecraft());
+    let mut long = 0;
+    for i in 0..60 {
+        let mut bounds = hex.bounds();
+        if i % 3 == 1 {
+            bounds.fail(i % 6, 4.0 * (x() + 1.0));
+        }
+        let d = SVector::<f64, 6>::from_fn(
+            |r, _| if r < 3 { 1.5 * x() } else { 6.0 * x() } + if r == 5 { 40.0 } else { 0.0 },
+        );
+        budgets(&hex, &d, &bounds);
+        long += u32::from(hex.allocate_within(&d, &bounds).iterations > 2);
+        let mut bounds = rov.bounds();
+        if i % 3 == 2 {
+            bounds.fail(i % 8, 40.0 * x());
+        }
+        let d = SVector::<f64, 6>::from_fn(|r, _| if r < 3 { 40.0 * x() } else { 300.0 * x() });
+        budgets(&rov, &d, &bounds);
+        let d = SVector::<f64, 3>::from_fn(|_, _| 6.0 * x());
+        budgets(&sc, &d, &sc.bounds());
+    }
+    assert!(long > 10, "the demands exercise the budget: {long}");
+}
+
+#[test]
+fn the_spacecraft_preset_is_the_scenarios_twelve_thrusters() {
+    let twelve: [Actuator<f64>; 12] = presets::spacecraft_twelve(0.5, 3.0);
+    // two thrusters per signed axis, each pair a couple about one body axis
+    for a in &twelve {
+        assert_eq!((a.min, a.max, a.torque_per_thrust), (0.0, 3.0, 0.0));
+        let r = nalgebra::Vector3::from(a.position);
+        assert_eq!(r.norm(), 0.5);
+        assert_eq!(r.dot(&nalgebra::Vector3::from(a.axis)), 0.0);
+    }
+    let g = Geometry::<f64, 3>::new(&twelve).unwrap();
+    // any torque within 3 N·m on each axis is met
+    let a = Allocator::new(g, &[], &[], Priority::Torque).unwrap();
+    let d = SVector::<f64, 3>::from([2.9, -2.9, 1.5]);
+    assert_eq!(a.allocate(&d).status, Status::Met);
+}
