@@ -4,7 +4,7 @@ use crate::geometry::Geometry;
 use crate::qp::{MAX_EQ, Objective, Rows, Stage, solve};
 use crate::{Commands, MAX_ACTUATORS};
 use core::fmt;
-use nalgebra::{RealField, SVector};
+use nalgebra::{RealField, SMatrix, SVector};
 
 /// Which part of the wrench is met first when not all of it can be.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -153,6 +153,12 @@ pub struct Allocator<T, const K: usize> {
     preferred: Commands<T>,
     priority: Priority,
     budget: u32,
+    /// `B W⁻¹`, and the Cholesky factor of `B W⁻¹ Bᵀ` (as nalgebra leaves it; `None`: not
+    /// positive definite), formed once: the closed form's, the same numbers every call.
+    bw: SMatrix<T, K, MAX_ACTUATORS>,
+    gram: Option<SMatrix<T, K, K>>,
+    /// `√ε`, the tolerance of [`Status::Met`].
+    sqrt_eps: T,
 }
 
 /// The default budget of active-set iterations per allocation (docs/vehicles.md, "Bounded
@@ -195,12 +201,23 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             }
         }
         let top = w.max();
+        let weights = w / top;
+        let b = geometry.effectiveness();
+        // B W⁻¹: each column divided by its weight
+        let mut bw = *b;
+        for (j, mut c) in bw.column_iter_mut().enumerate() {
+            c /= weights[j];
+        }
+        let gram = nalgebra::Cholesky::new(bw * b.transpose()).map(|c| c.unpack_dirty());
         Ok(Allocator {
             geometry,
-            weights: w / top,
+            weights,
             preferred: up,
             priority,
             budget: DEFAULT_BUDGET,
+            bw,
+            gram,
+            sqrt_eps: T::default_epsilon().sqrt(),
         })
     }
 
@@ -252,6 +269,31 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         bounds: &Bounds<T>,
         previous: Option<&Commands<T>>,
     ) -> Allocation<T, K> {
+        self.stages(demand, bounds, previous, 3)
+    }
+
+    /// Stage 1 alone (the torque, or the whole wrench), from `previous` as
+    /// [`Allocator::allocate_from`] starts: what a peer solver is timed against on the same
+    /// problem (`allocation/examples/peer.rs`). Its command is one of stage 1's optima, not
+    /// the allocation's answer.
+    #[doc(hidden)]
+    pub fn allocate_first_stage(
+        &self,
+        demand: &SVector<T, K>,
+        bounds: &Bounds<T>,
+        previous: Option<&Commands<T>>,
+    ) -> Allocation<T, K> {
+        self.stages(demand, bounds, previous, 1)
+    }
+
+    /// The stages up to `through` (1 to 3).
+    fn stages(
+        &self,
+        demand: &SVector<T, K>,
+        bounds: &Bounds<T>,
+        previous: Option<&Commands<T>>,
+        through: usize,
+    ) -> Allocation<T, K> {
         let (lo, hi) = (bounds.lo, bounds.hi);
         let up = self
             .preferred
@@ -272,6 +314,31 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             }
             _ => start,
         };
+        let (u, spent, stopped) = self.active_set(demand, bounds, &up, start, split, through);
+        let u = u.zip_zip_map(&lo, &hi, |x, l, h| x.max(l).min(h));
+        if !u.iter().all(|x| x.is_finite()) {
+            return self.answer(up, Status::Stopped, spent);
+        }
+        let status = if stopped {
+            Status::Stopped
+        } else {
+            self.met(&u, demand, split)
+        };
+        self.answer(u, status, spent)
+    }
+
+    /// The active-set stages from `start` (docs/maths.md, "Control allocation"), through
+    /// stage `through`, within one budget: the command, the iterations spent, and whether
+    /// the budget ran out.
+    fn active_set(
+        &self,
+        demand: &SVector<T, K>,
+        bounds: &Bounds<T>,
+        up: &Commands<T>,
+        start: Commands<T>,
+        split: bool,
+        through: usize,
+    ) -> (Commands<T>, u32, bool) {
         let m = self.geometry.count();
         let b = self.geometry.effectiveness();
         let mut all: Rows<T> = [[T::zero(); MAX_ACTUATORS]; MAX_EQ];
@@ -293,8 +360,8 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
                 c,
                 k,
                 m,
-                lo: &lo,
-                hi: &hi,
+                lo: &bounds.lo,
+                hi: &bounds.hi,
             };
             let s = solve(&stage, from, self.budget - spent);
             spent += s.iterations;
@@ -310,7 +377,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         };
         let mut u = run(objective, &all, 0, start);
         // stage 2: the force, keeping the torque
-        if split {
+        if split && through >= 2 {
             let mut force: Rows<T> = [[T::zero(); MAX_ACTUATORS]; MAX_EQ];
             let mut f = [T::zero(); MAX_EQ];
             for r in 0..3 {
@@ -325,21 +392,14 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             u = run(objective, &all, 3, u);
         }
         // stage 3: nearest u_pref, keeping the wrench achieved
-        let objective = Objective::Nearest {
-            w: &self.weights,
-            up: &up,
-        };
-        u = run(objective, &all, K, u);
-        let u = u.zip_zip_map(&lo, &hi, |x, l, h| x.max(l).min(h));
-        if !u.iter().all(|x| x.is_finite()) {
-            return self.answer(up, Status::Stopped, spent);
+        if through >= 3 {
+            let objective = Objective::Nearest {
+                w: &self.weights,
+                up,
+            };
+            u = run(objective, &all, K, u);
         }
-        let status = if stopped {
-            Status::Stopped
-        } else {
-            self.met(&u, demand, split)
-        };
-        self.answer(u, status, spent)
+        (u, spent, stopped)
     }
 
     /// Where stage 1 starts: the command nearest `u_pref` in the `W`-norm that produces the
@@ -354,15 +414,14 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         bounds: &Bounds<T>,
     ) -> (Commands<T>, bool) {
         let b = self.geometry.effectiveness();
-        // B W⁻¹: each column divided by its weight
-        let mut bw = *b;
-        for (j, mut c) in bw.column_iter_mut().enumerate() {
-            c /= self.weights[j];
-        }
-        let Some(ch) = nalgebra::Cholesky::new(bw * b.transpose()) else {
+        let Some(l) = &self.gram else {
             return (*up, false);
         };
-        let u = up + bw.transpose() * ch.solve(&(demand - b * up));
+        // the Cholesky solve, as nalgebra's `Cholesky::solve` does it
+        let mut x = demand - b * up;
+        l.solve_lower_triangular_unchecked_mut(&mut x);
+        l.ad_solve_lower_triangular_unchecked_mut(&mut x);
+        let u = up + self.bw.transpose() * x;
         let inside = u
             .iter()
             .zip(bounds.lo.iter().zip(bounds.hi.iter()))
@@ -376,7 +435,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     /// Whether `u` meets the demand: the torque (or wrench), then the force.
     fn met(&self, u: &Commands<T>, demand: &SVector<T, K>, split: bool) -> Status {
         let miss = self.geometry.wrench(u) - demand;
-        let tol = T::default_epsilon().sqrt() * (T::one() + demand.amax());
+        let tol = self.sqrt_eps * (T::one() + demand.amax());
         let part = |r: core::ops::Range<usize>| r.into_iter().any(|i| miss[i].abs() > tol);
         if part(0..if split { 3 } else { K }) {
             Status::TorqueInfeasible

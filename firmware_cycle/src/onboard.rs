@@ -174,6 +174,8 @@ pub struct Vehicle {
     pub rate_limit: f32,
     /// The failures the controller is told of, in time order.
     pub failures: Vec<Failure, 12>,
+    /// The allocation's budget of active-set iterations per cycle (1 or more).
+    pub budget: u32,
 }
 
 impl Vehicle {
@@ -205,6 +207,10 @@ impl Vehicle {
             },
         )
         .map_err(|_| ConfigError::Vehicle("allocation"))?;
+        if self.budget == 0 {
+            return Err(ConfigError::Vehicle("budget"));
+        }
+        let allocator = allocator.with_budget(self.budget);
         let restoring = Restoring {
             weight: self.weight,
             buoyancy: self.buoyancy,

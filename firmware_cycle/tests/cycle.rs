@@ -312,6 +312,7 @@ fn on_board() -> Config {
                 value: 0.01,
             }])
             .unwrap(),
+            budget: allocation::DEFAULT_BUDGET,
         }),
         ..seed_like()
     }

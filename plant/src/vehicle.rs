@@ -395,6 +395,9 @@ pub struct VehicleReport {
     pub saturated_time_s: Vec<f64>,
     /// `‖demand − B u_cmd‖` over the rows.
     pub residual: Residual,
+    /// The allocations the budget stopped before their optimum (`alloc_status` 3;
+    /// docs/vehicles.md, "Bounded time").
+    pub allocation_stopped: usize,
     /// The failures, as the scenario gives them.
     pub failures: Vec<FailureReport>,
 }
@@ -430,8 +433,9 @@ impl VehicleReport {
             .unwrap_or(0);
         let held = rows.len().saturating_sub(1);
         let mut saturated = vec![0.0; count];
-        let (mut max, mut sum, mut n) = (0.0_f64, 0.0, 0usize);
+        let (mut max, mut sum, mut n, mut stopped) = (0.0_f64, 0.0, 0usize, 0);
         for (k, v) in rows.iter().filter_map(|r| r.vehicle).enumerate() {
+            stopped += usize::from(v.status == allocation::Status::Stopped.code());
             if k < held {
                 for (j, s) in saturated.iter_mut().enumerate() {
                     if v.saturated[j] {
@@ -452,6 +456,7 @@ impl VehicleReport {
                 max,
                 rms: (sum / n.max(1) as f64).sqrt(),
             },
+            allocation_stopped: stopped,
             failures: failures
                 .iter()
                 .map(|f| FailureReport {

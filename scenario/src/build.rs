@@ -285,6 +285,11 @@ impl Scenario {
             for f in v.failures.iter().filter(|f| f.reconfigure) {
                 h.f64s(&[f.actuator as f64, f.t, f.value]);
             }
+            // only when not the default, so scenarios from before it keep their fingerprints
+            if v.budget != allocation::DEFAULT_BUDGET {
+                h.bytes(b"allocation budget");
+                h.f64s(&[f64::from(v.budget)]);
+            }
         }
         h.0.max(1)
     }

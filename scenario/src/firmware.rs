@@ -155,6 +155,7 @@ fn firmware_vehicle(v: &VehicleSpec) -> Vehicle {
         buoyancy: v.buoyancy as f32,
         centre: v.buoyancy_centre.map(|x| x as f32),
         rate_limit: v.actuator_rate_limit as f32,
+        budget: v.budget,
         failures: v
             .failures
             .iter()

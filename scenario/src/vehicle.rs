@@ -28,12 +28,17 @@
 //! weights = [...]
 //! preferred = [...]
 //! priority = "torque"             # or "none"
+//! budget = 36                     # active-set iterations per cycle, 1..=1000 (default 36)
 //! ```
 
 use crate::{Scenario, ScenarioError, Validator};
 use allocation::{
-    Actuator, Allocator, Geometry, GeometryError, Priority, Restoring, VehicleControl,
+    Actuator, Allocator, DEFAULT_BUDGET, Geometry, GeometryError, Priority, Restoring,
+    VehicleControl,
 };
+
+/// The largest `[allocation] budget` accepted.
+const MAX_BUDGET: i64 = 1000;
 use nalgebra::{SMatrix, Vector3};
 use serde::Deserialize;
 
@@ -77,6 +82,7 @@ pub(crate) struct RawAllocation {
     weights: Option<Vec<f64>>,
     preferred: Option<Vec<f64>>,
     priority: Option<String>,
+    budget: Option<i64>,
 }
 
 /// `[[vehicle.failure]]`: an actuator stuck at `value` from `t` on.
@@ -131,6 +137,9 @@ pub struct VehicleSpec {
     pub preferred: Vec<f64>,
     /// `[allocation] priority`.
     pub priority: Priority,
+    /// `[allocation] budget`: active-set iterations per allocation (docs/vehicles.md,
+    /// "Bounded time").
+    pub budget: u32,
 }
 
 impl VehicleSpec {
@@ -156,6 +165,7 @@ impl VehicleSpec {
             &self.preferred,
             self.priority,
         )
+        .map(|a| a.with_budget(self.budget))
         .map_err(|e| format!("allocation: {e}"))
     }
 
@@ -242,7 +252,8 @@ impl Validator<'_> {
         };
         let actuators = self.actuators(&raw.actuator, m)?;
         let failures = self.failures(raw.failure.as_deref().unwrap_or(&[]), actuators.len())?;
-        let (weights, preferred, priority) = self.allocation(allocation, actuators.len())?;
+        let (weights, preferred, priority, budget) =
+            self.allocation(allocation, actuators.len())?;
         let spec = VehicleSpec {
             gravity,
             mass,
@@ -262,6 +273,7 @@ impl Validator<'_> {
             weights,
             preferred,
             priority,
+            budget,
         };
         Ok(Some(spec))
     }
@@ -423,15 +435,15 @@ impl Validator<'_> {
         Ok(out)
     }
 
-    /// `[allocation]`: weights (positive) and preferred commands, one per actuator each, and
-    /// the priority.
+    /// `[allocation]`: weights (positive) and preferred commands, one per actuator each, the
+    /// priority and the budget.
     fn allocation(
         &self,
         raw: Option<&RawAllocation>,
         count: usize,
-    ) -> Result<(Vec<f64>, Vec<f64>, Priority), ScenarioError> {
+    ) -> Result<(Vec<f64>, Vec<f64>, Priority, u32), ScenarioError> {
         let Some(raw) = raw else {
-            return Ok((Vec::new(), Vec::new(), Priority::Torque));
+            return Ok((Vec::new(), Vec::new(), Priority::Torque, DEFAULT_BUDGET));
         };
         let list = |key: &str, v: &Option<Vec<f64>>| -> Result<Vec<f64>, ScenarioError> {
             match v {
@@ -457,7 +469,17 @@ impl Validator<'_> {
                 ));
             }
         };
-        Ok((weights, preferred, priority))
+        let budget = match raw.budget {
+            None => DEFAULT_BUDGET,
+            Some(b) if (1..=MAX_BUDGET).contains(&b) => b as u32,
+            Some(b) => {
+                return Err(self.err(
+                    "allocation.budget",
+                    format!("must be a whole number of iterations from 1 to {MAX_BUDGET}, got {b}"),
+                ));
+            }
+        };
+        Ok((weights, preferred, priority, budget))
     }
 }
 

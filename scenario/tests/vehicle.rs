@@ -228,6 +228,40 @@ fn bad_vehicle_and_allocation_keys_are_refused_naming_the_key() {
         "allocation.priority",
         "unknown priority `force`",
     );
+    for (value, what) in [
+        ("0", "from 1 to 1000, got 0"),
+        ("-3", "from 1 to 1000, got -3"),
+        ("1001", "from 1 to 1000, got 1001"),
+    ] {
+        refused(
+            &format!("{rov}\n[allocation]\nbudget = {value}\n"),
+            "allocation.budget",
+            what,
+        );
+    }
+    for value in ["2.5", "\"36\"", "true"] {
+        let e = error(&format!("{rov}\n[allocation]\nbudget = {value}\n"));
+        assert!(
+            e.contains("budget") || e.contains("invalid type"),
+            "{value}: {e}"
+        );
+    }
+    // accepted: it reaches the allocator, and the fingerprint only when not the default
+    let fingerprint = |text: &str| Scenario::from_toml(text, "b", "b").unwrap().fingerprint();
+    let with = |b: &str| format!("{rov}\n[allocation]\nbudget = {b}\n");
+    let s = Scenario::from_toml(&with("3"), "b", "b").unwrap();
+    assert_eq!(s.vehicle.as_ref().unwrap().budget, 3);
+    assert_eq!(
+        s.vehicle
+            .as_ref()
+            .unwrap()
+            .allocator::<6>()
+            .unwrap()
+            .budget(),
+        3
+    );
+    assert_eq!(fingerprint(&with("36")), fingerprint(&rov));
+    assert_ne!(fingerprint(&with("3")), fingerprint(&rov));
     let bare = rov[..rov.find("[vehicle]").unwrap()].to_owned();
     refused(
         &format!("{bare}\n[allocation]\npriority = \"none\"\n"),

@@ -1,7 +1,8 @@
 //! The instruction-count mode (feature `icount`): each measured call runs once between two
 //! calls of [`icount_mark`], and `scripts/cortex-m.sh` counts the instructions QEMU executes
-//! between them in its single-step execution log (`-singlestep -d exec,nochain`: one log
-//! line per executed instruction, with its function's symbol). The calls (BENCHMARKS.md,
+//! between them in its log (`-d in_asm,exec,nochain`: each translation block's instructions
+//! when QEMU translates it, and a line, with its function's symbol, per execution of a
+//! block). The calls (BENCHMARKS.md,
 //! section 6):
 //!
 //! | marks | what |
@@ -32,6 +33,15 @@
 //!
 //! The cycles (6 → 9) and the SO(3) rejection terms (16 → 23) fly the seed scenario's law, the
 //! papers' (world); the PIL cycle (30 → 41) flies `pil_hexarotor`'s, at the reference.
+//!
+//! Then the worst cases (docs/vehicles.md, "Bounded time"), each call between a pair of marks
+//! 46 → 47, in the order the `WORST`, `WARM` and `SATURATED` lines name them:
+//!
+//! * every demand of `firmware_cases::demands`, solved cold with the default budget: the
+//!   hexarotor, the ROV, the spacecraft (`WORST <vehicle> <demands> <stopped> <most iterations>`);
+//! * each vehicle's saturating trajectory, warm-started (`WARM <vehicle> <ticks> <iterations>`);
+//! * `pil_hexarotor`'s whole cycle (`Cycle::on_frame`) on frames that saturate its rotors
+//!   (`SATURATED <cycles> <saturated allocations>`).
 
 use controller::{ErrorFrame, Trajectory as _};
 use core::hint::black_box;
@@ -198,6 +208,11 @@ pub fn run() -> bool {
     ok &= allocations();
     ok &= pil_cycle();
     ok &= at_the_reference();
+    #[cfg(feature = "worst-cases")]
+    {
+        ok &= worst_cases();
+        ok &= saturated_cycles();
+    }
     hprintln!("ICOUNT done {}", ok);
     ok
 }
@@ -414,5 +429,94 @@ fn pil_cycle() -> bool {
     let a = black_box(control.actuate(black_box(&wrench), &r_hat));
     icount_mark(41);
     ok &= a.allocation.u.iter().all(|x| x.is_finite());
+    ok
+}
+
+/// Every seeded demand of each vehicle, cold, then its saturating trajectory, warm (marks
+/// 46 → 47 around each allocation); true when every answer was finite.
+#[cfg(feature = "worst-cases")]
+fn worst_cases() -> bool {
+    use firmware_cases::demands;
+    let (Some(hex), Some(rov), Some(sc)) = (demands::hexarotor(), demands::rov(), demands::spacecraft()) else {
+        hprintln!("ERR icount - the demand sets' allocators do not build");
+        return false;
+    };
+    vehicle("hexarotor", &hex) & vehicle("rov", &rov) & vehicle("spacecraft", &sc)
+}
+
+#[cfg(feature = "worst-cases")]
+fn vehicle<const K: usize>(name: &str, alloc: &allocation::Allocator<f32, K>) -> bool {
+    use allocation::Status;
+    use firmware_cases::demands::{self, PER_KIND, Seeded, TRAJECTORY};
+    let mut rng = Seeded::new(demands::seed(name));
+    let (mut ok, mut stopped, mut most) = (true, 0, 0);
+    let n = demands::KINDS.len() * PER_KIND;
+    for i in 0..n {
+        let (d, bounds) = demands::demand(alloc, i, &mut rng);
+        let (a, d, bounds) = (black_box(alloc), black_box(d), black_box(bounds));
+        icount_mark(46);
+        let r = black_box(a.allocate_within(&d, &bounds));
+        icount_mark(47);
+        ok &= r.u.iter().all(|x| x.is_finite());
+        stopped += usize::from(r.status == Status::Stopped);
+        most = most.max(r.iterations);
+    }
+    hprintln!("WORST {} {} {} {}", name, n, stopped, most);
+    let bounds = alloc.bounds();
+    let (mut previous, mut iterations) = (None, 0);
+    for k in 0..TRAJECTORY {
+        let d = black_box(demands::trajectory(alloc, k));
+        let a = black_box(alloc);
+        icount_mark(46);
+        let r = black_box(a.allocate_from(&d, &bounds, previous.as_ref()));
+        icount_mark(47);
+        ok &= r.u.iter().all(|x| x.is_finite());
+        iterations += r.iterations;
+        previous = Some(r.u);
+    }
+    hprintln!("WARM {} {} {}", name, TRAJECTORY, iterations);
+    ok
+}
+
+/// `pil_hexarotor`'s whole cycle on frames that saturate its rotors: after a hover, the body
+/// is told it spins (the gyro) far from its position fix, so the law asks for more than the
+/// rotors give (marks 46 → 47 around each `Cycle::on_frame`); true when every command was
+/// finite and the allocations saturated.
+#[cfg(feature = "worst-cases")]
+fn saturated_cycles() -> bool {
+    use firmware_cycle::Cycle;
+    use serial_wire::Frame;
+    const CYCLES: usize = 40;
+    let Ok(mut cycle) = Cycle::from_bytes(PIL_CONFIG) else {
+        hprintln!("ERR icount - the PIL configuration does not build");
+        return false;
+    };
+    let hello = cycle.hello();
+    cycle.on_frame(&hello);
+    for k in 0..20 {
+        cycle.on_frame(&Frame::State(hover(k)));
+    }
+    let (mut ok, mut saturated) = (true, 0);
+    for k in 20..20 + CYCLES as u64 {
+        let mut f = hover(k);
+        if let Some(s) = f.samples.as_mut() {
+            s.gyro = [3.0, -2.0, 4.0];
+            s.position = Some([4.0, -3.0, 2.0]);
+        }
+        let frame = black_box(Frame::State(f));
+        icount_mark(46);
+        let answer = black_box(cycle.on_frame(black_box(&frame)));
+        icount_mark(47);
+        match answer {
+            Some(Frame::Command(cmd)) => {
+                ok &= cmd.tau.iter().all(|x| x.is_finite());
+                let status = cmd.allocation.as_ref().map_or(0, |a| a.status);
+                saturated += usize::from(status == 1 || status == 2);
+                ok &= status != 3;
+            }
+            _ => ok = false,
+        }
+    }
+    hprintln!("SATURATED {} {}", CYCLES, saturated);
     ok
 }

@@ -18,6 +18,8 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod demands;
+
 use controller::closed_loop::ClosedLoop;
 use controller::group::{MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;
