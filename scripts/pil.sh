@@ -8,7 +8,8 @@
 #
 # For each scenario (default: the seed on SO(3), se3_circle on SE(3), reject_se3 on SE(3)
 # with the disturbance observer and the integral, pil_hexarotor on SE(3) with sensors, the
-# equivariant filter, the disturbance observer and a vehicle's allocation, and pil_hexarotor
+# equivariant filter, the disturbance observer and a vehicle's allocation, pil_hexarotor_saturated
+# (its rotors at their limits for 1.5 s: the active set on board), and pil_hexarotor
 # moved 1 km from the world origin by `plant_sim move`, whose firmware carries the local origin):
 #  1. plant_sim pil-config writes the scenario's firmware configuration; the firmware is
 #     built with it (private toolchain of scripts/lib/cortex-m-toolchain.sh);
@@ -44,7 +45,7 @@ while (($#)); do
 	*) echo "usage: scripts/pil.sh [--scenario FILE]... [--out DIR]" >&2; exit 2 ;;
 	esac
 done
-((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_se3.toml" "$REPO/scenarios/pil_hexarotor.toml")
+((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_se3.toml" "$REPO/scenarios/pil_hexarotor.toml" "$REPO/scenarios/pil_hexarotor_saturated.toml")
 
 skip() {
 	echo "SKIPPED: $*"
@@ -178,6 +179,20 @@ sys.exit(0 if p1 <= 2 * p0 and a1 <= 2 * a0 else 1)
 PY
 ) || die "pil_hexarotor 1 km away tracks worse than twice at the origin: $why"
 	echo "PIL: PASS pil_hexarotor 1 km away: $why"
+fi
+
+# the saturated flight saturated on board: at least a second (500 cycles) of allocations
+# whose demand the rotors could not meet (alloc_status 1 or 2), none stopped by the budget
+if [[ -f $OUT/pil_hexarotor_saturated-pil/trajectory.csv ]]; then
+	why=$(python3 - "$OUT/pil_hexarotor_saturated-pil/trajectory.csv" <<'PY'
+import csv, sys
+s = [int(r["alloc_status"]) for r in csv.DictReader(open(sys.argv[1]))]
+n, stopped = sum(1 for x in s if x in (1, 2)), s.count(3)
+print(f"{n} of {len(s)} cycles saturated on board ({n * 0.002:.2f} s), {stopped} stopped by the budget")
+sys.exit(0 if n >= 500 and stopped == 0 else 1)
+PY
+) || die "pil_hexarotor_saturated did not saturate for a second on board: $why"
+	echo "PIL: PASS pil_hexarotor_saturated: $why"
 fi
 
 # the comparison can fail: the seed's PIL run against the f64 simulation (not the firmware's

@@ -68,7 +68,7 @@ fn vehicle(
                 0.0
             }
         });
-        demands.push((g.wrench(&u) * (1.5 + 2.5 * unit()), None));
+        demands.push((g.wrench(&u) * (1.5 + 2.5 * unit()), None, false));
     }
     // the saturating trajectory, warm: each actuator swept through 1.6 times its range
     let mut previous: Option<Commands<f64>> = None;
@@ -82,12 +82,12 @@ fn vehicle(
             mid + 1.6 * half * ((0.7 + 0.23 * j as f64) * t + j as f64).sin()
         });
         let d = g.wrench(&u);
-        demands.push((d, previous));
+        demands.push((d, previous, true));
         previous = Some(alloc.allocate_from(&d, &bounds, previous.as_ref()).u);
     }
     let mut times = [[Vec::new(), Vec::new()], [Vec::new(), Vec::new()]];
-    for (i, (d, prev)) in demands.iter().enumerate() {
-        let warm = usize::from(prev.is_some());
+    for (i, (d, prev, along)) in demands.iter().enumerate() {
+        let warm = usize::from(*along);
         let first = alloc.allocate_first_stage(d, &bounds, prev.as_ref());
         let full = alloc.allocate_from(d, &bounds, prev.as_ref());
         times[warm][0].push(time(|| {

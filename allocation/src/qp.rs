@@ -112,8 +112,9 @@ impl<T: RealField + Copy> Ortho<T> {
     }
 
     /// Orthogonalises the first `count` rows of `rows` over their first `n` entries, in
-    /// order, in the inner product weighted by `metric` when given (docs/maths.md, "Control
-    /// allocation"). A row whose remainder has `⟨v, v⟩ ≤ tau · scale` adds nothing.
+    /// order, in the inner product weighted by `metric` when given
+    /// (docs/maths.md, "Control allocation"). A row whose remainder has
+    /// `⟨v, v⟩ ≤ tau · scale` adds nothing.
     fn of(
         &mut self,
         rows: &Rows<T>,

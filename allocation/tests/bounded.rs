@@ -224,3 +224,57 @@ fn the_spacecraft_preset_is_the_scenarios_twelve_thrusters() {
     let d = SVector::<f64, 3>::from([2.9, -2.9, 1.5]);
     assert_eq!(a.allocate(&d).status, Status::Met);
 }
+
+/// Within reach the answer is the closed form computed as it always was: `B W⁻¹`, a Cholesky
+/// factorisation of `B W⁻¹ Bᵀ` and its solve, formed here afresh on every call, bit for bit
+/// (so runs whose allocation never leaves the closed form keep their bytes).
+#[test]
+fn within_reach_the_answer_is_the_former_closed_form_bit_for_bit() {
+    let mut rng = ChaCha8Rng::seed_from_u64(45);
+    let mut unit = move || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+    let weights = [1.0, 2.0, 0.5, 1.0, 3.0, 1.0, 1.0, 0.7];
+    let preferred = [0.5, -1.0, 0.0, 2.0, 0.0, 1.0, -3.0, 0.2];
+    let rovw = Allocator::new(*rov().geometry(), &weights, &preferred, Priority::Torque).unwrap();
+    let mut inside = 0;
+    let cases: [(Allocator<f64, 6>, &[f64], &[f64]); 3] = [
+        (hexarotor(), &[], &[]),
+        (rov(), &[], &[]),
+        (rovw, &weights, &preferred),
+    ];
+    for (alloc, given_w, given_up) in cases {
+        let g = alloc.geometry();
+        let b = g.effectiveness();
+        let (lo, hi) = g.bounds();
+        let m = g.count();
+        let top = given_w.iter().cloned().fold(1.0f64, f64::max);
+        let w = Commands::<f64>::from_fn(|j, _| given_w.get(j).map_or(1.0, |x| x / top));
+        let up = Commands::<f64>::from_fn(|j, _| {
+            given_up.get(j).map_or(0.0, |p| p.max(lo[j]).min(hi[j]))
+        });
+        for _ in 0..200 {
+            let u = Commands::<f64>::from_fn(|j, _| {
+                if j < m {
+                    lo[j] + (hi[j] - lo[j]) * (0.3 + 0.4 * unit())
+                } else {
+                    0.0
+                }
+            });
+            let d = g.wrench(&u);
+            let mut bw = *b;
+            for (j, mut c) in bw.column_iter_mut().enumerate() {
+                c /= w[j];
+            }
+            let ch = nalgebra::Cholesky::new(bw * b.transpose()).unwrap();
+            let former = up + bw.transpose() * ch.solve(&(d - b * up));
+            let a = alloc.allocate(&d);
+            if a.iterations == 0 {
+                inside += 1;
+                assert_eq!(a.status, Status::Met);
+                for j in 0..MAX_ACTUATORS {
+                    assert_eq!(a.u[j].to_bits(), former[j].to_bits(), "u[{j}]");
+                }
+            }
+        }
+    }
+    assert!(inside > 300, "{inside} demands within reach");
+}

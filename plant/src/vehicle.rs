@@ -396,10 +396,16 @@ pub struct VehicleReport {
     /// `‖demand − B u_cmd‖` over the rows.
     pub residual: Residual,
     /// The allocations the budget stopped before their optimum (`alloc_status` 3;
-    /// docs/vehicles.md, "Bounded time").
+    /// docs/vehicles.md, "Bounded time"). Written only when there were some, so a run none
+    /// stopped keeps the summary it wrote before the budget existed.
+    #[serde(skip_serializing_if = "is_zero")]
     pub allocation_stopped: usize,
     /// The failures, as the scenario gives them.
     pub failures: Vec<FailureReport>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// The allocation residual's statistics.

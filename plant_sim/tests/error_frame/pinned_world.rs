@@ -13,6 +13,14 @@
 //!
 //! (`scripts/compare-outputs.sh --world BASE NEW` compares every file, figures included, when
 //! both builds are at hand.)
+//!
+//! Eight lines were pinned again when the allocation's active set was rewritten (issue
+//! "Bounded time on the microcontroller"): `trajectory.csv` and `summary.json` of the four
+//! vehicle scenarios whose allocation leaves the closed form (`hexarotor_eqf`, `pil_hexarotor`,
+//! `rov_failure`, `spacecraft`). The same optima, reached by other arithmetic: against the
+//! build before the rewrite their columns differ by at most 9e-12 relative, and DAQP agrees
+//! with every row (scripts/daqp.sh). `hexarotor_eight`, whose allocation never leaves the
+//! closed form, kept its bytes.
 
 use crate::common::ok;
 use pair_tests::repo;
@@ -125,15 +133,20 @@ fn every_scenario_flown_with_error_frame_world_writes_what_it_wrote_before_the_k
         "{DIGESTS} has {} lines",
         expected.len()
     );
+    let mut changed = Vec::new();
     for e in &expected {
         let name = e.split(' ').next().unwrap();
         let g = got
             .iter()
             .find(|g| g.split(' ').next() == Some(name))
             .unwrap_or_else(|| panic!("{name}: pinned, and no longer written"));
-        assert_eq!(
-            g, e,
-            "flown with error_frame = \"world\", this output changed"
-        );
+        if g != e {
+            changed.push(format!("{e} is now {g}"));
+        }
     }
+    assert!(
+        changed.is_empty(),
+        "flown with error_frame = \"world\", these outputs changed:\n{}",
+        changed.join("\n")
+    );
 }
