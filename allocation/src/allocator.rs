@@ -380,10 +380,8 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         if split && through >= 2 {
             let mut force: Rows<T> = [[T::zero(); MAX_ACTUATORS]; MAX_EQ];
             let mut f = [T::zero(); MAX_EQ];
-            for r in 0..3 {
-                force[r] = all[r + 3];
-                f[r] = wanted[r + 3];
-            }
+            force[..3].copy_from_slice(&all[3..6]);
+            f[..3].copy_from_slice(&wanted[3..6]);
             let objective = Objective::LeastSquares {
                 a: &force,
                 b: &f,

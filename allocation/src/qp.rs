@@ -10,6 +10,10 @@
 //! Gram–Schmidt without normalisation: no square root, no matrix larger than the free
 //! actuators by the stage's rows (at most 6).
 
+// The factorisation's loops index several short arrays at once (rows, coefficients, the free
+// actuators' map); written as index loops they read as the formulas of docs/maths.md.
+#![allow(clippy::needless_range_loop)]
+
 use crate::{Commands, MAX_ACTUATORS};
 use nalgebra::RealField;
 
