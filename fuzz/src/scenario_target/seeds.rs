@@ -60,6 +60,7 @@ max = 0.5
 weights = [1.0, 2.0, 1.0, 0.5]
 preferred = [0.0, 0.1, 0.0, 0.0]
 priority = "none"
+budget = 2
 "#,
     r#"group = "se3"
 law = "eqt"
