@@ -8,7 +8,7 @@
 #    its trajectory.csv re-solved by DAQP from demand_i and the scenario's own actuator table
 #    (scripts/daqp/resolve.py): u_cmd within 1e-6 of the largest bound, and the last stage's
 #    optimality conditions met to 1e-6. A planted 1e-3 change of one command must fail.
-# 2. The peer benchmark: `cargo run --release -p allocation --example peer` times eqtrack on
+# 2. The peer benchmark: `cargo run -p allocation --example peer` times eqtrack on
 #    saturated hexarotor and ROV problems (cold, and warm along a saturating trajectory), and
 #    DAQP solves the same problems (scripts/daqp/bench.py): the torque stage alone and the full
 #    hierarchy, DAQP's own solve_time beside eqtrack's median, in the same run.
@@ -57,7 +57,8 @@ fi
 echo "daqp: a command moved by 1e-3 of the largest bound is caught: $(tail -1 "$OUT/perturbed.log")"
 
 # 2. the peer benchmark
-(cd "$REPO" && cargo run --release --locked -q -p allocation --example peer -- "$OUT") \
+# the workspace's dev profile (opt-level 2): `cargo test` has built the example already
+(cd "$REPO" && cargo run --locked -q -p allocation --example peer -- "$OUT") \
 	>"$OUT/eqtrack.jsonl" 2>"$OUT/peer.log" || die "the peer example failed: $(tail -3 "$OUT/peer.log")"
 "$VENV/bin/python" "$REPO/scripts/daqp/bench.py" "$OUT/problems.csv" "$OUT/eqtrack.jsonl" |
 	tee "$OUT/bench.txt" || die "DAQP and eqtrack answer the benchmark's problems differently"
