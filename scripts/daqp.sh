@@ -27,14 +27,9 @@ die() {
 mkdir -p "$CACHE" "$OUT"
 [[ -f $CACHE/.gitignore ]] || printf '*\n' >"$CACHE/.gitignore"
 
-if [[ $(cat "$VENV/.pinned" 2>/dev/null) != "$PACKAGES" ]]; then
-	rm -rf "$VENV"
-	python3 -m venv "$VENV" >"$OUT/venv.log" 2>&1 || { echo "SKIPPED: python3 -m venv failed: $(tail -1 "$OUT/venv.log")"; exit 0; }
-	# shellcheck disable=SC2086
-	"$VENV/bin/pip" install -q $PACKAGES >"$OUT/pip.log" 2>&1 ||
-		{ echo "SKIPPED: pip could not install $PACKAGES: $(grep -m1 -E 'ERROR' "$OUT/pip.log" || tail -1 "$OUT/pip.log")"; exit 0; }
-	echo "$PACKAGES" >"$VENV/.pinned"
-fi
+# shellcheck source=scripts/lib/venv.sh
+source "$REPO/scripts/lib/venv.sh"
+pinned_venv "$VENV" "$OUT" "$PACKAGES"
 "$VENV/bin/python" -c "import daqp, numpy" || die "$PACKAGES installed but do not import"
 
 TARGET=$(cd "$REPO" && cargo metadata --format-version 1 --no-deps |

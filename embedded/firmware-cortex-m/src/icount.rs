@@ -305,21 +305,27 @@ fn hover(k: u64) -> serial_wire::StateFrame {
     }
 }
 
+/// `pil_hexarotor`'s cycle, running: greeted, then 20 hovering frames, so that the estimator
+/// has started and the observer is anchored (`None`: the configuration does not build).
+fn running_cycle() -> Option<firmware_cycle::Cycle> {
+    let mut cycle = firmware_cycle::Cycle::from_bytes(PIL_CONFIG).ok()?;
+    let hello = cycle.hello();
+    cycle.on_frame(&hello);
+    for k in 0..20 {
+        cycle.on_frame(&serial_wire::Frame::State(hover(k)));
+    }
+    Some(cycle)
+}
+
 /// One processor-in-the-loop cycle of `pil_hexarotor` and its parts (marks 30 to 41); true
 /// when every answer was finite.
 fn pil_cycle() -> bool {
-    use firmware_cycle::{Config, Cycle};
+    use firmware_cycle::Config;
     use serial_wire::{Deframer, Frame, MAX_ENCODED, encode};
-    let (Ok(config), Ok(mut cycle)) = (Config::from_bytes(PIL_CONFIG), Cycle::from_bytes(PIL_CONFIG)) else {
+    let (Ok(config), Some(cycle)) = (Config::from_bytes(PIL_CONFIG), running_cycle()) else {
         hprintln!("ERR icount - the PIL configuration does not build");
         return false;
     };
-    let hello = cycle.hello();
-    cycle.on_frame(&hello);
-    // a running cycle: the estimator started, the observer anchored
-    for k in 0..20 {
-        cycle.on_frame(&Frame::State(hover(k)));
-    }
     let mut bytes = [0u8; MAX_ENCODED];
     let Ok(n) = encode(&Frame::State(hover(20)), &mut bytes) else {
         hprintln!("ERR icount - the state frame does not encode");
@@ -484,18 +490,12 @@ fn vehicle<const K: usize>(name: &str, alloc: &allocation::Allocator<f32, K>) ->
 /// finite and the allocations saturated.
 #[cfg(feature = "worst-cases")]
 fn saturated_cycles() -> bool {
-    use firmware_cycle::Cycle;
     use serial_wire::Frame;
     const CYCLES: usize = 40;
-    let Ok(mut cycle) = Cycle::from_bytes(PIL_CONFIG) else {
+    let Some(mut cycle) = running_cycle() else {
         hprintln!("ERR icount - the PIL configuration does not build");
         return false;
     };
-    let hello = cycle.hello();
-    cycle.on_frame(&hello);
-    for k in 0..20 {
-        cycle.on_frame(&Frame::State(hover(k)));
-    }
     let (mut ok, mut saturated) = (true, 0);
     for k in 20..20 + CYCLES as u64 {
         let mut f = hover(k);
