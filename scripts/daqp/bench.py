@@ -29,10 +29,14 @@ def nums(s):
     return np.array([float(x) for x in s.split()])
 
 
-def problem(b, lo, hi, demand, levels):
-    """The hierarchical programme over x = [u, s (6), r (m)]: bounds and the residual
-    definitions hard, then `levels` (lists of residual indices: 0-5 the wrench's, 6+ r's)."""
+def problem(b, lo, hi, demand, levels, sw=None, up=None):
+    """The hierarchical programme over x = [u, s (k), r (m)]: the bounds and the residual
+    definitions s = B u - demand, r = sqrt(w) (u - up) hard, then `levels` (lists of residual
+    indices: 0 to k-1 the wrench's, k and on r's) soft, in order. Default w = 1, up = 0.
+    scripts/daqp/resolve.py poses each trajectory row with it too."""
     k, m = b.shape
+    sw = np.ones(m) if sw is None else sw
+    up = np.zeros(m) if up is None else up
     n = m + k + m
     rows, val, sense = [], [], []
     for i in range(k):
@@ -41,8 +45,8 @@ def problem(b, lo, hi, demand, levels):
         rows.append(r), val.append(-demand[i]), sense.append(5)
     for j in range(m):
         r = np.zeros(n)
-        r[j], r[m + k + j] = -1.0, 1.0
-        rows.append(r), val.append(0.0), sense.append(5)
+        r[j], r[m + k + j] = -sw[j], 1.0
+        rows.append(r), val.append(-sw[j] * up[j]), sense.append(5)
     breaks = [n + len(rows)]
     for level in levels:
         for i in level:

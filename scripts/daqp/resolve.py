@@ -28,6 +28,8 @@ import tomllib
 import daqp
 import numpy as np
 
+from bench import problem, solve
+
 
 def vehicle(path):
     with open(path, "rb") as f:
@@ -71,48 +73,14 @@ def bounds(veh, t, previous):
 
 
 def daqp_solve(veh, demand, lo, hi):
-    """The prioritised allocation as DAQP's hierarchical programme; (u, solve_time)."""
-    b, k, m = veh["b"], veh["k"], veh["m"]
-    up = np.clip(veh["up"], lo, hi)
-    sw = np.sqrt(veh["w"])
-    groups = [range(0, 3), range(3, 6)] if veh["torque_first"] else [range(0, k)]
-    n = m + k + m  # u, the wrench residuals, the weighted distance to u_pref
-    rows, upper, lower, sense = [], [], [], []
-
-    def row(r, value, s):
-        rows.append(r)
-        upper.append(value)
-        lower.append(value)
-        sense.append(s)
-
-    for i in range(k):  # s_i - B_i u = -demand_i
-        r = np.zeros(n)
-        r[:m], r[m + i] = -b[i], 1.0
-        row(r, -demand[i], 5)
-    for j in range(m):  # r_j - sqrt(w_j) u_j = -sqrt(w_j) up_j
-        r = np.zeros(n)
-        r[j], r[m + k + j] = -sw[j], 1.0
-        row(r, -sw[j] * up[j], 5)
-    breaks = [n + len(rows)]
-    for g in groups:
-        for i in g:
-            r = np.zeros(n)
-            r[m + i] = 1.0
-            row(r, 0.0, 0)
-        breaks.append(n + len(rows))
-    for j in range(m):
-        r = np.zeros(n)
-        r[m + k + j] = 1.0
-        row(r, 0.0, 0)
-    breaks.append(n + len(rows))
-    big = 1e30
-    bu = np.concatenate([hi, np.full(n - m, big), upper])
-    bl = np.concatenate([lo, np.full(n - m, -big), lower])
-    x, _, flag, info = daqp.solve(None, None, np.array(rows), bu, bl, np.array([0] * n + sense, dtype=np.int32),
-                                  break_points=np.array(breaks, dtype=np.int32))
-    if flag < 0:
-        raise RuntimeError(f"DAQP failed (exit flag {flag})")
-    return x[:m], info["solve_time"]
+    """The prioritised allocation as DAQP's hierarchical programme (bench.problem); (u,
+    solve_time)."""
+    k, m = veh["k"], veh["m"]
+    groups = [[0, 1, 2], [3, 4, 5]] if veh["torque_first"] else [list(range(k))]
+    p = problem(veh["b"], lo, hi, demand, groups + [list(range(k, k + m))],
+                sw=np.sqrt(veh["w"]), up=np.clip(veh["up"], lo, hi))
+    x, t = solve(p)
+    return x[:m], t
 
 
 def kkt(veh, u, lo, hi):
