@@ -241,3 +241,93 @@ fn frame_sizes_are_what_the_docs_say() {
     .collect();
     assert_eq!(sizes, vec![82, 32, 222, 327]);
 }
+
+/// `version | message | crc32` COBS-encoded by the `cobs` crate, with the closing zero: the
+/// reference the frames' own encoder must equal byte for byte.
+fn reference_encoding(version: u8, message: &[u8]) -> Vec<u8> {
+    let mut raw = vec![version];
+    raw.extend_from_slice(message);
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(&raw);
+    raw.extend_from_slice(&crc.to_le_bytes());
+    let mut out = vec![0u8; cobs::max_encoding_length(raw.len())];
+    let n = cobs::encode(&raw, &mut out);
+    out.truncate(n);
+    out.push(0);
+    out
+}
+
+#[test]
+fn the_encoding_is_the_reference_cobs_and_crc() {
+    assert_eq!(
+        MAX_ENCODED,
+        cobs::max_encoding_length(serial_wire::MAX_FRAME) + 1
+    );
+    for f in all_frames() {
+        let message = postcard::to_allocvec(&f).unwrap();
+        assert_eq!(
+            encoded(&f),
+            reference_encoding(SERIAL_VERSION, &message),
+            "{f:?}"
+        );
+    }
+    // blocks of exactly 254 non-zero bytes, at the end and inside, and the largest frame
+    for len in [252, 253, 254, 255, 379] {
+        for zero_at in [None, Some(0), Some(len / 2), Some(len - 1)] {
+            let mut message = vec![0x5a; len];
+            if let Some(z) = zero_at {
+                message[z] = 0;
+            }
+            let mut out = [0u8; MAX_ENCODED];
+            let n = serial_wire::encode_raw(7, &message, &mut out).unwrap();
+            assert_eq!(
+                out[..n].to_vec(),
+                reference_encoding(7, &message),
+                "{len} {zero_at:?}"
+            );
+            // and it decodes to the same bytes (as another version, with a valid CRC)
+            assert_eq!(decode(&out[..n - 1]), Err(FrameError::Version(7)));
+        }
+    }
+    let mut out = [0u8; MAX_ENCODED];
+    assert_eq!(
+        serial_wire::encode_raw(7, &[1; 380], &mut out),
+        Err(FrameError::TooLong)
+    );
+}
+
+proptest! {
+    /// Any message up to the largest: the reference encoding byte for byte, and what the
+    /// reference encodes the deframer takes back (checked as far as the version byte).
+    #[test]
+    fn any_message_is_the_reference_encoding(
+        message in proptest::collection::vec(
+            prop_oneof![Just(0u8), 1u8..=255, Just(0xff)], 0..=379),
+    ) {
+        let reference = reference_encoding(9, &message);
+        let mut out = [0u8; MAX_ENCODED];
+        let n = serial_wire::encode_raw(9, &message, &mut out).unwrap();
+        prop_assert_eq!(&out[..n], &reference[..]);
+        let mut d = Deframer::new();
+        let got: Vec<_> = reference.iter().filter_map(|b| d.push(*b)).collect();
+        prop_assert_eq!(got, vec![Err(FrameError::Version(9))]);
+    }
+}
+
+/// A candidate is refused the moment it decodes to more than a frame can hold, whatever its
+/// encoding, and counted once.
+#[test]
+fn a_candidate_past_the_largest_frame_is_dropped() {
+    let mut d = Deframer::new();
+    // 0x01 codes decode to zeros: 2 × MAX_FRAME codes are MAX_FRAME zeros too many
+    for _ in 0..2 * serial_wire::MAX_FRAME {
+        assert_eq!(d.push(0x01), None);
+    }
+    assert_eq!(d.push(0), Some(Err(FrameError::TooLong)));
+    assert_eq!(d.too_long, 1);
+    // an empty candidate between two zeros is nothing
+    assert_eq!(d.push(0), None);
+    let good = encoded(&Frame::Bye);
+    let got: Vec<_> = good.iter().filter_map(|b| d.push(*b)).collect();
+    assert_eq!(got, vec![Ok(Frame::Bye)]);
+    assert_eq!(d.too_long, 1);
+}

@@ -1,7 +1,9 @@
 //! The word-aligned copies and clears LLVM emits for moves of matrices and frames
 //! (`__aeabi_memcpy4`, `__aeabi_memcpy8`, `__aeabi_memclr4`, `__aeabi_memclr8`), several
 //! words per `ldm`/`stm` instead of `compiler_builtins`' one word per loop iteration
-//! (BENCHMARKS.md, section 17: its copies were an eighth of a processor-in-the-loop cycle). `compiler_builtins` defines both symbols weak on ARM, so these
+//! (BENCHMARKS.md, section 17: its copies were an eighth of a processor-in-the-loop cycle),
+//! and the unaligned copy (`__aeabi_memcpy`) a word at a time instead of a byte (section 22:
+//! the decoded frame's short vectors). `compiler_builtins` defines these symbols weak on ARM, so these
 //! strong definitions replace them in this binary; everything else keeps the builtins. Each
 //! keeps the ABI's contract (r0 the destination, r1 the source or the length, r2 the length;
 //! only r0 to r3, r12 and the flags clobbered; the callee-saved r4 to r9 it uses pushed and
@@ -108,3 +110,40 @@ global_asm!(
     ".size __aeabi_memclr4, . - __aeabi_memclr4",
     ".size __aeabi_memclr8, . - __aeabi_memclr8",
 );
+
+// __aeabi_memcpy(dest: r0, src: r1, n: r2), no alignment promised: LLVM calls it for moves
+// it starts at an odd address, such as a frame's short vectors copied with their padding
+// right after their length byte (27 bytes from one byte past a word). When both addresses are
+// word aligned, the aligned copy above does it. Otherwise whole words with `ldr`/`str`, which
+// the Cortex-M4 performs at any address (as LLVM's own code for this target assumes; a
+// firmware that sets CCR.UNALIGN_TRP must not link this file), then the last 0 to 3 bytes:
+// the same bytes as `compiler_builtins`' byte-wise `memcpy`, at a quarter of the instructions.
+global_asm!(
+    ".section .text.__aeabi_memcpy,\"ax\",%progbits",
+    ".global __aeabi_memcpy",
+    ".type __aeabi_memcpy,%function",
+    ".thumb_func",
+    "__aeabi_memcpy:",
+    "    orr r3, r0, r1",
+    "    lsls r3, r3, #30",
+    "    beq.w __aeabi_memcpy4",
+    "    subs r2, r2, #4",
+    "    blo 2f",
+    "1:",
+    "    ldr r3, [r1], #4",
+    "    subs r2, r2, #4",
+    "    str r3, [r0], #4",
+    "    bhs 1b",
+    "2:",
+    "    adds r2, r2, #4",
+    "    beq 4f",
+    "3:",
+    "    ldrb r3, [r1], #1",
+    "    subs r2, r2, #1",
+    "    strb r3, [r0], #1",
+    "    bne 3b",
+    "4:",
+    "    bx lr",
+    ".size __aeabi_memcpy, . - __aeabi_memcpy",
+);
+
