@@ -93,6 +93,12 @@ elif ((rc != 0)); then
 	die "the firmware run failed: exit code $rc (1 = the firmware reported a failure or panicked)"
 fi
 grep -q '^END$' "$OUT/firmware.out" || die "the firmware output has no END line ($OUT/firmware.out)"
+# the FPU's square root against libm's (hw_sqrt; the firmware's sqrt_check): over a million
+# inputs, none differs
+sqrt_line=$(grep '^SQRT ' "$OUT/firmware.out") || die "the firmware output has no SQRT line"
+echo "square root (VSQRT.F32 against libm's sqrtf): $sqrt_line"
+[[ $sqrt_line =~ ^SQRT\ ([0-9]+)\ inputs,\ 0\ differ$ ]] && ((BASH_REMATCH[1] >= 1000000)) ||
+	die "the FPU's square root differs from libm's: $sqrt_line"
 
 # --- 3. host: the same report on x86_64 --------------------------------------------------------
 

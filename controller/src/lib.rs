@@ -54,9 +54,12 @@ pub use reference::{
 /// The scalar type: a real field that is `Copy` (`f32`, `f64`).
 ///
 /// With nalgebra's `libm-force` feature the transcendental functions are libm's on every
-/// target, so host tests run the same maths as a microcontroller.
-pub trait Real: nalgebra::RealField + Copy {}
-impl<T: nalgebra::RealField + Copy> Real for T {}
+/// target, so host tests run the same maths as a microcontroller. The cycle's square roots go
+/// through [`hw_sqrt`]: the FPU's on a Cortex-M4F, the same bits as libm's.
+pub trait Real: nalgebra::RealField + Copy + 'static {}
+impl<T: nalgebra::RealField + Copy + 'static> Real for T {}
+
+pub use hw_sqrt;
 
 /// Converts an `f64` constant into the scalar type.
 #[inline(always)]

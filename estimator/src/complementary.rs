@@ -481,10 +481,10 @@ pub(crate) fn first_attitude<T: Real>(
 /// steps (docs/maths.md, "The complementary filter on SO(3)").
 pub(crate) fn orthonormalise<T: Real>(r: &Matrix3<T>) -> Matrix3<T> {
     let c0 = r.column(0).into_owned();
-    let c0 = c0 / c0.norm();
+    let c0 = c0 / controller::hw_sqrt::norm(&c0);
     let c1 = r.column(1).into_owned();
     let c1 = c1 - c0 * c0.dot(&c1);
-    let c1 = c1 / c1.norm();
+    let c1 = c1 / controller::hw_sqrt::norm(&c1);
     Matrix3::from_columns(&[c0, c1, c0.cross(&c1)])
 }
 

@@ -245,7 +245,7 @@ fn all_finite<T: controller::Real, const R: usize>(v: &nalgebra::SVector<T, R>) 
 /// A sample's direction `y/|y|` and length `|y|`, or `None` when it has a non-finite entry,
 /// its length overflows, or it is shorter than [`MIN_DIRECTION_NORM`].
 fn direction<T: controller::Real>(y: &nalgebra::Vector3<T>) -> Option<(nalgebra::Vector3<T>, T)> {
-    let n = y.norm();
+    let n = controller::hw_sqrt::norm(y);
     (all_finite(y) && n.is_finite() && n >= controller::real(MIN_DIRECTION_NORM))
         .then(|| (y / n, n))
 }

@@ -348,7 +348,7 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
         let n = self.attitude.config().count().saturating_sub(1);
         let mut y = usable(directions, n, self.attitude.faults_mut());
         let g: T = real(GRAVITY);
-        let accel_ok = all_finite(accel) && accel.norm().is_finite();
+        let accel_ok = all_finite(accel) && controller::hw_sqrt::norm(accel).is_finite();
         if !accel_ok {
             self.attitude.faults_mut().accel += 1;
         } else if let Some((up, norm)) = direction(accel) {

@@ -19,14 +19,14 @@ pub fn triad<T: Real>(
         if !all_finite(a) || !all_finite(b) {
             return None;
         }
-        let (na, nb) = (a.norm(), b.norm());
+        let (na, nb) = (controller::hw_sqrt::norm(a), controller::hw_sqrt::norm(b));
         let tiny: T = real(1e-12);
         if na <= tiny || nb <= tiny {
             return None;
         }
         let t1 = a / na;
         let c = a.cross(b);
-        let nc = c.norm();
+        let nc = controller::hw_sqrt::norm(&c);
         if nc <= na * nb * real(1e-6) {
             return None;
         }

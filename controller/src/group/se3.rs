@@ -94,7 +94,7 @@ impl MatrixLieGroup<4, 6> for Se3 {
                 + theta2 * theta2 / real(30240.0)
                 + theta2 * theta2 * theta2 / real(1209600.0)
         } else {
-            let theta = theta2.sqrt();
+            let theta = hw_sqrt::sqrt(theta2);
             let half = theta * real(0.5);
             (T::one() - half * crate::trig::cos(half) / crate::trig::sin(half)) / theta2
         };

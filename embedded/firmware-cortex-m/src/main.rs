@@ -7,7 +7,9 @@
 //!   0.5 s for 2 s of simulated time, then `DONE <finite>`;
 //! * `STACK <what> <bytes>` lines: the stack used by one law evaluation (SO(3), SE(3)), by
 //!   one closed-loop cycle and by the whole report, measured by painting the stack (see
-//!   [`stack`]); then `END`.
+//!   [`stack`]);
+//! * `SQRT <n> inputs, <k> differ`: the FPU's square root (`hw_sqrt::sqrtf`, `VSQRT.F32`)
+//!   against libm's `sqrtf` over `n` inputs (see [`sqrt_check`]); then `END`.
 //!
 //! It exits with `EXIT_SUCCESS` when every number is finite and every measurement worked,
 //! `EXIT_FAILURE` otherwise, and on panic. `scripts/cortex-m.sh` builds it, runs it and
@@ -61,8 +63,59 @@ fn run() -> bool {
             false
         }
     };
+    let sqrt_ok = sqrt_check(&mut out);
     let _ = writeln!(out, "END");
-    stack_ok && report_ok && report_stack_ok
+    stack_ok && report_ok && report_stack_ok && sqrt_ok
+}
+
+/// Holds the FPU's square root to libm's correctly rounded `sqrtf`: the same bits for every
+/// input that is not a NaN, a NaN for a NaN. The inputs: the special values (±0, ±∞, NaNs of
+/// both signs, the subnormals' ends, the normals' ends, negatives), 2²⁰ bit patterns spread
+/// over all 2³² by a multiplicative hash (both signs, every exponent, NaNs among them), and
+/// 2¹⁶ subnormals. Prints `SQRT <n> inputs, <k> differ` (and the first that differs); true
+/// when none does.
+fn sqrt_check(out: &mut hio::HostStream) -> bool {
+    const SPECIAL: [u32; 14] = [
+        0x0000_0000,
+        0x8000_0000,
+        0x7f80_0000,
+        0xff80_0000,
+        0x7fc0_0000,
+        0xffc0_0000,
+        0x7f80_0001,
+        0x0000_0001,
+        0x007f_ffff,
+        0x0080_0000,
+        0x7f7f_ffff,
+        0x3f80_0000,
+        0xbf80_0000,
+        0x8000_0001,
+    ];
+    let hashed = (0u32..1 << 20).map(|i| i.wrapping_mul(0x9e37_79b1));
+    let subnormal = (0u32..1 << 16).map(|i| i << 7 | 0x55);
+    let (mut n, mut differ) = (0u32, 0u32);
+    for bits in SPECIAL.into_iter().chain(hashed).chain(subnormal) {
+        let x = f32::from_bits(bits);
+        let (a, b) = (controller::hw_sqrt::sqrtf(x), libm::sqrtf(x));
+        let same = if b.is_nan() {
+            a.is_nan()
+        } else {
+            a.to_bits() == b.to_bits()
+        };
+        n += 1;
+        if !same {
+            if differ == 0 {
+                let _ = writeln!(
+                    out,
+                    "ERR sqrt of {bits:#010x}: {:#010x} against libm's {:#010x}",
+                    a.to_bits(),
+                    b.to_bits()
+                );
+            }
+            differ += 1;
+        }
+    }
+    writeln!(out, "SQRT {n} inputs, {differ} differ").is_ok() && differ == 0 && n > 1_000_000
 }
 
 /// Prints `STACK so3_compute`, `STACK se3_compute` and `STACK loop_step` lines: the bytes of

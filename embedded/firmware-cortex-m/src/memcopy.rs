@@ -146,4 +146,3 @@ global_asm!(
     "    bx lr",
     ".size __aeabi_memcpy, . - __aeabi_memcpy",
 );
-
