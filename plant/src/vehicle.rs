@@ -12,7 +12,7 @@ use controller::group::MatrixLieGroup;
 use controller::integrator::RigidBody;
 use nalgebra::{Matrix3, SMatrix, SVector};
 use scenario::Scenario;
-use scenario::vehicle::FailureSpec;
+use scenario::vehicle::{FailureKind, FailureSpec};
 use serde::Serialize;
 
 /// What the world does to the body: gravity and buoyancy (known to the controller, which
@@ -73,6 +73,9 @@ pub struct Actuators<const M: usize> {
     started: bool,
     /// Failed actuators: their stuck values.
     stuck: [Option<f64>; MAX_ACTUATORS],
+    /// Each actuator's effectiveness: its thrust is its output times this (1 until a loss of
+    /// effectiveness; `x × 1` is `x` exactly, so a healthy run's numbers are unchanged).
+    factor: Commands<f64>,
 }
 
 impl<const M: usize> Actuators<M> {
@@ -85,6 +88,15 @@ impl<const M: usize> Actuators<M> {
             command: Commands::zeros(),
             started: false,
             stuck: [None; MAX_ACTUATORS],
+            factor: Commands::from_element(1.0),
+        }
+    }
+
+    /// Actuator `j` loses effectiveness from now on: its thrust becomes `factor` times its
+    /// output, which still follows its command.
+    pub fn lose(&mut self, j: usize, factor: f64) {
+        if j < MAX_ACTUATORS {
+            self.factor[j] = factor;
         }
     }
 
@@ -128,9 +140,16 @@ impl<const M: usize> Actuators<M> {
         &self.output
     }
 
-    /// The actuators' wrench `B u(s)`, `s` seconds into the period.
+    /// The thrust the actuators produce at the start of the period: the output times each
+    /// actuator's effectiveness.
+    pub fn produced(&self) -> Commands<f64> {
+        self.output.component_mul(&self.factor)
+    }
+
+    /// The actuators' wrench `B (f ∘ u(s))`, `s` seconds into the period (`f` each
+    /// actuator's effectiveness).
     pub fn wrench_at(&self, s: f64) -> SVector<f64, M> {
-        self.b * self.output_at(s)
+        self.b * self.output_at(s).component_mul(&self.factor)
     }
 
     /// Ends a period of length `h`: the output moves on to `u(t_k + h)`.
@@ -220,14 +239,20 @@ impl<const M: usize> VehicleRun<M> {
     }
 
     /// The failures due at `t_k` (from the first tick `t_k ≥ t − h/2`): the plant's actuator
-    /// sticks, and the controller is told when the failure says `reconfigure`.
+    /// sticks, dies (stuck at 0) or loses effectiveness, and the controller is told when the
+    /// failure says `reconfigure`.
     pub fn failures_at(&mut self, t_k: f64) {
         while let Some(f) = self.failures.get(self.next_failure) {
             if !f.active(t_k, self.period) {
                 break;
             }
-            self.actuators.fail(f.actuator, f.value);
-            self.failed[f.actuator] = true;
+            match f.kind {
+                FailureKind::Stuck | FailureKind::Dead => {
+                    self.actuators.fail(f.actuator, f.value);
+                    self.failed[f.actuator] = true;
+                }
+                FailureKind::Effectiveness { factor } => self.actuators.lose(f.actuator, factor),
+            }
             if f.reconfigure {
                 self.control.fail(f.actuator, f.value);
             }
@@ -340,7 +365,7 @@ where
             .step_actuated(&q_hat, &v_hat, |plant, wrench, h| {
                 let a = run.control.actuate(wrench, &r_hat);
                 run.actuators.command(&a.allocation.u);
-                let u = *run.actuators.output();
+                let u = run.actuators.produced();
                 step_in_world::<G, N, M>(
                     plant,
                     &run.environment,
@@ -361,7 +386,7 @@ where
         };
         // what the plant holds at the next tick, for its accelerometer
         let r = G::rotation(sim.plant.configuration());
-        held = run.wrench_of(run.actuators.output())
+        held = run.wrench_of(&run.actuators.produced())
             + run.environment.wrench(&r, &sim.plant.velocity())
             + s.disturbance_wrench::<M>(k, &r);
         let c = sim.controller.config();
@@ -424,8 +449,15 @@ pub struct FailureReport {
     pub actuator: usize,
     /// When (s).
     pub t: f64,
-    /// The stuck value.
+    /// How it failed, when not stuck (`"dead"`, `"effectiveness"`; absent: stuck, as before
+    /// the kinds).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub kind: Option<&'static str>,
+    /// The stuck value (0 when dead).
     pub value: f64,
+    /// A loss of effectiveness's factor.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub factor: Option<f64>,
     /// Whether the allocator was told.
     pub reconfigure: bool,
 }
@@ -468,7 +500,12 @@ impl VehicleReport {
                 .map(|f| FailureReport {
                     actuator: f.actuator,
                     t: f.t,
+                    kind: (f.kind != FailureKind::Stuck).then(|| f.kind.name()),
                     value: f.value,
+                    factor: match f.kind {
+                        FailureKind::Effectiveness { factor } => Some(factor),
+                        _ => None,
+                    },
                     reconfigure: f.reconfigure,
                 })
                 .collect(),

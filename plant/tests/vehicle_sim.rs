@@ -133,3 +133,84 @@ fn losing_a_thruster_with_reconfiguration_recovers_and_without_it_does_not() {
         "rov_failure: error before the failure {before:.3e}; at the end {after:.3e} reconfigured, {blind_after:.3e} not"
     );
 }
+
+/// The failure kinds in the plant (issue "Actuator failures found, not announced", part 1): a
+/// dead thruster is one stuck at 0, byte for byte; a loss of effectiveness leaves the thruster
+/// following its command and produces `factor` times its output, so the unannounced ROV drifts
+/// less than with the thruster dead, and more than healthy.
+#[test]
+fn a_dead_thruster_is_stuck_at_zero_and_a_weak_one_produces_its_factor() {
+    use scenario::vehicle::FailureKind;
+    let s = scenario("rov_failure");
+    let dir = std::env::temp_dir().join(format!("eqtrack-failure-kinds-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = |t: &SimulatedTrajectory| {
+        let path = dir.join("trajectory.csv");
+        write_trajectory_csv(t, &path).unwrap();
+        std::fs::read(&path).unwrap()
+    };
+    let (_, stuck_after, stuck) = before_and_after(&s);
+    let mut dead = s.clone();
+    dead.vehicle.as_mut().unwrap().failures[0].kind = FailureKind::Dead;
+    let (_, dead_after, dead_run) = before_and_after(&dead);
+    assert_eq!(
+        csv(&dead_run),
+        csv(&stuck),
+        "dead is stuck at 0, byte for byte"
+    );
+    assert_eq!(dead_after, stuck_after);
+
+    let blind = |kind: FailureKind| {
+        let mut b = s.clone();
+        let f = &mut b.vehicle.as_mut().unwrap().failures[0];
+        f.kind = kind;
+        f.reconfigure = false;
+        before_and_after(&b)
+    };
+    let (_, dead_blind, _) = blind(FailureKind::Dead);
+    let (_, weak_blind, weak) = blind(FailureKind::Effectiveness { factor: 0.5 });
+    let mut healthy = s.clone();
+    healthy.vehicle.as_mut().unwrap().failures.clear();
+    let (_, healthy_after, _) =
+        before_and_after_at(&healthy, s.vehicle.as_ref().unwrap().failures[0].t);
+    assert!(
+        healthy_after < weak_blind && weak_blind < dead_blind,
+        "healthy {healthy_after:.3e} < half as effective {weak_blind:.3e} < dead {dead_blind:.3e}"
+    );
+    // the weak thruster follows its command, and produces half of its output
+    let j = s.vehicle.as_ref().unwrap().failures[0].actuator;
+    let t_fail = s.vehicle.as_ref().unwrap().failures[0].t;
+    let late: Vec<_> = weak.rows.iter().filter(|r| r.t > t_fail + 1.0).collect();
+    assert!(
+        late.iter()
+            .any(|r| r.vehicle.unwrap().u_cmd[j].abs() > 1e-3)
+    );
+    let tau = s.vehicle.as_ref().unwrap().actuator_time_constant;
+    assert!(tau > 0.0);
+    for r in &late {
+        let v = r.vehicle.unwrap();
+        assert!(
+            v.u[j].abs() <= 0.5 * 40.0 + 1e-12,
+            "t = {}: {}",
+            r.t,
+            v.u[j]
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    eprintln!(
+        "rov_failure unannounced: at the end, healthy {healthy_after:.3e}, half as effective {weak_blind:.3e}, dead {dead_blind:.3e}"
+    );
+}
+
+/// The configuration error just before `t` and at the end.
+fn before_and_after_at(s: &Scenario, t_fail: f64) -> (f64, f64, SimulatedTrajectory) {
+    let t = run(s);
+    let before = t
+        .rows
+        .iter()
+        .rev()
+        .find(|r| r.t < t_fail)
+        .unwrap()
+        .config_error;
+    (before, t.rows.last().unwrap().config_error, t)
+}

@@ -22,7 +22,9 @@
 //! [[vehicle.failure]]             # optional
 //! actuator = 3                    # 0-based
 //! t = 10.0
-//! value = 0.0
+//! kind = "stuck"                  # or "dead" (no output), "effectiveness" (output × factor)
+//! value = 0.0                     # stuck: N, within the actuator's range
+//! factor = 0.5                    # effectiveness: in (0, 1)
 //! reconfigure = true
 //! [allocation]                    # optional
 //! weights = [...]
@@ -72,7 +74,9 @@ pub(crate) struct RawActuator {
 pub(crate) struct RawFailure {
     actuator: i64,
     t: f64,
+    kind: Option<String>,
     value: Option<f64>,
+    factor: Option<f64>,
     reconfigure: Option<bool>,
 }
 
@@ -85,14 +89,42 @@ pub(crate) struct RawAllocation {
     budget: Option<i64>,
 }
 
-/// `[[vehicle.failure]]`: an actuator stuck at `value` from `t` on.
+/// How an actuator fails (`[[vehicle.failure]] kind`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FailureKind {
+    /// `"stuck"` (the default): its output is held at the failure's `value`.
+    Stuck,
+    /// `"dead"`: no output at all, whatever its range (the failure's `value` is 0).
+    Dead,
+    /// `"effectiveness"`: its output is its lagged command multiplied by `factor`, in (0, 1).
+    Effectiveness {
+        /// The factor.
+        factor: f64,
+    },
+}
+
+impl FailureKind {
+    /// The scenario's name of the kind.
+    pub fn name(&self) -> &'static str {
+        match self {
+            FailureKind::Stuck => "stuck",
+            FailureKind::Dead => "dead",
+            FailureKind::Effectiveness { .. } => "effectiveness",
+        }
+    }
+}
+
+/// `[[vehicle.failure]]`: an actuator that fails at `t`, stuck, dead or less effective.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FailureSpec {
     /// The actuator (0-based).
     pub actuator: usize,
     /// When (s): from the first tick `t_k ≥ t − h/2`.
     pub t: f64,
-    /// The stuck value (N).
+    /// How it fails.
+    pub kind: FailureKind,
+    /// The output it is held at (N): the stuck value, 0 when dead; not used for a loss of
+    /// effectiveness.
     pub value: f64,
     /// Whether the allocator is told (and redistributes over the rest).
     pub reconfigure: bool,
@@ -251,7 +283,8 @@ impl Validator<'_> {
             }
         };
         let actuators = self.actuators(&raw.actuator, m)?;
-        let failures = self.failures(raw.failure.as_deref().unwrap_or(&[]), actuators.len())?;
+        let ranges: Vec<(f64, f64)> = actuators.iter().map(|a| (a.min, a.max)).collect();
+        let failures = self.failures(raw.failure.as_deref().unwrap_or(&[]), &ranges)?;
         let (weights, preferred, priority, budget) =
             self.allocation(allocation, actuators.len())?;
         let spec = VehicleSpec {
@@ -398,13 +431,15 @@ impl Validator<'_> {
         self.err(&key, e.to_string())
     }
 
-    /// `[[vehicle.failure]]`: an actuator that exists, a finite `t ≥ 0`, a finite value; in
-    /// time order.
+    /// `[[vehicle.failure]]`: an actuator that exists, a finite `t ≥ 0`, a kind it knows with
+    /// its own keys (a stuck value within the actuator's range, a factor in (0, 1)); in time
+    /// order.
     fn failures(
         &self,
         raw: &[RawFailure],
-        count: usize,
+        ranges: &[(f64, f64)],
     ) -> Result<Vec<FailureSpec>, ScenarioError> {
+        let count = ranges.len();
         let mut out = Vec::with_capacity(raw.len());
         for (i, f) in raw.iter().enumerate() {
             let key = |field: &str| format!("vehicle.failure[{i}].{field}");
@@ -420,19 +455,84 @@ impl Validator<'_> {
             if !f.t.is_finite() || f.t < 0.0 {
                 return Err(self.err(&key("t"), format!("must be finite and ≥ 0, got {}", f.t)));
             }
-            let value = f.value.unwrap_or(0.0);
-            if !value.is_finite() {
-                return Err(self.err(&key("value"), format!("not a finite number ({value})")));
-            }
+            let reconfigure = f.reconfigure.unwrap_or(true);
+            let (kind, value) =
+                self.failure_kind(f, ranges[f.actuator as usize], reconfigure, &key)?;
             out.push(FailureSpec {
                 actuator: f.actuator as usize,
                 t: f.t,
+                kind,
                 value,
-                reconfigure: f.reconfigure.unwrap_or(true),
+                reconfigure,
             });
         }
         out.sort_by(|a, b| a.t.total_cmp(&b.t));
         Ok(out)
+    }
+
+    /// One failure's `kind` and the keys it takes, checked (docs/scenario.md): `"stuck"` (the
+    /// default) at `value` (0 when absent) within the actuator's range `[min, max]`; `"dead"`
+    /// with neither key; `"effectiveness"` with `factor` in (0, 1) and no `value`, not yet with
+    /// `reconfigure = true` (telling the allocator would scale the actuator's column, which it
+    /// cannot yet). Returns the kind and the output it is held at (0 when dead).
+    fn failure_kind(
+        &self,
+        f: &RawFailure,
+        (min, max): (f64, f64),
+        reconfigure: bool,
+        key: &dyn Fn(&str) -> String,
+    ) -> Result<(FailureKind, f64), ScenarioError> {
+        let refuse = |field: &str, kind: &str| {
+            Err(self.err(
+                &key(field),
+                format!("a \"{kind}\" failure takes no `{field}`"),
+            ))
+        };
+        match f.kind.as_deref().unwrap_or("stuck") {
+            "stuck" => {
+                if f.factor.is_some() {
+                    return refuse("factor", "stuck");
+                }
+                let value = f.value.unwrap_or(0.0);
+                if !value.is_finite() {
+                    return Err(self.err(&key("value"), format!("not a finite number ({value})")));
+                }
+                if value < min || value > max {
+                    return Err(self.err(
+                        &key("value"),
+                        format!("{value} is outside the actuator's range [{min}, {max}]"),
+                    ));
+                }
+                Ok((FailureKind::Stuck, value))
+            }
+            "dead" => match (f.value, f.factor) {
+                (Some(_), _) => refuse("value", "dead"),
+                (_, Some(_)) => refuse("factor", "dead"),
+                _ => Ok((FailureKind::Dead, 0.0)),
+            },
+            "effectiveness" => {
+                if f.value.is_some() {
+                    return refuse("value", "effectiveness");
+                }
+                let Some(factor) = f.factor else {
+                    return Err(self.err(&key("factor"), "an \"effectiveness\" failure needs a `factor` in (0, 1)"));
+                };
+                if !(factor > 0.0 && factor < 1.0) {
+                    return Err(self.err(&key("factor"), format!("must be in (0, 1), got {factor}")));
+                }
+                if reconfigure {
+                    return Err(self.err(
+                        &key("reconfigure"),
+                        "an \"effectiveness\" failure cannot be told to the allocator yet (it would scale the actuator's column); set `reconfigure = false`",
+                    ));
+                }
+                Ok((FailureKind::Effectiveness { factor }, 0.0))
+            }
+            other => Err(self.err(
+                &key("kind"),
+                format!("unknown failure kind \"{other}\" (known: \"stuck\", \"dead\", \"effectiveness\")"),
+            )),
+        }
     }
 
     /// `[allocation]`: weights (positive) and preferred commands, one per actuator each, the

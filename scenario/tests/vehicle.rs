@@ -284,3 +284,98 @@ fn gravity_on_so3_is_refused() {
     );
     refused(&text, "vehicle.gravity", "an SO(3) body has no position");
 }
+
+/// `[[vehicle.failure]] kind` and the keys each kind takes (issue "Actuator failures found,
+/// not announced", part 1): each bad one refused naming the key.
+#[test]
+fn failure_kinds_and_their_keys_are_checked() {
+    let rov = rov_text().replace(
+        "waypoints = \"rov_failure.csv\"",
+        "setpoint = { rotation = [0.0, 0.0, 0.0] }",
+    );
+    let with = |keys: &str| {
+        rov.replace(
+            "t = 20.0\nvalue = 0.0\nreconfigure = true\n",
+            &format!("t = 20.0\n{keys}\n"),
+        )
+    };
+    let kinds = |text: &str| {
+        let s = Scenario::from_toml(text, "rov", "rov").unwrap();
+        let f = s.vehicle.as_ref().unwrap().failures[0];
+        (f.kind, f.value, f.reconfigure)
+    };
+    use scenario::vehicle::FailureKind;
+    // the default is today's stuck failure, and the kinds that are accepted
+    assert_eq!(kinds(&rov), (FailureKind::Stuck, 0.0, true));
+    assert_eq!(
+        kinds(&with("kind = \"stuck\"\nvalue = 24.0")),
+        (FailureKind::Stuck, 24.0, true)
+    );
+    assert_eq!(
+        kinds(&with("kind = \"dead\"")),
+        (FailureKind::Dead, 0.0, true)
+    );
+    assert_eq!(
+        kinds(&with(
+            "kind = \"effectiveness\"\nfactor = 0.5\nreconfigure = false"
+        )),
+        (FailureKind::Effectiveness { factor: 0.5 }, 0.0, false)
+    );
+    refused(
+        &with("kind = \"leaking\""),
+        "vehicle.failure[0].kind",
+        "unknown failure kind \"leaking\"",
+    );
+    refused(
+        &with("value = 40.5"),
+        "vehicle.failure[0].value",
+        "outside the actuator's range [-40, 40]",
+    );
+    refused(
+        &with("kind = \"stuck\"\nvalue = nan"),
+        "vehicle.failure[0].value",
+        "not a finite number",
+    );
+    refused(
+        &with("kind = \"stuck\"\nfactor = 0.5"),
+        "vehicle.failure[0].factor",
+        "a \"stuck\" failure takes no `factor`",
+    );
+    refused(
+        &with("kind = \"dead\"\nvalue = 0.0"),
+        "vehicle.failure[0].value",
+        "a \"dead\" failure takes no `value`",
+    );
+    refused(
+        &with("kind = \"dead\"\nfactor = 0.5"),
+        "vehicle.failure[0].factor",
+        "takes no `factor`",
+    );
+    for bad in ["0.0", "1.0", "-0.5", "1.5", "nan", "inf"] {
+        refused(
+            &with(&format!(
+                "kind = \"effectiveness\"\nfactor = {bad}\nreconfigure = false"
+            )),
+            "vehicle.failure[0].factor",
+            "must be in (0, 1)",
+        );
+    }
+    refused(
+        &with("kind = \"effectiveness\"\nreconfigure = false"),
+        "vehicle.failure[0].factor",
+        "needs a `factor` in (0, 1)",
+    );
+    refused(
+        &with("kind = \"effectiveness\"\nfactor = 0.5\nvalue = 1.0\nreconfigure = false"),
+        "vehicle.failure[0].value",
+        "takes no `value`",
+    );
+    refused(
+        &with("kind = \"effectiveness\"\nfactor = 0.5"),
+        "vehicle.failure[0].reconfigure",
+        "cannot be told to the allocator yet",
+    );
+    // a kind that is not a string: the parser's type error, which names the line
+    let e = error(&with("kind = 3"));
+    assert!(e.contains("invalid type"), "{e}");
+}

@@ -56,6 +56,21 @@ axis = [0.0, 0.0, 1.0]
 torque_per_thrust = 0.1
 min = -0.5
 max = 0.5
+[[vehicle.failure]]
+actuator = 1
+t = 0.02
+kind = "effectiveness"
+factor = 0.5
+reconfigure = false
+[[vehicle.failure]]
+actuator = 2
+t = 0.05
+kind = "dead"
+[[vehicle.failure]]
+actuator = 3
+t = 0.07
+kind = "stuck"
+value = 0.25
 [allocation]
 weights = [1.0, 2.0, 1.0, 0.5]
 preferred = [0.0, 0.1, 0.0, 0.0]

@@ -72,7 +72,7 @@ impl<const M: usize> PairVehicle<M> {
     pub(super) fn hold(&mut self) {
         let u = self.u_cmd;
         self.run.actuators.command(&u);
-        let out = *self.run.actuators.output();
+        let out = self.run.actuators.produced();
         if let Some((row, wrench)) = &mut self.row {
             for (j, x) in row.u.iter_mut().enumerate() {
                 *x = out[j];
@@ -103,7 +103,7 @@ impl<const M: usize> PairVehicle<M> {
     }
 
     fn row_of(&mut self, a: &Actuation<f64, M>) {
-        let u = *self.run.actuators.output();
+        let u = self.run.actuators.produced();
         self.row = Some((self.run.row(a, &u), self.run.wrench_of(&u)));
     }
 
@@ -126,7 +126,7 @@ impl<const M: usize> PairVehicle<M> {
             s.plant_substeps,
         );
         let r = G::rotation(body.configuration());
-        self.held = self.run.wrench_of(self.run.actuators.output())
+        self.held = self.run.wrench_of(&self.run.actuators.produced())
             + self.run.environment.wrench(&r, &body.velocity())
             + s.disturbance_wrench::<M>(k, &r);
     }
