@@ -1,7 +1,7 @@
 //! The prioritised bounded allocation (docs/maths.md, "Control allocation").
 
 use crate::geometry::Geometry;
-use crate::qp::{MAX_EQ, Objective, Rows, Stage, solve};
+use crate::qp::{MAX_EQ, Objective, Rows, Stage, clamp, solve};
 use crate::{Commands, MAX_ACTUATORS};
 use core::fmt;
 use nalgebra::{RealField, SMatrix, SVector};
@@ -295,9 +295,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         through: usize,
     ) -> Allocation<T, K> {
         let (lo, hi) = (bounds.lo, bounds.hi);
-        let up = self
-            .preferred
-            .zip_zip_map(&lo, &hi, |p, l, h| p.max(l).min(h));
+        let up = self.preferred.zip_zip_map(&lo, &hi, clamp);
         if !demand.iter().all(|x| x.is_finite()) {
             return self.answer(up, Status::InvalidDemand, 0);
         }
@@ -309,13 +307,11 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             return self.answer(start, Status::Met, 0);
         }
         let start = match previous {
-            Some(p) if p.iter().all(|x| x.is_finite()) => {
-                p.zip_zip_map(&lo, &hi, |x, l, h| x.max(l).min(h))
-            }
+            Some(p) if p.iter().all(|x| x.is_finite()) => p.zip_zip_map(&lo, &hi, clamp),
             _ => start,
         };
         let (u, spent, stopped) = self.active_set(demand, bounds, &up, start, split, through);
-        let u = u.zip_zip_map(&lo, &hi, |x, l, h| x.max(l).min(h));
+        let u = u.zip_zip_map(&lo, &hi, clamp);
         if !u.iter().all(|x| x.is_finite()) {
             return self.answer(up, Status::Stopped, spent);
         }
@@ -424,10 +420,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             .iter()
             .zip(bounds.lo.iter().zip(bounds.hi.iter()))
             .all(|(x, (l, h))| x.is_finite() && *x >= *l && *x <= *h);
-        (
-            u.zip_zip_map(&bounds.lo, &bounds.hi, |x, l, h| x.max(l).min(h)),
-            inside,
-        )
+        (u.zip_zip_map(&bounds.lo, &bounds.hi, clamp), inside)
     }
 
     /// Whether `u` meets the demand: the torque (or wrench), then the force.

@@ -153,6 +153,22 @@ impl<T: RealField + Copy> Ortho<T> {
     }
 }
 
+/// `x` clamped into `[l, h]` (`l ≤ h`) by comparisons: `x.max(l).min(h)` for every `x`, a NaN
+/// giving `l` as `max` does, but without `max`/`min`, whose NaN handling costs a
+/// comparison sequence each on the Cortex-M4F (BENCHMARKS section 24). A tie returns `x`.
+#[inline]
+pub(crate) fn clamp<T: RealField + Copy>(x: T, l: T, h: T) -> T {
+    let y = if x >= l { x } else { l };
+    if y <= h { y } else { h }
+}
+
+/// The larger of `a` (not a NaN) and `b` by one comparison: `a.max(b)`, a NaN `b` leaving
+/// `a` as `max` does.
+#[inline]
+fn larger<T: RealField + Copy>(a: T, b: T) -> T {
+    if b > a { b } else { a }
+}
+
 /// The inner product of the first `n` entries, weighted by `metric` when given.
 fn dot<T: RealField + Copy>(a: &[T; N], b: &[T; N], n: usize, metric: Option<&[T; N]>) -> T {
     let mut s = T::zero();
@@ -209,7 +225,7 @@ fn scale<T: RealField + Copy>(
     rows.iter()
         .take(count)
         .map(|r| dot(r, r, n, metric))
-        .fold(T::zero(), |a, b| a.max(b))
+        .fold(T::zero(), larger)
 }
 
 impl<'a, T: RealField + Copy> Stage<'a, T> {
@@ -352,7 +368,7 @@ impl<'a, T: RealField + Copy> Stage<'a, T> {
             }
             mu[j] = s;
         }
-        let top = g.iter().fold(T::zero(), |a, x| a.max(x.abs()));
+        let top = g.iter().fold(T::zero(), |a, x| larger(a, x.abs()));
         let mtol = T::from_subset(&1e3) * T::default_epsilon() * (T::one() + top);
         let mut best: Option<(usize, T)> = None;
         for j in 0..self.m {
@@ -525,7 +541,9 @@ pub(crate) fn solve<T: RealField + Copy>(
     budget: u32,
 ) -> Solved<T> {
     let (lo, hi, m) = (stage.lo, stage.hi, stage.m);
-    let bound = (0..m).fold(T::zero(), |a, j| a.max(lo[j].abs()).max(hi[j].abs()));
+    let bound = (0..m).fold(T::zero(), |a, j| {
+        larger(larger(a, lo[j].abs()), hi[j].abs())
+    });
     let tol = T::from_subset(&1e3) * T::default_epsilon() * (T::one() + bound);
     let tau = T::from_subset(&1e3) * T::default_epsilon();
     let mut inv_w = [T::one(); N];
@@ -570,7 +588,7 @@ pub(crate) fn solve<T: RealField + Copy>(
             factored = true;
         }
         let p = stage.step(&f, &u);
-        let size = p.iter().take(m).fold(T::zero(), |a, x| a.max(x.abs()));
+        let size = p.iter().take(m).fold(T::zero(), |a, x| larger(a, x.abs()));
         if size <= tol || refinements == 3 {
             match stage.release(&f, &mask, &u, tol) {
                 Some(j) => {
@@ -626,11 +644,38 @@ fn step_length<T: RealField + Copy>(
         } else {
             continue;
         };
-        let room = room.max(T::zero());
+        let room = larger(T::zero(), room);
         if room < alpha {
             alpha = room;
             block = Some((i, bound));
         }
     }
     (alpha, block)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{clamp, larger};
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The comparisons give what `max` and `min` give (the same value; a tie of zeros of
+        /// either sign is the same value), a NaN `x` clamped to `l` as `max` does.
+        #[test]
+        fn clamp_and_larger_are_max_and_min(
+            x in prop_oneof![any::<f32>(), Just(f32::NAN), Just(-0.0f32), Just(0.0f32)],
+            a in -1e6f32..1e6,
+            w in 0.0f32..1e6,
+        ) {
+            let (l, h) = (a, a + w);
+            let want = x.max(l).min(h);
+            let got = clamp(x, l, h);
+            prop_assert!(got == want, "clamp({x}, {l}, {h}) = {got}, max/min {want}");
+            prop_assert!(got >= l && got <= h);
+            let (p, q) = (a.abs(), x.abs());
+            let want = p.max(q);
+            let got = larger(p, q);
+            prop_assert!(got == want || (q.is_nan() && got == p), "larger({p}, {q}) = {got}");
+        }
+    }
 }
