@@ -1,5 +1,6 @@
-//! The square root the controller's cycle takes (docs/maths.md, "The square root on a
-//! microcontroller"): on an ARM hard-float target (`target_abi = "eabihf"`, e.g. a Cortex-M4F,
+//! The square root the controller's cycle takes
+//! (docs/maths.md, "The square root on a microcontroller"):
+//! on an ARM hard-float target (`target_abi = "eabihf"`, e.g. a Cortex-M4F,
 //! `thumbv7em-none-eabihf`) the FPU's `VSQRT.F32`, elsewhere libm's `sqrtf`.
 //!
 //! Both are IEEE 754's correctly rounded square root (round to nearest, ties to even), so they
