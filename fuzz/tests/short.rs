@@ -49,12 +49,16 @@ fn scenario_inputs_never_panic() {
     );
     // the vehicle seeds' mutations reach every bad vehicle table: a geometry that loses a
     // direction or has too many actuators, a zero or non-finite axis, min > max, a failure
-    // of an actuator that is not there, a bad allocation table
+    // of an actuator that is not there, of a kind it does not know, stuck outside its range or
+    // with a factor outside (0, 1), a bad allocation table
     for key in [
         "vehicle.actuator",
         "vehicle.actuator[*].axis",
         "vehicle.actuator[*].min",
         "vehicle.failure[*].actuator",
+        "vehicle.failure[*].kind",
+        "vehicle.failure[*].value",
+        "vehicle.failure[*].factor",
         "allocation.weights",
     ] {
         assert!(
