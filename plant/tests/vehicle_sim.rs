@@ -90,16 +90,7 @@ fn the_vehicle_columns_are_written_with_their_names() {
 
 /// The ROV's configuration error just before the failure and at the end.
 fn before_and_after(s: &Scenario) -> (f64, f64, SimulatedTrajectory) {
-    let t = run(s);
-    let fail = s.vehicle.as_ref().unwrap().failures[0].t;
-    let before = t
-        .rows
-        .iter()
-        .rev()
-        .find(|r| r.t < fail)
-        .unwrap()
-        .config_error;
-    (before, t.rows.last().unwrap().config_error, t)
+    before_and_after_at(s, s.vehicle.as_ref().unwrap().failures[0].t)
 }
 
 #[test]

@@ -222,7 +222,7 @@ impl Deframer {
         } else {
             cobs_decode_in_place(&mut self.buf[..n]).and_then(|m| check(&self.buf[..m]))
         };
-        if out == Err(FrameError::TooLong) {
+        if matches!(out, Err(FrameError::TooLong)) {
             self.too_long = self.too_long.saturating_add(1);
         }
         Some(out)
