@@ -201,7 +201,24 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             }
         }
         let top = w.max();
-        let weights = w / top;
+        Ok(Self::formed(
+            geometry,
+            w / top,
+            up,
+            priority,
+            DEFAULT_BUDGET,
+        ))
+    }
+
+    /// The allocator with its closed form's matrices formed once (weights already scaled to
+    /// a largest of 1).
+    fn formed(
+        geometry: Geometry<T, K>,
+        weights: Commands<T>,
+        preferred: Commands<T>,
+        priority: Priority,
+        budget: u32,
+    ) -> Self {
         let b = geometry.effectiveness();
         // B W⁻¹: each column divided by its weight
         let mut bw = *b;
@@ -209,16 +226,31 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             c /= weights[j];
         }
         let gram = nalgebra::Cholesky::new(bw * b.transpose()).map(|c| c.unpack_dirty());
-        Ok(Allocator {
+        Allocator {
             geometry,
             weights,
-            preferred: up,
+            preferred,
             priority,
-            budget: DEFAULT_BUDGET,
+            budget,
             bw,
             gram,
             sqrt_eps: T::default_epsilon().sqrt(),
-        })
+        }
+    }
+
+    /// The same allocator over the geometry with actuator `j`'s column scaled by `factor`
+    /// ([`Geometry::scaled`]): what it allocates when actuator `j` produces only `factor`
+    /// of its command. Weights, preferred command, priority and budget stay; the closed
+    /// form's matrices are formed again. With every factor 1 it is the allocator itself, bit
+    /// for bit.
+    pub fn scaled(&self, j: usize, factor: T) -> Self {
+        Self::formed(
+            self.geometry.scaled(j, factor),
+            self.weights,
+            self.preferred,
+            self.priority,
+            self.budget,
+        )
     }
 
     /// The same allocator with at most `budget` active-set iterations per allocation, over

@@ -30,6 +30,10 @@ impl<T: RealField + Copy, const K: usize> Actuation<T, K> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VehicleControl<T, const K: usize> {
     allocator: Allocator<T, K>,
+    /// The allocator of the healthy vehicle, which a loss of effectiveness scales.
+    nominal: Allocator<T, K>,
+    /// The effectiveness of each actuator as told (1: healthy).
+    factors: Commands<T>,
     restoring: Restoring<T>,
     /// The rate limit (per second; 0: none).
     rate_limit: T,
@@ -49,6 +53,8 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     ) -> Self {
         VehicleControl {
             bounds: allocator.bounds(),
+            nominal: allocator,
+            factors: Commands::from_element(T::one()),
             allocator,
             restoring,
             rate_limit,
@@ -95,6 +101,31 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         if j < MAX_ACTUATORS {
             self.bounds.fail(j, value);
         }
+    }
+
+    /// Tells the allocator that actuator `j` produces only `factor` of its command (a loss
+    /// of effectiveness): from now on its column of `B` is scaled by `factor`
+    /// ([`Allocator::scaled`]) and the others make up the rest. Telling the same factor
+    /// again changes nothing (the allocator is formed from the healthy one, never scaled
+    /// twice). A factor that is not finite and positive is ignored.
+    pub fn weaken(&mut self, j: usize, factor: T) {
+        let count = self.nominal.geometry().count();
+        if j >= count || !(factor.is_finite() && factor > T::zero()) || self.factors[j] == factor {
+            return;
+        }
+        self.factors[j] = factor;
+        let mut allocator = self.nominal;
+        for i in 0..count {
+            if self.factors[i] != T::one() {
+                allocator = allocator.scaled(i, self.factors[i]);
+            }
+        }
+        self.allocator = allocator;
+    }
+
+    /// The effectiveness of each actuator as told (1: healthy, and past the count).
+    pub fn factors(&self) -> &Commands<T> {
+        &self.factors
     }
 
     /// One cycle: the demand `wrench − restoring(r̂)` allocated within the bounds, narrowed

@@ -196,6 +196,18 @@ impl<T: RealField + Copy, const K: usize> Geometry<T, K> {
     pub fn wrench(&self, u: &Commands<T>) -> SVector<T, K> {
         self.b * u
     }
+
+    /// The same geometry with actuator `j`'s column scaled by `factor`: an actuator that
+    /// produces only `factor` times its command (a loss of effectiveness, docs/maths.md,
+    /// "Control allocation"). The bounds, in commands, stay. Out of range: unchanged.
+    pub fn scaled(&self, j: usize, factor: T) -> Self {
+        let mut g = *self;
+        if j < self.count {
+            let c = g.b.column(j) * factor;
+            g.b.set_column(j, &c);
+        }
+        g
+    }
 }
 
 /// Actuator `j`'s effectiveness column, after its checks.

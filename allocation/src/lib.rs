@@ -10,7 +10,8 @@
 //!   both, to the preferred command; [`Priority::None`] treats the wrench as one. An
 //!   active-set method with an iteration cap; every answer is finite and within the bounds,
 //!   with a [`Status`].
-//! * Failures: [`Bounds::fail`] holds a failed actuator at its stuck value.
+//! * Failures: [`Bounds::fail`] holds a failed actuator at its stuck value;
+//!   [`Allocator::scaled`] scales the column of one that lost effectiveness.
 //! * [`Restoring`]: gravity and buoyancy as a body wrench, which the controller compensates
 //!   and the plant integrates.
 //!

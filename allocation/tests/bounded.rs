@@ -278,3 +278,56 @@ fn within_reach_the_answer_is_the_former_closed_form_bit_for_bit() {
     }
     assert!(inside > 300, "{inside} demands within reach");
 }
+
+/// A loss of effectiveness told to the allocator (issue "Actuator failures found, not
+/// announced"): the weakened thruster's column is scaled, so the wrench the vehicle really
+/// produces is the demand again; telling it twice changes nothing; factor 1 is the allocator
+/// itself, bit for bit.
+#[test]
+fn a_weakened_actuator_has_its_column_scaled() {
+    use allocation::{Restoring, VehicleControl};
+    let alloc = rov();
+    assert_eq!(alloc.scaled(3, 1.0), alloc, "factor 1 changes no bit");
+    let no_restoring = Restoring {
+        weight: 0.0,
+        buoyancy: 0.0,
+        centre: nalgebra::Vector3::zeros(),
+    };
+    let r = nalgebra::Matrix3::identity();
+    let demand = SVector::<f64, 6>::from([0.4, -0.3, 0.2, 12.0, -8.0, 30.0]);
+    for (j, factor) in [(0, 0.5), (5, 0.3), (7, 0.9)] {
+        // the vehicle as it really is
+        let real = alloc.geometry().scaled(j, factor);
+        let mut told = VehicleControl::new(alloc, no_restoring, 0.0, 0.01);
+        let mut blind = told;
+        told.weaken(j, factor);
+        let once = told;
+        told.weaken(j, factor);
+        assert_eq!(told, once, "telling the same factor again changes nothing");
+        assert_eq!(told.factors()[j], factor);
+        let a = told.actuate(&demand, &r).allocation;
+        assert_eq!(a.status, Status::Met);
+        let produced = real.wrench(&a.u);
+        assert!(
+            (produced - demand).amax() < 1e-9,
+            "actuator {j} at {factor}: the told allocation produces {produced:?}"
+        );
+        let b = blind.actuate(&demand, &r).allocation;
+        assert!(
+            (real.wrench(&b.u) - demand).amax() > 1e-3,
+            "the blind allocation misses it"
+        );
+        assert!(
+            (a.u[j] - b.u[j]).abs() > 1e-6,
+            "the weakened thruster is asked differently"
+        );
+    }
+    // a factor that is not finite and positive is ignored
+    let mut c = VehicleControl::new(alloc, no_restoring, 0.0, 0.01);
+    let before = c;
+    for bad in [0.0, -0.5, f64::NAN, f64::INFINITY] {
+        c.weaken(2, bad);
+    }
+    c.weaken(99, 0.5);
+    assert_eq!(c, before);
+}

@@ -254,7 +254,14 @@ impl<const M: usize> VehicleRun<M> {
                 FailureKind::Effectiveness { factor } => self.actuators.lose(f.actuator, factor),
             }
             if f.reconfigure {
-                self.control.fail(f.actuator, f.value);
+                match f.kind {
+                    FailureKind::Effectiveness { factor } => {
+                        self.control.weaken(f.actuator, factor)
+                    }
+                    FailureKind::Stuck | FailureKind::Dead => {
+                        self.control.fail(f.actuator, f.value)
+                    }
+                }
             }
             self.next_failure += 1;
         }

@@ -168,6 +168,14 @@ fn a_dead_thruster_is_stuck_at_zero_and_a_weak_one_produces_its_factor() {
         healthy_after < weak_blind && weak_blind < dead_blind,
         "healthy {healthy_after:.3e} < half as effective {weak_blind:.3e} < dead {dead_blind:.3e}"
     );
+    // told, the allocator scales the weak thruster's column and the ROV recovers
+    let mut told = s.clone();
+    told.vehicle.as_mut().unwrap().failures[0].kind = FailureKind::Effectiveness { factor: 0.5 };
+    let (_, weak_told, _) = before_and_after(&told);
+    assert!(
+        weak_told < 0.1 * weak_blind && weak_told < 1e-3,
+        "half as effective, told {weak_told:.3e}, blind {weak_blind:.3e}"
+    );
     // the weak thruster follows its command, and produces half of its output
     let j = s.vehicle.as_ref().unwrap().failures[0].actuator;
     let t_fail = s.vehicle.as_ref().unwrap().failures[0].t;
@@ -189,7 +197,7 @@ fn a_dead_thruster_is_stuck_at_zero_and_a_weak_one_produces_its_factor() {
     }
     let _ = std::fs::remove_dir_all(&dir);
     eprintln!(
-        "rov_failure unannounced: at the end, healthy {healthy_after:.3e}, half as effective {weak_blind:.3e}, dead {dead_blind:.3e}"
+        "rov_failure unannounced: at the end, healthy {healthy_after:.3e}, half as effective {weak_blind:.3e} (told {weak_told:.3e}), dead {dead_blind:.3e}"
     );
 }
 

@@ -284,6 +284,11 @@ impl Scenario {
             });
             for f in v.failures.iter().filter(|f| f.reconfigure) {
                 h.f64s(&[f.actuator as f64, f.t, f.value]);
+                // a told loss of effectiveness is newer than the fingerprint: only it adds bytes
+                if let crate::vehicle::FailureKind::Effectiveness { factor } = f.kind {
+                    h.bytes(b"effectiveness");
+                    h.f64s(&[factor]);
+                }
             }
             // only when not the default, so scenarios from before it keep their fingerprints
             if v.budget != allocation::DEFAULT_BUDGET {

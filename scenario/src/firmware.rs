@@ -24,14 +24,7 @@ impl Scenario {
     /// allocation, with the failures the controller is told of). Refused, naming the key,
     /// for what the firmware does not run: a waypoint or set-point reference.
     pub fn firmware_config(&self) -> Result<Config, ScenarioError> {
-        let refuse = |key: &str, what: &str| ScenarioError::Invalid {
-            origin: format!("scenario `{}`", self.name),
-            key: key.to_owned(),
-            message: format!("the processor-in-the-loop controller does not run {what} yet"),
-        };
-        if self.path.is_some() {
-            return Err(refuse("reference", "a waypoint or set-point reference"));
-        }
+        self.firmware_refusals()?;
         let origin = self.local_origin();
         let q0_rows = self.local_start();
         let name: String = self.name.chars().take(32).collect();
@@ -97,6 +90,34 @@ impl Scenario {
             estimator: self.filter_settings()?.as_ref().map(Estimator::of),
             vehicle: self.vehicle.as_ref().map(firmware_vehicle),
         })
+    }
+
+    /// What the firmware does not run, refused naming the key: a told loss of effectiveness
+    /// and a waypoint or set-point reference.
+    fn firmware_refusals(&self) -> Result<(), ScenarioError> {
+        let refuse = |key: &str, what: &str| ScenarioError::Invalid {
+            origin: format!("scenario `{}`", self.name),
+            key: key.to_owned(),
+            message: format!("the processor-in-the-loop controller does not run {what} yet"),
+        };
+        let told_weaker = self.vehicle.as_ref().and_then(|v| {
+            v.failures.iter().find(|f| {
+                f.reconfigure && matches!(f.kind, crate::vehicle::FailureKind::Effectiveness { .. })
+            })
+        });
+        if let Some(f) = told_weaker {
+            return Err(refuse(
+                "vehicle.failure.reconfigure",
+                &format!(
+                    "a loss of effectiveness told to the allocator (actuator {}; set `reconfigure = false`)",
+                    f.actuator
+                ),
+            ));
+        }
+        if self.path.is_some() {
+            return Err(refuse("reference", "a waypoint or set-point reference"));
+        }
+        Ok(())
     }
 
     /// `Q_d(0)` relative to the local origin, row-major: the position difference formed in

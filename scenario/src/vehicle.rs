@@ -213,8 +213,10 @@ impl VehicleSpec {
     }
 
     /// Tells `control` of every failure it is to be told of (`reconfigure = true`) that has
-    /// started at tick `t_k` of period `h`. Telling again is harmless, so a controller that
-    /// calls this each cycle needs no memory of it (and replay none either).
+    /// started at tick `t_k` of period `h`: a stuck or dead actuator is held at its value, one
+    /// that lost effectiveness has its column scaled by its factor. Telling again is
+    /// harmless, so a controller that calls this each cycle needs no memory of it (and replay
+    /// none either).
     pub fn tell_failures<const K: usize>(
         &self,
         control: &mut VehicleControl<f64, K>,
@@ -223,7 +225,10 @@ impl VehicleSpec {
     ) {
         for f in &self.failures {
             if f.reconfigure && f.active(t_k, h) {
-                control.fail(f.actuator, f.value);
+                match f.kind {
+                    FailureKind::Effectiveness { factor } => control.weaken(f.actuator, factor),
+                    FailureKind::Stuck | FailureKind::Dead => control.fail(f.actuator, f.value),
+                }
             }
         }
     }
@@ -456,8 +461,7 @@ impl Validator<'_> {
                 return Err(self.err(&key("t"), format!("must be finite and ≥ 0, got {}", f.t)));
             }
             let reconfigure = f.reconfigure.unwrap_or(true);
-            let (kind, value) =
-                self.failure_kind(f, ranges[f.actuator as usize], reconfigure, &key)?;
+            let (kind, value) = self.failure_kind(f, ranges[f.actuator as usize], &key)?;
             out.push(FailureSpec {
                 actuator: f.actuator as usize,
                 t: f.t,
@@ -472,14 +476,12 @@ impl Validator<'_> {
 
     /// One failure's `kind` and the keys it takes, checked (docs/scenario.md): `"stuck"` (the
     /// default) at `value` (0 when absent) within the actuator's range `[min, max]`; `"dead"`
-    /// with neither key; `"effectiveness"` with `factor` in (0, 1) and no `value`, not yet with
-    /// `reconfigure = true` (telling the allocator would scale the actuator's column, which it
-    /// cannot yet). Returns the kind and the output it is held at (0 when dead).
+    /// with neither key; `"effectiveness"` with `factor` in (0, 1) and no `value`. Returns
+    /// the kind and the output it is held at (0 when dead).
     fn failure_kind(
         &self,
         f: &RawFailure,
         (min, max): (f64, f64),
-        reconfigure: bool,
         key: &dyn Fn(&str) -> String,
     ) -> Result<(FailureKind, f64), ScenarioError> {
         let refuse = |field: &str, kind: &str| {
@@ -519,12 +521,6 @@ impl Validator<'_> {
                 };
                 if !(factor > 0.0 && factor < 1.0) {
                     return Err(self.err(&key("factor"), format!("must be in (0, 1), got {factor}")));
-                }
-                if reconfigure {
-                    return Err(self.err(
-                        &key("reconfigure"),
-                        "an \"effectiveness\" failure cannot be told to the allocator yet (it would scale the actuator's column); set `reconfigure = false`",
-                    ));
                 }
                 Ok((FailureKind::Effectiveness { factor }, 0.0))
             }

@@ -370,11 +370,38 @@ fn failure_kinds_and_their_keys_are_checked() {
         "vehicle.failure[0].value",
         "takes no `value`",
     );
-    refused(
-        &with("kind = \"effectiveness\"\nfactor = 0.5"),
-        "vehicle.failure[0].reconfigure",
-        "cannot be told to the allocator yet",
+    // a loss of effectiveness may be told (the allocator scales its column): a told one is
+    // fingerprinted with its factor, a blind one as before
+    let told = |text: &str| Scenario::from_toml(text, "rov", "rov").unwrap();
+    let half = told(&with("kind = \"effectiveness\"\nfactor = 0.5"));
+    assert_eq!(
+        kinds(&with("kind = \"effectiveness\"\nfactor = 0.5")),
+        (FailureKind::Effectiveness { factor: 0.5 }, 0.0, true)
     );
+    let other = told(&with("kind = \"effectiveness\"\nfactor = 0.6"));
+    assert_ne!(half.fingerprint(), other.fingerprint());
+    let blind = |f: &str| {
+        told(&with(&format!(
+            "kind = \"effectiveness\"\nfactor = {f}\nreconfigure = false"
+        )))
+        .fingerprint()
+    };
+    assert_eq!(blind("0.5"), blind("0.6"), "the controller does not see it");
+    assert_ne!(half.fingerprint(), blind("0.5"));
+    // the processor-in-the-loop firmware is not told a loss of effectiveness: refused, named
+    let e = half.firmware_config().unwrap_err().to_string();
+    assert!(
+        e.contains("vehicle.failure.reconfigure") && e.contains("actuator 5"),
+        "{e}"
+    );
+    // (this one is refused for its set-point reference, not for the failure)
+    let blind_config = told(&with(
+        "kind = \"effectiveness\"\nfactor = 0.5\nreconfigure = false",
+    ))
+    .firmware_config();
+    if let Err(e) = blind_config {
+        assert!(!e.to_string().contains("vehicle.failure"), "{e}");
+    }
     // a kind that is not a string: the parser's type error, which names the line
     let e = error(&with("kind = 3"));
     assert!(e.contains("invalid type"), "{e}");

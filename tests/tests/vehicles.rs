@@ -286,3 +286,62 @@ fn a_rate_limited_vehicle_flies_the_pair_bit_for_bit_and_replay_checks_the_limit
     assert!(text.contains("u_previous[2]"), "{text}");
     assert!(text.contains(&format!("cycle {k} ")), "{text}");
 }
+
+/// A loss of effectiveness told to the allocator (issue "Actuator failures found, not
+/// announced"): the pair's controller scales the thruster's column as the simulation's does,
+/// byte for byte, and it changes the commands (against the same failure not told).
+#[test]
+fn a_weakened_thruster_told_to_the_pair_equals_the_simulation() {
+    let _g = serial();
+    let d = TempDir::new("vehicle-weak");
+    let dir = Path::new(&d.join("scenario")).to_path_buf();
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(
+        repo("scenarios/rov_failure.csv"),
+        dir.join("rov_failure.csv"),
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(repo("scenarios/rov_failure.toml")).unwrap();
+    let weak = |reconfigure: bool| {
+        text.replacen("duration = 40.0", "duration = 3.0", 1)
+            .replacen(
+                "t = 20.0\nvalue = 0.0\nreconfigure = true",
+                &format!(
+                    "t = 1.0\nkind = \"effectiveness\"\nfactor = 0.5\nreconfigure = {reconfigure}"
+                ),
+                1,
+            )
+    };
+    assert_eq!(weak(true).matches("factor = 0.5").count(), 1);
+    assert!(weak(true).contains("duration = 3.0"));
+    let (told, blind) = (dir.join("rov_weak.toml"), dir.join("rov_blind.toml"));
+    std::fs::write(&told, weak(true)).unwrap();
+    std::fs::write(&blind, weak(false)).unwrap();
+    let (sim, _) = sim_equals_lockstep(&d, "rov_weak", told.to_str().unwrap());
+    let out = d.join("rov_blind-sim");
+    let (code, text) = run(
+        "plant_sim",
+        &["sim", "--scenario", blind.to_str().unwrap(), "--out", &out],
+        LONG,
+    );
+    assert_eq!(code, 0, "{text}");
+    let (a, b) = (
+        Csv::read(&Path::new(&sim).join("trajectory.csv")),
+        Csv::read(&Path::new(&out).join("trajectory.csv")),
+    );
+    let (t, ua, ub) = (a.col("t"), a.col("u_cmd_5"), b.col("u_cmd_5"));
+    for k in 0..t.len() {
+        if t[k] < 0.995 {
+            assert_eq!(
+                ua[k].to_bits(),
+                ub[k].to_bits(),
+                "before the failure, t = {}",
+                t[k]
+            );
+        }
+    }
+    assert!(
+        (0..t.len()).any(|k| t[k] > 1.0 && (ua[k] - ub[k]).abs() > 1e-3),
+        "told, the weak thruster is commanded differently"
+    );
+}
