@@ -103,6 +103,22 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         }
     }
 
+    /// The geometry's bounds, before any failure or rate limit narrowed them.
+    pub fn nominal_bounds(&self) -> (Commands<T>, Commands<T>) {
+        self.nominal.geometry().bounds()
+    }
+
+    /// Forgets what the allocator was told of actuator `j`: its bounds are the geometry's
+    /// again and its column the healthy one (a detector's estimate replaced by a better one).
+    pub fn heal(&mut self, j: usize) {
+        if j < self.nominal.geometry().count() {
+            let (lo, hi) = self.nominal.geometry().bounds();
+            self.bounds.lo[j] = lo[j];
+            self.bounds.hi[j] = hi[j];
+            self.weaken(j, T::one());
+        }
+    }
+
     /// Tells the allocator that actuator `j` produces only `factor` of its command (a loss
     /// of effectiveness): from now on its column of `B` is scaled by `factor`
     /// ([`Allocator::scaled`]) and the others make up the rest. Telling the same factor

@@ -322,6 +322,16 @@ fn a_weakened_actuator_has_its_column_scaled() {
             "the weakened thruster is asked differently"
         );
     }
+    // healed, an actuator told weak or stuck is the healthy one again
+    let mut c = VehicleControl::new(alloc, no_restoring, 0.0, 0.01);
+    let fresh = c;
+    c.weaken(4, 0.5);
+    c.fail(6, 12.0);
+    assert_ne!(c, fresh);
+    c.heal(4);
+    c.heal(6);
+    assert_eq!(c, fresh, "healed");
+    assert_eq!(c.nominal_bounds(), alloc.geometry().bounds());
     // a factor that is not finite and positive is ignored
     let mut c = VehicleControl::new(alloc, no_restoring, 0.0, 0.01);
     let before = c;

@@ -1,0 +1,676 @@
+//! Actuator failures found, not announced (docs/maths.md, "Failure detection"): a detector
+//! in the controller's cycle that notices an actuator has failed, finds which one, estimates
+//! how (dead, stuck at a value, or weak by a factor) and tells the allocator in the same
+//! cycle.
+//!
+//! * The residual: each period's momentum balance, `w = Δμ/h − ½(ad*μ terms) − B ū − ½(the
+//!   environment's wrench at both ends)`, with the actuators' lag modelled (`ū` the mean
+//!   output over the period) and the wrench the controller believes it applied. Healthy, `w`
+//!   is what the model does not explain (wind, model error, noise); a failed actuator `j` adds
+//!   `b_j (u_j,actual − ū_j)`.
+//! * The test: the mean of `w` over the last window against the window before it, whitened
+//!   by its spread learned in nominal flight, projected on each actuator's column: a bank of
+//!   one hypothesis per actuator. An alarm is the best hypothesis above the χ²₁ threshold of
+//!   the stated false-alarm rate ([`threshold`]) with what it leaves unexplained below the
+//!   χ²_{K−1} isolation gate, so that a change no single actuator explains (a gust) is not
+//!   taken for a failure, and ahead of the runner-up by a margin, so that of two actuators
+//!   whose columns differ little the wrong one is seldom named.
+//! * The kind: from the per-period shortfalls along the isolated column since the change,
+//!   the least penalised (BIC) of "dead", "stuck at `v`" and "weak by `k`".
+//!
+//! `no_std`, no `alloc`; generic over the scalar and the wrench dimension `K` (3 on SO(3), 6
+//! on SE(3)).
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::too_many_lines))]
+
+pub mod threshold;
+
+use allocation::{Commands, MAX_ACTUATORS, VehicleControl};
+use controller::Real;
+use controller::group::MatrixLieGroup;
+use nalgebra::{Matrix3, SMatrix, SVector};
+
+/// The most periods the detector keeps: two windows.
+pub const CAPACITY: usize = 64;
+
+/// How a detected actuator failed, as estimated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Kind<T> {
+    /// No output.
+    Dead,
+    /// Output held at a value, whatever its command.
+    Stuck(T),
+    /// Output a factor (in (0, 1)) of what it should be.
+    Weak(T),
+}
+
+impl<T> Kind<T> {
+    /// `"dead"`, `"stuck"` or `"effectiveness"`: the scenario's names of the kinds.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Kind::Dead => "dead",
+            Kind::Stuck(_) => "stuck",
+            Kind::Weak(_) => "effectiveness",
+        }
+    }
+}
+
+/// One detection: the actuator, its kind, the test's statistic and when the change began.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Detection<T> {
+    /// The actuator (0-based).
+    pub actuator: usize,
+    /// How it failed.
+    pub kind: Kind<T>,
+    /// The best hypothesis's statistic (χ²₁ under no failure).
+    pub statistic: T,
+    /// How many periods before this one the change is estimated to have begun.
+    pub since: usize,
+    /// Whether this refines an earlier detection of the same actuator: the kind estimated
+    /// again after watching it for a window once the allocator was told.
+    pub refined: bool,
+}
+
+/// An actuator watched after its detection: its shortfalls measured against the baseline
+/// of the detection, for a window, before its kind is estimated again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Watch<T, const K: usize> {
+    actuator: usize,
+    left: usize,
+    baseline: SVector<T, K>,
+    spread: SVector<T, K>,
+    kind: Kind<T>,
+}
+
+/// Why a detector's settings are refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConfigError {
+    /// `window` is not 1 to `CAPACITY / 2` periods.
+    Window,
+    /// `calibration` is shorter than two windows.
+    Calibration,
+    /// `confirm` is not 1 to `window` periods.
+    Confirm,
+    /// A threshold, the memory, the floor, the period or the lag is not finite and positive
+    /// (the lag may be 0): the field's name.
+    Value(&'static str),
+}
+
+impl core::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ConfigError::Window => write!(
+                f,
+                "the window must be 1 to {} control periods",
+                CAPACITY / 2
+            ),
+            ConfigError::Calibration => {
+                write!(f, "the calibration must last at least two windows")
+            }
+            ConfigError::Confirm => write!(f, "the confirmation must be 1 to `window` periods"),
+            ConfigError::Value(what) => write!(f, "`{what}` must be finite and positive"),
+        }
+    }
+}
+
+/// The detector's settings (docs/maths.md, "Failure detection").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Config<T, const K: usize> {
+    /// Periods per window (1 to `CAPACITY / 2`).
+    pub window: usize,
+    /// The χ²₁ threshold of the best hypothesis ([`threshold::chi2_upper`]).
+    pub threshold: T,
+    /// The χ²_{K−1} gate on what the best hypothesis leaves unexplained.
+    pub isolation: T,
+    /// The least lead of the best hypothesis's statistic over the runner-up's (twice their
+    /// log-likelihood ratio; a χ²₁ quantile of the chance of isolating the wrong actuator).
+    pub margin: T,
+    /// Consecutive periods the same actuator must pass every gate before it is named (at
+    /// least 1): a change that no single actuator explains shows as such only once enough of
+    /// it has entered the window.
+    pub confirm: usize,
+    /// Periods of nominal flight the spread is learned over before the first test.
+    pub calibration: usize,
+    /// The weight `λ` of each new period in the spread's running estimate afterwards (`h`
+    /// over the memory's time).
+    pub memory: T,
+    /// The least spread of the residual per axis (absolute, wrench units).
+    pub floor: SVector<T, K>,
+    /// The least shortfall resolved per actuator (command units), for the kind's fit.
+    pub resolution: Commands<T>,
+    /// The model's inertia `I` (with any added mass).
+    pub inertia: SMatrix<T, K, K>,
+    /// Fossen's linear damping (diagonal).
+    pub damping_linear: SVector<T, K>,
+    /// Fossen's quadratic damping (diagonal).
+    pub damping_quadratic: SVector<T, K>,
+    /// The control period `h` (s).
+    pub period: T,
+    /// The actuators' lag `T` (s; 0: none).
+    pub time_constant: T,
+}
+
+/// What the detector keeps of each period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Entry<T, const K: usize> {
+    /// The period's residual `w` (wrench).
+    w: SVector<T, K>,
+    /// Each actuator's mean output over the period were it healthy: its commands through
+    /// the lag (the regressor of a loss of effectiveness).
+    u: Commands<T>,
+    /// Each actuator's mean thrust over the period as the detector then believed it, in
+    /// healthy units (the told factor times the believed output: a held value or `u`).
+    p: Commands<T>,
+}
+
+/// Sums over the periods attributed to one failed actuator: the count, `Σy`, `Σy²`, `Σuy`
+/// and `Σu²` of its actual thrust `y` against its healthy output `u`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Sums<T> {
+    n: T,
+    y: T,
+    yy: T,
+    uy: T,
+    uu: T,
+}
+
+impl<T: Real> Sums<T> {
+    fn zero() -> Self {
+        Sums {
+            n: T::zero(),
+            y: T::zero(),
+            yy: T::zero(),
+            uy: T::zero(),
+            uu: T::zero(),
+        }
+    }
+
+    fn add(&mut self, u: T, y: T) {
+        self.n += T::one();
+        self.y += y;
+        self.yy += y * y;
+        self.uy += u * y;
+        self.uu += u * u;
+    }
+}
+
+/// What the detector kept of the last state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Previous<T, const K: usize> {
+    mu: SVector<T, K>,
+    gyro: SVector<T, K>,
+    environment: SVector<T, K>,
+}
+
+/// The last test's figures, for the record.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Statistic<T> {
+    /// The best hypothesis's actuator.
+    pub actuator: usize,
+    /// Its statistic (χ²₁ under no failure).
+    pub best: T,
+    /// The runner-up's statistic.
+    pub second: T,
+    /// The whole whitened change, `|d̃|²` (χ²_K under no failure).
+    pub total: T,
+    /// Whether the detector was testing (calibrated, windows full).
+    pub testing: bool,
+}
+
+/// The detector between cycles: the actuators' lag model, the last state, the ring of
+/// periods, the learned spread and the actuators found failed. Allocation-free.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Detector<T, const K: usize> {
+    config: Config<T, K>,
+    /// `e^{−h/T}` and `(T/h)(1 − e^{−h/T})`: the lag's output at the end of a period and its
+    /// mean over it, as weights of the start (0 and 0 without lag).
+    decay: T,
+    mean: T,
+    /// The healthy output at the start of the held period, and the held command.
+    output: Commands<T>,
+    command: Commands<T>,
+    held: bool,
+    /// The value each actuator found dead or stuck is believed held at.
+    stuck: [Option<T>; MAX_ACTUATORS],
+    /// What each failed actuator's periods have shown so far.
+    sums: [Sums<T>; MAX_ACTUATORS],
+    watch: Option<Watch<T, K>>,
+    previous: Option<Previous<T, K>>,
+    ring: [Entry<T, K>; CAPACITY],
+    head: usize,
+    len: usize,
+    /// The learned spread (variance per axis) and the periods it was learned over.
+    variance: SVector<T, K>,
+    learned: usize,
+    failed: [bool; MAX_ACTUATORS],
+    last: Statistic<T>,
+    /// The actuator passing every gate and for how many periods in a row.
+    streak: (usize, usize),
+    /// Alarms so far: periods whose best statistic crossed the threshold after one that did
+    /// not (isolated or not).
+    alarms: u32,
+    alarmed: bool,
+}
+
+impl<T: Real, const K: usize> Detector<T, K> {
+    /// A detector with settings `config`, checked.
+    pub fn new(config: Config<T, K>) -> Result<Self, ConfigError> {
+        let positive = |x: T| x.is_finite() && x > T::zero();
+        if config.window == 0 || 2 * config.window > CAPACITY {
+            return Err(ConfigError::Window);
+        }
+        if config.calibration < 2 * config.window {
+            return Err(ConfigError::Calibration);
+        }
+        if config.confirm == 0 || config.confirm > config.window {
+            return Err(ConfigError::Confirm);
+        }
+        for (what, x) in [
+            ("threshold", config.threshold),
+            ("isolation", config.isolation),
+            ("margin", config.margin),
+            ("memory", config.memory),
+            ("period", config.period),
+        ] {
+            if !positive(x) {
+                return Err(ConfigError::Value(what));
+            }
+        }
+        if config.memory > T::one() {
+            return Err(ConfigError::Value("memory"));
+        }
+        if !config.floor.iter().all(|x| positive(*x)) {
+            return Err(ConfigError::Value("floor"));
+        }
+        if !(config.time_constant.is_finite() && config.time_constant >= T::zero()) {
+            return Err(ConfigError::Value("time_constant"));
+        }
+        let (decay, mean) = if config.time_constant > T::zero() {
+            let d = (-config.period / config.time_constant).exp();
+            (d, config.time_constant / config.period * (T::one() - d))
+        } else {
+            (T::zero(), T::zero())
+        };
+        Ok(Detector {
+            config,
+            decay,
+            mean,
+            output: Commands::zeros(),
+            command: Commands::zeros(),
+            held: false,
+            stuck: [None; MAX_ACTUATORS],
+            sums: [Sums::zero(); MAX_ACTUATORS],
+            watch: None,
+            previous: None,
+            ring: [Entry {
+                w: SVector::zeros(),
+                u: Commands::zeros(),
+                p: Commands::zeros(),
+            }; CAPACITY],
+            head: 0,
+            len: 0,
+            variance: SVector::zeros(),
+            learned: 0,
+            failed: [false; MAX_ACTUATORS],
+            last: Statistic {
+                actuator: 0,
+                best: T::zero(),
+                second: T::zero(),
+                total: T::zero(),
+                testing: false,
+            },
+            streak: (0, 0),
+            alarms: 0,
+            alarmed: false,
+        })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &Config<T, K> {
+        &self.config
+    }
+
+    /// The actuators found failed so far.
+    pub fn failed(&self) -> &[bool; MAX_ACTUATORS] {
+        &self.failed
+    }
+
+    /// The last test's figures.
+    pub fn statistic(&self) -> &Statistic<T> {
+        &self.last
+    }
+
+    /// The alarms so far: each time the best hypothesis's statistic crossed the threshold,
+    /// whether or not an actuator was then isolated. In nominal flight their rate is at most
+    /// the stated false-alarm rate.
+    pub fn alarms(&self) -> u32 {
+        self.alarms
+    }
+
+    /// The spread learned so far (the standard deviation's square per axis, before the
+    /// floor).
+    pub fn variance(&self) -> &SVector<T, K> {
+        &self.variance
+    }
+
+    /// The command the allocation answered this cycle, held over the next period: the
+    /// actuators' lag model starts from it (the first command is also the output at once, as
+    /// the plant's actuators do).
+    pub fn commanded(&mut self, u_cmd: &Commands<T>) {
+        self.command = *u_cmd;
+        if !self.held || self.config.time_constant <= T::zero() {
+            self.output = *u_cmd;
+            self.held = true;
+        }
+    }
+
+    /// One cycle before the allocation (docs/maths.md, "Failure detection"): the residual of
+    /// the period that ended at this state (body velocity `v`, attitude `r`), the test, and on
+    /// a detection the allocator told: a dead or stuck actuator held at its value, a weak one
+    /// scaled ([`VehicleControl::fail`], [`VehicleControl::weaken`]). Allocation-free.
+    pub fn observe<G: MatrixLieGroup<N, K>, const N: usize>(
+        &mut self,
+        v: &SVector<T, K>,
+        r: &Matrix3<T>,
+        control: &mut VehicleControl<T, K>,
+    ) -> Option<Detection<T>> {
+        let c = &self.config;
+        let mu = c.inertia * v;
+        let gyro = G::ad_transpose_mul(v, &mu);
+        let drag = -(c.damping_linear.component_mul(v)
+            + c.damping_quadratic.component_mul(&v.abs().component_mul(v)));
+        let environment = control.restoring(r) + drag;
+        let now = Previous {
+            mu,
+            gyro,
+            environment,
+        };
+        let previous = self.previous.replace(now);
+        let (Some(p), true) = (previous, self.held) else {
+            return None;
+        };
+        // the held period: the lag's mean output and its output at the end; the thrust
+        // believed, a held value for an actuator found stuck
+        let u = self.command + (self.output - self.command) * self.mean;
+        self.output = self.command + (self.output - self.command) * self.decay;
+        let mut believed = u;
+        for (j, v) in self.stuck.iter().enumerate() {
+            if let Some(v) = v {
+                believed[j] = *v;
+            }
+        }
+        let half: T = controller::real(0.5);
+        let b = control.allocator().geometry().effectiveness();
+        let w = (mu - p.mu) / c.period
+            - (p.gyro + gyro) * half
+            - b * believed
+            - (p.environment + environment) * half;
+        let p = believed.component_mul(control.factors());
+        let mut entry = Entry { w, u, p };
+        let refined = self.watching(&mut entry, control);
+        self.push(entry);
+        let found = self.test(control);
+        found.or(refined)
+    }
+
+    /// The watched actuator's shortfall in this period, added to its sums and taken out of
+    /// the residual; after a window, its kind estimated again from all its sums and, if it
+    /// changed, the allocator told again (a refined detection).
+    fn watching(
+        &mut self,
+        entry: &mut Entry<T, K>,
+        control: &mut VehicleControl<T, K>,
+    ) -> Option<Detection<T>> {
+        let mut watch = self.watch.take()?;
+        let j = watch.actuator;
+        let column =
+            control.allocator().geometry().effectiveness().column(j) / control.factors()[j];
+        let bw = column.component_div(&watch.spread);
+        let short =
+            bw.dot(&(entry.w - watch.baseline).component_div(&watch.spread)) / bw.norm_squared();
+        self.sums[j].add(entry.u[j], entry.p[j] + short);
+        entry.w -= column * short;
+        watch.left -= 1;
+        if watch.left > 0 {
+            self.watch = Some(watch);
+            return None;
+        }
+        let kind = self.fit(j, &self.sums[j], control);
+        if kind == watch.kind {
+            return None;
+        }
+        self.tell(j, kind, control);
+        Some(Detection {
+            actuator: j,
+            kind,
+            statistic: self.last.best,
+            since: 0,
+            refined: true,
+        })
+    }
+
+    /// Tells the allocator what actuator `j` is now believed to be, forgetting what it was
+    /// told before: held at 0 or at a value, or its column scaled.
+    fn tell(&mut self, j: usize, kind: Kind<T>, control: &mut VehicleControl<T, K>) {
+        control.heal(j);
+        self.stuck[j] = match kind {
+            Kind::Dead => Some(T::zero()),
+            Kind::Stuck(v) => Some(v),
+            Kind::Weak(_) => None,
+        };
+        match kind {
+            Kind::Dead => control.fail(j, T::zero()),
+            Kind::Stuck(v) => control.fail(j, v),
+            Kind::Weak(k) => control.weaken(j, k),
+        }
+        self.failed[j] = true;
+    }
+
+    fn push(&mut self, e: Entry<T, K>) {
+        self.ring[self.head] = e;
+        self.head = (self.head + 1) % CAPACITY;
+        self.len = (self.len + 1).min(CAPACITY);
+    }
+
+    /// Entry `i` of the last `n` (0: the oldest of them).
+    fn entry(&self, n: usize, i: usize) -> &Entry<T, K> {
+        &self.ring[(self.head + CAPACITY - n + i) % CAPACITY]
+    }
+
+    /// The mean residual of the older and the recent window.
+    fn means(&self) -> (SVector<T, K>, SVector<T, K>) {
+        let wn = self.config.window;
+        let mut older = SVector::<T, K>::zeros();
+        let mut recent = SVector::<T, K>::zeros();
+        for i in 0..wn {
+            older += self.entry(2 * wn, i).w;
+            recent += self.entry(wn, i).w;
+        }
+        let n: T = controller::real(wn as f64);
+        (older / n, recent / n)
+    }
+
+    /// The test on full windows: learn the spread while calibrating or nominal; otherwise
+    /// isolate, estimate the kind and tell the allocator.
+    fn test(&mut self, control: &mut VehicleControl<T, K>) -> Option<Detection<T>> {
+        let wn = self.config.window;
+        self.last.testing = false;
+        if self.len < 2 * wn {
+            return None;
+        }
+        let (older, recent) = self.means();
+        let d = recent - older;
+        let s2 = self
+            .variance
+            .zip_map(&self.config.floor, |v, f| if v > f * f { v } else { f * f });
+        if self.learned < self.config.calibration {
+            self.learned += 1;
+            let n: T = controller::real(self.learned as f64);
+            self.variance += (d.component_mul(&d) - self.variance) / n;
+            return None;
+        }
+        let dw = d.component_div(&s2.map(|x| x.sqrt()));
+        let total = dw.norm_squared();
+        let (best, second) = Self::bank(&dw, &s2.map(|x| x.sqrt()), control);
+        self.last = Statistic {
+            actuator: best.0,
+            best: best.1,
+            second,
+            total,
+            testing: true,
+        };
+        if best.1 <= self.config.threshold {
+            self.variance += (d.component_mul(&d) - self.variance) * self.config.memory;
+            self.alarmed = false;
+            self.streak = (0, 0);
+            return None;
+        }
+        if !self.alarmed {
+            self.alarmed = true;
+            self.alarms = self.alarms.saturating_add(1);
+        }
+        if total - best.1 >= self.config.isolation || best.1 - second < self.config.margin {
+            // a change no single actuator explains (not a failure), or one that two explain
+            // about as well (not yet isolated)
+            self.streak = (0, 0);
+            return None;
+        }
+        self.streak = if self.streak.1 > 0 && self.streak.0 == best.0 {
+            (best.0, self.streak.1 + 1)
+        } else {
+            (best.0, 1)
+        };
+        if self.streak.1 < self.config.confirm {
+            return None;
+        }
+        self.streak = (0, 0);
+        self.alarmed = false;
+        let j = best.0;
+        let (kind, since) = self.kind(j, &older, &s2, control);
+        self.tell(j, kind, control);
+        // watch it for a window: the tell itself moves its command, which tells a weak
+        // actuator from a stuck one
+        self.watch = Some(Watch {
+            actuator: j,
+            left: wn,
+            baseline: older,
+            spread: s2.map(|x| x.sqrt()),
+            kind,
+        });
+        Some(Detection {
+            actuator: j,
+            kind,
+            statistic: best.1,
+            since,
+            refined: false,
+        })
+    }
+
+    /// The bank of hypotheses (docs/maths.md, "Failure detection"): for each actuator `j`,
+    /// `T_j = (b̃_jᵀ d̃)² / |b̃_j|²` with `b̃_j` its column whitened by the spread `s`; the best
+    /// `(j, T_j)` and the runner-up's `T`.
+    fn bank(
+        dw: &SVector<T, K>,
+        s: &SVector<T, K>,
+        control: &VehicleControl<T, K>,
+    ) -> ((usize, T), T) {
+        let b = control.allocator().geometry().effectiveness();
+        let count = control.allocator().geometry().count();
+        let (mut best, mut second) = ((0, T::zero()), T::zero());
+        for j in 0..count {
+            let bw = b.column(j).component_div(s);
+            let nb = bw.norm_squared();
+            if nb > T::zero() {
+                let dot = bw.dot(dw);
+                let t = dot * dot / nb;
+                if t > best.1 {
+                    second = best.1;
+                    best = (j, t);
+                } else if t > second {
+                    second = t;
+                }
+            }
+        }
+        (best, second)
+    }
+
+    /// Actuator `j`'s kind (docs/maths.md, "Failure detection", "The kind"): the thrust
+    /// short of what was believed in each recent period, along its whitened column; the
+    /// change point where their mean shift is most significant; then, over the periods since
+    /// and any attributed to `j` before, the least penalised (BIC) of dead, stuck and weak.
+    /// The shortfalls since the change are taken out of the window (they are explained now).
+    /// Returns the kind and how many periods ago the change began.
+    fn kind(
+        &mut self,
+        j: usize,
+        older: &SVector<T, K>,
+        s2: &SVector<T, K>,
+        control: &VehicleControl<T, K>,
+    ) -> (Kind<T>, usize) {
+        let wn = self.config.window;
+        let s = s2.map(|x| x.sqrt());
+        // the healthy column: the told one over its told factor
+        let column =
+            control.allocator().geometry().effectiveness().column(j) / control.factors()[j];
+        let bw = column.component_div(&s);
+        let nb = bw.norm_squared();
+        let shortfall = |e: &Entry<T, K>| bw.dot(&(e.w - older).component_div(&s)) / nb;
+        // the change point: the start whose mean shift is most significant
+        let (mut start, mut score, mut sum) = (wn - 1, T::zero(), T::zero());
+        for i in (0..wn).rev() {
+            sum += shortfall(self.entry(wn, i));
+            let n: T = controller::real((wn - i) as f64);
+            let t = sum * sum / n;
+            if t > score {
+                score = t;
+                start = i;
+            }
+        }
+        // the actual thrust since then: the believed one plus the shortfall; each period's
+        // shortfall is then taken out of its residual
+        let mut sums = self.sums[j];
+        for i in start..wn {
+            let at = (self.head + CAPACITY - wn + i) % CAPACITY;
+            let e = self.ring[at];
+            let short = shortfall(&e);
+            sums.add(e.u[j], e.p[j] + short);
+            self.ring[at].w -= column * short;
+        }
+        self.sums[j] = sums;
+        (self.fit(j, &sums, control), wn - start)
+    }
+
+    /// The least penalised kind for the sums of actuator `j` (BIC: `n ln(RSS/n) + p ln n`,
+    /// the RSS floored at the actuator's resolution): dead (`y = 0`), stuck (`y = v`, `v` the
+    /// mean within the bounds) or weak (`y = k u`, `k` in (0, 1) by least squares, and only
+    /// when its BIC is lower than the others' by 6, strong evidence).
+    fn fit(&self, j: usize, sums: &Sums<T>, control: &VehicleControl<T, K>) -> Kind<T> {
+        let n = sums.n;
+        let (lo, hi) = control.nominal_bounds();
+        let res = self.config.resolution[j];
+        let floor = n * res * res;
+        let two: T = controller::real(2.0);
+        let bic = |rss: T, params: T| n * ((rss.max(T::zero()) + floor) / n).ln() + params * n.ln();
+        let mut best = (Kind::Dead, bic(sums.yy, T::zero()));
+        let v = (sums.y / n).max(lo[j]).min(hi[j]);
+        let b = bic(sums.yy - two * v * sums.y + n * v * v, T::one());
+        if b < best.1 {
+            best = (Kind::Stuck(v), b);
+        }
+        if sums.uu > T::zero() {
+            let k = sums.uy / sums.uu;
+            if k > T::zero() && k < T::one() {
+                // a weak actuator only on strong evidence (a BIC lower by 6): while its
+                // command has not moved, weak and stuck fit alike, and stuck is reported
+                let strong: T = controller::real(6.0);
+                let b = bic(sums.yy - two * k * sums.uy + k * k * sums.uu, T::one());
+                if b < best.1 - strong {
+                    best = (Kind::Weak(k), b);
+                }
+            }
+        }
+        best.0
+    }
+}
