@@ -87,29 +87,25 @@ struct Watch<T, const K: usize> {
 /// Why a detector's settings are refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ConfigError {
-    /// `window` is not 1 to `CAPACITY / 2` periods.
+    /// `window` is not 1 to `CAPACITY / 2` entries.
     Window,
     /// `calibration` is shorter than two windows.
     Calibration,
-    /// `confirm` is not 1 to `window` periods.
+    /// `confirm` is not 1 to `window` entries.
     Confirm,
-    /// A threshold, the memory, the floor, the period or the lag is not finite and positive
-    /// (the lag may be 0): the field's name.
+    /// A threshold, the memory, the floor, the period, the decimation or the lag is not finite
+    /// and positive (the lag may be 0): the field's name.
     Value(&'static str),
 }
 
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            ConfigError::Window => write!(
-                f,
-                "the window must be 1 to {} control periods",
-                CAPACITY / 2
-            ),
+            ConfigError::Window => write!(f, "the window must be 1 to {} entries", CAPACITY / 2),
             ConfigError::Calibration => {
                 write!(f, "the calibration must last at least two windows")
             }
-            ConfigError::Confirm => write!(f, "the confirmation must be 1 to `window` periods"),
+            ConfigError::Confirm => write!(f, "the confirmation must be 1 to `window` entries"),
             ConfigError::Value(what) => write!(f, "`{what}` must be finite and positive"),
         }
     }
@@ -118,7 +114,10 @@ impl core::fmt::Display for ConfigError {
 /// The detector's settings (docs/maths.md, "Failure detection").
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Config<T, const K: usize> {
-    /// Periods per window (1 to `CAPACITY / 2`).
+    /// Control periods averaged into each kept entry (at least 1): a fast loop keeps a window
+    /// of the same length in as many entries as a slower one.
+    pub decimation: usize,
+    /// Entries per window (1 to `CAPACITY / 2`).
     pub window: usize,
     /// The χ²₁ threshold of the best hypothesis ([`threshold::chi2_upper`]).
     pub threshold: T,
@@ -163,6 +162,16 @@ struct Entry<T, const K: usize> {
     /// Each actuator's mean thrust over the period as the detector then believed it, in
     /// healthy units (the told factor times the believed output: a held value or `u`).
     p: Commands<T>,
+}
+
+impl<T: Real, const K: usize> Entry<T, K> {
+    fn zero() -> Self {
+        Entry {
+            w: SVector::zeros(),
+            u: Commands::zeros(),
+            p: Commands::zeros(),
+        }
+    }
 }
 
 /// Sums over the periods attributed to one failed actuator: the count, `Σy`, `Σy²`, `Σuy`
@@ -239,6 +248,9 @@ pub struct Detector<T, const K: usize> {
     watch: Option<Watch<T, K>>,
     previous: Option<Previous<T, K>>,
     ring: [Entry<T, K>; CAPACITY],
+    /// The periods summed towards the next entry, and how many.
+    accumulated: Entry<T, K>,
+    periods: usize,
     head: usize,
     len: usize,
     /// The learned spread (variance per axis) and the periods it was learned over.
@@ -258,6 +270,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// A detector with settings `config`, checked.
     pub fn new(config: Config<T, K>) -> Result<Self, ConfigError> {
         let positive = |x: T| x.is_finite() && x > T::zero();
+        if config.decimation == 0 {
+            return Err(ConfigError::Value("decimation"));
+        }
         if config.window == 0 || 2 * config.window > CAPACITY {
             return Err(ConfigError::Window);
         }
@@ -304,11 +319,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
             sums: [Sums::zero(); MAX_ACTUATORS],
             watch: None,
             previous: None,
-            ring: [Entry {
-                w: SVector::zeros(),
-                u: Commands::zeros(),
-                p: Commands::zeros(),
-            }; CAPACITY],
+            ring: [Entry::zero(); CAPACITY],
+            accumulated: Entry::zero(),
+            periods: 0,
             head: 0,
             len: 0,
             variance: SVector::zeros(),
@@ -408,7 +421,23 @@ impl<T: Real, const K: usize> Detector<T, K> {
             - b * believed
             - (p.environment + environment) * half;
         let p = believed.component_mul(control.factors());
-        let mut entry = Entry { w, u, p };
+        // the entry: the mean of `decimation` periods
+        let a = &mut self.accumulated;
+        a.w += w;
+        a.u += u;
+        a.p += p;
+        self.periods += 1;
+        if self.periods < c.decimation {
+            return None;
+        }
+        let n: T = controller::real(self.periods as f64);
+        let mut entry = Entry {
+            w: a.w / n,
+            u: a.u / n,
+            p: a.p / n,
+        };
+        self.accumulated = Entry::zero();
+        self.periods = 0;
         let refined = self.watching(&mut entry, control);
         self.push(entry);
         let found = self.test(control);
@@ -438,7 +467,18 @@ impl<T: Real, const K: usize> Detector<T, K> {
             return None;
         }
         let kind = self.fit(j, &self.sums[j], control);
-        if kind == watch.kind {
+        // told again only for another kind, or a value or factor that moved by more than
+        // the actuator's resolution
+        let (lo, hi) = control.nominal_bounds();
+        let reach = lo[j].abs().max(hi[j].abs());
+        let res = self.config.resolution[j];
+        let same = match (kind, watch.kind) {
+            (Kind::Dead, Kind::Dead) => true,
+            (Kind::Stuck(a), Kind::Stuck(b)) => (a - b).abs() <= res,
+            (Kind::Weak(a), Kind::Weak(b)) => (a - b).abs() * reach <= res,
+            _ => false,
+        };
+        if same {
             return None;
         }
         self.tell(j, kind, control);

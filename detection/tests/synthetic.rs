@@ -36,6 +36,7 @@ fn config(per_hour: f64) -> Config<f64, 6> {
     let window = 10;
     let p = threshold::per_test(per_hour, H, 8);
     Config {
+        decimation: 1,
         window,
         threshold: threshold::chi2_upper(1, p),
         isolation: threshold::chi2_upper(5, 1e-6),
@@ -391,6 +392,12 @@ fn bad_settings_are_refused() {
     c.window = 33;
     assert_eq!(Detector::new(c).unwrap_err(), ConfigError::Window);
     let mut c = config(1e-3);
+    c.decimation = 0;
+    assert_eq!(
+        Detector::new(c).unwrap_err(),
+        ConfigError::Value("decimation")
+    );
+    let mut c = config(1e-3);
     c.calibration = 19;
     assert_eq!(Detector::new(c).unwrap_err(), ConfigError::Calibration);
     for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
@@ -434,6 +441,7 @@ fn in_f32_on_so3_a_body_at_rest_raises_nothing() {
     };
     let mut control = VehicleControl::new(a, none, 0.0, 0.01);
     let config = Config::<f32, 3> {
+        decimation: 2,
         window: 10,
         threshold: threshold::chi2_upper(1, threshold::per_test(1e-3, 0.01, 12)) as f32,
         isolation: threshold::chi2_upper(2, 1e-6) as f32,

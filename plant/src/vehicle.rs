@@ -211,6 +211,10 @@ pub struct VehicleRun<const M: usize> {
     count: usize,
     /// Which actuators have failed so far (the plant's).
     failed: [bool; MAX_ACTUATORS],
+    /// The controller's failure detector (`[fault_detection]`; `None`: off).
+    pub detector: Option<detection::Detector<f64, M>>,
+    /// What it found, as `summary.json` has it.
+    pub detections: Vec<DetectionReport>,
 }
 
 impl<const M: usize> VehicleRun<M> {
@@ -235,6 +239,12 @@ impl<const M: usize> VehicleRun<M> {
             period: s.control_period,
             count: geometry.count(),
             failed: [false; MAX_ACTUATORS],
+            detector: s
+                .detector_config::<M>()
+                .map(detection::Detector::new)
+                .transpose()
+                .map_err(|e| bad(format!("fault_detection: {e}")))?,
+            detections: Vec::new(),
         }))
     }
 
@@ -270,6 +280,31 @@ impl<const M: usize> VehicleRun<M> {
     /// The actuator count.
     pub fn count(&self) -> usize {
         self.count
+    }
+
+    /// The detector's cycle at tick `t` (docs/maths.md, "Failure detection"), before the
+    /// allocation: the state the controller sees (`v`, `r`), and on a detection the
+    /// allocator told and the detection recorded, with its latency where the scenario
+    /// scripted a failure of that actuator before `t`.
+    pub fn detect<G: MatrixLieGroup<N, M>, const N: usize>(
+        &mut self,
+        t: f64,
+        v: &SVector<f64, M>,
+        r: &Matrix3<f64>,
+    ) {
+        let Some(d) = &mut self.detector else {
+            return;
+        };
+        if let Some(found) = d.observe::<G, N>(v, r, &mut self.control) {
+            let scripted = self
+                .failures
+                .iter()
+                .rev()
+                .find(|f| f.actuator == found.actuator && f.active(t, self.period))
+                .map(|f| f.t);
+            self.detections
+                .push(DetectionReport::of(t, &found, scripted));
+        }
     }
 
     /// The failures, as the scenario gives them.
@@ -365,12 +400,16 @@ where
             }
         };
         let r_hat = G::rotation(&q_hat);
+        run.detect::<G, N>(t, &v_hat, &r_hat);
         let body = s.disturbance_at::<M>(k);
         let mut record = None;
         let substeps = s.plant_substeps;
         let sample = sim
             .step_actuated(&q_hat, &v_hat, |plant, wrench, h| {
                 let a = run.control.actuate(wrench, &r_hat);
+                if let Some(d) = &mut run.detector {
+                    d.commanded(&a.allocation.u);
+                }
                 run.actuators.command(&a.allocation.u);
                 let u = run.actuators.produced();
                 step_in_world::<G, N, M>(
@@ -412,7 +451,10 @@ where
         control_period: s.control_period,
         duration: s.duration,
         estimator: estimation.as_ref().map(|e| e.report(&rows)),
-        vehicle: Some(VehicleReport::of(&rows, &run.failures, s.control_period)),
+        vehicle: Some(
+            VehicleReport::of(&rows, &run.failures, s.control_period)
+                .with_detections(run.detector.is_some().then_some(run.detections)),
+        ),
         rows,
         status: Vec::new(),
     })
@@ -434,6 +476,72 @@ pub struct VehicleReport {
     pub allocation_stopped: usize,
     /// The failures, as the scenario gives them.
     pub failures: Vec<FailureReport>,
+    /// What the failure detector found (`[fault_detection]`; absent when it is off).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub detections: Option<Vec<DetectionReport>>,
+}
+
+/// One detection in `summary.json` (docs/vehicles.md, "Failures nobody announces").
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct DetectionReport {
+    /// When it was found (s).
+    pub t: f64,
+    /// The actuator (0-based).
+    pub actuator: usize,
+    /// `"dead"`, `"stuck"` or `"effectiveness"`.
+    pub kind: &'static str,
+    /// The stuck value estimated (0 when dead; absent for a loss of effectiveness).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub value: Option<f64>,
+    /// The factor estimated (a loss of effectiveness only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub factor: Option<f64>,
+    /// Seconds from the scripted failure of this actuator to its detection (absent when the
+    /// scenario scripted none before, or for a refinement).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub latency: Option<f64>,
+    /// Whether it refines an earlier detection of the same actuator (its kind estimated
+    /// again after a window of watching it).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub refined: bool,
+}
+
+impl DetectionReport {
+    /// The report of `found` at `t`, the actuator's scripted failure at `scripted` (if any).
+    pub fn of(t: f64, found: &detection::Detection<f64>, scripted: Option<f64>) -> Self {
+        let (value, factor) = match found.kind {
+            detection::Kind::Dead => (Some(0.0), None),
+            detection::Kind::Stuck(v) => (Some(v), None),
+            detection::Kind::Weak(k) => (None, Some(k)),
+        };
+        DetectionReport {
+            t,
+            actuator: found.actuator,
+            kind: found.kind.name(),
+            value,
+            factor,
+            latency: scripted.filter(|_| !found.refined).map(|at| t - at),
+            refined: found.refined,
+        }
+    }
+
+    /// The line `plant_sim sim` prints for it.
+    pub fn line(&self) -> String {
+        let what = match (self.value, self.factor) {
+            (_, Some(k)) => format!("{} (factor {k:.3})", self.kind),
+            (Some(v), _) if self.kind == "stuck" => format!("stuck at {v:.3}"),
+            _ => self.kind.to_owned(),
+        };
+        let late = self
+            .latency
+            .map(|l| format!(", {l:.3} s after it failed"))
+            .unwrap_or_default();
+        let again = if self.refined { " (refined)" } else { "" };
+        format!(
+            "detected at t = {:.3} s: actuator {} {what}{again}{late}",
+            self.t, self.actuator
+        )
+    }
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -470,6 +578,12 @@ pub struct FailureReport {
 }
 
 impl VehicleReport {
+    /// The same report with the detector's findings (`None`: it was off).
+    pub fn with_detections(mut self, detections: Option<Vec<DetectionReport>>) -> Self {
+        self.detections = detections;
+        self
+    }
+
     /// The report over the rows of a run with period `h`.
     pub fn of(rows: &[Row], failures: &[FailureSpec], h: f64) -> VehicleReport {
         let count = rows
@@ -502,6 +616,7 @@ impl VehicleReport {
                 rms: (sum / n.max(1) as f64).sqrt(),
             },
             allocation_stopped: stopped,
+            detections: None,
             failures: failures
                 .iter()
                 .map(|f| FailureReport {

@@ -295,8 +295,27 @@ impl Scenario {
                 h.bytes(b"allocation budget");
                 h.f64s(&[f64::from(v.budget)]);
             }
+            self.fingerprint_fault_detection(&mut h);
         }
         h.0.max(1)
+    }
+
+    /// [`Scenario::fingerprint`]'s part for `[fault_detection]`.
+    fn fingerprint_fault_detection(&self, h: &mut Fnv) {
+        // only when on, so scenarios without it keep their fingerprints
+        if let Some(f) = &self.fault_detection {
+            h.bytes(b"fault detection");
+            h.f64s(&[
+                f.window,
+                f.false_alarm_rate,
+                f.calibration,
+                f.memory,
+                f.floor,
+                f.confirm,
+                f.unexplained,
+                f.ambiguity,
+            ]);
+        }
     }
 
     /// [`Scenario::fingerprint`]'s part for the controller's error frame and its

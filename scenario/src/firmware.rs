@@ -92,8 +92,8 @@ impl Scenario {
         })
     }
 
-    /// What the firmware does not run, refused naming the key: a told loss of effectiveness
-    /// and a waypoint or set-point reference.
+    /// What the firmware does not run, refused naming the key: a told loss of effectiveness,
+    /// a waypoint or set-point reference and the failure detector.
     fn firmware_refusals(&self) -> Result<(), ScenarioError> {
         let refuse = |key: &str, what: &str| ScenarioError::Invalid {
             origin: format!("scenario `{}`", self.name),
@@ -113,6 +113,9 @@ impl Scenario {
                     f.actuator
                 ),
             ));
+        }
+        if self.fault_detection.is_some() {
+            return Err(refuse("fault_detection", "the failure detector"));
         }
         if self.path.is_some() {
             return Err(refuse("reference", "a waypoint or set-point reference"));

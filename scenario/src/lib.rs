@@ -9,6 +9,7 @@
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod cli;
+pub mod fault_detection;
 mod firmware;
 pub mod moving;
 pub mod rejection;
@@ -149,6 +150,9 @@ pub struct Scenario {
     /// `[vehicle]` and `[allocation]`: actuators, gravity, buoyancy, added mass, drag, and
     /// the allocation of the law's wrench (`None`: the wrench acts on the body directly).
     pub vehicle: Option<vehicle::VehicleSpec>,
+    /// `[fault_detection]`: the detector of actuator failures nobody announces (`None`:
+    /// off, the default).
+    pub fault_detection: Option<fault_detection::FaultDetectionSpec>,
 }
 
 #[cfg(test)]

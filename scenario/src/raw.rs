@@ -1,6 +1,6 @@
 //! The TOML schema as serde reads it: every table with `deny_unknown_fields`, so an unknown key is refused naming the keys the table takes (docs/scenario.md is the reference).
 
-use crate::{rejection, sensing, vehicle};
+use crate::{fault_detection, rejection, sensing, vehicle};
 use serde::Deserialize;
 
 #[derive(Debug, Deserialize)]
@@ -21,6 +21,7 @@ pub(crate) struct RawScenario {
     pub(crate) estimator: Option<sensing::RawEstimator>,
     pub(crate) vehicle: Option<vehicle::RawVehicle>,
     pub(crate) allocation: Option<vehicle::RawAllocation>,
+    pub(crate) fault_detection: Option<fault_detection::RawFaultDetection>,
 }
 
 #[derive(Debug, Deserialize)]

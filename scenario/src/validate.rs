@@ -257,6 +257,11 @@ impl Validator<'_> {
             None => EstimatorSpec::default(),
             Some(r) => self.estimator(r, sensors.as_ref(), group)?,
         };
+        let fault_detection = self.fault_detection(
+            raw.fault_detection.as_ref(),
+            vehicle.is_some(),
+            raw.control_period,
+        )?;
         Ok(Scenario {
             name: raw.name.unwrap_or_else(|| default_name.to_owned()),
             group,
@@ -282,6 +287,7 @@ impl Validator<'_> {
             sensors,
             estimator,
             vehicle,
+            fault_detection,
         })
     }
 

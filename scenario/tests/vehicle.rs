@@ -406,3 +406,89 @@ fn failure_kinds_and_their_keys_are_checked() {
     let e = error(&with("kind = 3"));
     assert!(e.contains("invalid type"), "{e}");
 }
+
+/// `[fault_detection]` (issue "Actuator failures found, not announced"): an empty table is the
+/// design's defaults; every key's bad value is refused naming it; it needs a vehicle; it is
+/// fingerprinted only when on; the processor-in-the-loop firmware refuses it.
+#[test]
+fn fault_detection_keys_are_checked() {
+    use scenario::fault_detection::DEFAULTS;
+    let rov = rov_text().replace(
+        "waypoints = \"rov_failure.csv\"",
+        "setpoint = { rotation = [0.0, 0.0, 0.0] }",
+    );
+    let with = |keys: &str| format!("{rov}\n[fault_detection]\n{keys}\n");
+    let load = |text: &str| Scenario::from_toml(text, "rov", "rov").unwrap();
+    let off = load(&rov);
+    assert_eq!(off.fault_detection, None, "off by default");
+    let on = load(&with(""));
+    assert_eq!(on.fault_detection, Some(DEFAULTS));
+    assert_ne!(on.fingerprint(), off.fingerprint());
+    assert_ne!(load(&with("window = 0.2")).fingerprint(), on.fingerprint());
+    let c = on.detector_config::<6>().unwrap();
+    assert_eq!(
+        (c.decimation, c.window, c.confirm, c.calibration),
+        (1, 10, 5, 200)
+    );
+    // 1e-3 false alarms an hour over 360 000 tests an hour and 8 hypotheses: χ²₁ at 3.5e-10
+    use detection::threshold::{chi2_upper, per_test};
+    assert_eq!(c.threshold, chi2_upper(1, per_test(1e-3, 0.01, 8)));
+    assert!(c.threshold > 35.0 && c.threshold < 45.0, "{}", c.threshold);
+    assert!(off.detector_config::<6>().is_none());
+    for (keys, key, what) in [
+        ("window = 0.0", "window", "finite and positive"),
+        ("window = -0.1", "window", "finite and positive"),
+        ("window = nan", "window", "finite and positive"),
+        ("window = 0.001", "window", "at least one period"),
+        ("window = 100.0", "window", "at most 60 s"),
+        (
+            "false_alarm_rate = 0.0",
+            "false_alarm_rate",
+            "finite and positive",
+        ),
+        (
+            "false_alarm_rate = inf",
+            "false_alarm_rate",
+            "finite and positive",
+        ),
+        (
+            "false_alarm_rate = 1e9",
+            "false_alarm_rate",
+            "every other period",
+        ),
+        (
+            "calibration = 0.1",
+            "calibration",
+            "shorter than two windows",
+        ),
+        ("memory = 0.001", "memory", "shorter than a control period"),
+        ("floor = 0.0", "floor", "finite and positive"),
+        ("floor = 1.0", "floor", "below 1"),
+        ("confirm = 0.5", "confirm", "1 to the window's 10"),
+        ("confirm = 0.001", "confirm", "1 to the window's 10"),
+        (
+            "unexplained = 0.7",
+            "unexplained",
+            "probability in (0, 0.5)",
+        ),
+        ("ambiguity = 0.0", "ambiguity", "probability in (0, 0.5)"),
+    ] {
+        refused(&with(keys), &format!("fault_detection.{key}"), what);
+    }
+    let e = error(&with("threshold = 3.0"));
+    assert!(e.contains("unknown field `threshold`"), "{e}");
+    // no vehicle: nothing to watch
+    let seed = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/seed.toml"
+    ))
+    .unwrap();
+    refused(
+        &format!("{seed}\n[fault_detection]\n"),
+        "fault_detection",
+        "needs a [vehicle]",
+    );
+    // the processor-in-the-loop firmware does not run it
+    let e = on.firmware_config().unwrap_err().to_string();
+    assert!(e.contains("key `fault_detection`"), "{e}");
+}
