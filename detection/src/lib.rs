@@ -29,6 +29,7 @@ pub mod threshold;
 
 use allocation::{Commands, MAX_ACTUATORS, VehicleControl};
 use controller::Real;
+use controller::disturbance::rotate_blocks;
 use controller::group::MatrixLieGroup;
 use nalgebra::{Matrix3, SMatrix, SVector};
 
@@ -123,6 +124,11 @@ pub struct Config<T, const K: usize> {
     pub threshold: T,
     /// The χ²_{K−1} gate on what the best hypothesis leaves unexplained.
     pub isolation: T,
+    /// The model's relative error, squared (`ε²`): the unexplained part may also be up to
+    /// `ε²` of the whole change, since the model's errors grow with what the vehicle does
+    /// (a thruster that sticks at full thrust throws the vehicle about, and the residual's
+    /// integration is then less exact).
+    pub relative: T,
     /// The least lead of the best hypothesis's statistic over the runner-up's (twice their
     /// log-likelihood ratio; a χ²₁ quantile of the chance of isolating the wrong actuator).
     pub margin: T,
@@ -130,7 +136,11 @@ pub struct Config<T, const K: usize> {
     /// least 1): a change that no single actuator explains shows as such only once enough of
     /// it has entered the window.
     pub confirm: usize,
-    /// Periods of nominal flight the spread is learned over before the first test.
+    /// Entries at the start in which the detector neither learns nor tests: the estimator's
+    /// and the controller's own start, whose transients are not the flight's spread.
+    pub warmup: usize,
+    /// Entries of nominal flight the spread is learned over (after the warm-up) before the
+    /// first test.
     pub calibration: usize,
     /// The weight `λ` of each new period in the spread's running estimate afterwards (`h`
     /// over the memory's time).
@@ -247,12 +257,17 @@ pub struct Detector<T, const K: usize> {
     sums: [Sums<T>; MAX_ACTUATORS],
     watch: Option<Watch<T, K>>,
     previous: Option<Previous<T, K>>,
+    /// The attitude of the last state: residuals are kept in world axes, where a steady wind
+    /// or current is constant however the body turns, and the columns are turned with it.
+    rotation: Matrix3<T>,
     ring: [Entry<T, K>; CAPACITY],
     /// The periods summed towards the next entry, and how many.
     accumulated: Entry<T, K>,
     periods: usize,
     head: usize,
     len: usize,
+    /// Entries of the warm-up passed.
+    warmed: usize,
     /// The learned spread (variance per axis) and the periods it was learned over.
     variance: SVector<T, K>,
     learned: usize,
@@ -286,6 +301,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             ("threshold", config.threshold),
             ("isolation", config.isolation),
             ("margin", config.margin),
+            ("relative", config.relative),
             ("memory", config.memory),
             ("period", config.period),
         ] {
@@ -319,12 +335,14 @@ impl<T: Real, const K: usize> Detector<T, K> {
             sums: [Sums::zero(); MAX_ACTUATORS],
             watch: None,
             previous: None,
+            rotation: Matrix3::identity(),
             ring: [Entry::zero(); CAPACITY],
             accumulated: Entry::zero(),
             periods: 0,
             head: 0,
             len: 0,
             variance: SVector::zeros(),
+            warmed: 0,
             learned: 0,
             failed: [false; MAX_ACTUATORS],
             last: Statistic {
@@ -401,6 +419,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             environment,
         };
         let previous = self.previous.replace(now);
+        self.rotation = *r;
         let (Some(p), true) = (previous, self.held) else {
             return None;
         };
@@ -416,10 +435,11 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         let half: T = controller::real(0.5);
         let b = control.allocator().geometry().effectiveness();
-        let w = (mu - p.mu) / c.period
+        let body = (mu - p.mu) / c.period
             - (p.gyro + gyro) * half
             - b * believed
             - (p.environment + environment) * half;
+        let w = rotate_blocks(r, &body);
         let p = believed.component_mul(control.factors());
         // the entry: the mean of `decimation` periods
         let a = &mut self.accumulated;
@@ -454,8 +474,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
     ) -> Option<Detection<T>> {
         let mut watch = self.watch.take()?;
         let j = watch.actuator;
-        let column =
-            control.allocator().geometry().effectiveness().column(j) / control.factors()[j];
+        let column = self.healthy_column(j, control);
         let bw = column.component_div(&watch.spread);
         let short =
             bw.dot(&(entry.w - watch.baseline).component_div(&watch.spread)) / bw.norm_squared();
@@ -474,6 +493,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let res = self.config.resolution[j];
         let same = match (kind, watch.kind) {
             (Kind::Dead, Kind::Dead) => true,
+            (Kind::Dead, Kind::Stuck(v)) | (Kind::Stuck(v), Kind::Dead) => v.abs() <= res,
             (Kind::Stuck(a), Kind::Stuck(b)) => (a - b).abs() <= res,
             (Kind::Weak(a), Kind::Weak(b)) => (a - b).abs() * reach <= res,
             _ => false,
@@ -540,6 +560,10 @@ impl<T: Real, const K: usize> Detector<T, K> {
         if self.len < 2 * wn {
             return None;
         }
+        if self.warmed < self.config.warmup {
+            self.warmed += 1;
+            return None;
+        }
         let (older, recent) = self.means();
         let d = recent - older;
         let s2 = self
@@ -553,7 +577,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         let dw = d.component_div(&s2.map(|x| x.sqrt()));
         let total = dw.norm_squared();
-        let (best, second) = Self::bank(&dw, &s2.map(|x| x.sqrt()), control);
+        let (best, second) = self.bank(&dw, &s2.map(|x| x.sqrt()), control);
         self.last = Statistic {
             actuator: best.0,
             best: best.1,
@@ -571,7 +595,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
             self.alarmed = true;
             self.alarms = self.alarms.saturating_add(1);
         }
-        if total - best.1 >= self.config.isolation || best.1 - second < self.config.margin {
+        let gate = self.config.isolation + self.config.relative * total;
+        if total - best.1 >= gate || best.1 - second < self.config.margin {
             // a change no single actuator explains (not a failure), or one that two explain
             // about as well (not yet isolated)
             self.streak = (0, 0);
@@ -608,10 +633,18 @@ impl<T: Real, const K: usize> Detector<T, K> {
         })
     }
 
+    /// Actuator `j`'s healthy column (the told one over its told factor), in world axes at
+    /// the last state's attitude.
+    fn healthy_column(&self, j: usize, control: &VehicleControl<T, K>) -> SVector<T, K> {
+        let b = control.allocator().geometry().effectiveness().column(j) / control.factors()[j];
+        rotate_blocks(&self.rotation, &b)
+    }
+
     /// The bank of hypotheses (docs/maths.md, "Failure detection"): for each actuator `j`,
     /// `T_j = (b̃_jᵀ d̃)² / |b̃_j|²` with `b̃_j` its column whitened by the spread `s`; the best
     /// `(j, T_j)` and the runner-up's `T`.
     fn bank(
+        &self,
         dw: &SVector<T, K>,
         s: &SVector<T, K>,
         control: &VehicleControl<T, K>,
@@ -620,7 +653,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let count = control.allocator().geometry().count();
         let (mut best, mut second) = ((0, T::zero()), T::zero());
         for j in 0..count {
-            let bw = b.column(j).component_div(s);
+            let bw = rotate_blocks(&self.rotation, &b.column(j).into_owned()).component_div(s);
             let nb = bw.norm_squared();
             if nb > T::zero() {
                 let dot = bw.dot(dw);
@@ -651,9 +684,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
     ) -> (Kind<T>, usize) {
         let wn = self.config.window;
         let s = s2.map(|x| x.sqrt());
-        // the healthy column: the told one over its told factor
-        let column =
-            control.allocator().geometry().effectiveness().column(j) / control.factors()[j];
+        let column = self.healthy_column(j, control);
         let bw = column.component_div(&s);
         let nb = bw.norm_squared();
         let shortfall = |e: &Entry<T, K>| bw.dot(&(e.w - older).component_div(&s)) / nb;

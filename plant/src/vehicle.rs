@@ -452,8 +452,10 @@ where
         duration: s.duration,
         estimator: estimation.as_ref().map(|e| e.report(&rows)),
         vehicle: Some(
-            VehicleReport::of(&rows, &run.failures, s.control_period)
-                .with_detections(run.detector.is_some().then_some(run.detections)),
+            VehicleReport::of(&rows, &run.failures, s.control_period).with_detections(
+                run.detector.is_some().then_some(run.detections),
+                run.detector.as_ref().map(|d| d.alarms()),
+            ),
         ),
         rows,
         status: Vec::new(),
@@ -479,6 +481,10 @@ pub struct VehicleReport {
     /// What the failure detector found (`[fault_detection]`; absent when it is off).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub detections: Option<Vec<DetectionReport>>,
+    /// The detector's alarms: each time its best hypothesis crossed the threshold, named or
+    /// not (absent when it is off). In nominal flight, at most the stated rate.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub alarms: Option<u32>,
 }
 
 /// One detection in `summary.json` (docs/vehicles.md, "Failures nobody announces").
@@ -578,9 +584,14 @@ pub struct FailureReport {
 }
 
 impl VehicleReport {
-    /// The same report with the detector's findings (`None`: it was off).
-    pub fn with_detections(mut self, detections: Option<Vec<DetectionReport>>) -> Self {
+    /// The same report with the detector's findings and alarms (`None`: it was off).
+    pub fn with_detections(
+        mut self,
+        detections: Option<Vec<DetectionReport>>,
+        alarms: Option<u32>,
+    ) -> Self {
         self.detections = detections;
+        self.alarms = alarms;
         self
     }
 
@@ -617,6 +628,7 @@ impl VehicleReport {
             },
             allocation_stopped: stopped,
             detections: None,
+            alarms: None,
             failures: failures
                 .iter()
                 .map(|f| FailureReport {

@@ -33,9 +33,21 @@ fn blind_rov(kind: FailureKind, value: f64) -> Scenario {
     s
 }
 
+/// [`blind_rov`] in calm water with its model trusted to 0.1 % (`floor = 0.001`): the
+/// simulation's state is exact and nothing unknown pushes the ROV, so its residual is that
+/// accurate, and the thruster that dies while holding it down with half a newton is seen.
+fn calm_rov(kind: FailureKind, value: f64) -> Scenario {
+    let mut s = blind_rov(kind, value);
+    s.fault_detection = Some(scenario::fault_detection::FaultDetectionSpec {
+        floor: 0.001,
+        ..DEFAULTS
+    });
+    s
+}
+
 #[test]
 fn an_unannounced_dead_thruster_is_found_and_flown_around_as_if_announced_then() {
-    let s = blind_rov(FailureKind::Dead, 0.0);
+    let s = calm_rov(FailureKind::Dead, 0.0);
     let t_fail = s.vehicle.as_ref().unwrap().failures[0].t;
     let found = run(&s);
     let d = detections(&found);
@@ -114,7 +126,7 @@ fn a_stuck_and_a_weak_rov_thruster_are_found_with_their_kind() {
         (FailureKind::Stuck, 24.0),
         (FailureKind::Effectiveness { factor: 0.5 }, 0.0),
     ] {
-        let mut s = blind_rov(kind, value);
+        let mut s = calm_rov(kind, value);
         let f = &mut s.vehicle.as_mut().unwrap().failures[0];
         f.actuator = 1;
         f.t = 6.0;
@@ -164,4 +176,170 @@ fn a_dead_hexarotor_rotor_is_found_on_the_boards_sensors_within_a_tenth_of_a_sec
     assert!(!d.is_empty(), "nothing found");
     assert_eq!(d[0].actuator, 2, "{d:?}");
     assert!(d[0].latency.unwrap() <= 0.1, "{d:?}");
+}
+
+/// Runs per study: a few in the test suite, more with `EQTRACK_DETECTION_RUNS` (the figures
+/// in BENCHMARKS come from 200).
+fn runs(default: usize) -> usize {
+    std::env::var("EQTRACK_DETECTION_RUNS")
+        .ok()
+        .and_then(|x| x.parse().ok())
+        .unwrap_or(default)
+}
+
+/// A seeded uniform number in [0, 1) (SplitMix64), so the studies need no generator crate.
+fn uniform(seed: u64, i: u64) -> f64 {
+    let mut z = seed
+        .wrapping_add(i.wrapping_mul(0x9e37_79b9_7f4a_7c15))
+        .wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+}
+
+/// Each kind on each thruster in turn, at a random time while the ROV moves (4 to 10 s) in a
+/// world-frame `current` (N; it loads every thruster), with or without the hexarotor's
+/// sensors and EqF. A failure that changes a thrust by less than the
+/// detector resolves cannot be seen until the command grows. Every detection must name the
+/// right thruster; every failure that changes the thrust by `seen` newtons or more must be
+/// found, 95 % of those within 0.2 s; and at least a quarter of them must be that large (the
+/// test is not empty). Returns a line per kind.
+fn rov_study(sensors: bool, current: [f64; 3], seen_from: f64) -> Vec<String> {
+    let n = runs(24);
+    let mut lines = Vec::new();
+    for (kind, value) in [
+        (FailureKind::Dead, 0.0),
+        (FailureKind::Stuck, 24.0),
+        (FailureKind::Effectiveness { factor: 0.5 }, 0.0),
+    ] {
+        let (mut wrong, mut latencies, mut small, mut missed) = (0, Vec::new(), 0, Vec::new());
+        for i in 0..n {
+            let mut s = blind_rov(kind, value);
+            s.disturbance_world = Some(vec![0.0, 0.0, 0.0, current[0], current[1], current[2]]);
+            if sensors {
+                let h = pair_tests::load_scenario("hexarotor_eqf");
+                s.sensors = h.sensors.clone();
+                s.sensors.as_mut().unwrap().seed = 300 + i as u64;
+                s.estimator = h.estimator.clone();
+            }
+            let f = &mut s.vehicle.as_mut().unwrap().failures[0];
+            f.actuator = i % 8;
+            f.t = (100.0 * (4.0 + 6.0 * uniform(44, i as u64))).round() / 100.0;
+            s.duration = f.t + 2.0;
+            let (j, at) = (f.actuator, f.t);
+            let t = run(&s);
+            // the thrust the failure took away, at the tick it struck
+            let row = t
+                .rows
+                .iter()
+                .find(|r| r.t >= at - 1e-9)
+                .unwrap()
+                .vehicle
+                .unwrap();
+            let change = match kind {
+                FailureKind::Dead => row.u_cmd[j].abs(),
+                FailureKind::Stuck => (value - row.u_cmd[j]).abs(),
+                FailureKind::Effectiveness { factor } => (1.0 - factor) * row.u_cmd[j].abs(),
+            };
+            let d = detections(&t);
+            if std::env::var("EQTRACK_DETECTION_VERBOSE").is_ok() {
+                eprintln!("{kind:?} thruster {j} at {at}: change {change:.3}, {d:?}");
+            }
+            wrong += d.iter().filter(|x| x.actuator != j).count();
+            match d.first() {
+                Some(first) if change >= seen_from => latencies.push(first.t - at),
+                None if change >= seen_from => missed.push((j, at, change)),
+                _ => small += 1,
+            }
+        }
+        latencies.sort_by(f64::total_cmp);
+        let seen = latencies.len();
+        let p95 = latencies
+            .get(((0.95 * seen as f64).ceil() as usize).saturating_sub(1))
+            .copied()
+            .unwrap_or(0.0);
+        lines.push(format!(
+            "{kind:?}: {seen} of {n} changed the thrust by {seen_from} N or more, all found, latency median {:.3} s, 95 % {p95:.3} s; {small} smaller; {wrong} wrong",
+            latencies.get(seen / 2).copied().unwrap_or(f64::NAN)
+        ));
+        assert_eq!(wrong, 0, "{kind:?}: a wrong thruster named; {lines:?}");
+        assert!(missed.is_empty(), "{kind:?}: missed {missed:?}; {lines:?}");
+        assert!(
+            4 * seen >= n,
+            "{kind:?}: too few loaded failures; {lines:?}"
+        );
+        assert!(p95 <= 0.2, "{kind:?}: {lines:?}");
+    }
+    lines
+}
+
+#[test]
+fn rov_thrusters_failing_at_random_times_in_the_move_are_found_on_the_right_one() {
+    // the exact state: every failure of 2 N or more
+    eprintln!("{}", rov_study(false, [15.0, 8.0, -10.0], 2.0).join("\n"));
+}
+
+#[test]
+fn on_sensors_and_the_eqf_rov_thrusters_failing_by_5_n_are_found_on_the_right_one() {
+    // the hexarotor's sensors (their noise is what the residual's spread is made of here), a
+    // stronger current: every failure of 5 N or more
+    eprintln!("{}", rov_study(true, [30.0, 20.0, -25.0], 5.0).join("\n"));
+}
+
+#[test]
+fn nominal_flights_with_noise_wind_and_model_error_raise_nothing_and_a_far_higher_rate_fires() {
+    // the hexarotor on its sensors and EqF: each flight a new noise seed, a wind up to 1 N in
+    // any horizontal direction, the plant's inertia off by up to ±10 % per axis and each
+    // rotor's thrust by up to ±5 % (a plant-only change the controller is not told)
+    let n = runs(6);
+    let (mut found, mut alarms, mut loud) = (0, 0, 0);
+    for i in 0..n as u64 {
+        let mut s = pair_tests::load_scenario("hexarotor_eqf");
+        let u = |k: u64| 2.0 * uniform(1000 + i, k) - 1.0;
+        s.sensors.as_mut().unwrap().seed = 100 + i;
+        let (w, a) = (uniform(7, i), std::f64::consts::PI * u(1));
+        s.disturbance_world = Some(vec![0.0, 0.0, 0.0, w * a.cos(), w * a.sin(), 0.0]);
+        for axis in 0..6 {
+            s.plant_inertia[axis * 6 + axis] *= 1.0 + 0.1 * u(2 + axis as u64);
+        }
+        let v = s.vehicle.as_mut().unwrap();
+        for j in 0..v.actuators.len() {
+            v.failures.push(FailureSpec {
+                actuator: j,
+                t: 0.0,
+                kind: FailureKind::Effectiveness {
+                    factor: 1.0 + 0.05 * u(10 + j as u64),
+                },
+                value: 0.0,
+                reconfigure: false,
+            });
+        }
+        let mut quiet = s.clone();
+        quiet.fault_detection = Some(DEFAULTS);
+        let t = run(&quiet);
+        found += detections(&t).len();
+        alarms += t.vehicle.as_ref().unwrap().alarms.unwrap_or(0);
+        // a rate 10⁸ times the default, 10⁵ an hour (about 1 % per test and hypothesis):
+        // over ten-second flights the thousandfold one (one an hour) would be expected to fire
+        // less than once in all of them
+        let mut eager = s.clone();
+        eager.fault_detection = Some(scenario::fault_detection::FaultDetectionSpec {
+            false_alarm_rate: 1e8 * DEFAULTS.false_alarm_rate,
+            ..DEFAULTS
+        });
+        let t = run(&eager);
+        loud += t.vehicle.as_ref().unwrap().alarms.unwrap_or(0);
+    }
+    // the bound: 10⁵ an hour over n flights of 10 s
+    let bound = 1e5 * n as f64 * 10.0 / 3600.0;
+    eprintln!(
+        "{n} nominal hexarotor flights: {found} detections, {alarms} alarms; at 1e5 an hour {loud} alarms (at most about {bound:.0})"
+    );
+    assert_eq!(found, 0, "false detections");
+    assert_eq!(alarms, 0, "alarms at the default rate");
+    assert!(loud > 0, "a rate of 1e5 an hour never fired");
+    assert!(
+        f64::from(loud) < 3.0 * bound + 3.0,
+        "{loud} alarms, bound {bound}"
+    );
 }

@@ -308,12 +308,14 @@ impl Scenario {
             h.f64s(&[
                 f.window,
                 f.false_alarm_rate,
+                f.warmup,
                 f.calibration,
                 f.memory,
                 f.floor,
                 f.confirm,
                 f.unexplained,
                 f.ambiguity,
+                f.model_error,
             ]);
         }
     }

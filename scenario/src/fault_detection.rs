@@ -14,11 +14,13 @@ use serde::Deserialize;
 pub(crate) struct RawFaultDetection {
     window: Option<f64>,
     false_alarm_rate: Option<f64>,
+    warmup: Option<f64>,
     calibration: Option<f64>,
     memory: Option<f64>,
     floor: Option<f64>,
     confirm: Option<f64>,
     unexplained: Option<f64>,
+    model_error: Option<f64>,
     ambiguity: Option<f64>,
 }
 
@@ -29,6 +31,8 @@ pub struct FaultDetectionSpec {
     pub window: f64,
     /// `false_alarm_rate`: alarms expected per hour of nominal flight, at most.
     pub false_alarm_rate: f64,
+    /// `warmup` (s): the start, in which the detector neither learns nor tests.
+    pub warmup: f64,
     /// `calibration` (s): nominal flight the spread is learned over before the first test.
     pub calibration: f64,
     /// `memory` (s): the time over which the spread keeps learning afterwards.
@@ -42,18 +46,22 @@ pub struct FaultDetectionSpec {
     pub unexplained: f64,
     /// `ambiguity`: the chance of naming the runner-up instead of the failed actuator.
     pub ambiguity: f64,
+    /// `model_error`: the model's relative error, as a fraction of what the residual sees.
+    pub model_error: f64,
 }
 
 /// The defaults of an empty `[fault_detection]`.
 pub const DEFAULTS: FaultDetectionSpec = FaultDetectionSpec {
     window: 0.1,
     false_alarm_rate: 1e-3,
+    warmup: 2.0,
     calibration: 2.0,
     memory: 10.0,
-    floor: 0.001,
+    floor: 0.005,
     confirm: 0.05,
     unexplained: 1e-6,
     ambiguity: 1e-3,
+    model_error: 0.1,
 };
 
 /// Periods in `seconds` at period `h` (rounded).
@@ -112,6 +120,16 @@ impl Validator<'_> {
             ));
         }
         let (calibration, memory, confirm) = self.fault_periods(raw, window, h)?;
+        let warmup = match raw.warmup {
+            None => d.warmup,
+            Some(x) if x.is_finite() && x >= 0.0 => x,
+            Some(x) => {
+                return Err(self.err(
+                    "fault_detection.warmup",
+                    format!("must be finite and ≥ 0, got {x}"),
+                ));
+            }
+        };
         let floor = self.positive_or("fault_detection.floor", raw.floor, d.floor)?;
         if floor >= 1.0 {
             return Err(self.err(
@@ -122,6 +140,7 @@ impl Validator<'_> {
         Ok(Some(FaultDetectionSpec {
             window,
             false_alarm_rate: rate,
+            warmup,
             calibration,
             memory,
             floor,
@@ -132,6 +151,16 @@ impl Validator<'_> {
                 d.unexplained,
             )?,
             ambiguity: probability("fault_detection.ambiguity", raw.ambiguity, d.ambiguity)?,
+            model_error: match raw.model_error {
+                None => d.model_error,
+                Some(x) if (0.0..1.0).contains(&x) => x,
+                Some(x) => {
+                    return Err(self.err(
+                        "fault_detection.model_error",
+                        format!("must be in [0, 1), got {x}"),
+                    ));
+                }
+            },
         }))
     }
 
@@ -200,12 +229,18 @@ impl Scenario {
         let (lo, hi) = geometry.bounds();
         let count = geometry.count();
         let reach = |j: usize| lo[j].abs().max(hi[j].abs());
-        let floor = SVector::<f64, K>::from_fn(|i, _| {
-            let most = (0..count)
+        // the residual is kept in world axes: each axis of a block (torque, force) gets the
+        // block's largest, which does not depend on the attitude
+        let most = |i: usize| {
+            (0..count)
                 .map(|j| b[(i, j)].abs() * reach(j))
-                .fold(0.0, f64::max);
-            // an axis no actuator reaches (never on a spanning geometry) keeps a unit floor
-            if most > 0.0 { f.floor * most } else { 1.0 }
+                .fold(0.0, f64::max)
+        };
+        let floor = SVector::<f64, K>::from_fn(|i, _| {
+            let block = 3 * (i / 3);
+            let m = (block..block + 3).map(most).fold(0.0, f64::max);
+            // a block no actuator reaches (never on a spanning geometry) keeps a unit floor
+            if m > 0.0 { f.floor * m } else { 1.0 }
         });
         let resolution = Commands::from_fn(|j, _| if j < count { f.floor * reach(j) } else { 1.0 });
         let diagonal =
@@ -220,7 +255,9 @@ impl Scenario {
             threshold: chi2_upper(1, per_test(f.false_alarm_rate, h * d as f64, count)),
             isolation: chi2_upper(K - 1, f.unexplained),
             margin: chi2_upper(1, f.ambiguity),
+            relative: f.model_error * f.model_error,
             confirm: entries(f.confirm).clamp(1, window),
+            warmup: entries(f.warmup),
             calibration: entries(f.calibration).max(2 * window),
             memory: (h * d as f64 / f.memory).min(1.0),
             floor,
