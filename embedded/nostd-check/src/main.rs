@@ -308,6 +308,65 @@ fn allocation_check<T: Real>() -> bool {
     met && within && kept
 }
 
+/// Failure detection without std: a hexarotor held at rest (its rotors' wrench balanced by a
+/// steady push), rotor 2 dies at cycle 100; the detector names it, dead, within 30 cycles.
+fn detection_check<T: Real>() -> bool {
+    use allocation::{Allocator, Commands, Geometry, Priority, Restoring, VehicleControl, presets};
+    use detection::{Config, Detector, Kind, threshold};
+    let rotors = presets::hexarotor::<T>(real(0.25), real(0.5), real(0.016), real(8.0));
+    let Ok(geometry) = Geometry::<T, 6>::new(&rotors) else {
+        return false;
+    };
+    let Ok(alloc) = Allocator::new(geometry, &[], &[], Priority::Torque) else {
+        return false;
+    };
+    let none = Restoring { weight: T::zero(), buoyancy: T::zero(), centre: nalgebra::Vector3::zeros() };
+    let h: T = real(0.01);
+    let mut control = VehicleControl::new(alloc, none, T::zero(), h);
+    let inertia = nalgebra::SMatrix::<T, 6, 6>::from_diagonal(&nalgebra::SVector::from([
+        real(0.02), real(0.02), real(0.04), real(1.5), real(1.5), real(1.5),
+    ]));
+    let config = Config {
+        decimation: 1,
+        window: 10,
+        threshold: real(threshold::chi2_upper(1, threshold::per_test(1e-3, 0.01, 6))),
+        isolation: real(threshold::chi2_upper(5, 1e-6)),
+        relative: real(0.01),
+        margin: real(threshold::chi2_upper(1, 1e-3)),
+        confirm: 5,
+        warmup: 0,
+        calibration: 20,
+        memory: real(1e-3),
+        floor: nalgebra::SVector::from_element(real(1e-3)),
+        resolution: Commands::from_element(real(0.04)),
+        inertia,
+        damping_linear: nalgebra::SVector::zeros(),
+        damping_quadratic: nalgebra::SVector::zeros(),
+        period: h,
+        time_constant: T::zero(),
+    };
+    let Ok(mut detector) = Detector::new(config) else {
+        return false;
+    };
+    let u = Commands::<T>::from_fn(|j, _| if j < 6 { real(3.0) } else { T::zero() });
+    let b = *control.allocator().geometry().effectiveness();
+    let (mut mu, r) = (nalgebra::SVector::<T, 6>::zeros(), nalgebra::Matrix3::<T>::identity());
+    let inverse = inertia.try_inverse().unwrap_or_else(nalgebra::SMatrix::zeros);
+    for k in 0..130 {
+        let v = inverse * mu;
+        if let Some(d) = detector.observe::<controller::group::Se3, 4>(&v, &r, &mut control) {
+            return k > 100 && k <= 130 && d.actuator == 2 && d.kind == Kind::Dead;
+        }
+        detector.commanded(&u);
+        let mut real_u = u;
+        if k >= 100 {
+            real_u[2] = T::zero();
+        }
+        mu += (b * real_u - b * u) * h;
+    }
+    false
+}
+
 /// The serial link's frames without std: a state frame encoded and decoded, a flipped bit
 /// refused by the CRC, the deframer finding the frame in a stream.
 fn serial_check() -> bool {
@@ -434,7 +493,9 @@ fn firmware_cycle_on_board_check() -> bool {
 }
 
 fn run() -> i32 {
-    let checks: [(&str, bool); 18] = [
+    let checks: [(&str, bool); 20] = [
+        ("detection f32", detection_check::<f32>()),
+        ("detection f64", detection_check::<f64>()),
         ("firmware_cycle", firmware_cycle_check()),
         ("serial_wire frames", serial_check()),
         ("allocation f32", allocation_check::<f32>()),
@@ -464,7 +525,7 @@ fn run() -> i32 {
         }
     }
     rt::write(if code == 0 {
-        b"nostd-check: controller, estimator, allocation, ipc_types, serial_wire and firmware_cycle run with no std, no alloc, no allocator\n"
+        b"nostd-check: controller, estimator, allocation, detection, ipc_types, serial_wire and firmware_cycle run with no std, no alloc, no allocator\n"
     } else {
         b"nostd-check: FAILED\n"
     });
