@@ -50,7 +50,7 @@ fn scenario_inputs_never_panic() {
     // the vehicle seeds' mutations reach every bad vehicle table: a geometry that loses a
     // direction or has too many actuators, a zero or non-finite axis, min > max, a failure
     // of an actuator that is not there, of a kind it does not know, stuck outside its range or
-    // with a factor outside (0, 1), a bad allocation table
+    // with a factor outside (0, 1), a bad allocation table, bad failure-detection keys
     for key in [
         "vehicle.actuator",
         "vehicle.actuator[*].axis",
@@ -60,6 +60,10 @@ fn scenario_inputs_never_panic() {
         "vehicle.failure[*].value",
         "vehicle.failure[*].factor",
         "allocation.weights",
+        "fault_detection.window",
+        "fault_detection.false_alarm_rate",
+        "fault_detection.floor",
+        "fault_detection.calibration",
     ] {
         assert!(
             r.rejected

@@ -1,5 +1,5 @@
-//! Failures nobody announces, in the in-process simulation (docs/vehicles.md, "Failures
-//! nobody announces"; docs/maths.md, "Failure detection"): `rov_failure` with its thruster's
+//! Failures nobody announces, in the in-process simulation
+//! (docs/vehicles.md, "Failures nobody announces"; docs/maths.md, "Failure detection"): `rov_failure` with its thruster's
 //! death kept from the controller, found by `[fault_detection]`, flown around; the detector's
 //! reconfiguration equal to the same failure announced at its detection time; a dead rotor of
 //! the hexarotor on its sensors and EqF found; nominal flights quiet.

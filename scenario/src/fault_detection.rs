@@ -216,8 +216,8 @@ impl Validator<'_> {
 }
 
 impl Scenario {
-    /// The detector's settings on a group of wrench dimension `K` (docs/maths.md, "Failure
-    /// detection"): the periods of each time, the thresholds from the probabilities, the
+    /// The detector's settings on a group of wrench dimension `K`
+    /// (docs/maths.md, "Failure detection"): the periods of each time, the thresholds from the probabilities, the
     /// floors from the actuators, the controller's model (inertia, drag, lag). `None` without
     /// `[fault_detection]` (or a vehicle).
     pub fn detector_config<const K: usize>(&self) -> Option<detection::Config<f64, K>> {

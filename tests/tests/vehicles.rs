@@ -345,3 +345,49 @@ fn a_weakened_thruster_told_to_the_pair_equals_the_simulation() {
         "told, the weak thruster is commanded differently"
     );
 }
+
+/// `[fault_detection]` is not run by the pair's controller yet: the pair refuses the scenario
+/// (exit 2), naming the key, before it starts a process.
+#[test]
+fn the_pair_refuses_fault_detection_naming_the_key() {
+    let _g = serial();
+    let d = TempDir::new("vehicle-detect");
+    let dir = Path::new(&d.join("scenario")).to_path_buf();
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(
+        repo("scenarios/rov_failure.csv"),
+        dir.join("rov_failure.csv"),
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(repo("scenarios/rov_failure.toml")).unwrap();
+    let file = dir.join("rov_detect.toml");
+    std::fs::write(&file, format!("{text}\n[fault_detection]\n")).unwrap();
+    let (code, out) = plant(&[
+        "run",
+        "--scenario",
+        file.to_str().unwrap(),
+        "--mode",
+        "lockstep",
+        "--name",
+        "t-vehicle-detect",
+        "--out",
+        &d.join("pair"),
+    ]);
+    assert_eq!(code, 2, "{out}");
+    assert!(out.contains("key `fault_detection`"), "{out}");
+    // the simulation runs it
+    let (code, out) = run(
+        "plant_sim",
+        &[
+            "sim",
+            "--scenario",
+            file.to_str().unwrap(),
+            "--out",
+            &d.join("sim"),
+        ],
+        LONG,
+    );
+    assert_eq!(code, 0, "{out}");
+    let s = summary(Path::new(&d.join("sim")));
+    assert!(s["vehicle"]["detections"].is_array(), "{s}");
+}

@@ -76,6 +76,17 @@ weights = [1.0, 2.0, 1.0, 0.5]
 preferred = [0.0, 0.1, 0.0, 0.0]
 priority = "none"
 budget = 2
+[fault_detection]
+window = 0.05
+false_alarm_rate = 0.01
+warmup = 0.0
+calibration = 0.1
+memory = 1.0
+floor = 0.01
+confirm = 0.02
+unexplained = 1e-6
+ambiguity = 1e-3
+model_error = 0.1
 "#,
     r#"group = "se3"
 law = "eqt"
