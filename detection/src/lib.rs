@@ -67,7 +67,7 @@ pub struct Detection<T> {
     pub kind: Kind<T>,
     /// The best hypothesis's statistic (χ²₁ under no failure).
     pub statistic: T,
-    /// How many periods before this one the change is estimated to have begun.
+    /// How many control periods before this one the change is estimated to have begun.
     pub since: usize,
     /// Whether this refines an earlier detection of the same actuator: the kind estimated
     /// again after watching it for a window once the allocator was told.
@@ -94,8 +94,9 @@ pub enum ConfigError {
     Calibration,
     /// `confirm` is not 1 to `window` entries.
     Confirm,
-    /// A threshold, the memory, the floor, the period, the decimation or the lag is not finite
-    /// and positive (the lag may be 0): the field's name.
+    /// A threshold, the memory, the floor, the period, the decimation, the relative error or
+    /// the lag is not finite and positive (the lag and the relative error may be 0): the
+    /// field's name.
     Value(&'static str),
 }
 
@@ -256,6 +257,9 @@ pub struct Detector<T, const K: usize> {
     /// What each failed actuator's periods have shown so far.
     sums: [Sums<T>; MAX_ACTUATORS],
     watch: Option<Watch<T, K>>,
+    /// Detections not reported yet (a refinement and a detection in the same entry, or one
+    /// watch cut short by another detection): the next cycles report them, oldest first.
+    queue: [Option<Detection<T>>; 3],
     previous: Option<Previous<T, K>>,
     /// The attitude of the last state: residuals are kept in world axes, where a steady wind
     /// or current is constant however the body turns, and the columns are turned with it.
@@ -301,7 +305,6 @@ impl<T: Real, const K: usize> Detector<T, K> {
             ("threshold", config.threshold),
             ("isolation", config.isolation),
             ("margin", config.margin),
-            ("relative", config.relative),
             ("memory", config.memory),
             ("period", config.period),
         ] {
@@ -311,6 +314,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         if config.memory > T::one() {
             return Err(ConfigError::Value("memory"));
+        }
+        if !(config.relative.is_finite() && config.relative >= T::zero()) {
+            return Err(ConfigError::Value("relative"));
         }
         if !config.floor.iter().all(|x| positive(*x)) {
             return Err(ConfigError::Value("floor"));
@@ -334,6 +340,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             stuck: [None; MAX_ACTUATORS],
             sums: [Sums::zero(); MAX_ACTUATORS],
             watch: None,
+            queue: [None; 3],
             previous: None,
             rotation: Matrix3::identity(),
             ring: [Entry::zero(); CAPACITY],
@@ -421,7 +428,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let previous = self.previous.replace(now);
         self.rotation = *r;
         let (Some(p), true) = (previous, self.held) else {
-            return None;
+            return self.next_report();
         };
         // the held period: the lag's mean output and its output at the end; the thrust
         // believed, a held value for an actuator found stuck
@@ -448,7 +455,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         a.p += p;
         self.periods += 1;
         if self.periods < c.decimation {
-            return None;
+            return self.next_report();
         }
         let n: T = controller::real(self.periods as f64);
         let mut entry = Entry {
@@ -458,10 +465,32 @@ impl<T: Real, const K: usize> Detector<T, K> {
         };
         self.accumulated = Entry::zero();
         self.periods = 0;
-        let refined = self.watching(&mut entry, control);
+        if let Some(refined) = self.watching(&mut entry, control) {
+            self.report(refined);
+        }
         self.push(entry);
-        let found = self.test(control);
-        found.or(refined)
+        if let Some(found) = self.test(control) {
+            self.report(found);
+        }
+        self.next_report()
+    }
+
+    /// Keeps `d` to report (a full queue drops the oldest: never more than three wait).
+    fn report(&mut self, d: Detection<T>) {
+        if self.queue.iter().all(Option::is_some) {
+            self.queue.rotate_left(1);
+            self.queue[2] = None;
+        }
+        if let Some(slot) = self.queue.iter_mut().find(|x| x.is_none()) {
+            *slot = Some(d);
+        }
+    }
+
+    /// The oldest detection not reported yet.
+    fn next_report(&mut self) -> Option<Detection<T>> {
+        let first = self.queue[0].take();
+        self.queue.rotate_left(1);
+        first
     }
 
     /// The watched actuator's shortfall in this period, added to its sums and taken out of
@@ -485,6 +514,17 @@ impl<T: Real, const K: usize> Detector<T, K> {
             self.watch = Some(watch);
             return None;
         }
+        self.refine(&watch, control)
+    }
+
+    /// The end of a watch: the kind fitted again over everything seen of the actuator and, if
+    /// it changed, the allocator told again (a refined detection).
+    fn refine(
+        &mut self,
+        watch: &Watch<T, K>,
+        control: &mut VehicleControl<T, K>,
+    ) -> Option<Detection<T>> {
+        let j = watch.actuator;
         let kind = self.fit(j, &self.sums[j], control);
         // told again only for another kind, or a value or factor that moved by more than
         // the actuator's resolution
@@ -613,6 +653,12 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.streak = (0, 0);
         self.alarmed = false;
         let j = best.0;
+        // a watch still running is cut short: its actuator's kind is fitted on what it saw
+        if let Some(refined) = self.watch.take().and_then(|w| self.refine(&w, control)) {
+            self.report(refined);
+        }
+        // a new failure of this actuator: what it showed before is another story
+        self.sums[j] = Sums::zero();
         let (kind, since) = self.kind(j, &older, &s2, control);
         self.tell(j, kind, control);
         // watch it for a window: the tell itself moves its command, which tells a weak
@@ -628,7 +674,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             actuator: j,
             kind,
             statistic: best.1,
-            since,
+            since: since * self.config.decimation,
             refined: false,
         })
     }

@@ -53,8 +53,12 @@ pub fn chi2_survival(dof: usize, x: f64) -> f64 {
 }
 
 /// The upper quantile `x` of χ² with `dof` degrees of freedom, `P(χ² > x) = p`, `p` in
-/// (0, 1): bisection on [`chi2_survival`], which decreases in `x`.
+/// (0, 1): bisection on [`chi2_survival`], which decreases in `x`. A `p` of 1 or more (or NaN)
+/// gives 0, which no detector accepts as a threshold.
 pub fn chi2_upper(dof: usize, p: f64) -> f64 {
+    if p.is_nan() || p >= 1.0 {
+        return 0.0;
+    }
     let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
     while chi2_survival(dof, hi) > p && hi < 1e6 {
         hi *= 2.0;

@@ -64,6 +64,12 @@ fn scenario_inputs_never_panic() {
         "fault_detection.false_alarm_rate",
         "fault_detection.floor",
         "fault_detection.calibration",
+        "fault_detection.memory",
+        "fault_detection.confirm",
+        "fault_detection.warmup",
+        "fault_detection.model_error",
+        "fault_detection.unexplained",
+        "fault_detection.ambiguity",
     ] {
         assert!(
             r.rejected

@@ -48,7 +48,6 @@ fn calm_rov(kind: FailureKind, value: f64) -> Scenario {
 #[test]
 fn an_unannounced_dead_thruster_is_found_and_flown_around_as_if_announced_then() {
     let s = calm_rov(FailureKind::Dead, 0.0);
-    let t_fail = s.vehicle.as_ref().unwrap().failures[0].t;
     let found = run(&s);
     let d = detections(&found);
     assert!(!d.is_empty(), "nothing found");
@@ -64,18 +63,32 @@ fn an_unannounced_dead_thruster_is_found_and_flown_around_as_if_announced_then()
     // back on its reference: within 1e-3 of it in ‖Q_E − I‖ (so 1e-3 rad and 1 mm)
     let end = found.rows.last().unwrap();
     assert!(end.config_error < 1e-3, "ends at {:e}", end.config_error);
-    // the healthy run before the failure is the same run to the bit
-    let mut healthy = s.clone();
-    healthy.vehicle.as_mut().unwrap().failures.clear();
-    let h = run(&healthy);
+    // the detector changes nothing until it detects: the same flight without it is the
+    // same run to the bit up to the detection's tick
+    let mut off = s.clone();
+    off.fault_detection = None;
+    let o = run(&off);
+    let mut same = 0;
     for (a, b) in found
         .rows
         .iter()
-        .zip(&h.rows)
-        .take_while(|(a, _)| a.t < t_fail - 1e-9)
+        .zip(&o.rows)
+        .take_while(|(a, _)| a.t < first.t - 1e-9)
     {
         assert_eq!(a.tau, b.tau, "t = {}", a.t);
+        assert_eq!(
+            a.vehicle.unwrap().u_cmd,
+            b.vehicle.unwrap().u_cmd,
+            "t = {}",
+            a.t
+        );
+        same += 1;
     }
+    assert!(same > 1900, "{same} ticks compared");
+    // and the healthy flight raises nothing
+    let mut healthy = s.clone();
+    healthy.vehicle.as_mut().unwrap().failures.clear();
+    let h = run(&healthy);
     assert!(
         detections(&h).is_empty(),
         "the healthy flight raised {:?}",
@@ -185,6 +198,7 @@ fn a_dead_hexarotor_rotor_is_found_on_the_boards_sensors_within_a_tenth_of_a_sec
         let d = detections(&run(&f));
         assert!(!d.is_empty(), "rotor {j} dead at {at}: nothing found");
         assert_eq!(d[0].actuator, j, "rotor {j} dead at {at}: {d:?}");
+        assert!(d[0].t >= at, "rotor {j}: found before it died: {d:?}");
         late.push(d[0].latency.unwrap());
     }
     late.sort_by(f64::total_cmp);
@@ -278,6 +292,13 @@ fn rov_study(sensors: bool, current: [f64; 3], seen_from: f64) -> Vec<String> {
                 eprintln!("{kind:?} thruster {j} at {at}: change {change:.3}, {d:?}");
             }
             wrong += d.iter().filter(|x| x.actuator != j).count();
+            if let Some(first) = d.first() {
+                assert!(
+                    first.t >= at,
+                    "{kind:?} thruster {j}: found at {} before it failed at {at}",
+                    first.t
+                );
+            }
             match d.first() {
                 Some(first) if change >= seen_from => latencies.push(first.t - at),
                 None if change >= seen_from => missed.push((j, at, change)),

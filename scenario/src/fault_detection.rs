@@ -80,18 +80,18 @@ impl Validator<'_> {
     pub(crate) fn fault_detection(
         &self,
         raw: Option<&RawFaultDetection>,
-        has_vehicle: bool,
+        actuators: Option<usize>,
         h: f64,
     ) -> Result<Option<FaultDetectionSpec>, ScenarioError> {
         let Some(raw) = raw else {
             return Ok(None);
         };
-        if !has_vehicle {
+        let Some(count) = actuators else {
             return Err(self.err(
                 "fault_detection",
                 "needs a [vehicle] with its actuators (it watches their commands)",
             ));
-        }
+        };
         let d = DEFAULTS;
         let probability = |key: &str, x: Option<f64>, default: f64| match x {
             None => Ok(default),
@@ -113,23 +113,18 @@ impl Validator<'_> {
             raw.false_alarm_rate,
             d.false_alarm_rate,
         )?;
-        if per_test(rate, h, 1) >= 0.5 {
+        // one test per entry of `decimation` periods, over every actuator
+        let d_periods = decimation(n) as f64;
+        if per_test(rate, h * d_periods, count) >= 0.5 {
             return Err(self.err(
                 "fault_detection.false_alarm_rate",
-                format!("{rate} an hour is an alarm every other period or more"),
+                format!(
+                    "{rate} an hour is a chance of half or more that each test alarms (one test every {} s over {count} actuators)",
+                    h * d_periods
+                ),
             ));
         }
-        let (calibration, memory, confirm) = self.fault_periods(raw, window, h)?;
-        let warmup = match raw.warmup {
-            None => d.warmup,
-            Some(x) if x.is_finite() && x >= 0.0 => x,
-            Some(x) => {
-                return Err(self.err(
-                    "fault_detection.warmup",
-                    format!("must be finite and ≥ 0, got {x}"),
-                ));
-            }
-        };
+        let (warmup, calibration, memory, confirm) = self.fault_periods(raw, window, h)?;
         let floor = self.positive_or("fault_detection.floor", raw.floor, d.floor)?;
         if floor >= 1.0 {
             return Err(self.err(
@@ -173,13 +168,14 @@ impl Validator<'_> {
         }
     }
 
-    /// `calibration`, `memory` and `confirm` (s), each against the window and the period.
+    /// `warmup`, `calibration`, `memory` and `confirm` (s), each against the window and the
+    /// period.
     fn fault_periods(
         &self,
         raw: &RawFaultDetection,
         window: f64,
         h: f64,
-    ) -> Result<(f64, f64, f64), ScenarioError> {
+    ) -> Result<(f64, f64, f64, f64), ScenarioError> {
         let d = DEFAULTS;
         let n = periods(window, h);
         let calibration = self.positive_or(
@@ -203,7 +199,12 @@ impl Validator<'_> {
                 format!("{memory} s is shorter than a control period ({h} s)"),
             ));
         }
-        let confirm = self.positive_or("fault_detection.confirm", raw.confirm, window / 2.0)?;
+        // by default half the window, and at least a period
+        let confirm = self.positive_or(
+            "fault_detection.confirm",
+            raw.confirm,
+            (window / 2.0).max(h),
+        )?;
         let c = periods(confirm, h);
         if c == 0 || c > n {
             return Err(self.err(
@@ -211,7 +212,17 @@ impl Validator<'_> {
                 format!("{confirm} s is {c} control periods; it must be 1 to the window's {n}"),
             ));
         }
-        Ok((calibration, memory, confirm))
+        let warmup = match raw.warmup {
+            None => d.warmup,
+            Some(x) if x.is_finite() && x >= 0.0 => x,
+            Some(x) => {
+                return Err(self.err(
+                    "fault_detection.warmup",
+                    format!("must be finite and ≥ 0, got {x}"),
+                ));
+            }
+        };
+        Ok((warmup, calibration, memory, confirm))
     }
 }
 

@@ -259,7 +259,7 @@ impl Validator<'_> {
         };
         let fault_detection = self.fault_detection(
             raw.fault_detection.as_ref(),
-            vehicle.is_some(),
+            vehicle.as_ref().map(|v| v.actuators.len()),
             raw.control_period,
         )?;
         Ok(Scenario {

@@ -454,7 +454,7 @@ fn fault_detection_keys_are_checked() {
         (
             "false_alarm_rate = 1e9",
             "false_alarm_rate",
-            "every other period",
+            "chance of half or more",
         ),
         (
             "calibration = 0.1",
@@ -463,6 +463,11 @@ fn fault_detection_keys_are_checked() {
         ),
         ("warmup = -1.0", "warmup", "finite and ≥ 0"),
         ("model_error = 1.0", "model_error", "in [0, 1)"),
+        (
+            "false_alarm_rate = 2e6",
+            "false_alarm_rate",
+            "chance of half or more",
+        ),
         ("model_error = -0.1", "model_error", "in [0, 1)"),
         ("warmup = inf", "warmup", "finite and ≥ 0"),
         ("memory = 0.001", "memory", "shorter than a control period"),
@@ -479,6 +484,26 @@ fn fault_detection_keys_are_checked() {
     ] {
         refused(&with(keys), &format!("fault_detection.{key}"), what);
     }
+    // a model error of 0 is a detector trusting its model exactly: accepted, and it builds
+    let exact = load(&with("model_error = 0.0"));
+    assert_eq!(exact.detector_config::<6>().unwrap().relative, 0.0);
+    assert!(detection::Detector::new(exact.detector_config::<6>().unwrap()).is_ok());
+    // a window of a single period takes the default confirmation (one period) without a word
+    let one = load(&with("window = 0.006\ncalibration = 0.5"));
+    assert_eq!(one.detector_config::<6>().unwrap().confirm, 1);
+    // a long window averages periods into entries; the rate is checked per test
+    let long = load(&with("window = 60.0\ncalibration = 120.0"));
+    let c = long.detector_config::<6>().unwrap();
+    assert!(
+        c.decimation > 1 && 2 * c.window <= detection::CAPACITY,
+        "{c:?}"
+    );
+    assert!(detection::Detector::new(c).is_ok());
+    refused(
+        &with("window = 60.0\ncalibration = 120.0\nfalse_alarm_rate = 2e4"),
+        "fault_detection.false_alarm_rate",
+        "chance of half or more",
+    );
     let e = error(&with("threshold = 3.0"));
     assert!(e.contains("unknown field `threshold`"), "{e}");
     // no vehicle: nothing to watch
