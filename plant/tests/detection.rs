@@ -132,6 +132,49 @@ fn an_unannounced_dead_thruster_is_found_and_flown_around_as_if_announced_then()
 }
 
 #[test]
+fn two_rov_thrusters_failing_one_after_the_other_are_found_in_turn() {
+    // in a current that loads the thrusters: thruster 1 dies at 6.3 s, thruster 6 sticks at
+    // -20 N at 9.1 s, neither announced; both found, in order, on the right thrusters, and the
+    // ROV flown on the six left
+    let mut s = blind_rov(FailureKind::Dead, 0.0);
+    s.disturbance_world = Some(vec![0.0, 0.0, 0.0, 15.0, 8.0, -10.0]);
+    s.duration = 16.0;
+    let v = s.vehicle.as_mut().unwrap();
+    v.failures[0].actuator = 1;
+    v.failures[0].t = 6.3;
+    v.failures.push(FailureSpec {
+        actuator: 6,
+        t: 9.1,
+        kind: FailureKind::Stuck,
+        value: -20.0,
+        reconfigure: false,
+    });
+    let t = run(&s);
+    let d: Vec<_> = detections(&t).into_iter().filter(|x| !x.refined).collect();
+    let named: Vec<_> = d.iter().map(|x| (x.actuator, x.kind)).collect();
+    assert_eq!(named, vec![(1, "dead"), (6, "stuck")], "{d:?}");
+    assert!(
+        d.iter()
+            .all(|x| x.latency.is_some_and(|l| (0.0..=0.2).contains(&l))),
+        "{d:?}"
+    );
+    assert!((d[1].value.unwrap() + 20.0).abs() < 1.0, "{d:?}");
+    // flown as well as the healthy ROV in the same current (which the law, without an
+    // integral term, holds a long way off its reference: ‖Q_E − I‖ near 1)
+    let mut healthy = s.clone();
+    healthy.vehicle.as_mut().unwrap().failures.clear();
+    let (end, nominal) = (
+        t.rows.last().unwrap().config_error,
+        run(&healthy).rows.last().unwrap().config_error,
+    );
+    assert!(
+        end < 1.5 * nominal + 1e-3,
+        "ends at {end:e}, healthy {nominal:e}"
+    );
+    eprintln!("two failures in turn: {d:?}; ends at {end:.3e} (healthy {nominal:.3e})");
+}
+
+#[test]
 fn a_stuck_and_a_weak_rov_thruster_are_found_with_their_kind() {
     // thruster 1 (horizontal) stuck at +60 % of its range, and at half its effectiveness,
     // from t = 6 s, while the ROV moves along its waypoints
