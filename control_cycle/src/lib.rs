@@ -3,7 +3,8 @@
 //! * [`respond`] and [`Responder`]: one answer to one plant state — the reference stepped to
 //!   the state's time, the law (with its disturbance-rejection terms) through the `controller`
 //!   crate, the command filled in. Allocation-free and generic over the scalar.
-//! * [`ControllerVehicle`]: with a vehicle, the law's wrench allocated to its actuators.
+//! * [`ControllerVehicle`]: with a vehicle, the law's wrench allocated to its actuators, and
+//!   with `[fault_detection]` the failure detector's cycle before it.
 //! * [`PlanIntake`] and [`streamed_reference`]: a streamed reference, the plan messages taken
 //!   into its path, and the path a streamed run starts from.
 //!
@@ -19,4 +20,4 @@ mod vehicle;
 
 pub use respond::{Responder, respond};
 pub use stream::{PlanIntake, streamed_reference};
-pub use vehicle::ControllerVehicle;
+pub use vehicle::{ControllerVehicle, write_detection};

@@ -142,6 +142,14 @@ where
         Ok(())
     }
 
+    /// Whether a failure detector runs (its state is in no command: replay follows it state
+    /// by state).
+    pub fn detects(&self) -> bool {
+        self.vehicle
+            .as_ref()
+            .is_some_and(|v| v.detector().is_some())
+    }
+
     /// The controller.
     pub fn controller(&self) -> &Controller<T, G, N, M> {
         &self.controller
@@ -187,7 +195,10 @@ where
         let mut cmd = command::<T, G, N, M>(msg.seq, &out, self.controller.config().law);
         cmd.previous_seq = self.previous.unwrap_or(ipc_types::NO_PREVIOUS);
         if let Some(vehicle) = &mut self.vehicle {
-            vehicle.answer::<G, N>(msg, &out.torque.map(to_f64::<T>), &mut cmd);
+            let follows = self
+                .previous
+                .is_some_and(|p| p.checked_add(1) == Some(msg.seq));
+            vehicle.answer::<G, N>(msg, &out.torque.map(to_f64::<T>), follows, &mut cmd);
         }
         if let Some((estimate, z)) = before {
             for i in 0..M.min(ipc_types::MAX_M) {

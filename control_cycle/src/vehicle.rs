@@ -1,11 +1,13 @@
 //! A vehicle on the controller's side (docs/vehicles.md, "In the pair"): the law's wrench
 //! less the known restoring wrench, allocated to the actuators within their bounds, with the
-//! rate limit and the failures the controller is told of. The command carries the answer.
+//! rate limit and the failures the controller is told of, and with `[fault_detection]` the
+//! failures its detector finds. The command carries the answer.
 
 use allocation::{Commands, VehicleControl};
 use controller::group::MatrixLieGroup;
 use ipc_types::{CommandMsg, MAX_ACTUATORS, StateMsg};
 use nalgebra::SVector;
+use scenario::Scenario;
 use scenario::vehicle::VehicleSpec;
 
 /// The controller's vehicle between cycles.
@@ -14,17 +16,47 @@ pub struct ControllerVehicle<const M: usize> {
     control: VehicleControl<f64, M>,
     spec: VehicleSpec,
     count: usize,
+    /// The failure detector (docs/maths.md, "Failure detection"; `None`: off).
+    detector: Option<detection::Detector<f64, M>>,
+    /// The scenario its settings come from: a plant that runs another period than the
+    /// scenario's (`--rate-hz`) gets a detector made for that period on its first state.
+    detecting: Option<Box<Scenario>>,
+    /// The wrench the last command counted as applied: the next state's `applied` says
+    /// whether the plant applied that command (a held one, or safe mode, says otherwise).
+    accounted: Option<SVector<f64, M>>,
 }
 
 impl<const M: usize> ControllerVehicle<M> {
-    /// The scenario's vehicle (`Err`: its tables do not make an allocator on this group,
-    /// which the scenario's load already refuses).
+    /// The scenario's vehicle at control period `period`, without a detector. `Err`: its
+    /// tables do not make an allocator on this group, which the scenario's load already
+    /// refuses.
     pub fn new(spec: &VehicleSpec, period: f64) -> Result<Self, String> {
         Ok(ControllerVehicle {
             control: spec.control::<M>(period)?,
             count: spec.actuators.len(),
             spec: spec.clone(),
+            detector: None,
+            detecting: None,
+            accounted: None,
         })
+    }
+
+    /// Scenario `s`'s vehicle, with its failure detector when it has `[fault_detection]`
+    /// (`Scenario::detector_config`, at the scenario's period until a state says another).
+    /// `Err`: no vehicle, or its tables do not make an allocator or a detector on this group.
+    pub fn of(s: &Scenario) -> Result<Self, String> {
+        let spec = s.vehicle.as_ref().ok_or("the scenario has no [vehicle]")?;
+        let mut v = Self::new(spec, s.control_period)?;
+        if s.fault_detection.is_some() {
+            v.detector = Some(detector_at::<M>(s)?);
+            v.detecting = Some(Box::new(s.clone()));
+        }
+        Ok(v)
+    }
+
+    /// The failure detector, if it runs.
+    pub fn detector(&self) -> Option<&detection::Detector<f64, M>> {
+        self.detector.as_ref()
     }
 
     /// The actuator count.
@@ -34,22 +66,58 @@ impl<const M: usize> ControllerVehicle<M> {
 
     /// Allocates the law's wrench `tau` for state `msg` (attitude from its configuration,
     /// told failures from its `t_k`) and writes the vehicle's fields of `cmd`, the command
-    /// the limit narrowed around included. Allocation-free.
+    /// the limit narrowed around included. With a detector, first its cycle over the
+    /// period that ended at `msg`, which may tell the allocator of a failure found, as the
+    /// in-process simulation does; the command carries the finding. The period counts only
+    /// if the controller answered the state just before (`follows`) and the plant applied
+    /// that answer (the state's `applied` is the wrench it accounted, bit for bit): over a
+    /// missed state, a held command or safe mode the thrust was not what the detector
+    /// believes, and it starts afresh ([`detection::Detector::gap`]). Allocation-free.
     pub fn answer<G: MatrixLieGroup<N, M>, const N: usize>(
         &mut self,
         msg: &StateMsg,
         tau: &SVector<f64, M>,
+        follows: bool,
         cmd: &mut CommandMsg,
     ) {
         self.control.set_period(msg.control_period);
         self.spec
             .tell_failures(&mut self.control, msg.t, msg.control_period);
         let r_hat = G::rotation(&msg.configuration::<N>());
+        if let (Some(d), Some(s)) = (&mut self.detector, &mut self.detecting)
+            && d.config().period != msg.control_period
+        {
+            // the plant's period (checked positive and finite by the link), met once
+            s.control_period = msg.control_period;
+            if let Ok(fresh) = detector_at::<M>(s) {
+                *d = fresh;
+            }
+        }
+        if let Some(d) = &mut self.detector {
+            let applied = msg.applied_torque::<M>();
+            let as_sent = self.accounted.is_some_and(|a| {
+                a.iter()
+                    .zip(applied.iter())
+                    .all(|(x, y)| x.to_bits() == y.to_bits())
+            });
+            if !(follows && as_sent) {
+                d.gap();
+            }
+            if let Some(found) = d.observe::<G, N>(&msg.velocity::<M>(), &r_hat, &mut self.control)
+            {
+                write_detection(cmd, &found);
+            }
+            cmd.alarms = d.alarms();
+        }
         if let Some(p) = self.control.previous() {
             cmd.u_previous.copy_from_slice(p.as_slice());
         }
         let a = self.control.actuate(tau, &r_hat);
+        if let Some(d) = &mut self.detector {
+            d.commanded(&a.allocation.u);
+        }
         let accounted = a.applied(&self.control.restoring(&r_hat));
+        self.accounted = Some(accounted);
         cmd.actuators = self.count as u32;
         cmd.alloc_status = u32::from(a.allocation.status.code());
         for i in 0..M.min(ipc_types::MAX_M) {
@@ -67,4 +135,20 @@ impl<const M: usize> ControllerVehicle<M> {
             .then(|| Commands::<f64>::from_fn(|j, _| cmd.u_previous[j.min(MAX_ACTUATORS - 1)]));
         self.control.set_previous(previous);
     }
+}
+
+/// Scenario `s`'s failure detector at its control period.
+fn detector_at<const M: usize>(s: &Scenario) -> Result<detection::Detector<f64, M>, String> {
+    let config = s
+        .detector_config::<M>()
+        .ok_or("fault_detection: the vehicle does not make a detector on this group")?;
+    detection::Detector::new(config).map_err(|e| format!("fault_detection: {e}"))
+}
+
+/// Writes detection `found` into the command's detection fields (docs/wire.md).
+pub fn write_detection(cmd: &mut CommandMsg, found: &detection::Detection<f64>) {
+    cmd.detected = found.actuator as u32 + 1;
+    cmd.detected_kind = found.kind.code();
+    cmd.detected_value = found.kind.value();
+    cmd.detected_refined = u32::from(found.refined);
 }

@@ -271,14 +271,14 @@ fn responder_for<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         })?;
     Ok(match &s.vehicle {
         None => responder,
-        Some(v) => responder.with_vehicle(
-            control_cycle::ControllerVehicle::new(v, s.control_period).map_err(|what| {
+        Some(_) => {
+            responder.with_vehicle(control_cycle::ControllerVehicle::of(s).map_err(|what| {
                 NodeError::Vehicle {
                     scenario: s.name.clone(),
                     what,
                 }
-            })?,
-        ),
+            })?)
+        }
     })
 }
 

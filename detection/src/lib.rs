@@ -58,6 +58,37 @@ impl<T> Kind<T> {
     }
 }
 
+impl<T: Copy + Default> Kind<T> {
+    /// The kind's code on the wire: 1 dead, 2 stuck, 3 effectiveness (0 is left for none).
+    pub fn code(&self) -> u32 {
+        match self {
+            Kind::Dead => 1,
+            Kind::Stuck(_) => 2,
+            Kind::Weak(_) => 3,
+        }
+    }
+
+    /// The estimate the kind carries: the stuck value, the factor, or the default (zero)
+    /// when dead.
+    pub fn value(&self) -> T {
+        match self {
+            Kind::Dead => T::default(),
+            Kind::Stuck(v) | Kind::Weak(v) => *v,
+        }
+    }
+
+    /// The kind of wire code `code` with estimate `value` ([`Kind::code`], [`Kind::value`];
+    /// `None`: not a kind's code).
+    pub fn from_code(code: u32, value: T) -> Option<Self> {
+        match code {
+            1 => Some(Kind::Dead),
+            2 => Some(Kind::Stuck(value)),
+            3 => Some(Kind::Weak(value)),
+            _ => None,
+        }
+    }
+}
+
 /// One detection: the actuator, its kind, the test's statistic and when the change began.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Detection<T> {
@@ -368,6 +399,13 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// The settings.
     pub fn config(&self) -> &Config<T, K> {
         &self.config
+    }
+
+    /// Forgets the last state: the controller did not see the one before this cycle's (a
+    /// missed or late state), so the next cycle has no period to take a residual over and
+    /// starts one afresh. The windows, the spread learned and the findings stay.
+    pub fn gap(&mut self) {
+        self.previous = None;
     }
 
     /// The actuators found failed so far.

@@ -490,3 +490,13 @@ fn in_f32_a_dead_rotor_is_found() {
     assert!(k > 300 && k <= 320, "found at cycle {k}");
     assert!(found.iter().all(|(_, d)| d.actuator == 4), "{found:?}");
 }
+
+#[test]
+fn a_kind_crosses_the_wire_as_its_code_and_estimate() {
+    for k in [Kind::Dead, Kind::Stuck(-20.5), Kind::Weak(0.375)] {
+        assert_eq!(Kind::from_code(k.code(), k.value()), Some(k));
+    }
+    assert_eq!(Kind::<f64>::Dead.value(), 0.0);
+    assert_eq!(Kind::from_code(0, 1.0), None);
+    assert_eq!(Kind::from_code(4, 1.0), None);
+}

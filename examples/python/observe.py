@@ -53,7 +53,7 @@ class StateMsg(ctypes.Structure):
 
 
 class CommandMsg(ctypes.Structure):
-    """eqtrack::CommandMsg7 (docs/wire.md)."""
+    """eqtrack::CommandMsg8 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -87,11 +87,16 @@ class CommandMsg(ctypes.Structure):
         ("accounted", ctypes.c_double * MAX_M),
         ("u_previous", ctypes.c_double * MAX_ACTUATORS),
         ("u_cmd", ctypes.c_double * MAX_ACTUATORS),
+        ("detected", ctypes.c_uint32),
+        ("detected_kind", ctypes.c_uint32),
+        ("detected_value", ctypes.c_double),
+        ("detected_refined", ctypes.c_uint32),
+        ("alarms", ctypes.c_uint32),
     ]
 
     @staticmethod
     def type_name():
-        return "eqtrack::CommandMsg7"
+        return "eqtrack::CommandMsg8"
 
 
 def entries(node, run, what, msg_type, timeout):

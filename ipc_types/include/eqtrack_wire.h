@@ -8,7 +8,7 @@
  * Each message sits in an iceoryx2 blackboard entry (key type uint32_t, keys 0..7 are the
  * writer slots) of the service `eqtrack/<run>/state`, `eqtrack/<run>/command` or
  * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg6",
- * "eqtrack::CommandMsg7", "eqtrack::PlanMsg4", "eqtrack::StatusMsg4". All numbers are little-endian on the machines eqtrack runs on.
+ * "eqtrack::CommandMsg8", "eqtrack::PlanMsg4", "eqtrack::StatusMsg4". All numbers are little-endian on the machines eqtrack runs on.
  */
 #ifndef EQTRACK_WIRE_H
 #define EQTRACK_WIRE_H
@@ -16,7 +16,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define EQTRACK_PROTOCOL_VERSION 7u
+#define EQTRACK_PROTOCOL_VERSION 8u
 #define EQTRACK_MAX_N 4        /* configuration matrices are n x n, n <= 4 */
 #define EQTRACK_MAX_M 6        /* algebra dimension m <= 6 */
 #define EQTRACK_NAME_BYTES 32  /* scenario name, UTF-8, NUL-padded */
@@ -86,6 +86,11 @@ typedef struct eqtrack_CommandMsg {
                                         state's `applied` when this command is applied */
     double u_previous[EQTRACK_MAX_ACTUATORS]; /* the command the rate limit narrowed around */
     double u_cmd[EQTRACK_MAX_ACTUATORS];      /* actuator commands, first `actuators` */
+    uint32_t detected;          /* failure detector: the actuator found this cycle plus one; 0: none */
+    uint32_t detected_kind;     /* 1 dead, 2 stuck, 3 effectiveness; 0: none */
+    double detected_value;      /* the stuck value or factor told to the allocator (0 when dead) */
+    uint32_t detected_refined;  /* 1: refines an earlier finding of the same actuator */
+    uint32_t alarms;            /* the detector's alarms so far */
 } eqtrack_CommandMsg;
 
 /* eqtrack_WireSegment.shape */

@@ -18,11 +18,14 @@ pub enum Invalid {
     Period,
     /// A command's actuator count is not the receiver's vehicle's (0 without a vehicle).
     Actuators,
+    /// A command's detection names no actuator of the vehicle or no kind, or has fields set
+    /// when nothing was found.
+    Detection,
 }
 
 impl Invalid {
     /// How many kinds there are.
-    pub const KINDS: usize = 6;
+    pub const KINDS: usize = 7;
     /// All kinds, for counters.
     pub const ALL: [Invalid; Invalid::KINDS] = [
         Invalid::Version,
@@ -31,6 +34,7 @@ impl Invalid {
         Invalid::Sequence,
         Invalid::Period,
         Invalid::Actuators,
+        Invalid::Detection,
     ];
 
     /// Index into a counter array.
@@ -47,6 +51,7 @@ impl Invalid {
             Invalid::Sequence => "sequence number not increasing",
             Invalid::Period => "control period mismatch",
             Invalid::Actuators => "actuator count not the plant's",
+            Invalid::Detection => "detection of no actuator or kind",
         }
     }
 }
@@ -137,8 +142,17 @@ pub fn check_command(
         || !all_finite(&msg.accounted[..m])
         || !all_finite(&msg.u_previous[..count])
         || !all_finite(&msg.u_cmd[..count])
+        || !msg.detected_value.is_finite()
     {
         return Err(Invalid::NonFinite);
+    }
+    let found = msg.detected > 0;
+    if msg.detected > msg.actuators
+        || (found && !(1..=3).contains(&msg.detected_kind))
+        || msg.detected_refined > 1
+        || (!found && (msg.detected_kind, msg.detected_value, msg.detected_refined) != (0, 0.0, 0))
+    {
+        return Err(Invalid::Detection);
     }
     if msg.seq != awaited {
         return Err(Invalid::Sequence);

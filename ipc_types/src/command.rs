@@ -14,7 +14,7 @@ use nalgebra::SVector;
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::CommandMsg7")
+    type_name("eqtrack::CommandMsg8")
 )]
 #[repr(C)]
 pub struct CommandMsg {
@@ -95,6 +95,18 @@ pub struct CommandMsg {
     pub u_previous: [f64; MAX_ACTUATORS],
     /// The actuator commands, first `actuators` entries.
     pub u_cmd: [f64; MAX_ACTUATORS],
+    /// The failure detector's finding this cycle (docs/vehicles.md, "Failures nobody
+    /// announces"): the actuator found failed, plus one (0: nothing found, or no detector).
+    /// The allocation of this command already knows it.
+    pub detected: u32,
+    /// Its kind: 1 dead, 2 stuck, 3 effectiveness (0 when nothing was found).
+    pub detected_kind: u32,
+    /// The estimate the allocator was told: the stuck value, or the factor (0 when dead).
+    pub detected_value: f64,
+    /// 1 when the finding refines an earlier one of the same actuator, else 0.
+    pub detected_refined: u32,
+    /// The detector's alarms so far (0 without a detector).
+    pub alarms: u32,
 }
 
 impl CommandMsg {
@@ -132,6 +144,11 @@ impl CommandMsg {
             accounted: [0.0; MAX_M],
             u_previous: [0.0; MAX_ACTUATORS],
             u_cmd: [0.0; MAX_ACTUATORS],
+            detected: 0,
+            detected_kind: 0,
+            detected_value: 0.0,
+            detected_refined: 0,
+            alarms: 0,
         }
     }
 

@@ -28,7 +28,12 @@ pub const COMMAND_BYTES: usize = 4
     + 4
     + 4
     + 8 * MAX_M * 3
-    + 8 * MAX_ACTUATORS * 2;
+    + 8 * MAX_ACTUATORS * 2
+    + 4
+    + 4
+    + 8
+    + 4
+    + 4;
 
 /// Why bytes are not a message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -199,6 +204,11 @@ impl CommandMsg {
         p.f64s(&self.accounted);
         p.f64s(&self.u_previous);
         p.f64s(&self.u_cmd);
+        p.bytes(&self.detected.to_le_bytes());
+        p.bytes(&self.detected_kind.to_le_bytes());
+        p.f64s(&[self.detected_value]);
+        p.bytes(&self.detected_refined.to_le_bytes());
+        p.bytes(&self.alarms.to_le_bytes());
         buf
     }
 
@@ -238,6 +248,11 @@ impl CommandMsg {
         g.f64s(&mut m.accounted);
         g.f64s(&mut m.u_previous);
         g.f64s(&mut m.u_cmd);
+        m.detected = g.u32();
+        m.detected_kind = g.u32();
+        m.detected_value = g.f64();
+        m.detected_refined = g.u32();
+        m.alarms = g.u32();
         Ok(m)
     }
 }

@@ -40,7 +40,7 @@ pub use services::*;
 pub use state::StateMsg;
 
 /// Bumped whenever a message layout or meaning changes.
-pub const PROTOCOL_VERSION: u32 = 7;
+pub const PROTOCOL_VERSION: u32 = 8;
 /// [`CommandMsg::previous_seq`] when the controller processed no state before.
 pub const NO_PREVIOUS: u64 = u64::MAX;
 /// The largest n (configuration matrices are n×n) any supported group needs.
@@ -174,6 +174,31 @@ mod tests {
         c.achieved[2] = f64::NAN;
         assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::NonFinite));
         c.achieved[2] = 0.0;
+        // a detection names one of the vehicle's actuators, a kind, a finite estimate
+        c.detected = 8;
+        c.detected_kind = 2;
+        c.detected_value = -20.0;
+        assert_eq!(check_command(&c, Se3, 3, 8), Ok(()));
+        c.detected = 9;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::Detection));
+        c.detected = 1;
+        c.detected_kind = 4;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::Detection));
+        c.detected_kind = 0;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::Detection));
+        c.detected_kind = 3;
+        c.detected_refined = 2;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::Detection));
+        c.detected_refined = 1;
+        c.detected_value = f64::NAN;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::NonFinite));
+        c.detected_value = 0.5;
+        assert_eq!(check_command(&c, Se3, 3, 8), Ok(()));
+        // nothing found: the other fields are zero
+        c.detected = 0;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::Detection));
+        (c.detected_kind, c.detected_value, c.detected_refined) = (0, 0.0, 0);
+        assert_eq!(check_command(&c, Se3, 3, 8), Ok(()));
         c.actuators = 13;
         assert_eq!(check_command(&c, Se3, 3, 13), Err(Invalid::Actuators));
     }
@@ -219,6 +244,11 @@ mod tests {
         c.accounted[3] = 0.0625;
         c.u_previous[11] = 1.75;
         c.u_cmd[7] = -2.0;
+        c.detected = 6;
+        c.detected_kind = 3;
+        c.detected_value = 0.625;
+        c.detected_refined = 1;
+        c.alarms = 4;
         assert_eq!(CommandMsg::from_bytes(&c.to_bytes()), Ok(c));
         let v = c.to_bytes();
         assert_eq!(u32::from_le_bytes(v[384..388].try_into().unwrap()), 8);
@@ -226,7 +256,12 @@ mod tests {
         assert_eq!(f64::from_le_bytes(v[432..440].try_into().unwrap()), 3.25);
         assert_eq!(f64::from_le_bytes(v[624..632].try_into().unwrap()), 1.75);
         assert_eq!(f64::from_le_bytes(v[688..696].try_into().unwrap()), -2.0);
-        assert_eq!(COMMAND_BYTES, 728);
+        assert_eq!(u32::from_le_bytes(v[728..732].try_into().unwrap()), 6);
+        assert_eq!(u32::from_le_bytes(v[732..736].try_into().unwrap()), 3);
+        assert_eq!(f64::from_le_bytes(v[736..744].try_into().unwrap()), 0.625);
+        assert_eq!(u32::from_le_bytes(v[744..748].try_into().unwrap()), 1);
+        assert_eq!(u32::from_le_bytes(v[748..752].try_into().unwrap()), 4);
+        assert_eq!(COMMAND_BYTES, 752);
         let b = c.to_bytes();
         assert_eq!(u32::from_le_bytes(b[364..368].try_into().unwrap()), 3);
         assert_eq!(u64::from_le_bytes(b[368..376].try_into().unwrap()), 41);

@@ -84,6 +84,11 @@ fn rust_layout() -> Layout {
             accounted,
             u_previous,
             u_cmd,
+            detected,
+            detected_kind,
+            detected_value,
+            detected_refined,
+            alarms,
         ]
     );
     fields!(

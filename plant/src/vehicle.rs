@@ -296,15 +296,30 @@ impl<const M: usize> VehicleRun<M> {
             return;
         };
         if let Some(found) = d.observe::<G, N>(v, r, &mut self.control) {
-            let scripted = self
-                .failures
-                .iter()
-                .rev()
-                .find(|f| f.actuator == found.actuator && f.active(t, self.period))
-                .map(|f| f.t);
-            self.detections
-                .push(DetectionReport::of(t, &found, scripted));
+            self.found(t, &found);
         }
+    }
+
+    /// Records detection `found` at tick `t`, with its latency where the scenario scripted a
+    /// failure of that actuator before `t` (the pair's plant records what the commands
+    /// carry).
+    pub fn found(&mut self, t: f64, found: &detection::Detection<f64>) {
+        let scripted = self
+            .failures
+            .iter()
+            .rev()
+            .find(|f| f.actuator == found.actuator && f.active(t, self.period))
+            .map(|f| f.t);
+        self.detections
+            .push(DetectionReport::of(t, found, scripted));
+    }
+
+    /// `summary.json` → `vehicle` over `rows`, with the detections recorded and `alarms`
+    /// when the scenario runs the detector (`[fault_detection]`).
+    pub fn report(&self, rows: &[Row], alarms: Option<u32>) -> VehicleReport {
+        let on = self.detector.is_some();
+        VehicleReport::of(rows, &self.failures, self.period)
+            .with_detections(on.then(|| self.detections.clone()), alarms.filter(|_| on))
     }
 
     /// The failures, as the scenario gives them.
@@ -451,12 +466,7 @@ where
         control_period: s.control_period,
         duration: s.duration,
         estimator: estimation.as_ref().map(|e| e.report(&rows)),
-        vehicle: Some(
-            VehicleReport::of(&rows, &run.failures, s.control_period).with_detections(
-                run.detector.is_some().then_some(run.detections),
-                run.detector.as_ref().map(|d| d.alarms()),
-            ),
-        ),
+        vehicle: Some(run.report(&rows, run.detector.as_ref().map(|d| d.alarms()))),
         rows,
         status: Vec::new(),
     })
@@ -593,6 +603,17 @@ impl VehicleReport {
         self.detections = detections;
         self.alarms = alarms;
         self
+    }
+
+    /// The lines `plant_sim` prints of the detector's findings (none when it is off).
+    pub fn detection_lines(&self) -> Vec<String> {
+        match &self.detections {
+            None => Vec::new(),
+            Some(found) if found.is_empty() => {
+                vec!["fault detection: no actuator failure detected".to_owned()]
+            }
+            Some(found) => found.iter().map(DetectionReport::line).collect(),
+        }
     }
 
     /// The report over the rows of a run with period `h`.

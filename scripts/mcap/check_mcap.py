@@ -20,7 +20,7 @@ import os
 import struct
 import sys
 
-# the flight recorder's layout (format 5) and the wire messages' (protocol 7)
+# the flight recorder's layout (format 6) and the wire messages' (protocol 8)
 LOG_MAGIC = b"EQTRKLOG"
 STATE_AT, COMMAND_AT = 80, 392
 GROUP_DIMS = {1: (3, 3), 2: (4, 6)}
@@ -34,8 +34,8 @@ def read_log(path):
     if data[:8] != LOG_MAGIC:
         sys.exit(f"{path}: not a flight recording")
     version, header_bytes, record_bytes, group = struct.unpack_from("<IIII", data, 8)
-    if version != 5:
-        sys.exit(f"{path}: format version {version}; this check reads 5")
+    if version != 6:
+        sys.exit(f"{path}: format version {version}; this check reads 6")
     n, m = GROUP_DIMS[group]
     records = []
     for at in range(header_bytes, len(data) - record_bytes + 1, record_bytes):

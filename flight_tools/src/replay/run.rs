@@ -116,6 +116,10 @@ struct ReplayRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     gains: Option<ipc_types::Gains>,
     /// Not a what-if, and the recording has no `params.log`.
     params_missing: bool,
+    /// With a failure detector: each state answered since the last recorded command without
+    /// a command of its own, and the responder before it answered (the controller may have
+    /// missed the state, which the next command's `previous_seq` tells).
+    unseen: Vec<(u64, control_cycle::Responder<f64, G, N, M>)>,
 }
 
 impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, G, N, M> {
@@ -195,6 +199,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             tuner,
             gains: None,
             params_missing,
+            unseen: Vec::new(),
         })
     }
 
@@ -280,12 +285,23 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         self.note_law(r);
         let at = self.responder_index()?;
         if let (Some((c, _)), false) = (&r.command, self.what_if) {
+            // a failure detector's state is in no command: if the controller never saw
+            // states answered here since (their commands were not recorded), take it back to
+            // before the first of them
+            if let Some(i) = self.unseen.iter().position(|(k, _)| *k > c.previous_seq) {
+                self.responders[at].1 = self.unseen.swap_remove(i).1;
+            }
+            self.unseen.clear();
             // the controller's state before it answered: from the command and the recorded
             // state it processed before (states it never saw, or answered too late to be
             // recorded, change nothing)
             let previous = self.states.get(&c.previous_seq).copied();
             self.responders[at].1.restore(c, previous.as_ref());
             self.states.retain(|k, _| *k >= c.previous_seq);
+        } else if r.command.is_none() && !self.what_if && self.responders[at].1.detects() {
+            // the controller may not have seen this state: its responder before answering
+            self.unseen
+                .push((r.state.seq, self.responders[at].1.clone()));
         }
         self.states.insert(r.state.seq, r.state);
         let mut replayed = self.answer(r, at)?;
@@ -442,8 +458,8 @@ fn responder_for<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         .map_err(bad(s))?;
     Ok(match &with.vehicle {
         None => responder,
-        Some(v) => responder.with_vehicle(
-            control_cycle::ControllerVehicle::new(v, with.control_period)
+        Some(_) => responder.with_vehicle(
+            control_cycle::ControllerVehicle::of(&with)
                 .map_err(|e| SimError::Input(format!("scenario `{}`: {e}", s.name)))?,
         ),
     })
@@ -504,7 +520,8 @@ fn check_estimate<const N: usize, const M: usize>(
 /// applied, the actuator commands, and the command the rate limit narrowed around (the
 /// replayed one is the previous recorded command's `u_cmd`, where that command is the one
 /// `previous_seq` names: a record whose `u_previous` is not what the controller had
-/// commanded is found).
+/// commanded is found), and the failure detector's finding and alarms (replay runs the
+/// detector again over the states in order).
 fn vehicle_fields<const M: usize>(
     recorded: &CommandMsg,
     c: &CommandMsg,
@@ -519,6 +536,31 @@ fn vehicle_fields<const M: usize>(
             "alloc_status".to_owned(),
             f64::from(recorded.alloc_status),
             f64::from(c.alloc_status),
+        ),
+        (
+            "detected".to_owned(),
+            f64::from(recorded.detected),
+            f64::from(c.detected),
+        ),
+        (
+            "detected_kind".to_owned(),
+            f64::from(recorded.detected_kind),
+            f64::from(c.detected_kind),
+        ),
+        (
+            "detected_value".to_owned(),
+            recorded.detected_value,
+            c.detected_value,
+        ),
+        (
+            "detected_refined".to_owned(),
+            f64::from(recorded.detected_refined),
+            f64::from(c.detected_refined),
+        ),
+        (
+            "alarms".to_owned(),
+            f64::from(recorded.alarms),
+            f64::from(c.alarms),
         ),
     ];
     let wrenches = (0..M).flat_map(move |i| {

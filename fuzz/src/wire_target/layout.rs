@@ -32,7 +32,7 @@ pub(super) const STATE_FIELDS: [(&str, usize, Ty, usize); 13] = [
 ];
 
 /// The fields of an encoded [`CommandMsg`](ipc_types::CommandMsg).
-pub(super) const COMMAND_FIELDS: [(&str, usize, Ty, usize); 31] = [
+pub(super) const COMMAND_FIELDS: [(&str, usize, Ty, usize); 36] = [
     ("version", 0, Ty::U32, 1),
     ("group", 4, Ty::U32, 1),
     ("seq", 8, Ty::U64, 1),
@@ -64,6 +64,11 @@ pub(super) const COMMAND_FIELDS: [(&str, usize, Ty, usize); 31] = [
     ("accounted", 488, Ty::F64, 6),
     ("u_previous", 536, Ty::F64, 12),
     ("u_cmd", 632, Ty::F64, 12),
+    ("detected", 728, Ty::U32, 1),
+    ("detected_kind", 732, Ty::U32, 1),
+    ("detected_value", 736, Ty::F64, 1),
+    ("detected_refined", 744, Ty::U32, 1),
+    ("alarms", 748, Ty::U32, 1),
 ];
 
 /// The field table of an encoded message of kind `kind`.

@@ -199,7 +199,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         vehicle.failures_at(k as f64 * self.s.control_period);
         match (decision, got) {
             (Decision::Fresh, Some(c)) => {
-                vehicle.apply(&c.msg);
+                vehicle.apply(&c.msg, k as f64 * self.s.control_period);
                 self.take_terms(c);
             }
             (Decision::Safe, _) => {

@@ -50,12 +50,6 @@ pub fn run_pair(opts: &PairOptions) -> Result<(SimulatedTrajectory, PairSummary)
         ));
     }
     link::check_run_name(&opts.run)?;
-    if opts.scenario.fault_detection.is_some() {
-        return Err(SimError::Input(format!(
-            "scenario `{}`: key `fault_detection`: the pair's controller does not run the failure detector yet (fly it with `plant_sim sim`)",
-            opts.scenario.name
-        )));
-    }
     opts.scenario.group.dispatch(Pair(opts))
 }
 

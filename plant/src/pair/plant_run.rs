@@ -501,10 +501,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             vehicle: None,
         };
         let traj = SimulatedTrajectory {
-            vehicle: self
-                .vehicle
-                .as_ref()
-                .map(|v| v.report(&traj.rows, traj.control_period)),
+            vehicle: self.vehicle.as_ref().map(|v| v.report(&traj.rows)),
             ..traj
         };
         let summary = PairSummary {

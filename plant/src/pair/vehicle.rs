@@ -23,6 +23,8 @@ pub(super) struct PairVehicle<const M: usize> {
     pub(super) held: SVector<f64, M>,
     /// The row's vehicle columns at `t_k`, and the actuators' wrench `B u(t_k)`.
     pub(super) row: Option<(VehicleRow, SVector<f64, M>)>,
+    /// The controller's detector's alarms, as its last command says.
+    alarms: u32,
 }
 
 impl<const M: usize> PairVehicle<M> {
@@ -34,6 +36,7 @@ impl<const M: usize> PairVehicle<M> {
             accounted: SVector::zeros(),
             held: SVector::zeros(),
             row: None,
+            alarms: 0,
         }))
     }
 
@@ -47,9 +50,13 @@ impl<const M: usize> PairVehicle<M> {
         self.run.failures_at(t_k);
     }
 
-    /// Applies a fresh command: its `u_cmd` to the actuators (each within its range), and
-    /// its columns to the row.
-    pub(super) fn apply(&mut self, c: &CommandMsg) {
+    /// Applies a fresh command at tick `t_k`: its `u_cmd` to the actuators (each within its
+    /// range), its columns to the row, and the detection it carries to the summary.
+    pub(super) fn apply(&mut self, c: &CommandMsg, t_k: f64) {
+        if let Some(found) = detection_of(c) {
+            self.run.found(t_k, &found);
+        }
+        self.alarms = c.alarms;
         let mut a = Actuation {
             demand: SVector::zeros(),
             allocation: Allocation {
@@ -132,7 +139,19 @@ impl<const M: usize> PairVehicle<M> {
     }
 
     /// `summary.json` → `vehicle` over the rows kept, `h` apart.
-    pub(super) fn report(&self, rows: &[crate::trajectory::Row], h: f64) -> VehicleReport {
-        VehicleReport::of(rows, self.run.failures(), h)
+    pub(super) fn report(&self, rows: &[crate::trajectory::Row]) -> VehicleReport {
+        self.run.report(rows, Some(self.alarms))
     }
+}
+
+/// The detection a command carries, if any (docs/wire.md; the statistic and the change point
+/// are not on the wire: zero).
+fn detection_of(c: &CommandMsg) -> Option<detection::Detection<f64>> {
+    Some(detection::Detection {
+        actuator: (c.detected as usize).checked_sub(1)?,
+        kind: detection::Kind::from_code(c.detected_kind, c.detected_value)?,
+        statistic: 0.0,
+        since: 0,
+        refined: c.detected_refined != 0,
+    })
 }

@@ -282,6 +282,9 @@ pub(crate) fn print_pair_summary(s: &plant::pair::PairSummary, law: &str, out: &
             s.late_commands
         ),
     }
+    for line in s.sim.vehicle.iter().flat_map(|v| v.detection_lines()) {
+        println!("{line}");
+    }
     if let Some(changes) = &s.parameter_changes {
         println!("parameter changes: {}", changes.len());
         for c in changes {

@@ -95,13 +95,8 @@ pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
             .map(|t| format!("{t:.2} s"))
             .unwrap_or_else(|| "not settled".to_owned())
     );
-    if let Some(found) = traj.vehicle.as_ref().and_then(|v| v.detections.as_ref()) {
-        if found.is_empty() {
-            println!("fault detection: no actuator failure detected");
-        }
-        for d in found {
-            println!("{}", d.line());
-        }
+    for line in traj.vehicle.iter().flat_map(|v| v.detection_lines()) {
+        println!("{line}");
     }
     println!(
         "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}",
