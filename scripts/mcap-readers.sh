@@ -66,6 +66,13 @@ RUNS+=("$OUT/cf")
 "$BIN/plant_sim" run --scenario "$REPO/scenarios/rov_failure.toml" --mode lockstep --duration 2 \
 	--name "mcap-rov-$$" --out "$OUT/rov" >"$OUT/plant-rov.log" 2>&1 || die "the vehicle run failed: $(tail -3 "$OUT/plant-rov.log")"
 RUNS+=("$OUT/rov")
+# the failure detector's channel: rov_failure with [fault_detection], past its calibration
+sed 's/^reconfigure = true/reconfigure = false/' "$REPO/scenarios/rov_failure.toml" >"$OUT/rov_detect.toml"
+printf '\n[fault_detection]\n' >>"$OUT/rov_detect.toml"
+cp "$REPO/scenarios/rov_failure.csv" "$OUT/"
+"$BIN/plant_sim" run --scenario "$OUT/rov_detect.toml" --mode lockstep --duration 6 \
+	--name "mcap-det-$$" --out "$OUT/detect" >"$OUT/plant-detect.log" 2>&1 || die "the detector's run failed: $(tail -3 "$OUT/plant-detect.log")"
+RUNS+=("$OUT/detect")
 # streamed: the planner publishes the whole path, the controller takes it from the plan board
 SLEW=$REPO/scenarios/slew_so3.toml
 "$BIN/planner" --scenario "$SLEW" --name "mcap-st-$$" --horizon 1000 >"$OUT/planner.log" 2>&1 &

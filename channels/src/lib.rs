@@ -15,6 +15,7 @@
 //! | `/eqtrack/command` | `eqtrack_msgs/msg/Command` | [`command_message`] | yes | yes |
 //! | `/eqtrack/terms` | `eqtrack_msgs/msg/Terms` | [`messages`] | yes | |
 //! | `/eqtrack/actuators` | `eqtrack_msgs/msg/Actuators` | [`messages`] | yes | |
+//! | `/eqtrack/detection` | `eqtrack_msgs/msg/Detection` | [`messages`] (a controller running the failure detector) | yes | |
 //! | `/eqtrack/sensors` | `eqtrack_msgs/msg/Sensors` | [`messages`] | yes | |
 //! | `/eqtrack/estimate` | `eqtrack_msgs/msg/Estimate` | [`messages`] | yes | |
 //! | `/eqtrack/plan` | `eqtrack_msgs/msg/Plan` | [`plan_message`] | yes | |
@@ -69,6 +70,11 @@ pub const TERMS: Channel = Channel {
 pub const ACTUATORS: Channel = Channel {
     topic: "/eqtrack/actuators",
     schema: "eqtrack_msgs/msg/Actuators",
+};
+/// The failure detector's last test and what it found.
+pub const DETECTION: Channel = Channel {
+    topic: "/eqtrack/detection",
+    schema: "eqtrack_msgs/msg/Detection",
 };
 /// A tick's sensor samples and the true state.
 pub const SENSORS: Channel = Channel {

@@ -4,7 +4,8 @@
 //! command, status).
 
 use crate::{
-    ACTUATORS, COMMAND, CYCLE, ESTIMATE, Message, PLAN, SENSORS, STATE, STATUS, TERMS, Value,
+    ACTUATORS, COMMAND, CYCLE, DETECTION, ESTIMATE, Message, PLAN, SENSORS, STATE, STATUS, TERMS,
+    Value,
 };
 use ipc_types::{CommandMsg, StateMsg, StatusMsg, WireLaw, name_str};
 use recorder::{PlanEntry, Record, SensorRecord};
@@ -30,6 +31,9 @@ pub fn messages(r: &Record, n: usize, m: usize, terms: bool) -> Vec<Message> {
         }
         if c.actuators > 0 {
             out.push(actuators_message(r.cycle, c, m));
+        }
+        if c.flags & ipc_types::flags::DETECTING != 0 {
+            out.push(detection_message(r.cycle, c));
         }
     }
     if let Some(x) = &r.sensors {
@@ -121,6 +125,35 @@ fn actuators_message(cycle: u64, c: &CommandMsg, m: usize) -> Message {
             ("achieved", Value::F64s(c.achieved[..m].to_vec())),
             ("accounted", Value::F64s(c.accounted[..m].to_vec())),
             ("u_cmd", Value::F64s(c.u_cmd[..count].to_vec())),
+        ],
+    )
+}
+
+/// The detection channel of a command from a controller running the failure detector
+/// (docs/wire.md): its last test (the suspect, 0-based, or −1 before the first test, and
+/// its statistic), its alarms so far, and what it found this cycle (actuator −1: nothing;
+/// kind `""`, `"dead"`, `"stuck"` or `"effectiveness"`; the value or factor told).
+fn detection_message(cycle: u64, c: &CommandMsg) -> Message {
+    const KINDS: [&str; 4] = ["", "dead", "stuck", "effectiveness"];
+    Message::of(
+        DETECTION,
+        vec![
+            ("cycle", Value::U64(cycle)),
+            ("suspect", Value::F64(f64::from(c.suspect) - 1.0)),
+            ("statistic", Value::F64(c.statistic)),
+            ("alarms", Value::U32(c.alarms)),
+            ("detected", Value::F64(f64::from(c.detected) - 1.0)),
+            (
+                "kind",
+                Value::Str(
+                    KINDS
+                        .get(c.detected_kind as usize)
+                        .unwrap_or(&"?")
+                        .to_string(),
+                ),
+            ),
+            ("value", Value::F64(c.detected_value)),
+            ("refined", Value::Bool(c.detected_refined != 0)),
         ],
     )
 }

@@ -150,6 +150,22 @@ where
             .is_some_and(|v| v.detector().is_some())
     }
 
+    /// Stops running the failure detector (replay, when it can no longer follow it); what
+    /// it told the allocator stays ([`ControllerVehicle::lose_detector`](crate::ControllerVehicle::lose_detector)).
+    pub fn lose_detector(&mut self) {
+        if let Some(v) = &mut self.vehicle {
+            v.lose_detector();
+        }
+    }
+
+    /// Tells the allocator what recorded command `cmd` found, as the controller's detector
+    /// told it (replay, once it no longer runs the detector; [`ControllerVehicle::follow`](crate::ControllerVehicle::follow)).
+    pub fn follow(&mut self, cmd: &CommandMsg) {
+        if let Some(v) = &mut self.vehicle {
+            v.follow(cmd);
+        }
+    }
+
     /// The controller.
     pub fn controller(&self) -> &Controller<T, G, N, M> {
         &self.controller

@@ -54,6 +54,33 @@ impl<const M: usize> ControllerVehicle<M> {
         Ok(v)
     }
 
+    /// Stops running the failure detector: what it told the allocator stays, and the commands
+    /// carry no findings (replay, once it cannot follow the detector).
+    pub fn lose_detector(&mut self) {
+        self.detector = None;
+        self.detecting = None;
+    }
+
+    /// Tells the allocator what the recorded command `cmd` found, as the detector told it in
+    /// that cycle (docs/maths.md, "Failure detection": what was told before of the actuator
+    /// forgotten, then held at 0 or the stuck value, or its column scaled). A detection the
+    /// detector queued behind another of the same cycle reached the wire a cycle after the
+    /// allocator heard of it; told from the record, it comes that cycle late.
+    pub fn follow(&mut self, cmd: &CommandMsg) {
+        let Some(j) = (cmd.detected as usize).checked_sub(1) else {
+            return;
+        };
+        let Some(kind) = detection::Kind::from_code(cmd.detected_kind, cmd.detected_value) else {
+            return;
+        };
+        self.control.heal(j);
+        match kind {
+            detection::Kind::Dead => self.control.fail(j, 0.0),
+            detection::Kind::Stuck(v) => self.control.fail(j, v),
+            detection::Kind::Weak(k) => self.control.weaken(j, k),
+        }
+    }
+
     /// The failure detector, if it runs.
     pub fn detector(&self) -> Option<&detection::Detector<f64, M>> {
         self.detector.as_ref()
@@ -108,6 +135,12 @@ impl<const M: usize> ControllerVehicle<M> {
                 write_detection(cmd, &found);
             }
             cmd.alarms = d.alarms();
+            cmd.flags |= ipc_types::flags::DETECTING;
+            let last = d.statistic();
+            if last.testing {
+                cmd.statistic = last.best;
+                cmd.suspect = last.actuator as u32 + 1;
+            }
         }
         if let Some(p) = self.control.previous() {
             cmd.u_previous.copy_from_slice(p.as_slice());

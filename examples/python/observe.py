@@ -92,6 +92,9 @@ class CommandMsg(ctypes.Structure):
         ("detected_value", ctypes.c_double),
         ("detected_refined", ctypes.c_uint32),
         ("alarms", ctypes.c_uint32),
+        ("statistic", ctypes.c_double),
+        ("suspect", ctypes.c_uint32),
+        ("reserved_detector", ctypes.c_uint32),
     ]
 
     @staticmethod

@@ -34,6 +34,7 @@
 #define EQTRACK_FLAG_STREAMED 8u  /* CommandMsg: the controller tracks a streamed reference */
 #define EQTRACK_FLAG_TUNABLE 16u  /* StateMsg: the run's gains may change: read eqtrack/<run>/params */
 #define EQTRACK_FLAG_TUNED 32u    /* CommandMsg: answered with the params board's gains for the state */
+#define EQTRACK_FLAG_DETECTING 64u /* CommandMsg: the controller runs the failure detector */
 
 /* the plant's state at t_k */
 typedef struct eqtrack_StateMsg {
@@ -91,6 +92,9 @@ typedef struct eqtrack_CommandMsg {
     double detected_value;      /* the stuck value or factor told to the allocator (0 when dead) */
     uint32_t detected_refined;  /* 1: refines an earlier finding of the same actuator */
     uint32_t alarms;            /* the detector's alarms so far */
+    double statistic;           /* the best hypothesis's statistic at its last test (0: none yet) */
+    uint32_t suspect;           /* that hypothesis's actuator plus one (0: no test yet) */
+    uint32_t reserved_detector;
 } eqtrack_CommandMsg;
 
 /* eqtrack_WireSegment.shape */

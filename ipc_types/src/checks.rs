@@ -18,8 +18,8 @@ pub enum Invalid {
     Period,
     /// A command's actuator count is not the receiver's vehicle's (0 without a vehicle).
     Actuators,
-    /// A command's detection names no actuator of the vehicle or no kind, or has fields set
-    /// when nothing was found.
+    /// A command's detection (or its last test's suspect) names no actuator of the vehicle or
+    /// no kind, or has fields set when nothing was found.
     Detection,
 }
 
@@ -143,11 +143,13 @@ pub fn check_command(
         || !all_finite(&msg.u_previous[..count])
         || !all_finite(&msg.u_cmd[..count])
         || !msg.detected_value.is_finite()
+        || !msg.statistic.is_finite()
     {
         return Err(Invalid::NonFinite);
     }
     let found = msg.detected > 0;
     if msg.detected > msg.actuators
+        || msg.suspect > msg.actuators
         || (found && !(1..=3).contains(&msg.detected_kind))
         || msg.detected_refined > 1
         || (!found && (msg.detected_kind, msg.detected_value, msg.detected_refined) != (0, 0.0, 0))

@@ -95,8 +95,8 @@ pub struct CommandMsg {
     pub u_previous: [f64; MAX_ACTUATORS],
     /// The actuator commands, first `actuators` entries.
     pub u_cmd: [f64; MAX_ACTUATORS],
-    /// The failure detector's finding this cycle (docs/vehicles.md, "Failures nobody
-    /// announces"): the actuator found failed, plus one (0: nothing found, or no detector).
+    /// The failure detector's finding this cycle
+    /// (docs/vehicles.md, "Failures nobody announces"): the actuator found failed, plus one (0: nothing found, or no detector).
     /// The allocation of this command already knows it.
     pub detected: u32,
     /// Its kind: 1 dead, 2 stuck, 3 effectiveness (0 when nothing was found).
@@ -107,6 +107,13 @@ pub struct CommandMsg {
     pub detected_refined: u32,
     /// The detector's alarms so far (0 without a detector).
     pub alarms: u32,
+    /// The best hypothesis's statistic at the detector's last test (χ²₁ under no failure;
+    /// 0 before it tests, or without a detector).
+    pub statistic: f64,
+    /// The best hypothesis's actuator at that test, plus one (0: no test yet).
+    pub suspect: u32,
+    /// Zero.
+    pub reserved_detector: u32,
 }
 
 impl CommandMsg {
@@ -149,6 +156,9 @@ impl CommandMsg {
             detected_value: 0.0,
             detected_refined: 0,
             alarms: 0,
+            statistic: 0.0,
+            suspect: 0,
+            reserved_detector: 0,
         }
     }
 

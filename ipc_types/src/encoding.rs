@@ -33,6 +33,9 @@ pub const COMMAND_BYTES: usize = 4
     + 4
     + 8
     + 4
+    + 4
+    + 8
+    + 4
     + 4;
 
 /// Why bytes are not a message.
@@ -209,6 +212,9 @@ impl CommandMsg {
         p.f64s(&[self.detected_value]);
         p.bytes(&self.detected_refined.to_le_bytes());
         p.bytes(&self.alarms.to_le_bytes());
+        p.f64s(&[self.statistic]);
+        p.bytes(&self.suspect.to_le_bytes());
+        p.bytes(&self.reserved_detector.to_le_bytes());
         buf
     }
 
@@ -253,6 +259,9 @@ impl CommandMsg {
         m.detected_value = g.f64();
         m.detected_refined = g.u32();
         m.alarms = g.u32();
+        m.statistic = g.f64();
+        m.suspect = g.u32();
+        m.reserved_detector = g.u32();
         Ok(m)
     }
 }

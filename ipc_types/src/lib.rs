@@ -71,6 +71,9 @@ pub mod flags {
     /// [`CommandMsg::flags`](crate::CommandMsg::flags): the controller answered with the
     /// gains the `params` board gives for the state (the answer to [`TUNABLE`]).
     pub const TUNED: u32 = 32;
+    /// [`CommandMsg::flags`](crate::CommandMsg::flags): the controller runs the failure
+    /// detector; the command's detection fields are its (docs/wire.md).
+    pub const DETECTING: u32 = 64;
 }
 
 /// Bits of [`CommandMsg::mismatch`]: what differs between the two sides' settings.
@@ -199,6 +202,14 @@ mod tests {
         assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::Detection));
         (c.detected_kind, c.detected_value, c.detected_refined) = (0, 0.0, 0);
         assert_eq!(check_command(&c, Se3, 3, 8), Ok(()));
+        // the last test's suspect is one of the actuators, its statistic finite
+        c.suspect = 9;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::Detection));
+        c.suspect = 8;
+        c.statistic = f64::INFINITY;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::NonFinite));
+        c.statistic = 12.0;
+        assert_eq!(check_command(&c, Se3, 3, 8), Ok(()));
         c.actuators = 13;
         assert_eq!(check_command(&c, Se3, 3, 13), Err(Invalid::Actuators));
     }
@@ -249,6 +260,8 @@ mod tests {
         c.detected_value = 0.625;
         c.detected_refined = 1;
         c.alarms = 4;
+        c.statistic = 31.5;
+        c.suspect = 7;
         assert_eq!(CommandMsg::from_bytes(&c.to_bytes()), Ok(c));
         let v = c.to_bytes();
         assert_eq!(u32::from_le_bytes(v[384..388].try_into().unwrap()), 8);
@@ -261,7 +274,9 @@ mod tests {
         assert_eq!(f64::from_le_bytes(v[736..744].try_into().unwrap()), 0.625);
         assert_eq!(u32::from_le_bytes(v[744..748].try_into().unwrap()), 1);
         assert_eq!(u32::from_le_bytes(v[748..752].try_into().unwrap()), 4);
-        assert_eq!(COMMAND_BYTES, 752);
+        assert_eq!(f64::from_le_bytes(v[752..760].try_into().unwrap()), 31.5);
+        assert_eq!(u32::from_le_bytes(v[760..764].try_into().unwrap()), 7);
+        assert_eq!(COMMAND_BYTES, 768);
         let b = c.to_bytes();
         assert_eq!(u32::from_le_bytes(b[364..368].try_into().unwrap()), 3);
         assert_eq!(u64::from_le_bytes(b[368..376].try_into().unwrap()), 41);

@@ -89,6 +89,9 @@ fn rust_layout() -> Layout {
             detected_value,
             detected_refined,
             alarms,
+            statistic,
+            suspect,
+            reserved_detector,
         ]
     );
     fields!(
@@ -296,6 +299,10 @@ fn the_header_names_the_protocol_version_and_limits() {
         (
             "EQTRACK_FLAG_STREAMED",
             format!("{}u", ipc_types::flags::STREAMED),
+        ),
+        (
+            "EQTRACK_FLAG_DETECTING",
+            format!("{}u", ipc_types::flags::DETECTING),
         ),
         (
             "EQTRACK_STATUS_SAFE_MODE",

@@ -67,6 +67,13 @@ def read_log(path):
                 rec["alloc_status"] = status
                 rec["demand"] = list(struct.unpack_from(f"<{m}d", data, c + 392))
                 rec["u_cmd"] = list(struct.unpack_from(f"<{actuators}d", data, c + 632))
+            flags = struct.unpack_from("<I", data, c + 304)[0]
+            rec["detecting"] = bool(flags & 64)
+            if rec["detecting"]:
+                detected, _, value, _, alarms = struct.unpack_from("<IIdII", data, c + 728)
+                statistic, suspect = struct.unpack_from("<dI", data, c + 752)
+                rec.update(detected=detected - 1.0, value=value, alarms=alarms,
+                           statistic=statistic, suspect=suspect - 1.0)
         records.append(rec)
     return records
 
@@ -80,6 +87,7 @@ def check_against_log(log_path, by_topic):
         ("/eqtrack/cycle", records, ("cycle", "decision", "misses_in_row", "deadline_ns", "has_command", "received_ns", "applied")),
         ("/eqtrack/command", commands, ("cycle", "seq", "tau", "lyapunov")),
         ("/eqtrack/actuators", [r for r in commands if r["actuators"] > 0], ("cycle", "alloc_status", "demand", "u_cmd")),
+        ("/eqtrack/detection", [r for r in commands if r["detecting"]], ("cycle", "suspect", "statistic", "alarms", "detected", "value")),
     )
     for topic, want, fields in checks:
         got = by_topic.get(topic, [])

@@ -151,6 +151,8 @@ fn a_vehicle_run_exports_its_actuator_commands() {
     assert_eq!(f["u_cmd"].as_array().map(Vec::len), Some(8), "{f}");
     assert_eq!(f["demand"].as_array().map(Vec::len), Some(6), "{f}");
     assert!(f["alloc_status"].as_u64().is_some(), "{f}");
+    // no failure detector, no detection channel
+    assert!(!topics.contains_key("/eqtrack/detection"), "{topics:?}");
 }
 
 #[test]

@@ -36,6 +36,31 @@ fn planted_copy(
     planted
 }
 
+/// A copy of the run in `out` beside it (`<out>-<tag>`) whose `messages.log` lacks the
+/// commands of `cycles`, as if they had come too late to be recorded; returns its directory.
+fn without_commands(out: &str, tag: &str, cycles: &[usize]) -> String {
+    let copy = format!("{out}-{tag}");
+    std::fs::create_dir_all(&copy).unwrap();
+    for entry in std::fs::read_dir(out).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_file() {
+            std::fs::copy(&path, Path::new(&copy).join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    let file = format!("{copy}/messages.log");
+    let mut log = std::fs::read(&file).unwrap();
+    let header = recorder::Header::from_bytes(&log).unwrap();
+    for &k in cycles {
+        let at = recorder::HEADER_BYTES + k * header.record_bytes();
+        assert_eq!(log[at + 9], 1, "cycle {k} has a command");
+        log[at + 9] = 0;
+        let c = at + recorder::RECORD_COMMAND_OFFSET;
+        log[c..c + ipc_types::COMMAND_BYTES].fill(0);
+    }
+    std::fs::write(file, log).unwrap();
+    copy
+}
+
 /// The vehicle scenarios, each flown by the lockstep pair.
 const VEHICLES: [&str; 2] = ["hexarotor_eqf", "rov_failure"];
 
@@ -170,9 +195,14 @@ fn a_real_time_vehicle_run_tracks_and_replays_bit_for_bit() {
     let thrust: f64 = (0..6).map(|j| csv.col(&format!("u_{j}"))[1000]).sum();
     assert!(thrust > 10.0, "the rotors carry the weight: {thrust} N");
     assert_eq!(s["plant_loop_heap_allocations"].as_u64(), Some(0), "{s}");
+    // replay agrees bit for bit; where commands came too late to be recorded it may stop
+    // running the detector (and says so), and tells the allocator what the log found
     let (code, text) = run("plant_sim", &["replay", &out], LONG);
     assert_eq!(code, 0, "{text}");
     assert!(text.contains(" 0 differ"), "{text}");
+    if text.contains("failure detector:") {
+        eprintln!("{text}");
+    }
 }
 
 #[test]
@@ -376,8 +406,8 @@ fn unannounced_rov(dir: &Path) -> String {
     file.to_str().unwrap().to_owned()
 }
 
-/// The pair's controller runs the failure detector (docs/vehicles.md, "Failures nobody
-/// announces"): in lockstep it finds both failures at the simulation's ticks, tells its
+/// The pair's controller runs the failure detector
+/// (docs/vehicles.md, "Failures nobody announces"): in lockstep it finds both failures at the simulation's ticks, tells its
 /// allocator the same, and the flight equals the simulation bit for bit; the commands carry
 /// the findings, replay runs the detector again and agrees, and a changed finding in the
 /// log is found.
@@ -404,9 +434,69 @@ fn the_pairs_controller_finds_unannounced_failures_as_the_simulation_does() {
     let (code, text) = run("plant_sim", &["replay", &pair], LONG);
     assert_eq!(code, 0, "{text}");
     assert!(text.contains("commands compared, 0 differ"), "{text}");
+    // the MCAP export's detection channel: one message per command, each finding at its
+    // tick with its kind and value, the suspect of the last test and its statistic
+    let tick = |x: &serde_json::Value| (x["t"].as_f64().unwrap() / 0.01).round() as usize;
+    let (code, text) = run("plant_sim", &["export", &pair, "--format", "jsonl"], LONG);
+    assert_eq!(code, 0, "{text}");
+    let channel: Vec<serde_json::Value> =
+        std::fs::read_to_string(Path::new(&pair).join("run.jsonl"))
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+            .filter(|l| l["topic"] == "/eqtrack/detection")
+            .map(|l| l["fields"].clone())
+            .collect();
+    assert_eq!(channel.len(), 1601);
+    let exported: Vec<_> = channel
+        .iter()
+        .filter(|f| f["detected"].as_f64() != Some(-1.0))
+        .map(|f| {
+            (
+                f["cycle"].as_u64().unwrap() as usize,
+                f["detected"].as_f64().unwrap(),
+                f["kind"].as_str().unwrap().to_owned(),
+                f["value"].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    let summarised: Vec<_> = found
+        .iter()
+        .map(|x| {
+            (
+                tick(x),
+                x["actuator"].as_f64().unwrap(),
+                x["kind"].as_str().unwrap().to_owned(),
+                x["value"].as_f64().or(x["factor"].as_f64()).unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(exported, summarised);
+    // testing before the first failure, with the last test's statistic
+    let before = &channel[600];
+    assert!(before["suspect"].as_f64().unwrap() >= 0.0, "{before}");
+    assert!(before["statistic"].as_f64().unwrap() > 0.0, "{before}");
+    assert_eq!(channel[1600]["alarms"], p["vehicle"]["alarms"]);
+    // a command missing from the log (too late to be recorded): the next one says the
+    // controller saw its state, and replay follows the detector exactly
+    let one = without_commands(&pair, "one", &[400]);
+    let (code, text) = run("plant_sim", &["replay", &one], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("1600 commands compared, 0 differ"), "{text}");
+    assert!(!text.contains("failure detector:"), "{text}");
+    // two in a row: whether the controller saw the first is not known, so replay stops
+    // running the detector and tells the allocator what the recorded commands found (the
+    // stuck thruster, found after it); the answers still agree bit for bit
+    let two = without_commands(&pair, "two", &[700, 701]);
+    let (code, text) = run("plant_sim", &["replay", &two], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("1599 commands compared, 0 differ"), "{text}");
+    assert!(
+        text.contains("failure detector: run again and compared up to cycle 702"),
+        "{text}"
+    );
     // the recorded commands carry each finding at its tick: a changed estimate, a finding
     // removed and one added where there was none are each found by replay
-    let tick = |x: &serde_json::Value| (x["t"].as_f64().unwrap() / 0.01).round() as usize;
     let stuck = tick(&found[1]);
     let planted = planted_copy(&pair, stuck, |cmd, _| {
         assert_eq!((cmd.detected, cmd.detected_kind), (7, 2));

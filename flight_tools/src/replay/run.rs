@@ -172,6 +172,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             recorded_laws: Vec::new(),
             plans_taken: None,
             estimator: estimation.as_ref().map(|_| EstimatorCheck::default()),
+            detector_lost_at: None,
         };
         Ok(ReplayRun {
             opts,
@@ -277,7 +278,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         .is_err()
         {
             if let Some((rec, _)) = &r.command {
-                compare::<M>(&mut self.report, r, rec, None);
+                compare::<M>(&mut self.report, true, r, rec, None);
             }
             return Ok(());
         }
@@ -285,18 +286,15 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         self.note_law(r);
         let at = self.responder_index()?;
         if let (Some((c, _)), false) = (&r.command, self.what_if) {
-            // a failure detector's state is in no command: if the controller never saw
-            // states answered here since (their commands were not recorded), take it back to
-            // before the first of them
-            if let Some(i) = self.unseen.iter().position(|(k, _)| *k > c.previous_seq) {
-                self.responders[at].1 = self.unseen.swap_remove(i).1;
-            }
-            self.unseen.clear();
+            self.follow_detector(c, r.cycle, at);
             // the controller's state before it answered: from the command and the recorded
             // state it processed before (states it never saw, or answered too late to be
             // recorded, change nothing)
             let previous = self.states.get(&c.previous_seq).copied();
             self.responders[at].1.restore(c, previous.as_ref());
+            if self.report.detector_lost_at.is_some() {
+                self.responders[at].1.follow(c);
+            }
             self.states.retain(|k, _| *k >= c.previous_seq);
         } else if r.command.is_none() && !self.what_if && self.responders[at].1.detects() {
             // the controller may not have seen this state: its responder before answering
@@ -318,7 +316,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         }
         let recorded = r.command.map(|c| c.0);
         if let Some(rec) = &recorded {
-            compare::<M>(&mut self.report, r, rec, replayed.as_ref());
+            let followed = self.report.detector_lost_at.is_none();
+            compare::<M>(&mut self.report, followed, r, rec, replayed.as_ref());
         }
         if self.what_if {
             self.rows.push(Row {
@@ -376,6 +375,26 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
                 }
             },
         )
+    }
+
+    /// Follows the failure detector, whose state is in no command, before recorded command
+    /// `c` (record `cycle`) restores the rest: the states answered since the last recorded
+    /// command without a command of their own may not have reached the controller. `c`'s
+    /// `previous_seq` names the last one that did; those after it it never saw, so the
+    /// responder goes back to before the first of them. Whether it saw those before it is not
+    /// known: replay then stops following the detector, and from here on tells the
+    /// allocator what the recorded commands found ([`ReplayReport::detector_lost_at`]).
+    fn follow_detector(&mut self, c: &CommandMsg, cycle: u64, at: usize) {
+        let p = c.previous_seq;
+        if self.unseen.iter().any(|(k, _)| *k < p) {
+            self.report.detector_lost_at = Some(cycle);
+            for (_, responder) in &mut self.responders {
+                responder.lose_detector();
+            }
+        } else if let Some(i) = self.unseen.iter().position(|(k, _)| *k > p) {
+            self.responders[at].1 = self.unseen.swap_remove(i).1;
+        }
+        self.unseen.clear();
     }
 
     /// The node builds its reference on the first state, at the plant's period (a streamed
@@ -525,8 +544,9 @@ fn check_estimate<const N: usize, const M: usize>(
 fn vehicle_fields<const M: usize>(
     recorded: &CommandMsg,
     c: &CommandMsg,
+    detector: bool,
 ) -> impl Iterator<Item = (String, f64, f64)> {
-    let counts = [
+    let allocation = [
         (
             "actuators".to_owned(),
             f64::from(recorded.actuators),
@@ -537,6 +557,8 @@ fn vehicle_fields<const M: usize>(
             f64::from(recorded.alloc_status),
             f64::from(c.alloc_status),
         ),
+    ];
+    let detection = [
         (
             "detected".to_owned(),
             f64::from(recorded.detected),
@@ -562,7 +584,17 @@ fn vehicle_fields<const M: usize>(
             f64::from(recorded.alarms),
             f64::from(c.alarms),
         ),
+        ("statistic".to_owned(), recorded.statistic, c.statistic),
+        (
+            "suspect".to_owned(),
+            f64::from(recorded.suspect),
+            f64::from(c.suspect),
+        ),
     ];
+    // past the point replay could follow the detector, its fields are not compared
+    let counts = allocation
+        .into_iter()
+        .chain(detection.into_iter().filter(move |_| detector));
     let wrenches = (0..M).flat_map(move |i| {
         [
             (format!("demand[{i}]"), recorded.demand[i], c.demand[i]),
@@ -596,6 +628,7 @@ fn vehicle_fields<const M: usize>(
 /// observer's estimate, the integral's torque, and a vehicle's allocation).
 fn compare<const M: usize>(
     report: &mut ReplayReport,
+    followed: bool,
     r: &Record,
     recorded: &CommandMsg,
     replayed: Option<&CommandMsg>,
@@ -645,7 +678,7 @@ fn compare<const M: usize>(
                 });
                 std::iter::once(("L".to_owned(), recorded.lyapunov, c.lyapunov))
                     .chain(terms)
-                    .chain(vehicle_fields::<M>(recorded, c))
+                    .chain(vehicle_fields::<M>(recorded, c, followed))
                     .find(|(_, a, b)| a.to_bits() != b.to_bits())
                     .map(|(what, a, b)| diff(what, a, b))
             })

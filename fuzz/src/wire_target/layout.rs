@@ -32,7 +32,7 @@ pub(super) const STATE_FIELDS: [(&str, usize, Ty, usize); 13] = [
 ];
 
 /// The fields of an encoded [`CommandMsg`](ipc_types::CommandMsg).
-pub(super) const COMMAND_FIELDS: [(&str, usize, Ty, usize); 36] = [
+pub(super) const COMMAND_FIELDS: [(&str, usize, Ty, usize); 39] = [
     ("version", 0, Ty::U32, 1),
     ("group", 4, Ty::U32, 1),
     ("seq", 8, Ty::U64, 1),
@@ -69,6 +69,9 @@ pub(super) const COMMAND_FIELDS: [(&str, usize, Ty, usize); 36] = [
     ("detected_value", 736, Ty::F64, 1),
     ("detected_refined", 744, Ty::U32, 1),
     ("alarms", 748, Ty::U32, 1),
+    ("statistic", 752, Ty::F64, 1),
+    ("suspect", 760, Ty::U32, 1),
+    ("reserved_detector", 764, Ty::U32, 1),
 ];
 
 /// The field table of an encoded message of kind `kind`.

@@ -125,6 +125,11 @@ fn print_report(
             "streamed reference: {n} recorded plan messages handed to the controller at the cycles it took them"
         );
     }
+    if let Some(k) = r.detector_lost_at {
+        println!(
+            "failure detector: run again and compared up to cycle {k}; from there the controller may have missed states whose commands were not recorded, so the allocator was told what the recorded commands found"
+        );
+    }
     if let Some(e) = &r.estimator {
         println!(
             "estimator: {} estimates checked, {} differ{}",
