@@ -152,7 +152,7 @@ def main(mcap_path, jsonl_path, log_path=None):
                 if not same(got, value):
                     sys.exit(f"{where}: field {name} = {got!r}, expected {value!r}")
             topics[channel.topic] = topics.get(channel.topic, 0) + 1
-            if log_path is not None and channel.topic in ("/eqtrack/state", "/eqtrack/cycle", "/eqtrack/command", "/eqtrack/actuators"):
+            if log_path is not None and channel.topic in ("/eqtrack/state", "/eqtrack/cycle", "/eqtrack/command", "/eqtrack/actuators", "/eqtrack/detection"):
                 by_topic.setdefault(channel.topic, []).append(decoded)
             count += 1
     if count != len(expected):
@@ -167,7 +167,7 @@ def main(mcap_path, jsonl_path, log_path=None):
         records, commands = check_against_log(log_path, by_topic)
         against_log = (
             f"; {records} records and {commands} commands of {os.path.basename(log_path)}, read with struct, "
-            "equal to the state, cycle, command and actuators channels"
+            "equal to the state, cycle, command, actuators and detection channels"
         )
     print(
         f"python mcap {count} messages decoded with CRCs checked, all equal to the project's reading{against_log}; "
