@@ -248,7 +248,7 @@ pub fn plan_message(e: &PlanEntry, cycle: u64, taken: bool, n: usize, m: usize) 
 }
 
 /// The status channel: a running pair's live figures, as the plant's flight recorder
-/// published them on the run's status board (docs/wire.md, "`StatusMsg` (152 bytes): a run's live figures").
+/// published them on the run's status board (docs/wire.md, "`StatusMsg` (176 bytes): a run's live figures").
 /// `cycle` and `t` are the newest cycle recorded; the round trip is over the last second.
 pub fn status_message(s: &StatusMsg) -> Message {
     Message::of(
@@ -271,6 +271,14 @@ pub fn status_message(s: &StatusMsg) -> Message {
             ("flags", Value::U32(s.flags)),
             ("plant_pid", Value::U32(s.plant_pid)),
             ("scenario", Value::Str(name_str(&s.scenario).to_owned())),
+            ("detections", Value::U32(s.detections)),
+            (
+                "last_detected",
+                Value::F64(f64::from(s.last_detected) - 1.0),
+            ),
+            ("last_detected_kind", Value::U32(s.last_detected_kind)),
+            ("last_detected_value", Value::F64(s.last_detected_value)),
+            ("alarms", Value::U32(s.alarms)),
         ],
     )
 }
@@ -342,7 +350,14 @@ mod tests {
             assert!(names.contains(&want), "no field {want}");
         }
         assert_eq!(msg.fields[0].1, Value::U64(42));
-        assert_eq!(msg.fields.last().unwrap().1, Value::Str("seed".to_owned()));
+        assert!(
+            msg.fields
+                .iter()
+                .any(|f| *f == ("scenario", Value::Str("seed".to_owned())))
+        );
+        for want in ["detections", "last_detected", "alarms"] {
+            assert!(names.contains(&want), "no field {want}");
+        }
         assert!(msg.schema_text().contains("uint64 rtt_p99_ns\n"));
     }
 }

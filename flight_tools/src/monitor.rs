@@ -96,7 +96,7 @@ impl View {
         } else {
             since
         };
-        vec![
+        let mut lines = vec![
             format!(
                 "t            {:.3} s (cycle {}), scenario {}, plant pid {}",
                 s.t,
@@ -126,7 +126,23 @@ impl View {
             ),
             format!("last command {since}"),
             format!("Lyapunov L   {:.6e}", s.lyapunov),
-        ]
+        ];
+        if s.flags & status_flags::DETECTING != 0 {
+            const KINDS: [&str; 4] = ["", "dead", "stuck", "effectiveness"];
+            let newest = match s.last_detected.checked_sub(1) {
+                None => "none".to_owned(),
+                Some(j) => format!(
+                    "actuator {j} {} ({:.3})",
+                    KINDS.get(s.last_detected_kind as usize).unwrap_or(&"?"),
+                    s.last_detected_value
+                ),
+            };
+            lines.push(format!(
+                "detector     {} found, newest {newest}; {} alarms",
+                s.detections, s.alarms
+            ));
+        }
+        lines
     }
 
     /// The sparkline's bars for a panel `width` columns wide: log10(L) mapped onto 1..=100
@@ -360,5 +376,24 @@ mod tests {
         // none yet, or no room
         assert!(view(std::iter::empty()).bars(106).0.is_empty());
         assert!(view((0..5).map(f64::from)).bars(0).0.is_empty());
+    }
+
+    #[test]
+    fn the_detectors_line_shows_only_when_it_runs() {
+        let mut v = view(std::iter::empty());
+        let mut s = ipc_types::StatusMsg::new(ipc_types::WireGroup::Se3, "rov");
+        v.status = Some(s);
+        assert!(!v.lines().iter().any(|l| l.starts_with("detector")));
+        let mut c = ipc_types::CommandMsg::new(ipc_types::WireGroup::Se3);
+        c.flags = ipc_types::flags::DETECTING;
+        (c.detected, c.detected_kind, c.detected_value, c.alarms) = (7, 2, -20.0, 1);
+        s.note_detection(&c);
+        v.status = Some(s);
+        let lines = v.lines();
+        let line = lines.iter().find(|l| l.starts_with("detector")).unwrap();
+        assert_eq!(
+            line,
+            "detector     1 found, newest actuator 6 stuck (-20.000); 1 alarms"
+        );
     }
 }

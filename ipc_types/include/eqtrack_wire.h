@@ -8,7 +8,7 @@
  * Each message sits in an iceoryx2 blackboard entry (key type uint32_t, keys 0..7 are the
  * writer slots) of the service `eqtrack/<run>/state`, `eqtrack/<run>/command` or
  * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg6",
- * "eqtrack::CommandMsg8", "eqtrack::PlanMsg4", "eqtrack::StatusMsg4". All numbers are little-endian on the machines eqtrack runs on.
+ * "eqtrack::CommandMsg8", "eqtrack::PlanMsg4", "eqtrack::StatusMsg5". All numbers are little-endian on the machines eqtrack runs on.
  */
 #ifndef EQTRACK_WIRE_H
 #define EQTRACK_WIRE_H
@@ -129,6 +129,7 @@ typedef struct eqtrack_PlanMsg {
 #define EQTRACK_STATUS_SAFE_MODE 1u
 #define EQTRACK_STATUS_ENDED 2u
 #define EQTRACK_STATUS_REALTIME 4u
+#define EQTRACK_STATUS_DETECTING 8u /* the controller runs the failure detector */
 
 /* a run's live figures, from the plant's flight recorder, about 20 times a second */
 typedef struct eqtrack_StatusMsg {
@@ -150,6 +151,11 @@ typedef struct eqtrack_StatusMsg {
     uint32_t flags;             /* EQTRACK_STATUS_* */
     uint32_t plant_pid;
     uint8_t scenario[EQTRACK_NAME_BYTES];
+    uint32_t detections;         /* failures the controller's detector found so far */
+    uint32_t last_detected;      /* the newest one's actuator plus one; 0: none */
+    uint32_t last_detected_kind; /* 1 dead, 2 stuck, 3 effectiveness; 0: none */
+    uint32_t alarms;             /* the detector's alarms so far */
+    double last_detected_value;  /* the newest one's stuck value or factor */
 } eqtrack_StatusMsg;
 
 /* run-time parameters (plant_sim run --tunable): the controller's gains from one cycle on */

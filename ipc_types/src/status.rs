@@ -18,6 +18,8 @@ pub mod status_flags {
     pub const ENDED: u32 = 2;
     /// The plant runs in real time (else lockstep).
     pub const REALTIME: u32 = 4;
+    /// The controller runs the failure detector (its commands say so).
+    pub const DETECTING: u32 = 8;
 }
 
 /// A run's live figures.
@@ -25,7 +27,7 @@ pub mod status_flags {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::StatusMsg4")
+    type_name("eqtrack::StatusMsg5")
 )]
 #[repr(C)]
 pub struct StatusMsg {
@@ -65,6 +67,17 @@ pub struct StatusMsg {
     pub plant_pid: u32,
     /// The scenario's name, UTF-8, NUL-padded.
     pub scenario: [u8; NAME_BYTES],
+    /// Failures the controller's detector has found so far, refinements included (the
+    /// recorded commands' findings).
+    pub detections: u32,
+    /// The newest finding's actuator, plus one (0: none yet).
+    pub last_detected: u32,
+    /// Its kind: 1 dead, 2 stuck, 3 effectiveness (0: none yet).
+    pub last_detected_kind: u32,
+    /// The detector's alarms so far, as its newest command says.
+    pub alarms: u32,
+    /// The newest finding's stuck value or factor (0: dead, or none yet).
+    pub last_detected_value: f64,
 }
 
 impl StatusMsg {
@@ -89,6 +102,64 @@ impl StatusMsg {
             flags: 0,
             plant_pid: 0,
             scenario: name_bytes(scenario),
+            detections: 0,
+            last_detected: 0,
+            last_detected_kind: 0,
+            alarms: 0,
+            last_detected_value: 0.0,
         }
+    }
+
+    /// Takes the failure detector's figures from command `c` (a controller that does not run
+    /// it leaves them as they are): its alarms, and its finding, if it has one, counted and
+    /// kept as the newest.
+    pub fn note_detection(&mut self, c: &crate::CommandMsg) {
+        if c.flags & crate::flags::DETECTING == 0 {
+            return;
+        }
+        self.flags |= status_flags::DETECTING;
+        self.alarms = c.alarms;
+        if c.detected > 0 {
+            self.detections = self.detections.saturating_add(1);
+            self.last_detected = c.detected;
+            self.last_detected_kind = c.detected_kind;
+            self.last_detected_value = c.detected_value;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{CommandMsg, WireGroup, flags};
+
+    #[test]
+    fn the_status_counts_the_detectors_findings() {
+        let mut s = StatusMsg::new(WireGroup::Se3, "rov");
+        let mut c = CommandMsg::new(WireGroup::Se3);
+        // no detector: nothing taken
+        c.alarms = 3;
+        c.detected = 2;
+        s.note_detection(&c);
+        assert_eq!((s.flags, s.detections, s.alarms), (0, 0, 0));
+        c.flags |= flags::DETECTING;
+        c.detected = 0;
+        s.note_detection(&c);
+        assert_eq!((s.detections, s.alarms, s.last_detected), (0, 3, 0));
+        assert_eq!(s.flags, status_flags::DETECTING);
+        (c.detected, c.detected_kind, c.detected_value, c.alarms) = (7, 2, -20.0, 4);
+        s.note_detection(&c);
+        (c.detected, c.detected_kind, c.detected_value) = (2, 1, 0.0);
+        s.note_detection(&c);
+        assert_eq!(
+            (
+                s.detections,
+                s.last_detected,
+                s.last_detected_kind,
+                s.alarms
+            ),
+            (2, 2, 1, 4)
+        );
+        assert_eq!(s.last_detected_value, 0.0);
     }
 }

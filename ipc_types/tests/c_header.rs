@@ -142,6 +142,11 @@ fn rust_layout() -> Layout {
             flags,
             plant_pid,
             scenario,
+            detections,
+            last_detected,
+            last_detected_kind,
+            alarms,
+            last_detected_value,
         ]
     );
     fields!(
@@ -315,6 +320,10 @@ fn the_header_names_the_protocol_version_and_limits() {
         (
             "EQTRACK_STATUS_REALTIME",
             format!("{}u", ipc_types::status_flags::REALTIME),
+        ),
+        (
+            "EQTRACK_STATUS_DETECTING",
+            format!("{}u", ipc_types::status_flags::DETECTING),
         ),
     ] {
         let line = format!("#define {name} {value}");

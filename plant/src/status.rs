@@ -79,6 +79,7 @@ impl StatusSink for LiveStatus {
         if let Some((c, received)) = &r.command {
             m.lyapunov = c.lyapunov;
             m.last_command_ns = *received;
+            m.note_detection(c);
             // the first command answers the connection, not a timed cycle
             if r.cycle > 0 {
                 rtt = received.saturating_sub(published).max(1);
