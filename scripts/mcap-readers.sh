@@ -66,12 +66,17 @@ RUNS+=("$OUT/cf")
 "$BIN/plant_sim" run --scenario "$REPO/scenarios/rov_failure.toml" --mode lockstep --duration 2 \
 	--name "mcap-rov-$$" --out "$OUT/rov" >"$OUT/plant-rov.log" 2>&1 || die "the vehicle run failed: $(tail -3 "$OUT/plant-rov.log")"
 RUNS+=("$OUT/rov")
-# the failure detector's channel: rov_failure with [fault_detection], past its calibration
-sed 's/^reconfigure = true/reconfigure = false/' "$REPO/scenarios/rov_failure.toml" >"$OUT/rov_detect.toml"
+# the failure detector's channel: rov_failure in a current with [fault_detection], its
+# thruster 1 dying unannounced at 4.5 s, past the detector's calibration (found 0.06 s later)
+sed -e 's/^reconfigure = true/reconfigure = false/' -e 's/^actuator = 5$/actuator = 1/' \
+	-e 's/^t = 20.0$/t = 4.5/' -e 's/^value = 0.0$/kind = "dead"/' \
+	-e 's/^\[plant\]$/[plant]\ndisturbance_world = [0.0, 0.0, 0.0, 15.0, 8.0, -10.0]/' \
+	"$REPO/scenarios/rov_failure.toml" >"$OUT/rov_detect.toml"
 printf '\n[fault_detection]\n' >>"$OUT/rov_detect.toml"
 cp "$REPO/scenarios/rov_failure.csv" "$OUT/"
 "$BIN/plant_sim" run --scenario "$OUT/rov_detect.toml" --mode lockstep --duration 6 \
 	--name "mcap-det-$$" --out "$OUT/detect" >"$OUT/plant-detect.log" 2>&1 || die "the detector's run failed: $(tail -3 "$OUT/plant-detect.log")"
+grep -q "actuator 1 dead" "$OUT/plant-detect.log" || die "the detector's run found nothing: $(tail -3 "$OUT/plant-detect.log")"
 RUNS+=("$OUT/detect")
 # streamed: the planner publishes the whole path, the controller takes it from the plan board
 SLEW=$REPO/scenarios/slew_so3.toml

@@ -20,4 +20,4 @@ mod vehicle;
 
 pub use respond::{Responder, respond};
 pub use stream::{PlanIntake, streamed_reference};
-pub use vehicle::{ControllerVehicle, write_detection};
+pub use vehicle::ControllerVehicle;

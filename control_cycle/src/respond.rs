@@ -151,7 +151,8 @@ where
     }
 
     /// Stops running the failure detector (replay, when it can no longer follow it); what
-    /// it told the allocator stays ([`ControllerVehicle::lose_detector`](crate::ControllerVehicle::lose_detector)).
+    /// it told the allocator stays
+    /// ([`ControllerVehicle::lose_detector`](crate::ControllerVehicle::lose_detector)).
     pub fn lose_detector(&mut self) {
         if let Some(v) = &mut self.vehicle {
             v.lose_detector();
@@ -159,7 +160,8 @@ where
     }
 
     /// Tells the allocator what recorded command `cmd` found, as the controller's detector
-    /// told it (replay, once it no longer runs the detector; [`ControllerVehicle::follow`](crate::ControllerVehicle::follow)).
+    /// told it (replay, once it no longer runs the detector;
+    /// [`ControllerVehicle::follow`](crate::ControllerVehicle::follow)).
     pub fn follow(&mut self, cmd: &CommandMsg) {
         if let Some(v) = &mut self.vehicle {
             v.follow(cmd);

@@ -116,8 +116,11 @@ impl<const M: usize> ControllerVehicle<M> {
         {
             // the plant's period (checked positive and finite by the link), met once
             s.control_period = msg.control_period;
-            if let Ok(fresh) = detector_at::<M>(s) {
-                *d = fresh;
+            match detector_at::<M>(s) {
+                Ok(fresh) => *d = fresh,
+                // settings that do not hold at the plant's period: no detector rather than
+                // one made for another period (the commands then say it does not run)
+                Err(_) => self.lose_detector(),
             }
         }
         if let Some(d) = &mut self.detector {
@@ -179,7 +182,7 @@ fn detector_at<const M: usize>(s: &Scenario) -> Result<detection::Detector<f64, 
 }
 
 /// Writes detection `found` into the command's detection fields (docs/wire.md).
-pub fn write_detection(cmd: &mut CommandMsg, found: &detection::Detection<f64>) {
+fn write_detection(cmd: &mut CommandMsg, found: &detection::Detection<f64>) {
     cmd.detected = found.actuator as u32 + 1;
     cmd.detected_kind = found.kind.code();
     cmd.detected_value = found.kind.value();

@@ -19,7 +19,7 @@ pub enum Invalid {
     /// A command's actuator count is not the receiver's vehicle's (0 without a vehicle).
     Actuators,
     /// A command's detection (or its last test's suspect) names no actuator of the vehicle or
-    /// no kind, or has fields set when nothing was found.
+    /// no kind, or has fields set when nothing was found or no detector runs.
     Detection,
 }
 
@@ -148,7 +148,19 @@ pub fn check_command(
         return Err(Invalid::NonFinite);
     }
     let found = msg.detected > 0;
-    if msg.detected > msg.actuators
+    let detecting = msg.flags & crate::flags::DETECTING != 0;
+    let silent = (
+        msg.detected,
+        msg.detected_kind,
+        msg.detected_value,
+        msg.detected_refined,
+        msg.alarms,
+        msg.statistic,
+        msg.suspect,
+    ) == (0, 0, 0.0, 0, 0, 0.0, 0);
+    if (!detecting && !silent)
+        || msg.reserved_detector != 0
+        || msg.detected > msg.actuators
         || msg.suspect > msg.actuators
         || (found && !(1..=3).contains(&msg.detected_kind))
         || msg.detected_refined > 1

@@ -177,11 +177,17 @@ mod tests {
         c.achieved[2] = f64::NAN;
         assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::NonFinite));
         c.achieved[2] = 0.0;
-        // a detection names one of the vehicle's actuators, a kind, a finite estimate
+        // a detection names one of the vehicle's actuators, a kind, a finite estimate, from a
+        // controller that says it runs the detector
         c.detected = 8;
         c.detected_kind = 2;
         c.detected_value = -20.0;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::Detection));
+        c.flags |= flags::DETECTING;
         assert_eq!(check_command(&c, Se3, 3, 8), Ok(()));
+        c.reserved_detector = 1;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::Detection));
+        c.reserved_detector = 0;
         c.detected = 9;
         assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::Detection));
         c.detected = 1;
@@ -209,6 +215,11 @@ mod tests {
         c.statistic = f64::INFINITY;
         assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::NonFinite));
         c.statistic = 12.0;
+        assert_eq!(check_command(&c, Se3, 3, 8), Ok(()));
+        // without the flag, every detection field is zero
+        c.flags &= !flags::DETECTING;
+        assert_eq!(check_command(&c, Se3, 3, 8), Err(Invalid::Detection));
+        (c.statistic, c.suspect) = (0.0, 0);
         assert_eq!(check_command(&c, Se3, 3, 8), Ok(()));
         c.actuators = 13;
         assert_eq!(check_command(&c, Se3, 3, 13), Err(Invalid::Actuators));

@@ -314,11 +314,11 @@ impl<const M: usize> VehicleRun<M> {
             .push(DetectionReport::of(t, found, scripted));
     }
 
-    /// `summary.json` → `vehicle` over `rows`, with the detections recorded and `alarms`
-    /// when the scenario runs the detector (`[fault_detection]`).
-    pub fn report(&self, rows: &[Row], alarms: Option<u32>) -> VehicleReport {
+    /// `summary.json` → `vehicle` over `rows`, `h` apart, with the detections recorded and
+    /// `alarms` when the scenario runs the detector (`[fault_detection]`).
+    pub fn report(&self, rows: &[Row], h: f64, alarms: Option<u32>) -> VehicleReport {
         let on = self.detector.is_some();
-        VehicleReport::of(rows, &self.failures, self.period)
+        VehicleReport::of(rows, &self.failures, h)
             .with_detections(on.then(|| self.detections.clone()), alarms.filter(|_| on))
     }
 
@@ -466,7 +466,11 @@ where
         control_period: s.control_period,
         duration: s.duration,
         estimator: estimation.as_ref().map(|e| e.report(&rows)),
-        vehicle: Some(run.report(&rows, run.detector.as_ref().map(|d| d.alarms()))),
+        vehicle: Some(run.report(
+            &rows,
+            s.control_period,
+            run.detector.as_ref().map(|d| d.alarms()),
+        )),
         rows,
         status: Vec::new(),
     })

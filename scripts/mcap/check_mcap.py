@@ -70,10 +70,11 @@ def read_log(path):
             flags = struct.unpack_from("<I", data, c + 304)[0]
             rec["detecting"] = bool(flags & 64)
             if rec["detecting"]:
-                detected, _, value, _, alarms = struct.unpack_from("<IIdII", data, c + 728)
+                detected, kind, value, refined, alarms = struct.unpack_from("<IIdII", data, c + 728)
                 statistic, suspect = struct.unpack_from("<dI", data, c + 752)
                 rec.update(detected=detected - 1.0, value=value, alarms=alarms,
-                           statistic=statistic, suspect=suspect - 1.0)
+                           statistic=statistic, suspect=suspect - 1.0, refined=bool(refined),
+                           kind=["", "dead", "stuck", "effectiveness"][kind])
         records.append(rec)
     return records
 
@@ -87,7 +88,7 @@ def check_against_log(log_path, by_topic):
         ("/eqtrack/cycle", records, ("cycle", "decision", "misses_in_row", "deadline_ns", "has_command", "received_ns", "applied")),
         ("/eqtrack/command", commands, ("cycle", "seq", "tau", "lyapunov")),
         ("/eqtrack/actuators", [r for r in commands if r["actuators"] > 0], ("cycle", "alloc_status", "demand", "u_cmd")),
-        ("/eqtrack/detection", [r for r in commands if r["detecting"]], ("cycle", "suspect", "statistic", "alarms", "detected", "value")),
+        ("/eqtrack/detection", [r for r in commands if r["detecting"]], ("cycle", "suspect", "statistic", "alarms", "detected", "kind", "value", "refined")),
     )
     for topic, want, fields in checks:
         got = by_topic.get(topic, [])

@@ -119,7 +119,7 @@ struct ReplayRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     /// With a failure detector: each state answered since the last recorded command without
     /// a command of its own, and the responder before it answered (the controller may have
     /// missed the state, which the next command's `previous_seq` tells).
-    unseen: Vec<(u64, control_cycle::Responder<f64, G, N, M>)>,
+    unseen: Vec<(u64, usize, control_cycle::Responder<f64, G, N, M>)>,
 }
 
 impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, G, N, M> {
@@ -266,6 +266,10 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
     fn record(&mut self, r: &Record) -> Result<(), SimError> {
         self.report.cycles += 1;
         self.report.missing += r.cycle.saturating_sub(self.next);
+        if r.cycle > self.next && self.detector_followed() {
+            // records the recorder dropped: the controller saw states replay does not have
+            self.lose_detector(self.next);
+        }
         self.retune(r)?;
         self.check_estimator(r);
         self.next = r.cycle + 1;
@@ -285,8 +289,17 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         (self.last_seq, self.period) = (Some(r.state.seq), Some(r.state.control_period));
         self.note_law(r);
         let at = self.responder_index()?;
+        if self.what_if {
+            // a what-if runs no failure detector (its commands are not the ones the plant
+            // applied, so no period is as the detector would believe): its allocator hears
+            // what the run's detector found
+            self.responders[at].1.lose_detector();
+            if let Some((c, _)) = &r.command {
+                self.responders[at].1.follow(c);
+            }
+        }
         if let (Some((c, _)), false) = (&r.command, self.what_if) {
-            self.follow_detector(c, r.cycle, at);
+            self.follow_detector(c, at)?;
             // the controller's state before it answered: from the command and the recorded
             // state it processed before (states it never saw, or answered too late to be
             // recorded, change nothing)
@@ -299,7 +312,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         } else if r.command.is_none() && !self.what_if && self.responders[at].1.detects() {
             // the controller may not have seen this state: its responder before answering
             self.unseen
-                .push((r.state.seq, self.responders[at].1.clone()));
+                .push((r.state.seq, at, self.responders[at].1.clone()));
         }
         self.states.insert(r.state.seq, r.state);
         let mut replayed = self.answer(r, at)?;
@@ -378,21 +391,56 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
     }
 
     /// Follows the failure detector, whose state is in no command, before recorded command
-    /// `c` (record `cycle`) restores the rest: the states answered since the last recorded
-    /// command without a command of their own may not have reached the controller. `c`'s
-    /// `previous_seq` names the last one that did; those after it it never saw, so the
-    /// responder goes back to before the first of them. Whether it saw those before it is not
-    /// known: replay then stops following the detector, and from here on tells the
-    /// allocator what the recorded commands found ([`ReplayReport::detector_lost_at`]).
-    fn follow_detector(&mut self, c: &CommandMsg, cycle: u64, at: usize) {
-        let p = c.previous_seq;
-        if self.unseen.iter().any(|(k, _)| *k < p) {
-            self.report.detector_lost_at = Some(cycle);
-            for (_, responder) in &mut self.responders {
-                responder.lose_detector();
+    /// `c` restores the rest ([`unseen_fate`]): back to before the states the controller
+    /// never saw, or lost where the log cannot say, or afresh after a restart.
+    fn follow_detector(&mut self, c: &CommandMsg, at: usize) -> Result<(), SimError> {
+        let seqs: Vec<u64> = self.unseen.iter().map(|(k, _, _)| *k).collect();
+        match unseen_fate(&seqs, c.previous_seq) {
+            Unseen::Keep => {}
+            Unseen::Back(i) => {
+                let (_, slot, mut responder) = self.unseen.swap_remove(i);
+                if let Some(g) = &self.gains {
+                    // run-time gains changed since it was kept
+                    responder
+                        .retune(g)
+                        .map_err(|e| SimError::Input(format!("run-time gains: {e}")))?;
+                }
+                self.responders[slot].1 = responder;
             }
-        } else if let Some(i) = self.unseen.iter().position(|(k, _)| *k > p) {
-            self.responders[at].1 = self.unseen.swap_remove(i).1;
+            Unseen::Lost => self.lose_detector(seqs[0]),
+            Unseen::Restart if self.s.fault_detection.is_some() => {
+                // a controller started again: its detector starts afresh, as replay's
+                let mut fresh = responder_for::<G, N, M>(self.s, self.law)?;
+                if let Some(g) = &self.gains {
+                    fresh
+                        .retune(g)
+                        .map_err(|e| SimError::Input(format!("run-time gains: {e}")))?;
+                }
+                if self.report.detector_lost_at.is_some() {
+                    fresh.lose_detector();
+                }
+                self.responders[at].1 = fresh;
+            }
+            Unseen::Restart => {}
+        }
+        self.unseen.clear();
+        Ok(())
+    }
+
+    /// Whether replay still runs the failure detector (the scenario has one, and it has not
+    /// been lost).
+    fn detector_followed(&self) -> bool {
+        !self.what_if
+            && self.report.detector_lost_at.is_none()
+            && self.responders.iter().any(|(_, r)| r.detects())
+    }
+
+    /// Stops running the failure detector from `cycle` on, a state the log cannot say the
+    /// controller saw ([`ReplayReport::detector_lost_at`]).
+    fn lose_detector(&mut self, cycle: u64) {
+        self.report.detector_lost_at.get_or_insert(cycle);
+        for (_, responder) in &mut self.responders {
+            responder.lose_detector();
         }
         self.unseen.clear();
     }
@@ -447,6 +495,37 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             self.report.written = Some(out);
         }
         Ok(self.report)
+    }
+}
+
+/// What replay does with the failure detector before a recorded command whose
+/// `previous_seq` is `p`, given the states it answered since the last recorded command that
+/// have no command of their own (`unseen`, in order): the controller may have answered them
+/// too late to be recorded, or never seen them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Unseen {
+    /// The controller saw them all (the last is `p`, or there are none).
+    Keep,
+    /// It saw none from the `i`-th on (they are after `p`): back to the responder kept
+    /// before that one.
+    Back(usize),
+    /// One before `p`: whether it saw that one is not known.
+    Lost,
+    /// The controller started again (`p` is `NO_PREVIOUS`).
+    Restart,
+}
+
+/// [`Unseen`] for `unseen` before a command naming `p` as its previous state.
+fn unseen_fate(unseen: &[u64], p: u64) -> Unseen {
+    if p == ipc_types::NO_PREVIOUS {
+        return Unseen::Restart;
+    }
+    if unseen.iter().any(|k| *k < p) {
+        return Unseen::Lost;
+    }
+    match unseen.iter().position(|k| *k > p) {
+        Some(i) => Unseen::Back(i),
+        None => Unseen::Keep,
     }
 }
 
@@ -689,5 +768,27 @@ fn compare<const M: usize>(
         if report.first.is_none() {
             report.first = Some(d);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Unseen, unseen_fate};
+
+    #[test]
+    fn states_without_a_recorded_command_are_kept_taken_back_or_lost() {
+        // none: nothing to do
+        assert_eq!(unseen_fate(&[], 41), Unseen::Keep);
+        // 42 answered late, and 43's command names it: seen
+        assert_eq!(unseen_fate(&[42], 42), Unseen::Keep);
+        // 43's command names 41: 42 never reached the controller
+        assert_eq!(unseen_fate(&[42], 41), Unseen::Back(0));
+        // 42 and 43 without commands, 44's names 42: 43 never seen, 42 seen
+        assert_eq!(unseen_fate(&[42, 43], 42), Unseen::Back(1));
+        // 44's names 43: seen, but whether 42 was is not known
+        assert_eq!(unseen_fate(&[42, 43], 43), Unseen::Lost);
+        // a controller started again
+        assert_eq!(unseen_fate(&[42], ipc_types::NO_PREVIOUS), Unseen::Restart);
+        assert_eq!(unseen_fate(&[], ipc_types::NO_PREVIOUS), Unseen::Restart);
     }
 }

@@ -197,9 +197,12 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             return;
         };
         vehicle.failures_at(k as f64 * self.s.control_period);
+        if let Some(c) = got {
+            vehicle.heard(&c.msg, k as f64 * self.s.control_period);
+        }
         match (decision, got) {
             (Decision::Fresh, Some(c)) => {
-                vehicle.apply(&c.msg, k as f64 * self.s.control_period);
+                vehicle.apply(&c.msg);
                 self.take_terms(c);
             }
             (Decision::Safe, _) => {

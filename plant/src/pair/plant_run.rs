@@ -501,7 +501,10 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             vehicle: None,
         };
         let traj = SimulatedTrajectory {
-            vehicle: self.vehicle.as_ref().map(|v| v.report(&traj.rows)),
+            vehicle: self
+                .vehicle
+                .as_ref()
+                .map(|v| v.report(&traj.rows, traj.control_period)),
             ..traj
         };
         let summary = PairSummary {

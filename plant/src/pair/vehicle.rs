@@ -50,13 +50,18 @@ impl<const M: usize> PairVehicle<M> {
         self.run.failures_at(t_k);
     }
 
-    /// Applies a fresh command at tick `t_k`: its `u_cmd` to the actuators (each within its
-    /// range), its columns to the row, and the detection it carries to the summary.
-    pub(super) fn apply(&mut self, c: &CommandMsg, t_k: f64) {
+    /// Takes the detection a command received at tick `t_k` carries (applied or, after the
+    /// deadline, held: the controller's allocator knew of it either way) into the summary.
+    pub(super) fn heard(&mut self, c: &CommandMsg, t_k: f64) {
         if let Some(found) = detection_of(c) {
             self.run.found(t_k, &found);
         }
         self.alarms = c.alarms;
+    }
+
+    /// Applies a fresh command: its `u_cmd` to the actuators (each within its range), and its
+    /// columns to the row.
+    pub(super) fn apply(&mut self, c: &CommandMsg) {
         let mut a = Actuation {
             demand: SVector::zeros(),
             allocation: Allocation {
@@ -139,8 +144,8 @@ impl<const M: usize> PairVehicle<M> {
     }
 
     /// `summary.json` → `vehicle` over the rows kept, `h` apart.
-    pub(super) fn report(&self, rows: &[crate::trajectory::Row]) -> VehicleReport {
-        self.run.report(rows, Some(self.alarms))
+    pub(super) fn report(&self, rows: &[crate::trajectory::Row], h: f64) -> VehicleReport {
+        self.run.report(rows, h, Some(self.alarms))
     }
 }
 

@@ -127,7 +127,7 @@ fn print_report(
     }
     if let Some(k) = r.detector_lost_at {
         println!(
-            "failure detector: run again and compared up to cycle {k}; from there the controller may have missed states whose commands were not recorded, so the allocator was told what the recorded commands found"
+            "failure detector: run again and compared until cycle {k}, a state the log cannot say the controller saw; from there the allocator was told what the recorded commands found, and their detection fields were not compared"
         );
     }
     if let Some(e) = &r.estimator {
