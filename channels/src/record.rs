@@ -134,7 +134,6 @@ fn actuators_message(cycle: u64, c: &CommandMsg, m: usize) -> Message {
 /// its statistic), its alarms so far, and what it found this cycle (actuator −1: nothing;
 /// kind `""`, `"dead"`, `"stuck"` or `"effectiveness"`; the value or factor told).
 fn detection_message(cycle: u64, c: &CommandMsg) -> Message {
-    const KINDS: [&str; 4] = ["", "dead", "stuck", "effectiveness"];
     Message::of(
         DETECTION,
         vec![
@@ -145,12 +144,7 @@ fn detection_message(cycle: u64, c: &CommandMsg) -> Message {
             ("detected", Value::F64(f64::from(c.detected) - 1.0)),
             (
                 "kind",
-                Value::Str(
-                    KINDS
-                        .get(c.detected_kind as usize)
-                        .unwrap_or(&"?")
-                        .to_string(),
-                ),
+                Value::Str(ipc_types::detected_kind_name(c.detected_kind).to_owned()),
             ),
             ("value", Value::F64(c.detected_value)),
             ("refined", Value::Bool(c.detected_refined != 0)),

@@ -70,14 +70,8 @@ impl<const M: usize> ControllerVehicle<M> {
         let Some(j) = (cmd.detected as usize).checked_sub(1) else {
             return;
         };
-        let Some(kind) = detection::Kind::from_code(cmd.detected_kind, cmd.detected_value) else {
-            return;
-        };
-        self.control.heal(j);
-        match kind {
-            detection::Kind::Dead => self.control.fail(j, 0.0),
-            detection::Kind::Stuck(v) => self.control.fail(j, v),
-            detection::Kind::Weak(k) => self.control.weaken(j, k),
+        if let Some(kind) = detection::Kind::from_code(cmd.detected_kind, cmd.detected_value) {
+            kind.tell(j, &mut self.control);
         }
     }
 

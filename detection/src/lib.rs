@@ -89,6 +89,19 @@ impl<T: Copy + Default> Kind<T> {
     }
 }
 
+impl<T: Real> Kind<T> {
+    /// Tells `control` that actuator `j` is now this, forgetting what it was told of it
+    /// before: held at 0 or at the stuck value, or its column scaled by the factor.
+    pub fn tell<const K: usize>(&self, j: usize, control: &mut VehicleControl<T, K>) {
+        control.heal(j);
+        match *self {
+            Kind::Dead => control.fail(j, T::zero()),
+            Kind::Stuck(v) => control.fail(j, v),
+            Kind::Weak(k) => control.weaken(j, k),
+        }
+    }
+}
+
 /// One detection: the actuator, its kind, the test's statistic and when the change began.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Detection<T> {
@@ -607,17 +620,12 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// Tells the allocator what actuator `j` is now believed to be, forgetting what it was
     /// told before: held at 0 or at a value, or its column scaled.
     fn tell(&mut self, j: usize, kind: Kind<T>, control: &mut VehicleControl<T, K>) {
-        control.heal(j);
         self.stuck[j] = match kind {
             Kind::Dead => Some(T::zero()),
             Kind::Stuck(v) => Some(v),
             Kind::Weak(_) => None,
         };
-        match kind {
-            Kind::Dead => control.fail(j, T::zero()),
-            Kind::Stuck(v) => control.fail(j, v),
-            Kind::Weak(k) => control.weaken(j, k),
-        }
+        kind.tell(j, control);
         self.failed[j] = true;
     }
 

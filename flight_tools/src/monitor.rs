@@ -128,12 +128,11 @@ impl View {
             format!("Lyapunov L   {:.6e}", s.lyapunov),
         ];
         if s.flags & status_flags::DETECTING != 0 {
-            const KINDS: [&str; 4] = ["", "dead", "stuck", "effectiveness"];
             let newest = match s.last_detected.checked_sub(1) {
                 None => "none".to_owned(),
                 Some(j) => format!(
                     "actuator {j} {} ({:.3})",
-                    KINDS.get(s.last_detected_kind as usize).unwrap_or(&"?"),
+                    ipc_types::detected_kind_name(s.last_detected_kind),
                     s.last_detected_value
                 ),
             };

@@ -197,3 +197,12 @@ impl CommandMsg {
         c
     }
 }
+
+/// The name of a detection kind's code ([`CommandMsg::detected_kind`]): `""` (nothing
+/// found), `"dead"`, `"stuck"`, `"effectiveness"`, or `"?"` for a code no kind has.
+pub fn detected_kind_name(code: u32) -> &'static str {
+    ["", "dead", "stuck", "effectiveness"]
+        .get(code as usize)
+        .copied()
+        .unwrap_or("?")
+}

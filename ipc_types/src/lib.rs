@@ -32,7 +32,7 @@ mod services;
 mod state;
 pub use checks::{Invalid, MAX_SEQ_JUMP, check_command, check_state};
 pub(crate) use checks::{all_finite, own_dims};
-pub use command::CommandMsg;
+pub use command::{CommandMsg, detected_kind_name};
 pub use encoding::{COMMAND_BYTES, DecodeError, STATE_BYTES};
 pub(crate) use encoding::{Get, Put, length};
 pub use identity::{Identity, name_bytes, name_str, padded_bytes, padded_str};
