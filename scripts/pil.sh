@@ -9,7 +9,8 @@
 # For each scenario (default: the seed on SO(3), se3_circle on SE(3), reject_se3 on SE(3)
 # with the disturbance observer and the integral, pil_hexarotor on SE(3) with sensors, the
 # equivariant filter, the disturbance observer and a vehicle's allocation, pil_hexarotor_saturated
-# (its rotors at their limits for 1.5 s: the active set on board), and pil_hexarotor
+# (its rotors at their limits for 1.5 s: the active set on board), pil_rov_detect (the ROV's
+# thruster 1 dies unannounced and the failure detector on board must find it), and pil_hexarotor
 # moved 1 km from the world origin by `plant_sim move`, whose firmware carries the local origin):
 #  1. plant_sim pil-config writes the scenario's firmware configuration; the firmware is
 #     built with it (private toolchain of scripts/lib/cortex-m-toolchain.sh);
@@ -45,7 +46,7 @@ while (($#)); do
 	*) echo "usage: scripts/pil.sh [--scenario FILE]... [--out DIR]" >&2; exit 2 ;;
 	esac
 done
-((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_se3.toml" "$REPO/scenarios/pil_hexarotor.toml" "$REPO/scenarios/pil_hexarotor_saturated.toml")
+((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_se3.toml" "$REPO/scenarios/pil_hexarotor.toml" "$REPO/scenarios/pil_hexarotor_saturated.toml" "$REPO/scenarios/pil_rov_detect.toml")
 
 skip() {
 	echo "SKIPPED: $*"
@@ -193,6 +194,21 @@ sys.exit(0 if n >= 500 and stopped == 0 else 1)
 PY
 ) || die "pil_hexarotor_saturated did not saturate for a second on board: $why"
 	echo "PIL: PASS pil_hexarotor_saturated: $why"
+fi
+
+# the failure detector on board found the thruster that died unannounced (thruster 1, dead, at
+# 1.4 s) within 0.2 s, in the PIL run's own summary, and nothing before it
+if [[ -f $OUT/pil_rov_detect-pil/summary.json ]]; then
+	why=$(python3 - "$OUT/pil_rov_detect-pil/summary.json" <<'PY'
+import json, sys
+found = json.load(open(sys.argv[1]))["vehicle"].get("detections", [])
+print("; ".join(f"t = {d['t']:.3f} s: actuator {d['actuator']} {d['kind']}, {d.get('latency', float('nan')):.3f} s after it failed"
+                for d in found) or "nothing found")
+first = found[0] if found else {}
+sys.exit(0 if first.get("actuator") == 1 and first.get("kind") == "dead" and 0 <= first.get("latency", -1) <= 0.2 else 1)
+PY
+) || die "the detector on board did not find pil_rov_detect's dead thruster: $why"
+	echo "PIL: PASS pil_rov_detect, found on board: $why"
 fi
 
 # the comparison can fail: the seed's PIL run against the f64 simulation (not the firmware's

@@ -107,6 +107,9 @@ pub struct Config {
     pub estimator: Option<crate::Estimator>,
     /// The vehicle, where the scenario has one: the law's wrench is allocated to it.
     pub vehicle: Option<crate::Vehicle>,
+    /// The failure detector, where the scenario has `[fault_detection]` (with a vehicle): it
+    /// runs before each allocation and tells the allocator what it finds.
+    pub detector: Option<crate::Detector>,
 }
 
 /// Why a [`Config`] cannot make a cycle.
@@ -132,6 +135,10 @@ pub enum ConfigError {
     Estimator(estimator::EstimatorError),
     /// The vehicle's actuators or allocation settings are refused (which).
     Vehicle(&'static str),
+    /// The failure detector's settings are refused.
+    Detector(detection::ConfigError),
+    /// A failure detector without a vehicle to watch.
+    DetectorWithoutVehicle,
 }
 
 impl core::fmt::Display for ConfigError {
@@ -149,6 +156,10 @@ impl core::fmt::Display for ConfigError {
             ConfigError::Controller(e) => write!(f, "{e}"),
             ConfigError::Estimator(e) => write!(f, "estimator: {e}"),
             ConfigError::Vehicle(what) => write!(f, "vehicle: its {what} are refused"),
+            ConfigError::Detector(e) => write!(f, "detector: {e}"),
+            ConfigError::DetectorWithoutVehicle => {
+                f.write_str("detector: there is no vehicle for it to watch")
+            }
         }
     }
 }

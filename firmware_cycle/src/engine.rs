@@ -2,12 +2,12 @@
 //! state answered (the terms update only on consecutive states, as in the pair).
 
 use crate::{Config, ConfigError, Dropped, Failure, MAX_SEQ_JUMP};
-use allocation::VehicleControl;
+use allocation::{Commands, VehicleControl};
 use controller::group::MatrixLieGroup;
 use controller::{Controller, Reference, Rejection};
 use heapless::Vec;
 use nalgebra::{SMatrix, SVector, Vector3};
-use serial_wire::{Allocation, CommandFrame, Estimate, Samples, StateFrame};
+use serial_wire::{Allocation, CommandFrame, Detection, Estimate, Samples, StateFrame};
 
 pub(crate) struct Engine<G, const N: usize, const M: usize> {
     controller: Controller<f32, G, N, M>,
@@ -26,6 +26,12 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     /// The actuator count and the failures the controller is told of.
     failures: Vec<Failure, 12>,
     actuators: usize,
+    /// The failure detector (docs/maths.md, "Failure detection"), at start and now.
+    detector_start: Option<detection::Detector<f32, M>>,
+    detector: Option<detection::Detector<f32, M>>,
+    /// The wrench the last command accounted for: a state whose applied wrench is not
+    /// this, bit for bit, was not flown as commanded (held, or safe mode).
+    accounted: Option<SVector<f32, M>>,
 }
 
 fn vec<const C: usize>(xs: &[f32]) -> Vec<f32, C> {
@@ -47,7 +53,19 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             None => None,
             Some(v) => Some(v.control::<M>(config.identity.period as f32)?),
         };
+        let detector = match (&config.detector, &config.vehicle) {
+            (None, _) => None,
+            (Some(_), None) => return Err(ConfigError::DetectorWithoutVehicle),
+            (Some(d), Some(_)) => {
+                let settings =
+                    d.config::<M>(controller.config().inertia, config.identity.period as f32)?;
+                Some(detection::Detector::new(settings).map_err(ConfigError::Detector)?)
+            }
+        };
         Ok(Engine {
+            detector_start: detector.clone(),
+            detector,
+            accounted: None,
             filter_start: filter,
             filter,
             filtered: None,
@@ -76,6 +94,8 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         self.filter = self.filter_start;
         self.filtered = None;
         self.vehicle = self.vehicle_start;
+        self.detector.clone_from(&self.detector_start);
+        self.accounted = None;
         self.previous = None;
     }
 
@@ -127,18 +147,40 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             }
         }
         .map_err(|_| Dropped::Law)?;
+        let follows = self
+            .previous
+            .is_some_and(|p| p.checked_add(1) == Some(s.seq));
         self.previous = Some(s.seq);
+        let mut detection = None;
         let allocation = match &mut self.vehicle {
             None => None,
-            Some(control) => Some(allocate::<G, N, M>(
-                control,
-                &self.failures,
-                self.actuators,
-                s.t,
-                period,
-                &q,
-                &out.torque,
-            )),
+            Some(control) => {
+                tell_failures(control, &self.failures, s.t, period);
+                let r_hat = G::rotation(&q);
+                if let Some(d) = &mut self.detector {
+                    // the period counts only if it followed the last answer and the plant
+                    // applied that answer's wrench, bit for bit
+                    let as_sent = self.accounted.is_some_and(|a| {
+                        a.iter()
+                            .zip(s.applied.iter())
+                            .all(|(x, y)| x.to_bits() == y.to_bits())
+                    });
+                    detection = Some(detect::<G, N, M>(
+                        d,
+                        control,
+                        follows && as_sent,
+                        &v,
+                        &r_hat,
+                    ));
+                }
+                let (allocation, accounted, u) =
+                    allocate(control, self.actuators, &r_hat, &out.torque);
+                if let Some(d) = &mut self.detector {
+                    d.commanded(&u);
+                }
+                self.accounted = Some(accounted);
+                Some(allocation)
+            }
         };
         let terms = self.rejection.is_some();
         Ok(CommandFrame {
@@ -166,6 +208,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                 bias: [e.bias[0], e.bias[1], e.bias[2]],
             }),
             allocation,
+            detection,
         })
     }
 }
@@ -195,32 +238,74 @@ fn estimate<const N: usize, const M: usize>(
     )
 }
 
-/// The law's wrench allocated to the vehicle's actuators at the attitude of `q`, after
-/// telling the allocator of the failures that have started at `t` (docs/maths.md,
-/// "Control allocation").
-fn allocate<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+/// Tells the allocator of the failures the controller is told of that have started at `t`
+/// (from the first `t_k ≥ t − h/2`).
+fn tell_failures<const M: usize>(
     control: &mut VehicleControl<f32, M>,
     failures: &[Failure],
-    count: usize,
     t: f64,
     period: f32,
-    q: &SMatrix<f32, N, N>,
-    tau: &SVector<f32, M>,
-) -> Allocation {
+) {
     let h = f64::from(period);
     for f in failures {
         if t >= f.t - h / 2.0 {
             control.fail(usize::from(f.actuator), f.value);
         }
     }
-    let r_hat = G::rotation(q);
-    let a = control.actuate(tau, &r_hat);
-    let accounted = a.applied(&control.restoring(&r_hat));
-    Allocation {
-        status: a.allocation.status.code(),
-        u_cmd: Vec::from_slice(&a.allocation.u.as_slice()[..count.min(12)]).unwrap_or_default(),
-        demand: vec(a.demand.as_slice()),
-        achieved: vec(a.allocation.achieved.as_slice()),
-        accounted: vec(accounted.as_slice()),
+}
+
+/// The failure detector's cycle over the period that ended at this state (docs/maths.md,
+/// "Failure detection"): forgotten first when the period does not count (`counts` false: a
+/// state missed, or a command the plant did not apply); what it finds is told to the
+/// allocator before this cycle's allocation, and carried by the command.
+fn detect<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    d: &mut detection::Detector<f32, M>,
+    control: &mut VehicleControl<f32, M>,
+    counts: bool,
+    v: &SVector<f32, M>,
+    r_hat: &nalgebra::Matrix3<f32>,
+) -> Detection {
+    if !counts {
+        d.gap();
     }
+    let found = d.observe::<G, N>(v, r_hat, control);
+    let last = d.statistic();
+    let code = |j: usize| u8::try_from(j + 1).unwrap_or(u8::MAX);
+    let (suspect, statistic) = if last.testing {
+        (code(last.actuator), last.best)
+    } else {
+        (0, 0.0)
+    };
+    Detection {
+        alarms: d.alarms(),
+        suspect,
+        statistic,
+        detected: found.map_or(0, |f| code(f.actuator)),
+        kind: found.map_or(0, |f| f.kind.code() as u8),
+        value: found.map_or(0.0, |f| f.kind.value()),
+        refined: found.is_some_and(|f| f.refined),
+    }
+}
+
+/// The law's wrench allocated to the vehicle's actuators at the attitude `r_hat`
+/// (docs/maths.md, "Control allocation"), the wrench it accounts for and the commands.
+fn allocate<const M: usize>(
+    control: &mut VehicleControl<f32, M>,
+    count: usize,
+    r_hat: &nalgebra::Matrix3<f32>,
+    tau: &SVector<f32, M>,
+) -> (Allocation, SVector<f32, M>, Commands<f32>) {
+    let a = control.actuate(tau, r_hat);
+    let accounted = a.applied(&control.restoring(r_hat));
+    (
+        Allocation {
+            status: a.allocation.status.code(),
+            u_cmd: Vec::from_slice(&a.allocation.u.as_slice()[..count.min(12)]).unwrap_or_default(),
+            demand: vec(a.demand.as_slice()),
+            achieved: vec(a.allocation.achieved.as_slice()),
+            accounted: vec(accounted.as_slice()),
+        },
+        accounted,
+        a.allocation.u,
+    )
 }

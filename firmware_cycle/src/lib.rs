@@ -25,7 +25,7 @@ mod engine;
 mod onboard;
 
 pub use config::{Axis, Config, ConfigError, Integral, MAX_CONFIG, Observer, Series, Term};
-pub use onboard::{Estimator, Failure, Thruster, Vehicle};
+pub use onboard::{Detector, Estimator, Failure, Thruster, Vehicle};
 
 use controller::group::{Se3, So3};
 use engine::Engine;

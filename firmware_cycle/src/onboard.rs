@@ -3,10 +3,10 @@
 //! `allocation` crate's vehicle control).
 
 use crate::ConfigError;
-use allocation::{Actuator, Allocator, Geometry, Priority, Restoring, VehicleControl};
+use allocation::{Actuator, Allocator, Commands, Geometry, Priority, Restoring, VehicleControl};
 use estimator::{FilterKind, MAX_DIRECTIONS, Settings};
 use heapless::Vec;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// The estimator's settings (docs/maths.md, "Estimators"), as [`estimator::Settings`] in
@@ -223,4 +223,110 @@ impl Vehicle {
             period,
         ))
     }
+}
+
+/// The failure detector's settings (docs/maths.md, "Failure detection"), as
+/// [`detection::Config`] in `f32`: the host works out the periods and the thresholds from
+/// the scenario's `[fault_detection]` in `f64`, and the firmware takes them as they are. The
+/// model inertia and the control period are the configuration's own.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Detector {
+    /// Control periods averaged into each kept entry.
+    pub decimation: u32,
+    /// Entries per window.
+    pub window: u32,
+    /// The χ²₁ threshold of the best hypothesis.
+    pub threshold: f32,
+    /// The χ²_{K−1} gate on what the best hypothesis leaves unexplained.
+    pub isolation: f32,
+    /// The model's relative error, squared.
+    pub relative: f32,
+    /// The least lead of the best hypothesis over the runner-up.
+    pub margin: f32,
+    /// Entries the same actuator must pass every gate before it is named.
+    pub confirm: u32,
+    /// Entries of the start in which the detector neither learns nor tests.
+    pub warmup: u32,
+    /// Entries of nominal flight the spread is learned over before the first test.
+    pub calibration: u32,
+    /// The weight of each new entry in the spread's running estimate.
+    pub memory: f32,
+    /// The least spread per axis (m entries).
+    pub floor: Vec<f32, 6>,
+    /// The least shortfall resolved per actuator (one per actuator).
+    pub resolution: Vec<f32, 12>,
+    /// Fossen's linear damping, diagonal (m entries).
+    pub damping_linear: Vec<f32, 6>,
+    /// Fossen's quadratic damping, diagonal (m entries).
+    pub damping_quadratic: Vec<f32, 6>,
+    /// The actuators' lag (s; 0: none).
+    pub time_constant: f32,
+}
+
+impl Detector {
+    /// The host's settings `c` (`f64`) cast to `f32`, for `count` actuators.
+    pub fn of<const K: usize>(c: &detection::Config<f64, K>, count: usize) -> Detector {
+        let whole = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+        Detector {
+            decimation: whole(c.decimation),
+            window: whole(c.window),
+            threshold: c.threshold as f32,
+            isolation: c.isolation as f32,
+            relative: c.relative as f32,
+            margin: c.margin as f32,
+            confirm: whole(c.confirm),
+            warmup: whole(c.warmup),
+            calibration: whole(c.calibration),
+            memory: c.memory as f32,
+            floor: f32s(c.floor.as_slice()),
+            resolution: f32s(&c.resolution.as_slice()[..count.min(12)]),
+            damping_linear: f32s(c.damping_linear.as_slice()),
+            damping_quadratic: f32s(c.damping_quadratic.as_slice()),
+            time_constant: c.time_constant as f32,
+        }
+    }
+
+    /// The detector's settings on a group of wrench dimension `K`, with the model inertia
+    /// and the control period (checked by [`detection::Detector::new`]).
+    pub fn config<const K: usize>(
+        &self,
+        inertia: SMatrix<f32, K, K>,
+        period: f32,
+    ) -> Result<detection::Config<f32, K>, ConfigError> {
+        let axes = |what: &'static str, xs: &Vec<f32, 6>| {
+            if xs.len() == K {
+                Ok(SVector::<f32, K>::from_row_slice(xs))
+            } else {
+                Err(ConfigError::Shape(what, xs.len()))
+            }
+        };
+        let count = |n: u32| usize::try_from(n).unwrap_or(usize::MAX);
+        // an actuator past the given ones keeps a unit resolution (it has no column)
+        let resolution =
+            Commands::<f32>::from_fn(|j, _| self.resolution.get(j).copied().unwrap_or(1.0));
+        Ok(detection::Config {
+            decimation: count(self.decimation),
+            window: count(self.window),
+            threshold: self.threshold,
+            isolation: self.isolation,
+            relative: self.relative,
+            margin: self.margin,
+            confirm: count(self.confirm),
+            warmup: count(self.warmup),
+            calibration: count(self.calibration),
+            memory: self.memory,
+            floor: axes("detector.floor", &self.floor)?,
+            resolution,
+            inertia,
+            damping_linear: axes("detector.damping_linear", &self.damping_linear)?,
+            damping_quadratic: axes("detector.damping_quadratic", &self.damping_quadratic)?,
+            period,
+            time_constant: self.time_constant,
+        })
+    }
+}
+
+/// `xs` cast to `f32`, as many as fit.
+fn f32s<const C: usize>(xs: &[f64]) -> Vec<f32, C> {
+    xs.iter().take(C).map(|x| *x as f32).collect()
 }

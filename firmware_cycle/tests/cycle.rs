@@ -58,6 +58,7 @@ fn seed_like() -> Config {
         integral: None,
         estimator: None,
         vehicle: None,
+        detector: None,
     }
 }
 

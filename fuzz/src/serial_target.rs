@@ -11,8 +11,8 @@ use crate::Outcome;
 use crate::mutate::{ByteOp, MAX_INPUT, byte_op};
 use crate::rng::Gen;
 use serial_wire::{
-    Allocation, CommandFrame, Deframer, Estimate, Frame, FrameError, Hello, MAX_ENCODED, MAX_FRAME,
-    SERIAL_VERSION, Samples, StateFrame, decode, encode, encode_raw,
+    Allocation, CommandFrame, Deframer, Detection, Estimate, Frame, FrameError, Hello, MAX_ENCODED,
+    MAX_FRAME, SERIAL_VERSION, Samples, StateFrame, decode, encode, encode_raw,
 };
 use std::hint::black_box;
 
@@ -70,6 +70,15 @@ fn seed_frames() -> Vec<Frame> {
             demand: v(&[0.0, 0.0, 0.0, 0.0, 0.0, 14.7]),
             achieved: v(&[0.0, 0.0, 0.0, 0.0, 0.0, 14.7]),
             accounted: v(&[0.0; 6]),
+        }),
+        detection: Some(Detection {
+            alarms: 2,
+            suspect: 3,
+            statistic: 41.5,
+            detected: 3,
+            kind: 2,
+            value: 12.5,
+            refined: false,
         }),
     };
     vec![

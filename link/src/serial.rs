@@ -381,6 +381,18 @@ pub fn command_msg(c: &CommandFrame, group: u32) -> Option<CommandMsg> {
         widen(&mut msg.accounted, &a.accounted);
         widen(&mut msg.u_cmd, &a.u_cmd);
     }
+    // the detector's cycle as the pair's command carries it; the plant's check of the
+    // command refuses values that do not fit (an actuator past the count, an unknown kind)
+    if let Some(d) = &c.detection {
+        msg.flags |= ipc_types::flags::DETECTING;
+        msg.alarms = d.alarms;
+        msg.suspect = u32::from(d.suspect);
+        msg.statistic = f64::from(d.statistic);
+        msg.detected = u32::from(d.detected);
+        msg.detected_kind = u32::from(d.kind);
+        msg.detected_value = f64::from(d.value);
+        msg.detected_refined = u32::from(d.refined);
+    }
     Some(msg)
 }
 
@@ -656,6 +668,7 @@ mod tests {
             integral: heapless::Vec::new(),
             estimate: None,
             allocation: None,
+            detection: None,
         };
         let msg = command_msg(&c, WireGroup::So3.code()).unwrap();
         assert_eq!(

@@ -6,7 +6,7 @@ use crate::vehicle::VehicleSpec;
 use crate::{Scenario, ScenarioError};
 use controller::{ErrorFrame, Frame, GroupKind, Law};
 use firmware_cycle::{
-    Axis, Config, Estimator, Failure, Integral, Observer, Series, Term, Thruster, Vehicle,
+    Axis, Config, Detector, Estimator, Failure, Integral, Observer, Series, Term, Thruster, Vehicle,
 };
 use heapless::Vec as HVec;
 
@@ -20,8 +20,9 @@ impl Scenario {
     /// in-process `f32` controller runs: the law, `I`, `K`, `K_d`, the torque limit, the
     /// reference's start and feedforward, the rejection terms, and the identity the
     /// handshake compares (group, control period, fingerprint, name), and where the scenario
-    /// has them the estimator (its filter on the sensors' samples) and the vehicle (its
-    /// allocation, with the failures the controller is told of). Refused, naming the key,
+    /// has them the estimator (its filter on the sensors' samples), the vehicle (its
+    /// allocation, with the failures the controller is told of) and the failure detector
+    /// (`[fault_detection]`). Refused, naming the key,
     /// for what the firmware does not run: a waypoint or set-point reference.
     pub fn firmware_config(&self) -> Result<Config, ScenarioError> {
         self.firmware_refusals()?;
@@ -89,11 +90,22 @@ impl Scenario {
             }),
             estimator: self.filter_settings()?.as_ref().map(Estimator::of),
             vehicle: self.vehicle.as_ref().map(firmware_vehicle),
+            detector: self.firmware_detector(),
         })
     }
 
-    /// What the firmware does not run, refused naming the key: a told loss of effectiveness,
-    /// a waypoint or set-point reference and the failure detector.
+    /// The failure detector's settings in `f32` (`[fault_detection]` with a vehicle), as the
+    /// pair's controller makes them at the scenario's period.
+    fn firmware_detector(&self) -> Option<Detector> {
+        let count = self.vehicle.as_ref()?.actuators.len();
+        match self.group {
+            GroupKind::So3 => Some(Detector::of(&self.detector_config::<3>()?, count)),
+            GroupKind::Se3 => Some(Detector::of(&self.detector_config::<6>()?, count)),
+        }
+    }
+
+    /// What the firmware does not run, refused naming the key: a told loss of effectiveness
+    /// and a waypoint or set-point reference.
     fn firmware_refusals(&self) -> Result<(), ScenarioError> {
         let refuse = |key: &str, what: &str| ScenarioError::Invalid {
             origin: format!("scenario `{}`", self.name),
@@ -113,9 +125,6 @@ impl Scenario {
                     f.actuator
                 ),
             ));
-        }
-        if self.fault_detection.is_some() {
-            return Err(refuse("fault_detection", "the failure detector"));
         }
         if self.path.is_some() {
             return Err(refuse("reference", "a waypoint or set-point reference"));

@@ -409,7 +409,7 @@ fn failure_kinds_and_their_keys_are_checked() {
 
 /// `[fault_detection]` (issue "Actuator failures found, not announced"): an empty table is the
 /// design's defaults; every key's bad value is refused naming it; it needs a vehicle; it is
-/// fingerprinted only when on; the processor-in-the-loop firmware refuses it.
+/// fingerprinted only when on; the processor-in-the-loop firmware carries it in `f32`.
 #[test]
 fn fault_detection_keys_are_checked() {
     use scenario::fault_detection::DEFAULTS;
@@ -517,7 +517,45 @@ fn fault_detection_keys_are_checked() {
         "fault_detection",
         "needs a [vehicle]",
     );
-    // the processor-in-the-loop firmware does not run it
-    let e = on.firmware_config().unwrap_err().to_string();
-    assert!(e.contains("key `fault_detection`"), "{e}");
+    // the processor-in-the-loop firmware runs it (with a reference it integrates on board):
+    // the host's settings cast to f32, and a cycle made from them; without the table, none
+    let flown = |text: &str| {
+        load(&text.replace(
+            "setpoint = { rotation = [0.0, 0.0, 0.0] }",
+            "rotation = [0.0, 0.0, 0.0]\nposition = [0.0, 0.0, 0.0]\nvelocity = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]",
+        ))
+    };
+    let firmware = flown(&with("")).firmware_config().unwrap();
+    let d = firmware.detector.clone().unwrap();
+    let c = on.detector_config::<6>().unwrap();
+    assert_eq!(d, firmware_cycle::Detector::of(&c, 8));
+    assert_eq!(
+        (d.decimation, d.window, d.confirm, d.resolution.len()),
+        (1, 10, 5, 8)
+    );
+    assert_eq!(d.threshold, c.threshold as f32);
+    assert!(firmware_cycle::Cycle::new(&firmware).is_ok());
+    assert_eq!(flown(&rov).firmware_config().unwrap().detector, None);
+    // settings the firmware's detector refuses, and a detector without a vehicle
+    let mut bad = firmware.clone();
+    bad.detector.as_mut().unwrap().window = 0;
+    assert!(matches!(
+        firmware_cycle::Cycle::new(&bad),
+        Err(firmware_cycle::ConfigError::Detector(
+            detection::ConfigError::Window
+        ))
+    ));
+    let mut short = firmware.clone();
+    short.detector.as_mut().unwrap().floor.pop();
+    let e = firmware_cycle::Cycle::new(&short)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("detector.floor: 5 entries"), "{e}");
+    let mut lonely = firmware;
+    lonely.vehicle = None;
+    assert!(matches!(
+        firmware_cycle::Cycle::new(&lonely),
+        Err(firmware_cycle::ConfigError::DetectorWithoutVehicle)
+    ));
 }

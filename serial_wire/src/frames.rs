@@ -103,6 +103,25 @@ pub struct Allocation {
     pub accounted: Vec<f32, 6>,
 }
 
+/// The failure detector's cycle (docs/maths.md, "Failure detection"), when it runs.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Detection {
+    /// Alarms so far: how often the best hypothesis's statistic crossed the threshold.
+    pub alarms: u32,
+    /// The last test's best actuator plus one (0: not testing yet).
+    pub suspect: u8,
+    /// Its statistic (χ²₁ under no failure; 0 when not testing).
+    pub statistic: f32,
+    /// The actuator found failed in this cycle plus one (0: none).
+    pub detected: u8,
+    /// Its kind: 1 dead, 2 stuck, 3 a loss of effectiveness (0: none).
+    pub kind: u8,
+    /// The stuck value or the factor (0 when dead).
+    pub value: f32,
+    /// Whether it refines an earlier finding of the same actuator.
+    pub refined: bool,
+}
+
 /// The controller's answer to state k.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CommandFrame {
@@ -123,6 +142,8 @@ pub struct CommandFrame {
     pub estimate: Option<Estimate>,
     /// The allocation, for a vehicle.
     pub allocation: Option<Allocation>,
+    /// The failure detector's cycle, when it runs.
+    pub detection: Option<Detection>,
 }
 
 /// One message on the line.

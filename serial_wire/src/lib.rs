@@ -19,14 +19,16 @@
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 mod frames;
-pub use frames::{Allocation, CommandFrame, Estimate, Frame, Hello, Samples, StateFrame, mismatch};
+pub use frames::{
+    Allocation, CommandFrame, Detection, Estimate, Frame, Hello, Samples, StateFrame, mismatch,
+};
 
 use crc::{CRC_32_ISO_HDLC, Crc, Table};
 
 /// The version byte every frame starts with; a frame of another version is refused (2: the
 /// allocation carries the achieved wrench, and states the sensors' samples for an estimator
-/// on board).
-pub const SERIAL_VERSION: u8 = 2;
+/// on board; 3: commands carry the failure detector's cycle).
+pub const SERIAL_VERSION: u8 = 3;
 /// The largest decoded frame (version, postcard message and CRC), in bytes.
 pub const MAX_FRAME: usize = 384;
 /// The largest encoded frame: COBS's worst case for [`MAX_FRAME`] bytes (one code byte per

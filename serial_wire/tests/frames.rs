@@ -4,7 +4,7 @@
 
 use proptest::prelude::*;
 use serial_wire::{
-    Allocation, CommandFrame, Deframer, Estimate, Frame, FrameError, Hello, MAX_ENCODED,
+    Allocation, CommandFrame, Deframer, Detection, Estimate, Frame, FrameError, Hello, MAX_ENCODED,
     SERIAL_VERSION, Samples, StateFrame, decode, encode, mismatch,
 };
 
@@ -38,7 +38,8 @@ fn state() -> StateFrame {
     }
 }
 
-/// The largest command: SE(3) with both terms, an estimate and twelve actuators.
+/// The largest command: SE(3) with both terms, an estimate, twelve actuators and the
+/// detector's cycle.
 fn command() -> CommandFrame {
     CommandFrame {
         seq: u64::MAX,
@@ -58,6 +59,15 @@ fn command() -> CommandFrame {
             demand: vec(&[1.0; 6]),
             achieved: vec(&[0.5; 6]),
             accounted: vec(&[-1.0; 6]),
+        }),
+        detection: Some(Detection {
+            alarms: u32::MAX,
+            suspect: 12,
+            statistic: f32::MAX,
+            detected: 12,
+            kind: 3,
+            value: 0.5,
+            refined: true,
         }),
     }
 }
@@ -229,6 +239,7 @@ fn frame_sizes_are_what_the_docs_say() {
         integral: heapless::Vec::new(),
         estimate: None,
         allocation: None,
+        detection: None,
     });
     let sizes: Vec<usize> = [
         seed_state,
@@ -239,7 +250,7 @@ fn frame_sizes_are_what_the_docs_say() {
     .iter()
     .map(|f| encoded(f).len())
     .collect();
-    assert_eq!(sizes, vec![82, 32, 222, 327]);
+    assert_eq!(sizes, vec![82, 33, 222, 345]);
 }
 
 /// `version | message | crc32` COBS-encoded by the `cobs` crate, with the closing zero: the

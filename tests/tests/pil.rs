@@ -153,7 +153,8 @@ fn pil_in_lockstep_equals_the_in_process_f32_simulation_byte_for_byte() {
     let d = TempDir::new("pil-lockstep");
     // the seed; SE(3); the rejection terms; the estimator on board (the complementary filter
     // on SO(3), the EqF on SE(3)); a vehicle's allocation on SO(3) (reaction wheels) and on
-    // SE(3) (rotors, with the EqF and the observer)
+    // SE(3) (rotors, with the EqF and the observer); the failure detector on board (the ROV,
+    // a thruster dying unannounced)
     for name in [
         "seed",
         "se3_circle",
@@ -162,6 +163,7 @@ fn pil_in_lockstep_equals_the_in_process_f32_simulation_byte_for_byte() {
         "eqf_se3",
         "spacecraft",
         "pil_hexarotor",
+        "pil_rov_detect",
     ] {
         let file = short(&d, name, "2.0", &|t| t);
         let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
@@ -245,7 +247,32 @@ fn pil_in_lockstep_equals_the_in_process_f32_simulation_byte_for_byte() {
             (l32 - l64).abs() <= 1e-3 * l64.abs().max(1e-3),
             "{name}: L {l32} (f32) vs {l64} (f64)"
         );
+        if s.fault_detection.is_some() {
+            found_on_board(name, &pil_out, &f32_out, &f64_out);
+        }
     }
+}
+
+/// The detector on board found what the `f64` controller finds: the same findings in the
+/// PIL run's and the `f32` simulation's summaries, the scripted failure's actuator and kind
+/// within 0.2 s, and the same actuator, kind and time as in `f64`.
+fn found_on_board(name: &str, pil: &str, f32_out: &str, f64_out: &str) {
+    let found = |dir: &str| summary(std::path::Path::new(dir))["vehicle"]["detections"].clone();
+    let (on_board, in_f32, in_f64) = (found(pil), found(f32_out), found(f64_out));
+    assert_eq!(on_board, in_f32, "{name}: PIL and f32 findings");
+    let first = &on_board[0];
+    assert_eq!(
+        (first["actuator"].as_u64(), first["kind"].as_str()),
+        (Some(1), Some("dead")),
+        "{name}: {on_board}"
+    );
+    let latency = first["latency"].as_f64().unwrap();
+    assert!((0.0..=0.2).contains(&latency), "{name}: {on_board}");
+    assert_eq!(
+        (&in_f64[0]["actuator"], &in_f64[0]["kind"], &in_f64[0]["t"]),
+        (&first["actuator"], &first["kind"], &first["t"]),
+        "{name}: f64 {in_f64}"
+    );
 }
 
 #[test]

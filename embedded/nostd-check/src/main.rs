@@ -433,6 +433,7 @@ fn firmware_cycle_check() -> bool {
         integral: None,
         estimator: None,
         vehicle: None,
+        detector: None,
     };
     let mut bytes = [0u8; MAX_CONFIG];
     let Ok(n) = config.to_bytes(&mut bytes) else {
