@@ -523,11 +523,16 @@ impl<T: Real, const K: usize> Detector<T, K> {
         if self.periods < c.decimation {
             return self.next_report();
         }
-        let n: T = controller::real(self.periods as f64);
-        let mut entry = Entry {
-            w: a.w / n,
-            u: a.u / n,
-            p: a.p / n,
+        // the mean (one period: the period itself, as x / 1 is x)
+        let mut entry = if self.periods == 1 {
+            *a
+        } else {
+            let n: T = controller::real(self.periods as f64);
+            Entry {
+                w: a.w / n,
+                u: a.u / n,
+                p: a.p / n,
+            }
         };
         self.accumulated = Entry::zero();
         self.periods = 0;
@@ -554,6 +559,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
 
     /// The oldest detection not reported yet.
     fn next_report(&mut self) -> Option<Detection<T>> {
+        // the queue is packed from the front: an empty head is an empty queue
+        self.queue[0]?;
         let first = self.queue[0].take();
         self.queue.rotate_left(1);
         first
@@ -676,9 +683,11 @@ impl<T: Real, const K: usize> Detector<T, K> {
             self.variance += (d.component_mul(&d) - self.variance) / n;
             return None;
         }
-        let dw = d.component_div(&s2.map(|x| x.sqrt()));
+        // the FPU's square root on a Cortex-M4F, the same bits as libm's
+        let s = s2.map(controller::hw_sqrt::sqrt);
+        let dw = d.component_div(&s);
         let total = dw.norm_squared();
-        let (best, second) = self.bank(&dw, &s2.map(|x| x.sqrt()), control);
+        let (best, second) = self.bank(&dw, &s, control);
         self.last = Statistic {
             actuator: best.0,
             best: best.1,
@@ -728,7 +737,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             actuator: j,
             left: wn,
             baseline: older,
-            spread: s2.map(|x| x.sqrt()),
+            spread: s,
             kind,
         });
         Some(Detection {
@@ -790,7 +799,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         control: &VehicleControl<T, K>,
     ) -> (Kind<T>, usize) {
         let wn = self.config.window;
-        let s = s2.map(|x| x.sqrt());
+        let s = s2.map(controller::hw_sqrt::sqrt);
         let column = self.healthy_column(j, control);
         let bw = column.component_div(&s);
         let nb = bw.norm_squared();

@@ -3,8 +3,8 @@
 The numbers are the command line's: :func:`simulate` runs ``plant_sim sim``'s closed loop and
 :func:`montecarlo` the study of ``plant_sim montecarlo``, through the same Rust libraries,
 with the GIL released while Rust works. The building blocks (:class:`Controller`,
-:class:`ComplementaryFilter`, :class:`EquivariantFilter`, :class:`Allocator`) step on numpy
-arrays. A bad input raises ``ValueError`` naming what is wrong, with the message the command
+:class:`ComplementaryFilter`, :class:`EquivariantFilter`, :class:`Allocator`, :class:`Detector`)
+step on numpy arrays. A bad input raises ``ValueError`` naming what is wrong, with the message the command
 line gives for the same mistake.
 """
 
@@ -17,12 +17,13 @@ from typing import Any, Dict, Iterable, Optional, Sequence, Union
 import numpy as np
 
 from . import _native
-from ._native import Allocator, ComplementaryFilter, Controller, EquivariantFilter
+from ._native import Allocator, ComplementaryFilter, Controller, Detector, EquivariantFilter
 
 __all__ = [
     "Allocator",
     "ComplementaryFilter",
     "Controller",
+    "Detector",
     "EquivariantFilter",
     "Run",
     "builtin_scenario",

@@ -62,3 +62,24 @@ class Allocator:
     def count(self) -> int: ...
     def allocate(self, demand: _Array) -> Tuple[_F64, _F64, int]:
         """(u_cmd, B u_cmd, status code)."""
+
+class Detector:
+    """A vehicle's allocation with its failure detector, from a scenario with [vehicle] and
+    [fault_detection], stepped as the controller steps it."""
+
+    def __init__(self, scenario: _Scenario, overrides: Optional[Mapping[str, Any]] = None) -> None: ...
+    @property
+    def count(self) -> int: ...
+    @property
+    def failed(self) -> List[int]: ...
+    def step(
+        self,
+        t: float,
+        q: _Array,
+        v: _Array,
+        wrench: _Array,
+        applied: Optional[_Array] = None,
+        follows: bool = True,
+    ) -> Dict[str, Any]:
+        """One control period: u_cmd, demand, achieved, accounted, status, alarms, suspect,
+        statistic and detection (None, or actuator, kind, value and refined)."""

@@ -16,6 +16,7 @@
 
 mod arrays;
 mod blocks;
+mod detector;
 mod source;
 mod study;
 
@@ -92,5 +93,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(builtin_scenario, m)?)?;
     study::register(m)?;
     blocks::register(m)?;
+    detector::register(m)?;
     Ok(())
 }

@@ -93,3 +93,60 @@ def test_the_allocator_is_the_scenarios():
         a.allocate([1.0, 2.0, 3.0])
     with pytest.raises(ValueError, match="has no \\[vehicle\\]"):
         eqtrack.Allocator(SEED)
+
+
+def test_the_detector_flies_as_the_simulations_controller():
+    # pil_rov_detect: thruster 1 dies unannounced at 1.4 s; stepped on the states, the law's
+    # wrenches and the times the simulation logged, the block allocates the same commands,
+    # bit for bit, and finds what the simulation's controller found, when it found it. With
+    # no weight and no buoyancy the allocation's demand is the law's wrench itself (less a
+    # zero restoring wrench), which trajectory.csv logs
+    scenario = REPO / "scenarios" / "pil_rov_detect.toml"
+    neutral = {"vehicle": {"gravity": 0.0, "buoyancy": 0.0}}
+    run = eqtrack.simulate(scenario, **neutral)
+    c = run.columns
+    d = eqtrack.Detector(scenario, neutral)
+    assert d.count == 8 and d.failed == []
+    found, suspects = [], 0
+    for k in range(len(c["t"])):
+        q = np.array([[c[f"q_{i}{j}"][k] for j in range(4)] for i in range(4)])
+        v = np.array([c[f"v_{i}"][k] for i in range(6)])
+        wrench = np.array([c[f"demand_{i}"][k] for i in range(6)])
+        out = d.step(c["t"][k], q, v, wrench)
+        assert np.array_equal(out["u_cmd"], [c[f"u_cmd_{j}"][k] for j in range(8)]), k
+        assert out["status"] == c["alloc_status"][k]
+        suspects += out["suspect"] is not None
+        if out["detection"] is not None:
+            found.append((round(c["t"][k], 9), out["detection"]))
+    logged = run.summary["vehicle"]["detections"]
+    assert [(t, f["actuator"], f["kind"], f["value"]) for t, f in found] == [
+        (x["t"], x["actuator"], x["kind"], x["value"]) for x in logged
+    ]
+    assert logged[0]["actuator"] == 1 and logged[0]["kind"] == "dead"
+    assert d.failed == [1]
+    assert 0 < suspects < len(c["t"]), "it tests once calibrated, not before"
+
+
+def test_the_detector_checks_its_scenario_and_its_inputs():
+    scenario = REPO / "scenarios" / "pil_rov_detect.toml"
+    with pytest.raises(ValueError, match=r"has no \[fault_detection\]"):
+        eqtrack.Detector(REPO / "scenarios" / "rov_failure.toml")
+    with pytest.raises(ValueError, match=r"has no \[vehicle\]"):
+        eqtrack.Detector(SEED)
+    with pytest.raises(ValueError, match="fault_detection.window"):
+        eqtrack.Detector(scenario, {"fault_detection": {"window": 0.0}})
+    d = eqtrack.Detector(scenario)
+    q, v, tau = np.eye(4), np.zeros(6), np.zeros(6)
+    with pytest.raises(ValueError, match=r"v: expected shape \(6,\), got \(3,\)"):
+        d.step(0.0, q, v[:3], tau)
+    with pytest.raises(ValueError, match=r"q: expected shape \(4, 4\)"):
+        d.step(0.0, np.eye(3), v, tau)
+    with pytest.raises(ValueError, match="wrench: entry 2 is NaN"):
+        d.step(0.0, q, v, [0.0, 0.0, float("nan"), 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="applied: entry 0 is inf"):
+        d.step(0.0, q, v, tau, applied=[float("inf")] + [0.0] * 5)
+    with pytest.raises(ValueError, match="t: NaN is not a finite time"):
+        d.step(float("nan"), q, v, tau)
+    # a refused step changes nothing: the next one is still the first
+    out = d.step(0.0, q, v, tau)
+    assert out["detection"] is None and out["suspect"] is None and out["alarms"] == 0

@@ -490,17 +490,20 @@ fn bad_transports_and_scenarios_the_firmware_cannot_run_are_refused_naming_them(
 
 #[test]
 fn the_instruction_count_firmware_carries_pil_hexarotors_configuration() {
-    // scripts/cortex-m.sh counts one processor-in-the-loop cycle of pil_hexarotor from these
-    // bytes: they must be the scenario's, as `plant_sim pil-config` writes them
-    let file = pair_tests::scenario("pil_hexarotor");
-    let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
-    let committed = read(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../embedded/firmware-cortex-m/pil_hexarotor.config"
-    ));
-    assert!(
-        config_bytes(&s) == committed,
-        "embedded/firmware-cortex-m/pil_hexarotor.config is stale: plant_sim pil-config \
-         --scenario scenarios/pil_hexarotor.toml --out embedded/firmware-cortex-m/pil_hexarotor.config"
-    );
+    // scripts/cortex-m.sh counts one processor-in-the-loop cycle of pil_hexarotor, and the
+    // failure detector's cycle on pil_rov_detect's ROV, from these bytes: they must be the
+    // scenarios', as `plant_sim pil-config` writes them
+    for name in ["pil_hexarotor", "pil_rov_detect"] {
+        let file = pair_tests::scenario(name);
+        let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
+        let committed = read(&format!(
+            "{}/../embedded/firmware-cortex-m/{name}.config",
+            env!("CARGO_MANIFEST_DIR")
+        ));
+        assert!(
+            config_bytes(&s) == committed,
+            "embedded/firmware-cortex-m/{name}.config is stale: plant_sim pil-config \
+             --scenario scenarios/{name}.toml --out embedded/firmware-cortex-m/{name}.config"
+        );
+    }
 }

@@ -41,7 +41,10 @@
 //!   hexarotor, the ROV, the spacecraft (`WORST <vehicle> <demands> <stopped> <most iterations>`);
 //! * each vehicle's saturating trajectory, warm-started (`WARM <vehicle> <ticks> <iterations>`);
 //! * `pil_hexarotor`'s whole cycle (`Cycle::on_frame`) on frames that saturate its rotors
-//!   (`SATURATED <cycles> <saturated allocations>`).
+//!   (`SATURATED <cycles> <saturated allocations>`);
+//! * the failure detector's cycle on `pil_rov_detect`'s ROV, with its settings, over a
+//!   synthetic flight through the warm-up, the calibration, the tests, a thruster that dies
+//!   and its finding (`DETECTOR rov <cycles> <cycle found> <actuator> <kind code> <value>`).
 
 use controller::{ErrorFrame, Trajectory as _};
 use core::hint::black_box;
@@ -212,6 +215,7 @@ pub fn run() -> bool {
     {
         ok &= worst_cases();
         ok &= saturated_cycles();
+        ok &= detector_cycles();
     }
     hprintln!("ICOUNT done {}", ok);
     ok
@@ -519,4 +523,95 @@ fn saturated_cycles() -> bool {
     }
     hprintln!("SATURATED {} {}", CYCLES, saturated);
     ok
+}
+
+/// `pil_rov_detect`'s configuration (`plant_sim pil-config --scenario
+/// scenarios/pil_rov_detect.toml`): the ROV and its failure detector's settings.
+#[cfg(feature = "worst-cases")]
+static ROV_CONFIG: &[u8] = include_bytes!("../pil_rov_detect.config");
+
+/// The failure detector's cycle on `pil_rov_detect`'s ROV (marks 46 → 47 around each: the
+/// command of the cycle before taken, `Detector::commanded`, and the period that ended
+/// observed, `Detector::observe`, which tests and on a finding tells the allocator). The
+/// flight is synthetic: the ROV's momentum stepped by Euler over each period from the
+/// thrust its lagged actuators gave, its drag, its restoring wrench, a steady current and
+/// seeded noise, the commands the allocation of a varying wrench; thruster 1 dies at
+/// cycle 140. True when it is found (of its kind, the synthetic flight's cruder model leaves
+/// the detector a bias: it is printed, not judged).
+#[cfg(feature = "worst-cases")]
+fn detector_cycles() -> bool {
+    use controller::group::{MatrixLieGroup, Se3};
+    use firmware_cases::demands::Seeded;
+    use nalgebra::{Matrix3, SMatrix, SVector};
+    const CYCLES: usize = 200;
+    const DIES: usize = 140;
+    let Ok(config) = firmware_cycle::Config::from_bytes(ROV_CONFIG) else {
+        hprintln!("ERR icount - the ROV's configuration does not decode");
+        return false;
+    };
+    let h = config.identity.period as f32;
+    let inertia = SMatrix::<f32, 6, 6>::from_row_slice(&config.inertia);
+    let (Some(vehicle), Some(settings), Some(inverse)) =
+        (config.vehicle.as_ref(), config.detector.as_ref(), inertia.try_inverse())
+    else {
+        hprintln!("ERR icount - the ROV's configuration has no vehicle or detector");
+        return false;
+    };
+    let (Ok(mut control), Ok(d)) = (vehicle.control::<6>(h), settings.config::<6>(inertia, h)) else {
+        hprintln!("ERR icount - the ROV's vehicle or detector does not build");
+        return false;
+    };
+    let Ok(mut detector) = detection::Detector::new(d) else {
+        hprintln!("ERR icount - the ROV's detector refuses its settings");
+        return false;
+    };
+    let b = *control.allocator().geometry().effectiveness();
+    let decay = libm::expf(-h / d.time_constant);
+    let mean = d.time_constant / h * (1.0 - decay);
+    let current = SVector::<f32, 6>::from_column_slice(&[0.0, 0.0, 0.0, 6.0, -4.0, 3.0]);
+    let r = Matrix3::<f32>::identity();
+    let mut rng = Seeded::new(0x0de7_ec70);
+    let (mut v, mut output, mut command) = (SVector::<f32, 6>::zeros(), None, None);
+    let mut found = None;
+    for k in 0..CYCLES {
+        let (dd, rr, vv) = (black_box(&mut detector), black_box(&r), black_box(&v));
+        icount_mark(46);
+        if let Some(u) = &command {
+            dd.commanded(u);
+        }
+        let finding = dd.observe::<Se3, 4>(vv, rr, &mut control);
+        icount_mark(47);
+        if let (None, Some(f)) = (found, black_box(finding)) {
+            found = Some((k, f.actuator, f.kind.code(), f.kind.value()));
+        }
+        // the wrench asked for: a swaying, yawing flight held near rest against the current
+        let t = k as f32 * h;
+        let ff = SVector::<f32, 6>::from_column_slice(&[
+            0.0,
+            0.0,
+            0.3 * libm::cosf(2.0 * t),
+            8.0 * libm::cosf(3.0 * t),
+            6.0 * libm::cosf(2.5 * t + 1.0),
+            0.0,
+        ]);
+        let u = control.actuate(&(ff - v * 20.0 - current), &r).allocation.u;
+        // the plant over the period: the lagged thrust (the first command at once), thruster
+        // 1 giving none from cycle DIES, Euler on the momentum
+        let start = output.unwrap_or(u);
+        let mut thrust = u + (start - u) * mean;
+        output = Some(u + (start - u) * decay);
+        if k >= DIES {
+            thrust[1] = 0.0;
+        }
+        let mu = inertia * v;
+        let drag = -(d.damping_linear.component_mul(&v)
+            + d.damping_quadratic.component_mul(&v.abs().component_mul(&v)));
+        let noise = SVector::<f32, 6>::from_fn(|i, _| (rng.unit() - 0.5) * if i < 3 { 0.02 } else { 0.4 });
+        let wrench = Se3::ad_transpose_mul(&v, &mu) + b * thrust + control.restoring(&r) + drag + current + noise;
+        v = inverse * (mu + wrench * h);
+        command = Some(u);
+    }
+    let (k, actuator, kind, value) = found.unwrap_or((0, usize::MAX, 0, 0.0));
+    hprintln!("DETECTOR rov {} {} {} {} {}", CYCLES, k, actuator, kind, value);
+    actuator == 1 && v.iter().all(|x| x.is_finite())
 }
