@@ -24,6 +24,8 @@ pub struct ControllerVehicle<const M: usize> {
     /// The wrench the last command counted as applied: the next state's `applied` says
     /// whether the plant applied that command (a held one, or safe mode, says otherwise).
     accounted: Option<SVector<f64, M>>,
+    /// Which of the scenario's failures the allocator has been told of (each once).
+    told: Vec<bool>,
 }
 
 impl<const M: usize> ControllerVehicle<M> {
@@ -38,6 +40,7 @@ impl<const M: usize> ControllerVehicle<M> {
             detector: None,
             detecting: None,
             accounted: None,
+            told: vec![false; spec.failures.len()],
         })
     }
 
@@ -103,7 +106,7 @@ impl<const M: usize> ControllerVehicle<M> {
     ) {
         self.control.set_period(msg.control_period);
         self.spec
-            .tell_failures(&mut self.control, msg.t, msg.control_period);
+            .tell_failures(&mut self.control, msg.t, msg.control_period, &mut self.told);
         let r_hat = G::rotation(&msg.configuration::<N>());
         if let (Some(d), Some(s)) = (&mut self.detector, &mut self.detecting)
             && d.config().period != msg.control_period

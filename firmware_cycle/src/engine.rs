@@ -23,8 +23,10 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     filtered: Option<u64>,
     vehicle_start: Option<VehicleControl<f32, M>>,
     vehicle: Option<VehicleControl<f32, M>>,
-    /// The actuator count and the failures the controller is told of.
+    /// The actuator count and the failures the controller is told of, and which of them it
+    /// has been told (each once, so that what the detector finds later stands).
     failures: Vec<Failure, 12>,
+    told: [bool; 12],
     actuators: usize,
     /// The failure detector (docs/maths.md, "Failure detection"), at start and now.
     detector_start: Option<detection::Detector<f32, M>>,
@@ -63,6 +65,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             }
         };
         Ok(Engine {
+            told: [false; 12],
             detector_start: detector.clone(),
             detector,
             accounted: None,
@@ -95,6 +98,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         self.filtered = None;
         self.vehicle = self.vehicle_start;
         self.detector.clone_from(&self.detector_start);
+        self.told = [false; 12];
         self.accounted = None;
         self.previous = None;
     }
@@ -155,7 +159,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         let allocation = match &mut self.vehicle {
             None => None,
             Some(control) => {
-                tell_failures(control, &self.failures, s.t, period);
+                tell_failures(control, &self.failures, &mut self.told, s.t, period);
                 let r_hat = G::rotation(&q);
                 if let Some(d) = &mut self.detector {
                     // the period counts only if it followed the last answer and the plant
@@ -239,16 +243,19 @@ fn estimate<const N: usize, const M: usize>(
 }
 
 /// Tells the allocator of the failures the controller is told of that have started at `t`
-/// (from the first `t_k ≥ t − h/2`).
+/// (from the first `t_k ≥ t − h/2`) and are not marked in `told` (marked here: each is told
+/// once).
 fn tell_failures<const M: usize>(
     control: &mut VehicleControl<f32, M>,
     failures: &[Failure],
+    told: &mut [bool],
     t: f64,
     period: f32,
 ) {
     let h = f64::from(period);
-    for f in failures {
-        if t >= f.t - h / 2.0 {
+    for (f, told) in failures.iter().zip(told.iter_mut()) {
+        if !*told && t >= f.t - h / 2.0 {
+            *told = true;
             control.fail(usize::from(f.actuator), f.value);
         }
     }

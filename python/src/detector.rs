@@ -92,7 +92,11 @@ fn detection_kind(cmd: &CommandMsg) -> Option<detection::Kind<f64>> {
 }
 
 fn wire_group(m: usize) -> WireGroup {
-    if m == 6 { WireGroup::Se3 } else { WireGroup::So3 }
+    if m == 6 {
+        WireGroup::Se3
+    } else {
+        WireGroup::So3
+    }
 }
 
 fn value_err(e: impl std::fmt::Display) -> PyErr {

@@ -213,18 +213,22 @@ impl VehicleSpec {
     }
 
     /// Tells `control` of every failure it is to be told of (`reconfigure = true`) that has
-    /// started at tick `t_k` of period `h`: a stuck or dead actuator is held at its value, one
-    /// that lost effectiveness has its column scaled by its factor. Telling again is
-    /// harmless, so a controller that calls this each cycle needs no memory of it (and replay
-    /// none either).
+    /// started at tick `t_k` of period `h` and is not marked in `told` (one flag per
+    /// failure, in the table's order; set here): a stuck or dead actuator is held at its
+    /// value, one that lost effectiveness has its column scaled by its factor. Each is told
+    /// once, as the simulation tells it, so that what the failure detector finds later of
+    /// the same actuator stands. A controller that starts afresh (a restart, replay) starts
+    /// with no flags set and is told every failure already under way on its first tick.
     pub fn tell_failures<const K: usize>(
         &self,
         control: &mut VehicleControl<f64, K>,
         t_k: f64,
         h: f64,
+        told: &mut [bool],
     ) {
-        for f in &self.failures {
-            if f.reconfigure && f.active(t_k, h) {
+        for (f, told) in self.failures.iter().zip(told.iter_mut()) {
+            if f.reconfigure && !*told && f.active(t_k, h) {
+                *told = true;
                 match f.kind {
                     FailureKind::Effectiveness { factor } => control.weaken(f.actuator, factor),
                     FailureKind::Stuck | FailureKind::Dead => control.fail(f.actuator, f.value),

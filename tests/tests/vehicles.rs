@@ -401,6 +401,75 @@ fn unannounced_rov(dir: &Path) -> String {
     file.to_str().unwrap().to_owned()
 }
 
+/// A failure the controller is told of, then a second, unannounced, of the same thruster:
+/// `pil_rov_detect`'s thruster 1 told stuck at −10 N at 1.2 s, then dead at 1.5 s. The
+/// detector finds the death and tells the allocator; the told failure is not told again
+/// over it (each told once, as the simulation tells it), so the pair flies the simulation's
+/// flight bit for bit, and the findings are the same.
+#[test]
+fn a_told_failure_then_a_found_one_of_the_same_thruster_flies_as_the_simulation() {
+    let _g = serial();
+    let d = TempDir::new("vehicle-told-found");
+    let text = std::fs::read_to_string(repo("scenarios/pil_rov_detect.toml")).unwrap();
+    let died = "[[vehicle.failure]]\n# thruster 1 (a vectored horizontal one) dies at 1.4 s, and nobody tells the controller\nactuator = 1\nt = 1.4\n";
+    assert!(
+        text.contains(died),
+        "pil_rov_detect's failure table changed"
+    );
+    let text = text.replace(
+        died,
+        "[[vehicle.failure]]\nactuator = 1\nt = 1.2\nvalue = -10.0\nreconfigure = true\n\n\
+         [[vehicle.failure]]\nactuator = 1\nt = 1.5\n",
+    );
+    let file = d.join("told_then_found.toml");
+    std::fs::write(&file, text).unwrap();
+    let (sim, pair) = sim_equals_lockstep(&d, "told-found", &file);
+    let (s, p) = (summary(Path::new(&sim)), summary(Path::new(&pair)));
+    assert_eq!(s["vehicle"], p["vehicle"]);
+    let found: Vec<_> = p["vehicle"]["detections"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| (x["actuator"].as_u64().unwrap(), x["kind"].as_str().unwrap()))
+        .collect();
+    assert_eq!(found.last(), Some(&(1, "dead")), "{p}");
+    // after the death, thruster 1 is held at 0, not at the told −10 N
+    let csv = Csv::read(Path::new(&format!("{pair}/trajectory.csv")));
+    let (t, u1) = (csv.col("t"), csv.col("u_cmd_1"));
+    let last = u1.len() - 1;
+    assert!(
+        t[last] > 1.9 && u1[last] == 0.0,
+        "u_cmd_1 = {} at the end",
+        u1[last]
+    );
+    // the firmware's f32 cycle, in process, tells each failure once too
+    let f32_out = d.join("told-found-f32");
+    let (code, text) = plant(&[
+        "sim",
+        "--scenario",
+        &file,
+        "--controller-scalar",
+        "f32",
+        "--out",
+        &f32_out,
+    ]);
+    assert_eq!(code, 0, "{text}");
+    let f = summary(Path::new(&f32_out));
+    let kinds: Vec<_> = f["vehicle"]["detections"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| (x["actuator"].as_u64().unwrap(), x["kind"].as_str().unwrap()))
+        .collect();
+    assert_eq!(kinds.last(), Some(&(1, "dead")), "{f}");
+    let u1 = Csv::read(Path::new(&format!("{f32_out}/trajectory.csv"))).col("u_cmd_1");
+    assert_eq!(
+        u1[u1.len() - 1],
+        0.0,
+        "f32: thruster 1 held at the told value again"
+    );
+}
+
 /// The pair's controller runs the failure detector
 /// (docs/vehicles.md, "Failures nobody announces"): in lockstep it finds both failures at the simulation's ticks, tells its
 /// allocator the same, and the flight equals the simulation bit for bit; the commands carry
