@@ -163,6 +163,10 @@ impl Detector {
     /// `detection`: `None`, or what it found in this period (`actuator`, `kind`, `value`,
     /// `refined`), already told to the allocator.
     #[pyo3(signature = (t, q, v, wrench, applied=None, follows=true))]
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "Python's keyword signature: each argument is one the caller names"
+    )]
     fn step<'py>(
         &mut self,
         py: Python<'py>,
