@@ -389,19 +389,21 @@ for g in groups:
         # commanded + observe on pil_rov_detect's ROV; its limit of 1 500 is not met yet
         # (BENCHMARKS section 26): the line names it, and a ceiling 15 % over the worst case
         # measured is enforced, so that it cannot grow
-        n, found, actuator, kind, value = int(g[2]), int(g[3]), int(g[4]), int(g[5]), float(g[6])
+        n, found, actuator, kind, value, first = int(g[2]), int(g[3]), int(g[4]), int(g[5]), float(g[6]), int(g[7])
         counts = [c - base_call for c in calls[at:at + n]]
         at += n
         worst = max(counts)
         k = counts.index(worst)
-        testing = counts[100:140]
         print(f"detector: {worst} instructions per cycle (limit 1500: {met(worst, 1500)}; enforced ceiling "
               f"{ceilings['detector']}; the ROV, the worst of {n} cycles, at cycle {k})")
-        print(f"  by phase: filling its windows {counts[5]}, calibrating {counts[60]}, testing {max(testing)}, "
-              f"the cycle it finds the failure {counts[found] if 0 <= found < n else 'none'}; mean {sum(counts) / n:.0f}")
+        if actuator == 1 and first < found < n:
+            print(f"  by phase: filling its windows {counts[5]}, calibrating {max(counts[first - 10:first])}, "
+                  f"testing {max(counts[first:found])} (from cycle {first}), the cycle it finds the failure "
+                  f"{counts[found]}, after it {max(counts[found + 1:], default=0)} (its watch, the kind fitted "
+                  f"again); mean {sum(counts) / n:.0f}")
         kinds = {1: "dead", 2: "stuck", 3: "weak"}
-        print(f"  thruster 1 dies at cycle 140: found at cycle {found}, actuator {actuator}, "
-              f"{kinds.get(kind, 'no kind')} ({value:g})")
+        print(f"  thruster 1 dies at cycle 140: " + (f"found at cycle {found}, actuator {actuator}, "
+              f"{kinds.get(kind, 'no kind')} ({value:g})" if actuator < 12 else "not found"))
         if cycle_worst is not None:
             print(f"  beside the controller cycle's worst case: {cycle_worst} + {worst} = {cycle_worst + worst} "
                   f"(limit 25200: {met(cycle_worst + worst, 25200)})")

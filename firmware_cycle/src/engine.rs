@@ -28,8 +28,9 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     failures: Vec<Failure, 12>,
     told: [bool; 12],
     actuators: usize,
-    /// The failure detector (docs/maths.md, "Failure detection"), at start and now.
-    detector_start: Option<detection::Detector<f32, M>>,
+    /// The failure detector (docs/maths.md, "Failure detection") and the settings a run
+    /// starts it afresh from (checked once, when the cycle was made).
+    detector_settings: Option<detection::Config<f32, M>>,
     detector: Option<detection::Detector<f32, M>>,
     /// The wrench the last command accounted for: a state whose applied wrench is not
     /// this, bit for bit, was not flown as commanded (held, or safe mode).
@@ -55,18 +56,19 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             None => None,
             Some(v) => Some(v.control::<M>(config.identity.period as f32)?),
         };
-        let detector = match (&config.detector, &config.vehicle) {
-            (None, _) => None,
+        let (detector_settings, detector) = match (&config.detector, &config.vehicle) {
+            (None, _) => (None, None),
             (Some(_), None) => return Err(ConfigError::DetectorWithoutVehicle),
             (Some(d), Some(_)) => {
                 let settings =
                     d.config::<M>(controller.config().inertia, config.identity.period as f32)?;
-                Some(detection::Detector::new(settings).map_err(ConfigError::Detector)?)
+                let detector = detection::Detector::new(settings).map_err(ConfigError::Detector)?;
+                (Some(settings), Some(detector))
             }
         };
         Ok(Engine {
             told: [false; 12],
-            detector_start: detector.clone(),
+            detector_settings,
             detector,
             accounted: None,
             filter_start: filter,
@@ -97,7 +99,10 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         self.filter = self.filter_start;
         self.filtered = None;
         self.vehicle = self.vehicle_start;
-        self.detector.clone_from(&self.detector_start);
+        // settings checked when the cycle was made: `new` cannot refuse them now
+        self.detector = self
+            .detector_settings
+            .and_then(|c| detection::Detector::new(c).ok());
         self.told = [false; 12];
         self.accounted = None;
         self.previous = None;
@@ -288,7 +293,7 @@ fn detect<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         suspect,
         statistic,
         detected: found.map_or(0, |f| code(f.actuator)),
-        kind: found.map_or(0, |f| f.kind.code() as u8),
+        kind: found.map_or(0, |f| u8::try_from(f.kind.code()).unwrap_or(0)),
         value: found.map_or(0.0, |f| f.kind.value()),
         refined: found.is_some_and(|f| f.refined),
     }

@@ -219,8 +219,12 @@ fn hovering_hexarotor() -> Scenario {
         eight,
         "setpoint = { rotation = [0.0, 0.0, 0.0], position = [0.0, 0.0, 0.0] }\n",
     );
-    Scenario::from_toml(&text, "hexarotor_hover", "scenarios/hexarotor_eqf.toml, in hover")
-        .unwrap()
+    Scenario::from_toml(
+        &text,
+        "hexarotor_hover",
+        "scenarios/hexarotor_eqf.toml, in hover",
+    )
+    .unwrap()
 }
 
 #[test]

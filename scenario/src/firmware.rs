@@ -90,22 +90,31 @@ impl Scenario {
             }),
             estimator: self.filter_settings()?.as_ref().map(Estimator::of),
             vehicle: self.vehicle.as_ref().map(firmware_vehicle),
-            detector: self.firmware_detector(),
+            detector: self.firmware_detector()?,
         })
     }
 
-    /// The failure detector's settings in `f32` (`[fault_detection]` with a vehicle), as the
-    /// pair's controller makes them at the scenario's period.
-    fn firmware_detector(&self) -> Option<Detector> {
-        let count = self.vehicle.as_ref()?.actuators.len();
-        match self.group {
-            GroupKind::So3 => Some(Detector::of(&self.detector_config::<3>()?, count)),
-            GroupKind::Se3 => Some(Detector::of(&self.detector_config::<6>()?, count)),
+    /// The failure detector's settings in `f32` (`[fault_detection]`, which needs a vehicle),
+    /// as the pair's controller makes them at the scenario's period; `None` without the table.
+    fn firmware_detector(&self) -> Result<Option<Detector>, ScenarioError> {
+        if self.fault_detection.is_none() {
+            return Ok(None);
         }
+        let count = self.vehicle.as_ref().map_or(0, |v| v.actuators.len());
+        let settings = match self.group {
+            GroupKind::So3 => self.detector_config::<3>().map(|c| Detector::of(&c, count)),
+            GroupKind::Se3 => self.detector_config::<6>().map(|c| Detector::of(&c, count)),
+        };
+        settings.map(Some).ok_or_else(|| ScenarioError::Invalid {
+            origin: format!("scenario `{}`", self.name),
+            key: "fault_detection".to_owned(),
+            message: "the vehicle does not make a detector on this group".to_owned(),
+        })
     }
 
-    /// What the firmware does not run, refused naming the key: a told loss of effectiveness
-    /// and a waypoint or set-point reference.
+    /// What the firmware does not run, refused naming the key: a told loss of effectiveness,
+    /// a waypoint or set-point reference, and more than 12 told failures (what its
+    /// configuration holds).
     fn firmware_refusals(&self) -> Result<(), ScenarioError> {
         let refuse = |key: &str, what: &str| ScenarioError::Invalid {
             origin: format!("scenario `{}`", self.name),
@@ -128,6 +137,16 @@ impl Scenario {
         }
         if self.path.is_some() {
             return Err(refuse("reference", "a waypoint or set-point reference"));
+        }
+        let told = self
+            .vehicle
+            .as_ref()
+            .map_or(0, |v| v.failures.iter().filter(|f| f.reconfigure).count());
+        if told > 12 {
+            return Err(refuse(
+                "vehicle.failure",
+                &format!("more than 12 failures told to the allocator ({told})"),
+            ));
         }
         Ok(())
     }

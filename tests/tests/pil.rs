@@ -507,3 +507,68 @@ fn the_instruction_count_firmware_carries_pil_hexarotors_configuration() {
         );
     }
 }
+
+/// A greeting starts a run afresh, the failure detector and the failures told included:
+/// `pil_rov_detect` with thruster 3 told stuck at 5 N from 0.5 s, 150 states (the detector
+/// tests from the 120th), then a `Hello` and the same 150 states again give the same
+/// commands, bit for bit.
+#[test]
+fn a_greeting_starts_the_detector_and_the_told_failures_afresh() {
+    let text = std::fs::read_to_string(pair_tests::scenario("pil_rov_detect")).unwrap();
+    let text = format!(
+        "{text}\n[[vehicle.failure]]\nactuator = 3\nt = 0.5\nvalue = 5.0\nreconfigure = true\n"
+    );
+    let s = scenario::Scenario::from_toml(&text, "restart", "restart").unwrap();
+    let mut cycle = Cycle::from_bytes(&config_bytes(&s)).unwrap();
+    let pass = |cycle: &mut Cycle| {
+        let hello = cycle.hello();
+        assert!(matches!(cycle.on_frame(&hello), Some(Frame::Hello(_))));
+        let mut applied = vec![0.0f32; 6];
+        let mut commands = Vec::new();
+        for k in 0..150u64 {
+            let t = k as f64 * 0.01;
+            let mut q = [0.0f32; 16];
+            for i in 0..4 {
+                q[5 * i] = 1.0;
+            }
+            let v = [
+                0.0,
+                0.0,
+                0.05 * (2.0 * t).sin(),
+                0.2 * (3.0 * t).sin(),
+                0.1,
+                0.0,
+            ];
+            let state = serial_wire::StateFrame {
+                seq: k,
+                t,
+                q: q.iter().copied().collect(),
+                v: v.iter().map(|x| *x as f32).collect(),
+                applied: applied.iter().copied().collect(),
+                samples: None,
+            };
+            let Some(Frame::Command(c)) = cycle.on_frame(&Frame::State(state)) else {
+                panic!("state {k}: no command");
+            };
+            applied = c.allocation.as_ref().unwrap().accounted.to_vec();
+            commands.push(c);
+        }
+        commands
+    };
+    let first = pass(&mut cycle);
+    let second = pass(&mut cycle);
+    assert!(first == second, "the second run differs from the first");
+    let u3 = |c: &serial_wire::CommandFrame| c.allocation.as_ref().unwrap().u_cmd[3];
+    assert_ne!(u3(&first[40]), 5.0, "told before its time");
+    assert_eq!(u3(&first[60]), 5.0, "not held at the told value");
+    let detection = |c: &serial_wire::CommandFrame| c.detection.unwrap();
+    assert_eq!(
+        detection(&first[100]).suspect,
+        0,
+        "testing while calibrating"
+    );
+    assert!(
+        detection(&first[140]).suspect > 0,
+        "not testing once calibrated"
+    );
+}

@@ -44,7 +44,8 @@
 //!   (`SATURATED <cycles> <saturated allocations>`);
 //! * the failure detector's cycle on `pil_rov_detect`'s ROV, with its settings, over a
 //!   synthetic flight through the warm-up, the calibration, the tests, a thruster that dies
-//!   and its finding (`DETECTOR rov <cycles> <cycle found> <actuator> <kind code> <value>`).
+//!   and its finding (`DETECTOR rov <cycles> <cycle found> <actuator> <kind code> <value>
+//!   <first cycle that tested>`).
 
 use controller::{ErrorFrame, Trajectory as _};
 use core::hint::black_box;
@@ -572,7 +573,7 @@ fn detector_cycles() -> bool {
     let r = Matrix3::<f32>::identity();
     let mut rng = Seeded::new(0x0de7_ec70);
     let (mut v, mut output, mut command) = (SVector::<f32, 6>::zeros(), None, None);
-    let mut found = None;
+    let (mut found, mut testing) = (None, None);
     for k in 0..CYCLES {
         let (dd, rr, vv) = (black_box(&mut detector), black_box(&r), black_box(&v));
         icount_mark(46);
@@ -583,6 +584,9 @@ fn detector_cycles() -> bool {
         icount_mark(47);
         if let (None, Some(f)) = (found, black_box(finding)) {
             found = Some((k, f.actuator, f.kind.code(), f.kind.value()));
+        }
+        if testing.is_none() && detector.statistic().testing {
+            testing = Some(k);
         }
         // the wrench asked for: a swaying, yawing flight held near rest against the current
         let t = k as f32 * h;
@@ -612,6 +616,14 @@ fn detector_cycles() -> bool {
         command = Some(u);
     }
     let (k, actuator, kind, value) = found.unwrap_or((0, usize::MAX, 0, 0.0));
-    hprintln!("DETECTOR rov {} {} {} {} {}", CYCLES, k, actuator, kind, value);
+    hprintln!(
+        "DETECTOR rov {} {} {} {} {} {}",
+        CYCLES,
+        k,
+        actuator,
+        kind,
+        value,
+        testing.unwrap_or(CYCLES)
+    );
     actuator == 1 && v.iter().all(|x| x.is_finite())
 }
