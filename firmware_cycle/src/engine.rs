@@ -187,7 +187,9 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                 if let Some(d) = &mut self.detector {
                     d.commanded(&u);
                 }
-                self.accounted = Some(accounted);
+                if self.detector.is_some() {
+                    self.accounted = Some(accounted);
+                }
                 Some(allocation)
             }
         };
@@ -269,7 +271,9 @@ fn tell_failures<const M: usize>(
 /// The failure detector's cycle over the period that ended at this state (docs/maths.md,
 /// "Failure detection"): forgotten first when the period does not count (`counts` false: a
 /// state missed, or a command the plant did not apply); what it finds is told to the
-/// allocator before this cycle's allocation, and carried by the command.
+/// allocator before this cycle's allocation, and carried by the command. Kept out of line:
+/// a cycle without a detector does not carry its code.
+#[inline(never)]
 fn detect<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     d: &mut detection::Detector<f32, M>,
     control: &mut VehicleControl<f32, M>,
