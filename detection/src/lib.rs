@@ -412,6 +412,44 @@ impl<T: Real, const K: usize> Detector<T, K> {
         })
     }
 
+    /// Starts afresh with the same settings, in place: afterwards it equals
+    /// `Detector::new(*self.config())`. A controller that starts a new run resets its
+    /// detector so, without a temporary of the detector's size on its stack (a
+    /// microcontroller's is small, and the ring alone is 64 entries).
+    pub fn restart(&mut self) {
+        self.output = Commands::zeros();
+        self.command = Commands::zeros();
+        self.held = false;
+        self.settling = 0;
+        self.stuck = [None; MAX_ACTUATORS];
+        self.sums = [Sums::zero(); MAX_ACTUATORS];
+        self.watch = None;
+        self.queue = [None; 3];
+        self.previous = None;
+        self.rotation = Matrix3::identity();
+        for e in &mut self.ring {
+            *e = Entry::zero();
+        }
+        self.accumulated = Entry::zero();
+        self.periods = 0;
+        self.head = 0;
+        self.len = 0;
+        self.variance = SVector::zeros();
+        self.warmed = 0;
+        self.learned = 0;
+        self.failed = [false; MAX_ACTUATORS];
+        self.last = Statistic {
+            actuator: 0,
+            best: T::zero(),
+            second: T::zero(),
+            total: T::zero(),
+            testing: false,
+        };
+        self.streak = (0, 0);
+        self.alarms = 0;
+        self.alarmed = false;
+    }
+
     /// The settings.
     pub fn config(&self) -> &Config<T, K> {
         &self.config

@@ -552,3 +552,25 @@ fn periods_the_plant_did_not_fly_as_commanded_are_not_read_as_failures() {
     assert!(alarms > 0, "{found:?}, {alarms} alarms");
     assert!(found.iter().any(|d| d.actuator == 2), "{found:?}");
 }
+
+/// A detector that has flown, found two failures and learned its spread, restarted in
+/// place, is the detector `Detector::new` makes from the same settings, field for field.
+#[test]
+fn a_restart_in_place_is_a_new_detector() {
+    let mut flown = None;
+    let found = fly_with(
+        11,
+        1e-3,
+        9.0,
+        &[(2, Fault::Dead, 3.5), (6, Fault::Dead, 6.5)],
+        1e-3,
+        None,
+        &mut |d| flown = Some(d.clone()),
+    );
+    assert_eq!(found.len(), 2, "{found:?}");
+    let mut d = flown.unwrap();
+    let fresh = Detector::new(*d.config()).unwrap();
+    assert_ne!(d, fresh, "a flown detector is not a fresh one");
+    d.restart();
+    assert_eq!(d, fresh);
+}

@@ -28,9 +28,8 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     failures: Vec<Failure, 12>,
     told: [bool; 12],
     actuators: usize,
-    /// The failure detector (docs/maths.md, "Failure detection") and the settings a run
-    /// starts it afresh from (checked once, when the cycle was made).
-    detector_settings: Option<detection::Config<f32, M>>,
+    /// The failure detector (docs/maths.md, "Failure detection"), started afresh in place at
+    /// each run.
     detector: Option<detection::Detector<f32, M>>,
     /// The wrench the last command accounted for: a state whose applied wrench is not
     /// this, bit for bit, was not flown as commanded (held, or safe mode).
@@ -56,19 +55,17 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             None => None,
             Some(v) => Some(v.control::<M>(config.identity.period as f32)?),
         };
-        let (detector_settings, detector) = match (&config.detector, &config.vehicle) {
-            (None, _) => (None, None),
+        let detector = match (&config.detector, &config.vehicle) {
+            (None, _) => None,
             (Some(_), None) => return Err(ConfigError::DetectorWithoutVehicle),
             (Some(d), Some(_)) => {
                 let settings =
                     d.config::<M>(controller.config().inertia, config.identity.period as f32)?;
-                let detector = detection::Detector::new(settings).map_err(ConfigError::Detector)?;
-                (Some(settings), Some(detector))
+                Some(detection::Detector::new(settings).map_err(ConfigError::Detector)?)
             }
         };
         Ok(Engine {
             told: [false; 12],
-            detector_settings,
             detector,
             accounted: None,
             filter_start: filter,
@@ -99,10 +96,9 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         self.filter = self.filter_start;
         self.filtered = None;
         self.vehicle = self.vehicle_start;
-        // settings checked when the cycle was made: `new` cannot refuse them now
-        self.detector = self
-            .detector_settings
-            .and_then(|c| detection::Detector::new(c).ok());
+        if let Some(d) = &mut self.detector {
+            d.restart();
+        }
         self.told = [false; 12];
         self.accounted = None;
         self.previous = None;
