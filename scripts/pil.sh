@@ -142,7 +142,8 @@ fails=0
 for file in "${SCENARIOS[@]}"; do
 	tag=$(basename "$file" .toml)
 	step "$tag: building the firmware with its configuration"
-	build "$file" "$tag"
+	# the failure detector only where the scenario runs it (it costs RAM and stack)
+	if grep -q '^\[fault_detection\]' "$file"; then build "$file" "$tag" detector; else build "$file" "$tag"; fi
 	start "$tag"
 	step "$tag: plant_sim run --mode lockstep --transport tcp:127.0.0.1:$PORT"
 	"$PLANT" run --mode lockstep --scenario "$file" --transport "tcp:127.0.0.1:$PORT" --no-record \

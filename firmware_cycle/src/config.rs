@@ -139,6 +139,8 @@ pub enum ConfigError {
     Detector(detection::ConfigError),
     /// A failure detector without a vehicle to watch.
     DetectorWithoutVehicle,
+    /// A failure detector, and this build has none (the crate's feature `detector`).
+    DetectorNotBuilt,
 }
 
 impl core::fmt::Display for ConfigError {
@@ -160,6 +162,9 @@ impl core::fmt::Display for ConfigError {
             ConfigError::DetectorWithoutVehicle => {
                 f.write_str("detector: there is no vehicle for it to watch")
             }
+            ConfigError::DetectorNotBuilt => f.write_str(
+                "detector: this build has no failure detector (build firmware_cycle with the feature `detector`)",
+            ),
         }
     }
 }

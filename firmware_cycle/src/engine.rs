@@ -1,13 +1,14 @@
 //! The law on one group: the reference, the controller and its rejection terms, and the last
 //! state answered (the terms update only on consecutive states, as in the pair).
 
+use crate::watch::Watcher;
 use crate::{Config, ConfigError, Dropped, Failure, MAX_SEQ_JUMP};
 use allocation::{Commands, VehicleControl};
 use controller::group::MatrixLieGroup;
 use controller::{Controller, Reference, Rejection};
 use heapless::Vec;
 use nalgebra::{SMatrix, SVector, Vector3};
-use serial_wire::{Allocation, CommandFrame, Detection, Estimate, Samples, StateFrame};
+use serial_wire::{Allocation, CommandFrame, Estimate, Samples, StateFrame};
 
 pub(crate) struct Engine<G, const N: usize, const M: usize> {
     controller: Controller<f32, G, N, M>,
@@ -28,12 +29,9 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     failures: Vec<Failure, 12>,
     told: [bool; 12],
     actuators: usize,
-    /// The failure detector (docs/maths.md, "Failure detection"), started afresh in place at
-    /// each run.
-    detector: Option<detection::Detector<f32, M>>,
-    /// The wrench the last command accounted for: a state whose applied wrench is not
-    /// this, bit for bit, was not flown as commanded (held, or safe mode).
-    accounted: Option<SVector<f32, M>>,
+    /// The failure detector, where the configuration has one (and the crate is built with
+    /// it, feature `detector`).
+    watcher: Option<Watcher<M>>,
 }
 
 fn vec<const C: usize>(xs: &[f32]) -> Vec<f32, C> {
@@ -55,19 +53,10 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             None => None,
             Some(v) => Some(v.control::<M>(config.identity.period as f32)?),
         };
-        let detector = match (&config.detector, &config.vehicle) {
-            (None, _) => None,
-            (Some(_), None) => return Err(ConfigError::DetectorWithoutVehicle),
-            (Some(d), Some(_)) => {
-                let settings =
-                    d.config::<M>(controller.config().inertia, config.identity.period as f32)?;
-                Some(detection::Detector::new(settings).map_err(ConfigError::Detector)?)
-            }
-        };
+        let watcher = Watcher::of(config, controller.config().inertia)?;
         Ok(Engine {
             told: [false; 12],
-            detector,
-            accounted: None,
+            watcher,
             filter_start: filter,
             filter,
             filtered: None,
@@ -96,11 +85,10 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         self.filter = self.filter_start;
         self.filtered = None;
         self.vehicle = self.vehicle_start;
-        if let Some(d) = &mut self.detector {
-            d.restart();
+        if let Some(w) = &mut self.watcher {
+            w.restart();
         }
         self.told = [false; 12];
-        self.accounted = None;
         self.previous = None;
     }
 
@@ -162,29 +150,13 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             Some(control) => {
                 tell_failures(control, &self.failures, &mut self.told, s.t, period);
                 let r_hat = G::rotation(&q);
-                if let Some(d) = &mut self.detector {
-                    // the period counts only if it followed the last answer and the plant
-                    // applied that answer's wrench, bit for bit
-                    let as_sent = self.accounted.is_some_and(|a| {
-                        a.iter()
-                            .zip(s.applied.iter())
-                            .all(|(x, y)| x.to_bits() == y.to_bits())
-                    });
-                    detection = Some(detect::<G, N, M>(
-                        d,
-                        control,
-                        follows && as_sent,
-                        &v,
-                        &r_hat,
-                    ));
+                if let Some(w) = &mut self.watcher {
+                    detection = Some(w.before::<G, N>(control, follows, &s.applied, &v, &r_hat));
                 }
                 let (allocation, accounted, u) =
                     allocate(control, self.actuators, &r_hat, &out.torque);
-                if let Some(d) = &mut self.detector {
-                    d.commanded(&u);
-                }
-                if self.detector.is_some() {
-                    self.accounted = Some(accounted);
+                if let Some(w) = &mut self.watcher {
+                    w.after(&u, accounted);
                 }
                 Some(allocation)
             }
@@ -261,41 +233,6 @@ fn tell_failures<const M: usize>(
             *told = true;
             control.fail(usize::from(f.actuator), f.value);
         }
-    }
-}
-
-/// The failure detector's cycle over the period that ended at this state (docs/maths.md,
-/// "Failure detection"): forgotten first when the period does not count (`counts` false: a
-/// state missed, or a command the plant did not apply); what it finds is told to the
-/// allocator before this cycle's allocation, and carried by the command. Kept out of line:
-/// a cycle without a detector does not carry its code.
-#[inline(never)]
-fn detect<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
-    d: &mut detection::Detector<f32, M>,
-    control: &mut VehicleControl<f32, M>,
-    counts: bool,
-    v: &SVector<f32, M>,
-    r_hat: &nalgebra::Matrix3<f32>,
-) -> Detection {
-    if !counts {
-        d.gap();
-    }
-    let found = d.observe::<G, N>(v, r_hat, control);
-    let last = d.statistic();
-    let code = |j: usize| u8::try_from(j + 1).unwrap_or(u8::MAX);
-    let (suspect, statistic) = if last.testing {
-        (code(last.actuator), last.best)
-    } else {
-        (0, 0.0)
-    };
-    Detection {
-        alarms: d.alarms(),
-        suspect,
-        statistic,
-        detected: found.map_or(0, |f| code(f.actuator)),
-        kind: found.map_or(0, |f| u8::try_from(f.kind.code()).unwrap_or(0)),
-        value: found.map_or(0.0, |f| f.kind.value()),
-        refined: found.is_some_and(|f| f.refined),
     }
 }
 

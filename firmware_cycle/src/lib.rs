@@ -23,6 +23,7 @@
 mod config;
 mod engine;
 mod onboard;
+mod watch;
 
 pub use config::{Axis, Config, ConfigError, Integral, MAX_CONFIG, Observer, Series, Term};
 pub use onboard::{Detector, Estimator, Failure, Thruster, Vehicle};

@@ -581,3 +581,64 @@ proptest! {
         }
     }
 }
+
+/// A detector's settings for `on_board`'s four thrusters on SO(3).
+fn detector() -> firmware_cycle::Detector {
+    firmware_cycle::Detector {
+        decimation: 1,
+        window: 10,
+        threshold: 40.0,
+        isolation: 30.0,
+        relative: 0.01,
+        margin: 10.8,
+        confirm: 5,
+        warmup: 20,
+        calibration: 80,
+        memory: 0.001,
+        floor: v(&[0.01; 3]),
+        resolution: v(&[0.005; 4]),
+        damping_linear: v(&[0.0; 3]),
+        damping_quadratic: v(&[0.0; 3]),
+        time_constant: 0.0,
+    }
+}
+
+/// The failure detector is the crate's feature `detector`: built with it (as the workspace
+/// builds it), a configuration with a detector makes a cycle whose commands carry the
+/// detector's cycle; built without it (`cargo test -p firmware_cycle`, as a firmware for a
+/// scenario without `[fault_detection]` is built), that configuration is refused, naming the
+/// feature, and one without a detector still makes its cycle.
+#[test]
+fn a_detector_is_the_features() {
+    let mut with = on_board();
+    with.detector = Some(detector());
+    let made = Cycle::new(&with);
+    if cfg!(feature = "detector") {
+        let mut cycle = made.unwrap();
+        let hello = cycle.hello();
+        cycle.on_frame(&hello);
+        let r = Matrix3::identity();
+        let state = Frame::State(sampled(0, samples(&r, [0.0; 3])));
+        let Some(Frame::Command(c)) = cycle.on_frame(&state) else {
+            panic!("no command");
+        };
+        let d = c.detection.unwrap();
+        assert_eq!((d.alarms, d.suspect, d.detected), (0, 0, 0));
+    } else {
+        let e = made.err().unwrap();
+        assert_eq!(e, ConfigError::DetectorNotBuilt);
+        assert!(e.to_string().contains("feature `detector`"), "{e}");
+    }
+    assert!(Cycle::new(&on_board()).is_ok());
+    // settings the detector refuses, and a detector without a vehicle (either build)
+    let mut lonely = with.clone();
+    lonely.vehicle = None;
+    let e = Cycle::new(&lonely).err().unwrap();
+    assert!(
+        matches!(
+            e,
+            ConfigError::DetectorWithoutVehicle | ConfigError::DetectorNotBuilt
+        ),
+        "{e}"
+    );
+}

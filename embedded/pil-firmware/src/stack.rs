@@ -6,7 +6,7 @@
 /// The paint pattern.
 const PATTERN: u32 = 0xDEAD_BEEF;
 /// Bytes painted below the stack pointer at start-up.
-const PAINTED: usize = 48 * 1024;
+const PAINTED: usize = 96 * 1024;
 
 // SAFETY (extern block): cortex-m-rt's link.x defines `_stack_end`; only its address is
 // taken (never read through), so its declared type does not matter.
