@@ -298,7 +298,10 @@ pub struct Detector<T, const K: usize> {
     held: bool,
     /// Periods still to pass without a residual after a gap, while the lag model settles.
     settling: usize,
-    /// The value each actuator found dead or stuck is believed held at.
+    /// The value each actuator the allocator holds (found dead or stuck, or told so by the
+    /// scenario) was held at over the period that runs: the allocator's locked bounds when
+    /// the last cycle ended. A failed actuator's thrust jumps to its value, where a command
+    /// would ramp through the lag.
     stuck: [Option<T>; MAX_ACTUATORS],
     /// What each failed actuator's periods have shown so far.
     sums: [Sums<T>; MAX_ACTUATORS],
@@ -514,6 +517,23 @@ impl<T: Real, const K: usize> Detector<T, K> {
         r: &Matrix3<T>,
         control: &mut VehicleControl<T, K>,
     ) -> Option<Detection<T>> {
+        let found = self.period::<G, N>(v, r, control);
+        // what the allocator holds over the next period: what this cycle told it, and any
+        // failure the scenario told it of at this tick (the plant's actuator stuck from now)
+        let (lo, hi) = control.bounds();
+        for (j, s) in self.stuck.iter_mut().enumerate() {
+            *s = (lo[j] == hi[j]).then_some(lo[j]);
+        }
+        found
+    }
+
+    /// [`Detector::observe`] but for what the allocator holds next.
+    fn period<G: MatrixLieGroup<N, K>, const N: usize>(
+        &mut self,
+        v: &SVector<T, K>,
+        r: &Matrix3<T>,
+        control: &mut VehicleControl<T, K>,
+    ) -> Option<Detection<T>> {
         let c = &self.config;
         let mu = c.inertia * v;
         let gyro = G::ad_transpose_mul(v, &mu);
@@ -665,11 +685,6 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// Tells the allocator what actuator `j` is now believed to be, forgetting what it was
     /// told before: held at 0 or at a value, or its column scaled.
     fn tell(&mut self, j: usize, kind: Kind<T>, control: &mut VehicleControl<T, K>) {
-        self.stuck[j] = match kind {
-            Kind::Dead => Some(T::zero()),
-            Kind::Stuck(v) => Some(v),
-            Kind::Weak(_) => None,
-        };
         kind.tell(j, control);
         self.failed[j] = true;
     }
