@@ -654,6 +654,143 @@ fn step_length<T: RealField + Copy>(
 }
 
 #[cfg(test)]
+mod step_tests {
+    use super::Objective as Stage_;
+    use super::{Bound, Commands, Factored, MAX_EQ, N, Rows, Stage};
+    use nalgebra::{DMatrix, DVector};
+    use proptest::prelude::*;
+
+    /// A stage's objective over the free actuators, for [`reference`].
+    enum Objective<'a> {
+        /// `‖A_F p + r‖²`: `A_F` and the residual `r = Au − b`.
+        LeastSquares(&'a DMatrix<f64>, &'a DVector<f64>),
+        /// `(v + p)ᵀW(v + p)`: `W`'s diagonal and `v = u − u_pref`.
+        Nearest(&'a DVector<f64>, &'a DVector<f64>),
+    }
+
+    /// The step by its definition (docs/maths.md, "Control allocation": the step), by
+    /// singular value decompositions: over an orthonormal basis `Z` of the null space of
+    /// `C_F`, the minimum-norm minimiser of the objective.
+    fn reference(c: &DMatrix<f64>, objective: Objective<'_>) -> DVector<f64> {
+        let n = c.ncols();
+        // the right singular vectors of C_F (padded square) with a singular value at
+        // rounding level
+        let padded = DMatrix::from_fn(n.max(c.nrows()), n, |r, i| {
+            if r < c.nrows() { c[(r, i)] } else { 0.0 }
+        });
+        let svd = padded.svd(false, true);
+        let vt = svd.v_t.unwrap();
+        let top = svd.singular_values.max();
+        let basis: Vec<DVector<f64>> = (0..n)
+            .filter(|i| svd.singular_values[*i] <= 1e-9 * (1.0 + top))
+            .map(|i| vt.row(i).transpose())
+            .collect();
+        if basis.is_empty() {
+            return DVector::zeros(n);
+        }
+        let z = DMatrix::from_columns(&basis);
+        let x = match objective {
+            Objective::LeastSquares(a, r) => (a * &z).pseudo_inverse(1e-10).unwrap() * (-r),
+            Objective::Nearest(w, v) => {
+                let wm = DMatrix::from_diagonal(w);
+                let h = z.transpose() * &wm * &z;
+                h.pseudo_inverse(1e-10).unwrap() * -(z.transpose() * &wm * v)
+            }
+        };
+        &z * x
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(400))]
+        /// The factorisation's step equals the step by definition, on random rows, working
+        /// sets and stages (the torque, the force under the torque, the last).
+        #[test]
+        fn the_step_is_the_definitions(
+            entries in proptest::collection::vec(-1.0f64..1.0, 6 * N),
+            m in 3usize..=N,
+            kind in 0usize..3,
+            held in proptest::collection::vec(any::<bool>(), N),
+            us in proptest::collection::vec(-1.0f64..1.0, N),
+            ws in proptest::collection::vec(0.1f64..1.0, N),
+            bs in proptest::collection::vec(-1.0f64..1.0, 6),
+        ) {
+            let mut rows: Rows<f64> = [[0.0; N]; MAX_EQ];
+            for r in 0..6 {
+                for j in 0..m {
+                    rows[r][j] = entries[r * N + j];
+                }
+            }
+            let mut force: Rows<f64> = [[0.0; N]; MAX_EQ];
+            force[..3].copy_from_slice(&rows[3..6]);
+            let mut b = [0.0; MAX_EQ];
+            b.copy_from_slice(&bs);
+            let mut fb = [0.0; MAX_EQ];
+            fb[..3].copy_from_slice(&bs[3..6]);
+            let mut u = Commands::<f64>::zeros();
+            let mut w = Commands::<f64>::from_element(1.0);
+            for j in 0..m {
+                u[j] = us[j];
+                w[j] = ws[j];
+            }
+            let up = Commands::<f64>::zeros();
+            let (lo, hi) = (Commands::from_element(-2.0), Commands::from_element(2.0));
+            let (objective, k) = match kind {
+                0 => (Stage_::LeastSquares { a: &rows, b: &b, q: 3 }, 0),
+                1 => (Stage_::LeastSquares { a: &force, b: &fb, q: 3 }, 3),
+                _ => (Stage_::Nearest { w: &w, up: &up }, 6),
+            };
+            let stage = Stage { objective, c: &rows, k, m, lo: &lo, hi: &hi };
+            let mut mask = [Bound::Free; N];
+            for j in 0..m {
+                if held[j] {
+                    mask[j] = Bound::Lower;
+                }
+            }
+            let mut inv_w = [1.0; N];
+            if kind == 2 {
+                for j in 0..m {
+                    inv_w[j] = 1.0 / w[j];
+                }
+            }
+            let mut f = Factored::new();
+            stage.factor(&mask, &inv_w, 1e3 * f64::EPSILON, &mut f);
+            let p = stage.step(&f, &u);
+            let free: Vec<usize> = (0..m).filter(|j| !held[*j]).collect();
+            let n = free.len();
+            prop_assume!(n > 0);
+            let c = DMatrix::from_fn(k, n, |r, i| rows[r][free[i]]);
+            let got = DVector::from_fn(n, |i, _| p[free[i]]);
+            let (want, how) = if kind == 2 {
+                let wf = DVector::from_fn(n, |i, _| w[free[i]]);
+                let v = DVector::from_fn(n, |i, _| u[free[i]]);
+                (reference(&c, Objective::Nearest(&wf, &v)), String::new())
+            } else {
+                let (a, target) = if kind == 0 { (&rows, &b) } else { (&force, &fb) };
+                let am = DMatrix::from_fn(3, n, |r, i| a[r][free[i]]);
+                let res = DVector::from_fn(3, |r, _| {
+                    (0..m).map(|j| a[r][j] * u[j]).sum::<f64>() - target[r]
+                });
+                let want = reference(&c, Objective::LeastSquares(&am, &res));
+                let misses = ((&am * &got + &res).norm(), (&am * &want + &res).norm());
+                (want, format!("; ‖A p + r‖ {:e}, by definition {:e}", misses.0, misses.1))
+            };
+            prop_assert!(
+                (&got - &want).amax() < 1e-7,
+                "stage {kind}, {n} free: p {:?}, by definition {:?}; ‖C p‖ {:e}{how}",
+                got.as_slice(),
+                want.as_slice(),
+                (&c * &got).norm()
+            );
+            for j in 0..N {
+                if j >= m || held[j] {
+                    prop_assert!(p[j] == 0.0);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::{clamp, larger};
     use proptest::prelude::*;
