@@ -52,9 +52,12 @@ fi
 echo "daqp: a command moved by 1e-3 of the largest bound is caught: $(tail -1 "$OUT/perturbed.log")"
 
 # 2. the peer benchmark
-# the workspace's dev profile (opt-level 2): `cargo test` has built the example already
-(cd "$REPO" && cargo run --locked -q -p allocation --example peer -- "$OUT") \
-	>"$OUT/eqtrack.jsonl" 2>"$OUT/peer.log" || die "the peer example failed: $(tail -3 "$OUT/peer.log")"
+# the workspace's dev profile (opt-level 2): `cargo test --workspace` has built the example
+# already, with the workspace's features (`-p allocation` would resolve them anew and rebuild)
+(cd "$REPO" && cargo build --locked -q --workspace --example peer) >"$OUT/peer-build.log" 2>&1 ||
+	die "cannot build the peer example (log: $OUT/peer-build.log)"
+(cd "$REPO" && "$TARGET/debug/examples/peer" "$OUT") >"$OUT/eqtrack.jsonl" 2>"$OUT/peer.log" ||
+	die "the peer example failed: $(tail -3 "$OUT/peer.log")"
 "$VENV/bin/python" "$REPO/scripts/daqp/bench.py" "$OUT/problems.csv" "$OUT/eqtrack.jsonl" |
 	tee "$OUT/bench.txt" || die "DAQP and eqtrack answer the benchmark's problems differently"
 echo "daqp: PASS"
