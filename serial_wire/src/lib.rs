@@ -73,14 +73,14 @@ impl core::fmt::Display for FrameError {
 }
 
 /// Encodes `frame` into `out` (the COBS bytes and the closing zero); returns their length.
-/// The message is written once, behind its version byte, and framed where it lies.
+/// The message is written once, behind its version byte, straight into `out`, and framed
+/// where it lies.
 pub fn encode(frame: &Frame, out: &mut [u8; MAX_ENCODED]) -> Result<usize, FrameError> {
-    let mut raw = [0u8; MAX_FRAME];
-    raw[0] = SERIAL_VERSION;
-    let n = postcard::to_slice(frame, &mut raw[1..MAX_FRAME - 4])
+    out[1] = SERIAL_VERSION;
+    let n = postcard::to_slice(frame, &mut out[2..MAX_FRAME - 3])
         .map_err(|_| FrameError::TooLong)?
         .len();
-    Ok(seal(&mut raw, 1 + n, out))
+    Ok(seal(out, 1 + n))
 }
 
 /// Frames the bytes `message` as version `version`: the version byte, the bytes, their
@@ -95,20 +95,55 @@ pub fn encode_raw(
     if n + 4 > MAX_FRAME {
         return Err(FrameError::TooLong);
     }
-    let mut raw = [0u8; MAX_FRAME];
-    raw[0] = version;
-    raw[1..n].copy_from_slice(message);
-    Ok(seal(&mut raw, n, out))
+    out[1] = version;
+    out[2..1 + n].copy_from_slice(message);
+    Ok(seal(out, n))
 }
 
-/// Appends the CRC-32 of `raw[..n]` (`n + 4 ≤ MAX_FRAME`) and COBS-encodes the whole into
-/// `out` with the closing zero; returns the encoded length.
-fn seal(raw: &mut [u8; MAX_FRAME], n: usize, out: &mut [u8; MAX_ENCODED]) -> usize {
-    let crc = CRC32.checksum(&raw[..n]);
-    raw[n..n + 4].copy_from_slice(&crc.to_le_bytes());
-    let len = cobs_encode(&raw[..n + 4], out);
-    out[len] = 0;
-    len + 1
+/// Frames the `n` bytes at `out[1..]` (`n + 4 ≤ MAX_FRAME`): appends their CRC-32, COBS-encodes
+/// the whole where it lies and closes it with a zero; returns the encoded length.
+///
+/// COBS in place: the encoding of bytes `r` is `r` behind one code byte, each zero of `r`
+/// replaced by the distance to the next zero (or to the end), and the first code the distance
+/// to the first, so a backward pass writes it over the bytes without moving them. That holds
+/// while no run between zeros reaches 254 bytes, where COBS splits a block; a frame with such a
+/// run (a message of long non-zero runs, which frames of small numbers never have) is encoded
+/// by [`cobs_encode`] from a copy instead.
+fn seal(out: &mut [u8; MAX_ENCODED], n: usize) -> usize {
+    let crc = CRC32.checksum(&out[1..1 + n]);
+    out[1 + n..5 + n].copy_from_slice(&crc.to_le_bytes());
+    let len = n + 4;
+    // `next`: where the code of the block that starts after position `i` goes
+    let mut next = len + 1;
+    let mut i = len;
+    while i > 0 {
+        if out[i] == 0 {
+            let d = next - i;
+            if d >= 0xff {
+                break;
+            }
+            out[i] = d as u8;
+            next = i;
+        }
+        i -= 1;
+    }
+    if i == 0 && next < 0xff {
+        out[0] = next as u8;
+        out[len + 1] = 0;
+        return len + 2;
+    }
+    // a run of 254 or more: put back the zeros the pass replaced, then encode from a copy
+    let mut p = next;
+    while p <= len {
+        let d = usize::from(out[p]);
+        out[p] = 0;
+        p += d;
+    }
+    let mut raw = [0u8; MAX_FRAME];
+    raw[..len].copy_from_slice(&out[1..1 + len]);
+    let m = cobs_encode(&raw[..len], out);
+    out[m] = 0;
+    m + 1
 }
 
 /// COBS (Cheshire and Baker, 1999): each zero of `src` replaced by the distance to the next,
@@ -160,8 +195,8 @@ pub fn decode(encoded: &[u8]) -> Result<Frame, FrameError> {
     }
     let mut buf = [0u8; MAX_ENCODED];
     buf[..n].copy_from_slice(encoded);
-    let m = cobs_decode_in_place(&mut buf[..n])?;
-    check(&buf[..m])
+    let (start, end) = cobs_decode_in_place(&mut buf[..n])?;
+    check(&buf[start..end])
 }
 
 /// Collects bytes from the line into frames: each zero byte ends one. A byte is only stored
@@ -222,7 +257,7 @@ impl Deframer {
         } else if n == 0 {
             return None;
         } else {
-            cobs_decode_in_place(&mut self.buf[..n]).and_then(|m| check(&self.buf[..m]))
+            cobs_decode_in_place(&mut self.buf[..n]).and_then(|(a, b)| check(&self.buf[a..b]))
         };
         if matches!(out, Err(FrameError::TooLong)) {
             self.too_long = self.too_long.saturating_add(1);
@@ -231,19 +266,45 @@ impl Deframer {
     }
 }
 
-/// Undoes COBS in place: each block's code byte gives the distance to the next zero (0xFF:
-/// 254 bytes, no zero), so its data moves down by one, a block at a time, and the last
-/// block's implied zero is not part of the frame. Returns the decoded length; a code past the
-/// end is broken COBS, and more than [`MAX_FRAME`] bytes too long.
-fn cobs_decode_in_place(buf: &mut [u8]) -> Result<usize, FrameError> {
+/// Undoes COBS in place; returns where the decoded bytes lie in `buf`. A code past the end is
+/// broken COBS, and more than [`MAX_FRAME`] decoded bytes too long.
+///
+/// Each block's code gives the distance to the next code, and the decoded bytes are the
+/// encoded ones behind the first code with every later code a zero: while no block is a full
+/// one (code 0xFF, 254 bytes and no zero), a walk from code to code, O(blocks), turns them to
+/// zeros and the frame is `buf[1..]`. With a full block the bytes move down instead, a block
+/// at a time, and the frame starts at `buf[0]`.
+fn cobs_decode_in_place(buf: &mut [u8]) -> Result<(usize, usize), FrameError> {
     let n = buf.len();
+    if n == 0 {
+        return Err(FrameError::Cobs);
+    }
+    // the codes, checked: none zero, none past the end, whether any is a full block's
+    let (mut p, mut full) = (0, false);
+    while p < n {
+        let code = usize::from(buf[p]);
+        if code == 0 || p + code > n {
+            return Err(FrameError::Cobs);
+        }
+        full |= code == 0xff;
+        p += code;
+    }
+    if !full {
+        if n - 1 > MAX_FRAME {
+            return Err(FrameError::TooLong);
+        }
+        let mut p = usize::from(buf[0]);
+        while p < n {
+            let code = usize::from(buf[p]);
+            buf[p] = 0;
+            p += code;
+        }
+        return Ok((1, n));
+    }
     let (mut r, mut w) = (0, 0);
     while r < n {
         let code = usize::from(buf[r]);
         let end = r + code;
-        if code == 0 || end > n {
-            return Err(FrameError::Cobs);
-        }
         // blocks are short (every small number has zero bytes): a byte loop, not a call
         for i in r + 1..end {
             buf[w] = buf[i];
@@ -258,7 +319,7 @@ fn cobs_decode_in_place(buf: &mut [u8]) -> Result<usize, FrameError> {
     if w > MAX_FRAME {
         return Err(FrameError::TooLong);
     }
-    Ok(w)
+    Ok((0, w))
 }
 
 /// Checks a decoded frame: its length, its CRC, its version, then its message.
@@ -291,7 +352,13 @@ mod tests {
     /// never empty: it holds its version.)
     #[test]
     fn cobs_blocks_are_the_reference_encoders() {
-        let mut cases: Vec<Vec<u8>> = vec![vec![0], vec![0, 0], vec![7], vec![0x5a; MAX_FRAME]];
+        let mut cases: Vec<Vec<u8>> = vec![
+            vec![0],
+            vec![0, 0],
+            vec![7],
+            vec![0x5a; MAX_FRAME],
+            vec![3, 0, 0, 9, 8, 0, 1],
+        ];
         for len in [253, 254, 255] {
             let run = vec![0x5a; len];
             cases.push(run.clone());
@@ -306,8 +373,8 @@ mod tests {
             let m = cobs::encode(&src, &mut reference);
             assert_eq!(out[..n], reference[..m], "{} bytes", src.len());
             let mut back = out[..n].to_vec();
-            let k = cobs_decode_in_place(&mut back).unwrap();
-            assert_eq!(back[..k], src[..]);
+            let (a, k) = cobs_decode_in_place(&mut back).unwrap();
+            assert_eq!(back[a..k], src[..]);
         }
     }
 }
