@@ -8,7 +8,7 @@
 #    its trajectory.csv re-solved by DAQP from demand_i and the scenario's own actuator table
 #    (scripts/daqp/resolve.py): u_cmd within 1e-6 of the largest bound, and the last stage's
 #    optimality conditions met to 1e-6. A planted 1e-3 change of one command must fail.
-# 2. The peer benchmark: `cargo run -p allocation --example peer` times eqtrack on
+# 2. The peer benchmark: the allocation crate's example `peer` times eqtrack on
 #    saturated hexarotor and ROV problems (cold, and warm along a saturating trajectory), and
 #    DAQP solves the same problems (scripts/daqp/bench.py): the torque stage alone and the full
 #    hierarchy, DAQP's own solve_time beside eqtrack's median, in the same run.

@@ -90,6 +90,13 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         (self.bounds.lo, self.bounds.hi)
     }
 
+    /// The value actuator `j` is held at, when the failures told lock it (its bounds equal).
+    #[inline]
+    pub fn held(&self, j: usize) -> Option<T> {
+        let (lo, hi) = (self.bounds.lo.get(j)?, self.bounds.hi.get(j)?);
+        (lo == hi).then_some(*lo)
+    }
+
     /// The known restoring wrench at the attitude `r`.
     pub fn restoring(&self, r: &Matrix3<T>) -> SVector<T, K> {
         self.restoring.wrench(r)

@@ -520,9 +520,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let found = self.period::<G, N>(v, r, control);
         // what the allocator holds over the next period: what this cycle told it, and any
         // failure the scenario told it of at this tick (the plant's actuator stuck from now)
-        let (lo, hi) = control.bounds();
-        for (j, s) in self.stuck.iter_mut().enumerate() {
-            *s = (lo[j] == hi[j]).then_some(lo[j]);
+        let count = control.allocator().geometry().count();
+        for (j, s) in self.stuck.iter_mut().enumerate().take(count) {
+            *s = control.held(j);
         }
         found
     }
@@ -551,7 +551,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             return self.next_report();
         };
         // the held period: the lag's mean output and its output at the end; the thrust
-        // believed, a held value for an actuator found stuck
+        // believed, a held value for an actuator held (found or told stuck or dead)
         let u = self.command + (self.output - self.command) * self.mean;
         self.output = self.command + (self.output - self.command) * self.decay;
         if self.settling > 0 {

@@ -477,10 +477,15 @@ fn nominal_flights_with_noise_wind_and_model_error_raise_nothing_and_a_far_highe
 
 #[test]
 fn a_told_failure_is_not_found_again() {
-    // rov_failure's thruster 0, told stuck at -10 N and told dead: the detector believes the
-    // thrust the allocator holds it at from the tick it is told, as the plant's actuator jumps
-    // there (it does not ramp through the lag like a command), so nothing is found
-    for (kind, value) in [(FailureKind::Stuck, -10.0), (FailureKind::Dead, 0.0)] {
+    // rov_failure's thruster 5 at 20 s, told stuck at -10 N, told dead and told at half its
+    // effectiveness: the detector believes the thrust the allocator holds it at from the tick
+    // it is told, as the plant's actuator jumps there (it does not ramp through the lag like a
+    // command), so nothing is found
+    for (kind, value) in [
+        (FailureKind::Stuck, -10.0),
+        (FailureKind::Dead, 0.0),
+        (FailureKind::Effectiveness { factor: 0.5 }, 0.0),
+    ] {
         let mut s = blind_rov(kind, value);
         s.disturbance_world = Some(vec![0.0, 0.0, 0.0, 15.0, 8.0, -10.0]);
         s.vehicle.as_mut().unwrap().failures[0].reconfigure = true;
