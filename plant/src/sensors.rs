@@ -6,6 +6,9 @@
 //! noise (3 each, in the list's order), the accelerometer's (3), the position fix's (3, only
 //! on a tick that takes a fix), then the bias walk (3) — so the plant of the pair and the
 //! in-process simulation draw the same numbers.
+//!
+//! Scripted faults (`[[sensors.fault]]`, docs/scenario.md, "Sensor faults") are applied to
+//! the samples after the draws, so they change nothing outside their own sensor and time.
 
 use controller::group::MatrixLieGroup;
 use controller::integrator::RigidBody;
@@ -14,7 +17,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use scenario::SensorsSpec;
-use scenario::sensing::{GRAVITY, MAX_DIRECTIONS};
+use scenario::sensing::{GRAVITY, MAX_DIRECTIONS, Sensor, SensorFaultKind};
 
 pub use recorder::Samples;
 
@@ -97,6 +100,22 @@ pub struct Sensors {
     period: f64,
     /// The next position fix is due at `next_fix · (1/rate_hz)`.
     next_fix: u64,
+    /// Each sensor's last sample outside a fault (what a `stuck` fault repeats).
+    last: Last,
+}
+
+/// The last sample of each sensor given outside a fault (`None`: none yet).
+#[derive(Debug, Clone, Copy, Default)]
+struct Last {
+    gyro: Option<Vector3<f64>>,
+    directions: [Option<Vector3<f64>>; MAX_DIRECTIONS],
+    accel: Option<Vector3<f64>>,
+    position: Option<Vector3<f64>>,
+}
+
+/// A sample of NaNs: what a dropped-out gyro, direction or accelerometer gives.
+fn nothing() -> Vector3<f64> {
+    Vector3::repeat(f64::NAN)
 }
 
 impl Sensors {
@@ -108,6 +127,7 @@ impl Sensors {
             spec: spec.clone(),
             period,
             next_fix: 0,
+            last: Last::default(),
         }
     }
 
@@ -162,13 +182,64 @@ impl Sensors {
         let bias = self.bias;
         let walk = self.spec.gyro.bias_walk * h.sqrt();
         self.bias += normal3(&mut self.rng, walk);
-        Samples {
+        let mut samples = Samples {
             gyro,
             directions,
             count: self.spec.directions.len(),
             accel,
             position,
             bias,
+        };
+        self.fault(k as f64 * h, &mut samples);
+        samples
+    }
+
+    /// Applies the scripted faults on at `t_k` to the tick's samples, and keeps each healthy
+    /// sensor's sample for a later `stuck` fault.
+    fn fault(&mut self, t_k: f64, s: &mut Samples) {
+        let h = self.period;
+        let on = |sensor: Sensor| {
+            self.spec
+                .faults
+                .iter()
+                .find(|f| f.sensor == sensor && f.active(t_k, h))
+                .map(|f| f.kind)
+        };
+        let last = &mut self.last;
+        // the gyro, a direction and the accelerometer sample every tick
+        let every = |kind: Option<SensorFaultKind>, x: &mut Vector3<f64>, last: &mut Option<_>| {
+            match kind {
+                None => *last = Some(*x),
+                Some(SensorFaultKind::Bias(b)) => *x += Vector3::from(b),
+                Some(SensorFaultKind::Dropout) => *x = nothing(),
+                Some(SensorFaultKind::Stuck) => *x = last.unwrap_or_else(nothing),
+            }
+        };
+        every(on(Sensor::Gyro), &mut s.gyro, &mut last.gyro);
+        for i in 0..s.count {
+            let kind = on(Sensor::Direction(i));
+            if let Some(SensorFaultKind::Bias(r)) = kind {
+                // a direction's bias turns it (body axes)
+                s.directions[i] =
+                    controller::group::so3::exp_so3(&Vector3::from(r)) * s.directions[i];
+            } else {
+                every(kind, &mut s.directions[i], &mut last.directions[i]);
+            }
+        }
+        if let Some(a) = &mut s.accel {
+            every(on(Sensor::Accelerometer), a, &mut last.accel);
+        }
+        // position fixes come only on the ticks that take one
+        if let Some(x) = s.position {
+            s.position = match on(Sensor::Position) {
+                None => {
+                    last.position = Some(x);
+                    Some(x)
+                }
+                Some(SensorFaultKind::Bias(b)) => Some(x + Vector3::from(b)),
+                Some(SensorFaultKind::Dropout) => None,
+                Some(SensorFaultKind::Stuck) => last.position,
+            };
         }
     }
 }

@@ -5,8 +5,8 @@
 //! - poses (`[initial]` and `[reference]` `rotation` and `position`, the set-point, every
 //!   waypoint of the waypoint file): `(R, x) ↦ (R_T R, R_T x + t)`;
 //! - world directions and world wrenches (`[sensors] directions[].world`,
-//!   `[plant] disturbance_world`, `[estimator] initial_attitude` as a rotation): turned by
-//!   `R_T`;
+//!   `[plant] disturbance_world`, `[estimator] initial_attitude` as a rotation, the `value` of
+//!   a position fix's `[[sensors.fault]]` bias): turned by `R_T`;
 //! - body quantities (velocities, feedforward, body disturbances, the vehicle) and the
 //!   vertical (gravity, buoyancy, the accelerometer's "up") are unchanged: the turn is about
 //!   the vertical.
@@ -289,6 +289,19 @@ fn move_table(
             }
         }
     }
+    // a position fix's bias is in world axes; every other sensor's is in body axes
+    if let Some(t) = sub(doc, "sensors")
+        && let Some(fs) = t.get_mut("fault").and_then(Value::as_array_mut)
+    {
+        for (j, f) in fs.iter_mut().enumerate() {
+            if let Some(f) = f.as_table_mut()
+                && f.get("sensor").and_then(Value::as_str) == Some("position")
+                && let Some(v) = three(origin, f, &format!("sensors.fault[{j}]."), "value")?
+            {
+                put(f, "value", &m.turn(v));
+            }
+        }
+    }
     if let Some(t) = sub(doc, "estimator")
         && let Some(r) = three(origin, t, "estimator.", "initial_attitude")?
     {
@@ -396,6 +409,14 @@ mod tests {
             .replace(
                 "kind = \"eqf\"",
                 "kind = \"eqf\"\ninitial_attitude = [0.1, 0.2, -0.3]",
+            )
+            // a position fix's bias is in world axes; the gyro's and a direction's in body axes
+            .replace(
+                "[estimator]",
+                "[[sensors.fault]]\nsensor = \"position\"\nt = 1\nkind = \"bias\"\nvalue = [1, 0, 2]\n\
+                 [[sensors.fault]]\nsensor = \"gyro\"\nt = 1\nkind = \"bias\"\nvalue = [1, 0, 2]\n\
+                 [[sensors.fault]]\nsensor = \"direction0\"\nt = 1\nkind = \"bias\"\nrotation = [1, 0, 2]\n\
+                 [estimator]",
             );
         let a = Scenario::from_toml_in(&text, "a", "a", None).unwrap();
         let moved = move_scenario(&text, "a", None, &KM).unwrap();
@@ -406,7 +427,7 @@ mod tests {
                 .all(|(p, q)| (p - q).abs() <= 1e-9 * (1.0 + p.abs()))
         };
         assert!(close(&b.initial.position, &KM.place([2.0, -1.0, 1.0])));
-        let w = b.disturbance_world.unwrap();
+        let w = b.disturbance_world.clone().unwrap();
         assert!(close(&w[..3], &KM.turn([0.0, 0.0, 1.0])));
         assert!(close(&w[3..], &KM.turn([2.0, 0.0, 0.0])));
         let (ra, rb) = (
@@ -414,6 +435,21 @@ mod tests {
             b.estimator.initial_attitude.unwrap(),
         );
         assert!(close(&rb, &KM.rotate(ra)));
+        let faults = |s: &Scenario| -> Vec<[f64; 3]> {
+            s.sensors
+                .as_ref()
+                .unwrap()
+                .faults
+                .iter()
+                .map(|f| match f.kind {
+                    crate::sensing::SensorFaultKind::Bias(v) => v,
+                    _ => unreachable!(),
+                })
+                .collect()
+        };
+        let (fa, fb) = (faults(&a), faults(&b));
+        assert!(close(&fb[0], &KM.turn(fa[0])) && !close(&fb[0], &fa[0]));
+        assert_eq!(fa[1..], fb[1..]);
         // a list of the wrong kind is refused naming the key, never a panic
         let bad = text.replace(
             "disturbance_world = [0, 0, 1, 2, 0, 0]",

@@ -10,6 +10,10 @@ use estimator::{FilterKind, MAX_DIRECTIONS as SLOTS, Settings};
 use nalgebra::Vector3;
 use serde::Deserialize;
 
+pub mod fault;
+
+pub use fault::{Sensor, SensorFault, SensorFaultKind};
+
 /// At most this many direction sensors (the estimator's fixed capacity).
 pub const MAX_DIRECTIONS: usize = 4;
 
@@ -25,6 +29,8 @@ pub(crate) struct RawSensors {
     directions: Vec<RawDirection>,
     accelerometer: Option<RawNoise>,
     position: Option<RawPosition>,
+    #[serde(default)]
+    fault: Vec<fault::RawSensorFault>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -120,6 +126,9 @@ pub struct SensorsSpec {
     pub accelerometer: Option<f64>,
     /// SE(3): position fixes.
     pub position: Option<PositionSpec>,
+    /// Scripted faults (`[[sensors.fault]]`), in the table's order; none overlap on one
+    /// sensor.
+    pub faults: Vec<SensorFault>,
 }
 
 /// Which state the law is handed.
@@ -299,12 +308,19 @@ impl Validator<'_> {
                 rate_hz: self.positive("sensors.position.rate_hz", p.rate_hz)?,
             }),
         };
+        let present = fault::Present {
+            directions: directions.len(),
+            accelerometer: accelerometer.is_some(),
+            position: position.is_some(),
+        };
+        let faults = self.sensor_faults(&raw.fault, &present)?;
         Ok(SensorsSpec {
             seed,
             gyro,
             directions,
             accelerometer,
             position,
+            faults,
         })
     }
 

@@ -5,7 +5,7 @@ use super::Corpus;
 use scenario::BUILTINS;
 
 /// Hand-written valid scenarios that reach the optional keys the built-ins leave out.
-const EXTRA_SEEDS: [&str; 12] = [
+const EXTRA_SEEDS: [&str; 13] = [
     // the disturbance-rejection terms and the world and step disturbances
     include_str!("../../../scenarios/reject_so3.toml"),
     include_str!("../../../scenarios/reject_se3.toml"),
@@ -232,6 +232,56 @@ velocity = [0.0, 0.0, 0.0]
 [reference]
 rotation = [0.0, 0.0, 0.0]
 velocity = [0.0, 0.0, 0.0]
+"#,
+    // `[[sensors.fault]]`: every kind, on every sensor
+    r#"group = "se3"
+law = "eqt"
+duration = 0.2
+control_period = 0.01
+[plant]
+inertia = [[1, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0], [0, 0, 1, 0, 0, 0], [0, 0, 0, 2, 0, 0], [0, 0, 0, 0, 2, 0], [0, 0, 0, 0, 0, 2]]
+[controller]
+kp = 1
+kd = 1
+[initial]
+rotation = [0.3, 0.0, 0.0]
+position = [0.0, 0.0, 0.0]
+velocity = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+[reference]
+setpoint = { rotation = [0.0, 0.0, 0.0], position = [0.1, 0.0, 0.0] }
+[sensors]
+seed = 3
+gyro = { noise = 0.002, bias = [0.01, 0.0, 0.0] }
+directions = [ { world = [1.0, 0.0, 0.0], noise = 0.01 }, { world = [0.0, 0.6, 0.8], noise = 0.01 } ]
+accelerometer = { noise = 0.05 }
+position = { noise = 0.005, rate_hz = 50.0 }
+[[sensors.fault]]
+sensor = "gyro"
+t = 0.02
+duration = 0.05
+kind = "bias"
+value = [0.1, 0.0, -0.1]
+[[sensors.fault]]
+sensor = "direction1"
+t = 0.05
+kind = "bias"
+rotation = [0.0, 0.5, 0.0]
+[[sensors.fault]]
+sensor = "accelerometer"
+t = 0.03
+duration = 0.1
+kind = "dropout"
+[[sensors.fault]]
+sensor = "position"
+t = 0.04
+kind = "stuck"
+[[sensors.fault]]
+sensor = "gyro"
+t = 0.1
+kind = "stuck"
+[estimator]
+kind = "eqf"
+direction_noise = [0.01, 0.01, 1.0]
 "#,
 ];
 

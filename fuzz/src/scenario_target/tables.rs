@@ -36,7 +36,7 @@ pub(crate) const INTERESTING: [&str; 30] = [
 ];
 
 /// What replaces the text of a string token.
-pub(super) const STRINGS: [&str; 16] = [
+pub(super) const STRINGS: [&str; 24] = [
     "reference",
     "world",
     "recentred",
@@ -53,10 +53,19 @@ pub(super) const STRINGS: [&str; 16] = [
     "é",
     "\\u0000",
     "a name that is longer than thirty-two bytes",
+    // `[[sensors.fault]]`'s sensors and kinds
+    "gyro",
+    "direction1",
+    "direction9",
+    "accelerometer",
+    "position",
+    "bias",
+    "dropout",
+    "stuck",
 ];
 
 /// Known keys and values for [`TomlOp::SetKey`](super::mutation::TomlOp::SetKey).
-pub(super) const KEYS: [(&str, &[&str]); 23] = [
+pub(super) const KEYS: [(&str, &[&str]); 25] = [
     ("path", &["\"stop\"", "\"through\"", "\"curvy\"", "3"]),
     (
         "error_frame",
@@ -206,10 +215,32 @@ pub(super) const KEYS: [(&str, &[&str]); 23] = [
         ],
     ),
     ("offset", &["0.0", "nan", "1e308"]),
+    (
+        "sensor",
+        &[
+            "\"gyro\"",
+            "\"direction0\"",
+            "\"direction4\"",
+            "\"position\"",
+            "\"accelerometer\"",
+            "3",
+        ],
+    ),
+    (
+        "kind",
+        &[
+            "\"bias\"",
+            "\"dropout\"",
+            "\"stuck\"",
+            "\"dead\"",
+            "\"eqf\"",
+            "1",
+        ],
+    ),
 ];
 
 /// Whole lines for [`TomlOp::InsertLine`](super::mutation::TomlOp::InsertLine).
-pub(super) const LINES: [&str; 14] = [
+pub(super) const LINES: [&str; 16] = [
     "error_frame = \"world\"",
     "error_frame = \"up\"",
     "[[x]]",
@@ -224,4 +255,6 @@ pub(super) const LINES: [&str; 14] = [
     "law = \"gt\"",
     "plant_substeps = 0",
     "# comment",
+    "[[sensors.fault]]",
+    "duration = 0.01",
 ];

@@ -171,3 +171,157 @@ fn bad_values_name_the_key_and_what_is_wrong() {
     let e = seed_with("[estimator]\nkind = \"truth\"\nkp = 1.0\n").unwrap_err();
     assert!(e.contains("key `estimator.kp`: kind = \"truth\""), "{e}");
 }
+
+/// `[[sensors.fault]]` on se3: every kind on every sensor parses, and each bad value is
+/// refused naming its key.
+#[test]
+fn sensor_faults_parse_and_bad_ones_name_the_key() {
+    use super::{Sensor, SensorFault, SensorFaultKind};
+    let sensors = r#"
+[sensors]
+directions = [ { world = [1.0, 0.0, 0.0], noise = 0.01 }, { world = [0.0, 1.0, 0.0] } ]
+accelerometer = { noise = 0.05 }
+position = { noise = 0.005, rate_hz = 100.0 }
+"#;
+    let fault = |body: &str| format!("{sensors}[[sensors.fault]]\n{body}\n");
+    let ok = fault(
+        "sensor = \"direction1\"\nt = 5.0\nduration = 2.5\nkind = \"bias\"\nrotation = [0.0, 0.5, 0.0]",
+    ) + "[[sensors.fault]]\nsensor = \"position\"\nt = 1.0\nkind = \"dropout\"\n"
+        + "[[sensors.fault]]\nsensor = \"gyro\"\nt = 7.5\nkind = \"stuck\"\n"
+        + "[[sensors.fault]]\nsensor = \"direction1\"\nt = 7.5\nduration = 1\nkind = \"dropout\"\n"
+        + "[[sensors.fault]]\nsensor = \"accelerometer\"\nt = 0\nkind = \"bias\"\nvalue = [0, 0, 1]\n";
+    let s = se3_with(&ok).unwrap();
+    let f = &s.sensors.as_ref().unwrap().faults;
+    assert_eq!(
+        f[0],
+        SensorFault {
+            sensor: Sensor::Direction(1),
+            t: 5.0,
+            duration: Some(2.5),
+            kind: SensorFaultKind::Bias([0.0, 0.5, 0.0]),
+        }
+    );
+    assert_eq!(
+        (f[1].sensor, f[1].duration, f[1].kind),
+        (Sensor::Position, None, SensorFaultKind::Dropout)
+    );
+    assert_eq!(
+        (f[2].sensor, f[2].kind),
+        (Sensor::Gyro, SensorFaultKind::Stuck)
+    );
+    assert_eq!(f[4].kind, SensorFaultKind::Bias([0.0, 0.0, 1.0]));
+    // the interval is [t, t + duration) to the nearest tick
+    assert!(!f[0].active(4.98, 0.02) && f[0].active(4.99, 0.02) && f[0].active(7.48, 0.02));
+    assert!(!f[0].active(7.49, 0.02) && f[1].active(1e6, 0.02));
+    let bias = |sensor: &str, keys: &str| {
+        fault(&format!(
+            "sensor = \"{sensor}\"\nt = 1.0\nkind = \"bias\"\n{keys}"
+        ))
+    };
+    for (text, needle) in [
+        (
+            bias("gyro", "value = [1, 2, 3]").replace("\"gyro\"", "\"magnetometer\""),
+            "key `sensors.fault[0].sensor`: the scenario has no sensor \"magnetometer\" (it has \"gyro\", \"direction0\", \"direction1\", \"accelerometer\", \"position\")",
+        ),
+        (
+            bias("direction2", "rotation = [0, 0, 1]"),
+            "key `sensors.fault[0].sensor`: the scenario has no sensor \"direction2\"",
+        ),
+        (
+            bias("direction", "rotation = [0, 0, 1]"),
+            "key `sensors.fault[0].sensor`: the scenario has no sensor \"direction\"",
+        ),
+        (
+            bias("direction+1", "rotation = [0, 0, 1]"),
+            "key `sensors.fault[0].sensor`",
+        ),
+        (
+            bias("gyro", "value = [1, 2, 3]").replace("t = 1.0", "t = -1.0"),
+            "key `sensors.fault[0].t`: must be finite and ≥ 0, got -1",
+        ),
+        (
+            bias("gyro", "value = [1, 2, 3]").replace("t = 1.0", "t = nan"),
+            "key `sensors.fault[0].t`: must be finite",
+        ),
+        (
+            bias("gyro", "value = [1, 2, 3]\nduration = 0.0"),
+            "key `sensors.fault[0].duration`: must be finite and > 0",
+        ),
+        (
+            bias("gyro", "value = [1, 2, 3]\nduration = -2.0"),
+            "key `sensors.fault[0].duration`: must be finite and > 0",
+        ),
+        (
+            bias("gyro", "value = [1, 2, 3]\nduration = inf"),
+            "key `sensors.fault[0].duration`",
+        ),
+        (
+            bias("gyro", ""),
+            "key `sensors.fault[0].value`: a \"bias\" fault on gyro needs `value`",
+        ),
+        (
+            bias("gyro", "value = [1, 2]"),
+            "key `sensors.fault[0].value`: expected 3 numbers",
+        ),
+        (
+            bias("position", "value = [1, 2, nan]"),
+            "key `sensors.fault[0].value`: entry 2 is not a finite number",
+        ),
+        (
+            bias("gyro", "rotation = [1, 2, 3]"),
+            "key `sensors.fault[0].rotation`: a bias on gyro is given as `value`",
+        ),
+        (
+            bias("direction0", "value = [1, 2, 3]"),
+            "key `sensors.fault[0].value`: a bias on direction0 is given as `rotation`",
+        ),
+        (
+            bias("direction0", ""),
+            "key `sensors.fault[0].rotation`: a \"bias\" fault on direction0 needs `rotation`",
+        ),
+        (
+            bias("gyro", "value = [1, 2, 3]").replace("\"bias\"", "\"dropout\""),
+            "key `sensors.fault[0].value`: a \"dropout\" fault takes no `value`",
+        ),
+        (
+            bias("direction0", "rotation = [1, 2, 3]").replace("\"bias\"", "\"stuck\""),
+            "key `sensors.fault[0].rotation`: a \"stuck\" fault takes no `rotation`",
+        ),
+        (
+            bias("gyro", "value = [1, 2, 3]").replace("\"bias\"", "\"drift\""),
+            "key `sensors.fault[0].kind`: unknown sensor fault kind \"drift\"",
+        ),
+        (
+            bias("gyro", "value = [1, 2, 3]\nscale = 2.0"),
+            "unknown field `scale`",
+        ),
+        (
+            bias("gyro", "value = [1, 2, 3]").replace("kind = \"bias\"\n", ""),
+            "missing field `kind`",
+        ),
+        (
+            bias("gyro", "value = [1, 2, 3]\nduration = 2.0")
+                + "[[sensors.fault]]\nsensor = \"gyro\"\nt = 2.5\nkind = \"dropout\"\n",
+            "key `sensors.fault[1].t`: overlaps sensors.fault[0] on the same sensor (gyro)",
+        ),
+    ] {
+        let e = se3_with(&text).unwrap_err();
+        assert!(e.contains(needle), "{text}\n{e}");
+    }
+    // faults that touch end to end, or strike different sensors, do not overlap
+    let touching = bias("gyro", "value = [1, 2, 3]\nduration = 2.0")
+        + "[[sensors.fault]]\nsensor = \"gyro\"\nt = 3.0\nkind = \"dropout\"\n"
+        + "[[sensors.fault]]\nsensor = \"position\"\nt = 2.0\nkind = \"dropout\"\n";
+    assert_eq!(
+        se3_with(&touching).unwrap().sensors.unwrap().faults.len(),
+        3
+    );
+    // on so3 there is no accelerometer or position fix to strike
+    let so3 =
+        format!("{SO3}[[sensors.fault]]\nsensor = \"position\"\nt = 1.0\nkind = \"dropout\"\n");
+    let e = seed_with(&so3).unwrap_err();
+    assert!(
+        e.contains("no sensor \"position\" (it has \"gyro\", \"direction0\", \"direction1\")"),
+        "{e}"
+    );
+}
