@@ -303,6 +303,21 @@ impl<T: Real> ComplementaryFilter<T> {
         self.step_usable(h, gyro, &y)
     }
 
+    /// The gate's prior: `R̂_{k−1}`, the attitude tick k's samples are compared with; no
+    /// covariance.
+    pub(crate) fn prior(
+        &self,
+        _h: T,
+        _gyro: &Vector3<T>,
+    ) -> Option<(Matrix3<T>, Option<Matrix3<T>>)> {
+        self.estimate.started.then_some((self.estimate.r, None))
+    }
+
+    /// No noise model: the gate tests against the sensors' ([`crate::health::GateConfig`]).
+    pub(crate) fn noise(&self, _slot: usize) -> T {
+        T::zero()
+    }
+
     /// [`ComplementaryFilter::step`] on checked, normalised samples.
     pub(crate) fn step_usable(
         &mut self,

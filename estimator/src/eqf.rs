@@ -448,6 +448,45 @@ impl<T: Real> EquivariantFilter<T> {
         self.step_usable(h, gyro, &y)
     }
 
+    /// The gate's prior (docs/estimators.md, "The innovation gate and health"): `R̂` and the
+    /// attitude block of `Σ` propagated over `h` with the gyro as [`EquivariantFilter::step`]
+    /// will propagate them (unpropagated when it cannot be), before the update.
+    pub(crate) fn prior(
+        &self,
+        h: T,
+        gyro: &Vector3<T>,
+    ) -> Option<(Matrix3<T>, Option<Matrix3<T>>)> {
+        let e = &self.estimate;
+        if !e.started {
+            return None;
+        }
+        let mean = match (self.last_gyro, all_finite(gyro)) {
+            (Some(p), true) => Some((p + gyro) * real::<T>(0.5)),
+            (Some(p), false) => Some(p),
+            (None, true) => Some(*gyro),
+            (None, false) => None,
+        };
+        let attitude = |s: &Matrix6<T>| s.fixed_view::<3, 3>(0, 0).into_owned();
+        match mean {
+            Some(m) if h.is_finite() && h > T::zero() => {
+                let w = m - e.bias;
+                let (sw, sb) = (self.cfg.gyro_noise, self.cfg.bias_walk);
+                let sigma = propagate_covariance(&self.sigma, h, &(e.r * w), sw, sb);
+                Some((e.r * exp_so3(&(w * h)), Some(attitude(&sigma))))
+            }
+            _ => Some((e.r, Some(attitude(&self.sigma)))),
+        }
+    }
+
+    /// Direction slot `slot`'s noise `σ_i`.
+    pub(crate) fn noise(&self, slot: usize) -> T {
+        self.cfg
+            .direction_noise
+            .get(slot)
+            .copied()
+            .unwrap_or_else(T::zero)
+    }
+
     /// [`EquivariantFilter::step`] on checked, normalised samples.
     pub(crate) fn step_usable(
         &mut self,

@@ -23,6 +23,7 @@
 
 mod complementary;
 pub mod eqf;
+pub mod health;
 mod pose;
 mod settings;
 mod triad;
@@ -181,6 +182,18 @@ pub trait AttitudeFilter<T: controller::Real>: Copy + core::fmt::Debug + Partial
         gyro: &nalgebra::Vector3<T>,
         y: &Directions<T>,
     ) -> AttitudeEstimate<T>;
+    /// What the innovation gate tests tick k's directions against
+    /// (docs/estimators.md, "The innovation gate and health"): the attitude the filter
+    /// compares them with and, for the EqF, the attitude block of its covariance propagated
+    /// to tick k; `None` before the filter has started.
+    fn prior(
+        &self,
+        h: T,
+        gyro: &nalgebra::Vector3<T>,
+    ) -> Option<(nalgebra::Matrix3<T>, Option<nalgebra::Matrix3<T>>)>;
+    /// Direction slot `slot`'s noise in the filter's own model (the EqF's; 0 for a filter
+    /// without one).
+    fn noise(&self, slot: usize) -> T;
 }
 
 macro_rules! attitude_filter {
@@ -229,6 +242,16 @@ macro_rules! attitude_filter {
                 y: &Directions<T>,
             ) -> AttitudeEstimate<T> {
                 $filter::step_usable(self, h, gyro, y)
+            }
+            fn prior(
+                &self,
+                h: T,
+                gyro: &nalgebra::Vector3<T>,
+            ) -> Option<(nalgebra::Matrix3<T>, Option<nalgebra::Matrix3<T>>)> {
+                $filter::prior(self, h, gyro)
+            }
+            fn noise(&self, slot: usize) -> T {
+                $filter::noise(self, slot)
             }
         }
     };

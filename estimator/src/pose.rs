@@ -345,24 +345,31 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
         accel: &Vector3<T>,
         position: Option<&Vector3<T>>,
     ) -> PoseEstimate<T> {
+        self.step_with(None, h, gyro, directions, accel, position).0
+    }
+
+    /// [`PoseFilter::step`] with the innovation gate when one is given (docs/estimators.md,
+    /// "The innovation gate and health"): each usable direction, the accelerometer's "up"
+    /// among them, and the fix are tested against the prior and skipped when they fail. An
+    /// accelerometer sample the magnitude gate (`accel_gate`) keeps out is present but not a
+    /// direction: the body is accelerating, the sensor is not faulty. Returns the tick's
+    /// verdicts.
+    pub(crate) fn step_with(
+        &mut self,
+        gate: Option<&crate::health::Gate<T>>,
+        h: T,
+        gyro: &Vector3<T>,
+        directions: &[Vector3<T>],
+        accel: &Vector3<T>,
+        position: Option<&Vector3<T>>,
+    ) -> (PoseEstimate<T>, crate::health::Verdicts) {
+        let mut verdicts = crate::health::Verdicts::default();
         let n = self.attitude.config().count().saturating_sub(1);
         let mut y = usable(directions, n, self.attitude.faults_mut());
         let g: T = real(GRAVITY);
-        let accel_ok = all_finite(accel) && controller::hw_sqrt::norm(accel).is_finite();
-        if !accel_ok {
-            self.attitude.faults_mut().accel += 1;
-        } else if let Some((up, norm)) = direction(accel) {
-            if self
-                .cfg
-                .accel_gate
-                .is_some_and(|gate| (norm - g).abs() > gate)
-            {
-                self.attitude.faults_mut().accel_gated += 1;
-            } else {
-                y[n] = Some(up);
-            }
-        } else {
-            self.attitude.faults_mut().directions += 1;
+        let accel_ok = self.up(accel, &mut y[n], &mut verdicts, n);
+        if let Some(g) = gate {
+            g.directions(&self.attitude, h, gyro, &mut y, &mut verdicts);
         }
         let prior = *self.attitude.estimate();
         let att = self.attitude.step_usable(h, gyro, &y);
@@ -404,7 +411,13 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
                 self.predict(h, &a);
             }
             if let Some(z) = fix {
-                self.update(&z);
+                let pass = gate.is_none_or(|g| {
+                    let s = self.estimate.covariance[(0, 0)] + self.fix_variance();
+                    g.position(&(z - self.estimate.x), s, &mut verdicts)
+                });
+                if pass {
+                    self.update(&z);
+                }
             }
             let e = &self.estimate;
             if !(all_finite(&e.x) && all_finite(&e.v) && e.covariance.iter().all(|x| x.is_finite()))
@@ -417,7 +430,44 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
         self.estimate.rate = att.rate;
         self.estimate.bias = att.bias;
         self.estimate.started = att.started;
-        self.estimate
+        (self.estimate, verdicts)
+    }
+
+    /// The accelerometer's sample as the direction "up" in `slot` (slot `n`): not when it
+    /// has a non-finite entry (`accel`; the return is then false, and the prediction uses
+    /// `a = 0`), is too short (`directions`), or its magnitude is kept out by `accel_gate`
+    /// (`accel_gated`; present for the health monitor, not a direction).
+    fn up(
+        &mut self,
+        accel: &Vector3<T>,
+        slot: &mut Option<Vector3<T>>,
+        verdicts: &mut crate::health::Verdicts,
+        n: usize,
+    ) -> bool {
+        let g: T = real(GRAVITY);
+        let accel_ok = all_finite(accel) && controller::hw_sqrt::norm(accel).is_finite();
+        if !accel_ok {
+            self.attitude.faults_mut().accel += 1;
+        } else if let Some((up, norm)) = direction(accel) {
+            if self
+                .cfg
+                .accel_gate
+                .is_some_and(|gate| (norm - g).abs() > gate)
+            {
+                self.attitude.faults_mut().accel_gated += 1;
+                verdicts.present |= 1 << n;
+            } else {
+                *slot = Some(up);
+            }
+        } else {
+            self.attitude.faults_mut().directions += 1;
+        }
+        accel_ok
+    }
+
+    /// A fix's variance per axis, `σ_p²` floored at [`MIN_VARIANCE`].
+    fn fix_variance(&self) -> T {
+        (self.cfg.position_noise * self.cfg.position_noise).max(real(MIN_VARIANCE))
     }
 
     /// The prediction over `h` (docs/maths.md, "Position and velocity on SE(3)"):
@@ -438,8 +488,8 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
     /// `H = [1, 0]`, noise `σ_p²` (floored at [`MIN_VARIANCE`]), in Joseph form and
     /// symmetrised so the covariance stays symmetric positive definite.
     fn update(&mut self, z: &Vector3<T>) {
+        let rp = self.fix_variance();
         let e = &mut self.estimate;
-        let rp = (self.cfg.position_noise * self.cfg.position_noise).max(real(MIN_VARIANCE));
         let p = e.covariance;
         let s = p[(0, 0)] + rp;
         if !s.is_finite() || s <= T::zero() {

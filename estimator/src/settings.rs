@@ -2,9 +2,10 @@
 //! `(Q̂, V̂)`. The plant side builds it in `f64`; the processor-in-the-loop firmware in `f32`
 //! from the same numbers cast once, so both run the same construction and the same step.
 
+use crate::health::{Gate, Health, Verdicts};
 use crate::{
-    ComplementaryConfig, ComplementaryFilter, EqfConfig, EquivariantFilter, EstimatorError, Faults,
-    MAX_DIRECTIONS, PoseConfig, PoseFilter,
+    AttitudeConfig, AttitudeFilter, ComplementaryConfig, ComplementaryFilter, EqfConfig,
+    EquivariantFilter, EstimatorError, Faults, MAX_DIRECTIONS, PoseConfig, PoseFilter,
 };
 use controller::Real;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
@@ -215,30 +216,59 @@ impl<T: Real> Filter<T> {
         accel: &Vector3<T>,
         position: Option<&Vector3<T>>,
     ) -> Step<T, N, M> {
-        let attitude = |e: crate::AttitudeEstimate<T>| Step {
-            q: SMatrix::from_fn(|i, j| e.r[(i, j)]),
-            v: SVector::from_fn(|i, _| e.rate[i]),
-            bias: e.bias,
-        };
-        let pose = |e: crate::PoseEstimate<T>| {
-            let lin = e.body_velocity();
-            Step {
-                q: SMatrix::from_fn(|i, j| match (i, j) {
-                    (3, 3) => T::one(),
-                    (3, _) => T::zero(),
-                    (_, 3) => e.x[i],
-                    _ => e.r[(i, j)],
-                }),
-                v: SVector::from_fn(|i, _| if i < 3 { e.rate[i] } else { lin[i - 3] }),
-                bias: e.bias,
+        match self {
+            Filter::Complementary(f) => attitude_step(f.step(h, gyro, directions)),
+            Filter::Eqf(f) => attitude_step(f.step(h, gyro, directions)),
+            Filter::Pose(f) => pose_step(f.step(h, gyro, directions, accel, position)),
+            Filter::PoseEqf(f) => pose_step(f.step(h, gyro, directions, accel, position)),
+        }
+    }
+
+    /// [`Filter::step`] behind the innovation gate, and the gate's health monitor stepped
+    /// (docs/estimators.md, "The innovation gate and health"): samples that fail the gate
+    /// are skipped as unusable ones are. Returns the step and the health after it.
+    pub fn step_gated<const N: usize, const M: usize>(
+        &mut self,
+        gate: &mut Gate<T>,
+        h: T,
+        gyro: &Vector3<T>,
+        directions: &[Vector3<T>],
+        accel: &Vector3<T>,
+        position: Option<&Vector3<T>>,
+    ) -> (Step<T, N, M>, Health) {
+        fn attitude<T: Real, F: AttitudeFilter<T>>(
+            f: &mut F,
+            gate: &Gate<T>,
+            h: T,
+            gyro: &Vector3<T>,
+            directions: &[Vector3<T>],
+        ) -> (crate::AttitudeEstimate<T>, Verdicts) {
+            let n = f.config().count();
+            let mut y = crate::complementary::usable(directions, n, f.faults_mut());
+            let mut v = Verdicts::default();
+            gate.directions(f, h, gyro, &mut y, &mut v);
+            (f.step_usable(h, gyro, &y), v)
+        }
+        let (step, verdicts) = match self {
+            Filter::Complementary(f) => {
+                let (e, v) = attitude(f, gate, h, gyro, directions);
+                (attitude_step(e), v)
+            }
+            Filter::Eqf(f) => {
+                let (e, v) = attitude(f, gate, h, gyro, directions);
+                (attitude_step(e), v)
+            }
+            Filter::Pose(f) => {
+                let (e, v) = f.step_with(Some(gate), h, gyro, directions, accel, position);
+                (pose_step(e), v)
+            }
+            Filter::PoseEqf(f) => {
+                let (e, v) = f.step_with(Some(gate), h, gyro, directions, accel, position);
+                (pose_step(e), v)
             }
         };
-        match self {
-            Filter::Complementary(f) => attitude(f.step(h, gyro, directions)),
-            Filter::Eqf(f) => attitude(f.step(h, gyro, directions)),
-            Filter::Pose(f) => pose(f.step(h, gyro, directions, accel, position)),
-            Filter::PoseEqf(f) => pose(f.step(h, gyro, directions, accel, position)),
-        }
+        let health = gate.observe(verdicts, gyro.iter().all(|x| x.is_finite()));
+        (step, health)
     }
 
     /// Changes the complementary filter's `k_P` and `k_I` from the next step on (SO(3), or
@@ -269,5 +299,31 @@ impl<T: Real> Filter<T> {
             Filter::PoseEqf(f) => Some(f.attitude()),
             _ => None,
         }
+    }
+}
+
+/// An attitude estimate as the law's `(Q̂, V̂) = (R̂, ω − b̂)` on SO(3).
+fn attitude_step<T: Real, const N: usize, const M: usize>(
+    e: crate::AttitudeEstimate<T>,
+) -> Step<T, N, M> {
+    Step {
+        q: SMatrix::from_fn(|i, j| e.r[(i, j)]),
+        v: SVector::from_fn(|i, _| e.rate[i]),
+        bias: e.bias,
+    }
+}
+
+/// A pose estimate as the law's `([R̂ x̂; 0 1], (ω − b̂, R̂ᵀ v̂))` on SE(3).
+fn pose_step<T: Real, const N: usize, const M: usize>(e: crate::PoseEstimate<T>) -> Step<T, N, M> {
+    let lin = e.body_velocity();
+    Step {
+        q: SMatrix::from_fn(|i, j| match (i, j) {
+            (3, 3) => T::one(),
+            (3, _) => T::zero(),
+            (_, 3) => e.x[i],
+            _ => e.r[(i, j)],
+        }),
+        v: SVector::from_fn(|i, _| if i < 3 { e.rate[i] } else { lin[i - 3] }),
+        bias: e.bias,
     }
 }

@@ -11,6 +11,7 @@ use controller::group::MatrixLieGroup;
 use controller::group::so3::log_so3;
 use controller::integrator::RigidBody;
 use estimator::Filter;
+use estimator::health::{Gate, Health};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use scenario::{EstimatorKind, Scenario};
 use serde::Serialize;
@@ -38,6 +39,67 @@ pub struct EstimatorReport {
     /// (docs/maths.md, "Consistency"); absent for the other kinds.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mean_nees: Option<f64>,
+    /// `[estimator] gate = true`: the gate's thresholds, its rejections and the health's
+    /// changes; absent without the gate.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gate: Option<GateReport>,
+}
+
+/// `summary.json` → `estimator.gate` (docs/estimators.md, "The innovation gate and health").
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct GateReport {
+    /// The χ²₂ threshold of a direction sample's NIS.
+    pub direction_threshold: f64,
+    /// The χ²₃ threshold of a position fix's NIS.
+    pub position_threshold: f64,
+    /// The health window (ticks).
+    pub window: u32,
+    /// Rejections within a window that degrade a sensor.
+    pub rejections_to_degrade: u32,
+    /// Rejections over the run, per sensor (`direction0` …, `accelerometer`, `position`).
+    pub rejected: std::collections::BTreeMap<String, u64>,
+    /// Each change of health, in time order.
+    pub health: Vec<HealthChange>,
+}
+
+/// One change of the estimator's health.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct HealthChange {
+    /// When (s).
+    pub t: f64,
+    /// `healthy`, `degraded` or `lost`.
+    pub health: &'static str,
+    /// What is wrong (empty when healthy), e.g. `rejected direction0`, `missing position`.
+    pub reason: String,
+}
+
+/// A source's name in the scenario's spelling (`direction0`, `accelerometer`, `gyro`,
+/// `position`, and `attitude` for two usable directions).
+pub fn source_name(s: estimator::health::Source) -> String {
+    use estimator::health::Source;
+    match s {
+        Source::Direction(i) => format!("direction{i}"),
+        Source::Accelerometer => "accelerometer".to_owned(),
+        Source::Gyro => "gyro".to_owned(),
+        Source::Position => "position".to_owned(),
+        Source::Attitude => "attitude".to_owned(),
+    }
+}
+
+/// The health's name and its reason in words (`rejected direction0`, `missing gyro`).
+pub fn describe(h: &Health) -> (&'static str, String) {
+    use estimator::health::Reason;
+    let name = match h {
+        Health::Healthy => "healthy",
+        Health::Degraded(_) => "degraded",
+        Health::Lost(_) => "lost",
+    };
+    let reason = match h.reason() {
+        None => String::new(),
+        Some(Reason::Rejected(s)) => format!("rejected {}", source_name(s)),
+        Some(Reason::Missing(s)) => format!("missing {}", source_name(s)),
+    };
+    (name, reason)
 }
 
 /// The sensors and the filter of one run.
@@ -47,6 +109,8 @@ pub struct Estimation {
     sensors: Sensors,
     /// `None`: the law sees the truth, or (processor in the loop) the controller filters.
     filter: Option<Filter<f64>>,
+    /// `[estimator] gate = true`: the innovation gate and health monitor.
+    gate: Option<Gate<f64>>,
     period: f64,
     faults: Vec<(u64, SampleFault)>,
     planted: u64,
@@ -76,11 +140,19 @@ impl Estimation {
                     .map_err(bad)?,
             ),
         };
+        let gate = s.gate_config().map(|c| {
+            Gate::new(
+                c,
+                spec.directions.len(),
+                s.group == controller::GroupKind::Se3,
+            )
+        });
         Ok(Some(Estimation {
             kind: e.kind,
             seed: spec.seed,
             sensors: Sensors::new(spec, period),
             filter,
+            gate,
             period,
             faults: faults.to_vec(),
             planted: 0,
@@ -129,7 +201,13 @@ impl Estimation {
     /// only samples, and the rows take the estimate the commands come back with.
     pub fn on_board(mut self) -> Estimation {
         self.filter = None;
+        self.gate = None;
         self
+    }
+
+    /// Whether the innovation gate runs (`[estimator] gate = true`).
+    pub fn gated(&self) -> bool {
+        self.gate.is_some()
     }
 
     /// Steps the filter on one tick's `samples` (drawn from the true state `(q, v)`) and
@@ -145,10 +223,20 @@ impl Estimation {
         let h = self.period;
         let dirs = &samples.directions[..samples.count];
         let accel = samples.accel.unwrap_or_else(Vector3::zeros);
+        let mut health = None;
         let (q_hat, v_hat, bias, covariance, nees) = match &mut self.filter {
             None => (q, v, Vector3::zeros(), None, None),
             Some(f) => {
-                let e = f.step::<N, M>(h, &samples.gyro, dirs, &accel, samples.position.as_ref());
+                let position = samples.position.as_ref();
+                let e = match &mut self.gate {
+                    None => f.step::<N, M>(h, &samples.gyro, dirs, &accel, position),
+                    Some(g) => {
+                        let (e, now) =
+                            f.step_gated::<N, M>(g, h, &samples.gyro, dirs, &accel, position);
+                        health = Some(now);
+                        e
+                    }
+                };
                 let (covariance, nees) = match f.eqf() {
                     Some(eqf) => {
                         let s = eqf.covariance();
@@ -163,7 +251,8 @@ impl Estimation {
                 (e.q, e.v, e.bias, covariance, nees)
             }
         };
-        let row = row(samples, &q, &q_hat, &v_hat, &bias, covariance, nees);
+        let mut row = row(samples, &q, &q_hat, &v_hat, &bias, covariance, nees);
+        row.health = health;
         (q_hat, v_hat, row)
     }
 
@@ -195,6 +284,7 @@ impl Estimation {
             rms_estimate_error: (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt(),
             max_estimate_error: errors.iter().copied().fold(0.0, f64::max),
             mean_nees,
+            gate: self.gate.as_ref().map(|g| gate_report(g, rows)),
         }
     }
 }
@@ -230,5 +320,35 @@ pub fn row<const N: usize, const M: usize>(
         estimate_error,
         covariance,
         nees,
+        health: None,
+    }
+}
+
+/// The gate's part of the summary: its thresholds, its rejections per sensor, and each
+/// change of health over `rows` (from healthy at the start).
+fn gate_report(g: &Gate<f64>, rows: &[Row]) -> GateReport {
+    let c = g.config();
+    let mut health = Vec::new();
+    let mut last = Health::Healthy;
+    for r in rows {
+        if let Some(h) = r.estimate.and_then(|e| e.health)
+            && h != last
+        {
+            let (name, reason) = describe(&h);
+            health.push(HealthChange {
+                t: r.t,
+                health: name,
+                reason,
+            });
+            last = h;
+        }
+    }
+    GateReport {
+        direction_threshold: c.direction,
+        position_threshold: c.position,
+        window: c.window,
+        rejections_to_degrade: c.rejections,
+        rejected: g.rejections().map(|(s, n)| (source_name(s), n)).collect(),
+        health,
     }
 }

@@ -179,6 +179,8 @@ struct Layout {
     m: usize,
     directions: Option<usize>,
     covariance: bool,
+    /// `[estimator] gate = true`: the `health` column.
+    health: bool,
     terms: bool,
     vehicle: Option<usize>,
     status: bool,
@@ -199,6 +201,7 @@ impl Layout {
                 .estimator
                 .as_ref()
                 .is_some_and(|e| e.kind == scenario::EstimatorKind::Eqf.name()),
+            health: traj.estimator.as_ref().is_some_and(|e| e.gate.is_some()),
             terms: traj.rows.first().is_some_and(|r| r.terms.is_some()),
             vehicle: traj.rows.first().and_then(|r| r.vehicle).map(|v| v.count),
             status: !traj.status.is_empty(),
@@ -213,6 +216,9 @@ impl Layout {
         let mut header = trajectory_header(n, m);
         if let Some(d) = self.directions {
             header.extend(estimate_header(n, d, n == 4, self.covariance));
+        }
+        if self.health {
+            header.push("health".to_owned());
         }
         if self.terms {
             header.extend((0..m).map(|i| format!("dhat_{i}")));
@@ -256,6 +262,11 @@ impl Layout {
                 SimError::Run(format!("row {k} of a run with sensors has no samples"))
             })?;
             estimate_fields(e, n, self.covariance, rec);
+        }
+        if self.health {
+            // 0 healthy, 1 degraded, 2 lost (docs/estimators.md); empty on a tick without it
+            let code = r.estimate.and_then(|e| e.health).map(|h| h.code());
+            rec.push(code.map_or(Cell::Empty, |c| Cell::Int(u64::from(c))));
         }
         if self.terms {
             let t = r.terms.unwrap_or(crate::trajectory::Terms {

@@ -170,8 +170,12 @@ impl Sensors {
         let position = match spec.position {
             Some(p) if k as f64 * h + 1e-9 * h >= self.next_fix as f64 / p.rate_hz => {
                 // the fix taken at or before this tick arrives now; later ones are due at
-                // their own times
-                while self.next_fix as f64 / p.rate_hz <= k as f64 * h + 1e-9 * h {
+                // their own times: the first fix due after now, found from just below it
+                // (the same fix as counting one by one, in bounded time at any rate)
+                let now = k as f64 * h + 1e-9 * h;
+                let below = (now * p.rate_hz).floor() - 1.0;
+                self.next_fix = self.next_fix.max(below.max(0.0) as u64);
+                while self.next_fix as f64 / p.rate_hz <= now && self.next_fix < u64::MAX {
                     self.next_fix += 1;
                 }
                 let x = Vector3::new(q[(0, 3)], q[(1, 3)], q[(2, 3)]);

@@ -107,6 +107,8 @@ pub struct EstimateRow {
     /// EqF: the normalised estimation error squared of the true `(R, b)`
     /// (docs/maths.md, "Consistency").
     pub nees: Option<f64>,
+    /// `[estimator] gate = true`: the estimator's health after this tick.
+    pub health: Option<estimator::health::Health>,
 }
 
 impl EstimateRow {

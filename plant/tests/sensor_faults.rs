@@ -210,3 +210,38 @@ kind = "stuck"
     );
     assert!(faulty.iter().any(|(_, s)| s.position.is_some()));
 }
+
+/// Position fixes at any rate are found in bounded time: a rate far above the control rate
+/// gives a fix every tick (it hung the fuzz run once, counting fixes one by one), and an odd
+/// rate gives its fixes at the ticks a count one by one gives.
+#[test]
+fn fixes_at_any_rate_come_when_due() {
+    let with_rate = |rate: &str| {
+        let text = std::fs::read_to_string(pair_tests::scenario("eqf_se3")).unwrap();
+        let head = &text[..text.find("[estimator]").unwrap()];
+        let text = head
+            .replace("duration = 60.0", "duration = 1.0")
+            .replace("rate_hz = 50.0", &format!("rate_hz = {rate}"));
+        let s = Scenario::from_toml(&text, "rate.toml", "rate").unwrap();
+        let t = simulate(&s, &|_| Ok(())).unwrap();
+        t.rows
+            .iter()
+            .map(|r| r.estimate.unwrap().samples.position.is_some())
+            .collect::<Vec<bool>>()
+    };
+    assert!(with_rate("1e300").iter().all(|f| *f));
+    let odd = 33.3;
+    let (h, mut next) = (0.01, 0u64);
+    let expected: Vec<bool> = (0..=100u64)
+        .map(|k| {
+            let now = k as f64 * h + 1e-9 * h;
+            let due = now >= next as f64 / odd;
+            while due && next as f64 / odd <= now {
+                next += 1;
+            }
+            due
+        })
+        .collect();
+    assert_eq!(with_rate("33.3"), expected);
+    assert_eq!(expected.iter().filter(|f| **f).count(), 34);
+}

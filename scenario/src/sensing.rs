@@ -11,6 +11,7 @@ use nalgebra::Vector3;
 use serde::Deserialize;
 
 pub mod fault;
+pub mod gate;
 
 pub use fault::{Sensor, SensorFault, SensorFaultKind};
 
@@ -81,6 +82,9 @@ pub(crate) struct RawEstimator {
     direction_noise: Option<Vec<f64>>,
     initial_attitude_std: Option<f64>,
     initial_bias_std: Option<f64>,
+    gate: Option<bool>,
+    false_alarm_rate: Option<f64>,
+    health_window: Option<f64>,
 }
 
 /// The gyro: `ω(t_k) + b_k + n`, `n ~ N(0, noise²/h)` per axis, `b_{k+1} = b_k + N(0,
@@ -174,6 +178,8 @@ pub struct EstimatorSpec {
     /// The initial attitude estimate (rotation vector); `None`: TRIAD from the first two
     /// direction samples.
     pub initial_attitude: Option<[f64; 3]>,
+    /// The innovation gate and health monitor (`gate = true`); `None`: off.
+    pub gate: Option<gate::GateSpec>,
 }
 
 /// `[estimator]` with `kind = "eqf"`: the filter's noise model (physical units; each
@@ -213,6 +219,7 @@ impl Default for EstimatorSpec {
             bias_limit: None,
             accel_gate: None,
             initial_attitude: None,
+            gate: None,
         }
     }
 }
@@ -330,6 +337,7 @@ impl Validator<'_> {
         raw: &RawEstimator,
         sensors: Option<&SensorsSpec>,
         group: GroupKind,
+        period: f64,
     ) -> Result<EstimatorSpec, ScenarioError> {
         let kind = self.estimator_kind(&raw.kind)?;
         self.foreign_keys(raw, kind)?;
@@ -354,6 +362,7 @@ impl Validator<'_> {
             .as_ref()
             .map(|r| self.three("estimator.initial_attitude", r, "a rotation vector"))
             .transpose()?;
+        let gate = self.gate(raw, kind, sensors, sources, period)?;
         Ok(EstimatorSpec {
             kind,
             kp,
@@ -363,6 +372,7 @@ impl Validator<'_> {
             bias_limit,
             accel_gate,
             initial_attitude,
+            gate,
         })
     }
 
@@ -404,16 +414,29 @@ impl Validator<'_> {
                     ("bias_limit", raw.bias_limit.is_some()),
                     ("accel_gate", raw.accel_gate.is_some()),
                     ("initial_attitude", raw.initial_attitude.is_some()),
+                    ("gate", raw.gate.is_some()),
+                    ("false_alarm_rate", raw.false_alarm_rate.is_some()),
+                    ("health_window", raw.health_window.is_some()),
                 ];
                 let why = "kind = \"truth\" hands the law the exact state: it takes no gains";
                 refuse(&complementary_keys, why)?;
                 refuse(&eqf_keys, why)?;
                 refuse(&shared, why)
             }
-            EstimatorKind::Complementary => refuse(
-                &eqf_keys,
-                "a key of kind = \"eqf\" (the complementary filter takes kp, ki and weights)",
-            ),
+            EstimatorKind::Complementary => {
+                // behind the gate, direction_noise is the noise model the gate tests against
+                let gated = raw.gate == Some(true);
+                let keys: Vec<(&str, bool)> = eqf_keys
+                    .iter()
+                    .copied()
+                    .filter(|(k, _)| !(gated && *k == "direction_noise"))
+                    .collect();
+                refuse(
+                    &keys,
+                    "a key of kind = \"eqf\" (the complementary filter takes kp, ki and \
+                     weights, and behind the gate direction_noise)",
+                )
+            }
             EstimatorKind::Eqf => refuse(
                 &complementary_keys,
                 "a gain of kind = \"complementary\" (the EqF's gains come from its noise \
@@ -509,23 +532,18 @@ impl Validator<'_> {
 }
 
 impl Validator<'_> {
-    /// The EqF's noise model and start, each key defaulting to the `[sensors]` value.
-    fn eqf(
+    /// `estimator.direction_noise`: each direction source's noise (one per direction, then
+    /// the accelerometer's as a direction), each > 0; default the sensors' (the
+    /// accelerometer's `noise / 9.81`). `who` needs them: the EqF, or the gate.
+    pub(crate) fn direction_noise(
         &self,
         raw: &RawEstimator,
         sensors: &SensorsSpec,
         sources: usize,
-    ) -> Result<EqfSpec, ScenarioError> {
-        let gyro_noise = self.non_negative(
-            "estimator.gyro_noise",
-            raw.gyro_noise.unwrap_or(sensors.gyro.noise),
-        )?;
-        let bias_walk = self.non_negative(
-            "estimator.bias_walk",
-            raw.bias_walk.unwrap_or(sensors.gyro.bias_walk),
-        )?;
+        who: &str,
+    ) -> Result<Vec<f64>, ScenarioError> {
         let accel = sensors.accelerometer.map(|a| a / GRAVITY);
-        let direction_noise = match &raw.direction_noise {
+        Ok(match &raw.direction_noise {
             Some(given) => {
                 let why = if accel.is_some() {
                     "one per direction, then one for the accelerometer"
@@ -536,7 +554,7 @@ impl Validator<'_> {
                 if let Some(x) = v.iter().find(|x| **x <= 0.0) {
                     return Err(self.err(
                         "estimator.direction_noise",
-                        format!("each must be > 0 (the filter divides by it), got {x}"),
+                        format!("each must be > 0 ({who} divides by it), got {x}"),
                     ));
                 }
                 v
@@ -557,14 +575,32 @@ impl Validator<'_> {
                     return Err(self.err(
                         "estimator.direction_noise",
                         format!(
-                            "missing, and its default {what} is 0: the EqF needs each \
+                            "missing, and its default {what} is 0: {who} needs each \
                              direction's noise > 0 (give direction_noise = [...])"
                         ),
                     ));
                 }
                 from
             }
-        };
+        })
+    }
+
+    /// The EqF's noise model and start, each key defaulting to the `[sensors]` value.
+    fn eqf(
+        &self,
+        raw: &RawEstimator,
+        sensors: &SensorsSpec,
+        sources: usize,
+    ) -> Result<EqfSpec, ScenarioError> {
+        let gyro_noise = self.non_negative(
+            "estimator.gyro_noise",
+            raw.gyro_noise.unwrap_or(sensors.gyro.noise),
+        )?;
+        let bias_walk = self.non_negative(
+            "estimator.bias_walk",
+            raw.bias_walk.unwrap_or(sensors.gyro.bias_walk),
+        )?;
+        let direction_noise = self.direction_noise(raw, sensors, sources, "the EqF")?;
         let largest_bias = sensors.gyro.bias.iter().fold(0.0f64, |m, b| m.max(b.abs()));
         let initial_attitude_std = self.positive(
             "estimator.initial_attitude_std",

@@ -255,7 +255,7 @@ impl Validator<'_> {
             .transpose()?;
         let estimator = match &raw.estimator {
             None => EstimatorSpec::default(),
-            Some(r) => self.estimator(r, sensors.as_ref(), group)?,
+            Some(r) => self.estimator(r, sensors.as_ref(), group, raw.control_period)?,
         };
         let fault_detection = self.fault_detection(
             raw.fault_detection.as_ref(),

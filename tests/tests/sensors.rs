@@ -306,6 +306,31 @@ fn bad_sensor_and_estimator_keys_exit_2_naming_the_key() {
             "initial_bias_std = 0.03\nkp = 1.0",
             "key `estimator.kp`: a gain of kind = \"complementary\"",
         ),
+        // the innovation gate and the scripted sensor faults
+        (
+            &eqf,
+            "initial_bias_std = 0.03",
+            "initial_bias_std = 0.03\nhealth_window = 1.0",
+            "key `estimator.health_window`: a setting of the innovation gate",
+        ),
+        (
+            &eqf,
+            "initial_bias_std = 0.03",
+            "initial_bias_std = 0.03\ngate = true\nfalse_alarm_rate = -1",
+            "key `estimator.false_alarm_rate`: must be finite and > 0",
+        ),
+        (
+            &base,
+            "[estimator]",
+            "[[sensors.fault]]\nsensor = \"direction5\"\nt = 1.0\nkind = \"dropout\"\n[estimator]",
+            "key `sensors.fault[0].sensor`: the scenario has no sensor \"direction5\"",
+        ),
+        (
+            &base,
+            "[estimator]",
+            "[[sensors.fault]]\nsensor = \"gyro\"\nt = 1.0\nkind = \"bias\"\n[estimator]",
+            "key `sensors.fault[0].value`: a \"bias\" fault on gyro needs `value`",
+        ),
     ];
     for (base, from, to, needle) in cases {
         assert!(base.contains(from), "{from}");
@@ -324,4 +349,89 @@ fn bad_sensor_and_estimator_keys_exit_2_naming_the_key() {
     let (code, out) = plant(&["sim", "--fault-sample", "3:gyro-fire"]);
     assert_eq!(code, 2, "{out}");
     assert!(out.contains("--fault-sample: expected K:gyro-nan"), "{out}");
+}
+
+/// `hexarotor_eqf` behind the innovation gate for 6 s, its fixes lost from 1 s to 2 s and its
+/// first direction turned by 30° from 3 s, written beside its waypoint file in `d`.
+fn gated_with_faults(d: &TempDir) -> String {
+    let text = std::fs::read_to_string(scenario("hexarotor_eqf")).unwrap();
+    let faults = r#"
+[[sensors.fault]]
+sensor = "direction0"
+t = 3.0
+kind = "bias"
+rotation = [0.0, 0.0, 0.5235987755982989]
+
+[[sensors.fault]]
+sensor = "position"
+t = 1.0
+duration = 1.0
+kind = "dropout"
+
+[estimator]"#;
+    let text = text
+        .replace("duration = 10.0", "duration = 6.0")
+        .replace("kind = \"eqf\"", "kind = \"eqf\"\ngate = true")
+        .replace("[estimator]", faults);
+    let csv = pair_tests::repo("scenarios/hexarotor_eight.csv");
+    std::fs::copy(csv, d.join("hexarotor_eight.csv")).unwrap();
+    let path = d.join("gated.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// The gate and the scripted faults in the lockstep pair: the same bytes as the simulation,
+/// the health and its changes recorded, replay checking every estimate; a serial run of a
+/// gated scenario is refused, naming the key.
+#[test]
+fn lockstep_with_the_gate_and_sensor_faults_equals_the_simulation_and_replays() {
+    let _g = serial();
+    let d = TempDir::new("sensors-gated");
+    let file = gated_with_faults(&d);
+    let (sim, pair) = sim_equals_lockstep(&d, "gated", &file);
+    let (code, text) = run("plant_sim", &["replay", &pair], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("estimates checked, 0 differ"), "{text}");
+    let s = summary(Path::new(&sim));
+    assert_eq!(summary(Path::new(&pair))["estimator"], s["estimator"]);
+    let gate = &s["estimator"]["gate"];
+    let changes: Vec<(&str, &str)> = gate["health"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| (c["health"].as_str().unwrap(), c["reason"].as_str().unwrap()))
+        .collect();
+    assert_eq!(
+        changes,
+        [
+            ("degraded", "missing position"),
+            ("healthy", ""),
+            ("degraded", "rejected direction0")
+        ],
+        "{gate}"
+    );
+    // the biased samples from 3 s to the last tick at 6 s at 500 Hz, every one rejected
+    assert_eq!(gate["rejected"]["direction0"], 1501, "{gate}");
+    let csv = Csv::read(&Path::new(&sim).join("trajectory.csv"));
+    let health = csv.col("health");
+    // degraded from a window after the last fix (1.48 s) to the first back (2.0 s), and from 3 s
+    assert_eq!(
+        health.iter().filter(|h| **h == 1.0).count(),
+        260 + 1501,
+        "{health:?}"
+    );
+    // the firmware does not run the gate: a serial run is refused before it starts
+    let text = std::fs::read_to_string(scenario("eqf_se3")).unwrap();
+    let gated = d.join("eqf_se3_gated.toml");
+    std::fs::write(
+        &gated,
+        text.replace("kind = \"eqf\"", "kind = \"eqf\"\ngate = true"),
+    )
+    .unwrap();
+    let (code, out) = plant(&["sim", "--scenario", &gated, "--controller-scalar", "f32"]);
+    assert_eq!(code, 2, "{out}");
+    assert!(
+        out.contains("gate = true is not run by the processor-in-the-loop firmware"),
+        "{out}"
+    );
 }

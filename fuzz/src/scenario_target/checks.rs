@@ -115,22 +115,18 @@ impl OnGroup for Exercise<'_> {
         let mut applied = nalgebra::SVector::<f64, M>::zeros();
         let world = s.world_disturbance::<M>();
         // a vehicle: the law's wrench through its allocation, as the controller side runs it
-        let mut vehicle = match &s.vehicle {
-            None => None,
-            Some(v) => {
-                let allocator = v.allocator::<M>().map_err(|_| "vehicle: allocator()")?;
-                Some(allocation::VehicleControl::new(
-                    allocator,
-                    v.restoring(),
-                    v.actuator_rate_limit,
-                    s.control_period,
-                ))
-            }
-        };
+        let mut vehicle = vehicle_of::<M>(s)?;
         let most = s.plant_substeps.max(s.reference_substeps).max(1);
         let cycles = (SUBSTEP_BUDGET / most).min(CYCLES);
+        // the sensors, their scripted faults and the filter (behind its gate), as the plant
+        // side runs them: the estimate is finite whatever the samples
+        let mut estimation = plant::estimation::Estimation::new(s, s.control_period, &[])
+            .map_err(|e| format!("Estimation::new(): {e}"))?;
         for k in 0..=cycles {
             let desired = reference.desired();
+            if let Some(e) = &mut estimation {
+                estimate_checked(e, k as u64, &body, &applied);
+            }
             let (q, v) = (*body.configuration(), body.velocity());
             let out = if s.rejection_config::<M>().any() {
                 controller
@@ -176,6 +172,37 @@ impl OnGroup for Exercise<'_> {
         }
         Ok(())
     }
+}
+
+/// The scenario's vehicle as the controller side allocates for it (`None`: no vehicle).
+fn vehicle_of<const M: usize>(
+    s: &Scenario,
+) -> Result<Option<allocation::VehicleControl<f64, M>>, String> {
+    let Some(v) = &s.vehicle else {
+        return Ok(None);
+    };
+    let allocator = v.allocator::<M>().map_err(|_| "vehicle: allocator()")?;
+    Ok(Some(allocation::VehicleControl::new(
+        allocator,
+        v.restoring(),
+        v.actuator_rate_limit,
+        s.control_period,
+    )))
+}
+
+/// Tick `k` of the plant side's estimator (sensors, faults, filter and gate): the state it
+/// hands the law must be finite, whatever the samples.
+fn estimate_checked<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    e: &mut plant::estimation::Estimation,
+    k: u64,
+    body: &controller::integrator::RigidBody<f64, G, N, M>,
+    applied: &nalgebra::SVector<f64, M>,
+) {
+    let (q_hat, v_hat, _) = e.measure(k, body, applied);
+    assert!(
+        q_hat.iter().chain(v_hat.iter()).all(|x| x.is_finite()),
+        "the estimator returned a non-finite state: {q_hat} {v_hat}"
+    );
 }
 
 /// One allocation of the law's wrench `wrench` at attitude `r`: the commands (and the wrench

@@ -282,6 +282,9 @@ kind = "stuck"
 [estimator]
 kind = "eqf"
 direction_noise = [0.01, 0.01, 1.0]
+gate = true
+false_alarm_rate = 0.1
+health_window = 0.05
 "#,
 ];
 

@@ -65,7 +65,7 @@ pub(super) const STRINGS: [&str; 24] = [
 ];
 
 /// Known keys and values for [`TomlOp::SetKey`](super::mutation::TomlOp::SetKey).
-pub(super) const KEYS: [(&str, &[&str]); 25] = [
+pub(super) const KEYS: [(&str, &[&str]); 28] = [
     ("path", &["\"stop\"", "\"through\"", "\"curvy\"", "3"]),
     (
         "error_frame",
@@ -237,6 +237,12 @@ pub(super) const KEYS: [(&str, &[&str]); 25] = [
             "1",
         ],
     ),
+    ("gate", &["true", "false", "1", "\"yes\""]),
+    (
+        "false_alarm_rate",
+        &["0.01", "1e6", "0", "-1", "1e-300", "nan"],
+    ),
+    ("health_window", &["0.5", "0.001", "0", "1e9", "-0.5"]),
 ];
 
 /// Whole lines for [`TomlOp::InsertLine`](super::mutation::TomlOp::InsertLine).

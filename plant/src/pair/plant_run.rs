@@ -140,8 +140,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         // samples, and the rows take its estimate
         // the firmware's local origin: positions cross the serial line relative to it
         let origin = s.local_origin();
-        let onboard = (opts.serial.is_some() && s.filter_settings()?.is_some())
-            .then(link::serial::OnboardSlot::default);
+        let onboard = onboard(opts, &s)?;
         if onboard.is_some() {
             estimation = estimation.map(crate::estimation::Estimation::on_board);
         }
@@ -580,4 +579,25 @@ fn wire_samples(s: &crate::sensors::Samples, origin: &[f64; 3]) -> serial_wire::
         accel: s.accel.as_ref().map(f),
         position: s.position.as_ref().map(|x| f(&(x - o))),
     }
+}
+
+/// The slot for the estimate a controller on a serial link computes on board (it runs the
+/// scenario's filter itself), or `None`. The firmware does not run the innovation gate: a
+/// gated scenario is refused on a serial link.
+fn onboard(
+    opts: &PairOptions,
+    s: &scenario::Scenario,
+) -> Result<Option<link::serial::OnboardSlot>, SimError> {
+    if opts.serial.is_none() || s.filter_settings()?.is_none() {
+        return Ok(None);
+    }
+    if s.estimator.gate.is_some() {
+        return Err(SimError::Input(format!(
+            "scenario `{}`: [estimator] gate = true is not run by the processor-in-the-loop \
+             firmware yet (its filter runs on board without the gate); run it in the \
+             simulation or the pair",
+            s.name
+        )));
+    }
+    Ok(Some(link::serial::OnboardSlot::default()))
 }

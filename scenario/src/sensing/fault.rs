@@ -1,5 +1,6 @@
-//! `[[sensors.fault]]`: sensor faults a scenario scripts (docs/scenario.md, "Sensor
-//! faults"). Each names one sensor, when it starts and for how long, and what goes wrong:
+//! `[[sensors.fault]]`: sensor faults a scenario scripts
+//! (docs/scenario.md, "Sensor faults"). Each names one sensor, when it starts and for how
+//! long, and what goes wrong:
 //! a constant bias, no samples at all, or the last good sample repeated. The plant applies
 //! them to the samples it has drawn, so the sensors' random stream, and with it every sample
 //! outside a fault, is the same as without them.
@@ -106,8 +107,9 @@ pub(crate) struct Present {
 
 impl Validator<'_> {
     /// `[[sensors.fault]]`: each names a sensor the scenario has, a finite `t ≥ 0`, a
-    /// `duration > 0` when given, and a kind with its own keys (docs/scenario.md, "Sensor
-    /// faults"); two faults of one sensor must not overlap. In the table's order.
+    /// `duration > 0` when given, and a kind with its own keys
+    /// (docs/scenario.md, "Sensor faults"); two faults of one sensor must not overlap. In the
+    /// table's order.
     pub(crate) fn sensor_faults(
         &self,
         raw: &[RawSensorFault],

@@ -325,3 +325,127 @@ position = { noise = 0.005, rate_hz = 100.0 }
         "{e}"
     );
 }
+
+/// `[estimator] gate = true`: its defaults and thresholds from the false-alarm rate, and each
+/// bad value refused naming its key.
+#[test]
+fn the_gate_takes_its_thresholds_from_the_false_alarm_rate_and_bad_keys_name_themselves() {
+    let gated = SO3.replace("bias_limit = 0.1", "bias_limit = 0.1\ngate = true");
+    let s = seed_with(&gated).unwrap();
+    let spec = s.estimator.gate.clone().unwrap();
+    assert_eq!(
+        (spec.false_alarm_rate, spec.window, spec.noise.clone()),
+        (0.01, 0.5, vec![0.01, 0.02])
+    );
+    let c = s.gate_config().unwrap();
+    // α = λh/3600 per sample, and χ²₂'s upper quantile is −2 ln α
+    let alpha: f64 = 0.01 * 0.01 / 3600.0;
+    assert!(
+        (c.direction / (-2.0 * alpha.ln()) - 1.0).abs() < 1e-9,
+        "{}",
+        c.direction
+    );
+    assert_eq!((c.window, c.noise[..2].to_vec()), (50, vec![0.01, 0.02]));
+    // the fewest rejections a nominal sensor reaches no more than λ an hour
+    let tail = |r| super::gate::binomial_tail(50, alpha, r) * 3600.0 / 0.5;
+    assert!(tail(u64::from(c.rejections)) <= 0.01);
+    assert!(c.rejections == 1 || tail(u64::from(c.rejections) - 1) > 0.01);
+    // a looser rate gives a lower threshold
+    let loose = seed_with(&gated.replace("gate = true", "gate = true\nfalse_alarm_rate = 1e5"))
+        .unwrap()
+        .gate_config()
+        .unwrap();
+    assert!(loose.direction < 3.0 && c.direction > 30.0, "{loose:?}");
+    // the complementary filter behind the gate may be given the noise it is tested against
+    let noise = gated.replace("gate = true", "gate = true\ndirection_noise = [0.1, 0.2]");
+    assert_eq!(
+        seed_with(&noise).unwrap().estimator.gate.unwrap().noise,
+        vec![0.1, 0.2]
+    );
+    // SE(3): the accelerometer's noise over g, the window spans two fixes
+    let se3 = r#"
+[sensors]
+directions = [ { world = [1.0, 0.0, 0.0], noise = 0.01 } ]
+accelerometer = { noise = 0.0981 }
+position = { noise = 0.005, rate_hz = 10.0 }
+[estimator]
+kind = "eqf"
+gate = true
+"#;
+    let s = se3_with(se3).unwrap();
+    assert_eq!(s.estimator.gate.clone().unwrap().noise, vec![0.01, 0.01]);
+    // a fix's α is λ/(3600 f)
+    let p = crate::sensing::gate::binomial_tail(1, 0.01 / 36000.0, 1);
+    assert!(
+        (detection::threshold::chi2_survival(3, s.gate_config().unwrap().position) / p - 1.0).abs()
+            < 1e-6
+    );
+    for (text, needle) in [
+        (
+            gated.replace("gate = true", "false_alarm_rate = 1.0"),
+            "key `estimator.false_alarm_rate`: a setting of the innovation gate: give `gate = true`",
+        ),
+        (
+            gated.replace("gate = true", "health_window = 1.0"),
+            "key `estimator.health_window`: a setting of the innovation gate",
+        ),
+        (
+            gated.replace("gate = true", "gate = true\nfalse_alarm_rate = 0.0"),
+            "key `estimator.false_alarm_rate`: must be finite and > 0",
+        ),
+        (
+            gated.replace("gate = true", "gate = true\nfalse_alarm_rate = -1.0"),
+            "key `estimator.false_alarm_rate`: must be finite and > 0",
+        ),
+        (
+            gated.replace("gate = true", "gate = true\nfalse_alarm_rate = inf"),
+            "key `estimator.false_alarm_rate`",
+        ),
+        (
+            gated.replace("gate = true", "gate = true\nhealth_window = 0.0"),
+            "key `estimator.health_window`: must be finite and at least one control period (0.01 s)",
+        ),
+        (
+            gated.replace("gate = true", "gate = true\nhealth_window = nan"),
+            "key `estimator.health_window`",
+        ),
+        (
+            gated.replace("gate = true", "gate = \"yes\""),
+            "invalid type: string \"yes\", expected a boolean",
+        ),
+        (
+            gated.replace("gate = true", "direction_noise = [0.1, 0.2]"),
+            "key `estimator.direction_noise`: a key of kind = \"eqf\"",
+        ),
+        (
+            gated.replace("gate = true", "gate = true\ndirection_noise = [0.1]"),
+            "key `estimator.direction_noise`: expected 2 numbers",
+        ),
+        (
+            gated.replace("gate = true", "gate = true\ndirection_noise = [0.1, 0.0]"),
+            "key `estimator.direction_noise`: each must be > 0 (the gate divides by it)",
+        ),
+        (
+            gated.replace("noise = 0.02 }", "noise = 0.0 }"),
+            "key `estimator.direction_noise`: missing, and its default sensors.directions[1].noise is 0: the gate needs",
+        ),
+        (
+            SO3.replace("kind = \"complementary\"", "kind = \"truth\"\ngate = true")
+                .replace(
+                    "kp = 2.0\nki = 0.5\nweights = [1.0, 0.5]\nbias_limit = 0.1\n",
+                    "",
+                ),
+            "key `estimator.gate`: kind = \"truth\"",
+        ),
+    ] {
+        let e = seed_with(&text).unwrap_err();
+        assert!(e.contains(needle), "{text}\n{e}");
+    }
+    let e = se3_with(&se3.replace("gate = true", "gate = true\nhealth_window = 0.15")).unwrap_err();
+    assert!(
+        e.contains(
+            "key `estimator.health_window`: must span at least two position fixes (0.2 s at 10 Hz)"
+        ),
+        "{e}"
+    );
+}

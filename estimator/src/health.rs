@@ -1,0 +1,414 @@
+//! The innovation gate and the estimator's health (docs/estimators.md, "The innovation gate
+//! and health"): each direction sample and each position fix is tested before the filter
+//! uses it, by its normalised innovation squared (NIS) against the χ² threshold of a stated
+//! false-alarm rate, and rejected when it fails; a monitor over a sliding window of ticks
+//! turns the rejections and the gaps in each sensor's samples into `healthy`, `degraded` or
+//! `lost`, with the reason. `no_std`, allocation-free: fixed arrays, no clock (it counts ticks).
+
+use crate::complementary::SLOTS;
+use crate::{AttitudeConfig, AttitudeFilter, Directions};
+use controller::Real;
+use nalgebra::{Matrix3, Vector3};
+
+/// At most this many rejections within a window are kept per source.
+pub const MAX_REJECTIONS: usize = 8;
+
+/// The sources the monitor watches: the direction slots (on SE(3) the accelerometer's "up"
+/// is the slot after the direction sensors), then the gyro, then the position fixes.
+const SOURCES: usize = SLOTS + 2;
+const GYRO: usize = SLOTS;
+const POSITION: usize = SLOTS + 1;
+
+/// A sensor the monitor names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+pub enum Source {
+    /// Direction sensor `i` (in the scenario's list).
+    Direction(u8),
+    /// The accelerometer as the direction "up" (SE(3)).
+    Accelerometer,
+    /// The gyro.
+    Gyro,
+    /// The position fixes (SE(3)).
+    Position,
+    /// The attitude as a whole: fewer than two direction sources usable.
+    Attitude,
+}
+
+/// What is wrong.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+pub enum Reason {
+    /// The gate rejected at least the configured number of the source's samples within the
+    /// window.
+    Rejected(Source),
+    /// The source gave no usable sample (present and finite) for a whole window; for
+    /// [`Source::Attitude`], fewer than two direction sources passed the gate within it.
+    Missing(Source),
+}
+
+/// The estimator's health at a tick.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Health {
+    /// Every source is giving samples that pass the gate.
+    Healthy,
+    /// A source is missing or rejected; the estimate goes on without it.
+    Degraded(Reason),
+    /// The estimate has lost what it needs: the gyro, or two usable directions.
+    Lost(Reason),
+}
+
+impl Health {
+    /// 0 healthy, 1 degraded, 2 lost: the code in `trajectory.csv`'s `health` column.
+    pub fn code(&self) -> u8 {
+        match self {
+            Health::Healthy => 0,
+            Health::Degraded(_) => 1,
+            Health::Lost(_) => 2,
+        }
+    }
+
+    /// The reason, if not healthy.
+    pub fn reason(&self) -> Option<Reason> {
+        match self {
+            Health::Healthy => None,
+            Health::Degraded(r) | Health::Lost(r) => Some(*r),
+        }
+    }
+}
+
+/// The gate's thresholds and the monitor's window, from the scenario's false-alarm rate
+/// (docs/estimators.md, "The innovation gate and health").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GateConfig<T: Real> {
+    /// The χ² threshold of a direction sample's NIS (two degrees of freedom).
+    pub direction: T,
+    /// The χ² threshold of a position fix's NIS (three degrees of freedom).
+    pub position: T,
+    /// The complementary filter's test: each direction source's noise `σ_i` (unitless; the
+    /// accelerometer's "up" in its slot). The EqF tests against its own noise model.
+    pub noise: [T; SLOTS],
+    /// The monitor's window (ticks, ≥ 1).
+    pub window: u32,
+    /// Rejections of one source within a window that make it degraded (1 to
+    /// [`MAX_REJECTIONS`]).
+    pub rejections: u32,
+}
+
+/// One tick's verdict on each source.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Verdicts {
+    /// Bit `s` set: source `s` gave a usable sample this tick (direction slots, then the
+    /// gyro, then the position fix).
+    pub present: u8,
+    /// Bit `s` set: the gate rejected source `s`'s sample this tick.
+    pub rejected: u8,
+}
+
+/// The gate and the health monitor of one filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gate<T: Real> {
+    cfg: GateConfig<T>,
+    /// Direction slots in use (the sensors, and on SE(3) the accelerometer's "up" last).
+    slots: usize,
+    se3: bool,
+    tick: u32,
+    /// The tick each source last gave a usable sample, and last passed the gate.
+    present_at: [u32; SOURCES],
+    passed_at: [u32; SOURCES],
+    /// The ticks of each source's latest rejections, a ring.
+    rejected_at: [[u32; MAX_REJECTIONS]; SOURCES],
+    rejected_next: [usize; SOURCES],
+    /// Rejections since the start, per source.
+    totals: [u64; SOURCES],
+    health: Health,
+}
+
+impl<T: Real> Gate<T> {
+    /// A gate over `directions` direction sensors (and on SE(3) the accelerometer and
+    /// position fixes). The window and the rejection count are clamped into their ranges.
+    pub fn new(mut cfg: GateConfig<T>, directions: usize, se3: bool) -> Self {
+        cfg.window = cfg.window.max(1);
+        cfg.rejections = cfg.rejections.clamp(1, MAX_REJECTIONS as u32);
+        Gate {
+            cfg,
+            slots: (directions + usize::from(se3)).min(SLOTS),
+            se3,
+            tick: 0,
+            present_at: [0; SOURCES],
+            passed_at: [0; SOURCES],
+            rejected_at: [[u32::MAX; MAX_REJECTIONS]; SOURCES],
+            rejected_next: [0; SOURCES],
+            totals: [0; SOURCES],
+            health: Health::Healthy,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &GateConfig<T> {
+        &self.cfg
+    }
+
+    /// The health after the last tick.
+    pub fn health(&self) -> Health {
+        self.health
+    }
+
+    /// Rejections since the start: each direction sensor's (in order), the accelerometer's
+    /// (SE(3)), and the position fixes'.
+    pub fn rejections(&self) -> impl Iterator<Item = (Source, u64)> + '_ {
+        (0..self.slots)
+            .map(|s| (self.source(s), self.totals[s]))
+            .chain(self.se3.then(|| (Source::Position, self.totals[POSITION])))
+    }
+
+    fn source(&self, s: usize) -> Source {
+        match s {
+            GYRO => Source::Gyro,
+            POSITION => Source::Position,
+            s if self.se3 && s + 1 == self.slots => Source::Accelerometer,
+            s => Source::Direction(s as u8),
+        }
+    }
+
+    /// The direction test (docs/estimators.md, "The innovation gate and health"): removes
+    /// from `y` each usable direction whose NIS against the filter's prior exceeds the
+    /// threshold, and marks the tick's verdicts. Before the filter has started nothing is
+    /// tested.
+    pub(crate) fn directions<F: AttitudeFilter<T>>(
+        &self,
+        filter: &F,
+        h: T,
+        gyro: &Vector3<T>,
+        y: &mut Directions<T>,
+        verdicts: &mut Verdicts,
+    ) {
+        let prior = filter.prior(h, gyro);
+        for (s, slot) in y.iter_mut().enumerate().take(self.slots) {
+            let Some(yi) = *slot else { continue };
+            verdicts.present |= 1 << s;
+            let Some((r, sigma)) = prior else { continue };
+            let d = filter.config().world(s);
+            let ry = r * yi;
+            let innovation = ry - d;
+            let s_matrix = match (sigma, filter.noise(s)) {
+                // the EqF: S = M Σ_RR Mᵀ + σ² I with M = ½(d + R̂y)×
+                (Some(p), noise) => {
+                    let half: T = controller::real(0.5);
+                    let m = controller::group::so3::skew(&((d + ry) * half));
+                    m * p * m.transpose() + Matrix3::identity() * (noise * noise)
+                }
+                // the complementary filter: the sensors' noise model alone
+                (None, _) => {
+                    let noise = self.cfg.noise[s];
+                    Matrix3::identity() * (noise * noise)
+                }
+            };
+            let nis = match s_matrix.try_inverse() {
+                Some(inv) => innovation.dot(&(inv * innovation)),
+                None => continue,
+            };
+            // a NaN NIS fails too
+            let pass = nis <= self.cfg.direction;
+            if !pass {
+                *slot = None;
+                verdicts.rejected |= 1 << s;
+            }
+        }
+    }
+
+    /// The position test: whether a fix with innovation `z − x̂⁻` and scalar per-axis
+    /// innovation variance `s` passes (NIS `|z − x̂⁻|²/s` within the χ²₃ threshold). When no
+    /// fix has passed for a whole window the fix is taken whatever its NIS: the dead-reckoned
+    /// position has drifted further than its covariance says, and without this reset the
+    /// gate would keep out every fix after a long loss (EKF2 resets an aiding source after a
+    /// timeout in the same way). Directions have no such reset: a sensor turned for good stays
+    /// rejected.
+    pub(crate) fn position(&self, innovation: &Vector3<T>, s: T, verdicts: &mut Verdicts) -> bool {
+        verdicts.present |= 1 << POSITION;
+        let now = self.tick.saturating_add(1);
+        let stale = now >= self.cfg.window && now - self.passed_at[POSITION] >= self.cfg.window;
+        let pass = stale || (s > T::zero() && innovation.dot(innovation) / s <= self.cfg.position);
+        if !pass {
+            verdicts.rejected |= 1 << POSITION;
+        }
+        pass
+    }
+
+    /// The monitor's tick: the verdicts of this tick (and whether the gyro sample was
+    /// usable) turned into the health over the window (docs/estimators.md, "The innovation
+    /// gate and health").
+    pub(crate) fn observe(&mut self, mut verdicts: Verdicts, gyro_ok: bool) -> Health {
+        self.tick = self.tick.saturating_add(1);
+        let now = self.tick;
+        if gyro_ok {
+            verdicts.present |= 1 << GYRO;
+        }
+        for s in 0..SOURCES {
+            if verdicts.present & (1 << s) != 0 {
+                self.present_at[s] = now;
+                if verdicts.rejected & (1 << s) == 0 {
+                    self.passed_at[s] = now;
+                }
+            }
+            if verdicts.rejected & (1 << s) != 0 {
+                self.totals[s] += 1;
+                let i = self.rejected_next[s];
+                self.rejected_at[s][i] = now;
+                self.rejected_next[s] = (i + 1) % MAX_REJECTIONS;
+            }
+        }
+        self.health = self.judge();
+        self.health
+    }
+
+    /// The health at the present tick: lost before degraded, and within each the first
+    /// source in order (directions, accelerometer, gyro, position). Nothing is judged in the
+    /// first window, while a filter started from TRIAD converges.
+    fn judge(&self) -> Health {
+        let (now, w) = (self.tick, self.cfg.window);
+        if now < w {
+            return Health::Healthy;
+        }
+        let within = |at: u32| at != u32::MAX && now.saturating_sub(at) < w;
+        let missing = |s: usize| !within(self.present_at[s]);
+        if missing(GYRO) {
+            return Health::Lost(Reason::Missing(Source::Gyro));
+        }
+        let passing = (0..self.slots)
+            .filter(|s| within(self.passed_at[*s]))
+            .count();
+        if passing < 2 {
+            return Health::Lost(Reason::Missing(Source::Attitude));
+        }
+        // rejections in the first window (the filter converging) do not count
+        let rejected = |s: usize| {
+            let late = |at: u32| within(at) && at > w;
+            let n = self.rejected_at[s].iter().filter(|at| late(**at)).count();
+            n as u32 >= self.cfg.rejections
+        };
+        let mut sources = (0..self.slots).chain(self.se3.then_some(POSITION));
+        match sources.find(|s| missing(*s) || rejected(*s)) {
+            None => Health::Healthy,
+            Some(s) if missing(s) => Health::Degraded(Reason::Missing(self.source(s))),
+            Some(s) => Health::Degraded(Reason::Rejected(self.source(s))),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two directions on SO(3), a window of 10 ticks, degraded at 2 rejections.
+    fn gate(se3: bool) -> Gate<f64> {
+        let cfg = GateConfig {
+            direction: 20.0,
+            position: 25.0,
+            noise: [0.01; SLOTS],
+            window: 10,
+            rejections: 2,
+        };
+        Gate::new(cfg, 2, se3)
+    }
+
+    /// Verdicts with `present` sources and `rejected` among them.
+    fn v(present: &[usize], rejected: &[usize]) -> Verdicts {
+        let bits = |s: &[usize]| s.iter().fold(0u8, |b, i| b | (1 << i));
+        Verdicts {
+            present: bits(present) | bits(rejected),
+            rejected: bits(rejected),
+        }
+    }
+
+    #[test]
+    fn the_monitor_judges_over_its_window() {
+        let mut g = gate(false);
+        // the first window is not judged, even with nothing at all
+        for _ in 0..9 {
+            assert_eq!(g.observe(v(&[], &[]), false), Health::Healthy);
+        }
+        assert_eq!(
+            g.observe(v(&[], &[]), false),
+            Health::Lost(Reason::Missing(Source::Gyro))
+        );
+        let mut g = gate(false);
+        for _ in 0..20 {
+            assert_eq!(g.observe(v(&[0, 1], &[]), true), Health::Healthy);
+        }
+        // one rejection is the gate doing its work; two within a window degrade
+        assert_eq!(g.observe(v(&[0], &[1]), true), Health::Healthy);
+        for _ in 0..5 {
+            g.observe(v(&[0, 1], &[]), true);
+        }
+        let degraded = Health::Degraded(Reason::Rejected(Source::Direction(1)));
+        assert_eq!(g.observe(v(&[0], &[1]), true), degraded);
+        // ... until the first of them leaves the window (ticks 21 and 27: at tick 31)
+        for tick in 28..31 {
+            assert_eq!(g.observe(v(&[0, 1], &[]), true), degraded, "{tick}");
+        }
+        assert_eq!(g.observe(v(&[0, 1], &[]), true), Health::Healthy);
+        assert_eq!(
+            g.rejections().collect::<Vec<_>>(),
+            [(Source::Direction(0), 0), (Source::Direction(1), 2)]
+        );
+        // a direction that stops: missing a window after its last sample; with one source
+        // passing the attitude is lost first
+        for _ in 0..9 {
+            assert_eq!(g.observe(v(&[0], &[]), true), Health::Healthy);
+        }
+        assert_eq!(
+            g.observe(v(&[0], &[]), true),
+            Health::Lost(Reason::Missing(Source::Attitude))
+        );
+        // the gyro's loss comes before everything
+        for _ in 0..10 {
+            g.observe(v(&[], &[]), false);
+        }
+        assert_eq!(g.health(), Health::Lost(Reason::Missing(Source::Gyro)));
+        assert_eq!((g.health().code(), Health::Healthy.code()), (2, 0));
+    }
+
+    #[test]
+    fn on_se3_the_accelerometer_and_the_fixes_are_watched_and_a_stale_fix_is_taken() {
+        let mut g = gate(true);
+        let mut fix = Verdicts::default();
+        // a fix far outside its covariance is rejected ...
+        assert!(!g.position(&Vector3::new(1.0, 0.0, 0.0), 1e-4, &mut fix));
+        assert!(g.position(&Vector3::new(0.01, 0.0, 0.0), 1e-4, &mut fix));
+        let all = [0, 1, 2];
+        for _ in 0..20 {
+            g.observe(v(&[0, 1, 2, POSITION], &[]), true);
+        }
+        // the accelerometer (slot 2) rejected twice
+        g.observe(v(&[0, 1], &[2]), true);
+        assert_eq!(
+            g.observe(v(&[0, 1, POSITION], &[2]), true),
+            Health::Degraded(Reason::Rejected(Source::Accelerometer))
+        );
+        // fixes stop: missing a window after the last
+        for _ in 0..10 {
+            g.observe(v(&all, &[]), true);
+        }
+        assert_eq!(
+            g.health(),
+            Health::Degraded(Reason::Missing(Source::Position))
+        );
+        // ... and the first fix after a window without one is taken whatever its NIS
+        let mut fix = Verdicts::default();
+        assert!(g.position(&Vector3::new(100.0, 0.0, 0.0), 1e-4, &mut fix));
+        assert_eq!(fix.rejected, 0);
+        // the fixes are back (one tick without the directions is no gap)
+        assert_eq!(g.observe(fix, true), Health::Healthy);
+        let names: Vec<Source> = g.rejections().map(|(s, _)| s).collect();
+        assert_eq!(
+            names,
+            [
+                Source::Direction(0),
+                Source::Direction(1),
+                Source::Accelerometer,
+                Source::Position
+            ]
+        );
+    }
+}

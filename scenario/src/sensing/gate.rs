@@ -1,0 +1,188 @@
+//! `[estimator] gate = true`: the innovation gate and the health monitor (docs/estimators.md,
+//! "The innovation gate and health"), its keys checked, and its thresholds from the stated
+//! false-alarm rate.
+
+use super::{EstimatorKind, RawEstimator, SensorsSpec};
+use crate::{Scenario, ScenarioError, Validator};
+use detection::threshold::chi2_upper;
+use estimator::health::{GateConfig, MAX_REJECTIONS};
+
+/// The gate's settings as the scenario gives them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GateSpec {
+    /// Expected false rejections per hour of flight, per sensor (`false_alarm_rate`).
+    pub false_alarm_rate: f64,
+    /// The health monitor's window (s, `health_window`).
+    pub window: f64,
+    /// The noise each direction source is tested against (unitless; the accelerometer's
+    /// "up" last on SE(3)): `direction_noise`, by default the sensors'. The EqF's own noise
+    /// model is this list; the complementary filter has none, and the gate uses it.
+    pub noise: Vec<f64>,
+}
+
+/// The default false-alarm rate: one false rejection per sensor in a hundred hours.
+pub const DEFAULT_FALSE_ALARM_RATE: f64 = 0.01;
+/// The default health window (s).
+pub const DEFAULT_WINDOW: f64 = 0.5;
+
+impl Validator<'_> {
+    /// `estimator.gate`, `false_alarm_rate` and `health_window` (and for the complementary
+    /// filter `direction_noise`, the noise the gate tests against): a rate > 0, and a window
+    /// of at least one control period and, with position fixes, two fixes.
+    pub(crate) fn gate(
+        &self,
+        raw: &RawEstimator,
+        kind: EstimatorKind,
+        sensors: &SensorsSpec,
+        sources: usize,
+        period: f64,
+    ) -> Result<Option<GateSpec>, ScenarioError> {
+        let (rate, window) = (raw.false_alarm_rate, raw.health_window);
+        if !raw.gate.unwrap_or(false) {
+            for (key, given) in [
+                ("false_alarm_rate", rate.is_some()),
+                ("health_window", window.is_some()),
+            ] {
+                if given {
+                    return Err(self.err(
+                        &format!("estimator.{key}"),
+                        "a setting of the innovation gate: give `gate = true` to turn it on",
+                    ));
+                }
+            }
+            return Ok(None);
+        }
+        let who = match kind {
+            EstimatorKind::Complementary => "the gate",
+            _ => "the EqF",
+        };
+        let noise = self.direction_noise(raw, sensors, sources, who)?;
+        let false_alarm_rate = rate.unwrap_or(DEFAULT_FALSE_ALARM_RATE);
+        if !(false_alarm_rate.is_finite() && false_alarm_rate > 0.0) {
+            return Err(self.err(
+                "estimator.false_alarm_rate",
+                format!(
+                    "must be finite and > 0 (false rejections per hour), got {false_alarm_rate}"
+                ),
+            ));
+        }
+        let window = window.unwrap_or(DEFAULT_WINDOW);
+        if !(window.is_finite() && window >= period) {
+            return Err(self.err(
+                "estimator.health_window",
+                format!(
+                    "must be finite and at least one control period ({period} s), got {window}"
+                ),
+            ));
+        }
+        if let Some(p) = sensors.position
+            && window < 2.0 / p.rate_hz
+        {
+            return Err(self.err(
+                "estimator.health_window",
+                format!(
+                    "must span at least two position fixes ({} s at {} Hz), got {window}",
+                    2.0 / p.rate_hz,
+                    p.rate_hz
+                ),
+            ));
+        }
+        Ok(Some(GateSpec {
+            false_alarm_rate,
+            window,
+            noise,
+        }))
+    }
+}
+
+/// `P(X ≥ r)` for `X ~ Binomial(n, p)`, `0 < p < 1`, in bounded time whatever `n`: the terms
+/// `P(X = k)` from `P(X = 0) = (1 − p)ⁿ` by `P(X = k + 1) = P(X = k) (n − k) p / ((k + 1)(1 − p))`.
+/// When the first `r` hold at least half the mass the tail is summed from `r` on until its
+/// terms no longer count (so a tail far below 1 keeps its digits); else it is one minus them.
+pub fn binomial_tail(n: u64, p: f64, r: u64) -> f64 {
+    if r == 0 {
+        return 1.0;
+    }
+    if r > n {
+        return 0.0;
+    }
+    let step = |term: f64, k: u64| term * (n - k) as f64 / (k + 1) as f64 * p / (1.0 - p);
+    let mut term = (1.0 - p).powf(n as f64);
+    let mut head = 0.0;
+    for k in 0..r {
+        head += term;
+        term = step(term, k);
+    }
+    if head < 0.5 {
+        return (1.0 - head).clamp(0.0, 1.0);
+    }
+    let mut tail = 0.0;
+    let mut k = r;
+    while k <= n && k < r + 100_000 {
+        tail += term;
+        if term <= tail * 1e-17 {
+            break;
+        }
+        term = step(term, k);
+        k += 1;
+    }
+    tail.min(1.0)
+}
+
+impl Scenario {
+    /// The gate's thresholds (docs/estimators.md, "The innovation gate and health"), or
+    /// `None` without `gate = true`. With `λ` false rejections per hour per sensor, a sample
+    /// is rejected with probability `α = λ h / 3600` (a fix: `λ / (3600 f)`), so the
+    /// direction threshold is the χ²₂ upper `α` quantile and the fix's the χ²₃; a source
+    /// is degraded after the fewest rejections `r` within a window of `n` ticks such that a
+    /// nominal sensor reaches them no more than `λ` times an hour,
+    /// `P(Binomial(n, α) ≥ r) · 3600 / window ≤ λ`.
+    pub fn gate_config(&self) -> Option<GateConfig<f64>> {
+        let spec = self.estimator.gate.as_ref()?;
+        let sensors = self.sensors.as_ref()?;
+        let h = self.control_period;
+        let rate = spec.false_alarm_rate;
+        let alpha = rate * h / 3600.0;
+        let fix_rate = sensors.position.map_or(1.0 / h, |p| p.rate_hz);
+        let ticks = ((spec.window / h).round() as u64).clamp(1, u64::from(u32::MAX));
+        let windows_per_hour = 3600.0 / spec.window;
+        let rejections = (1..=MAX_REJECTIONS as u64)
+            .find(|r| binomial_tail(ticks, alpha, *r) * windows_per_hour <= rate)
+            .unwrap_or(MAX_REJECTIONS as u64);
+        let mut noise = [0.0; estimator::MAX_DIRECTIONS + 1];
+        for (n, x) in noise.iter_mut().zip(&spec.noise) {
+            *n = *x;
+        }
+        Some(GateConfig {
+            direction: chi2_upper(2, alpha),
+            position: chi2_upper(3, rate / (3600.0 * fix_rate)),
+            noise,
+            window: ticks as u32,
+            rejections: rejections as u32,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::binomial_tail;
+
+    #[test]
+    fn the_binomial_tail_is_the_sum_of_its_terms() {
+        // n = 3, p = ½: P(X ≥ 2) = 4/8
+        assert!((binomial_tail(3, 0.5, 2) - 0.5).abs() < 1e-15);
+        assert!((binomial_tail(3, 0.5, 0) - 1.0).abs() < 1e-15);
+        assert!((binomial_tail(10, 0.1, 1) - (1.0 - 0.9f64.powi(10))).abs() < 1e-15);
+        // far in the tail it is the first term, C(n, r) pʳ
+        let t = binomial_tail(250, 1e-8, 2);
+        assert!(
+            (t / (250.0 * 249.0 / 2.0 * 1e-16) - 1.0).abs() < 1e-5,
+            "{t}"
+        );
+        assert!(binomial_tail(250, 1e-8, 5) > 0.0);
+        // huge counts in bounded time: far past its mean the tail is 1, far below it 0
+        assert_eq!(binomial_tail(u64::MAX, 0.5, 8), 1.0);
+        assert!(binomial_tail(u64::MAX, 1e-30, 8) < 1e-50);
+        assert_eq!(binomial_tail(5, 0.5, 6), 0.0);
+    }
+}
