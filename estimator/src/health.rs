@@ -1,5 +1,5 @@
-//! The innovation gate and the estimator's health (docs/estimators.md, "The innovation gate
-//! and health"): each direction sample and each position fix is tested before the filter
+//! The innovation gate and the estimator's health
+//! (docs/estimators.md, "The innovation gate and health"): each direction sample and each position fix is tested before the filter
 //! uses it, by its normalised innovation squared (NIS) against the χ² threshold of a stated
 //! false-alarm rate, and rejected when it fails; a monitor over a sliding window of ticks
 //! turns the rejections and the gaps in each sensor's samples into `healthy`, `degraded` or
@@ -236,8 +236,8 @@ impl<T: Real> Gate<T> {
     }
 
     /// The monitor's tick: the verdicts of this tick (and whether the gyro sample was
-    /// usable) turned into the health over the window (docs/estimators.md, "The innovation
-    /// gate and health").
+    /// usable) turned into the health over the window
+    /// (docs/estimators.md, "The innovation gate and health").
     pub(crate) fn observe(&mut self, mut verdicts: Verdicts, gyro_ok: bool) -> Health {
         self.tick = self.tick.saturating_add(1);
         let now = self.tick;

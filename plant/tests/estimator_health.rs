@@ -1,5 +1,5 @@
-//! The innovation gate and the estimator's health (docs/estimators.md, "The innovation gate
-//! and health") on `hexarotor_eqf`: a direction sensor turned by 30° is rejected and the
+//! The innovation gate and the estimator's health
+//! (docs/estimators.md, "The innovation gate and health") on `hexarotor_eqf`: a direction sensor turned by 30° is rejected and the
 //! attitude estimate holds; position fixes lost for 10 s degrade the health within the window
 //! and it recovers when they return; nominal noisy flights never degrade.
 
