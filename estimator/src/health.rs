@@ -45,6 +45,9 @@ pub enum Reason {
     /// The source gave no usable sample (present and finite) for a whole window; for
     /// [`Source::Attitude`], fewer than two direction sources passed the gate within it.
     Missing(Source),
+    /// A sample was taken without the test within the window: position fixes after a window
+    /// in which none passed (the estimate had drifted from them, or they jumped).
+    Reset(Source),
 }
 
 /// The estimator's health at a tick.
@@ -103,6 +106,11 @@ pub struct Verdicts {
     pub present: u8,
     /// Bit `s` set: the gate rejected source `s`'s sample this tick.
     pub rejected: u8,
+    /// Bit `s` set: source `s`'s sample was present but not used, and not for the gate's
+    /// reasons (the accelerometer kept out by `accel_gate` while the body accelerates).
+    pub unused: u8,
+    /// Bit `s` set: source `s`'s sample was taken without the test (a reset).
+    pub reset: u8,
 }
 
 /// The gate and the health monitor of one filter.
@@ -112,12 +120,14 @@ pub struct Gate<T: Real> {
     /// Direction slots in use (the sensors, and on SE(3) the accelerometer's "up" last).
     slots: usize,
     se3: bool,
-    tick: u32,
-    /// The tick each source last gave a usable sample, and last passed the gate.
-    present_at: [u32; SOURCES],
-    passed_at: [u32; SOURCES],
-    /// The ticks of each source's latest rejections, a ring.
-    rejected_at: [[u32; MAX_REJECTIONS]; SOURCES],
+    tick: u64,
+    /// The tick each source last gave a usable sample, last passed the gate, and was last
+    /// reset (`u64::MAX`: never).
+    present_at: [u64; SOURCES],
+    passed_at: [u64; SOURCES],
+    reset_at: [u64; SOURCES],
+    /// The ticks of each source's latest rejections, a ring (`u64::MAX`: none).
+    rejected_at: [[u64; MAX_REJECTIONS]; SOURCES],
     rejected_next: [usize; SOURCES],
     /// Rejections since the start, per source.
     totals: [u64; SOURCES],
@@ -137,7 +147,8 @@ impl<T: Real> Gate<T> {
             tick: 0,
             present_at: [0; SOURCES],
             passed_at: [0; SOURCES],
-            rejected_at: [[u32::MAX; MAX_REJECTIONS]; SOURCES],
+            reset_at: [u64::MAX; SOURCES],
+            rejected_at: [[u64::MAX; MAX_REJECTIONS]; SOURCES],
             rejected_next: [0; SOURCES],
             totals: [0; SOURCES],
             health: Health::Healthy,
@@ -219,16 +230,23 @@ impl<T: Real> Gate<T> {
 
     /// The position test: whether a fix with innovation `z − x̂⁻` and scalar per-axis
     /// innovation variance `s` passes (NIS `|z − x̂⁻|²/s` within the χ²₃ threshold). When no
-    /// fix has passed for a whole window the fix is taken whatever its NIS: the dead-reckoned
-    /// position has drifted further than its covariance says, and without this reset the
-    /// gate would keep out every fix after a long loss (EKF2 resets an aiding source after a
-    /// timeout in the same way). Directions have no such reset: a sensor turned for good stays
-    /// rejected.
+    /// fix has passed for a whole window a failing fix is taken all the same, a reset, and
+    /// reported (`degraded`, "reset position", for a window): either the dead-reckoned
+    /// position has drifted further than its covariance says (after a long loss of fixes,
+    /// when without the reset the gate would keep out every fix for good) or the fixes have
+    /// jumped, and the estimator cannot tell which (EKF2 resets an aiding source after a
+    /// timeout in the same way). Directions have no such reset: a sensor turned for good
+    /// stays rejected.
     pub(crate) fn position(&self, innovation: &Vector3<T>, s: T, verdicts: &mut Verdicts) -> bool {
         verdicts.present |= 1 << POSITION;
-        let now = self.tick.saturating_add(1);
-        let stale = now >= self.cfg.window && now - self.passed_at[POSITION] >= self.cfg.window;
-        let pass = stale || (s > T::zero() && innovation.dot(innovation) / s <= self.cfg.position);
+        let now = self.tick + 1;
+        let w = u64::from(self.cfg.window);
+        let pass = s > T::zero() && innovation.dot(innovation) / s <= self.cfg.position;
+        let stale = now >= w && now - self.passed_at[POSITION] >= w;
+        if !pass && stale {
+            verdicts.reset |= 1 << POSITION;
+            return true;
+        }
         if !pass {
             verdicts.rejected |= 1 << POSITION;
         }
@@ -239,17 +257,21 @@ impl<T: Real> Gate<T> {
     /// usable) turned into the health over the window
     /// (docs/estimators.md, "The innovation gate and health").
     pub(crate) fn observe(&mut self, mut verdicts: Verdicts, gyro_ok: bool) -> Health {
-        self.tick = self.tick.saturating_add(1);
+        self.tick += 1;
         let now = self.tick;
         if gyro_ok {
             verdicts.present |= 1 << GYRO;
         }
         for s in 0..SOURCES {
-            if verdicts.present & (1 << s) != 0 {
+            let bit = 1 << s;
+            if verdicts.present & bit != 0 {
                 self.present_at[s] = now;
-                if verdicts.rejected & (1 << s) == 0 {
+                if (verdicts.rejected | verdicts.unused) & bit == 0 {
                     self.passed_at[s] = now;
                 }
+            }
+            if verdicts.reset & bit != 0 {
+                self.reset_at[s] = now;
             }
             if verdicts.rejected & (1 << s) != 0 {
                 self.totals[s] += 1;
@@ -266,11 +288,11 @@ impl<T: Real> Gate<T> {
     /// source in order (directions, accelerometer, gyro, position). Nothing is judged in the
     /// first window, while a filter started from TRIAD converges.
     fn judge(&self) -> Health {
-        let (now, w) = (self.tick, self.cfg.window);
+        let (now, w) = (self.tick, u64::from(self.cfg.window));
         if now < w {
             return Health::Healthy;
         }
-        let within = |at: u32| at != u32::MAX && now.saturating_sub(at) < w;
+        let within = |at: u64| at != u64::MAX && now.saturating_sub(at) < w;
         let missing = |s: usize| !within(self.present_at[s]);
         if missing(GYRO) {
             return Health::Lost(Reason::Missing(Source::Gyro));
@@ -283,15 +305,17 @@ impl<T: Real> Gate<T> {
         }
         // rejections in the first window (the filter converging) do not count
         let rejected = |s: usize| {
-            let late = |at: u32| within(at) && at > w;
+            let late = |at: u64| within(at) && at > w;
             let n = self.rejected_at[s].iter().filter(|at| late(**at)).count();
             n as u32 >= self.cfg.rejections
         };
+        let reset = |s: usize| within(self.reset_at[s]);
         let mut sources = (0..self.slots).chain(self.se3.then_some(POSITION));
-        match sources.find(|s| missing(*s) || rejected(*s)) {
+        match sources.find(|s| missing(*s) || rejected(*s) || reset(*s)) {
             None => Health::Healthy,
             Some(s) if missing(s) => Health::Degraded(Reason::Missing(self.source(s))),
-            Some(s) => Health::Degraded(Reason::Rejected(self.source(s))),
+            Some(s) if rejected(s) => Health::Degraded(Reason::Rejected(self.source(s))),
+            Some(s) => Health::Degraded(Reason::Reset(self.source(s))),
         }
     }
 }
@@ -318,6 +342,7 @@ mod tests {
         Verdicts {
             present: bits(present) | bits(rejected),
             rejected: bits(rejected),
+            ..Verdicts::default()
         }
     }
 
@@ -394,12 +419,33 @@ mod tests {
             g.health(),
             Health::Degraded(Reason::Missing(Source::Position))
         );
-        // ... and the first fix after a window without one is taken whatever its NIS
+        // ... and the first fix after a window without one is taken whatever its NIS, a
+        // reset reported for a window
         let mut fix = Verdicts::default();
         assert!(g.position(&Vector3::new(100.0, 0.0, 0.0), 1e-4, &mut fix));
-        assert_eq!(fix.rejected, 0);
-        // the fixes are back (one tick without the directions is no gap)
-        assert_eq!(g.observe(fix, true), Health::Healthy);
+        assert_eq!((fix.rejected, fix.reset), (0, 1 << POSITION));
+        let reset = Health::Degraded(Reason::Reset(Source::Position));
+        assert_eq!(g.observe(fix, true), reset);
+        for _ in 0..9 {
+            assert_eq!(g.observe(v(&[0, 1, 2, POSITION], &[]), true), reset);
+        }
+        assert_eq!(
+            g.observe(v(&[0, 1, 2, POSITION], &[]), true),
+            Health::Healthy
+        );
+        // an accelerometer kept out by its magnitude gate is present, not passed: with one
+        // direction left the attitude is lost a window later
+        let gated = Verdicts {
+            unused: 1 << 2,
+            ..v(&[0, 2, POSITION], &[])
+        };
+        for _ in 0..9 {
+            assert_eq!(g.observe(gated, true), Health::Healthy);
+        }
+        assert_eq!(
+            g.observe(gated, true),
+            Health::Lost(Reason::Missing(Source::Attitude))
+        );
         let names: Vec<Source> = g.rejections().map(|(s, _)| s).collect();
         assert_eq!(
             names,

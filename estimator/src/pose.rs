@@ -436,7 +436,7 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
     /// The accelerometer's sample as the direction "up" in `slot` (slot `n`): not when it
     /// has a non-finite entry (`accel`; the return is then false, and the prediction uses
     /// `a = 0`), is too short (`directions`), or its magnitude is kept out by `accel_gate`
-    /// (`accel_gated`; present for the health monitor, not a direction).
+    /// (`accel_gated`; present for the health monitor, neither passed nor rejected).
     fn up(
         &mut self,
         accel: &Vector3<T>,
@@ -456,6 +456,7 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
             {
                 self.attitude.faults_mut().accel_gated += 1;
                 verdicts.present |= 1 << n;
+                verdicts.unused |= 1 << n;
             } else {
                 *slot = Some(up);
             }

@@ -16,7 +16,8 @@
 //!     by software.
 //!   - Of the raised causes, the one with the most severe action is engaged:
 //!     `disarm` > `descend` = `surface` > `damp` > `hold` > `warn`. A tie goes to the cause
-//!     named first in [`Cause::ALL`] (link, estimator, actuators, tracking).
+//!     already engaged, else to the one named first in [`Cause::ALL`] (link, estimator,
+//!     actuators, tracking): an equal cause does not take over (a hold keeps its pose).
 //!   - When every raised cause has cleared, the vehicle is back to nominal.
 //! * **Transitions.** Every change of the engaged cause or action is returned, for the caller
 //!   to record.
@@ -246,7 +247,11 @@ pub fn step(cfg: &Config, state: &State, inputs: &Inputs) -> (State, Option<Tran
             }
         }
     }
-    let mut engaged: Option<(Cause, Action)> = None;
+    // the engaged cause keeps its place against a cause of equal severity
+    let mut engaged: Option<(Cause, Action)> = match state.mode {
+        Mode::Engaged { cause, action } if next.raised[cause.index()] => Some((cause, action)),
+        _ => None,
+    };
     for cause in Cause::ALL {
         if let (true, Some(action)) = (next.raised[cause.index()], cfg.action(cause))
             && engaged.is_none_or(|(_, a)| action.severity() > a.severity())

@@ -108,6 +108,14 @@ fn the_most_severe_cause_is_engaged_and_the_milder_one_returns_when_it_clears() 
     );
     let out = run(&cfg, &[inputs(true, false, true, false)]);
     assert_eq!(out[0].0, engaged(Cause::Link, Action::Descend));
+    // ... but not against the cause already engaged: an equal cause does not take over
+    let act = inputs(false, false, true, false);
+    let out = run(&cfg, &[act, inputs(true, false, true, false), act]);
+    assert!(
+        out.iter()
+            .all(|(m, _)| *m == engaged(Cause::Actuators, Action::Descend))
+    );
+    assert_eq!(out.iter().filter(|(_, t)| t.is_some()).count(), 1);
 }
 
 #[test]

@@ -98,6 +98,7 @@ pub fn describe(h: &Health) -> (&'static str, String) {
         None => String::new(),
         Some(Reason::Rejected(s)) => format!("rejected {}", source_name(s)),
         Some(Reason::Missing(s)) => format!("missing {}", source_name(s)),
+        Some(Reason::Reset(s)) => format!("reset {}", source_name(s)),
     };
     (name, reason)
 }

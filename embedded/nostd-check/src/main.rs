@@ -493,8 +493,95 @@ fn firmware_cycle_on_board_check() -> bool {
     ok
 }
 
+/// The failsafe manager without std: a cause engages its action at once, a more severe one
+/// takes over, and the milder one is back when it clears after the hysteresis.
+fn failsafe_check() -> bool {
+    use failsafe::{Action, Cause, Config, Inputs, Mode, State, step};
+    let cfg = Config {
+        actions: [None, Some(Action::Hold), Some(Action::Descend), None],
+        clear_ticks: 2,
+    };
+    let est = Inputs {
+        estimator: true,
+        ..Inputs::default()
+    };
+    let both = Inputs {
+        actuators: true,
+        ..est
+    };
+    let mut s = State::default();
+    let mut modes = [Mode::Nominal; 4];
+    for (m, i) in modes.iter_mut().zip([est, both, est, est]) {
+        let (next, _) = step(&cfg, &s, &i);
+        s = next;
+        *m = s.mode();
+    }
+    let hold = Mode::Engaged {
+        cause: Cause::Estimator,
+        action: Action::Hold,
+    };
+    let descend = Mode::Engaged {
+        cause: Cause::Actuators,
+        action: Action::Descend,
+    };
+    modes == [hold, descend, descend, hold]
+}
+
+/// The innovation gate without std: a direction turned by 30° is rejected while the other
+/// passes, and the health says which.
+fn gate_check<T: Real>() -> bool {
+    use estimator::health::{GateConfig, Health, Reason, Source};
+    use estimator::{FilterKind, Settings};
+    let w = [Vector3::z(), Vector3::x()];
+    let r = So3::exp(&Vector3::new(real::<T>(0.3), real(-0.4), real(0.2)));
+    let settings = Settings {
+        kind: FilterKind::Eqf {
+            gyro_noise: real(0.002),
+            bias_walk: real(1e-5),
+            direction_noise: [real(0.01); 5],
+            count: 2,
+            initial_attitude_std: real(0.1),
+            initial_bias_std: real(0.05),
+        },
+        world: [w[0], w[1], Vector3::zeros(), Vector3::zeros()],
+        directions: 2,
+        initial_attitude: None,
+        bias_limit: None,
+        accel_gate: None,
+        accel_noise: T::zero(),
+        position_noise: T::zero(),
+    };
+    let Ok(mut f) = settings.build(false) else {
+        return false;
+    };
+    let cfg = GateConfig {
+        direction: real(38.0),
+        position: real(36.6),
+        noise: [real(0.01); 5],
+        window: 10,
+        rejections: 1,
+    };
+    let mut gate = estimator::health::Gate::new(cfg, 2, false);
+    let turned = So3::exp(&Vector3::new(T::zero(), T::zero(), real(0.5236)));
+    let zero = Vector3::zeros();
+    let mut health = Health::Healthy;
+    for k in 0..40 {
+        let y0 = r.tr_mul(&w[0]);
+        let y1 = r.tr_mul(&w[1]);
+        let y = if k < 20 { [y0, y1] } else { [y0, turned * y1] };
+        let (_, h): (estimator::Step<T, 3, 3>, Health) =
+            f.step_gated(&mut gate, real(0.01), &zero, &y, &zero, None);
+        health = h;
+    }
+    let rejected: u64 = gate.rejections().map(|(_, n)| n).sum();
+    health == Health::Lost(Reason::Missing(Source::Attitude)) && rejected == 20
+}
+
 fn run() -> i32 {
-    let checks: [(&str, bool); 20] = [
+    let checks: [(&str, bool); 23] = [
+        ("failsafe manager", failsafe_check()),
+        ("innovation gate f32", gate_check::<f32>()),
+        ("innovation gate f64", gate_check::<f64>()),
         ("detection f32", detection_check::<f32>()),
         ("detection f64", detection_check::<f64>()),
         ("firmware_cycle", firmware_cycle_check()),
@@ -526,7 +613,7 @@ fn run() -> i32 {
         }
     }
     rt::write(if code == 0 {
-        b"nostd-check: controller, estimator, allocation, detection, ipc_types, serial_wire and firmware_cycle run with no std, no alloc, no allocator\n"
+        b"nostd-check: controller, estimator, allocation, detection, failsafe, ipc_types, serial_wire and firmware_cycle run with no std, no alloc, no allocator\n"
     } else {
         b"nostd-check: FAILED\n"
     });

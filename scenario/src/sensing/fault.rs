@@ -180,10 +180,10 @@ impl Validator<'_> {
             "gyro" => Some(Sensor::Gyro),
             "accelerometer" if present.accelerometer => Some(Sensor::Accelerometer),
             "position" if present.position => Some(Sensor::Position),
+            // the index as the list counts it, without leading zeros or a sign
             other => other
                 .strip_prefix("direction")
-                .filter(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
-                .and_then(|n| n.parse::<usize>().ok())
+                .and_then(|n| n.parse::<usize>().ok().filter(|i| i.to_string() == n))
                 .filter(|i| *i < present.directions)
                 .map(Sensor::Direction),
         };
@@ -244,6 +244,21 @@ impl Validator<'_> {
                     "the bias per axis"
                 };
                 let v = self.vector(&key(wanted), xs, 3, why)?;
+                let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+                let most = if direction {
+                    core::f64::consts::PI
+                } else {
+                    1e6
+                };
+                if norm > most {
+                    return refuse(
+                        wanted,
+                        format!(
+                            "{} at most {most} in length, got one of length {norm}",
+                            if direction { "a turn of" } else { "a bias of" }
+                        ),
+                    );
+                }
                 Ok(SensorFaultKind::Bias([v[0], v[1], v[2]]))
             }
             kind @ ("dropout" | "stuck") => {

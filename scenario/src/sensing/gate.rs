@@ -66,7 +66,26 @@ impl Validator<'_> {
                 ),
             ));
         }
-        let window = window.unwrap_or(DEFAULT_WINDOW);
+        // a rate that rejects half the samples or more is no test
+        let fastest = sensors
+            .position
+            .map_or(1.0 / period, |p| p.rate_hz.min(1.0 / period));
+        let most = 1800.0 * fastest;
+        if false_alarm_rate >= most {
+            return Err(self.err(
+                "estimator.false_alarm_rate",
+                format!(
+                    "must be below {most} an hour (half the samples of the sensor that gives \
+                     fewest), got {false_alarm_rate}"
+                ),
+            ));
+        }
+        // by default a window spans at least two fixes
+        let window = window.unwrap_or_else(|| {
+            sensors
+                .position
+                .map_or(DEFAULT_WINDOW, |p| DEFAULT_WINDOW.max(2.0 / p.rate_hz))
+        });
         if !(window.is_finite() && window >= period) {
             return Err(self.err(
                 "estimator.health_window",
@@ -134,9 +153,10 @@ impl Scenario {
     /// `None` without `gate = true`. With `λ` false rejections per hour per sensor, a sample
     /// is rejected with probability `α = λ h / 3600` (a fix: `λ / (3600 f)`), so the
     /// direction threshold is the χ²₂ upper `α` quantile and the fix's the χ²₃; a source
-    /// is degraded after the fewest rejections `r` within a window of `n` ticks such that a
-    /// nominal sensor reaches them no more than `λ` times an hour,
-    /// `P(Binomial(n, α) ≥ r) · 3600 / window ≤ λ`.
+    /// is degraded after the fewest rejections `r` within a sliding window of `n` ticks such
+    /// that a nominal sensor reaches them no more than `λ` times an hour: a window reaches
+    /// `r` at a tick whose sample is rejected with `r − 1` more among the `n − 1` before, so
+    /// `(3600/h) · α · P(Binomial(n − 1, α) ≥ r − 1) ≤ λ`.
     pub fn gate_config(&self) -> Option<GateConfig<f64>> {
         let spec = self.estimator.gate.as_ref()?;
         let sensors = self.sensors.as_ref()?;
@@ -145,9 +165,11 @@ impl Scenario {
         let alpha = rate * h / 3600.0;
         let fix_rate = sensors.position.map_or(1.0 / h, |p| p.rate_hz);
         let ticks = ((spec.window / h).round() as u64).clamp(1, u64::from(u32::MAX));
-        let windows_per_hour = 3600.0 / spec.window;
+        let ticks_per_hour = 3600.0 / h;
+        // r = 1 is the gate's own rate, λ, up to rounding
+        let rate_of = |r: u64| ticks_per_hour * alpha * binomial_tail(ticks - 1, alpha, r - 1);
         let rejections = (1..=MAX_REJECTIONS as u64)
-            .find(|r| binomial_tail(ticks, alpha, *r) * windows_per_hour <= rate)
+            .find(|r| rate_of(*r) <= rate * (1.0 + 1e-9))
             .unwrap_or(MAX_REJECTIONS as u64);
         let mut noise = [0.0; estimator::MAX_DIRECTIONS + 1];
         for (n, x) in noise.iter_mut().zip(&spec.noise) {

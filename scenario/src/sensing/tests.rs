@@ -236,6 +236,22 @@ position = { noise = 0.005, rate_hz = 100.0 }
             "key `sensors.fault[0].sensor`",
         ),
         (
+            bias("direction01", "rotation = [0, 0, 1]"),
+            "key `sensors.fault[0].sensor`: the scenario has no sensor \"direction01\"",
+        ),
+        (
+            bias("direction0", "rotation = [0, 0, 3.2]"),
+            "key `sensors.fault[0].rotation`: a turn of at most 3.14",
+        ),
+        (
+            bias("direction0", "rotation = [1e200, 0, 0]"),
+            "key `sensors.fault[0].rotation`: a turn of at most",
+        ),
+        (
+            bias("gyro", "value = [2e6, 0, 0]"),
+            "key `sensors.fault[0].value`: a bias of at most 1000000 in length",
+        ),
+        (
             bias("gyro", "value = [1, 2, 3]").replace("t = 1.0", "t = -1.0"),
             "key `sensors.fault[0].t`: must be finite and ≥ 0, got -1",
         ),
@@ -346,10 +362,11 @@ fn the_gate_takes_its_thresholds_from_the_false_alarm_rate_and_bad_keys_name_the
         c.direction
     );
     assert_eq!((c.window, c.noise[..2].to_vec()), (50, vec![0.01, 0.02]));
-    // the fewest rejections a nominal sensor reaches no more than λ an hour
-    let tail = |r| super::gate::binomial_tail(50, alpha, r) * 3600.0 / 0.5;
-    assert!(tail(u64::from(c.rejections)) <= 0.01);
-    assert!(c.rejections == 1 || tail(u64::from(c.rejections) - 1) > 0.01);
+    // the fewest rejections a nominal sensor reaches within a sliding window no more than λ
+    // an hour: one rejection comes at the gate's own rate, λ, so one is enough
+    let rate = |r: u64| 3600.0 / 0.01 * alpha * super::gate::binomial_tail(49, alpha, r - 1);
+    assert!((rate(1) / 0.01 - 1.0).abs() < 1e-9 && rate(2) < 1e-6);
+    assert_eq!(c.rejections, 1);
     // a looser rate gives a lower threshold
     let loose = seed_with(&gated.replace("gate = true", "gate = true\nfalse_alarm_rate = 1e5"))
         .unwrap()
@@ -430,6 +447,10 @@ gate = true
             "key `estimator.direction_noise`: missing, and its default sensors.directions[1].noise is 0: the gate needs",
         ),
         (
+            gated.replace("gate = true", "gate = true\nfalse_alarm_rate = 180000"),
+            "key `estimator.false_alarm_rate`: must be below 180000 an hour",
+        ),
+        (
             SO3.replace("kind = \"complementary\"", "kind = \"truth\"\ngate = true")
                 .replace(
                     "kp = 2.0\nki = 0.5\nweights = [1.0, 0.5]\nbias_limit = 0.1\n",
@@ -441,6 +462,12 @@ gate = true
         let e = seed_with(&text).unwrap_err();
         assert!(e.contains(needle), "{text}\n{e}");
     }
+    // with slow fixes the default window spans two of them
+    let slow = se3.replace("rate_hz = 10.0", "rate_hz = 2.0");
+    assert_eq!(se3_with(&slow).unwrap().estimator.gate.unwrap().window, 1.0);
+    let e =
+        se3_with(&slow.replace("gate = true", "gate = true\nfalse_alarm_rate = 3600")).unwrap_err();
+    assert!(e.contains("must be below 3600 an hour"), "{e}");
     let e = se3_with(&se3.replace("gate = true", "gate = true\nhealth_window = 0.15")).unwrap_err();
     assert!(
         e.contains(
