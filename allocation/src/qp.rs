@@ -774,8 +774,10 @@ mod step_tests {
                 let misses = ((&am * &got + &res).norm(), (&am * &want + &res).norm());
                 (want, format!("; ‖A p + r‖ {:e}, by definition {:e}", misses.0, misses.1))
             };
+            // a backward-stable step is exact to a tolerance relative to its size: a
+            // near-singular A_F gives a long step (3e4 in a saved case) that agrees to 3e-11
             prop_assert!(
-                (&got - &want).amax() < 1e-7,
+                (&got - &want).amax() < 1e-7 * (1.0 + want.amax()),
                 "stage {kind}, {n} free: p {:?}, by definition {:?}; ‖C p‖ {:e}{how}",
                 got.as_slice(),
                 want.as_slice(),
