@@ -97,6 +97,19 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         (lo == hi).then_some(*lo)
     }
 
+    /// The wrench directions the actuators it may still move cannot produce (those the
+    /// failures told hold are left out; none while the rest span every wrench): the control
+    /// authority the failures took (docs/failsafe.md, "Causes").
+    pub fn lost_directions(&self) -> crate::geometry::LostDirections<T, K> {
+        let mut b = *self.allocator.geometry().effectiveness();
+        for j in 0..MAX_ACTUATORS {
+            if self.held(j).is_some() {
+                b.column_mut(j).fill(T::zero());
+            }
+        }
+        crate::geometry::lost_directions(&b)
+    }
+
     /// The known restoring wrench at the attitude `r`.
     pub fn restoring(&self, r: &Matrix3<T>) -> SVector<T, K> {
         self.restoring.wrench(r)

@@ -254,7 +254,7 @@ fn column<T: RealField + Copy, const K: usize>(
 /// An orthonormal basis of the wrench directions `B`'s columns miss: modified Gram–Schmidt
 /// (twice) over the columns, then over the coordinate axes; what is left of an axis longer
 /// than a relative tolerance is a lost direction.
-fn lost_directions<T: RealField + Copy, const K: usize>(
+pub(crate) fn lost_directions<T: RealField + Copy, const K: usize>(
     b: &SMatrix<T, K, MAX_ACTUATORS>,
 ) -> LostDirections<T, K> {
     let scale = b.amax().max(T::one());

@@ -25,6 +25,8 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod setpoint;
+
 /// What raises a failsafe.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Cause {

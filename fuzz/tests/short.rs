@@ -70,6 +70,14 @@ fn scenario_inputs_never_panic() {
         "fault_detection.model_error",
         "fault_detection.unexplained",
         "fault_detection.ambiguity",
+        "failsafe.actuators",
+        "failsafe.estimator",
+        "failsafe.tracking",
+        "failsafe.descend_rate",
+        "failsafe.ascend_rate",
+        "failsafe.tracking_limit_attitude",
+        "failsafe.tracking_limit_position",
+        "failsafe.clear_time",
     ] {
         assert!(
             r.rejected

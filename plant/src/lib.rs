@@ -18,6 +18,7 @@
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod estimation;
+pub mod failsafe;
 pub mod output;
 pub mod pair;
 pub mod plot;

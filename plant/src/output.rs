@@ -434,6 +434,9 @@ pub struct Summary {
     /// The vehicle: saturation, allocation residual, failures (absent: no `[vehicle]`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub vehicle: Option<crate::vehicle::VehicleReport>,
+    /// `[failsafe]`: every transition of the manager, in time order (absent: no `[failsafe]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failsafe: Option<Vec<crate::failsafe::TransitionReport>>,
 }
 
 impl Summary {
@@ -467,6 +470,7 @@ impl Summary {
             settling_time: settling_time(&traj.rows),
             estimator: traj.estimator.clone(),
             vehicle: traj.vehicle.clone(),
+            failsafe: traj.failsafe.as_ref().map(|f| f.transitions().to_vec()),
         }
     }
 

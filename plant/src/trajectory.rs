@@ -227,6 +227,8 @@ pub struct SimulatedTrajectory {
     pub estimator: Option<crate::estimation::EstimatorReport>,
     /// The vehicle's report (`None`: no `[vehicle]`).
     pub vehicle: Option<crate::vehicle::VehicleReport>,
+    /// The failsafe manager's run (`None`: no `[failsafe]`).
+    pub failsafe: Option<crate::failsafe::Supervision>,
 }
 
 /// The time of the first row whose state, torque or Lyapunov value is not finite (`None`: the
@@ -385,6 +387,8 @@ where
     }
     let mut estimation = crate::estimation::Estimation::new(s, s.control_period, faults)?;
     let controller = s.controller::<G, N, M>().map_err(input(s))?;
+    let mut supervision = crate::failsafe::Supervision::of(s);
+    let reference = crate::failsafe::Supervision::supervise::<G, R, N, M>(s, reference);
     let mut sim = ClosedLoop::new(controller, reference, plant, s.plant_substeps)
         .and_then(|l| l.with_disturbance(s.disturbance_vector()))
         .and_then(|l| l.with_rejection(s.rejection_config()))
@@ -402,15 +406,21 @@ where
         if !s.disturbance_steps.is_empty() {
             sim.set_disturbance(s.disturbance_at(k)).map_err(input(s))?;
         }
-        let (sample, estimate) = match &mut estimation {
-            None => (sim.step(), None),
+        let (q_hat, v_hat, estimate) = match &mut estimation {
+            None => (*sim.plant.configuration(), sim.plant.velocity(), None),
             Some(e) => {
                 let (q_hat, v_hat, row) = e.measure(k, &sim.plant, &held);
-                (sim.step_measured(&q_hat, &v_hat), Some(row))
+                (q_hat, v_hat, Some(row))
             }
         };
-        let sample =
-            sample.map_err(|e| SimError::Run(format!("closed loop stopped at t = {t} s: {e}")))?;
+        if let Some(sup) = &mut supervision {
+            let unhealthy = unhealthy(estimate.as_ref());
+            sup.tick(t, (&q_hat, &v_hat), unhealthy, false, &mut sim.reference);
+        }
+        // (the exact state when no estimator runs: `step` itself)
+        let sample = sim
+            .step_measured(&q_hat, &v_hat)
+            .map_err(|e| SimError::Run(format!("closed loop stopped at t = {t} s: {e}")))?;
         held = sample.output.torque
             + s.disturbance_wrench::<M>(k, &G::rotation(sim.plant.configuration()));
         let c = sim.controller.config();
@@ -431,7 +441,16 @@ where
         rows,
         status: Vec::new(),
         vehicle: None,
+        failsafe: supervision,
     })
+}
+
+/// Whether the estimator's health after this tick is anything but `healthy` (the failsafe's
+/// `estimator` cause; never without the gate).
+pub(crate) fn unhealthy(estimate: Option<&EstimateRow>) -> bool {
+    estimate
+        .and_then(|e| e.health)
+        .is_some_and(|h| h != estimator::health::Health::Healthy)
 }
 
 /// Number of control steps with `t_k < horizon`: `Σ_{t_k < T}` ranges over these.

@@ -396,6 +396,8 @@ where
 {
     let mut estimation = crate::estimation::Estimation::new(s, s.control_period, faults)?;
     let controller = s.controller::<G, N, M>().map_err(input(s))?;
+    let mut supervision = crate::failsafe::Supervision::of(s);
+    let reference = crate::failsafe::Supervision::supervise::<G, R, N, M>(s, reference);
     let mut sim = ClosedLoop::new(controller, reference, plant, s.plant_substeps)
         .and_then(|l| l.with_rejection(s.rejection_config()))
         .map_err(input(s))?;
@@ -416,25 +418,21 @@ where
         };
         let r_hat = G::rotation(&q_hat);
         run.detect::<G, N>(t, &v_hat, &r_hat);
+        let disarmed = supervision.as_mut().is_some_and(|sup| {
+            let unhealthy = crate::trajectory::unhealthy(estimate.as_ref());
+            let lost = !run.control.lost_directions().directions().is_empty();
+            sup.tick(t, (&q_hat, &v_hat), unhealthy, lost, &mut sim.reference);
+            sup.disarmed()
+        });
         let body = s.disturbance_at::<M>(k);
         let mut record = None;
-        let substeps = s.plant_substeps;
         let sample = sim
             .step_actuated(&q_hat, &v_hat, |plant, wrench, h| {
-                let a = run.control.actuate(wrench, &r_hat);
-                if let Some(d) = &mut run.detector {
-                    d.commanded(&a.allocation.u);
-                }
-                run.actuators.command(&a.allocation.u);
-                let u = run.actuators.produced();
-                step_in_world::<G, N, M>(
+                let (a, u) = run.cycle::<G, N>(
                     plant,
-                    &run.environment,
-                    &mut run.actuators,
-                    &body,
-                    world.as_ref(),
-                    h,
-                    substeps,
+                    (wrench, &r_hat, disarmed),
+                    (&body, world.as_ref()),
+                    (h, s.plant_substeps),
                 );
                 record = Some((a, u));
                 a.applied(&run.control.restoring(&r_hat))
@@ -473,7 +471,50 @@ where
         )),
         rows,
         status: Vec::new(),
+        failsafe: supervision,
     })
+}
+
+impl<const M: usize> VehicleRun<M> {
+    /// One period of the vehicle: the law's `wrench` allocated at the estimated attitude
+    /// `r_hat` (every actuator at its minimum when `disarmed`), the detector told the command,
+    /// the actuators commanded and the plant advanced over `h` in `substeps` with the body and
+    /// world disturbances. Returns the actuation and what the actuators produced at its start.
+    fn cycle<G: MatrixLieGroup<N, M>, const N: usize>(
+        &mut self,
+        plant: &mut RigidBody<f64, G, N, M>,
+        (wrench, r_hat, disarmed): (&SVector<f64, M>, &Matrix3<f64>, bool),
+        (body, world): (&SVector<f64, M>, Option<&SVector<f64, M>>),
+        (h, substeps): (f64, usize),
+    ) -> (Actuation<f64, M>, Commands<f64>) {
+        let mut a = self.control.actuate(wrench, r_hat);
+        if disarmed {
+            disarm(&mut a, &self.control);
+        }
+        if let Some(d) = &mut self.detector {
+            d.commanded(&a.allocation.u);
+        }
+        self.actuators.command(&a.allocation.u);
+        let u = self.actuators.produced();
+        step_in_world::<G, N, M>(
+            plant,
+            &self.environment,
+            &mut self.actuators,
+            body,
+            world,
+            h,
+            substeps,
+        );
+        (a, u)
+    }
+}
+
+/// `[failsafe]`'s `disarm`: every actuator at its minimum (a held one where it is held), and
+/// the wrench that gives.
+fn disarm<const M: usize>(a: &mut Actuation<f64, M>, control: &VehicleControl<f64, M>) {
+    let (lo, _) = control.bounds();
+    a.allocation.u = lo;
+    a.allocation.achieved = control.allocator().geometry().wrench(&lo);
 }
 
 /// `summary.json` → `vehicle`: how long each actuator's command sat at a bound, how far the

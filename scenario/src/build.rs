@@ -297,7 +297,27 @@ impl Scenario {
             }
             self.fingerprint_fault_detection(&mut h);
         }
+        self.fingerprint_failsafe(&mut h);
         h.0.max(1)
+    }
+
+    /// [`Scenario::fingerprint`]'s part for `[failsafe]`.
+    fn fingerprint_failsafe(&self, h: &mut Fnv) {
+        // only when on, so scenarios without it keep their fingerprints
+        if let Some(f) = &self.failsafe {
+            h.bytes(b"failsafe");
+            for a in f.actions {
+                h.bytes(a.map_or("none", failsafe::Action::name).as_bytes());
+            }
+            let limit = |x: Option<f64>| x.unwrap_or(-1.0);
+            h.f64s(&[
+                f.descend_rate,
+                f.ascend_rate,
+                limit(f.tracking_limit_attitude),
+                limit(f.tracking_limit_position),
+                f.clear_time,
+            ]);
+        }
     }
 
     /// [`Scenario::fingerprint`]'s part for `[fault_detection]`.

@@ -9,6 +9,7 @@
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 pub mod cli;
+pub mod failsafe;
 pub mod fault_detection;
 mod firmware;
 pub mod moving;
@@ -153,6 +154,8 @@ pub struct Scenario {
     /// `[fault_detection]`: the detector of actuator failures nobody announces (`None`:
     /// off, the default).
     pub fault_detection: Option<fault_detection::FaultDetectionSpec>,
+    /// `[failsafe]`: the failsafe manager's actions and limits (`None`: off, the default).
+    pub failsafe: Option<failsafe::FailsafeSpec>,
 }
 
 #[cfg(test)]

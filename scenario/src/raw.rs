@@ -1,6 +1,6 @@
 //! The TOML schema as serde reads it: every table with `deny_unknown_fields`, so an unknown key is refused naming the keys the table takes (docs/scenario.md is the reference).
 
-use crate::{fault_detection, rejection, sensing, vehicle};
+use crate::{failsafe, fault_detection, rejection, sensing, vehicle};
 use serde::Deserialize;
 
 #[derive(Debug, Deserialize)]
@@ -22,6 +22,7 @@ pub(crate) struct RawScenario {
     pub(crate) vehicle: Option<vehicle::RawVehicle>,
     pub(crate) allocation: Option<vehicle::RawAllocation>,
     pub(crate) fault_detection: Option<fault_detection::RawFaultDetection>,
+    pub(crate) failsafe: Option<failsafe::RawFailsafe>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -262,6 +262,15 @@ impl Validator<'_> {
             vehicle.as_ref().map(|v| v.actuators.len()),
             raw.control_period,
         )?;
+        let failsafe = self.failsafe(
+            raw.failsafe.as_ref(),
+            &crate::failsafe::Fit {
+                group,
+                vehicle: vehicle.as_ref().map(|v| (v.gravity, v.buoyancy)),
+                gated: estimator.gate.is_some(),
+                control_period: raw.control_period,
+            },
+        )?;
         Ok(Scenario {
             name: raw.name.unwrap_or_else(|| default_name.to_owned()),
             group,
@@ -288,6 +297,7 @@ impl Validator<'_> {
             estimator,
             vehicle,
             fault_detection,
+            failsafe,
         })
     }
 

@@ -298,7 +298,9 @@ impl Corpus {
         let items = BUILTINS
             .iter()
             .map(|(_, text)| *text)
-            .chain(EXTRA_SEEDS)
+            .map(str::to_owned)
+            .chain(EXTRA_SEEDS.map(str::to_owned))
+            .chain(failsafe_seeds())
             .map(|t| {
                 t.replace(
                     "waypoints = \"rov_failure.csv\"",
@@ -309,4 +311,22 @@ impl Corpus {
             .collect();
         Corpus { items }
     }
+}
+
+/// `[failsafe]` on the seeds whose vehicle and estimator every event and action fit: the ROV
+/// (gravity and buoyancy: `descend` and `surface`) and the gated estimator's seed.
+fn failsafe_seeds() -> [String; 2] {
+    let gated = EXTRA_SEEDS
+        .iter()
+        .find(|t| t.contains("gate = true"))
+        .copied()
+        .unwrap_or_default();
+    [
+        format!(
+            "{VEHICLE_SE3}\n[failsafe]\nlink = \"warn\"\nactuators = \"surface\"\ntracking = \"descend\"\nascend_rate = 0.2\ndescend_rate = 0.4\ntracking_limit_attitude = 1.0\ntracking_limit_position = 2.0\nclear_time = 0.05\n"
+        ),
+        format!(
+            "{gated}\n[failsafe]\nestimator = \"hold\"\ntracking = \"damp\"\ntracking_limit_attitude = 0.5\n"
+        ),
+    ]
 }

@@ -36,7 +36,7 @@ pub(crate) const INTERESTING: [&str; 30] = [
 ];
 
 /// What replaces the text of a string token.
-pub(super) const STRINGS: [&str; 24] = [
+pub(super) const STRINGS: [&str; 30] = [
     "reference",
     "world",
     "recentred",
@@ -62,10 +62,17 @@ pub(super) const STRINGS: [&str; 24] = [
     "bias",
     "dropout",
     "stuck",
+    // `[failsafe]`'s actions
+    "warn",
+    "hold",
+    "damp",
+    "descend",
+    "surface",
+    "disarm",
 ];
 
 /// Known keys and values for [`TomlOp::SetKey`](super::mutation::TomlOp::SetKey).
-pub(super) const KEYS: [(&str, &[&str]); 28] = [
+pub(super) const KEYS: [(&str, &[&str]); 40] = [
     ("path", &["\"stop\"", "\"through\"", "\"curvy\"", "3"]),
     (
         "error_frame",
@@ -243,10 +250,26 @@ pub(super) const KEYS: [(&str, &[&str]); 28] = [
         &["0.01", "1e6", "0", "-1", "1e-300", "nan"],
     ),
     ("health_window", &["0.5", "0.001", "0", "1e9", "-0.5"]),
+    (
+        "actuators",
+        &["\"surface\"", "\"descend\"", "\"disarm\"", "\"land\"", "1"],
+    ),
+    ("estimator", &["\"hold\"", "\"warn\"", "\"damp\"", "[]"]),
+    ("tracking", &["\"damp\"", "\"disarm\"", "\"hold\"", "true"]),
+    ("descend_rate", &["0.5", "-0.5", "0", "1e3", "nan"]),
+    ("ascend_rate", &["0.3", "-1", "101", "inf"]),
+    ("tracking_limit_attitude", &["0.5", "4", "0", "-1"]),
+    ("tracking_limit_position", &["2.0", "0", "1e7", "nan"]),
+    ("clear_time", &["0.5", "0", "1e-6", "1e5"]),
+    // `[fault_detection]`'s keys the number mutations reach least
+    ("warmup", &["2.0", "-1", "1e9", "nan"]),
+    ("unexplained", &["1e-6", "0", "0.5", "-1"]),
+    ("floor", &["0.005", "0", "2", "nan"]),
+    ("memory", &["10.0", "0", "-1", "1e9"]),
 ];
 
 /// Whole lines for [`TomlOp::InsertLine`](super::mutation::TomlOp::InsertLine).
-pub(super) const LINES: [&str; 16] = [
+pub(super) const LINES: [&str; 17] = [
     "error_frame = \"world\"",
     "error_frame = \"up\"",
     "[[x]]",
@@ -263,4 +286,5 @@ pub(super) const LINES: [&str; 16] = [
     "# comment",
     "[[sensors.fault]]",
     "duration = 0.01",
+    "[failsafe]",
 ];

@@ -122,6 +122,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         };
         let plant = s.plant_body::<G, N, M>().map_err(input(&s))?;
         let reference = s.reference_source::<G, N, M>().map_err(input(&s))?;
+        refuse_failsafe(&s)?;
         let cfg = s.controller_config::<N, M>();
         let vehicle = super::vehicle::PairVehicle::of(&s)?;
         let config = PlantEndpointConfig {
@@ -498,6 +499,8 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             rows: self.rows,
             status: self.status,
             vehicle: None,
+            // refused in the pair (see `run`)
+            failsafe: None,
         };
         let traj = SimulatedTrajectory {
             vehicle: self
@@ -579,6 +582,19 @@ fn wire_samples(s: &crate::sensors::Samples, origin: &[f64; 3]) -> serial_wire::
         accel: s.accel.as_ref().map(f),
         position: s.position.as_ref().map(|x| f(&(x - o))),
     }
+}
+
+/// Refuses `[failsafe]`: the pair and the firmware do not run the manager yet.
+fn refuse_failsafe(s: &scenario::Scenario) -> Result<(), SimError> {
+    if s.failsafe.is_some() {
+        return Err(SimError::Input(format!(
+            "scenario `{}`: [failsafe] is run by the in-process simulation only: the pair \
+             and the processor-in-the-loop firmware do not run the failsafe manager yet \
+             (their one failsafe is the deadline policy); run it with `plant_sim sim`",
+            s.name
+        )));
+    }
+    Ok(())
 }
 
 /// The slot for the estimate a controller on a serial link computes on board (it runs the

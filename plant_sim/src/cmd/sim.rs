@@ -98,6 +98,9 @@ pub(crate) fn sim(args: SimArgs, stop: &StopFlag) -> Result<(), SimError> {
     for line in traj.vehicle.iter().flat_map(|v| v.detection_lines()) {
         println!("{line}");
     }
+    for t in traj.failsafe.iter().flat_map(|f| f.transitions()) {
+        println!("{}", t.line());
+    }
     println!(
         "wrote {}/{{trajectory.csv, summary.json, figure.png, figure.svg}}",
         out.display()
@@ -111,9 +114,16 @@ pub(crate) fn diverged(
     traj: &plant::trajectory::SimulatedTrajectory,
     out: &Path,
 ) -> Result<(), SimError> {
-    match plant::trajectory::first_non_finite(traj) {
-        Some(t) => Err(SimError::Run(format!(
+    if let Some(t) = plant::trajectory::first_non_finite(traj) {
+        return Err(SimError::Run(format!(
             "the run diverged: its state is not finite from t = {t} s (its outputs are in {})",
+            out.display()
+        )));
+    }
+    // `[failsafe] tracking`: the error passed its limit, which latches
+    match traj.failsafe.as_ref().and_then(|f| f.runaway()) {
+        Some((t, angle, distance)) => Err(SimError::Run(format!(
+            "the tracking error passed its [failsafe] limit at t = {t} s (attitude {angle:.4} rad, position {distance:.4} m): the run ran away (its outputs are in {})",
             out.display()
         ))),
         None => Ok(()),

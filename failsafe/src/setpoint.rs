@@ -1,0 +1,202 @@
+//! What an engaged action flies (docs/failsafe.md, "What each action flies"): the desired state
+//! the law is handed in place of the reference. [`Supervised`] wraps a reference; while
+//! nominal it is the reference, bit for bit.
+
+use crate::Action;
+use controller::Real;
+use controller::group::MatrixLieGroup;
+use controller::law::Desired;
+use controller::reference::Trajectory;
+use core::marker::PhantomData;
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+
+/// The speeds the vertical actions fly at (m/s, positive).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rates<T> {
+    /// `descend`'s.
+    pub descend: T,
+    /// `surface`'s.
+    pub ascend: T,
+}
+
+/// What is flown.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Flying<T: Real, const N: usize> {
+    /// The reference.
+    Reference,
+    /// A set-point at the pose the action engaged at.
+    Hold(SMatrix<T, N, N>),
+    /// The estimate itself at rest: the law's damping alone, `τ = −K_d V`.
+    Damp,
+    /// The pose it engaged at, moving along world z at `rate` (signed) from `t0`.
+    Vertical(SMatrix<T, N, N>, T, T),
+    /// Rising at `rate` from the height and attitude it engaged at, horizontally wherever the
+    /// estimate is, at its horizontal velocity.
+    Surface(SMatrix<T, N, N>, T, T),
+}
+
+/// A reference under the failsafe manager: the reference while nominal, the engaged action's
+/// set-point otherwise. Allocation-free; the caller hands it each cycle's estimate
+/// ([`Supervised::observe`]) before the law runs, and the manager's action when it changes
+/// ([`Supervised::engage`]).
+#[derive(Debug, Clone)]
+pub struct Supervised<T: Real, G, R, const N: usize, const M: usize> {
+    inner: R,
+    inertia: SMatrix<T, M, M>,
+    rates: Rates<T>,
+    flying: Flying<T, N>,
+    estimate: (SMatrix<T, N, N>, SVector<T, M>),
+    group: PhantomData<G>,
+}
+
+impl<T, G, R, const N: usize, const M: usize> Supervised<T, G, R, N, M>
+where
+    T: Real,
+    G: MatrixLieGroup<N, M>,
+    R: Trajectory<T, N, M>,
+{
+    /// `inner` under supervision, with the model inertia (for `p_d = I V_d`) and the rates.
+    pub fn new(inner: R, inertia: SMatrix<T, M, M>, rates: Rates<T>) -> Self {
+        let q = inner.desired().q;
+        Supervised {
+            inner,
+            inertia,
+            rates,
+            flying: Flying::Reference,
+            estimate: (q, SVector::zeros()),
+            group: PhantomData,
+        }
+    }
+
+    /// The reference it wraps.
+    pub fn inner(&self) -> &R {
+        &self.inner
+    }
+
+    /// The estimate the law is handed this cycle (the pose an action engages at).
+    pub fn observe(&mut self, q: &SMatrix<T, N, N>, v: &SVector<T, M>) {
+        self.estimate = (*q, *v);
+    }
+
+    /// Flies `action` from now on (`None` or `warn`: the reference), starting from the last
+    /// estimate observed. The vertical actions exist on SE(3) only (elsewhere they hold).
+    pub fn engage(&mut self, action: Option<Action>) {
+        let q = self.estimate.0;
+        let t0 = self.inner.time();
+        let se3 = N == 4 && M == 6;
+        self.flying = match action {
+            None | Some(Action::Warn) => Flying::Reference,
+            Some(Action::Hold) => Flying::Hold(q),
+            Some(Action::Damp | Action::Disarm) => Flying::Damp,
+            Some(Action::Descend) if se3 => Flying::Vertical(q, t0, -self.rates.descend),
+            Some(Action::Surface) if se3 => Flying::Surface(q, t0, self.rates.ascend),
+            Some(Action::Descend | Action::Surface) => Flying::Hold(q),
+        };
+    }
+
+    /// The desired state at rest at `q`.
+    fn at_rest(q: SMatrix<T, N, N>) -> Desired<T, N, M> {
+        Desired {
+            q,
+            p: SVector::zeros(),
+            v: SVector::zeros(),
+            tau: SVector::zeros(),
+        }
+    }
+
+    /// The desired state at pose `q` moving with world-frame linear velocity `w` (SE(3)): the
+    /// body twist `V_d = (0, Rᵀw)`, `p_d = I V_d`, and the feedforward of a constant twist,
+    /// `τ_d = −ad_{V_d}ᵀ p_d` (docs/maths.md, "Desired trajectories as inputs", with `V̇_d = 0`).
+    fn moving(&self, q: SMatrix<T, N, N>, w: &Vector3<T>) -> Desired<T, N, M> {
+        let r = G::rotation(&q);
+        let body = r.tr_mul(w);
+        let mut v = SVector::<T, M>::zeros();
+        for i in 0..3 {
+            v[3 + i] = body[i];
+        }
+        let p = self.inertia * v;
+        Desired {
+            q,
+            p,
+            v,
+            tau: -G::ad_transpose_mul(&v, &p),
+        }
+    }
+}
+
+/// The attitude error `∠(R_dᵀR)` (rad, in `[0, π]`) and, on SE(3), the position error
+/// `‖x − x_d‖` (m; 0 on SO(3)) of pose `q` against the desired `q_d`.
+pub fn tracking_errors<T, G, const N: usize, const M: usize>(
+    q: &SMatrix<T, N, N>,
+    q_d: &SMatrix<T, N, N>,
+) -> (T, T)
+where
+    T: Real,
+    G: MatrixLieGroup<N, M>,
+{
+    let e: Matrix3<T> = G::rotation(q_d).tr_mul(&G::rotation(q));
+    let two = T::one() + T::one();
+    let cos = (e.trace() - T::one()) / two;
+    let axis = Vector3::new(
+        e[(2, 1)] - e[(1, 2)],
+        e[(0, 2)] - e[(2, 0)],
+        e[(1, 0)] - e[(0, 1)],
+    );
+    let angle = (axis.norm() / two).atan2(cos);
+    let distance = if N == 4 {
+        (0..3)
+            .map(|i| {
+                let d = q[(i, 3)] - q_d[(i, 3)];
+                d * d
+            })
+            .fold(T::zero(), |a, b| a + b)
+            .sqrt()
+    } else {
+        T::zero()
+    };
+    (angle, distance)
+}
+
+impl<T, G, R, const N: usize, const M: usize> Trajectory<T, N, M> for Supervised<T, G, R, N, M>
+where
+    T: Real,
+    G: MatrixLieGroup<N, M>,
+    R: Trajectory<T, N, M>,
+{
+    fn time(&self) -> T {
+        self.inner.time()
+    }
+    fn period(&self) -> T {
+        self.inner.period()
+    }
+    fn step_index(&self) -> u64 {
+        self.inner.step_index()
+    }
+    fn desired(&self) -> Desired<T, N, M> {
+        match self.flying {
+            Flying::Reference => self.inner.desired(),
+            Flying::Hold(q) => Self::at_rest(q),
+            Flying::Damp => Self::at_rest(self.estimate.0),
+            Flying::Vertical(q0, t0, rate) => {
+                let dz = rate * (self.inner.time() - t0);
+                let mut q = q0;
+                q[(2, N - 1)] += dz;
+                self.moving(q, &Vector3::new(T::zero(), T::zero(), rate))
+            }
+            Flying::Surface(q0, t0, rate) => {
+                let (q_hat, v_hat) = self.estimate;
+                let mut q = q0;
+                q[(0, N - 1)] = q_hat[(0, N - 1)];
+                q[(1, N - 1)] = q_hat[(1, N - 1)];
+                q[(2, N - 1)] += rate * (self.inner.time() - t0);
+                // the estimate's world velocity, its horizontal part kept: no horizontal effort
+                let lin = Vector3::new(v_hat[3], v_hat[4], v_hat[5]);
+                let world = G::rotation(&q_hat) * lin;
+                self.moving(q, &Vector3::new(world[0], world[1], rate))
+            }
+        }
+    }
+    fn advance(&mut self) {
+        self.inner.advance();
+    }
+}
