@@ -879,3 +879,85 @@ fn the_slurm_example_shards_and_merges_the_study() {
         );
     }
 }
+
+#[test]
+fn failsafe_tables_are_checked_and_a_runaway_exits_1_naming_the_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let eight = std::fs::read_to_string(repo("scenarios/hexarotor_eight.toml")).unwrap();
+    // hovering 2 m above the world origin under the world-frame law: it leaves its set-point
+    let away = eight
+        .replace("duration = 22.0", "duration = 3.0")
+        .replace(
+            "waypoints = \"hexarotor_eight.csv\"\npath = \"through\"\n",
+            "setpoint = { rotation = [0.0, 0.0, 0.0], position = [0.0, 0.0, 2.0] }\n",
+        )
+        .replace(
+            "position = [0.0, 0.0, 0.0]\nvelocity",
+            "position = [0.0, 0.0, 2.0]\nvelocity",
+        )
+        .replace("[controller]\n", "[controller]\nerror_frame = \"world\"\n");
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_owned()
+    };
+    let sim = |scenario: &str, out: &str| {
+        bin()
+            .args(["sim", "--scenario", scenario, "--out"])
+            .arg(dir.path().join(out))
+            .output()
+            .unwrap()
+    };
+    // without a limit the run exits 0, however far it goes
+    let free = sim(&write("free.toml", &away), "free");
+    ok(&free);
+    let limited =
+        format!("{away}\n[failsafe]\ntracking = \"disarm\"\ntracking_limit_position = 1.0\n");
+    let out = sim(&write("limited.toml", &limited), "limited");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("passed its [failsafe] limit at t = 1.502 s"),
+        "{err}"
+    );
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("failsafe: t = 1.502 s: tracking → disarm")
+    );
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("limited/summary.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        summary["failsafe"],
+        serde_json::json!([{ "t": 1.502, "cause": "tracking", "action": "disarm" }])
+    );
+    // a bad table exits 2 naming the key
+    for (table, key) in [
+        (
+            "[failsafe]\ntracking = \"land\"\ntracking_limit_position = 1.0",
+            "failsafe.tracking",
+        ),
+        ("[failsafe]\nlink = \"surface\"", "failsafe.link"),
+        (
+            "[failsafe]\nlink = \"descend\"\ndescend_rate = -1.0",
+            "failsafe.descend_rate",
+        ),
+    ] {
+        let out = sim(&write("bad.toml", &format!("{away}\n{table}\n")), "bad");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{table}: {err}");
+        assert!(err.contains(&format!("key `{key}`")), "{table}: {err}");
+    }
+    // the pair does not run the manager yet: refused, not flown without it
+    let pair = bin()
+        .args(["run", "--scenario", &write("pair.toml", &limited), "--out"])
+        .arg(dir.path().join("pair"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&pair.stderr);
+    assert_eq!(pair.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("[failsafe] is run by the in-process simulation only"),
+        "{err}"
+    );
+}
