@@ -46,6 +46,8 @@ pub struct Supervision {
     transitions: Vec<TransitionReport>,
     /// The tracking error that raised `tracking` first: (t, attitude rad, position m).
     runaway: Option<(f64, f64, f64)>,
+    /// Per tick, the action flown ([`Supervision::code`]).
+    codes: Vec<u8>,
 }
 
 impl Supervision {
@@ -58,6 +60,7 @@ impl Supervision {
             state: State::default(),
             transitions: Vec::new(),
             runaway: None,
+            codes: Vec::new(),
         })
     }
 
@@ -116,6 +119,13 @@ impl Supervision {
         };
         let (next, transition) = ::failsafe::step(&self.config, &self.state, &inputs);
         self.state = next;
+        self.codes.push(match next.mode() {
+            Mode::Nominal => 0,
+            Mode::Engaged { action, .. } => Action::ALL
+                .iter()
+                .position(|a| *a == action)
+                .map_or(0, |i| i as u8 + 1),
+        });
         if let Some(tr) = transition {
             let (cause, action) = match tr.to {
                 Mode::Nominal => (None, None),
@@ -139,6 +149,13 @@ impl Supervision {
                 ..
             }
         )
+    }
+
+    /// The action flown at tick `k`, as `trajectory.csv`'s `failsafe` column gives it: 0
+    /// nominal, then 1 `warn`, 2 `hold`, 3 `damp`, 4 `descend`, 5 `surface`, 6 `disarm`
+    /// (`None`: no such tick).
+    pub fn code(&self, k: usize) -> Option<u8> {
+        self.codes.get(k).copied()
     }
 
     /// The transitions so far.

@@ -184,6 +184,8 @@ struct Layout {
     terms: bool,
     vehicle: Option<usize>,
     status: bool,
+    /// `[failsafe]`: the `failsafe` column.
+    failsafe: bool,
     /// The number of columns: every row has exactly this many cells.
     width: usize,
 }
@@ -205,6 +207,7 @@ impl Layout {
             terms: traj.rows.first().is_some_and(|r| r.terms.is_some()),
             vehicle: traj.rows.first().and_then(|r| r.vehicle).map(|v| v.count),
             status: !traj.status.is_empty(),
+            failsafe: traj.failsafe.is_some(),
             width: 0,
         };
         layout.width = layout.header().len();
@@ -229,6 +232,9 @@ impl Layout {
         }
         if self.status {
             header.push("command_status".to_owned());
+        }
+        if self.failsafe {
+            header.push("failsafe".to_owned());
         }
         header
     }
@@ -287,6 +293,11 @@ impl Layout {
             rec.push(Cell::Int(u64::from(
                 traj.status.get(k).copied().unwrap_or(0),
             )));
+        }
+        if self.failsafe {
+            // the action flown at this tick (docs/failsafe.md, "What a run reports")
+            let code = traj.failsafe.as_ref().and_then(|f| f.code(k));
+            rec.push(code.map_or(Cell::Empty, |c| Cell::Int(u64::from(c))));
         }
         if rec.len() != self.width {
             return Err(SimError::Run(format!(

@@ -86,6 +86,20 @@ fn the_hexarotor_holds_while_its_fixes_are_lost_and_flies_on_when_they_return() 
     };
     let (still, flown) = (spread(&held), spread(&open));
     println!("while the fixes are lost: held within {still:.3} m, flown {flown:.3} m from there");
+    // trajectory.csv's column: 2 (hold) from the tick it engaged to the tick before it left
+    let sup = held.failsafe.as_ref().unwrap();
+    let codes: Vec<(f64, u8)> = held
+        .rows
+        .iter()
+        .enumerate()
+        .map(|(k, r)| (r.t, sup.code(k).unwrap()))
+        .collect();
+    assert_eq!(codes.len(), held.rows.len());
+    assert!(
+        codes
+            .iter()
+            .all(|(t, c)| *c == if *t >= tr[0].t && *t < tr[1].t { 2 } else { 0 })
+    );
     // (measured: 0.28 m, the stop from the eight's speed and the dead-reckoned drift; 2.97 m)
     assert!(still < 0.5, "{still}");
     assert!(flown > 2.0, "{flown}");

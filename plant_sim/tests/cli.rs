@@ -931,6 +931,16 @@ fn failsafe_tables_are_checked_and_a_runaway_exits_1_naming_the_time() {
         summary["failsafe"],
         serde_json::json!([{ "t": 1.502, "cause": "tracking", "action": "disarm" }])
     );
+    // trajectory.csv's failsafe column: 0 before, 6 (disarm) from that tick
+    let (h, rows) = read_csv(&dir.path().join("limited/trajectory.csv"));
+    let (t, code) = (column(&h, &rows, "t"), column(&h, &rows, "failsafe"));
+    assert!(
+        t.iter()
+            .zip(&code)
+            .all(|(t, c)| *c == if *t >= 1.502 - 1e-9 { 6.0 } else { 0.0 })
+    );
+    let (h, _) = read_csv(&dir.path().join("free/trajectory.csv"));
+    assert!(!h.iter().any(|c| c == "failsafe"));
     // a bad table exits 2 naming the key
     for (table, key) in [
         (
