@@ -48,6 +48,9 @@ pub struct Supervision {
     runaway: Option<(f64, f64, f64)>,
     /// Per tick, the action flown ([`Supervision::code`]).
     codes: Vec<u8>,
+    /// Whether the tracking error has been within its limits since the start or the last
+    /// transition: only then does passing a limit raise `tracking`.
+    armed: bool,
 }
 
 impl Supervision {
@@ -61,6 +64,7 @@ impl Supervision {
             transitions: Vec::new(),
             runaway: None,
             codes: Vec::new(),
+            armed: false,
         })
     }
 
@@ -84,7 +88,7 @@ impl Supervision {
     }
 
     /// One tick at `t`, before the law: the flags from the estimate `(q̂, v̂)` (the tracking
-    /// error against the reference), `unhealthy` (the estimator's health is not `healthy`)
+    /// error against what is flown: the reference, or the engaged action's set-point), `unhealthy` (the estimator's health is not `healthy`)
     /// and `lost` (the actuators no longer span every wrench); the manager stepped; the
     /// reference handed the estimate and, on a transition, the action.
     pub fn tick<G, R, const N: usize, const M: usize>(
@@ -100,14 +104,19 @@ impl Supervision {
     {
         let (q_hat, v_hat) = estimate;
         reference.observe(q_hat, v_hat);
-        let (angle, distance) =
-            tracking_errors::<f64, G, N, M>(q_hat, &reference.inner().desired().q);
+        // against what is flown: the reference, or the engaged action's set-point (which does
+        // not run away while the reference goes on without the vehicle)
+        let (angle, distance) = tracking_errors::<f64, G, N, M>(q_hat, &reference.desired().q);
         // past the limit, or not a number
         let beyond = |limit: Option<f64>, x: f64| {
             limit.is_some_and(|l| matches!(x.partial_cmp(&l), Some(Ordering::Greater) | None))
         };
-        let tracking = beyond(self.spec.tracking_limit_attitude, angle)
-            || beyond(self.spec.tracking_limit_position, distance);
+        let within = !(beyond(self.spec.tracking_limit_attitude, angle)
+            || beyond(self.spec.tracking_limit_position, distance));
+        // a run that starts beyond a limit, or rejoins a reference beyond it after a failsafe,
+        // is not a runaway until its error has once been within
+        self.armed |= within;
+        let tracking = self.armed && !within;
         if tracking && self.runaway.is_none() {
             self.runaway = Some((t, angle, distance));
         }
@@ -132,6 +141,7 @@ impl Supervision {
                 Mode::Engaged { cause, action } => (Some(cause.name()), Some(action)),
             };
             reference.engage(action);
+            self.armed = false;
             self.transitions.push(TransitionReport {
                 t,
                 cause,

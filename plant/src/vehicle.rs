@@ -489,7 +489,7 @@ impl<const M: usize> VehicleRun<M> {
     ) -> (Actuation<f64, M>, Commands<f64>) {
         let mut a = self.control.actuate(wrench, r_hat);
         if disarmed {
-            disarm(&mut a, &self.control);
+            disarm(&mut a, &mut self.control);
         }
         if let Some(d) = &mut self.detector {
             d.commanded(&a.allocation.u);
@@ -511,10 +511,12 @@ impl<const M: usize> VehicleRun<M> {
 
 /// `[failsafe]`'s `disarm`: every actuator at its minimum (a held one where it is held), and
 /// the wrench that gives.
-fn disarm<const M: usize>(a: &mut Actuation<f64, M>, control: &VehicleControl<f64, M>) {
+fn disarm<const M: usize>(a: &mut Actuation<f64, M>, control: &mut VehicleControl<f64, M>) {
     let (lo, _) = control.bounds();
     a.allocation.u = lo;
     a.allocation.achieved = control.allocator().geometry().wrench(&lo);
+    // the rate limit narrows the next command around what was commanded
+    control.set_previous(Some(lo));
 }
 
 /// `summary.json` → `vehicle`: how long each actuator's command sat at a bound, how far the

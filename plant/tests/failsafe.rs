@@ -62,7 +62,9 @@ fn the_hexarotor_holds_while_its_fixes_are_lost_and_flies_on_when_they_return() 
     let held = run(&variant(
         "hexarotor_eqf",
         &edits,
-        "\n[failsafe]\nestimator = \"hold\"\nclear_time = 1.0\n",
+        // a tracking limit too: measured against the hold, which does not run away while the
+        // reference flies on without the vehicle
+        "\n[failsafe]\nestimator = \"hold\"\nclear_time = 1.0\ntracking = \"disarm\"\ntracking_limit_position = 1.0\n",
     ));
     let open = run(&variant("hexarotor_eqf", &edits, ""));
     let tr = transitions(&held);
@@ -73,7 +75,21 @@ fn the_hexarotor_holds_while_its_fixes_are_lost_and_flies_on_when_they_return() 
     assert_eq!((tr[0].cause, tr[0].action), (Some("estimator"), "hold"));
     assert!((5.47..=5.49).contains(&tr[0].t), "{tr:?}");
     assert_eq!((tr[1].cause, tr[1].action), (None, "nominal"));
-    assert!((16.49..=16.51).contains(&tr[1].t), "{tr:?}");
+    // to the tick: engaged on the tick the health degraded, left on the 500th healthy tick in
+    // a row (clear_time 1 s at 2 ms), 499 ticks after the first
+    let health = held
+        .estimator
+        .as_ref()
+        .unwrap()
+        .gate
+        .clone()
+        .unwrap()
+        .health;
+    let (down, up) = (health.first().unwrap(), health.last().unwrap());
+    assert_eq!((down.health, up.health), ("degraded", "healthy"));
+    assert_eq!(tr[0].t, down.t, "{tr:?} {health:?}");
+    let ticks = (tr[1].t - up.t) / 0.002;
+    assert!((ticks - 499.0).abs() < 1e-6, "{tr:?} {health:?}");
     // while held, the vehicle stays where it engaged; without the failsafe it flies the
     // eight on dead reckoning
     let at = position(row_at(&held, tr[0].t));
@@ -103,6 +119,20 @@ fn the_hexarotor_holds_while_its_fixes_are_lost_and_flies_on_when_they_return() 
     // (measured: 0.28 m, the stop from the eight's speed and the dead-reckoned drift; 2.97 m)
     assert!(still < 0.5, "{still}");
     assert!(flown > 2.0, "{flown}");
+    // when the hold is left, the reference (which the open flight follows) is more than the
+    // tracking limit away: rejoining it does not trip the limit, and the vehicle is back on it
+    // by the end
+    let apart = distance(
+        position(row_at(&held, tr[1].t)),
+        position(row_at(&open, tr[1].t)),
+    );
+    let end = distance(
+        position(held.rows.last().unwrap()),
+        position(open.rows.last().unwrap()),
+    );
+    println!("at the release {apart:.3} m from the open flight, at the end {end:.3} m");
+    assert!(apart > 1.0, "{apart}");
+    assert!(end < 0.1, "{end}");
 }
 
 #[test]
@@ -178,6 +208,7 @@ fn an_rov_that_can_no_longer_push_every_way_surfaces() {
     ));
     let found = up.vehicle.as_ref().unwrap().detections.clone().unwrap();
     let found: Vec<_> = found.into_iter().filter(|d| !d.refined).collect();
+    assert!(found.windows(2).all(|w| w[0].t <= w[1].t), "{found:?}");
     println!("{found:?}");
     let mut which: Vec<_> = found.iter().map(|d| d.actuator).collect();
     which.sort_unstable();
@@ -203,8 +234,11 @@ fn an_rov_that_can_no_longer_push_every_way_surfaces() {
     assert!(level > 0.99, "{level}");
     // without the failsafe it stays at depth
     let stays = run(&rov_losing_two_thrusters(""));
-    let depth = position(stays.rows.last().unwrap())[2];
-    assert!(depth < position(a)[2] + 0.1, "{depth}");
+    let (from, to) = (
+        position(row_at(&stays, a.t))[2],
+        position(stays.rows.last().unwrap())[2],
+    );
+    assert!((to - from).abs() < 0.1, "{from} → {to}");
 }
 
 #[test]
@@ -254,6 +288,26 @@ fn a_run_whose_tracking_error_passes_its_limit_is_a_runaway() {
             .as_ref()
             .is_some_and(|v| v.u_cmd.iter().all(|u| *u == 0.0))
     }));
+}
+
+#[test]
+fn a_failsafe_that_never_engages_changes_nothing() {
+    // `link` is never raised in the simulation: every row equals the run without the table,
+    // bit for bit (the reference passes through the manager untouched), on a vehicle with its
+    // sensors and filter, and on a bare body
+    for (name, edits) in [
+        ("hexarotor_eqf", vec![("duration = 10.0", "duration = 3.0")]),
+        ("se3_circle", vec![]),
+    ] {
+        let with = run(&variant(name, &edits, "\n[failsafe]\nlink = \"hold\"\n"));
+        let without = run(&variant(name, &edits, ""));
+        assert!(transitions(&with).is_empty());
+        assert!(without.failsafe.is_none());
+        assert_eq!(with.rows.len(), without.rows.len());
+        for (a, b) in with.rows.iter().zip(&without.rows) {
+            assert_eq!(format!("{a:?}"), format!("{b:?}"), "{name}");
+        }
+    }
 }
 
 fn distance_of(r: &Row, to: [f64; 3]) -> f64 {

@@ -117,14 +117,14 @@ impl Validator<'_> {
             tracking_limit_attitude: self.failsafe_limit(
                 "tracking_limit_attitude",
                 raw.tracking_limit_attitude,
-                std::f64::consts::PI,
-                "rad",
+                (std::f64::consts::PI, false),
+                "(0, π) rad: an attitude error is at most π",
             )?,
             tracking_limit_position: self.failsafe_limit(
                 "tracking_limit_position",
                 raw.tracking_limit_position,
-                1e6,
-                "m",
+                (1e6, true),
+                "(0, 1e6] m",
             )?,
             clear_time: self.failsafe_clear_time(raw.clear_time, fit.control_period)?,
         };
@@ -204,20 +204,22 @@ impl Validator<'_> {
         }
     }
 
-    /// A tracking limit: finite, positive, at most `most`.
+    /// A tracking limit: finite, positive, below `most` (or at it, when `inclusive`).
     fn failsafe_limit(
         &self,
         name: &str,
         x: Option<f64>,
-        most: f64,
-        unit: &str,
+        (most, inclusive): (f64, bool),
+        range: &str,
     ) -> Result<Option<f64>, ScenarioError> {
         match x {
             None => Ok(None),
-            Some(x) if x.is_finite() && x > 0.0 && x <= most => Ok(Some(x)),
+            Some(x) if x.is_finite() && x > 0.0 && (x < most || (inclusive && x == most)) => {
+                Ok(Some(x))
+            }
             Some(x) => Err(self.err(
                 &format!("failsafe.{name}"),
-                format!("must be in (0, {most}] {unit}, got {x}"),
+                format!("must be in {range}, got {x}"),
             )),
         }
     }
@@ -324,7 +326,7 @@ mod tests {
         );
         assert_eq!(f.tracking_limit_position, Some(5.0));
         assert_eq!(f.config(s.control_period).clear_ticks, 100);
-        // absent: off, and the fingerprint is the scenario's without the table
+        // absent: off; given, the fingerprint the pair compares changes
         let plain = load("rov_failure.toml", "").unwrap();
         assert!(plain.failsafe.is_none());
         assert_ne!(plain.fingerprint(), s.fingerprint());
@@ -444,6 +446,12 @@ mod tests {
                 "[failsafe]\ntracking = \"damp\"\ntracking_limit_attitude = 4",
                 "failsafe.tracking_limit_attitude",
                 "got 4",
+            ),
+            (
+                hexa,
+                "[failsafe]\ntracking = \"damp\"\ntracking_limit_attitude = 3.141592653589793",
+                "failsafe.tracking_limit_attitude",
+                "at most π",
             ),
             (
                 hexa,

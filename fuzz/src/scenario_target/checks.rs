@@ -158,6 +158,11 @@ impl OnGroup for Exercise<'_> {
             );
             if let Some(vehicle) = &mut vehicle {
                 allocate_checked(vehicle, &out.torque, &G::rotation(&q));
+                // what the failsafe's `actuators` event asks of it
+                let _ = vehicle.lost_directions();
+            }
+            if s.failsafe.is_some() {
+                failsafe_checked(&controller, &reference, &q, &v);
             }
             if k == cycles {
                 break;
@@ -171,6 +176,39 @@ impl OnGroup for Exercise<'_> {
             reference.advance();
         }
         Ok(())
+    }
+}
+
+/// Every action of the failsafe manager engaged at state `(q, v)` over `reference`: each
+/// set-point is one the law answers with a finite torque.
+fn failsafe_checked<G, R, const N: usize, const M: usize>(
+    controller: &controller::Controller<f64, G, N, M>,
+    reference: &R,
+    q: &nalgebra::SMatrix<f64, N, N>,
+    v: &nalgebra::SVector<f64, M>,
+) where
+    G: MatrixLieGroup<N, M>,
+    R: controller::reference::Trajectory<f64, N, M> + Clone,
+{
+    use controller::reference::Trajectory;
+    let rates = failsafe::setpoint::Rates {
+        descend: 0.5,
+        ascend: 0.3,
+    };
+    let inertia = controller.config().inertia;
+    let mut sup =
+        failsafe::setpoint::Supervised::<f64, G, R, N, M>::new(reference.clone(), inertia, rates);
+    sup.observe(q, v);
+    for action in failsafe::Action::ALL {
+        sup.engage(Some(action));
+        sup.advance();
+        if let Ok(out) = controller.compute(q, v, &sup.desired()) {
+            assert!(
+                out.torque.iter().all(|x| x.is_finite()),
+                "{action:?}: a non-finite torque {:?}",
+                out.torque.as_slice()
+            );
+        }
     }
 }
 
