@@ -13,6 +13,17 @@ pub enum Priority {
     Torque,
     /// The whole wrench as one least-squares problem.
     None,
+    /// The tilt first (SE(3)): the roll and pitch torques and the force along the body's
+    /// z axis, then the yaw torque and the other forces. On SO(3), as [`Priority::Torque`].
+    Tilt,
+}
+
+/// The wrench's rows in the order the stages take them: the first three are stage 1's.
+const fn row_order(priority: Priority) -> [usize; 6] {
+    match priority {
+        Priority::Tilt => [0, 1, 5, 2, 3, 4],
+        Priority::Torque | Priority::None => [0, 1, 2, 3, 4, 5],
+    }
 }
 
 /// How an allocation went: an integer code in `trajectory.csv` (`alloc_status`).
@@ -331,7 +342,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         if !demand.iter().all(|x| x.is_finite()) {
             return self.answer(up, Status::InvalidDemand, 0);
         }
-        let split = K == 6 && self.priority == Priority::Torque;
+        let split = K == 6 && self.priority != Priority::None;
         let (start, inside) = self.start(demand, &up, bounds);
         if inside {
             // the command nearest u_pref producing the whole demand lies within the bounds:
@@ -371,11 +382,16 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         let b = self.geometry.effectiveness();
         let mut all: Rows<T> = [[T::zero(); MAX_ACTUATORS]; MAX_EQ];
         let mut wanted = [T::zero(); MAX_EQ];
+        let order = if K == 6 {
+            row_order(self.priority)
+        } else {
+            row_order(Priority::Torque)
+        };
         for r in 0..K {
             for j in 0..m {
-                all[r][j] = b[(r, j)];
+                all[r][j] = b[(order[r], j)];
             }
-            wanted[r] = demand[r];
+            wanted[r] = demand[order[r]];
         }
         let mut spent = 0;
         let mut stopped = false;
@@ -459,7 +475,12 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     fn met(&self, u: &Commands<T>, demand: &SVector<T, K>, split: bool) -> Status {
         let miss = self.geometry.wrench(u) - demand;
         let tol = self.sqrt_eps * (T::one() + demand.amax());
-        let part = |r: core::ops::Range<usize>| r.into_iter().any(|i| miss[i].abs() > tol);
+        let order = if K == 6 {
+            row_order(self.priority)
+        } else {
+            row_order(Priority::Torque)
+        };
+        let part = |r: core::ops::Range<usize>| r.into_iter().any(|i| miss[order[i]].abs() > tol);
         if part(0..if split { 3 } else { K }) {
             Status::TorqueInfeasible
         } else if split && part(3..6) {

@@ -176,3 +176,75 @@ fn a_demand_within_reach_needs_no_active_set_iteration() {
     assert_eq!(past.status, Status::ForceGivenUp);
     assert!(past.iterations > 1, "{past:?}");
 }
+
+#[test]
+fn the_tilt_priority_keeps_roll_pitch_and_thrust_where_the_torque_priority_cannot() {
+    // the tilted hexarotor with rotor 2 dead, asked what the law asked of it just after
+    let hexa = presets::hexarotor(0.25, 0.5, 0.016, 8.0);
+    let demand = SVector::<f64, 6>::from([0.37, 0.26, 0.25, -0.98, -1.62, 16.97]);
+    let with = |p: Priority| {
+        let alloc = Allocator::new(Geometry::new(&hexa).unwrap(), &[], &[], p).unwrap();
+        let mut bounds = alloc.bounds();
+        bounds.fail(2, 0.0);
+        let a = alloc.allocate_within(&demand, &bounds);
+        assert_eq!(a.u[2], 0.0);
+        assert!(a.u.iter().all(|x| (0.0..=8.0).contains(x)), "{:?}", a.u);
+        let miss = a.achieved - demand;
+        (
+            a.status,
+            [0, 1, 5].map(|i| miss[i].abs()),
+            [2, 3, 4].map(|i| miss[i].abs()),
+        )
+    };
+    let (status, kept, given) = with(Priority::Tilt);
+    assert_eq!(status, Status::ForceGivenUp, "{kept:?} {given:?}");
+    assert!(kept.iter().all(|m| *m < 1e-9), "{kept:?}");
+    assert!(given.iter().any(|m| *m > 0.1), "{given:?}");
+    // the torque priority keeps the yaw torque and so loses roll, pitch or thrust
+    let (status, kept, _) = with(Priority::Torque);
+    assert_eq!(status, Status::TorqueInfeasible);
+    assert!(kept.iter().any(|m| *m > 0.1), "{kept:?}");
+    // within reach, every priority gives the same command, bit for bit
+    let hover = SVector::<f64, 6>::from([0.0, 0.0, 0.0, 0.0, 0.0, 14.7]);
+    let u = |p: Priority| {
+        let alloc = Allocator::new(Geometry::new(&hexa).unwrap(), &[], &[], p).unwrap();
+        alloc.allocate(&hover).u
+    };
+    assert_eq!(u(Priority::Tilt), u(Priority::Torque));
+    // on SO(3) there is only torque: tilt is the torque priority
+    let spacecraft = presets::spacecraft_twelve(0.5, 1.0);
+    let turn = SVector::<f64, 3>::from([3.0, -2.0, 5.0]);
+    let u3 = |p: Priority| {
+        let alloc = Allocator::new(Geometry::new(&spacecraft).unwrap(), &[], &[], p).unwrap();
+        alloc.allocate(&turn)
+    };
+    assert_eq!(u3(Priority::Tilt), u3(Priority::Torque));
+}
+
+#[test]
+fn the_directions_lost_are_those_the_actuators_left_free_do_not_span() {
+    let rov = presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0);
+    let alloc =
+        Allocator::<f64, 6>::new(Geometry::new(&rov).unwrap(), &[], &[], Priority::Torque).unwrap();
+    let mut control = allocation::VehicleControl::new(
+        alloc,
+        allocation::Restoring {
+            weight: 0.0,
+            buoyancy: 0.0,
+            centre: nalgebra::Vector3::zeros(),
+        },
+        0.0,
+        0.01,
+    );
+    assert!(control.lost_directions().directions().is_empty());
+    // one horizontal thruster held: the other three still push every way
+    control.fail(1, 0.0);
+    assert!(control.lost_directions().directions().is_empty());
+    // a second: one direction of the horizontal plane's three is lost
+    control.fail(2, 0.0);
+    assert_eq!(control.lost_directions().directions().len(), 1);
+    // a weakened one still moves
+    control.heal(2);
+    control.weaken(2, 0.3);
+    assert!(control.lost_directions().directions().is_empty());
+}

@@ -277,10 +277,10 @@ impl Scenario {
             }
             h.f64s(&v.weights);
             h.f64s(&v.preferred);
-            h.bytes(if v.priority == allocation::Priority::Torque {
-                b"torque first"
-            } else {
-                b"no priority"
+            h.bytes(match v.priority {
+                allocation::Priority::Torque => b"torque first",
+                allocation::Priority::None => b"no priority",
+                allocation::Priority::Tilt => b"tilt first",
             });
             for f in v.failures.iter().filter(|f| f.reconfigure) {
                 h.f64s(&[f.actuator as f64, f.t, f.value]);

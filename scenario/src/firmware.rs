@@ -113,7 +113,7 @@ impl Scenario {
     }
 
     /// What the firmware does not run, refused naming the key: a told loss of effectiveness,
-    /// a waypoint or set-point reference, and more than 12 told failures (what its
+    /// a waypoint or set-point reference, the tilt priority, and more than 12 told failures (what its
     /// configuration holds).
     fn firmware_refusals(&self) -> Result<(), ScenarioError> {
         let refuse = |key: &str, what: &str| ScenarioError::Invalid {
@@ -137,6 +137,13 @@ impl Scenario {
         }
         if self.path.is_some() {
             return Err(refuse("reference", "a waypoint or set-point reference"));
+        }
+        if self
+            .vehicle
+            .as_ref()
+            .is_some_and(|v| v.priority == allocation::Priority::Tilt)
+        {
+            return Err(refuse("allocation.priority", "the tilt priority"));
         }
         let told = self
             .vehicle

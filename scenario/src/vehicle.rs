@@ -29,7 +29,7 @@
 //! [allocation]                    # optional
 //! weights = [...]
 //! preferred = [...]
-//! priority = "torque"             # or "none"
+//! priority = "torque"             # or "tilt" or "none"
 //! budget = 36                     # active-set iterations per cycle, 1..=1000 (default 36)
 //! ```
 
@@ -562,10 +562,11 @@ impl Validator<'_> {
         let priority = match raw.priority.as_deref() {
             None | Some("torque") => Priority::Torque,
             Some("none") => Priority::None,
+            Some("tilt") => Priority::Tilt,
             Some(other) => {
                 return Err(self.err(
                     "allocation.priority",
-                    format!("unknown priority `{other}` (expected torque or none)"),
+                    format!("unknown priority `{other}` (expected torque, tilt or none)"),
                 ));
             }
         };
