@@ -21,6 +21,8 @@
 //!   - When every raised cause has cleared, the vehicle is back to nominal.
 //! * **Transitions.** Every change of the engaged cause or action is returned, for the caller
 //!   to record.
+//! * **Set-points.** [`setpoint::Supervised`] flies the engaged action in place of the
+//!   reference (docs/failsafe.md, "What each action flies").
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]

@@ -559,3 +559,26 @@ fn fault_detection_keys_are_checked() {
         Err(firmware_cycle::ConfigError::DetectorWithoutVehicle)
     ));
 }
+
+#[test]
+fn the_tilt_priority_is_read_fingerprinted_and_refused_by_the_firmware() {
+    let text = std::fs::read_to_string(pair_tests::scenario("pil_hexarotor")).unwrap();
+    let load = |extra: &str| {
+        let base = pair_tests::repo("scenarios");
+        Scenario::from_toml_in(&format!("{text}\n{extra}"), "p", "p", Some(base.as_ref())).unwrap()
+    };
+    let (torque, tilt) = (load(""), load("[allocation]\npriority = \"tilt\"\n"));
+    assert_eq!(
+        tilt.vehicle.as_ref().unwrap().priority,
+        allocation::Priority::Tilt
+    );
+    assert_ne!(torque.fingerprint(), tilt.fingerprint());
+    assert!(torque.firmware_config().is_ok());
+    let e = tilt.firmware_config().unwrap_err().to_string();
+    assert!(
+        e.contains("allocation.priority") && e.contains("tilt"),
+        "{e}"
+    );
+    let e = error(&format!("{text}\n[allocation]\npriority = \"yaw\"\n"));
+    assert!(e.contains("expected torque, tilt or none"), "{e}");
+}
