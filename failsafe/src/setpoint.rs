@@ -5,10 +5,11 @@
 use crate::Action;
 use controller::Real;
 use controller::group::MatrixLieGroup;
+use controller::group::so3::log_so3;
 use controller::law::Desired;
 use controller::reference::Trajectory;
 use core::marker::PhantomData;
-use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use nalgebra::{SMatrix, SVector, Vector3};
 
 /// The speeds the vertical actions fly at (m/s, positive).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -134,23 +135,9 @@ where
     T: Real,
     G: MatrixLieGroup<N, M>,
 {
-    let e: Matrix3<T> = G::rotation(q_d).tr_mul(&G::rotation(q));
-    let two = T::one() + T::one();
-    let cos = (e.trace() - T::one()) / two;
-    let axis = Vector3::new(
-        e[(2, 1)] - e[(1, 2)],
-        e[(0, 2)] - e[(2, 0)],
-        e[(1, 0)] - e[(0, 1)],
-    );
-    let angle = (axis.norm() / two).atan2(cos);
+    let angle = log_so3(&G::rotation(q_d).tr_mul(&G::rotation(q))).norm();
     let distance = if N == 4 {
-        (0..3)
-            .map(|i| {
-                let d = q[(i, 3)] - q_d[(i, 3)];
-                d * d
-            })
-            .fold(T::zero(), |a, b| a + b)
-            .sqrt()
+        (q.fixed_view::<3, 1>(0, N - 1) - q_d.fixed_view::<3, 1>(0, N - 1)).norm()
     } else {
         T::zero()
     };
