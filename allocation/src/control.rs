@@ -110,6 +110,16 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         crate::geometry::lost_directions(&b)
     }
 
+    /// The failsafe's `disarm` (docs/failsafe.md) applied to this cycle's actuation `a`: every
+    /// actuator at its minimum (a held one where it is held, since the bounds hold it), the
+    /// wrench that gives, and the rate limit's memory set to it.
+    pub fn disarm(&mut self, a: &mut Actuation<T, K>) {
+        let lo = self.bounds.lo;
+        a.allocation.u = lo;
+        a.allocation.achieved = self.allocator.geometry().wrench(&lo);
+        self.previous = Some(lo);
+    }
+
     /// The known restoring wrench at the attitude `r`.
     pub fn restoring(&self, r: &Matrix3<T>) -> SVector<T, K> {
         self.restoring.wrench(r)

@@ -5,6 +5,8 @@
 //!   crate, the command filled in. Allocation-free and generic over the scalar.
 //! * [`ControllerVehicle`]: with a vehicle, the law's wrench allocated to its actuators, and
 //!   with `[fault_detection]` the failure detector's cycle before it.
+//! * [`Supervisor`]: with `[failsafe]`, the failsafe manager ahead of the law, and the
+//!   engaged action's set-point flown in place of the reference.
 //! * [`PlanIntake`] and [`streamed_reference`]: a streamed reference, the plan messages taken
 //!   into its path, and the path a streamed run starts from.
 //!
@@ -16,8 +18,10 @@
 
 mod respond;
 mod stream;
+mod supervise;
 mod vehicle;
 
 pub use respond::{Responder, respond};
 pub use stream::{PlanIntake, streamed_reference};
+pub use supervise::Supervisor;
 pub use vehicle::ControllerVehicle;

@@ -23,11 +23,9 @@ where
 {
     let (q, v) = catch_up(reference, msg);
     let out = controller.compute(&q, &v, &reference.desired())?;
-    Ok(command::<T, G, N, M>(
-        msg.seq,
-        &out,
-        controller.config().law,
-    ))
+    let mut cmd = CommandMsg::new(link::wire::wire_group(G::KIND));
+    write_law::<T, N, M>(&mut cmd, msg.seq, &out, controller.config().law);
+    Ok(cmd)
 }
 
 /// Steps `reference` to the state's k and reads the state in the scalar `T`.
@@ -53,17 +51,15 @@ pub(crate) fn to_f64<T: controller::Real>(x: T) -> f64 {
     nalgebra::try_convert::<T, f64>(x).unwrap_or(f64::NAN)
 }
 
-/// The command for state `seq` from the law's output, naming the law that computed it.
-pub(crate) fn command<T, G, const N: usize, const M: usize>(
+/// Writes the law's output for state `seq` into `cmd`, naming the law that computed it.
+pub(crate) fn write_law<T, const N: usize, const M: usize>(
+    cmd: &mut CommandMsg,
     seq: u64,
     out: &controller::LawOutput<T, N, M>,
     law: controller::Law,
-) -> CommandMsg
-where
+) where
     T: controller::Real,
-    G: MatrixLieGroup<N, M>,
 {
-    let mut cmd = CommandMsg::new(link::wire::wire_group(G::KIND));
     cmd.seq = seq;
     cmd.law = link::wire::law_code(law);
     cmd.set_torque(&out.torque.map(to_f64::<T>));
@@ -72,7 +68,6 @@ where
         cmd.observer[i] = to_f64(out.observer[i]);
         cmd.integral[i] = to_f64(out.integral[i]);
     }
-    cmd
 }
 
 /// The controller's cycle with its state between cycles: the law, the disturbance-rejection
@@ -85,6 +80,7 @@ pub struct Responder<T: controller::Real, G, const N: usize, const M: usize> {
     pub(crate) rejection: Option<Rejection<T, M>>,
     pub(crate) previous: Option<u64>,
     pub(crate) vehicle: Option<crate::ControllerVehicle<M>>,
+    pub(crate) supervisor: Option<crate::Supervisor<T, G, N, M>>,
 }
 
 impl<T, G, const N: usize, const M: usize> Responder<T, G, N, M>
@@ -103,7 +99,21 @@ where
             rejection,
             previous: None,
             vehicle: None,
+            supervisor: None,
         })
+    }
+
+    /// The responder under the failsafe manager `supervisor` (docs/failsafe.md): each answer
+    /// steps it first, flies the engaged action's set-point in place of the reference, and
+    /// carries its state word.
+    pub fn with_supervisor(mut self, supervisor: crate::Supervisor<T, G, N, M>) -> Self {
+        self.supervisor = Some(supervisor);
+        self
+    }
+
+    /// The failsafe manager, if one runs.
+    pub fn supervisor(&self) -> Option<&crate::Supervisor<T, G, N, M>> {
+        self.supervisor.as_ref()
     }
 
     /// The responder of a vehicle: each answer allocates the law's wrench to its actuators.
@@ -150,6 +160,12 @@ where
             .is_some_and(|v| v.detector().is_some())
     }
 
+    /// Whether it keeps state between cycles that no command carries, which replay must follow
+    /// state by state: the failure detector's, or the failsafe manager's.
+    pub fn carries_state(&self) -> bool {
+        self.detects() || self.supervisor.is_some()
+    }
+
     /// Stops running the failure detector (replay, when it can no longer follow it); what
     /// it told the allocator stays
     /// ([`ControllerVehicle::lose_detector`](crate::ControllerVehicle::lose_detector)).
@@ -187,7 +203,29 @@ where
         msg: &StateMsg,
     ) -> Result<CommandMsg, controller::Error> {
         let (q, v) = catch_up(reference, msg);
-        let desired = reference.desired();
+        let follows = self
+            .previous
+            .is_some_and(|p| p.checked_add(1) == Some(msg.seq));
+        let mut cmd = CommandMsg::new(link::wire::wire_group(G::KIND));
+        if let Some(vehicle) = &mut self.vehicle {
+            vehicle.observe::<G, N>(msg, follows, &mut cmd);
+        }
+        let desired = match &mut self.supervisor {
+            None => reference.desired(),
+            Some(sup) => {
+                let flags = failsafe::monitor::Flags {
+                    // a state the controller never saw: the link lost it
+                    link: self.previous.is_some() && !follows,
+                    estimator: msg.flags
+                        & (ipc_types::flags::ESTIMATE_DEGRADED | ipc_types::flags::ESTIMATE_LOST)
+                        != 0,
+                    actuators: self.vehicle.as_ref().is_some_and(|v| v.lost()),
+                };
+                let (nominal, t) = (reference.desired(), reference.time());
+                cmd.failsafe = sup.tick((&q, &v), (&nominal, t), msg.control_period, flags);
+                sup.desired(&nominal, t)
+            }
+        };
         let before = self
             .rejection
             .as_ref()
@@ -196,9 +234,6 @@ where
             None => self.controller.compute(&q, &v, &desired)?,
             Some(r) => {
                 let applied = msg.applied_torque::<M>().map(controller::real::<T>);
-                let follows = self
-                    .previous
-                    .is_some_and(|p| p.checked_add(1) == Some(msg.seq));
                 self.controller.compute_rejecting(
                     r,
                     &q,
@@ -210,13 +245,14 @@ where
                 )?
             }
         };
-        let mut cmd = command::<T, G, N, M>(msg.seq, &out, self.controller.config().law);
+        write_law::<T, N, M>(&mut cmd, msg.seq, &out, self.controller.config().law);
         cmd.previous_seq = self.previous.unwrap_or(ipc_types::NO_PREVIOUS);
         if let Some(vehicle) = &mut self.vehicle {
-            let follows = self
-                .previous
-                .is_some_and(|p| p.checked_add(1) == Some(msg.seq));
-            vehicle.answer::<G, N>(msg, &out.torque.map(to_f64::<T>), follows, &mut cmd);
+            let disarmed = self
+                .supervisor
+                .as_ref()
+                .is_some_and(crate::Supervisor::disarmed);
+            vehicle.allocate::<G, N>(msg, &out.torque.map(to_f64::<T>), disarmed, &mut cmd);
         }
         if let Some((estimate, z)) = before {
             for i in 0..M.min(ipc_types::MAX_M) {

@@ -104,6 +104,18 @@ impl<const M: usize> ControllerVehicle<M> {
         follows: bool,
         cmd: &mut CommandMsg,
     ) {
+        self.observe::<G, N>(msg, follows, cmd);
+        self.allocate::<G, N>(msg, tau, false, cmd);
+    }
+
+    /// The first half of [`ControllerVehicle::answer`], before the law: the period, the
+    /// failures told by now and the detector's cycle, its finding written into `cmd`.
+    pub fn observe<G: MatrixLieGroup<N, M>, const N: usize>(
+        &mut self,
+        msg: &StateMsg,
+        follows: bool,
+        cmd: &mut CommandMsg,
+    ) {
         self.control.set_period(msg.control_period);
         self.spec
             .tell_failures(&mut self.control, msg.t, msg.control_period, &mut self.told);
@@ -142,10 +154,32 @@ impl<const M: usize> ControllerVehicle<M> {
                 cmd.suspect = last.actuator as u32 + 1;
             }
         }
+    }
+
+    /// Whether the actuators it may still move no longer span every wrench (the failsafe's
+    /// `actuators` cause; docs/failsafe.md, "Causes").
+    pub fn lost(&self) -> bool {
+        !self.control.lost_directions().directions().is_empty()
+    }
+
+    /// The second half of [`ControllerVehicle::answer`], after the law: the law's wrench `tau`
+    /// allocated at the state's attitude (every actuator at its minimum when `disarmed`, the
+    /// failsafe's `disarm`), the detector told the command, and the vehicle's fields of `cmd`.
+    pub fn allocate<G: MatrixLieGroup<N, M>, const N: usize>(
+        &mut self,
+        msg: &StateMsg,
+        tau: &SVector<f64, M>,
+        disarmed: bool,
+        cmd: &mut CommandMsg,
+    ) {
+        let r_hat = G::rotation(&msg.configuration::<N>());
         if let Some(p) = self.control.previous() {
             cmd.u_previous.copy_from_slice(p.as_slice());
         }
-        let a = self.control.actuate(tau, &r_hat);
+        let mut a = self.control.actuate(tau, &r_hat);
+        if disarmed {
+            self.control.disarm(&mut a);
+        }
         if let Some(d) = &mut self.detector {
             d.commanded(&a.allocation.u);
         }

@@ -269,6 +269,10 @@ fn responder_for<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
             scenario: s.name.clone(),
             source,
         })?;
+    let responder = match control_cycle::Supervisor::of(s) {
+        Some(sup) => responder.with_supervisor(sup),
+        None => responder,
+    };
     Ok(match &s.vehicle {
         None => responder,
         Some(_) => {

@@ -53,7 +53,7 @@ class StateMsg(ctypes.Structure):
 
 
 class CommandMsg(ctypes.Structure):
-    """eqtrack::CommandMsg8 (docs/wire.md)."""
+    """eqtrack::CommandMsg9 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -79,7 +79,7 @@ class CommandMsg(ctypes.Structure):
         ("plans_received", ctypes.c_uint32),
         ("plan_seq", ctypes.c_uint64),
         ("plan_pid", ctypes.c_uint32),
-        ("reserved", ctypes.c_uint32),
+        ("failsafe", ctypes.c_uint32),
         ("actuators", ctypes.c_uint32),
         ("alloc_status", ctypes.c_uint32),
         ("demand", ctypes.c_double * MAX_M),
@@ -99,7 +99,7 @@ class CommandMsg(ctypes.Structure):
 
     @staticmethod
     def type_name():
-        return "eqtrack::CommandMsg8"
+        return "eqtrack::CommandMsg9"
 
 
 def entries(node, run, what, msg_type, timeout):

@@ -27,6 +27,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod monitor;
 pub mod setpoint;
 
 /// What raises a failsafe.
@@ -68,6 +69,11 @@ impl Cause {
 
     fn index(self) -> usize {
         self as usize
+    }
+
+    /// Its code on the wire: 1 link, 2 estimator, 3 actuators, 4 tracking.
+    pub fn code(self) -> u32 {
+        self as u32 + 1
     }
 }
 
@@ -114,6 +120,12 @@ impl Action {
     /// The action of a name.
     pub fn parse(name: &str) -> Option<Action> {
         Action::ALL.into_iter().find(|a| a.name() == name)
+    }
+
+    /// Its code on the wire and in `trajectory.csv`'s `failsafe` column: 1 `warn`, 2 `hold`,
+    /// 3 `damp`, 4 `descend`, 5 `surface`, 6 `disarm` (0 is nominal).
+    pub fn code(self) -> u32 {
+        self as u32 + 1
     }
 
     /// How severe: `warn` 0, `hold` 1, `damp` 2, `descend` and `surface` 3, `disarm` 4.
@@ -188,6 +200,24 @@ pub enum Mode {
     },
 }
 
+impl Mode {
+    /// The engaged action (`None`: nominal).
+    pub fn action(self) -> Option<Action> {
+        match self {
+            Mode::Nominal => None,
+            Mode::Engaged { action, .. } => Some(action),
+        }
+    }
+
+    /// The engaged cause (`None`: nominal).
+    pub fn cause(self) -> Option<Cause> {
+        match self {
+            Mode::Nominal => None,
+            Mode::Engaged { cause, .. } => Some(cause),
+        }
+    }
+}
+
 /// The manager's state between ticks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct State {
@@ -208,6 +238,41 @@ impl Default for State {
 }
 
 impl State {
+    /// The state as one word (the command's `failsafe` field, docs/wire.md): the engaged
+    /// action's code in bits 0–3 (0: nominal), its cause's code in bits 4–7, and one bit per
+    /// raised cause from bit 8 on, in the order of [`Cause::ALL`].
+    pub fn word(&self) -> u32 {
+        let (action, cause) = match self.mode {
+            Mode::Nominal => (0, 0),
+            Mode::Engaged { cause, action } => (action.code(), cause.code()),
+        };
+        let raised = Cause::ALL
+            .iter()
+            .filter(|c| self.raised[c.index()])
+            .fold(0, |w, c| w | 1 << (8 + c.index()));
+        action | cause << 4 | raised
+    }
+
+    /// What a word says: the mode and the raised causes (`None`: not a word [`State::word`]
+    /// writes — a code out of range, an action without its cause or the reverse, the engaged
+    /// cause not raised, or a bit above the raised causes').
+    pub fn read_word(word: u32) -> Option<(Mode, [bool; 4])> {
+        if word >> 12 != 0 {
+            return None;
+        }
+        let raised: [bool; 4] = core::array::from_fn(|i| word & 1 << (8 + i) != 0);
+        let code = |c: u32| c.checked_sub(1).map(|i| i as usize);
+        let mode = match (code(word & 0xf), code(word >> 4 & 0xf)) {
+            (None, None) => Mode::Nominal,
+            (Some(a), Some(c)) => Mode::Engaged {
+                action: *Action::ALL.get(a)?,
+                cause: *Cause::ALL.get(c).filter(|c| raised[c.index()])?,
+            },
+            _ => return None,
+        };
+        Some((mode, raised))
+    }
+
     /// What the vehicle is doing.
     pub fn mode(&self) -> Mode {
         self.mode

@@ -36,13 +36,13 @@ enum Flying<T: Real, const N: usize> {
     Surface(SMatrix<T, N, N>, T, T),
 }
 
-/// A reference under the failsafe manager: the reference while nominal, the engaged action's
-/// set-point otherwise. Allocation-free; the caller hands it each cycle's estimate
-/// ([`Supervised::observe`]) before the law runs, and the manager's action when it changes
-/// ([`Supervised::engage`]).
+/// What an engaged action flies, without the reference it stands in for: the state an action
+/// engaged with, the model inertia and the rates. Allocation-free. [`Supervised`] wraps a
+/// reference with one (the in-process simulation); a controller that keeps its reference apart
+/// (the pair's responder) holds one beside it and asks [`Setpoint::desired`] for the state to
+/// fly, handing it the reference's.
 #[derive(Debug, Clone)]
-pub struct Supervised<T: Real, G, R, const N: usize, const M: usize> {
-    inner: R,
+pub struct Setpoint<T: Real, G, const N: usize, const M: usize> {
     inertia: SMatrix<T, M, M>,
     rates: Rates<T>,
     flying: Flying<T, N>,
@@ -50,17 +50,15 @@ pub struct Supervised<T: Real, G, R, const N: usize, const M: usize> {
     group: PhantomData<G>,
 }
 
-impl<T, G, R, const N: usize, const M: usize> Supervised<T, G, R, N, M>
+impl<T, G, const N: usize, const M: usize> Setpoint<T, G, N, M>
 where
     T: Real,
     G: MatrixLieGroup<N, M>,
-    R: Trajectory<T, N, M>,
 {
-    /// `inner` under supervision, with the model inertia (for `p_d = I V_d`) and the rates.
-    pub fn new(inner: R, inertia: SMatrix<T, M, M>, rates: Rates<T>) -> Self {
-        let q = inner.desired().q;
-        Supervised {
-            inner,
+    /// Flying the reference, with the model inertia (for `p_d = I V_d`) and the rates; `q` is
+    /// the estimate until one is observed.
+    pub fn new(q: SMatrix<T, N, N>, inertia: SMatrix<T, M, M>, rates: Rates<T>) -> Self {
+        Setpoint {
             inertia,
             rates,
             flying: Flying::Reference,
@@ -69,21 +67,15 @@ where
         }
     }
 
-    /// The reference it wraps.
-    pub fn inner(&self) -> &R {
-        &self.inner
-    }
-
     /// The estimate the law is handed this cycle (the pose an action engages at).
     pub fn observe(&mut self, q: &SMatrix<T, N, N>, v: &SVector<T, M>) {
         self.estimate = (*q, *v);
     }
 
-    /// Flies `action` from now on (`None` or `warn`: the reference), starting from the last
-    /// estimate observed. The vertical actions exist on SE(3) only (elsewhere they hold).
-    pub fn engage(&mut self, action: Option<Action>) {
+    /// Flies `action` from time `t0` on (`None` or `warn`: the reference), starting from the
+    /// last estimate observed. The vertical actions exist on SE(3) only (elsewhere they hold).
+    pub fn engage(&mut self, action: Option<Action>, t0: T) {
         let q = self.estimate.0;
-        let t0 = self.inner.time();
         let se3 = N == 4 && M == 6;
         self.flying = match action {
             None | Some(Action::Warn) => Flying::Reference,
@@ -93,6 +85,56 @@ where
             Some(Action::Surface) if se3 => Flying::Surface(q, t0, self.rates.ascend),
             Some(Action::Descend | Action::Surface) => Flying::Hold(q),
         };
+    }
+
+    /// The desired state flown at time `t`: the reference's `reference` while it is flown
+    /// (bit for bit), else the engaged action's set-point (docs/failsafe.md, "What each action
+    /// flies").
+    pub fn desired(&self, reference: &Desired<T, N, M>, t: T) -> Desired<T, N, M> {
+        match self.flying {
+            Flying::Reference => *reference,
+            Flying::Hold(q) => Self::at_rest(q),
+            Flying::Damp => Self::at_rest(self.estimate.0),
+            Flying::Vertical(q0, t0, rate) => {
+                let dz = rate * (t - t0);
+                let mut q = q0;
+                q[(2, N - 1)] += dz;
+                self.moving(q, &Vector3::new(T::zero(), T::zero(), rate))
+            }
+            Flying::Surface(q0, t0, rate) => {
+                let (q_hat, v_hat) = self.estimate;
+                let mut q = q0;
+                q[(0, N - 1)] = q_hat[(0, N - 1)];
+                q[(1, N - 1)] = q_hat[(1, N - 1)];
+                q[(2, N - 1)] += rate * (t - t0);
+                // the estimate's world velocity, its horizontal part kept: no horizontal effort
+                let lin = Vector3::new(v_hat[3], v_hat[4], v_hat[5]);
+                let world = G::rotation(&q_hat) * lin;
+                self.moving(q, &Vector3::new(world[0], world[1], rate))
+            }
+        }
+    }
+
+    /// One tick of `monitor` at time `t`, before the law: the estimate `(q̂, v̂)` observed, the
+    /// tracking error measured against what is flown (`reference`, or the engaged action's
+    /// set-point, which does not run away while the reference goes on without the vehicle),
+    /// the manager stepped with the other causes' `flags`, and on a transition the new action
+    /// engaged. Returns the transition, if any.
+    pub fn supervise(
+        &mut self,
+        monitor: &mut crate::monitor::Monitor<T>,
+        (q_hat, v_hat): (&SMatrix<T, N, N>, &SVector<T, M>),
+        (reference, t): (&Desired<T, N, M>, T),
+        flags: crate::monitor::Flags,
+    ) -> Option<crate::Transition> {
+        self.observe(q_hat, v_hat);
+        let flown = self.desired(reference, t);
+        let errors = tracking_errors::<T, G, N, M>(q_hat, &flown.q);
+        let transition = monitor.tick(errors, flags);
+        if let Some(tr) = transition {
+            self.engage(tr.to.action(), t);
+        }
+        transition
     }
 
     /// The desired state at rest at `q`.
@@ -122,6 +164,60 @@ where
             v,
             tau: -G::ad_transpose_mul(&v, &p),
         }
+    }
+}
+
+/// A reference under the failsafe manager: the reference while nominal, the engaged action's
+/// set-point otherwise. Allocation-free; the caller hands it each cycle's estimate and steps
+/// the manager through [`Supervised::supervise`] before the law runs.
+#[derive(Debug, Clone)]
+pub struct Supervised<T: Real, G, R, const N: usize, const M: usize> {
+    inner: R,
+    setpoint: Setpoint<T, G, N, M>,
+}
+
+impl<T, G, R, const N: usize, const M: usize> Supervised<T, G, R, N, M>
+where
+    T: Real,
+    G: MatrixLieGroup<N, M>,
+    R: Trajectory<T, N, M>,
+{
+    /// `inner` under supervision, with the model inertia (for `p_d = I V_d`) and the rates.
+    pub fn new(inner: R, inertia: SMatrix<T, M, M>, rates: Rates<T>) -> Self {
+        let q = inner.desired().q;
+        Supervised {
+            inner,
+            setpoint: Setpoint::new(q, inertia, rates),
+        }
+    }
+
+    /// The reference it wraps.
+    pub fn inner(&self) -> &R {
+        &self.inner
+    }
+
+    /// One tick of `monitor` before the law ([`Setpoint::supervise`] at the reference's time).
+    pub fn supervise(
+        &mut self,
+        monitor: &mut crate::monitor::Monitor<T>,
+        estimate: (&SMatrix<T, N, N>, &SVector<T, M>),
+        flags: crate::monitor::Flags,
+    ) -> Option<crate::Transition> {
+        let reference = self.inner.desired();
+        let t = self.inner.time();
+        self.setpoint
+            .supervise(monitor, estimate, (&reference, t), flags)
+    }
+
+    /// The estimate the law is handed this cycle (see [`Setpoint::observe`]), for a caller
+    /// that follows a manager run elsewhere.
+    pub fn observe(&mut self, q: &SMatrix<T, N, N>, v: &SVector<T, M>) {
+        self.setpoint.observe(q, v);
+    }
+
+    /// Flies `action` from now on (see [`Setpoint::engage`]).
+    pub fn engage(&mut self, action: Option<Action>) {
+        self.setpoint.engage(action, self.inner.time());
     }
 }
 
@@ -160,28 +256,8 @@ where
         self.inner.step_index()
     }
     fn desired(&self) -> Desired<T, N, M> {
-        match self.flying {
-            Flying::Reference => self.inner.desired(),
-            Flying::Hold(q) => Self::at_rest(q),
-            Flying::Damp => Self::at_rest(self.estimate.0),
-            Flying::Vertical(q0, t0, rate) => {
-                let dz = rate * (self.inner.time() - t0);
-                let mut q = q0;
-                q[(2, N - 1)] += dz;
-                self.moving(q, &Vector3::new(T::zero(), T::zero(), rate))
-            }
-            Flying::Surface(q0, t0, rate) => {
-                let (q_hat, v_hat) = self.estimate;
-                let mut q = q0;
-                q[(0, N - 1)] = q_hat[(0, N - 1)];
-                q[(1, N - 1)] = q_hat[(1, N - 1)];
-                q[(2, N - 1)] += rate * (self.inner.time() - t0);
-                // the estimate's world velocity, its horizontal part kept: no horizontal effort
-                let lin = Vector3::new(v_hat[3], v_hat[4], v_hat[5]);
-                let world = G::rotation(&q_hat) * lin;
-                self.moving(q, &Vector3::new(world[0], world[1], rate))
-            }
-        }
+        self.setpoint
+            .desired(&self.inner.desired(), self.inner.time())
     }
     fn advance(&mut self) {
         self.inner.advance();

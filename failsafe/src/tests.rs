@@ -156,6 +156,55 @@ fn action() -> impl Strategy<Value = Option<Action>> {
     prop::option::of(prop::sample::select(Action::ALL.to_vec()))
 }
 
+#[test]
+fn a_word_it_does_not_write_does_not_read() {
+    // nominal, and hold engaged by the estimator (raised: bit 9)
+    assert_eq!(State::read_word(0), Some((Mode::Nominal, [false; 4])));
+    let hold = 2 | 2 << 4 | 1 << 9;
+    assert_eq!(
+        State::read_word(hold),
+        Some((
+            engaged(Cause::Estimator, Action::Hold),
+            [false, true, false, false]
+        ))
+    );
+    // an action without a cause, a cause without an action, codes out of range, the engaged
+    // cause not raised, a bit above the raised causes'
+    for bad in [2, 2 << 4, 7 | 1 << 4 | 1 << 8, 1 | 5 << 4, 2 | 2 << 4, hold | 1 << 12] {
+        assert_eq!(State::read_word(bad), None, "{bad:#x}");
+    }
+}
+
+/// The monitor raises `tracking` only once the error has been within its limits, and names
+/// the tick it first passed them; an error that is not a number is beyond.
+#[test]
+fn the_monitor_arms_tracking_once_within_and_keeps_the_tick_it_tripped() {
+    let cfg = config([None, None, None, Some(Action::Disarm)], 2);
+    let limits = monitor::Limits {
+        attitude: Some(0.5),
+        position: None,
+    };
+    let mut m = monitor::Monitor::new(cfg, limits);
+    let flags = monitor::Flags::default();
+    // starting beyond: not a runaway
+    assert_eq!(m.tick((1.0, 0.0), flags), None);
+    assert_eq!(m.tick((0.6, 0.0), flags), None);
+    // within once, then beyond at tick 3: disarm, latched
+    assert_eq!(m.tick((0.4, 0.0), flags), None);
+    let tr = m.tick((0.7, 0.0), flags).expect("a transition");
+    assert_eq!(tr.to, engaged(Cause::Tracking, Action::Disarm));
+    assert!(m.disarmed());
+    assert_eq!(m.runaway(), Some((3, 0.7, 0.0)));
+    for _ in 0..5 {
+        assert_eq!(m.tick((0.0, 0.0), flags), None);
+    }
+    assert!(m.disarmed());
+    // a NaN error is beyond
+    let mut m = monitor::Monitor::new(cfg, limits);
+    m.tick((0.1, 0.0), flags);
+    assert!(m.tick((f64::NAN, 0.0), flags).is_some());
+}
+
 proptest! {
     /// Over any configuration and any sequence of flags: the engaged action is at least as
     /// severe as every raised cause's; a raised cause is one whose flag was set within its
@@ -196,6 +245,12 @@ proptest! {
             if let Mode::Engaged { cause, action } = n.mode() {
                 prop_assert!(n.raised(cause));
                 prop_assert_eq!(cfg.action(cause), Some(action));
+            }
+            // the wire's word says the mode and the raised causes, and reads back
+            let (mode, raised) = State::read_word(n.word()).expect("a word it writes reads");
+            prop_assert_eq!(mode, n.mode());
+            for c in Cause::ALL {
+                prop_assert_eq!(raised[c as usize], n.raised(c));
             }
             s = n;
         }

@@ -16,7 +16,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define EQTRACK_PROTOCOL_VERSION 8u
+#define EQTRACK_PROTOCOL_VERSION 9u
 #define EQTRACK_MAX_N 4        /* configuration matrices are n x n, n <= 4 */
 #define EQTRACK_MAX_M 6        /* algebra dimension m <= 6 */
 #define EQTRACK_NAME_BYTES 32  /* scenario name, UTF-8, NUL-padded */
@@ -35,6 +35,8 @@
 #define EQTRACK_FLAG_TUNABLE 16u  /* StateMsg: the run's gains may change: read eqtrack/<run>/params */
 #define EQTRACK_FLAG_TUNED 32u    /* CommandMsg: answered with the params board's gains for the state */
 #define EQTRACK_FLAG_DETECTING 64u /* CommandMsg: the controller runs the failure detector */
+#define EQTRACK_FLAG_ESTIMATE_DEGRADED 128u /* StateMsg: the gated estimator's health is degraded */
+#define EQTRACK_FLAG_ESTIMATE_LOST 256u     /* StateMsg: the gated estimator's health is lost */
 
 /* the plant's state at t_k */
 typedef struct eqtrack_StateMsg {
@@ -78,7 +80,8 @@ typedef struct eqtrack_CommandMsg {
     uint32_t plans_received;    /* streamed reference: plan messages taken before this answer */
     uint64_t plan_seq;          /* the last of them: its seq (0: none) */
     uint32_t plan_pid;          /* and its planner's pid (0: none) */
-    uint32_t reserved;
+    uint32_t failsafe;          /* failsafe manager: action code bits 0-3 (0 nominal), cause code
+                                   bits 4-7, raised causes bits 8-11 (link..tracking) */
     uint32_t actuators;         /* a vehicle's actuator count; 0: no vehicle, tau is applied */
     uint32_t alloc_status;      /* 0 met, 1 torque not reachable, 2 force given up, 3 cap, 4 bad demand */
     double demand[EQTRACK_MAX_M];    /* tau less the known restoring wrench, first m */

@@ -21,11 +21,13 @@ pub enum Invalid {
     /// A command's detection (or its last test's suspect) names no actuator of the vehicle or
     /// no kind, or has fields set when nothing was found or no detector runs.
     Detection,
+    /// A command's failsafe word is not one the manager writes (docs/wire.md).
+    Failsafe,
 }
 
 impl Invalid {
     /// How many kinds there are.
-    pub const KINDS: usize = 7;
+    pub const KINDS: usize = 8;
     /// All kinds, for counters.
     pub const ALL: [Invalid; Invalid::KINDS] = [
         Invalid::Version,
@@ -35,6 +37,7 @@ impl Invalid {
         Invalid::Period,
         Invalid::Actuators,
         Invalid::Detection,
+        Invalid::Failsafe,
     ];
 
     /// Index into a counter array.
@@ -52,6 +55,7 @@ impl Invalid {
             Invalid::Period => "control period mismatch",
             Invalid::Actuators => "actuator count not the plant's",
             Invalid::Detection => "detection of no actuator or kind",
+            Invalid::Failsafe => "failsafe word of no action or cause",
         }
     }
 }
@@ -168,8 +172,23 @@ pub fn check_command(
     {
         return Err(Invalid::Detection);
     }
+    if !failsafe_word(msg.failsafe) {
+        return Err(Invalid::Failsafe);
+    }
     if msg.seq != awaited {
         return Err(Invalid::Sequence);
     }
     Ok(())
+}
+
+/// Whether `w` is a failsafe word the manager writes ([`CommandMsg::failsafe`]): no bit
+/// above 11, an action code of at most 6 with a cause code of at most 4, both or neither,
+/// and the engaged cause among the raised ones.
+pub fn failsafe_word(w: u32) -> bool {
+    let (action, cause) = (w & 0xf, w >> 4 & 0xf);
+    w >> 12 == 0
+        && action <= 6
+        && cause <= 4
+        && (action == 0) == (cause == 0)
+        && (cause == 0 || w & 1 << (7 + cause) != 0)
 }

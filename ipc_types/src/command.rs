@@ -14,7 +14,7 @@ use nalgebra::SVector;
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::CommandMsg8")
+    type_name("eqtrack::CommandMsg9")
 )]
 #[repr(C)]
 pub struct CommandMsg {
@@ -72,8 +72,12 @@ pub struct CommandMsg {
     /// Its planner's process id (0: none). With `plans_received`, what replay needs to
     /// apply the recorded plan messages at the cycles the controller took them.
     pub plan_pid: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// The failsafe manager's state after this state's tick (docs/failsafe.md; 0: nominal,
+    /// or no manager runs): the engaged action's code in bits 0–3 (1 `warn`, 2 `hold`,
+    /// 3 `damp`, 4 `descend`, 5 `surface`, 6 `disarm`), its cause's code in bits 4–7
+    /// (1 `link`, 2 `estimator`, 3 `actuators`, 4 `tracking`), and one bit per raised cause
+    /// from bit 8 (link) to bit 11 (tracking). Protocol 9.
+    pub failsafe: u32,
     /// A vehicle's actuator count (0: no vehicle, and `tau` is the wrench to apply; at most
     /// [`MAX_ACTUATORS`]). With a vehicle, `tau` is the law's wrench and the plant applies
     /// `u_cmd` through its actuators (docs/vehicles.md).
@@ -142,7 +146,7 @@ impl CommandMsg {
             plans_received: 0,
             plan_seq: 0,
             plan_pid: 0,
-            reserved: 0,
+            failsafe: 0,
             scenario: [0; NAME_BYTES],
             actuators: 0,
             alloc_status: 0,

@@ -199,7 +199,7 @@ impl CommandMsg {
         p.bytes(&self.plans_received.to_le_bytes());
         p.bytes(&self.plan_seq.to_le_bytes());
         p.bytes(&self.plan_pid.to_le_bytes());
-        p.bytes(&self.reserved.to_le_bytes());
+        p.bytes(&self.failsafe.to_le_bytes());
         p.bytes(&self.actuators.to_le_bytes());
         p.bytes(&self.alloc_status.to_le_bytes());
         p.f64s(&self.demand);
@@ -246,7 +246,7 @@ impl CommandMsg {
         m.plans_received = g.u32();
         m.plan_seq = g.u64();
         m.plan_pid = g.u32();
-        m.reserved = g.u32();
+        m.failsafe = g.u32();
         m.actuators = g.u32();
         m.alloc_status = g.u32();
         g.f64s(&mut m.demand);

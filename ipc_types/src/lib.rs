@@ -40,7 +40,7 @@ pub use services::*;
 pub use state::StateMsg;
 
 /// Bumped whenever a message layout or meaning changes.
-pub const PROTOCOL_VERSION: u32 = 8;
+pub const PROTOCOL_VERSION: u32 = 9;
 /// [`CommandMsg::previous_seq`] when the controller processed no state before.
 pub const NO_PREVIOUS: u64 = u64::MAX;
 /// The largest n (configuration matrices are n×n) any supported group needs.
@@ -74,6 +74,11 @@ pub mod flags {
     /// [`CommandMsg::flags`](crate::CommandMsg::flags): the controller runs the failure
     /// detector; the command's detection fields are its (docs/wire.md).
     pub const DETECTING: u32 = 64;
+    /// [`StateMsg::flags`](crate::StateMsg::flags): the estimator's innovation gate runs
+    /// and its health is `degraded` (docs/estimators.md; protocol 9).
+    pub const ESTIMATE_DEGRADED: u32 = 128;
+    /// [`StateMsg::flags`](crate::StateMsg::flags): the estimator's health is `lost`.
+    pub const ESTIMATE_LOST: u32 = 256;
 }
 
 /// Bits of [`CommandMsg::mismatch`]: what differs between the two sides' settings.
@@ -153,6 +158,19 @@ mod tests {
         c.z_before[5] = f64::NAN;
         assert_eq!(check_command(&c, Se3, 3, 0), Err(Invalid::NonFinite));
         c.z_before[5] = 0.0;
+        // the failsafe word: descend engaged by the actuators (raised: bit 10), then words the
+        // manager never writes
+        c.failsafe = 4 | 3 << 4 | 1 << 10;
+        assert_eq!(check_command(&c, Se3, 3, 0), Ok(()));
+        for bad in [4 | 3 << 4, 4, 3 << 4 | 1 << 10, 7 | 1 << 4 | 1 << 8, 1 | 5 << 4, 1 << 12] {
+            c.failsafe = bad;
+            assert_eq!(
+                check_command(&c, Se3, 3, 0),
+                Err(Invalid::Failsafe),
+                "{bad:#x}"
+            );
+        }
+        c.failsafe = 0;
         assert_eq!(check_command(&c, Se3, 3, 0), Ok(()));
         // a vehicle's command: the count must be the plant's, its entries finite
         c.actuators = 8;

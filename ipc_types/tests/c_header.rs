@@ -76,7 +76,7 @@ fn rust_layout() -> Layout {
             plans_received,
             plan_seq,
             plan_pid,
-            reserved,
+            failsafe,
             actuators,
             alloc_status,
             demand,

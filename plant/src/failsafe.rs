@@ -3,15 +3,15 @@
 //! still move, the tracking error of its estimate), the manager stepped, the reference told
 //! the action, and every transition kept for `summary.json`.
 
-use ::failsafe::setpoint::{Rates, Supervised, tracking_errors};
-use ::failsafe::{Action, Inputs, Mode, State};
+use ::failsafe::monitor::{Flags, Limits, Monitor};
+use ::failsafe::setpoint::{Rates, Supervised};
+use ::failsafe::{Action, Cause, State};
 use controller::group::MatrixLieGroup;
 use controller::reference::Trajectory;
 use nalgebra::{SMatrix, SVector};
 use scenario::Scenario;
 use scenario::failsafe::FailsafeSpec;
 use serde::Serialize;
-use std::cmp::Ordering;
 
 /// A reference under the failsafe manager in the simulation (f64).
 pub type SupervisedReference<G, R, const N: usize, const M: usize> = Supervised<f64, G, R, N, M>;
@@ -30,42 +30,69 @@ pub struct TransitionReport {
 impl TransitionReport {
     /// The line `plant_sim sim` prints for it.
     pub fn line(&self) -> String {
+        self.to_string()
+    }
+}
+
+impl std::fmt::Display for TransitionReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self.cause {
-            Some(c) => format!("failsafe: t = {} s: {c} → {}", self.t, self.action),
-            None => format!("failsafe: t = {} s: every cause cleared → nominal", self.t),
+            Some(c) => write!(f, "failsafe: t = {} s: {c} → {}", self.t, self.action),
+            None => write!(
+                f,
+                "failsafe: t = {} s: every cause cleared → nominal",
+                self.t
+            ),
         }
     }
 }
 
-/// The manager's run: its configuration, state and transitions.
+/// The manager's run as a plant sees it: in the in-process simulation it runs the manager
+/// ([`Supervision::tick`]); in the pair it follows the state word each command carries
+/// ([`Supervision::follow`]). Either way it keeps every transition, the action of each row and
+/// when `tracking` was raised.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Supervision {
-    spec: FailsafeSpec,
-    config: ::failsafe::Config,
-    state: State,
+    /// The manager, when this process runs it (the simulation).
+    monitor: Option<Monitor<f64>>,
+    /// The manager's state word after the last tick ([`::failsafe::State::word`]).
+    word: u32,
     transitions: Vec<TransitionReport>,
-    /// The tracking error that raised `tracking` first: (t, attitude rad, position m).
-    runaway: Option<(f64, f64, f64)>,
-    /// Per tick, the action flown ([`Supervision::code`]).
+    /// When `tracking` was first raised (s).
+    tracking_at: Option<f64>,
+    /// Per row, the action flown ([`Supervision::code`]).
     codes: Vec<u8>,
-    /// Whether the tracking error has been within its limits since the start or the last
-    /// transition: only then does passing a limit raise `tracking`.
-    armed: bool,
 }
 
 impl Supervision {
-    /// Scenario `s`'s manager (`None`: no `[failsafe]`).
+    /// Scenario `s`'s manager, run in this process (`None`: no `[failsafe]`).
     pub fn of(s: &Scenario) -> Option<Self> {
         let spec = s.failsafe?;
-        Some(Supervision {
-            config: spec.config(s.control_period),
-            spec,
-            state: State::default(),
-            transitions: Vec::new(),
-            runaway: None,
-            codes: Vec::new(),
-            armed: false,
+        Some(Self::with(Some(Monitor::new(
+            spec.config(s.control_period),
+            limits(&spec),
+        ))))
+    }
+
+    /// A record of the manager the controller runs (the pair's plant; `None`: no
+    /// `[failsafe]`), with room for `rows` rows (so that the plant's loop does not allocate
+    /// for them).
+    pub fn following(s: &Scenario, rows: usize) -> Option<Self> {
+        s.failsafe.map(|_| {
+            let mut sup = Self::with(None);
+            sup.codes.reserve(rows);
+            sup
         })
+    }
+
+    fn with(monitor: Option<Monitor<f64>>) -> Self {
+        Supervision {
+            monitor,
+            word: 0,
+            transitions: Vec::new(),
+            tracking_at: None,
+            codes: Vec::new(),
+        }
     }
 
     /// Scenario `s`'s reference `inner` under supervision (nominal: `inner` bit for bit).
@@ -77,93 +104,73 @@ impl Supervision {
         G: MatrixLieGroup<N, M>,
         R: Trajectory<f64, N, M>,
     {
-        let (descend, ascend) = s
-            .failsafe
-            .map_or((0.0, 0.0), |f| (f.descend_rate, f.ascend_rate));
         Supervised::new(
             inner,
             SMatrix::<f64, M, M>::from_row_slice(&s.model_inertia),
-            Rates { descend, ascend },
+            rates(s),
         )
     }
 
-    /// One tick at `t`, before the law: the flags from the estimate `(q̂, v̂)` (the tracking
-    /// error against what is flown: the reference, or the engaged action's set-point), `unhealthy` (the estimator's health is not `healthy`)
-    /// and `lost` (the actuators no longer span every wrench); the manager stepped; the
-    /// reference handed the estimate and, on a transition, the action.
+    /// One tick at `t`, before the law (the simulation): the manager stepped on the estimate
+    /// `(q̂, v̂)` and the flags (`Setpoint::supervise`), the reference told the action, and
+    /// the tick recorded with its row.
     pub fn tick<G, R, const N: usize, const M: usize>(
         &mut self,
         t: f64,
         estimate: (&SMatrix<f64, N, N>, &SVector<f64, M>),
-        unhealthy: bool,
-        lost: bool,
+        flags: Flags,
         reference: &mut SupervisedReference<G, R, N, M>,
     ) where
         G: MatrixLieGroup<N, M>,
         R: Trajectory<f64, N, M>,
     {
-        let (q_hat, v_hat) = estimate;
-        reference.observe(q_hat, v_hat);
-        // against what is flown: the reference, or the engaged action's set-point (which does
-        // not run away while the reference goes on without the vehicle)
-        let (angle, distance) = tracking_errors::<f64, G, N, M>(q_hat, &reference.desired().q);
-        // past the limit, or not a number
-        let beyond = |limit: Option<f64>, x: f64| {
-            limit.is_some_and(|l| matches!(x.partial_cmp(&l), Some(Ordering::Greater) | None))
-        };
-        let within = !(beyond(self.spec.tracking_limit_attitude, angle)
-            || beyond(self.spec.tracking_limit_position, distance));
-        // a run that starts beyond a limit, or rejoins a reference beyond it after a failsafe,
-        // is not a runaway until its error has once been within
-        self.armed |= within;
-        let tracking = self.armed && !within;
-        if tracking && self.runaway.is_none() {
-            self.runaway = Some((t, angle, distance));
+        if let Some(monitor) = &mut self.monitor {
+            reference.supervise(monitor, estimate, flags);
+            let word = monitor.state().word();
+            self.follow(t, word);
+            self.row();
         }
-        let inputs = Inputs {
-            link: false,
-            estimator: unhealthy,
-            actuators: lost,
-            tracking,
+    }
+
+    /// The manager's state `word` after the tick at `t` (a command's `failsafe` field in the
+    /// pair): a transition is kept when the mode changed. A word that does not read keeps the
+    /// last mode (the plant's checks refuse such a command before).
+    pub fn follow(&mut self, t: f64, word: u32) {
+        let Some((mode, raised)) = State::read_word(word) else {
+            return;
         };
-        let (next, transition) = ::failsafe::step(&self.config, &self.state, &inputs);
-        self.state = next;
-        self.codes.push(match next.mode() {
-            Mode::Nominal => 0,
-            Mode::Engaged { action, .. } => Action::ALL
-                .iter()
-                .position(|a| *a == action)
-                .map_or(0, |i| i as u8 + 1),
-        });
-        if let Some(tr) = transition {
-            let (cause, action) = match tr.to {
-                Mode::Nominal => (None, None),
-                Mode::Engaged { cause, action } => (Some(cause.name()), Some(action)),
-            };
-            reference.engage(action);
-            self.armed = false;
+        let before = State::read_word(self.word).map(|(m, _)| m);
+        if before != Some(mode) {
             self.transitions.push(TransitionReport {
                 t,
-                cause,
-                action: action.map_or("nominal", Action::name),
+                cause: mode.cause().map(Cause::name),
+                action: mode.action().map_or("nominal", Action::name),
             });
         }
+        if raised[3] && self.tracking_at.is_none() {
+            self.tracking_at = Some(t);
+        }
+        self.word = word;
+    }
+
+    /// The engaged action (`None`: nominal).
+    pub fn action(&self) -> Option<Action> {
+        State::read_word(self.word).and_then(|(m, _)| m.action())
+    }
+
+    /// Records the action flown for the next row.
+    pub fn row(&mut self) {
+        self.codes.push((self.word & 0xf) as u8);
     }
 
     /// Whether the engaged action disarms (every actuator to its minimum).
     pub fn disarmed(&self) -> bool {
-        matches!(
-            self.state.mode(),
-            Mode::Engaged {
-                action: Action::Disarm,
-                ..
-            }
-        )
+        self.word & 0xf == Action::Disarm.code()
     }
 
-    /// The action flown at tick `k`, as `trajectory.csv`'s `failsafe` column gives it: 0
+    /// The action flown at row `k`, as `trajectory.csv`'s `failsafe` column gives it: 0
     /// nominal, then 1 `warn`, 2 `hold`, 3 `damp`, 4 `descend`, 5 `surface`, 6 `disarm`
-    /// (`None`: no such tick).
+    /// (`None`: no such row).
     pub fn code(&self, k: usize) -> Option<u8> {
         self.codes.get(k).copied()
     }
@@ -174,10 +181,32 @@ impl Supervision {
     }
 
     /// When `tracking` was raised (it latches, so the run ends in its action, or under a more
-    /// severe one): the time the tracking error first passed its limit, and the errors then
-    /// (rad, m). Such a run exits non-zero.
-    pub fn runaway(&self) -> Option<(f64, f64, f64)> {
-        self.runaway
-            .filter(|_| self.state.raised(::failsafe::Cause::Tracking))
+    /// severe one): the time the tracking error first passed its limit and, when this process
+    /// ran the manager, the errors then (rad, m). Such a run exits non-zero.
+    pub fn runaway(&self) -> Option<(f64, Option<(f64, f64)>)> {
+        let raised = State::read_word(self.word).is_some_and(|(_, r)| r[3]);
+        let t = self.tracking_at.filter(|_| raised)?;
+        let errors = self
+            .monitor
+            .as_ref()
+            .and_then(Monitor::runaway)
+            .map(|(_, a, d)| (a, d));
+        Some((t, errors))
     }
+}
+
+/// `[failsafe]`'s tracking limits.
+pub fn limits(spec: &FailsafeSpec) -> Limits<f64> {
+    Limits {
+        attitude: spec.tracking_limit_attitude,
+        position: spec.tracking_limit_position,
+    }
+}
+
+/// `[failsafe]`'s rates (zero without the table).
+pub fn rates(s: &Scenario) -> Rates<f64> {
+    let (descend, ascend) = s
+        .failsafe
+        .map_or((0.0, 0.0), |f| (f.descend_rate, f.ascend_rate));
+    Rates { descend, ascend }
 }

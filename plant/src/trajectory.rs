@@ -414,8 +414,11 @@ where
             }
         };
         if let Some(sup) = &mut supervision {
-            let unhealthy = unhealthy(estimate.as_ref());
-            sup.tick(t, (&q_hat, &v_hat), unhealthy, false, &mut sim.reference);
+            let flags = ::failsafe::monitor::Flags {
+                estimator: unhealthy(estimate.as_ref()),
+                ..Default::default()
+            };
+            sup.tick(t, (&q_hat, &v_hat), flags, &mut sim.reference);
         }
         // (the exact state when no estimator runs: `step` itself)
         let sample = sim

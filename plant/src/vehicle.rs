@@ -4,7 +4,7 @@
 //! Kirchhoff's equations are Euler–Poincaré on SE(3) with the total inertia).
 
 use crate::SimError;
-use crate::trajectory::{Row, SimulatedTrajectory, Terms, VehicleRow, input};
+use crate::trajectory::{EstimateRow, Row, SimulatedTrajectory, Terms, VehicleRow, input};
 use allocation::{Actuation, Commands, MAX_ACTUATORS, Restoring, VehicleControl};
 use controller::closed_loop::ClosedLoop;
 use controller::disturbance::rotate_blocks;
@@ -419,9 +419,8 @@ where
         let r_hat = G::rotation(&q_hat);
         run.detect::<G, N>(t, &v_hat, &r_hat);
         let disarmed = supervision.as_mut().is_some_and(|sup| {
-            let unhealthy = crate::trajectory::unhealthy(estimate.as_ref());
-            let lost = !run.control.lost_directions().directions().is_empty();
-            sup.tick(t, (&q_hat, &v_hat), unhealthy, lost, &mut sim.reference);
+            let flags = run.failsafe_flags(estimate.as_ref());
+            sup.tick(t, (&q_hat, &v_hat), flags, &mut sim.reference);
             sup.disarmed()
         });
         let body = s.disturbance_at::<M>(k);
@@ -476,6 +475,17 @@ where
 }
 
 impl<const M: usize> VehicleRun<M> {
+    /// The failsafe's flags of this tick (docs/failsafe.md, "Causes"): the estimator's health
+    /// after the tick, and whether the actuators still span every wrench (after the detector's
+    /// cycle). The simulation has no link.
+    fn failsafe_flags(&self, estimate: Option<&EstimateRow>) -> ::failsafe::monitor::Flags {
+        ::failsafe::monitor::Flags {
+            link: false,
+            estimator: crate::trajectory::unhealthy(estimate),
+            actuators: !self.control.lost_directions().directions().is_empty(),
+        }
+    }
+
     /// One period of the vehicle: the law's `wrench` allocated at the estimated attitude
     /// `r_hat` (every actuator at its minimum when `disarmed`), the detector told the command,
     /// the actuators commanded and the plant advanced over `h` in `substeps` with the body and
@@ -489,7 +499,7 @@ impl<const M: usize> VehicleRun<M> {
     ) -> (Actuation<f64, M>, Commands<f64>) {
         let mut a = self.control.actuate(wrench, r_hat);
         if disarmed {
-            disarm(&mut a, &mut self.control);
+            self.control.disarm(&mut a);
         }
         if let Some(d) = &mut self.detector {
             d.commanded(&a.allocation.u);
@@ -507,16 +517,6 @@ impl<const M: usize> VehicleRun<M> {
         );
         (a, u)
     }
-}
-
-/// `[failsafe]`'s `disarm`: every actuator at its minimum (a held one where it is held), and
-/// the wrench that gives.
-fn disarm<const M: usize>(a: &mut Actuation<f64, M>, control: &mut VehicleControl<f64, M>) {
-    let (lo, _) = control.bounds();
-    a.allocation.u = lo;
-    a.allocation.achieved = control.allocator().geometry().wrench(&lo);
-    // the rate limit narrows the next command around what was commanded
-    control.set_previous(Some(lo));
 }
 
 /// `summary.json` → `vehicle`: how long each actuator's command sat at a bound, how far the

@@ -259,12 +259,13 @@ fn a_run_whose_tracking_error_passes_its_limit_is_a_runaway() {
     ];
     let limit = "\n[failsafe]\ntracking = \"disarm\"\ntracking_limit_position = 1.0\n";
     let away = run(&variant("hexarotor_eight", &edits, limit));
-    let (t, _, distance) = away
+    let (t, errors) = away
         .failsafe
         .as_ref()
         .unwrap()
         .runaway()
         .expect("a runaway");
+    let (_, distance) = errors.expect("the simulation ran the manager: it knows the errors");
     let tr = transitions(&away);
     assert_eq!(tr.len(), 1, "{tr:?}");
     assert_eq!(

@@ -20,7 +20,7 @@ import os
 import struct
 import sys
 
-# the flight recorder's layout (format 6) and the wire messages' (protocol 8)
+# the flight recorder's layout (format 7) and the wire messages' (protocol 9)
 LOG_MAGIC = b"EQTRKLOG"
 STATE_AT, COMMAND_AT = 80, 392
 GROUP_DIMS = {1: (3, 3), 2: (4, 6)}
@@ -34,8 +34,8 @@ def read_log(path):
     if data[:8] != LOG_MAGIC:
         sys.exit(f"{path}: not a flight recording")
     version, header_bytes, record_bytes, group = struct.unpack_from("<IIII", data, 8)
-    if version != 6:
-        sys.exit(f"{path}: format version {version}; this check reads 6")
+    if version != 7:
+        sys.exit(f"{path}: format version {version}; this check reads 7")
     n, m = GROUP_DIMS[group]
     records = []
     for at in range(header_bytes, len(data) - record_bytes + 1, record_bytes):

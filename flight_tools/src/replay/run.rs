@@ -309,7 +309,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
                 self.responders[at].1.follow(c);
             }
             self.states.retain(|k, _| *k >= c.previous_seq);
-        } else if r.command.is_none() && !self.what_if && self.responders[at].1.detects() {
+        } else if r.command.is_none() && !self.what_if && self.responders[at].1.carries_state() {
             // the controller may not have seen this state: its responder before answering
             self.unseen
                 .push((r.state.seq, at, self.responders[at].1.clone()));
@@ -408,8 +408,9 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
                 self.responders[slot].1 = responder;
             }
             Unseen::Lost => self.lose_detector(seqs[0]),
-            Unseen::Restart if self.s.fault_detection.is_some() => {
-                // a controller started again: its detector starts afresh, as replay's
+            Unseen::Restart if self.s.fault_detection.is_some() || self.s.failsafe.is_some() => {
+                // a controller started again: its detector and failsafe manager start afresh,
+                // as replay's
                 let mut fresh = responder_for::<G, N, M>(self.s, self.law)?;
                 if let Some(g) = &self.gains {
                     fresh
@@ -554,6 +555,10 @@ fn responder_for<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         .controller::<G, N, M>()
         .and_then(|c| control_cycle::Responder::new(c, with.rejection_config()))
         .map_err(bad(s))?;
+    let responder = match control_cycle::Supervisor::of(&with) {
+        Some(sup) => responder.with_supervisor(sup),
+        None => responder,
+    };
     Ok(match &with.vehicle {
         None => responder,
         Some(_) => responder.with_vehicle(
@@ -755,7 +760,15 @@ fn compare<const M: usize>(
                         ),
                     ]
                 });
+                // the failsafe manager's word, while replay follows the state no command
+                // carries (as the detector's fields)
+                let failsafe = (
+                    "failsafe".to_owned(),
+                    f64::from(recorded.failsafe),
+                    f64::from(c.failsafe),
+                );
                 std::iter::once(("L".to_owned(), recorded.lyapunov, c.lyapunov))
+                    .chain(std::iter::once(failsafe).filter(|_| followed))
                     .chain(terms)
                     .chain(vehicle_fields::<M>(recorded, c, followed))
                     .find(|(_, a, b)| a.to_bits() != b.to_bits())

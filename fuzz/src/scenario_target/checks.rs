@@ -190,19 +190,19 @@ fn failsafe_checked<G, R, const N: usize, const M: usize>(
     G: MatrixLieGroup<N, M>,
     R: controller::reference::Trajectory<f64, N, M> + Clone,
 {
-    use controller::reference::Trajectory;
     let rates = failsafe::setpoint::Rates {
         descend: 0.5,
         ascend: 0.3,
     };
     let inertia = controller.config().inertia;
-    let mut sup =
-        failsafe::setpoint::Supervised::<f64, G, R, N, M>::new(reference.clone(), inertia, rates);
+    let mut reference = reference.clone();
+    let mut sup = failsafe::setpoint::Setpoint::<f64, G, N, M>::new(*q, inertia, rates);
     sup.observe(q, v);
     for action in failsafe::Action::ALL {
-        sup.engage(Some(action));
-        sup.advance();
-        if let Ok(out) = controller.compute(q, v, &sup.desired()) {
+        sup.engage(Some(action), reference.time());
+        reference.advance();
+        let desired = sup.desired(&reference.desired(), reference.time());
+        if let Ok(out) = controller.compute(q, v, &desired) {
             assert!(
                 out.torque.iter().all(|x| x.is_finite()),
                 "{action:?}: a non-finite torque {:?}",

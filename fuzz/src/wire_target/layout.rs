@@ -56,7 +56,7 @@ pub(super) const COMMAND_FIELDS: [(&str, usize, Ty, usize); 39] = [
     ("plans_received", 364, Ty::U32, 1),
     ("plan_seq", 368, Ty::U64, 1),
     ("plan_pid", 376, Ty::U32, 1),
-    ("reserved", 380, Ty::U32, 1),
+    ("failsafe", 380, Ty::U32, 1),
     ("actuators", 384, Ty::U32, 1),
     ("alloc_status", 388, Ty::U32, 1),
     ("demand", 392, Ty::F64, 6),

@@ -120,6 +120,22 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         }
         if let Some(c) = &got {
             self.stats.command(c, self.published, k == 0);
+            if let Some(sup) = &mut self.failsafe {
+                // the set-point the controller flies, for the rows: engaged at the estimate
+                // state k carried, as the controller engaged it
+                self.reference.observe(
+                    &self.state.configuration::<N>(),
+                    &self.state.velocity::<M>(),
+                );
+                let before = sup.transitions().len();
+                sup.follow(k as f64 * self.s.control_period, c.msg.failsafe);
+                if sup.transitions().len() > before {
+                    self.reference.engage(sup.action());
+                }
+                for tr in &sup.transitions()[before..] {
+                    log(format_args!("{tr}"));
+                }
+            }
         }
         if self.vehicle.is_some() {
             self.actuate(k, step.decision, got.as_ref());
@@ -248,6 +264,9 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 Some((vehicle, wrench)) => row.with_vehicle(vehicle, &wrench),
                 None => row,
             });
+        if let Some(sup) = &mut self.failsafe {
+            sup.row();
+        }
         if self.realtime() {
             self.status.push(decision.code());
         }

@@ -24,7 +24,10 @@ pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M:
     pub(super) steps: u64,
     pub(super) period_ns: u64,
     pub(super) plant: controller::integrator::RigidBody<f64, G, N, M>,
-    pub(super) reference: controller::Source<f64, G, N, M>,
+    /// The reference for the records, under the failsafe's set-points as the controller's
+    /// commands engage them (nominal: the reference bit for bit).
+    pub(super) reference:
+        crate::failsafe::SupervisedReference<G, controller::Source<f64, G, N, M>, N, M>,
     pub(super) cfg: controller::ControllerConfig<f64, N, M>,
     pub(super) ep: PlantEndpoint,
     pub(super) policy: DeadlinePolicy,
@@ -68,6 +71,8 @@ pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M:
     pub(super) tuning: Option<crate::tuning::Tuning>,
     /// The changes that took effect (set when the loop has ended).
     pub(super) param_changes: Option<Vec<recorder::ParamChange>>,
+    /// `[failsafe]`: the manager's transitions, as the controller's commands report them.
+    pub(super) failsafe: Option<crate::failsafe::Supervision>,
 }
 
 /// `--tunable`: the run's `params` board with the scenario's gains (`None` without).
@@ -113,16 +118,13 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
     pub(super) fn new(opts: &'a PairOptions) -> Result<Self, SimError> {
         let mut s = opts.scenario.clone();
         let fingerprint = s.fingerprint();
-        let steps = match opts.mode {
-            Mode::Realtime => {
-                s.control_period = 1.0 / opts.rate_hz;
-                (s.duration * opts.rate_hz).round() as u64
-            }
-            Mode::Lockstep => s.steps(),
-        };
+        let steps = run_steps(opts, &mut s);
         let plant = s.plant_body::<G, N, M>().map_err(input(&s))?;
-        let reference = s.reference_source::<G, N, M>().map_err(input(&s))?;
-        refuse_failsafe(&s)?;
+        let reference = crate::failsafe::Supervision::supervise::<G, _, N, M>(
+            &s,
+            s.reference_source::<G, N, M>().map_err(input(&s))?,
+        );
+        refuse_failsafe(opts, &s)?;
         let cfg = s.controller_config::<N, M>();
         let vehicle = super::vehicle::PairVehicle::of(&s)?;
         let config = PlantEndpointConfig {
@@ -191,6 +193,10 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             params,
             tuning: None,
             param_changes: None,
+            failsafe: crate::failsafe::Supervision::following(
+                &s,
+                (steps / opts.record_every.max(1)) as usize + 2,
+            ),
             s,
         })
     }
@@ -320,6 +326,14 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 } else {
                     let (q_hat, v_hat, row) = e.measure(k, &self.plant, &held);
                     msg.set_state(&q_hat, &v_hat);
+                    // the gated estimator's health, the failsafe's `estimator` cause
+                    msg.flags |= match row.health {
+                        Some(estimator::health::Health::Degraded(_)) => {
+                            ipc_types::flags::ESTIMATE_DEGRADED
+                        }
+                        Some(estimator::health::Health::Lost(_)) => ipc_types::flags::ESTIMATE_LOST,
+                        _ => 0,
+                    };
                     if self.recorder.is_some() {
                         let mut truth = StateMsg::new(link::wire::wire_group(self.s.group));
                         truth.set_state(self.plant.configuration(), &self.plant.velocity());
@@ -499,8 +513,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             rows: self.rows,
             status: self.status,
             vehicle: None,
-            // refused in the pair (see `run`)
-            failsafe: None,
+            failsafe: self.failsafe.take(),
         };
         let traj = SimulatedTrajectory {
             vehicle: self
@@ -584,13 +597,24 @@ fn wire_samples(s: &crate::sensors::Samples, origin: &[f64; 3]) -> serial_wire::
     }
 }
 
-/// Refuses `[failsafe]`: the pair and the firmware do not run the manager yet.
-fn refuse_failsafe(s: &scenario::Scenario) -> Result<(), SimError> {
-    if s.failsafe.is_some() {
+/// The run's steps; in real time, the scenario's period set to the run's rate.
+fn run_steps(opts: &PairOptions, s: &mut scenario::Scenario) -> u64 {
+    match opts.mode {
+        Mode::Realtime => {
+            s.control_period = 1.0 / opts.rate_hz;
+            (s.duration * opts.rate_hz).round() as u64
+        }
+        Mode::Lockstep => s.steps(),
+    }
+}
+
+/// Refuses `[failsafe]` on a serial link: the processor-in-the-loop firmware does not run the
+/// manager yet.
+fn refuse_failsafe(opts: &PairOptions, s: &scenario::Scenario) -> Result<(), SimError> {
+    if s.failsafe.is_some() && opts.serial.is_some() {
         return Err(SimError::Input(format!(
-            "scenario `{}`: [failsafe] is run by the in-process simulation only: the pair \
-             and the processor-in-the-loop firmware do not run the failsafe manager yet \
-             (their one failsafe is the deadline policy); run it with `plant_sim sim`",
+            "scenario `{}`: [failsafe] is not run by the processor-in-the-loop firmware yet \
+             (its one failsafe is the deadline policy); run it in the simulation or the pair",
             s.name
         )));
     }

@@ -122,8 +122,13 @@ pub(crate) fn diverged(
     }
     // `[failsafe] tracking`: the error passed its limit, which latches
     match traj.failsafe.as_ref().and_then(|f| f.runaway()) {
-        Some((t, angle, distance)) => Err(SimError::Run(format!(
-            "the tracking error passed its [failsafe] limit at t = {t} s (attitude {angle:.4} rad, position {distance:.4} m): the run ran away (its outputs are in {})",
+        Some((t, errors)) => Err(SimError::Run(format!(
+            "the tracking error passed its [failsafe] limit at t = {t} s{}: the run ran away (its outputs are in {})",
+            errors
+                .map(|(angle, distance)| format!(
+                    " (attitude {angle:.4} rad, position {distance:.4} m)"
+                ))
+                .unwrap_or_default(),
             out.display()
         ))),
         None => Ok(()),

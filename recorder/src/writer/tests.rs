@@ -249,7 +249,7 @@ fn plan_messages_seen_on_the_board_are_written_to_plans_log_and_read_back() {
     std::fs::write(&path, b).unwrap();
     let e = read_plans(&dir).unwrap_err().to_string();
     assert!(
-        e.contains("format version 3") && e.contains("version 6"),
+        e.contains("format version 3") && e.contains("version 7"),
         "{e}"
     );
 }

@@ -1,0 +1,83 @@
+//! The failsafe manager on the controller's side (docs/failsafe.md, "In the pair"): the same
+//! monitor and set-points the in-process simulation runs, fed from what the controller is sent
+//! (the estimate, the estimator's health the state's flags carry, a gap in the states) and
+//! what it knows (the actuators its allocator may still move).
+
+use controller::Real;
+use controller::group::MatrixLieGroup;
+use controller::law::Desired;
+use failsafe::monitor::{Flags, Limits, Monitor};
+use failsafe::setpoint::{Rates, Setpoint};
+use nalgebra::SMatrix;
+use scenario::Scenario;
+use scenario::failsafe::FailsafeSpec;
+
+/// The manager and what it flies, between cycles.
+#[derive(Debug, Clone)]
+pub struct Supervisor<T: Real, G, const N: usize, const M: usize> {
+    spec: FailsafeSpec,
+    /// Made at the first state: the hysteresis counts the plant's periods.
+    monitor: Option<Monitor<T>>,
+    setpoint: Setpoint<T, G, N, M>,
+}
+
+impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Supervisor<T, G, N, M> {
+    /// Scenario `s`'s manager (`None`: no `[failsafe]`).
+    pub fn of(s: &Scenario) -> Option<Self> {
+        let spec = s.failsafe?;
+        let inertia = SMatrix::<f64, M, M>::from_row_slice(&s.model_inertia);
+        Some(Supervisor {
+            spec,
+            monitor: None,
+            setpoint: Setpoint::new(
+                SMatrix::identity(),
+                inertia.map(controller::real::<T>),
+                Rates {
+                    descend: controller::real(spec.descend_rate),
+                    ascend: controller::real(spec.ascend_rate),
+                },
+            ),
+        })
+    }
+
+    /// One tick before the law, at the reference's time `t` and control period `period`: the
+    /// manager stepped on the estimate and `flags`, the new action engaged on a transition.
+    /// Returns the manager's state word (the command's `failsafe` field).
+    pub(crate) fn tick(
+        &mut self,
+        estimate: (&SMatrix<T, N, N>, &nalgebra::SVector<T, M>),
+        (reference, t): (&Desired<T, N, M>, T),
+        period: f64,
+        flags: Flags,
+    ) -> u32 {
+        let spec = &self.spec;
+        let monitor = self.monitor.get_or_insert_with(|| {
+            let limit = |l: Option<f64>| l.map(controller::real::<T>);
+            Monitor::new(
+                spec.config(period),
+                Limits {
+                    attitude: limit(spec.tracking_limit_attitude),
+                    position: limit(spec.tracking_limit_position),
+                },
+            )
+        });
+        self.setpoint
+            .supervise(monitor, estimate, (reference, t), flags);
+        monitor.state().word()
+    }
+
+    /// The desired state flown at `t` in place of the reference's `reference`.
+    pub(crate) fn desired(&self, reference: &Desired<T, N, M>, t: T) -> Desired<T, N, M> {
+        self.setpoint.desired(reference, t)
+    }
+
+    /// Whether the engaged action disarms.
+    pub fn disarmed(&self) -> bool {
+        self.monitor.as_ref().is_some_and(Monitor::disarmed)
+    }
+
+    /// The manager's state, once a state was answered.
+    pub fn monitor(&self) -> Option<&Monitor<T>> {
+        self.monitor.as_ref()
+    }
+}
