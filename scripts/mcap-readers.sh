@@ -72,7 +72,8 @@ sed -e 's/^reconfigure = true/reconfigure = false/' -e 's/^actuator = 5$/actuato
 	-e 's/^t = 20.0$/t = 4.5/' -e 's/^value = 0.0$/kind = "dead"/' \
 	-e 's/^\[plant\]$/[plant]\ndisturbance_world = [0.0, 0.0, 0.0, 15.0, 8.0, -10.0]/' \
 	"$REPO/scenarios/rov_failure.toml" >"$OUT/rov_detect.toml"
-printf '\n[fault_detection]\n' >>"$OUT/rov_detect.toml"
+# and the failsafe manager's channel (a link cause lockstep never raises: nominal throughout)
+printf '\n[fault_detection]\n\n[failsafe]\nlink = "hold"\n' >>"$OUT/rov_detect.toml"
 cp "$REPO/scenarios/rov_failure.csv" "$OUT/"
 "$BIN/plant_sim" run --scenario "$OUT/rov_detect.toml" --mode lockstep --duration 6 \
 	--name "mcap-det-$$" --out "$OUT/detect" >"$OUT/plant-detect.log" 2>&1 || die "the detector's run failed: $(tail -3 "$OUT/plant-detect.log")"

@@ -16,6 +16,7 @@
 //! | `/eqtrack/terms` | `eqtrack_msgs/msg/Terms` | [`messages`] | yes | |
 //! | `/eqtrack/actuators` | `eqtrack_msgs/msg/Actuators` | [`messages`] | yes | |
 //! | `/eqtrack/detection` | `eqtrack_msgs/msg/Detection` | [`messages`] (a controller running the failure detector) | yes | |
+//! | `/eqtrack/failsafe` | `eqtrack_msgs/msg/Failsafe` | [`messages`] (a controller running the failsafe manager) | yes | |
 //! | `/eqtrack/sensors` | `eqtrack_msgs/msg/Sensors` | [`messages`] | yes | |
 //! | `/eqtrack/estimate` | `eqtrack_msgs/msg/Estimate` | [`messages`] | yes | |
 //! | `/eqtrack/plan` | `eqtrack_msgs/msg/Plan` | [`plan_message`] | yes | |
@@ -75,6 +76,11 @@ pub const ACTUATORS: Channel = Channel {
 pub const DETECTION: Channel = Channel {
     topic: "/eqtrack/detection",
     schema: "eqtrack_msgs/msg/Detection",
+};
+/// The failsafe manager's state after a command's tick.
+pub const FAILSAFE: Channel = Channel {
+    topic: "/eqtrack/failsafe",
+    schema: "eqtrack_msgs/msg/Failsafe",
 };
 /// A tick's sensor samples and the true state.
 pub const SENSORS: Channel = Channel {

@@ -4,10 +4,10 @@
 //! command, status).
 
 use crate::{
-    ACTUATORS, COMMAND, CYCLE, DETECTION, ESTIMATE, Message, PLAN, SENSORS, STATE, STATUS, TERMS,
-    Value,
+    ACTUATORS, COMMAND, CYCLE, DETECTION, ESTIMATE, FAILSAFE, Message, PLAN, SENSORS, STATE,
+    STATUS, TERMS, Value,
 };
-use ipc_types::{CommandMsg, StateMsg, StatusMsg, WireLaw, name_str};
+use ipc_types::{CommandMsg, StateMsg, StatusMsg, WireLaw, failsafe_names, name_str};
 use recorder::{PlanEntry, Record, SensorRecord};
 
 /// The decision names of the cycle channel, by code.
@@ -34,6 +34,9 @@ pub fn messages(r: &Record, n: usize, m: usize, terms: bool) -> Vec<Message> {
         }
         if c.flags & ipc_types::flags::DETECTING != 0 {
             out.push(detection_message(r.cycle, c));
+        }
+        if c.flags & ipc_types::flags::SUPERVISED != 0 {
+            out.push(failsafe_message(r.cycle, c.failsafe));
         }
     }
     if let Some(x) = &r.sensors {
@@ -152,6 +155,22 @@ fn detection_message(cycle: u64, c: &CommandMsg) -> Message {
     )
 }
 
+/// The failsafe channel of a command from a controller running the failsafe manager
+/// (docs/failsafe.md): the action flown and the cause that engaged it (`""` when nominal),
+/// the raised causes (bit 0 link … bit 3 tracking), and the word itself (docs/wire.md).
+fn failsafe_message(cycle: u64, word: u32) -> Message {
+    Message::of(
+        FAILSAFE,
+        vec![
+            ("cycle", Value::U64(cycle)),
+            ("action", Value::Str(failsafe_names(word).0.to_owned())),
+            ("cause", Value::Str(failsafe_names(word).1.to_owned())),
+            ("raised", Value::U32(word >> 8 & 0xf)),
+            ("word", Value::U32(word)),
+        ],
+    )
+}
+
 /// The sensors channel: the tick's samples and the true state they were drawn from.
 fn sensors_message(cycle: u64, x: &SensorRecord, n: usize, m: usize) -> Message {
     let sm = &x.samples;
@@ -242,7 +261,8 @@ pub fn plan_message(e: &PlanEntry, cycle: u64, taken: bool, n: usize, m: usize) 
 }
 
 /// The status channel: a running pair's live figures, as the plant's flight recorder
-/// published them on the run's status board (docs/wire.md, "`StatusMsg` (176 bytes): a run's live figures").
+/// published them on the run's status board
+/// (docs/wire.md, "`StatusMsg` (184 bytes): a run's live figures").
 /// `cycle` and `t` are the newest cycle recorded; the round trip is over the last second.
 pub fn status_message(s: &StatusMsg) -> Message {
     Message::of(
@@ -273,6 +293,15 @@ pub fn status_message(s: &StatusMsg) -> Message {
             ("last_detected_kind", Value::U32(s.last_detected_kind)),
             ("last_detected_value", Value::F64(s.last_detected_value)),
             ("alarms", Value::U32(s.alarms)),
+            (
+                "failsafe_action",
+                Value::Str(failsafe_names(s.failsafe).0.to_owned()),
+            ),
+            (
+                "failsafe_cause",
+                Value::Str(failsafe_names(s.failsafe).1.to_owned()),
+            ),
+            ("failsafe_transitions", Value::U32(s.failsafe_transitions)),
         ],
     )
 }
@@ -349,7 +378,14 @@ mod tests {
                 .iter()
                 .any(|f| *f == ("scenario", Value::Str("seed".to_owned())))
         );
-        for want in ["detections", "last_detected", "alarms"] {
+        for want in [
+            "detections",
+            "last_detected",
+            "alarms",
+            "failsafe_action",
+            "failsafe_cause",
+            "failsafe_transitions",
+        ] {
             assert!(names.contains(&want), "no field {want}");
         }
         assert!(msg.schema_text().contains("uint64 rtt_p99_ns\n"));

@@ -223,6 +223,7 @@ where
                 };
                 let (nominal, t) = (reference.desired(), reference.time());
                 cmd.failsafe = sup.tick((&q, &v), (&nominal, t), msg.control_period, flags);
+                cmd.flags |= ipc_types::flags::SUPERVISED;
                 sup.desired(&nominal, t)
             }
         };

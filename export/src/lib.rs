@@ -2,7 +2,7 @@
 //! to MCAP, the log format Foxglove, PlotJuggler and Rerun open directly
 //! (docs/architecture.md, "Exporting a run to MCAP").
 //!
-//! Every record becomes up to eight messages, one per channel, all stamped with the cycle's
+//! Every record becomes up to nine messages, one per channel, all stamped with the cycle's
 //! sample time `t_k` in ns (`log_time` = `publish_time`) and the cycle index as `sequence`:
 //!
 //! | topic | schema | what |
@@ -13,6 +13,7 @@
 //! | `/eqtrack/terms` | `eqtrack_msgs/msg/Terms` | the disturbance-rejection terms, when the run has them |
 //! | `/eqtrack/actuators` | `eqtrack_msgs/msg/Actuators` | a vehicle's allocation: status, demand, achieved and accounted wrenches, actuator commands |
 //! | `/eqtrack/detection` | `eqtrack_msgs/msg/Detection` | the failure detector's last test and what it found, when the controller runs it |
+//! | `/eqtrack/failsafe` | `eqtrack_msgs/msg/Failsafe` | the failsafe manager's action, cause and raised causes, when the controller runs it |
 //! | `/eqtrack/sensors` | `eqtrack_msgs/msg/Sensors` | the tick's sensor samples and the true state, in a run with sensors |
 //! | `/eqtrack/estimate` | `eqtrack_msgs/msg/Estimate` | what the estimator published (the state's `Q̂`, `V̂`) and said, in a run with sensors |
 //! | `/eqtrack/plan` | `eqtrack_msgs/msg/Plan` | each plan message of a streamed run (`plans.log`), at the cycle the controller took it |

@@ -88,8 +88,8 @@ where
     }
 
     /// The desired state flown at time `t`: the reference's `reference` while it is flown
-    /// (bit for bit), else the engaged action's set-point (docs/failsafe.md, "What each action
-    /// flies").
+    /// (bit for bit), else the engaged action's set-point
+    /// (docs/failsafe.md, "What each action flies").
     pub fn desired(&self, reference: &Desired<T, N, M>, t: T) -> Desired<T, N, M> {
         match self.flying {
             Flying::Reference => *reference,

@@ -170,7 +170,14 @@ fn a_word_it_does_not_write_does_not_read() {
     );
     // an action without a cause, a cause without an action, codes out of range, the engaged
     // cause not raised, a bit above the raised causes'
-    for bad in [2, 2 << 4, 7 | 1 << 4 | 1 << 8, 1 | 5 << 4, 2 | 2 << 4, hold | 1 << 12] {
+    for bad in [
+        2,
+        2 << 4,
+        7 | 1 << 4 | 1 << 8,
+        1 | 5 << 4,
+        2 | 2 << 4,
+        hold | 1 << 12,
+    ] {
         assert_eq!(State::read_word(bad), None, "{bad:#x}");
     }
 }

@@ -141,6 +141,7 @@ impl View {
                 s.detections, s.alarms
             ));
         }
+        lines.extend(failsafe_line(s));
         lines
     }
 
@@ -344,6 +345,24 @@ fn draw(f: &mut ratatui::Frame, view: &View) {
     f.render_widget(Paragraph::new(state), help);
 }
 
+/// The failsafe manager's line, when the controller runs it: the engaged action (upper case)
+/// and its cause, or `nominal`, and the transitions so far.
+fn failsafe_line(s: &ipc_types::StatusMsg) -> Option<String> {
+    if s.flags & status_flags::SUPERVISED == 0 {
+        return None;
+    }
+    let (action, cause) = ipc_types::failsafe_names(s.failsafe);
+    let what = if cause.is_empty() {
+        action.to_owned()
+    } else {
+        format!("{} ({cause})", action.to_uppercase())
+    };
+    Some(format!(
+        "failsafe     {what}; {} transitions",
+        s.failsafe_transitions
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -394,5 +413,27 @@ mod tests {
             line,
             "detector     1 found, newest actuator 6 stuck (-20.000); 1 alarms"
         );
+    }
+
+    #[test]
+    fn the_failsafes_line_shows_the_action_and_counts_the_transitions() {
+        let mut v = view(std::iter::empty());
+        let mut s = ipc_types::StatusMsg::new(ipc_types::WireGroup::Se3, "rov");
+        let mut c = ipc_types::CommandMsg::new(ipc_types::WireGroup::Se3);
+        // no manager: no line, whatever the word
+        c.failsafe = 5 | 3 << 4 | 1 << 10;
+        s.note_failsafe(&c);
+        v.status = Some(s);
+        assert!(!v.lines().iter().any(|l| l.starts_with("failsafe")));
+        c.flags = ipc_types::flags::SUPERVISED;
+        c.failsafe = 0;
+        s.note_failsafe(&c);
+        c.failsafe = 5 | 3 << 4 | 1 << 10;
+        s.note_failsafe(&c);
+        s.note_failsafe(&c);
+        v.status = Some(s);
+        let lines = v.lines();
+        let line = lines.iter().find(|l| l.starts_with("failsafe")).unwrap();
+        assert_eq!(line, "failsafe     SURFACE (actuators); 1 transitions");
     }
 }

@@ -107,6 +107,7 @@ fn wire_inputs_never_panic() {
         "check_command: Invalid::Sequence",
         "check_command: Invalid::Actuators",
         "check_command: Invalid::Detection",
+        "check_command: Invalid::Failsafe",
     ] {
         assert!(r.rejected.contains_key(kind), "{kind} never seen\n{r}");
     }

@@ -37,6 +37,7 @@
 #define EQTRACK_FLAG_DETECTING 64u /* CommandMsg: the controller runs the failure detector */
 #define EQTRACK_FLAG_ESTIMATE_DEGRADED 128u /* StateMsg: the gated estimator's health is degraded */
 #define EQTRACK_FLAG_ESTIMATE_LOST 256u     /* StateMsg: the gated estimator's health is lost */
+#define EQTRACK_FLAG_SUPERVISED 512u  /* CommandMsg: the controller runs the failsafe manager */
 
 /* the plant's state at t_k */
 typedef struct eqtrack_StateMsg {
@@ -159,6 +160,8 @@ typedef struct eqtrack_StatusMsg {
     uint32_t last_detected_kind; /* 1 dead, 2 stuck, 3 effectiveness; 0: none */
     uint32_t alarms;             /* the detector's alarms so far */
     double last_detected_value;  /* the newest one's stuck value or factor */
+    uint32_t failsafe;           /* the failsafe word of the newest command (0: nominal) */
+    uint32_t failsafe_transitions; /* the failsafe's transitions so far */
 } eqtrack_StatusMsg;
 
 /* run-time parameters (plant_sim run --tunable): the controller's gains from one cycle on */

@@ -202,6 +202,24 @@ impl CommandMsg {
     }
 }
 
+/// The names of a failsafe word's engaged action and its cause ([`CommandMsg::failsafe`]):
+/// `("nominal", "")` when none is engaged; `"?"` for a code no action or cause has.
+pub fn failsafe_names(word: u32) -> (&'static str, &'static str) {
+    let name = |names: &[&'static str], code: u32| names.get(code as usize).copied().unwrap_or("?");
+    (
+        name(
+            &[
+                "nominal", "warn", "hold", "damp", "descend", "surface", "disarm",
+            ],
+            word & 0xf,
+        ),
+        name(
+            &["", "link", "estimator", "actuators", "tracking"],
+            word >> 4 & 0xf,
+        ),
+    )
+}
+
 /// The name of a detection kind's code ([`CommandMsg::detected_kind`]): `""` (nothing
 /// found), `"dead"`, `"stuck"`, `"effectiveness"`, or `"?"` for a code no kind has.
 pub fn detected_kind_name(code: u32) -> &'static str {

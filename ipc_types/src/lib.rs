@@ -32,7 +32,7 @@ mod services;
 mod state;
 pub use checks::{Invalid, MAX_SEQ_JUMP, check_command, check_state};
 pub(crate) use checks::{all_finite, own_dims};
-pub use command::{CommandMsg, detected_kind_name};
+pub use command::{CommandMsg, detected_kind_name, failsafe_names};
 pub use encoding::{COMMAND_BYTES, DecodeError, STATE_BYTES};
 pub(crate) use encoding::{Get, Put, length};
 pub use identity::{Identity, name_bytes, name_str, padded_bytes, padded_str};
@@ -77,6 +77,9 @@ pub mod flags {
     /// [`StateMsg::flags`](crate::StateMsg::flags): the estimator's innovation gate runs
     /// and its health is `degraded` (docs/estimators.md; protocol 9).
     pub const ESTIMATE_DEGRADED: u32 = 128;
+    /// [`CommandMsg::flags`](crate::CommandMsg::flags): the controller runs the failsafe
+    /// manager; the command's `failsafe` word is its (protocol 9).
+    pub const SUPERVISED: u32 = 512;
     /// [`StateMsg::flags`](crate::StateMsg::flags): the estimator's health is `lost`.
     pub const ESTIMATE_LOST: u32 = 256;
 }
@@ -162,7 +165,14 @@ mod tests {
         // manager never writes
         c.failsafe = 4 | 3 << 4 | 1 << 10;
         assert_eq!(check_command(&c, Se3, 3, 0), Ok(()));
-        for bad in [4 | 3 << 4, 4, 3 << 4 | 1 << 10, 7 | 1 << 4 | 1 << 8, 1 | 5 << 4, 1 << 12] {
+        for bad in [
+            4 | 3 << 4,
+            4,
+            3 << 4 | 1 << 10,
+            7 | 1 << 4 | 1 << 8,
+            1 | 5 << 4,
+            1 << 12,
+        ] {
             c.failsafe = bad;
             assert_eq!(
                 check_command(&c, Se3, 3, 0),

@@ -20,6 +20,8 @@ pub mod status_flags {
     pub const REALTIME: u32 = 4;
     /// The controller runs the failure detector (its commands say so).
     pub const DETECTING: u32 = 8;
+    /// The controller runs the failsafe manager (its commands say so).
+    pub const SUPERVISED: u32 = 16;
 }
 
 /// A run's live figures.
@@ -27,7 +29,7 @@ pub mod status_flags {
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::StatusMsg5")
+    type_name("eqtrack::StatusMsg6")
 )]
 #[repr(C)]
 pub struct StatusMsg {
@@ -78,6 +80,12 @@ pub struct StatusMsg {
     pub alarms: u32,
     /// The newest finding's stuck value or factor (0: dead, or none yet).
     pub last_detected_value: f64,
+    /// The failsafe manager's state word of the newest command ([`CommandMsg::failsafe`](crate::CommandMsg::failsafe);
+    /// 0: nominal, or no manager runs). Protocol 9.
+    pub failsafe: u32,
+    /// The failsafe's transitions so far: changes of the engaged cause or action among the
+    /// recorded commands.
+    pub failsafe_transitions: u32,
 }
 
 impl StatusMsg {
@@ -107,7 +115,23 @@ impl StatusMsg {
             last_detected_kind: 0,
             alarms: 0,
             last_detected_value: 0.0,
+            failsafe: 0,
+            failsafe_transitions: 0,
         }
+    }
+
+    /// Takes the failsafe manager's state from command `c` (a controller that does not run it
+    /// leaves it as it is): its word, and a transition counted when the engaged cause or
+    /// action (the word's low byte) changed.
+    pub fn note_failsafe(&mut self, c: &crate::CommandMsg) {
+        if c.flags & crate::flags::SUPERVISED == 0 {
+            return;
+        }
+        self.flags |= status_flags::SUPERVISED;
+        if c.failsafe & 0xff != self.failsafe & 0xff {
+            self.failsafe_transitions = self.failsafe_transitions.saturating_add(1);
+        }
+        self.failsafe = c.failsafe;
     }
 
     /// Takes the failure detector's figures from command `c` (a controller that does not run

@@ -147,6 +147,8 @@ fn rust_layout() -> Layout {
             last_detected_kind,
             alarms,
             last_detected_value,
+            failsafe,
+            failsafe_transitions,
         ]
     );
     fields!(

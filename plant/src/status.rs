@@ -80,6 +80,7 @@ impl StatusSink for LiveStatus {
             m.lyapunov = c.lyapunov;
             m.last_command_ns = *received;
             m.note_detection(c);
+            m.note_failsafe(c);
             // the first command answers the connection, not a timed cycle
             if r.cycle > 0 {
                 rtt = received.saturating_sub(published).max(1);

@@ -69,6 +69,13 @@ def read_log(path):
                 rec["u_cmd"] = list(struct.unpack_from(f"<{actuators}d", data, c + 632))
             flags = struct.unpack_from("<I", data, c + 304)[0]
             rec["detecting"] = bool(flags & 64)
+            rec["supervised"] = bool(flags & 512)
+            if rec["supervised"]:
+                word = struct.unpack_from("<I", data, c + 380)[0]
+                rec.update(
+                    action=["nominal", "warn", "hold", "damp", "descend", "surface", "disarm"][word & 0xF],
+                    cause=["", "link", "estimator", "actuators", "tracking"][word >> 4 & 0xF],
+                    raised=word >> 8 & 0xF, word=word)
             if rec["detecting"]:
                 detected, kind, value, refined, alarms = struct.unpack_from("<IIdII", data, c + 728)
                 statistic, suspect = struct.unpack_from("<dI", data, c + 752)
@@ -89,6 +96,7 @@ def check_against_log(log_path, by_topic):
         ("/eqtrack/command", commands, ("cycle", "seq", "tau", "lyapunov")),
         ("/eqtrack/actuators", [r for r in commands if r["actuators"] > 0], ("cycle", "alloc_status", "demand", "u_cmd")),
         ("/eqtrack/detection", [r for r in commands if r["detecting"]], ("cycle", "suspect", "statistic", "alarms", "detected", "kind", "value", "refined")),
+        ("/eqtrack/failsafe", [r for r in commands if r["supervised"]], ("cycle", "action", "cause", "raised", "word")),
     )
     for topic, want, fields in checks:
         got = by_topic.get(topic, [])
@@ -153,7 +161,7 @@ def main(mcap_path, jsonl_path, log_path=None):
                 if not same(got, value):
                     sys.exit(f"{where}: field {name} = {got!r}, expected {value!r}")
             topics[channel.topic] = topics.get(channel.topic, 0) + 1
-            if log_path is not None and channel.topic in ("/eqtrack/state", "/eqtrack/cycle", "/eqtrack/command", "/eqtrack/actuators", "/eqtrack/detection"):
+            if log_path is not None and channel.topic in ("/eqtrack/state", "/eqtrack/cycle", "/eqtrack/command", "/eqtrack/actuators", "/eqtrack/detection", "/eqtrack/failsafe"):
                 by_topic.setdefault(channel.topic, []).append(decoded)
             count += 1
     if count != len(expected):
@@ -168,7 +176,7 @@ def main(mcap_path, jsonl_path, log_path=None):
         records, commands = check_against_log(log_path, by_topic)
         against_log = (
             f"; {records} records and {commands} commands of {os.path.basename(log_path)}, read with struct, "
-            "equal to the state, cycle, command, actuators and detection channels"
+            "equal to the state, cycle, command, actuators, detection and failsafe channels"
         )
     print(
         f"python mcap {count} messages decoded with CRCs checked, all equal to the project's reading{against_log}; "

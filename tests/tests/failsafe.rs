@@ -1,0 +1,273 @@
+//! The failsafe manager in the pair (docs/failsafe.md, "In the pair"): the controller runs it,
+//! its commands carry its state word, and the plant keeps the transitions. Lockstep equals
+//! the simulation bit for bit, under a CPU hog too; the flight log replays the word and a
+//! planted change is found; the MCAP export has a failsafe channel; a runaway exits 1; a
+//! stalled controller raises `link`. Driven through the real binaries; one at a time.
+
+use pair_tests::{CpuHog, TempDir, repo, run, serial, sim_equals_lockstep, summary};
+use std::path::Path;
+use std::time::Duration;
+
+const LONG: Duration = Duration::from_secs(180);
+
+/// Scenario `name` of `scenarios/` with each `(from, to)` replaced and `extra` appended,
+/// written to `dir` beside copies of the scenarios' waypoint files; returns its path.
+fn variant(dir: &Path, name: &str, edits: &[(&str, &str)], extra: &str) -> String {
+    std::fs::create_dir_all(dir).unwrap();
+    for entry in std::fs::read_dir(repo("scenarios")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "csv") {
+            std::fs::copy(&path, dir.join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    let mut text = std::fs::read_to_string(repo(&format!("scenarios/{name}.toml"))).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{name} no longer has `{from}`");
+        text = text.replacen(from, to, 1);
+    }
+    text.push_str(extra);
+    let file = dir.join(format!("{name}-failsafe.toml"));
+    std::fs::write(&file, text).unwrap();
+    file.to_str().unwrap().to_owned()
+}
+
+/// `rov_failure` in a (2, 1) N current, its horizontal thrusters 1 and 2 dying unannounced at
+/// 6.3 s and 9.1 s, found by the detector; `actuators = "surface"`.
+fn rov_surfacing(dir: &Path) -> String {
+    let text = std::fs::read_to_string(repo("scenarios/rov_failure.toml")).unwrap();
+    let at = text.find("[[vehicle.failure]]").unwrap();
+    let end = text[at..].find("\n\n").map_or(text.len(), |e| at + e);
+    let told = text[at..end].to_owned();
+    variant(
+        dir,
+        "rov_failure",
+        &[
+            (&told, ""),
+            ("duration = 40.0", "duration = 16.0"),
+            (
+                "[plant]\n",
+                "[plant]\ndisturbance_world = [0.0, 0.0, 0.0, 2.0, 1.0, 0.0]\n",
+            ),
+        ],
+        "\n[fault_detection]\n\n[[vehicle.failure]]\nactuator = 1\nt = 6.3\nkind = \"dead\"\n\
+         reconfigure = false\n\n[[vehicle.failure]]\nactuator = 2\nt = 9.1\nkind = \"dead\"\n\
+         reconfigure = false\n\n[failsafe]\nactuators = \"surface\"\nascend_rate = 0.3\n",
+    )
+}
+
+/// `hexarotor_eqf` for 25 s with the gate, its position fixes lost from 5 s to 15 s;
+/// `estimator = "hold"` and a 1 m tracking limit that must not trip.
+fn hexarotor_holding(dir: &Path) -> String {
+    variant(
+        dir,
+        "hexarotor_eqf",
+        &[
+            ("duration = 10.0", "duration = 25.0"),
+            ("kind = \"eqf\"", "kind = \"eqf\"\ngate = true"),
+            (
+                "[estimator]",
+                "[[sensors.fault]]\nsensor = \"position\"\nt = 5.0\nduration = 10.0\n\
+                 kind = \"dropout\"\n\n[estimator]",
+            ),
+        ],
+        "\n[failsafe]\nestimator = \"hold\"\nclear_time = 1.0\ntracking = \"disarm\"\n\
+         tracking_limit_position = 1.0\n",
+    )
+}
+
+/// `summary.json` → `failsafe` as `(t, cause, action)`.
+fn transitions(dir: &str) -> Vec<(f64, Option<String>, String)> {
+    summary(Path::new(dir))["failsafe"]
+        .as_array()
+        .expect("a failsafe list")
+        .iter()
+        .map(|x| {
+            (
+                x["t"].as_f64().unwrap(),
+                x["cause"].as_str().map(str::to_owned),
+                x["action"].as_str().unwrap().to_owned(),
+            )
+        })
+        .collect()
+}
+
+/// The run in `out` copied beside it with the failsafe word of the command at cycle `k`
+/// replaced by `word`; returns the copy's directory.
+fn planted_word(out: &str, k: usize, word: u32) -> String {
+    let planted = format!("{out}-planted");
+    std::fs::create_dir_all(&planted).unwrap();
+    for entry in std::fs::read_dir(out).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_file() {
+            std::fs::copy(&path, Path::new(&planted).join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    let file = format!("{planted}/messages.log");
+    let mut log = std::fs::read(&file).unwrap();
+    let header = recorder::Header::from_bytes(&log).unwrap();
+    let at = recorder::HEADER_BYTES + k * header.record_bytes() + recorder::RECORD_COMMAND_OFFSET;
+    let mut cmd =
+        ipc_types::CommandMsg::from_bytes(&log[at..at + ipc_types::COMMAND_BYTES]).unwrap();
+    assert_ne!(cmd.failsafe, word, "the plant changes nothing");
+    cmd.failsafe = word;
+    log[at..at + ipc_types::COMMAND_BYTES].copy_from_slice(&cmd.to_bytes());
+    std::fs::write(file, log).unwrap();
+    planted
+}
+
+#[test]
+fn lockstep_with_the_failsafe_equals_the_simulation_under_a_cpu_hog_and_replays() {
+    let _g = serial();
+    let d = TempDir::new("failsafe-pair");
+    let _hog = CpuHog::start();
+    // the ROV: the detector's findings raise `actuators` on the controller's side
+    let rov = rov_surfacing(Path::new(&d.join("rov")));
+    let (sim, pair) = sim_equals_lockstep(&d, "rov", &rov);
+    let tr = transitions(&pair);
+    assert_eq!(tr, transitions(&sim));
+    assert_eq!(tr.len(), 1, "{tr:?}");
+    assert_eq!(
+        (tr[0].1.as_deref(), tr[0].2.as_str()),
+        (Some("actuators"), "surface")
+    );
+    // the hexarotor: the estimator's health crosses the wire in the state's flags
+    let hex = hexarotor_holding(Path::new(&d.join("hex")));
+    let (sim, pair) = sim_equals_lockstep(&d, "hex", &hex);
+    let tr = transitions(&pair);
+    assert_eq!(tr, transitions(&sim));
+    let causes: Vec<_> = tr.iter().map(|x| (x.1.as_deref(), x.2.as_str())).collect();
+    assert_eq!(causes, [(Some("estimator"), "hold"), (None, "nominal")]);
+    // nothing allocates on the controller's side
+    let p = summary(Path::new(&pair));
+    assert_eq!(p["controller_heap_allocations"].as_u64(), Some(0), "{p}");
+    // the log replays the manager's word bit for bit
+    let (code, text) = run("plant_sim", &["replay", &pair], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("12501 commands compared, 0 differ"), "{text}");
+    // a logged transition changed (hold recorded as damp at the tick it engaged) is found
+    let engaged = (tr[0].0 / 0.002).round() as usize;
+    let planted = planted_word(&pair, engaged, 3 | 2 << 4 | 1 << 9);
+    let (code, text) = run("plant_sim", &["replay", &planted], LONG);
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains("failsafe recorded"), "{text}");
+    assert!(text.contains(&format!("cycle {engaged} ")), "{text}");
+    // the export's failsafe channel: one message per command, the hold from its tick on
+    let (code, text) = run("plant_sim", &["export", &pair, "--format", "jsonl"], LONG);
+    assert_eq!(code, 0, "{text}");
+    let channel: Vec<serde_json::Value> =
+        std::fs::read_to_string(Path::new(&pair).join("run.jsonl"))
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+            .filter(|l| l["topic"] == "/eqtrack/failsafe")
+            .map(|l| l["fields"].clone())
+            .collect();
+    assert_eq!(channel.len(), 12501);
+    let left = (tr[1].0 / 0.002).round() as usize;
+    for (k, f) in channel.iter().enumerate() {
+        let held = (engaged..left).contains(&k);
+        let want = if held { "hold" } else { "nominal" };
+        assert_eq!(f["action"], want, "cycle {k}: {f}");
+        assert_eq!(f["cause"], if held { "estimator" } else { "" }, "{f}");
+    }
+}
+
+#[test]
+fn a_runaway_in_the_pair_exits_1_naming_the_time() {
+    let _g = serial();
+    let d = TempDir::new("failsafe-runaway");
+    // the hexarotor hovering 2 m above the world origin under the world-frame law leaves its
+    // set-point: a 1 m limit disarms it
+    let file = variant(
+        Path::new(&d.join("s")),
+        "hexarotor_eight",
+        &[
+            ("duration = 22.0", "duration = 6.0"),
+            (
+                "waypoints = \"hexarotor_eight.csv\"\npath = \"through\"\n",
+                "setpoint = { rotation = [0.0, 0.0, 0.0], position = [0.0, 0.0, 2.0] }\n",
+            ),
+            (
+                "position = [0.0, 0.0, 0.0]\nvelocity",
+                "position = [0.0, 0.0, 2.0]\nvelocity",
+            ),
+            ("[controller]\n", "[controller]\nerror_frame = \"world\"\n"),
+        ],
+        "\n[failsafe]\ntracking = \"disarm\"\ntracking_limit_position = 1.0\n",
+    );
+    let out = d.join("pair");
+    let args = [
+        "run",
+        "--scenario",
+        &file,
+        "--mode",
+        "lockstep",
+        "--name",
+        "t-fs-runaway",
+        "--out",
+        &out,
+    ];
+    let (code, text) = run("plant_sim", &args, LONG);
+    assert_eq!(code, 1, "{text}");
+    assert!(
+        text.contains("passed its [failsafe] limit at t = 1.502 s"),
+        "{text}"
+    );
+    let tr = transitions(&out);
+    assert_eq!(
+        tr,
+        [(1.502, Some("tracking".to_owned()), "disarm".to_owned())]
+    );
+}
+
+#[test]
+fn a_stalled_controller_sees_the_gap_and_holds_in_real_time() {
+    let _g = serial();
+    let d = TempDir::new("failsafe-link");
+    let out = d.join("run");
+    let file = variant(
+        Path::new(&d.join("s")),
+        "hexarotor_eqf",
+        &[],
+        "\n[failsafe]\nlink = \"hold\"\nclear_time = 0.5\n",
+    );
+    let name = "t-fs-link";
+    let mut plant = pair_tests::Proc::start(
+        "plant_sim",
+        &[
+            "run",
+            "--scenario",
+            &file,
+            "--rate-hz",
+            "500",
+            "--duration",
+            "4",
+            "--no-spawn",
+            "--name",
+            name,
+            "--out",
+            &out,
+        ],
+    );
+    let ctl = pair_tests::Proc::start("controller_node", &["--scenario", &file, "--name", name]);
+    pair_tests::wait_for_cycles(&out, 600, Duration::from_secs(60));
+    // 100 ms without a controller: when it runs again, it answers the newest state, and the
+    // states it never saw raise `link`
+    ctl.signal("STOP");
+    std::thread::sleep(Duration::from_millis(100));
+    ctl.signal("CONT");
+    plant.expect_exit(0, Duration::from_secs(60));
+    let tr = transitions(&out);
+    let held: Vec<_> = tr
+        .iter()
+        .filter(|x| x.1.as_deref() == Some("link"))
+        .collect();
+    assert!(!held.is_empty(), "{tr:?}");
+    assert!(held.iter().all(|x| x.2 == "hold"), "{tr:?}");
+    // it is left when the states have come in order for clear_time
+    assert_eq!(tr.last().map(|x| x.2.as_str()), Some("nominal"), "{tr:?}");
+    // and the log replays, the manager's word included
+    let (code, text) = run("plant_sim", &["replay", &out], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(" 0 differ"), "{text}");
+}
