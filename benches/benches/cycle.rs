@@ -505,6 +505,7 @@ fn allocations<T: Real>(c: &mut Criterion, scalar: &str) {
 fn vehicle_cycles(c: &mut Criterion) {
     let mut g = c.benchmark_group("cycle_vehicle");
     g.throughput(Throughput::Elements(1));
+    let mut steadies = Vec::new();
     for (name, file) in [
         ("hexarotor_m6", "hexarotor_eight"),
         ("rov_m8", "rov_failure"),
@@ -528,8 +529,21 @@ fn vehicle_cycles(c: &mut Criterion) {
             continue;
         };
         let with_allocation = law_only.clone().with_vehicle(vehicle);
+        // and the failsafe manager ahead of it: every cycle the span test of the actuators it
+        // may still move, the tracking error against its limit, the state machine's step
+        let supervised = std::fs::read_to_string(&path).ok().and_then(|text| {
+            let text = format!(
+                "{text}\n[failsafe]\nactuators = \"warn\"\ntracking = \"hold\"\ntracking_limit_position = 5.0\n"
+            );
+            let base = path.parent()?;
+            let with = scenario::Scenario::from_toml_in(&text, file, file, Some(base)).ok()?;
+            Some(with_allocation.clone().with_supervisor(control_cycle::Supervisor::of(&with)?))
+        });
         let mut msg = state_msg::<Se3, 4, 6>(body.configuration(), &body.velocity());
         msg.control_period = s.control_period;
+        if let Some(supervised) = supervised {
+            steadies.push((name, s.clone(), [with_allocation.clone(), supervised], msg));
+        }
         for (variant, responder) in [("law_only", law_only), ("with_allocation", with_allocation)] {
             g.bench_function(format!("{name}/{variant}"), |b| {
                 b.iter_batched_ref(
@@ -547,6 +561,44 @@ fn vehicle_cycles(c: &mut Criterion) {
                 )
             });
         }
+    }
+    g.finish();
+    for (name, s, responders, msg) in &steadies {
+        steady(c, name, s, responders, msg);
+    }
+}
+
+/// The cycle of `responders` (with the allocation; then with the failsafe manager too) in
+/// steady flight: one responder and one reference kept from cycle to cycle, consecutive states,
+/// so the manager's span test, which runs again only after a failure is told, is not repeated
+/// (`cycle_failsafe/<vehicle>/with_allocation` · `with_failsafe`).
+fn steady(
+    c: &mut Criterion,
+    name: &str,
+    s: &scenario::Scenario,
+    responders: &[control_cycle::Responder<f64, Se3, 4, 6>; 2],
+    msg: &ipc_types::StateMsg,
+) {
+    let mut g = c.benchmark_group("cycle_failsafe");
+    g.throughput(Throughput::Elements(1));
+    for (variant, responder) in ["with_allocation", "with_failsafe"]
+        .into_iter()
+        .zip(responders)
+    {
+        let (Ok(mut reference), mut responder) =
+            (s.reference_source::<Se3, 4, 6>(), responder.clone())
+        else {
+            continue;
+        };
+        let mut msg = *msg;
+        g.bench_function(format!("{name}/{variant}"), |b| {
+            b.iter(|| {
+                msg.seq = reference.step_index();
+                let cmd = responder.respond(&mut reference, black_box(&msg)).ok();
+                reference.advance();
+                cmd
+            })
+        });
     }
     g.finish();
 }

@@ -958,16 +958,31 @@ fn failsafe_tables_are_checked_and_a_runaway_exits_1_naming_the_time() {
         assert_eq!(out.status.code(), Some(2), "{table}: {err}");
         assert!(err.contains(&format!("key `{key}`")), "{table}: {err}");
     }
-    // the pair does not run the manager yet: refused, not flown without it
+    // the pair runs the manager on the controller's side: the same runaway, the same tick
     let pair = bin()
-        .args(["run", "--scenario", &write("pair.toml", &limited), "--out"])
+        .args(["run", "--scenario", &write("pair.toml", &limited)])
+        .args(["--mode", "lockstep", "--name", "cli-failsafe", "--out"])
         .arg(dir.path().join("pair"))
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&pair.stderr);
-    assert_eq!(pair.status.code(), Some(2), "{err}");
+    assert_eq!(pair.status.code(), Some(1), "{err}");
+    assert!(err.contains("limit at t = 1.502 s"), "{err}");
+    // the processor-in-the-loop firmware does not run it yet: refused, not flown without it
+    // (on the seed, whose reference the firmware flies)
+    let seed = std::fs::read_to_string(repo("scenarios/seed.toml")).unwrap();
+    let seed = format!("{seed}\n[failsafe]\ntracking = \"damp\"\ntracking_limit_attitude = 3.0\n");
+    let f32 = bin()
+        .args(["sim", "--controller-scalar", "f32", "--scenario"])
+        .arg(write("f32.toml", &seed))
+        .arg("--out")
+        .arg(dir.path().join("f32"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&f32.stderr);
+    assert_eq!(f32.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("[failsafe] is run by the in-process simulation only"),
+        err.contains("[failsafe] is not run by the processor-in-the-loop firmware yet"),
         "{err}"
     );
 }
