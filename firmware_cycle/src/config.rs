@@ -110,6 +110,64 @@ pub struct Config {
     /// The failure detector, where the scenario has `[fault_detection]` (with a vehicle): it
     /// runs before each allocation and tells the allocator what it finds.
     pub detector: Option<crate::Detector>,
+    /// The failsafe manager, where the scenario has `[failsafe]` (docs/failsafe.md).
+    pub failsafe: Option<Failsafe>,
+}
+
+/// The failsafe manager's settings (docs/failsafe.md), as the scenario's `[failsafe]` gives
+/// them at the firmware's control period.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Failsafe {
+    /// Each cause's action code (`failsafe::Action::code`; 0: the cause is ignored), in the
+    /// order of `failsafe::Cause::ALL`: link, estimator, actuators, tracking.
+    pub actions: [u8; 4],
+    /// Ticks a cause's flag must stay down before it clears (at least 1).
+    pub clear_ticks: u32,
+    /// `descend_rate` (m/s).
+    pub descend_rate: f32,
+    /// `ascend_rate` (m/s).
+    pub ascend_rate: f32,
+    /// `tracking_limit_attitude` (rad).
+    pub limit_attitude: Option<f32>,
+    /// `tracking_limit_position` (m).
+    pub limit_position: Option<f32>,
+}
+
+impl Failsafe {
+    /// The manager's configuration and limits: refused when an action code is not one.
+    pub(crate) fn manager(
+        &self,
+    ) -> Result<(failsafe::Config, failsafe::monitor::Limits<f32>), ConfigError> {
+        let mut actions = [None; 4];
+        for (a, code) in actions.iter_mut().zip(self.actions) {
+            *a = match code {
+                0 => None,
+                c => Some(
+                    *failsafe::Action::ALL
+                        .get(usize::from(c) - 1)
+                        .ok_or(ConfigError::Failsafe)?,
+                ),
+            };
+        }
+        let finite = |x: Option<f32>| x.is_none_or(|x| x.is_finite() && x > 0.0);
+        if !(finite(self.limit_attitude)
+            && finite(self.limit_position)
+            && self.descend_rate.is_finite()
+            && self.ascend_rate.is_finite())
+        {
+            return Err(ConfigError::Failsafe);
+        }
+        Ok((
+            failsafe::Config {
+                actions,
+                clear_ticks: self.clear_ticks.max(1),
+            },
+            failsafe::monitor::Limits {
+                attitude: self.limit_attitude,
+                position: self.limit_position,
+            },
+        ))
+    }
 }
 
 /// Why a [`Config`] cannot make a cycle.
@@ -141,6 +199,9 @@ pub enum ConfigError {
     DetectorWithoutVehicle,
     /// A failure detector, and this build has none (the crate's feature `detector`).
     DetectorNotBuilt,
+    /// The failsafe manager's settings are refused (an action code that is none, a limit or
+    /// a rate that is not a positive finite number).
+    Failsafe,
 }
 
 impl core::fmt::Display for ConfigError {
@@ -162,6 +223,9 @@ impl core::fmt::Display for ConfigError {
             ConfigError::DetectorWithoutVehicle => {
                 f.write_str("detector: there is no vehicle for it to watch")
             }
+            ConfigError::Failsafe => f.write_str(
+                "failsafe: an action code that is none, or a limit or rate that is not a positive finite number",
+            ),
             ConfigError::DetectorNotBuilt => f.write_str(
                 "detector: this build has no failure detector (build firmware_cycle with the feature `detector`)",
             ),

@@ -32,6 +32,36 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     /// The failure detector, where the configuration has one (and the crate is built with
     /// it, feature `detector`).
     watcher: Option<Watcher<M>>,
+    /// The failsafe manager and what it flies, where the configuration has one, as at start
+    /// and now.
+    manager_start: Option<Manager<G, N, M>>,
+    manager: Option<Manager<G, N, M>>,
+}
+
+/// The failsafe manager on the firmware (docs/failsafe.md, "In the pair"): the monitor, the
+/// set-point it flies, and the last answer of the span test with the bounds and effectiveness
+/// it was made for (it runs again only when a failure is told or found).
+#[derive(Clone)]
+struct Manager<G, const N: usize, const M: usize> {
+    monitor: failsafe::monitor::Monitor<f32>,
+    setpoint: failsafe::setpoint::Setpoint<f32, G, N, M>,
+    span: Option<(Commands<f32>, Commands<f32>, SMatrix<f32, M, 12>, bool)>,
+}
+
+impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Manager<G, N, M> {
+    /// Whether the actuators `control` may still move no longer span every wrench.
+    fn lost(&mut self, control: &VehicleControl<f32, M>) -> bool {
+        let (lo, hi) = control.bounds();
+        let b = *control.allocator().geometry().effectiveness();
+        if let Some((l, h, e, lost)) = &self.span
+            && (*l, *h, *e) == (lo, hi, b)
+        {
+            return *lost;
+        }
+        let lost = !control.lost_directions().directions().is_empty();
+        self.span = Some((lo, hi, b, lost));
+        lost
+    }
 }
 
 fn vec<const C: usize>(xs: &[f32]) -> Vec<f32, C> {
@@ -54,7 +84,27 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             Some(v) => Some(v.control::<M>(config.identity.period as f32)?),
         };
         let watcher = Watcher::of(config, controller.config().inertia)?;
+        let manager = match &config.failsafe {
+            None => None,
+            Some(f) => {
+                let (cfg, limits) = f.manager()?;
+                Some(Manager {
+                    monitor: failsafe::monitor::Monitor::new(cfg, limits),
+                    setpoint: failsafe::setpoint::Setpoint::new(
+                        reference.desired().q,
+                        controller.config().inertia,
+                        failsafe::setpoint::Rates {
+                            descend: f.descend_rate,
+                            ascend: f.ascend_rate,
+                        },
+                    ),
+                    span: None,
+                })
+            }
+        };
         Ok(Engine {
+            manager_start: manager.clone(),
+            manager,
             told: [false; 12],
             watcher,
             filter_start: filter,
@@ -90,6 +140,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         }
         self.told = [false; 12];
         self.previous = None;
+        self.manager = self.manager_start.clone();
     }
 
     pub(crate) fn answer(&mut self, s: &StateFrame, period: f32) -> Result<CommandFrame, Dropped> {
@@ -127,34 +178,54 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                 None,
             ),
         };
-        let desired = self.reference.desired();
+        let follows = self
+            .previous
+            .is_some_and(|p| p.checked_add(1) == Some(s.seq));
+        // the failures told and found before the law, as the pair's controller does: the
+        // failsafe manager asks whether the actuators still span every wrench
+        let r_hat = G::rotation(&q);
+        let mut detection = None;
+        if let Some(control) = &mut self.vehicle {
+            tell_failures(control, &self.failures, &mut self.told, s.t, period);
+            if let Some(w) = &mut self.watcher {
+                detection = Some(w.before::<G, N>(control, follows, &s.applied, &v, &r_hat));
+            }
+        }
+        let nominal = self.reference.desired();
+        let (desired, word, disarmed) = match &mut self.manager {
+            None => (nominal, None, false),
+            Some(m) => {
+                let flags = failsafe::monitor::Flags {
+                    link: self.previous.is_some() && !follows,
+                    // the firmware runs no innovation gate (a gated scenario is refused)
+                    estimator: false,
+                    actuators: self.vehicle.as_ref().is_some_and(|c| m.lost(c)),
+                };
+                let t = self.reference.time();
+                m.setpoint
+                    .supervise(&mut m.monitor, (&q, &v), (&nominal, t), flags);
+                (
+                    m.setpoint.desired(&nominal, t),
+                    Some(m.monitor.state().word()),
+                    m.monitor.disarmed(),
+                )
+            }
+        };
         let out = match &mut self.rejection {
             None => self.controller.compute(&q, &v, &desired),
             Some(r) => {
                 let applied = SVector::<f32, M>::from_row_slice(&s.applied);
-                let follows = self
-                    .previous
-                    .is_some_and(|p| p.checked_add(1) == Some(s.seq));
                 self.controller
                     .compute_rejecting(r, &q, &v, &desired, &applied, period, follows)
             }
         }
         .map_err(|_| Dropped::Law)?;
-        let follows = self
-            .previous
-            .is_some_and(|p| p.checked_add(1) == Some(s.seq));
         self.previous = Some(s.seq);
-        let mut detection = None;
         let allocation = match &mut self.vehicle {
             None => None,
             Some(control) => {
-                tell_failures(control, &self.failures, &mut self.told, s.t, period);
-                let r_hat = G::rotation(&q);
-                if let Some(w) = &mut self.watcher {
-                    detection = Some(w.before::<G, N>(control, follows, &s.applied, &v, &r_hat));
-                }
                 let (allocation, accounted, u) =
-                    allocate(control, self.actuators, &r_hat, &out.torque);
+                    allocate(control, self.actuators, &r_hat, &out.torque, disarmed);
                 if let Some(w) = &mut self.watcher {
                     w.after(&u, accounted);
                 }
@@ -188,6 +259,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             }),
             allocation,
             detection,
+            failsafe: word,
         })
     }
 }
@@ -237,14 +309,19 @@ fn tell_failures<const M: usize>(
 }
 
 /// The law's wrench allocated to the vehicle's actuators at the attitude `r_hat`
-/// (docs/maths.md, "Control allocation"), the wrench it accounts for and the commands.
+/// (docs/maths.md, "Control allocation"; every actuator at its minimum when `disarmed`, the
+/// failsafe's `disarm`), the wrench it accounts for and the commands.
 fn allocate<const M: usize>(
     control: &mut VehicleControl<f32, M>,
     count: usize,
     r_hat: &nalgebra::Matrix3<f32>,
     tau: &SVector<f32, M>,
+    disarmed: bool,
 ) -> (Allocation, SVector<f32, M>, Commands<f32>) {
-    let a = control.actuate(tau, r_hat);
+    let mut a = control.actuate(tau, r_hat);
+    if disarmed {
+        control.disarm(&mut a);
+    }
     let accounted = a.applied(&control.restoring(r_hat));
     (
         Allocation {

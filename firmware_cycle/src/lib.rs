@@ -25,7 +25,9 @@ mod engine;
 mod onboard;
 mod watch;
 
-pub use config::{Axis, Config, ConfigError, Integral, MAX_CONFIG, Observer, Series, Term};
+pub use config::{
+    Axis, Config, ConfigError, Failsafe, Integral, MAX_CONFIG, Observer, Series, Term,
+};
 pub use onboard::{Detector, Estimator, Failure, Thruster, Vehicle};
 
 use controller::group::{Se3, So3};

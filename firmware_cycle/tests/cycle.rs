@@ -59,6 +59,7 @@ fn seed_like() -> Config {
         estimator: None,
         vehicle: None,
         detector: None,
+        failsafe: None,
     }
 }
 

@@ -80,6 +80,7 @@ fn seed_frames() -> Vec<Frame> {
             value: 12.5,
             refined: false,
         }),
+        failsafe: Some(0x114),
     };
     vec![
         Frame::Hello(hello.clone()),

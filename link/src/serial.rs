@@ -393,6 +393,11 @@ pub fn command_msg(c: &CommandFrame, group: u32) -> Option<CommandMsg> {
         msg.detected_value = f64::from(d.value);
         msg.detected_refined = u32::from(d.refined);
     }
+    // the failsafe manager's word; the plant's check refuses a word it never writes
+    if let Some(w) = c.failsafe {
+        msg.flags |= ipc_types::flags::SUPERVISED;
+        msg.failsafe = w;
+    }
     Some(msg)
 }
 
@@ -669,6 +674,7 @@ mod tests {
             estimate: None,
             allocation: None,
             detection: None,
+            failsafe: None,
         };
         let msg = command_msg(&c, WireGroup::So3.code()).unwrap();
         assert_eq!(

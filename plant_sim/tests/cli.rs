@@ -968,10 +968,10 @@ fn failsafe_tables_are_checked_and_a_runaway_exits_1_naming_the_time() {
     let err = String::from_utf8_lossy(&pair.stderr);
     assert_eq!(pair.status.code(), Some(1), "{err}");
     assert!(err.contains("limit at t = 1.502 s"), "{err}");
-    // the processor-in-the-loop firmware does not run it yet: refused, not flown without it
-    // (on the seed, whose reference the firmware flies)
+    // the processor-in-the-loop firmware runs it too (on the seed, whose reference the
+    // firmware flies; a lockstep line loses no state: nothing engages)
     let seed = std::fs::read_to_string(repo("scenarios/seed.toml")).unwrap();
-    let seed = format!("{seed}\n[failsafe]\ntracking = \"damp\"\ntracking_limit_attitude = 3.0\n");
+    let seed = format!("{seed}\n[failsafe]\nlink = \"hold\"\n");
     let f32 = bin()
         .args(["sim", "--controller-scalar", "f32", "--scenario"])
         .arg(write("f32.toml", &seed))
@@ -980,9 +980,12 @@ fn failsafe_tables_are_checked_and_a_runaway_exits_1_naming_the_time() {
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&f32.stderr);
-    assert_eq!(f32.status.code(), Some(2), "{err}");
-    assert!(
-        err.contains("[failsafe] is not run by the processor-in-the-loop firmware yet"),
-        "{err}"
-    );
+    assert_eq!(f32.status.code(), Some(0), "{err}");
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("f32/summary.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(summary["failsafe"], serde_json::json!([]));
+    let (h, rows) = read_csv(&dir.path().join("f32/trajectory.csv"));
+    assert!(column(&h, &rows, "failsafe").iter().all(|c| *c == 0.0));
 }

@@ -91,6 +91,14 @@ impl Scenario {
             estimator: self.filter_settings()?.as_ref().map(Estimator::of),
             vehicle: self.vehicle.as_ref().map(firmware_vehicle),
             detector: self.firmware_detector()?,
+            failsafe: self.failsafe.map(|f| firmware_cycle::Failsafe {
+                actions: f.actions.map(|a| a.map_or(0, |a| a.code() as u8)),
+                clear_ticks: f.config(self.control_period).clear_ticks,
+                descend_rate: f.descend_rate as f32,
+                ascend_rate: f.ascend_rate as f32,
+                limit_attitude: f.tracking_limit_attitude.map(|x| x as f32),
+                limit_position: f.tracking_limit_position.map(|x| x as f32),
+            }),
         })
     }
 

@@ -144,6 +144,9 @@ pub struct CommandFrame {
     pub allocation: Option<Allocation>,
     /// The failure detector's cycle, when it runs.
     pub detection: Option<Detection>,
+    /// The failsafe manager's state word after this state's tick, when it runs (the pair's
+    /// `CommandMsg::failsafe`; docs/wire.md). Serial protocol 4.
+    pub failsafe: Option<u32>,
 }
 
 /// One message on the line.

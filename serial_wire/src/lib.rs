@@ -28,7 +28,7 @@ use crc::{CRC_32_ISO_HDLC, Crc, Table};
 /// The version byte every frame starts with; a frame of another version is refused (2: the
 /// allocation carries the achieved wrench, and states the sensors' samples for an estimator
 /// on board; 3: commands carry the failure detector's cycle).
-pub const SERIAL_VERSION: u8 = 3;
+pub const SERIAL_VERSION: u8 = 4;
 /// The largest decoded frame (version, postcard message and CRC), in bytes.
 pub const MAX_FRAME: usize = 384;
 /// The largest encoded frame: COBS's worst case for [`MAX_FRAME`] bytes (one code byte per

@@ -38,8 +38,8 @@ fn state() -> StateFrame {
     }
 }
 
-/// The largest command: SE(3) with both terms, an estimate, twelve actuators and the
-/// detector's cycle.
+/// The largest command: SE(3) with both terms, an estimate, twelve actuators, the
+/// detector's cycle and the failsafe manager's word.
 fn command() -> CommandFrame {
     CommandFrame {
         seq: u64::MAX,
@@ -69,6 +69,7 @@ fn command() -> CommandFrame {
             value: 0.5,
             refined: true,
         }),
+        failsafe: Some(u32::MAX),
     }
 }
 
@@ -240,6 +241,7 @@ fn frame_sizes_are_what_the_docs_say() {
         estimate: None,
         allocation: None,
         detection: None,
+        failsafe: None,
     });
     let sizes: Vec<usize> = [
         seed_state,

@@ -572,3 +572,75 @@ fn a_greeting_starts_the_detector_and_the_told_failures_afresh() {
         "not testing once calibrated"
     );
 }
+
+/// The failsafe manager on board (docs/failsafe.md): `pil_rov_surface`'s ROV loses two
+/// horizontal thrusters unannounced; the firmware's detector finds both, its manager raises
+/// `actuators` and flies `surface`. The PIL run equals the in-process `f32` simulation byte for
+/// byte, the transition is the `f64` simulation's at the same tick, and the ROV rises at the
+/// set rate.
+#[test]
+fn the_failsafe_manager_runs_on_board_and_surfaces_the_rov_as_the_f64_simulation_does() {
+    let _g = serial();
+    let d = TempDir::new("pil-failsafe");
+    let file = short(&d, "pil_rov_surface", "5.0", &|t| t);
+    let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
+    let fw = firmware(config_bytes(&s), Behaviour::Normal);
+    let (f32_out, pil_out, f64_out) = (d.join("f32"), d.join("pil"), d.join("f64"));
+    let (code, text) = plant(&[
+        "sim",
+        "--scenario",
+        &file,
+        "--controller-scalar",
+        "f32",
+        "--out",
+        &f32_out,
+    ]);
+    assert_eq!(code, 0, "{text}");
+    let tcp = format!("tcp:127.0.0.1:{}", fw.port);
+    let (code, text) = plant(&[
+        "run",
+        "--mode",
+        "lockstep",
+        "--scenario",
+        &file,
+        "--transport",
+        &tcp,
+        "--no-record",
+        "--out",
+        &pil_out,
+    ]);
+    assert_eq!(code, 0, "{text}");
+    assert!(
+        text.contains("failsafe: t = 2.57 s: actuators → surface"),
+        "{text}"
+    );
+    let (_, bad) = fw.thread.join().unwrap();
+    assert_eq!(bad, 0);
+    assert!(
+        read(&format!("{f32_out}/trajectory.csv")) == read(&format!("{pil_out}/trajectory.csv")),
+        "the PIL run's trajectory.csv differs from the f32 simulation's"
+    );
+    let (code, text) = plant(&["sim", "--scenario", &file, "--out", &f64_out]);
+    assert_eq!(code, 0, "{text}");
+    let transitions = |dir: &str| summary(std::path::Path::new(dir))["failsafe"].clone();
+    assert_eq!(transitions(&pil_out), transitions(&f64_out));
+    assert_eq!(
+        transitions(&pil_out),
+        serde_json::json!([{ "t": 2.57, "cause": "actuators", "action": "surface" }])
+    );
+    // rising at the set rate after the transient, level, the failsafe column saying so
+    let csv = pair_tests::Csv::read(std::path::Path::new(&format!("{pil_out}/trajectory.csv")));
+    let (t, z, rzz, code) = (
+        csv.col("t"),
+        csv.col("q_23"),
+        csv.col("q_22"),
+        csv.col("failsafe"),
+    );
+    let at = |time: f64| t.iter().position(|x| *x >= time - 1e-9).unwrap();
+    let (a, b) = (at(3.5), t.len() - 1);
+    let rate = (z[b] - z[a]) / (t[b] - t[a]);
+    assert!((rate - 0.3).abs() < 0.03, "rises at {rate} m/s");
+    assert!(rzz[at(2.57)..].iter().all(|r| *r > 0.97), "tilted");
+    assert!(code[..at(2.57)].iter().all(|c| *c == 0.0));
+    assert!(code[at(2.57)..].iter().all(|c| *c == 5.0));
+}

@@ -434,6 +434,7 @@ fn firmware_cycle_check() -> bool {
         estimator: None,
         vehicle: None,
         detector: None,
+        failsafe: None,
     };
     let mut bytes = [0u8; MAX_CONFIG];
     let Ok(n) = config.to_bytes(&mut bytes) else {

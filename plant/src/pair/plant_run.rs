@@ -124,7 +124,6 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             &s,
             s.reference_source::<G, N, M>().map_err(input(&s))?,
         );
-        refuse_failsafe(opts, &s)?;
         let cfg = s.controller_config::<N, M>();
         let vehicle = super::vehicle::PairVehicle::of(&s)?;
         let config = PlantEndpointConfig {
@@ -606,19 +605,6 @@ fn run_steps(opts: &PairOptions, s: &mut scenario::Scenario) -> u64 {
         }
         Mode::Lockstep => s.steps(),
     }
-}
-
-/// Refuses `[failsafe]` on a serial link: the processor-in-the-loop firmware does not run the
-/// manager yet.
-fn refuse_failsafe(opts: &PairOptions, s: &scenario::Scenario) -> Result<(), SimError> {
-    if s.failsafe.is_some() && opts.serial.is_some() {
-        return Err(SimError::Input(format!(
-            "scenario `{}`: [failsafe] is not run by the processor-in-the-loop firmware yet \
-             (its one failsafe is the deadline policy); run it in the simulation or the pair",
-            s.name
-        )));
-    }
-    Ok(())
 }
 
 /// The slot for the estimate a controller on a serial link computes on board (it runs the
