@@ -10,8 +10,9 @@
 # with the disturbance observer and the integral, pil_hexarotor on SE(3) with sensors, the
 # equivariant filter, the disturbance observer and a vehicle's allocation, pil_hexarotor_saturated
 # (its rotors at their limits for 1.5 s: the active set on board), pil_rov_detect (the ROV's
-# thruster 1 dies unannounced and the failure detector on board must find it), and pil_hexarotor
-# moved 1 km from the world origin by `plant_sim move`, whose firmware carries the local origin):
+# thruster 1 dies unannounced and the failure detector on board must find it), pil_rov_surface
+# (two thrusters die unannounced; the failsafe manager on board must surface the ROV), and
+# pil_hexarotor moved 1 km from the world origin by `plant_sim move`, whose firmware carries the local origin):
 #  1. plant_sim pil-config writes the scenario's firmware configuration; the firmware is
 #     built with it (private toolchain of scripts/lib/cortex-m-toolchain.sh);
 #  2. QEMU starts with UART0 on a TCP socket (nodelay) and waits for the plant;
@@ -46,7 +47,7 @@ while (($#)); do
 	*) echo "usage: scripts/pil.sh [--scenario FILE]... [--out DIR]" >&2; exit 2 ;;
 	esac
 done
-((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_se3.toml" "$REPO/scenarios/pil_hexarotor.toml" "$REPO/scenarios/pil_hexarotor_saturated.toml" "$REPO/scenarios/pil_rov_detect.toml")
+((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_se3.toml" "$REPO/scenarios/pil_hexarotor.toml" "$REPO/scenarios/pil_hexarotor_saturated.toml" "$REPO/scenarios/pil_rov_detect.toml" "$REPO/scenarios/pil_rov_surface.toml")
 
 skip() {
 	echo "SKIPPED: $*"
@@ -210,6 +211,19 @@ sys.exit(0 if first.get("actuator") == 1 and first.get("kind") == "dead" and 0 <
 PY
 ) || die "the detector on board did not find pil_rov_detect's dead thruster: $why"
 	echo "PIL: PASS pil_rov_detect, found on board: $why"
+fi
+
+# the failsafe manager on board surfaced the ROV when its second horizontal thruster was found
+# dead, at the tick the f64 simulation does (2.57 s), and only then
+if [[ -f $OUT/pil_rov_surface-pil/summary.json ]]; then
+	why=$(python3 - "$OUT/pil_rov_surface-pil/summary.json" <<'PY'
+import json, sys
+tr = json.load(open(sys.argv[1])).get("failsafe", [])
+print("; ".join(f"t = {x['t']} s: {x['cause']} -> {x['action']}" for x in tr) or "no transition")
+sys.exit(0 if [(x["t"], x["cause"], x["action"]) for x in tr] == [(2.57, "actuators", "surface")] else 1)
+PY
+) || die "the failsafe manager on board did not surface pil_rov_surface's ROV at 2.57 s: $why"
+	echo "PIL: PASS pil_rov_surface, the failsafe on board: $why"
 fi
 
 # the comparison can fail: the seed's PIL run against the f64 simulation (not the firmware's

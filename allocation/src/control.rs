@@ -194,3 +194,42 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         Actuation { demand, allocation }
     }
 }
+
+/// The span test of a vehicle's actuators ([`VehicleControl::lost_directions`]) for a caller
+/// that asks every cycle: it runs again only when the bounds or the effectiveness changed
+/// since the last answer (a failure told or found), since a rank test costs microseconds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpanWatch<T, const K: usize> {
+    last: Option<SpanAnswer<T, K>>,
+}
+
+/// What [`SpanWatch`] last answered, and the bounds (low, high) and effectiveness it was for.
+type SpanAnswer<T, const K: usize> = (
+    Commands<T>,
+    Commands<T>,
+    nalgebra::SMatrix<T, K, MAX_ACTUATORS>,
+    bool,
+);
+
+impl<T: RealField + Copy, const K: usize> Default for SpanWatch<T, K> {
+    fn default() -> Self {
+        SpanWatch { last: None }
+    }
+}
+
+impl<T: RealField + Copy, const K: usize> SpanWatch<T, K> {
+    /// Whether the actuators `control` may still move no longer span every wrench (the
+    /// failsafe's `actuators` cause; docs/failsafe.md, "Causes").
+    pub fn lost(&mut self, control: &VehicleControl<T, K>) -> bool {
+        let (lo, hi) = control.bounds();
+        let b = *control.allocator().geometry().effectiveness();
+        if let Some((l, h, e, lost)) = &self.last
+            && (*l, *h, *e) == (lo, hi, b)
+        {
+            return *lost;
+        }
+        let lost = !control.lost_directions().directions().is_empty();
+        self.last = Some((lo, hi, b, lost));
+        lost
+    }
+}

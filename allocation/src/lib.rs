@@ -53,7 +53,7 @@ mod restoring;
 pub use allocator::{
     Allocation, Allocator, AllocatorError, Bounds, DEFAULT_BUDGET, Priority, Status,
 };
-pub use control::{Actuation, VehicleControl};
+pub use control::{Actuation, SpanWatch, VehicleControl};
 pub use geometry::{Actuator, Geometry, GeometryError, LostDirections};
 pub use restoring::Restoring;
 

@@ -1,4 +1,4 @@
-//! The failsafe manager on the controller's side (docs/failsafe.md, "In the pair"): the same
+//! The failsafe manager on the controller's side (docs/failsafe.md, "In the pair and on the firmware"): the same
 //! monitor and set-points the in-process simulation runs, fed from what the controller is sent
 //! (the estimate, the estimator's health the state's flags carry, a gap in the states) and
 //! what it knows (the actuators its allocator may still move).

@@ -6,7 +6,7 @@
 use allocation::{Commands, VehicleControl};
 use controller::group::MatrixLieGroup;
 use ipc_types::{CommandMsg, MAX_ACTUATORS, StateMsg};
-use nalgebra::{SMatrix, SVector};
+use nalgebra::SVector;
 use scenario::Scenario;
 use scenario::vehicle::VehicleSpec;
 
@@ -26,19 +26,9 @@ pub struct ControllerVehicle<const M: usize> {
     accounted: Option<SVector<f64, M>>,
     /// Which of the scenario's failures the allocator has been told of (each once).
     told: Vec<bool>,
-    /// The last answer of [`ControllerVehicle::lost`] and what it was computed from (the
-    /// bounds and the effectiveness): it changes only when the allocator is told of a failure.
-    span: Option<Span<M>>,
+    /// The span test of the actuators, run again only after a failure is told or found.
+    span: allocation::SpanWatch<f64, M>,
 }
-
-/// What [`ControllerVehicle::lost`] answered, and the bounds (low, high) and the effectiveness
-/// it answered for.
-type Span<const M: usize> = (
-    Commands<f64>,
-    Commands<f64>,
-    SMatrix<f64, M, MAX_ACTUATORS>,
-    bool,
-);
 
 impl<const M: usize> ControllerVehicle<M> {
     /// The scenario's vehicle at control period `period`, without a detector. `Err`: its
@@ -53,7 +43,7 @@ impl<const M: usize> ControllerVehicle<M> {
             detecting: None,
             accounted: None,
             told: vec![false; spec.failures.len()],
-            span: None,
+            span: allocation::SpanWatch::default(),
         })
     }
 
@@ -173,16 +163,7 @@ impl<const M: usize> ControllerVehicle<M> {
     /// `actuators` cause; docs/failsafe.md, "Causes"). The span test runs again only when the
     /// bounds or the effectiveness changed since the last call (a failure told or found).
     pub fn lost(&mut self) -> bool {
-        let (lo, hi) = self.control.bounds();
-        let b = *self.control.allocator().geometry().effectiveness();
-        if let Some((l, h, e, lost)) = &self.span
-            && (*l, *h, *e) == (lo, hi, b)
-        {
-            return *lost;
-        }
-        let lost = !self.control.lost_directions().directions().is_empty();
-        self.span = Some((lo, hi, b, lost));
-        lost
+        self.span.lost(&self.control)
     }
 
     /// The second half of [`ControllerVehicle::answer`], after the law: the law's wrench `tau`

@@ -38,30 +38,14 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     manager: Option<Manager<G, N, M>>,
 }
 
-/// The failsafe manager on the firmware (docs/failsafe.md, "In the pair"): the monitor, the
-/// set-point it flies, and the last answer of the span test with the bounds and effectiveness
-/// it was made for (it runs again only when a failure is told or found).
+/// The failsafe manager on the firmware (docs/failsafe.md, "In the pair and on the firmware"):
+/// the monitor, the set-point it flies, and the span test of the actuators (run again only
+/// when a failure is told or found).
 #[derive(Clone)]
 struct Manager<G, const N: usize, const M: usize> {
     monitor: failsafe::monitor::Monitor<f32>,
     setpoint: failsafe::setpoint::Setpoint<f32, G, N, M>,
-    span: Option<(Commands<f32>, Commands<f32>, SMatrix<f32, M, 12>, bool)>,
-}
-
-impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Manager<G, N, M> {
-    /// Whether the actuators `control` may still move no longer span every wrench.
-    fn lost(&mut self, control: &VehicleControl<f32, M>) -> bool {
-        let (lo, hi) = control.bounds();
-        let b = *control.allocator().geometry().effectiveness();
-        if let Some((l, h, e, lost)) = &self.span
-            && (*l, *h, *e) == (lo, hi, b)
-        {
-            return *lost;
-        }
-        let lost = !control.lost_directions().directions().is_empty();
-        self.span = Some((lo, hi, b, lost));
-        lost
-    }
+    span: allocation::SpanWatch<f32, M>,
 }
 
 fn vec<const C: usize>(xs: &[f32]) -> Vec<f32, C> {
@@ -98,7 +82,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                             ascend: f.ascend_rate,
                         },
                     ),
-                    span: None,
+                    span: allocation::SpanWatch::default(),
                 })
             }
         };
@@ -199,7 +183,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                     link: self.previous.is_some() && !follows,
                     // the firmware runs no innovation gate (a gated scenario is refused)
                     estimator: false,
-                    actuators: self.vehicle.as_ref().is_some_and(|c| m.lost(c)),
+                    actuators: self.vehicle.as_ref().is_some_and(|c| m.span.lost(c)),
                 };
                 let t = self.reference.time();
                 m.setpoint

@@ -129,6 +129,48 @@ fn the_configuration_round_trips_and_bad_bytes_are_refused() {
         );
     }
     assert!(ConfigError::Origin.to_string().contains("zero on so3"));
+    // the failsafe manager's settings: a good one makes a cycle and round-trips; an action
+    // code that is none, a limit that is not a positive finite number, a rate that is not
+    // finite are refused
+    let good = firmware_cycle::Failsafe {
+        actions: [2, 0, 0, 6],
+        clear_ticks: 100,
+        descend_rate: 0.5,
+        ascend_rate: 0.3,
+        limit_attitude: Some(1.0),
+        limit_position: None,
+    };
+    let mut with = config.clone();
+    with.failsafe = Some(good);
+    let n = with.to_bytes(&mut buf).unwrap();
+    assert_eq!(Config::from_bytes(&buf[..n]).unwrap(), with);
+    assert!(Cycle::new(&with).is_ok());
+    for bad in [
+        firmware_cycle::Failsafe {
+            actions: [7, 0, 0, 0],
+            ..good
+        },
+        firmware_cycle::Failsafe {
+            limit_attitude: Some(f32::NAN),
+            ..good
+        },
+        firmware_cycle::Failsafe {
+            limit_position: Some(-1.0),
+            ..good
+        },
+        firmware_cycle::Failsafe {
+            descend_rate: f32::INFINITY,
+            ..good
+        },
+    ] {
+        let mut with = config.clone();
+        with.failsafe = Some(bad);
+        assert!(
+            matches!(Cycle::new(&with), Err(ConfigError::Failsafe)),
+            "{bad:?}"
+        );
+    }
+    assert!(ConfigError::Failsafe.to_string().starts_with("failsafe: "));
     let mut bad = config;
     bad.kd = v(&[-1.0, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.5]);
     assert!(

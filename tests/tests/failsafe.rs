@@ -1,10 +1,10 @@
-//! The failsafe manager in the pair (docs/failsafe.md, "In the pair"): the controller runs it,
+//! The failsafe manager in the pair (docs/failsafe.md, "In the pair and on the firmware"): the controller runs it,
 //! its commands carry its state word, and the plant keeps the transitions. Lockstep equals
 //! the simulation bit for bit, under a CPU hog too; the flight log replays the word and a
 //! planted change is found; the MCAP export has a failsafe channel; a runaway exits 1; a
 //! stalled controller raises `link`. Driven through the real binaries; one at a time.
 
-use pair_tests::{CpuHog, TempDir, repo, run, serial, sim_equals_lockstep, summary};
+use pair_tests::{CpuHog, TempDir, planted_copy, repo, run, serial, sim_equals_lockstep, summary};
 use std::path::Path;
 use std::time::Duration;
 
@@ -91,30 +91,6 @@ fn transitions(dir: &str) -> Vec<(f64, Option<String>, String)> {
         .collect()
 }
 
-/// The run in `out` copied beside it with the failsafe word of the command at cycle `k`
-/// replaced by `word`; returns the copy's directory.
-fn planted_word(out: &str, k: usize, word: u32) -> String {
-    let planted = format!("{out}-planted");
-    std::fs::create_dir_all(&planted).unwrap();
-    for entry in std::fs::read_dir(out).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_file() {
-            std::fs::copy(&path, Path::new(&planted).join(path.file_name().unwrap())).unwrap();
-        }
-    }
-    let file = format!("{planted}/messages.log");
-    let mut log = std::fs::read(&file).unwrap();
-    let header = recorder::Header::from_bytes(&log).unwrap();
-    let at = recorder::HEADER_BYTES + k * header.record_bytes() + recorder::RECORD_COMMAND_OFFSET;
-    let mut cmd =
-        ipc_types::CommandMsg::from_bytes(&log[at..at + ipc_types::COMMAND_BYTES]).unwrap();
-    assert_ne!(cmd.failsafe, word, "the plant changes nothing");
-    cmd.failsafe = word;
-    log[at..at + ipc_types::COMMAND_BYTES].copy_from_slice(&cmd.to_bytes());
-    std::fs::write(file, log).unwrap();
-    planted
-}
-
 #[test]
 fn lockstep_with_the_failsafe_equals_the_simulation_under_a_cpu_hog_and_replays() {
     let _g = serial();
@@ -146,7 +122,14 @@ fn lockstep_with_the_failsafe_equals_the_simulation_under_a_cpu_hog_and_replays(
     assert!(text.contains("12501 commands compared, 0 differ"), "{text}");
     // a logged transition changed (hold recorded as damp at the tick it engaged) is found
     let engaged = (tr[0].0 / 0.002).round() as usize;
-    let planted = planted_word(&pair, engaged, 3 | 2 << 4 | 1 << 9);
+    let planted = planted_copy(&pair, engaged, |cmd, _| {
+        assert_eq!(
+            cmd.failsafe,
+            2 | 2 << 4 | 1 << 9,
+            "hold, engaged by the estimator"
+        );
+        cmd.failsafe = 3 | 2 << 4 | 1 << 9;
+    });
     let (code, text) = run("plant_sim", &["replay", &planted], LONG);
     assert_eq!(code, 1, "{text}");
     assert!(text.contains("failsafe recorded"), "{text}");

@@ -2,39 +2,13 @@
 //! allocates the law's wrench and sends actuator commands; the plant drives its actuators
 //! with them. Driven through the real binaries; tests run one at a time ([`serial`]).
 
-use pair_tests::{Csv, TempDir, plant, repo, run, serial, sim_equals_lockstep, summary};
+use pair_tests::{
+    Csv, TempDir, plant, planted_copy, repo, run, serial, sim_equals_lockstep, summary,
+};
 use std::path::Path;
 use std::time::Duration;
 
 const LONG: Duration = Duration::from_secs(120);
-
-/// A copy of the run in `out` (scenario, waypoints) beside `out`, whose `messages.log` has
-/// the command recorded at cycle `k` changed by `edit` (handed the command and its recorded
-/// bytes); returns the copy's directory.
-fn planted_copy(
-    out: &str,
-    k: usize,
-    edit: impl FnOnce(&mut ipc_types::CommandMsg, &[u8]),
-) -> String {
-    let planted = format!("{out}-planted");
-    std::fs::create_dir_all(&planted).unwrap();
-    for entry in std::fs::read_dir(out).unwrap() {
-        let path = entry.unwrap().path();
-        let name = path.file_name().unwrap().to_owned();
-        if path.is_file() && name != "messages.log" {
-            std::fs::copy(&path, Path::new(&planted).join(name)).unwrap();
-        }
-    }
-    let mut log = std::fs::read(format!("{out}/messages.log")).unwrap();
-    let header = recorder::Header::from_bytes(&log).unwrap();
-    let at = recorder::HEADER_BYTES + k * header.record_bytes() + recorder::RECORD_COMMAND_OFFSET;
-    let bytes = log[at..at + ipc_types::COMMAND_BYTES].to_vec();
-    let mut cmd = ipc_types::CommandMsg::from_bytes(&bytes).unwrap();
-    edit(&mut cmd, &bytes);
-    log[at..at + ipc_types::COMMAND_BYTES].copy_from_slice(&cmd.to_bytes());
-    std::fs::write(format!("{planted}/messages.log"), log).unwrap();
-    planted
-}
 
 /// A copy of the run in `out` beside it (`<out>-<tag>`) whose `messages.log` lacks the
 /// commands of `cycles`, as if they had come too late to be recorded; returns its directory.
