@@ -182,6 +182,9 @@ where
         if let Some(v) = &mut self.vehicle {
             v.follow(cmd);
         }
+        if let Some(s) = &mut self.supervisor {
+            s.follow(cmd.failsafe);
+        }
     }
 
     /// The controller.

@@ -19,6 +19,11 @@ pub struct Supervisor<T: Real, G, const N: usize, const M: usize> {
     /// Made at the first state: the hysteresis counts the plant's periods.
     monitor: Option<Monitor<T>>,
     setpoint: Setpoint<T, G, N, M>,
+    /// The state word after the last tick.
+    word: u32,
+    /// Replay, once it can no longer follow the manager state by state: the recorded word of
+    /// the state being answered, flown instead of the manager's own.
+    recorded: Option<u32>,
 }
 
 impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Supervisor<T, G, N, M> {
@@ -37,7 +42,17 @@ impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Superviso
                     ascend: controller::real(spec.ascend_rate),
                 },
             ),
+            word: 0,
+            recorded: None,
         })
+    }
+
+    /// Flies the recorded `word` at the next tick instead of stepping the manager (replay,
+    /// once it can no longer follow the manager's state, which no command carries, state by
+    /// state): the set-point engaged when the recorded mode changes, at the estimate of the
+    /// state answered, as the controller engaged it.
+    pub fn follow(&mut self, word: u32) {
+        self.recorded = Some(word);
     }
 
     /// One tick before the law, at the reference's time `t` and control period `period`: the
@@ -50,6 +65,16 @@ impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Superviso
         period: f64,
         flags: Flags,
     ) -> u32 {
+        if let Some(word) = self.recorded.take() {
+            self.setpoint.observe(estimate.0, estimate.1);
+            let mode = |w: u32| failsafe::State::read_word(w).map(|(m, _)| m);
+            if mode(word) != mode(self.word) {
+                self.setpoint
+                    .engage(mode(word).and_then(failsafe::Mode::action), t);
+            }
+            self.word = word;
+            return word;
+        }
         let spec = &self.spec;
         let monitor = self.monitor.get_or_insert_with(|| {
             let limit = |l: Option<f64>| l.map(controller::real::<T>);
@@ -63,7 +88,8 @@ impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Superviso
         });
         self.setpoint
             .supervise(monitor, estimate, (reference, t), flags);
-        monitor.state().word()
+        self.word = monitor.state().word();
+        self.word
     }
 
     /// The desired state flown at `t` in place of the reference's `reference`.
@@ -73,7 +99,7 @@ impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Superviso
 
     /// Whether the engaged action disarms.
     pub fn disarmed(&self) -> bool {
-        self.monitor.as_ref().is_some_and(Monitor::disarmed)
+        self.word & 0xf == failsafe::Action::Disarm.code()
     }
 
     /// The manager's state, once a state was answered.

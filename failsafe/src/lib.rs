@@ -2,7 +2,7 @@
 //! `(state, inputs) → (state, transition)`, with no clock, I/O or allocation inside, so that
 //! it runs wherever the controller runs, a microcontroller included.
 //!
-//! * **Causes.** Four: the link (deadline misses, a lost peer), the estimator (its health not
+//! * **Causes.** Four: the link (a state lost on the way to the controller), the estimator (its health not
 //!   `healthy`), the actuators (a failure found, or a wrench the allocation cannot produce)
 //!   and the tracking (an error beyond its limit). The caller turns its measurements into one
 //!   flag per cause each tick.
@@ -33,7 +33,7 @@ pub mod setpoint;
 /// What raises a failsafe.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Cause {
-    /// Deadline misses or a lost peer.
+    /// A state lost on the way to the controller (a gap in the states it answers).
     Link,
     /// The estimator's health is not `healthy`.
     Estimator,
@@ -165,7 +165,7 @@ impl Config {
 /// The flags of one tick, one per cause.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Inputs {
-    /// Deadline misses or a lost peer.
+    /// A state lost on the way to the controller (a gap in the states it answers).
     pub link: bool,
     /// The estimator is not healthy.
     pub estimator: bool,

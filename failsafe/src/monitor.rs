@@ -10,7 +10,7 @@ use controller::Real;
 /// measures itself.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Flags {
-    /// A gap in the states, deadline misses or a lost peer.
+    /// A state lost on the way to the controller (a gap in the states it answers).
     pub link: bool,
     /// The estimator's health is not `healthy`.
     pub estimator: bool,

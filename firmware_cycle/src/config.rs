@@ -152,8 +152,8 @@ impl Failsafe {
         let finite = |x: Option<f32>| x.is_none_or(|x| x.is_finite() && x > 0.0);
         if !(finite(self.limit_attitude)
             && finite(self.limit_position)
-            && self.descend_rate.is_finite()
-            && self.ascend_rate.is_finite())
+            && finite(Some(self.descend_rate))
+            && finite(Some(self.ascend_rate)))
         {
             return Err(ConfigError::Failsafe);
         }

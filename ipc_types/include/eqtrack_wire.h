@@ -8,7 +8,7 @@
  * Each message sits in an iceoryx2 blackboard entry (key type uint32_t, keys 0..7 are the
  * writer slots) of the service `eqtrack/<run>/state`, `eqtrack/<run>/command` or
  * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg6",
- * "eqtrack::CommandMsg8", "eqtrack::PlanMsg4", "eqtrack::StatusMsg5". All numbers are little-endian on the machines eqtrack runs on.
+ * "eqtrack::CommandMsg9", "eqtrack::PlanMsg4", "eqtrack::StatusMsg6". All numbers are little-endian on the machines eqtrack runs on.
  */
 #ifndef EQTRACK_WIRE_H
 #define EQTRACK_WIRE_H

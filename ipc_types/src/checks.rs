@@ -172,7 +172,8 @@ pub fn check_command(
     {
         return Err(Invalid::Detection);
     }
-    if !failsafe_word(msg.failsafe) {
+    let supervised = msg.flags & crate::flags::SUPERVISED != 0;
+    if !failsafe_word(msg.failsafe) || (!supervised && msg.failsafe != 0) {
         return Err(Invalid::Failsafe);
     }
     if msg.seq != awaited {

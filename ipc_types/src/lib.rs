@@ -77,11 +77,12 @@ pub mod flags {
     /// [`StateMsg::flags`](crate::StateMsg::flags): the estimator's innovation gate runs
     /// and its health is `degraded` (docs/estimators.md; protocol 9).
     pub const ESTIMATE_DEGRADED: u32 = 128;
+    /// [`StateMsg::flags`](crate::StateMsg::flags): the estimator's innovation gate runs
+    /// and its health is `lost` (protocol 9).
+    pub const ESTIMATE_LOST: u32 = 256;
     /// [`CommandMsg::flags`](crate::CommandMsg::flags): the controller runs the failsafe
     /// manager; the command's `failsafe` word is its (protocol 9).
     pub const SUPERVISED: u32 = 512;
-    /// [`StateMsg::flags`](crate::StateMsg::flags): the estimator's health is `lost`.
-    pub const ESTIMATE_LOST: u32 = 256;
 }
 
 /// Bits of [`CommandMsg::mismatch`]: what differs between the two sides' settings.
@@ -161,9 +162,12 @@ mod tests {
         c.z_before[5] = f64::NAN;
         assert_eq!(check_command(&c, Se3, 3, 0), Err(Invalid::NonFinite));
         c.z_before[5] = 0.0;
-        // the failsafe word: descend engaged by the actuators (raised: bit 10), then words the
-        // manager never writes
+        // the failsafe word: descend engaged by the actuators (raised: bit 10), from a controller
+        // that runs the manager (not from one that does not), then words the manager never
+        // writes
         c.failsafe = 4 | 3 << 4 | 1 << 10;
+        assert_eq!(check_command(&c, Se3, 3, 0), Err(Invalid::Failsafe));
+        c.flags |= flags::SUPERVISED;
         assert_eq!(check_command(&c, Se3, 3, 0), Ok(()));
         for bad in [
             4 | 3 << 4,
@@ -181,6 +185,7 @@ mod tests {
             );
         }
         c.failsafe = 0;
+        c.flags &= !flags::SUPERVISED;
         assert_eq!(check_command(&c, Se3, 3, 0), Ok(()));
         // a vehicle's command: the count must be the plant's, its entries finite
         c.actuators = 8;

@@ -1,7 +1,8 @@
-//! The failsafe manager in the in-process simulation (docs/failsafe.md): each tick, the
-//! causes' flags from what the controller knows (the estimator's health, the actuators it can
-//! still move, the tracking error of its estimate), the manager stepped, the reference told
-//! the action, and every transition kept for `summary.json`.
+//! The failsafe manager as a plant sees it (docs/failsafe.md). In the in-process simulation
+//! it runs the manager: each tick the causes' flags from what the controller knows (the
+//! estimator's health, the actuators it can still move, the tracking error of its estimate),
+//! the manager stepped and the reference told the action. In the pair it follows the state
+//! word each command carries. Either way every transition is kept for `summary.json`.
 
 use ::failsafe::monitor::{Flags, Limits, Monitor};
 use ::failsafe::setpoint::{Rates, Supervised};

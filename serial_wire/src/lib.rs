@@ -27,7 +27,8 @@ use crc::{CRC_32_ISO_HDLC, Crc, Table};
 
 /// The version byte every frame starts with; a frame of another version is refused (2: the
 /// allocation carries the achieved wrench, and states the sensors' samples for an estimator
-/// on board; 3: commands carry the failure detector's cycle).
+/// on board; 3: commands carry the failure detector's cycle; 4: commands carry the failsafe
+/// manager's state word).
 pub const SERIAL_VERSION: u8 = 4;
 /// The largest decoded frame (version, postcard message and CRC), in bytes.
 pub const MAX_FRAME: usize = 384;

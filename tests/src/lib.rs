@@ -494,3 +494,28 @@ pub fn planted_copy(
     std::fs::write(format!("{planted}/messages.log"), log).unwrap();
     planted
 }
+
+/// A copy of the run in `out` beside it (`<out>-<tag>`) whose `messages.log` lacks the
+/// commands of `cycles`, as if they had come too late to be recorded; returns its directory.
+pub fn without_commands(out: &str, tag: &str, cycles: &[usize]) -> String {
+    let copy = format!("{out}-{tag}");
+    std::fs::create_dir_all(&copy).unwrap();
+    for entry in std::fs::read_dir(out).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_file() {
+            std::fs::copy(&path, Path::new(&copy).join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    let file = format!("{copy}/messages.log");
+    let mut log = std::fs::read(&file).unwrap();
+    let header = recorder::Header::from_bytes(&log).unwrap();
+    for &k in cycles {
+        let at = recorder::HEADER_BYTES + k * header.record_bytes();
+        assert_eq!(log[at + 9], 1, "cycle {k} has a command");
+        log[at + 9] = 0;
+        let c = at + recorder::RECORD_COMMAND_OFFSET;
+        log[c..c + ipc_types::COMMAND_BYTES].fill(0);
+    }
+    std::fs::write(file, log).unwrap();
+    copy
+}

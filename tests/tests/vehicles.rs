@@ -4,36 +4,12 @@
 
 use pair_tests::{
     Csv, TempDir, plant, planted_copy, repo, run, serial, sim_equals_lockstep, summary,
+    without_commands,
 };
 use std::path::Path;
 use std::time::Duration;
 
 const LONG: Duration = Duration::from_secs(120);
-
-/// A copy of the run in `out` beside it (`<out>-<tag>`) whose `messages.log` lacks the
-/// commands of `cycles`, as if they had come too late to be recorded; returns its directory.
-fn without_commands(out: &str, tag: &str, cycles: &[usize]) -> String {
-    let copy = format!("{out}-{tag}");
-    std::fs::create_dir_all(&copy).unwrap();
-    for entry in std::fs::read_dir(out).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_file() {
-            std::fs::copy(&path, Path::new(&copy).join(path.file_name().unwrap())).unwrap();
-        }
-    }
-    let file = format!("{copy}/messages.log");
-    let mut log = std::fs::read(&file).unwrap();
-    let header = recorder::Header::from_bytes(&log).unwrap();
-    for &k in cycles {
-        let at = recorder::HEADER_BYTES + k * header.record_bytes();
-        assert_eq!(log[at + 9], 1, "cycle {k} has a command");
-        log[at + 9] = 0;
-        let c = at + recorder::RECORD_COMMAND_OFFSET;
-        log[c..c + ipc_types::COMMAND_BYTES].fill(0);
-    }
-    std::fs::write(file, log).unwrap();
-    copy
-}
 
 /// The vehicle scenarios, each flown by the lockstep pair.
 const VEHICLES: [&str; 2] = ["hexarotor_eqf", "rov_failure"];
@@ -535,7 +511,9 @@ fn the_pairs_controller_finds_unannounced_failures_as_the_simulation_does() {
     assert_eq!(code, 0, "{text}");
     assert!(text.contains("1599 commands compared, 0 differ"), "{text}");
     assert!(
-        text.contains("failure detector: run again and compared until cycle 700,"),
+        text.contains(
+            "failure detector, failsafe manager: run again and compared until cycle 700,"
+        ),
         "{text}"
     );
     // the recorded commands carry each finding at its tick: a changed estimate, a finding

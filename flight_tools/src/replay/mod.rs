@@ -133,11 +133,13 @@ pub struct ReplayReport {
     /// samples), how many differ in any bit, the first difference, and the cycle of the
     /// first gap in the log, after which the estimator cannot be checked.
     pub estimator: Option<EstimatorCheck>,
-    /// With a failure detector: the cycle from which replay could no longer follow it: a
-    /// state whose command was not recorded and which the controller may or may not have
-    /// seen, or the first of the records the recorder dropped (`None`: followed to the
-    /// end). From the next recorded command on, the allocator is told what the recorded
-    /// commands found, and their detection fields are not compared.
+    /// With a failure detector or a failsafe manager: the cycle from which replay could no
+    /// longer follow their state, which no command carries: a state whose command was not
+    /// recorded and which the controller may or may not have seen, or the first of the
+    /// records the recorder dropped (`None`: followed to the end). From the next recorded
+    /// command on, the allocator is told what the recorded commands found, the set-point flies
+    /// the recorded failsafe word, and neither the detection fields nor the word are
+    /// compared.
     pub detector_lost_at: Option<u64>,
 }
 

@@ -428,12 +428,12 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         Ok(())
     }
 
-    /// Whether replay still runs the failure detector (the scenario has one, and it has not
-    /// been lost).
+    /// Whether replay still follows the state no command carries: the failure detector's or
+    /// the failsafe manager's (the scenario has one, and it has not been lost).
     fn detector_followed(&self) -> bool {
         !self.what_if
             && self.report.detector_lost_at.is_none()
-            && self.responders.iter().any(|(_, r)| r.detects())
+            && self.responders.iter().any(|(_, r)| r.carries_state())
     }
 
     /// Stops running the failure detector from `cycle` on, a state the log cannot say the

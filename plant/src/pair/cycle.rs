@@ -120,22 +120,6 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         }
         if let Some(c) = &got {
             self.stats.command(c, self.published, k == 0);
-            if let Some(sup) = &mut self.failsafe {
-                // the set-point the controller flies, for the rows: engaged at the estimate
-                // state k carried, as the controller engaged it
-                self.reference.observe(
-                    &self.state.configuration::<N>(),
-                    &self.state.velocity::<M>(),
-                );
-                let before = sup.transitions().len();
-                sup.follow(k as f64 * self.s.control_period, c.msg.failsafe);
-                if sup.transitions().len() > before {
-                    self.reference.engage(sup.action());
-                }
-                for tr in &sup.transitions()[before..] {
-                    log(format_args!("{tr}"));
-                }
-            }
         }
         if self.vehicle.is_some() {
             self.actuate(k, step.decision, got.as_ref());
@@ -144,6 +128,9 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         }
         self.log_transition(k, step.transition, step.misses_in_row);
         self.take_onboard_estimate(k);
+        if let Some(c) = &got {
+            self.follow_failsafe(k, &c.msg);
+        }
         self.record(k, step.decision);
         if let Some(rec) = &mut self.recorder {
             let mut applied = [0.0; ipc_types::MAX_M];
@@ -168,6 +155,34 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         }
         self.live_status();
         Ok(())
+    }
+
+    /// `[failsafe]`: the manager's state word command `cmd` carries, kept (transitions, the
+    /// row's action, logged), and the set-point the controller flies engaged for the rows at
+    /// the estimate it answered: the one state k carried, or with the filter on board, the one
+    /// its command brought back.
+    fn follow_failsafe(&mut self, k: u64, cmd: &ipc_types::CommandMsg) {
+        let Some(sup) = &mut self.failsafe else {
+            return;
+        };
+        match (&self.onboard, &self.estimate) {
+            (Some(_), Some(e)) => self.reference.observe(
+                &nalgebra::SMatrix::<f64, N, N>::from_fn(|i, j| e.q_hat[i * N + j]),
+                &nalgebra::SVector::<f64, M>::from_fn(|i, _| e.v_hat[i]),
+            ),
+            _ => self.reference.observe(
+                &self.state.configuration::<N>(),
+                &self.state.velocity::<M>(),
+            ),
+        }
+        let before = sup.transitions().len();
+        sup.follow(k as f64 * self.s.control_period, cmd.failsafe);
+        if sup.transitions().len() > before {
+            self.reference.engage(sup.action());
+        }
+        for tr in &sup.transitions()[before..] {
+            log(format_args!("{tr}"));
+        }
     }
 
     /// Integrates `[t_k, t_{k+1})` under the held torque and publishes state k+1.

@@ -127,7 +127,7 @@ fn print_report(
     }
     if let Some(k) = r.detector_lost_at {
         println!(
-            "failure detector: run again and compared until cycle {k}, a state the log cannot say the controller saw; from there the allocator was told what the recorded commands found, and their detection fields were not compared"
+            "failure detector, failsafe manager: run again and compared until cycle {k}, a state the log cannot say the controller saw; from there the allocator was told what the recorded commands found and the set-point flew their failsafe word, and neither was compared"
         );
     }
     if let Some(e) = &r.estimator {
