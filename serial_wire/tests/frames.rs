@@ -252,7 +252,7 @@ fn frame_sizes_are_what_the_docs_say() {
     .iter()
     .map(|f| encoded(f).len())
     .collect();
-    assert_eq!(sizes, vec![82, 33, 222, 345]);
+    assert_eq!(sizes, vec![82, 34, 222, 351]);
 }
 
 /// `version | message | crc32` COBS-encoded by the `cobs` crate, with the closing zero: the
