@@ -279,8 +279,16 @@ fn a_stalled_controller_sees_the_gap_and_holds_in_real_time() {
         .collect();
     assert!(!held.is_empty(), "{tr:?}");
     assert!(held.iter().all(|x| x.2 == "hold"), "{tr:?}");
-    // it is left when the states have come in order for clear_time
-    assert_eq!(tr.last().map(|x| x.2.as_str()), Some("nominal"), "{tr:?}");
+    // it is left when the states have come in order for clear_time (under CI's CPU hog a
+    // later gap may hold it again: the first hold must be left, not necessarily the last)
+    let first = tr
+        .iter()
+        .position(|x| x.1.as_deref() == Some("link"))
+        .unwrap();
+    assert!(
+        tr[first..].iter().any(|x| x.2 == "nominal"),
+        "the hold was never left: {tr:?}"
+    );
     // and the log replays, the manager's word included
     let (code, text) = run("plant_sim", &["replay", &out], LONG);
     assert_eq!(code, 0, "{text}");
