@@ -2,8 +2,8 @@
 //! (docs/estimators.md, "The innovation gate and health"): each direction sample and each position fix is tested before the filter
 //! uses it, by its normalised innovation squared (NIS) against the χ² threshold of a stated
 //! false-alarm rate, and rejected when it fails; a monitor over a sliding window of ticks
-//! turns the rejections and the gaps in each sensor's samples into `healthy`, `degraded` or
-//! `lost`, with the reason. `no_std`, allocation-free: fixed arrays, no clock (it counts ticks).
+//! turns the rejections, the gaps in each sensor's samples and the mean NIS of each block of
+//! passed samples against its χ² band into `healthy`, `degraded` or `lost`, with the reason. `no_std`, allocation-free: fixed arrays, no clock (it counts ticks).
 
 use crate::complementary::SLOTS;
 use crate::{AttitudeConfig, AttitudeFilter, Directions};
@@ -48,6 +48,10 @@ pub enum Reason {
     /// A sample was taken without the test within the window: position fixes after a window
     /// in which none passed (the estimate had drifted from them, or they jumped).
     Reset(Source),
+    /// The last block of the source's passed samples had a summed NIS above its χ² band:
+    /// each sample passed the gate, but together they sit further from the estimate than
+    /// the filter's covariance and the noise allow (a small bias, or noise above its model).
+    Inconsistent(Source),
 }
 
 /// The estimator's health at a tick.
@@ -96,11 +100,38 @@ pub struct GateConfig<T: Real> {
     /// Rejections of one source within a window that make it degraded (1 to
     /// [`MAX_REJECTIONS`]).
     pub rejections: u32,
+    /// The band on each direction source's summed NIS.
+    pub direction_band: Band<T>,
+    /// The band on the position fixes' summed NIS.
+    pub position_band: Band<T>,
+}
+
+/// The χ² band on the mean NIS (docs/estimators.md, "The innovation gate and health"): a
+/// source's passed samples are summed in blocks of `samples`; a consistent filter's block
+/// sum is χ² with `samples` times the sample's degrees of freedom, and a sum above `upper`
+/// (that distribution's upper quantile at the stated false-alarm rate) makes the source
+/// inconsistent until a block passes. `samples = 0` turns the band off.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Band<T: Real> {
+    /// Passed samples per block (0: no band).
+    pub samples: u32,
+    /// The upper bound on a block's summed NIS.
+    pub upper: T,
+}
+
+impl<T: Real> Band<T> {
+    /// No band.
+    pub fn off() -> Self {
+        Band {
+            samples: 0,
+            upper: T::zero(),
+        }
+    }
 }
 
 /// One tick's verdict on each source.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct Verdicts {
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Verdicts<T: Real> {
     /// Bit `s` set: source `s` gave a usable sample this tick (direction slots, then the
     /// gyro, then the position fix).
     pub present: u8,
@@ -111,6 +142,20 @@ pub struct Verdicts {
     pub unused: u8,
     /// Bit `s` set: source `s`'s sample was taken without the test (a reset).
     pub reset: u8,
+    /// The NIS of each source's sample that passed the gate this tick (0 otherwise).
+    pub nis: [T; SOURCES],
+}
+
+impl<T: Real> Default for Verdicts<T> {
+    fn default() -> Self {
+        Verdicts {
+            present: 0,
+            rejected: 0,
+            unused: 0,
+            reset: 0,
+            nis: [T::zero(); SOURCES],
+        }
+    }
 }
 
 /// The gate and the health monitor of one filter.
@@ -131,6 +176,16 @@ pub struct Gate<T: Real> {
     rejected_next: [usize; SOURCES],
     /// Rejections since the start, per source.
     totals: [u64; SOURCES],
+    /// The block being summed: each source's NIS and its count of passed samples.
+    block_sum: [T; SOURCES],
+    block_count: [u32; SOURCES],
+    /// Whether the source's last complete block was above its band.
+    inconsistent: [bool; SOURCES],
+    /// Blocks above the band since the start, and every passed sample's NIS summed and
+    /// counted (after the first window), per source.
+    inconsistent_blocks: [u64; SOURCES],
+    nis_total: [T; SOURCES],
+    nis_samples: [u64; SOURCES],
     health: Health,
 }
 
@@ -151,6 +206,12 @@ impl<T: Real> Gate<T> {
             rejected_at: [[u64::MAX; MAX_REJECTIONS]; SOURCES],
             rejected_next: [0; SOURCES],
             totals: [0; SOURCES],
+            block_sum: [T::zero(); SOURCES],
+            block_count: [0; SOURCES],
+            inconsistent: [false; SOURCES],
+            inconsistent_blocks: [0; SOURCES],
+            nis_total: [T::zero(); SOURCES],
+            nis_samples: [0; SOURCES],
             health: Health::Healthy,
         }
     }
@@ -173,6 +234,20 @@ impl<T: Real> Gate<T> {
             .chain(self.se3.then(|| (Source::Position, self.totals[POSITION])))
     }
 
+    /// Per watched source (as [`Self::rejections`] orders them): the blocks whose summed
+    /// NIS was above the band, and the mean NIS of the passed samples after the first window
+    /// (`None` without one). A consistent filter's mean is the sample's degrees of freedom:
+    /// 2 for a direction, 3 for a fix.
+    pub fn consistency(&self) -> impl Iterator<Item = (Source, u64, Option<T>)> + '_ {
+        let mean = |s: usize| {
+            (self.nis_samples[s] > 0)
+                .then(|| self.nis_total[s] / controller::real::<T>(self.nis_samples[s] as f64))
+        };
+        (0..self.slots)
+            .chain(self.se3.then_some(POSITION))
+            .map(move |s| (self.source(s), self.inconsistent_blocks[s], mean(s)))
+    }
+
     fn source(&self, s: usize) -> Source {
         match s {
             GYRO => Source::Gyro,
@@ -192,7 +267,7 @@ impl<T: Real> Gate<T> {
         h: T,
         gyro: &Vector3<T>,
         y: &mut Directions<T>,
-        verdicts: &mut Verdicts,
+        verdicts: &mut Verdicts<T>,
     ) {
         let prior = filter.prior(h, gyro);
         for (s, slot) in y.iter_mut().enumerate().take(self.slots) {
@@ -221,7 +296,9 @@ impl<T: Real> Gate<T> {
             };
             // a NaN NIS fails too
             let pass = nis <= self.cfg.direction;
-            if !pass {
+            if pass {
+                verdicts.nis[s] = nis;
+            } else {
                 *slot = None;
                 verdicts.rejected |= 1 << s;
             }
@@ -237,11 +314,20 @@ impl<T: Real> Gate<T> {
     /// jumped, and the estimator cannot tell which (EKF2 resets an aiding source after a
     /// timeout in the same way). Directions have no such reset: a sensor turned for good
     /// stays rejected.
-    pub(crate) fn position(&self, innovation: &Vector3<T>, s: T, verdicts: &mut Verdicts) -> bool {
+    pub(crate) fn position(
+        &self,
+        innovation: &Vector3<T>,
+        s: T,
+        verdicts: &mut Verdicts<T>,
+    ) -> bool {
         verdicts.present |= 1 << POSITION;
         let now = self.tick + 1;
         let w = u64::from(self.cfg.window);
-        let pass = s > T::zero() && innovation.dot(innovation) / s <= self.cfg.position;
+        let nis = innovation.dot(innovation) / s;
+        let pass = s > T::zero() && nis <= self.cfg.position;
+        if pass {
+            verdicts.nis[POSITION] = nis;
+        }
         let stale = now >= w && now - self.passed_at[POSITION] >= w;
         if !pass && stale {
             verdicts.reset |= 1 << POSITION;
@@ -256,9 +342,10 @@ impl<T: Real> Gate<T> {
     /// The monitor's tick: the verdicts of this tick (and whether the gyro sample was
     /// usable) turned into the health over the window
     /// (docs/estimators.md, "The innovation gate and health").
-    pub(crate) fn observe(&mut self, mut verdicts: Verdicts, gyro_ok: bool) -> Health {
+    pub(crate) fn observe(&mut self, mut verdicts: Verdicts<T>, gyro_ok: bool) -> Health {
         self.tick += 1;
         let now = self.tick;
+        let judged = now > u64::from(self.cfg.window);
         if gyro_ok {
             verdicts.present |= 1 << GYRO;
         }
@@ -268,6 +355,10 @@ impl<T: Real> Gate<T> {
                 self.present_at[s] = now;
                 if (verdicts.rejected | verdicts.unused) & bit == 0 {
                     self.passed_at[s] = now;
+                    // the band: tested samples after the first window, a reset not among them
+                    if judged && s != GYRO && verdicts.reset & bit == 0 {
+                        self.band(s, verdicts.nis[s]);
+                    }
                 }
             }
             if verdicts.reset & bit != 0 {
@@ -282,6 +373,31 @@ impl<T: Real> Gate<T> {
         }
         self.health = self.judge();
         self.health
+    }
+
+    /// Adds a passed sample's NIS to source `s`'s block, and at the block's end tests its sum
+    /// against the band (docs/estimators.md, "The innovation gate and health").
+    fn band(&mut self, s: usize, nis: T) {
+        self.nis_total[s] += nis;
+        self.nis_samples[s] += 1;
+        let band = if s == POSITION {
+            self.cfg.position_band
+        } else {
+            self.cfg.direction_band
+        };
+        if band.samples == 0 {
+            return;
+        }
+        self.block_sum[s] += nis;
+        self.block_count[s] += 1;
+        if self.block_count[s] >= band.samples {
+            // a NaN sum fails too
+            let inside = self.block_sum[s] <= band.upper;
+            self.inconsistent[s] = !inside;
+            self.inconsistent_blocks[s] += u64::from(!inside);
+            self.block_sum[s] = T::zero();
+            self.block_count[s] = 0;
+        }
     }
 
     /// The health at the present tick: lost before degraded, and within each the first
@@ -310,11 +426,13 @@ impl<T: Real> Gate<T> {
             n as u32 >= self.cfg.rejections
         };
         let reset = |s: usize| within(self.reset_at[s]);
+        let inconsistent = |s: usize| self.inconsistent[s];
         let mut sources = (0..self.slots).chain(self.se3.then_some(POSITION));
-        match sources.find(|s| missing(*s) || rejected(*s) || reset(*s)) {
+        match sources.find(|s| missing(*s) || rejected(*s) || inconsistent(*s) || reset(*s)) {
             None => Health::Healthy,
             Some(s) if missing(s) => Health::Degraded(Reason::Missing(self.source(s))),
             Some(s) if rejected(s) => Health::Degraded(Reason::Rejected(self.source(s))),
+            Some(s) if inconsistent(s) => Health::Degraded(Reason::Inconsistent(self.source(s))),
             Some(s) => Health::Degraded(Reason::Reset(self.source(s))),
         }
     }
@@ -332,12 +450,14 @@ mod tests {
             noise: [0.01; SLOTS],
             window: 10,
             rejections: 2,
+            direction_band: Band::off(),
+            position_band: Band::off(),
         };
         Gate::new(cfg, 2, se3)
     }
 
     /// Verdicts with `present` sources and `rejected` among them.
-    fn v(present: &[usize], rejected: &[usize]) -> Verdicts {
+    fn v(present: &[usize], rejected: &[usize]) -> Verdicts<f64> {
         let bits = |s: &[usize]| s.iter().fold(0u8, |b, i| b | (1 << i));
         Verdicts {
             present: bits(present) | bits(rejected),
@@ -456,5 +576,62 @@ mod tests {
                 Source::Position
             ]
         );
+    }
+
+    #[test]
+    fn the_band_finds_samples_that_pass_one_by_one_but_not_together() {
+        let cfg = GateConfig {
+            direction: 20.0,
+            position: 25.0,
+            noise: [0.01; SLOTS],
+            window: 10,
+            rejections: 2,
+            direction_band: Band {
+                samples: 5,
+                upper: 25.0,
+            },
+            position_band: Band::off(),
+        };
+        let mut g = Gate::new(cfg, 2, false);
+        // each direction passes with a NIS of `a` (source 0) and `b` (source 1)
+        let tick = |g: &mut Gate<f64>, a: f64, b: f64| {
+            let mut v = v(&[0, 1], &[]);
+            v.nis[0] = a;
+            v.nis[1] = b;
+            g.observe(v, true)
+        };
+        // the first window is not summed, however large
+        for _ in 0..10 {
+            assert_eq!(tick(&mut g, 1e3, 1e3), Health::Healthy);
+        }
+        // blocks of 5 at 2 (sum 10) and at 4.9 (24.5) pass
+        for _ in 0..10 {
+            assert_eq!(tick(&mut g, 2.0, 4.9), Health::Healthy);
+        }
+        // source 1 at 5.1: each sample far below the gate's 20, the block's 25.5 above 25;
+        // the verdict comes at the block's end ...
+        for _ in 0..4 {
+            assert_eq!(tick(&mut g, 2.0, 5.1), Health::Healthy);
+        }
+        let inconsistent = Health::Degraded(Reason::Inconsistent(Source::Direction(1)));
+        assert_eq!(tick(&mut g, 2.0, 5.1), inconsistent);
+        // ... and holds until a block passes
+        for _ in 0..4 {
+            assert_eq!(tick(&mut g, 2.0, 1.0), inconsistent);
+        }
+        assert_eq!(tick(&mut g, 2.0, 1.0), Health::Healthy);
+        // a NaN NIS fails its block
+        for _ in 0..4 {
+            tick(&mut g, 2.0, 1.0);
+        }
+        assert_eq!(
+            tick(&mut g, f64::NAN, 1.0),
+            Health::Degraded(Reason::Inconsistent(Source::Direction(0)))
+        );
+        let c: Vec<_> = g.consistency().map(|(s, n, _)| (s, n)).collect();
+        assert_eq!(c, [(Source::Direction(0), 1), (Source::Direction(1), 1)]);
+        // the mean over the passed samples after the first window: (10·4.9 + 5·5.1 + 10·1)/25
+        let mean = g.consistency().nth(1).unwrap().2.unwrap();
+        assert!((mean - (49.0 + 25.5 + 10.0) / 25.0).abs() < 1e-12, "{mean}");
     }
 }

@@ -362,7 +362,7 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
         directions: &[Vector3<T>],
         accel: &Vector3<T>,
         position: Option<&Vector3<T>>,
-    ) -> (PoseEstimate<T>, crate::health::Verdicts) {
+    ) -> (PoseEstimate<T>, crate::health::Verdicts<T>) {
         let mut verdicts = crate::health::Verdicts::default();
         let n = self.attitude.config().count().saturating_sub(1);
         let mut y = usable(directions, n, self.attitude.faults_mut());
@@ -441,7 +441,7 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
         &mut self,
         accel: &Vector3<T>,
         slot: &mut Option<Vector3<T>>,
-        verdicts: &mut crate::health::Verdicts,
+        verdicts: &mut crate::health::Verdicts<T>,
         n: usize,
     ) -> bool {
         let g: T = real(GRAVITY);

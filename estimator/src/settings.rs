@@ -242,7 +242,7 @@ impl<T: Real> Filter<T> {
             h: T,
             gyro: &Vector3<T>,
             directions: &[Vector3<T>],
-        ) -> (crate::AttitudeEstimate<T>, Verdicts) {
+        ) -> (crate::AttitudeEstimate<T>, Verdicts<T>) {
             let n = f.config().count();
             let mut y = crate::complementary::usable(directions, n, f.faults_mut());
             let mut v = Verdicts::default();

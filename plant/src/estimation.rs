@@ -58,6 +58,15 @@ pub struct GateReport {
     pub rejections_to_degrade: u32,
     /// Rejections over the run, per sensor (`direction0` …, `accelerometer`, `position`).
     pub rejected: std::collections::BTreeMap<String, u64>,
+    /// The χ² band on each direction's summed NIS: `[samples per block, upper bound]`.
+    pub direction_band: [f64; 2],
+    /// The χ² band on the fixes' summed NIS (SE(3)): `[samples per block, upper bound]`.
+    pub position_band: [f64; 2],
+    /// Blocks above the band over the run, per sensor.
+    pub inconsistent_blocks: std::collections::BTreeMap<String, u64>,
+    /// The mean NIS of the samples that passed, after the first window, per sensor: 2 for a
+    /// consistent direction, 3 for a fix (absent: none passed).
+    pub mean_nis: std::collections::BTreeMap<String, f64>,
     /// Each change of health, in time order.
     pub health: Vec<HealthChange>,
 }
@@ -99,6 +108,7 @@ pub fn describe(h: &Health) -> (&'static str, String) {
         Some(Reason::Rejected(s)) => format!("rejected {}", source_name(s)),
         Some(Reason::Missing(s)) => format!("missing {}", source_name(s)),
         Some(Reason::Reset(s)) => format!("reset {}", source_name(s)),
+        Some(Reason::Inconsistent(s)) => format!("inconsistent {}", source_name(s)),
     };
     (name, reason)
 }
@@ -350,6 +360,16 @@ fn gate_report(g: &Gate<f64>, rows: &[Row]) -> GateReport {
         window: c.window,
         rejections_to_degrade: c.rejections,
         rejected: g.rejections().map(|(s, n)| (source_name(s), n)).collect(),
+        direction_band: [f64::from(c.direction_band.samples), c.direction_band.upper],
+        position_band: [f64::from(c.position_band.samples), c.position_band.upper],
+        inconsistent_blocks: g
+            .consistency()
+            .map(|(s, n, _)| (source_name(s), n))
+            .collect(),
+        mean_nis: g
+            .consistency()
+            .filter_map(|(s, _, m)| Some((source_name(s), m?)))
+            .collect(),
         health,
     }
 }

@@ -561,6 +561,11 @@ fn gate_check<T: Real>() -> bool {
         noise: [real(0.01); 5],
         window: 10,
         rejections: 1,
+        direction_band: estimator::health::Band {
+            samples: 5,
+            upper: real(41.3),
+        },
+        position_band: estimator::health::Band::off(),
     };
     let mut gate = estimator::health::Gate::new(cfg, 2, false);
     let turned = So3::exp(&Vector3::new(T::zero(), T::zero(), real(0.5236)));

@@ -5,7 +5,7 @@
 use super::{EstimatorKind, RawEstimator, SensorsSpec};
 use crate::{Scenario, ScenarioError, Validator};
 use detection::threshold::chi2_upper;
-use estimator::health::{GateConfig, MAX_REJECTIONS};
+use estimator::health::{Band, GateConfig, MAX_REJECTIONS};
 
 /// The gate's settings as the scenario gives them.
 #[derive(Debug, Clone, PartialEq)]
@@ -156,7 +156,13 @@ impl Scenario {
     /// is degraded after the fewest rejections `r` within a sliding window of `n` ticks such
     /// that a nominal sensor reaches them no more than `λ` times an hour: a window reaches
     /// `r` at a tick whose sample is rejected with `r − 1` more among the `n − 1` before, so
-    /// `(3600/h) · α · P(Binomial(n − 1, α) ≥ r − 1) ≤ λ`.
+    /// `(3600/h) · α · P(Binomial(n − 1, α) ≥ r − 1) ≤ λ`. The χ² band sums a source's
+    /// passed NIS over blocks of a window's samples (`n` directions, `⌈window · f⌉` fixes);
+    /// one test per block, so a block fails falsely with probability `λ` times the block's
+    /// duration in hours, and its bound is that upper quantile of χ² with the block's
+    /// degrees of freedom (2 or 3 per sample). The complementary filter's directions have no
+    /// band: with no covariance, their NIS carries the estimate's error, correlated from one
+    /// sample to the next.
     pub fn gate_config(&self) -> Option<GateConfig<f64>> {
         let spec = self.estimator.gate.as_ref()?;
         let sensors = self.sensors.as_ref()?;
@@ -175,12 +181,28 @@ impl Scenario {
         for (n, x) in noise.iter_mut().zip(&spec.noise) {
             *n = *x;
         }
+        let band = |samples: u64, dof: usize, per_second: f64| Band {
+            samples: samples as u32,
+            upper: chi2_upper(
+                dof * samples as usize,
+                rate * samples as f64 / (3600.0 * per_second),
+            ),
+        };
+        let fixes = ((spec.window * fix_rate).round() as u64).clamp(2, u64::from(u32::MAX));
         Some(GateConfig {
             direction: chi2_upper(2, alpha),
             position: chi2_upper(3, rate / (3600.0 * fix_rate)),
             noise,
             window: ticks as u32,
             rejections: rejections as u32,
+            // the complementary filter has no covariance to test: its samples' NIS, against
+            // the noise alone, carries its estimate's error, the same from sample to sample
+            direction_band: if self.estimator.kind == EstimatorKind::Complementary {
+                Band::off()
+            } else {
+                band(ticks, 2, 1.0 / h)
+            },
+            position_band: band(fixes, 3, fix_rate),
         })
     }
 }

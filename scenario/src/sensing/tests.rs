@@ -367,6 +367,23 @@ fn the_gate_takes_its_thresholds_from_the_false_alarm_rate_and_bad_keys_name_the
     let rate = |r: u64| 3600.0 / 0.01 * alpha * super::gate::binomial_tail(49, alpha, r - 1);
     assert!((rate(1) / 0.01 - 1.0).abs() < 1e-9 && rate(2) < 1e-6);
     assert_eq!(c.rejections, 1);
+    // the complementary filter's directions have no χ² band (no covariance to test) ...
+    assert_eq!(c.direction_band.samples, 0);
+    // ... the EqF's do: blocks of a window's 50 samples, one test per block, so a block
+    // fails with probability λ · 0.5 s / 3600 s; its bound is χ²₁₀₀'s upper quantile there,
+    // past the block's mean of 100
+    let eqf_text = gated
+        .replace("kind = \"complementary\"", "kind = \"eqf\"")
+        .replace("kp = 2.0\nki = 0.5\nweights = [1.0, 0.5]\n", "");
+    let eqf = seed_with(&eqf_text).unwrap().gate_config().unwrap();
+    let block = 0.01 * 0.5 / 3600.0;
+    assert_eq!(eqf.direction_band.samples, 50);
+    let upper = eqf.direction_band.upper;
+    assert!(
+        (detection::threshold::chi2_survival(100, upper) / block - 1.0).abs() < 1e-6,
+        "{upper}"
+    );
+    assert!((150.0..250.0).contains(&upper), "{upper}");
     // a looser rate gives a lower threshold
     let loose = seed_with(&gated.replace("gate = true", "gate = true\nfalse_alarm_rate = 1e5"))
         .unwrap()
@@ -397,6 +414,11 @@ gate = true
         (detection::threshold::chi2_survival(3, s.gate_config().unwrap().position) / p - 1.0).abs()
             < 1e-6
     );
+    // 10 Hz fixes over a 0.5 s window: the band's block is five fixes (15 degrees)
+    let band = s.gate_config().unwrap().position_band;
+    assert_eq!(band.samples, 5);
+    let block = 0.01 * 5.0 / 36000.0;
+    assert!((detection::threshold::chi2_survival(15, band.upper) / block - 1.0).abs() < 1e-6);
     for (text, needle) in [
         (
             gated.replace("gate = true", "false_alarm_rate = 1.0"),
