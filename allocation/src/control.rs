@@ -179,6 +179,13 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     /// optimum as a cold start; [`Allocator::allocate_from`]). Allocation-free; never NaN.
     pub fn actuate(&mut self, wrench: &SVector<T, K>, r_hat: &Matrix3<T>) -> Actuation<T, K> {
         let demand = wrench - self.restoring(r_hat);
+        self.actuate_demand(demand)
+    }
+
+    /// [`VehicleControl::actuate`] of a demand that is the actuators' wrench itself, the
+    /// restoring wrench already in it (the failsafe's thrust-axis law asks for its thrust
+    /// and torque directly).
+    pub fn actuate_demand(&mut self, demand: SVector<T, K>) -> Actuation<T, K> {
         let mut bounds = self.bounds;
         if let (Some(prev), true) = (&self.previous, self.rate_step > T::zero()) {
             for j in 0..self.allocator.geometry().count() {

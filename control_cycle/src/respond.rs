@@ -252,11 +252,18 @@ where
         write_law::<T, N, M>(&mut cmd, msg.seq, &out, self.controller.config().law);
         cmd.previous_seq = self.previous.unwrap_or(ipc_types::NO_PREVIOUS);
         if let Some(vehicle) = &mut self.vehicle {
-            let disarmed = self
-                .supervisor
-                .as_ref()
-                .is_some_and(crate::Supervisor::disarmed);
-            vehicle.allocate::<G, N>(msg, &out.torque.map(to_f64::<T>), disarmed, &mut cmd);
+            let sup = self.supervisor.as_ref();
+            let disarmed = sup.is_some_and(crate::Supervisor::disarmed);
+            // the failsafe's thrust-axis law, when `descend` flies it (docs/failsafe.md)
+            let thrust = sup
+                .and_then(|s| s.thrust_demand((&q, &v), &desired))
+                .map(|d| d.map(to_f64::<T>));
+            vehicle.allocate::<G, N>(
+                msg,
+                (&out.torque.map(to_f64::<T>), thrust.as_ref()),
+                disarmed,
+                &mut cmd,
+            );
         }
         if let Some((estimate, z)) = before {
             for i in 0..M.min(ipc_types::MAX_M) {

@@ -8,6 +8,7 @@ use controller::group::MatrixLieGroup;
 use controller::law::Desired;
 use failsafe::monitor::{Flags, Limits, Monitor};
 use failsafe::setpoint::{Rates, Setpoint};
+use failsafe::thrust_axis::ThrustAxis;
 use nalgebra::SMatrix;
 use scenario::Scenario;
 use scenario::failsafe::FailsafeSpec;
@@ -24,6 +25,9 @@ pub struct Supervisor<T: Real, G, const N: usize, const M: usize> {
     /// Replay, once it can no longer follow the manager state by state: the recorded word of
     /// the state being answered, flown instead of the manager's own.
     recorded: Option<u32>,
+    /// The thrust-axis law `descend` flies once a direction of control is lost (SE(3) with
+    /// gravity).
+    thrust: Option<ThrustAxis<T>>,
 }
 
 impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Supervisor<T, G, N, M> {
@@ -44,7 +48,23 @@ impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Superviso
             ),
             word: 0,
             recorded: None,
+            thrust: s.thrust_axis().map(|t| t.cast::<T>()),
         })
+    }
+
+    /// The thrust-axis law's demand at the estimate `(q, v)` flying `desired`, when the
+    /// engaged action flies it (docs/failsafe.md, "The thrust-axis law"); `None`: the law's
+    /// wrench is allocated.
+    pub(crate) fn thrust_demand(
+        &self,
+        (q, v): (&SMatrix<T, N, N>, &nalgebra::SVector<T, M>),
+        desired: &Desired<T, N, M>,
+    ) -> Option<nalgebra::SVector<T, M>> {
+        let law = self.thrust.as_ref()?;
+        if !ThrustAxis::<T>::flies(self.word) {
+            return None;
+        }
+        law.demand((q, v), (&desired.q, &desired.v))
     }
 
     /// Flies the recorded `word` at the next tick instead of stepping the manager (replay,

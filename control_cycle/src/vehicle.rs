@@ -108,7 +108,7 @@ impl<const M: usize> ControllerVehicle<M> {
         cmd: &mut CommandMsg,
     ) {
         self.observe::<G, N>(msg, follows, cmd);
-        self.allocate::<G, N>(msg, tau, false, cmd);
+        self.allocate::<G, N>(msg, (tau, None), false, cmd);
     }
 
     /// The first half of [`ControllerVehicle::answer`], before the law: the period, the
@@ -167,12 +167,13 @@ impl<const M: usize> ControllerVehicle<M> {
     }
 
     /// The second half of [`ControllerVehicle::answer`], after the law: the law's wrench `tau`
-    /// allocated at the state's attitude (every actuator at its minimum when `disarmed`, the
-    /// failsafe's `disarm`), the detector told the command, and the vehicle's fields of `cmd`.
+    /// allocated at the state's attitude, or the failsafe's `thrust` demand when it flies one
+    /// (every actuator at its minimum when `disarmed`, the failsafe's `disarm`), the detector
+    /// told the command, and the vehicle's fields of `cmd`.
     pub fn allocate<G: MatrixLieGroup<N, M>, const N: usize>(
         &mut self,
         msg: &StateMsg,
-        tau: &SVector<f64, M>,
+        (tau, thrust): (&SVector<f64, M>, Option<&SVector<f64, M>>),
         disarmed: bool,
         cmd: &mut CommandMsg,
     ) {
@@ -180,7 +181,10 @@ impl<const M: usize> ControllerVehicle<M> {
         if let Some(p) = self.control.previous() {
             cmd.u_previous.copy_from_slice(p.as_slice());
         }
-        let mut a = self.control.actuate(tau, &r_hat);
+        let mut a = match thrust {
+            Some(demand) => self.control.actuate_demand(*demand),
+            None => self.control.actuate(tau, &r_hat),
+        };
         if disarmed {
             self.control.disarm(&mut a);
         }

@@ -29,6 +29,7 @@
 
 pub mod monitor;
 pub mod setpoint;
+pub mod thrust_axis;
 
 /// What raises a failsafe.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

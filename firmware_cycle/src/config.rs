@@ -131,6 +131,9 @@ pub struct Failsafe {
     pub limit_attitude: Option<f32>,
     /// `tracking_limit_position` (m).
     pub limit_position: Option<f32>,
+    /// The actuators' time constant (s, ≥ 0): the thrust-axis law turns a spinning body's
+    /// torques ahead by it (docs/failsafe.md, "The thrust-axis law").
+    pub lag: f32,
 }
 
 impl Failsafe {
@@ -153,7 +156,9 @@ impl Failsafe {
         if !(finite(self.limit_attitude)
             && finite(self.limit_position)
             && finite(Some(self.descend_rate))
-            && finite(Some(self.ascend_rate)))
+            && finite(Some(self.ascend_rate))
+            && self.lag.is_finite()
+            && self.lag >= 0.0)
         {
             return Err(ConfigError::Failsafe);
         }

@@ -46,6 +46,9 @@ struct Manager<G, const N: usize, const M: usize> {
     monitor: failsafe::monitor::Monitor<f32>,
     setpoint: failsafe::setpoint::Setpoint<f32, G, N, M>,
     span: allocation::SpanWatch<f32, M>,
+    /// The thrust-axis law `descend` flies once a direction of control is lost (SE(3),
+    /// a vehicle with weight).
+    thrust: Option<failsafe::thrust_axis::ThrustAxis<f32>>,
 }
 
 fn vec<const C: usize>(xs: &[f32]) -> Vec<f32, C> {
@@ -83,6 +86,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                         },
                     ),
                     span: allocation::SpanWatch::default(),
+                    thrust: thrust_axis(config, f.lag),
                 })
             }
         };
@@ -176,7 +180,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             }
         }
         let nominal = self.reference.desired();
-        let (desired, word, disarmed) = match &mut self.manager {
+        let (desired, word, disarmed): (_, Option<u32>, _) = match &mut self.manager {
             None => (nominal, None, false),
             Some(m) => {
                 let flags = failsafe::monitor::Flags {
@@ -205,11 +209,19 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         }
         .map_err(|_| Dropped::Law)?;
         self.previous = Some(s.seq);
+        // the failsafe's thrust-axis law, when `descend` flies it (docs/failsafe.md)
+        let thrust = match (&self.manager, word) {
+            (Some(m), Some(w)) if failsafe::thrust_axis::ThrustAxis::<f32>::flies(w) => m
+                .thrust
+                .and_then(|law| law.demand((&q, &v), (&desired.q, &desired.v))),
+            _ => None,
+        };
         let allocation = match &mut self.vehicle {
             None => None,
             Some(control) => {
+                let wrench = (&out.torque, thrust.as_ref());
                 let (allocation, accounted, u) =
-                    allocate(control, self.actuators, &r_hat, &out.torque, disarmed);
+                    allocate(control, self.actuators, &r_hat, wrench, disarmed);
                 if let Some(w) = &mut self.watcher {
                     w.after(&u, accounted);
                 }
@@ -292,17 +304,43 @@ fn tell_failures<const M: usize>(
     }
 }
 
-/// The law's wrench allocated to the vehicle's actuators at the attitude `r_hat`
-/// (docs/maths.md, "Control allocation"; every actuator at its minimum when `disarmed`, the
-/// failsafe's `disarm`), the wrench it accounts for and the commands.
+/// The thrust-axis law of a configuration with a failsafe (docs/failsafe.md, "The
+/// thrust-axis law"): on SE(3), for a vehicle with weight, from the model's mass and
+/// inertia, the law's translational gains and the actuators' time constant `lag`.
+fn thrust_axis(config: &Config, lag: f32) -> Option<failsafe::thrust_axis::ThrustAxis<f32>> {
+    let weight = config.vehicle.as_ref()?.weight;
+    let at = |xs: &[f32], i: usize| xs.get(i).copied();
+    let (j, m) = (
+        |i: usize| at(&config.inertia, i * 6 + i),
+        at(&config.inertia, 21)?,
+    );
+    if config.inertia.len() != 36 || !(weight > 0.0 && m > 0.0) {
+        return None;
+    }
+    Some(failsafe::thrust_axis::ThrustAxis::new(
+        m,
+        weight / m,
+        (j(0)?, j(1)?, j(2)?),
+        (at(&config.k, 15)?, at(&config.kd, 21)?),
+        lag,
+    ))
+}
+
+/// The law's wrench `tau` allocated to the vehicle's actuators at the attitude `r_hat`, or the
+/// failsafe's `thrust` demand when it flies one (docs/maths.md, "Control allocation"; every
+/// actuator at its minimum when `disarmed`, the failsafe's `disarm`), the wrench it
+/// accounts for and the commands.
 fn allocate<const M: usize>(
     control: &mut VehicleControl<f32, M>,
     count: usize,
     r_hat: &nalgebra::Matrix3<f32>,
-    tau: &SVector<f32, M>,
+    (tau, thrust): (&SVector<f32, M>, Option<&SVector<f32, M>>),
     disarmed: bool,
 ) -> (Allocation, SVector<f32, M>, Commands<f32>) {
-    let mut a = control.actuate(tau, r_hat);
+    let mut a = match thrust {
+        Some(demand) => control.actuate_demand(*demand),
+        None => control.actuate(tau, r_hat),
+    };
     if disarmed {
         control.disarm(&mut a);
     }

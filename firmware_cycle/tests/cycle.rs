@@ -131,7 +131,7 @@ fn the_configuration_round_trips_and_bad_bytes_are_refused() {
     assert!(ConfigError::Origin.to_string().contains("zero on so3"));
     // the failsafe manager's settings: a good one makes a cycle and round-trips; an action
     // code that is none, a limit that is not a positive finite number, a rate that is not
-    // finite are refused
+    // finite, an actuator time constant that is not a finite number ≥ 0 are refused
     let good = firmware_cycle::Failsafe {
         actions: [2, 0, 0, 6],
         clear_ticks: 100,
@@ -139,6 +139,7 @@ fn the_configuration_round_trips_and_bad_bytes_are_refused() {
         ascend_rate: 0.3,
         limit_attitude: Some(1.0),
         limit_position: None,
+        lag: 0.02,
     };
     let mut with = config.clone();
     with.failsafe = Some(good);
@@ -160,6 +161,11 @@ fn the_configuration_round_trips_and_bad_bytes_are_refused() {
         },
         firmware_cycle::Failsafe {
             descend_rate: f32::INFINITY,
+            ..good
+        },
+        firmware_cycle::Failsafe { lag: -0.01, ..good },
+        firmware_cycle::Failsafe {
+            lag: f32::NAN,
             ..good
         },
     ] {

@@ -6,6 +6,7 @@
 
 use ::failsafe::monitor::{Flags, Limits, Monitor};
 use ::failsafe::setpoint::{Rates, Supervised};
+use ::failsafe::thrust_axis::ThrustAxis;
 use ::failsafe::{Action, Cause, State};
 use controller::group::MatrixLieGroup;
 use controller::reference::Trajectory;
@@ -63,16 +64,42 @@ pub struct Supervision {
     tracking_at: Option<f64>,
     /// Per row, the action flown ([`Supervision::code`]).
     codes: Vec<u8>,
+    /// The thrust-axis law `descend` flies once a direction of control is lost (SE(3) with
+    /// gravity; the simulation).
+    thrust: Option<ThrustAxis<f64>>,
 }
 
 impl Supervision {
     /// Scenario `s`'s manager, run in this process (`None`: no `[failsafe]`).
     pub fn of(s: &Scenario) -> Option<Self> {
         let spec = s.failsafe?;
-        Some(Self::with(Some(Monitor::new(
+        let mut sup = Self::with(Some(Monitor::new(
             spec.config(s.control_period),
             limits(&spec),
-        ))))
+        )));
+        sup.thrust = s.thrust_axis();
+        Some(sup)
+    }
+
+    /// The thrust-axis law's demand at the estimate `(q̂, v̂)` flying what `reference` now
+    /// flies, when the engaged action flies the law: `descend` with the actuators' cause
+    /// raised (docs/failsafe.md, "The thrust-axis law"). `None`: the law's wrench is
+    /// allocated.
+    pub fn thrust_demand<G, R, const N: usize, const M: usize>(
+        &self,
+        (q, v): (&SMatrix<f64, N, N>, &SVector<f64, M>),
+        reference: &SupervisedReference<G, R, N, M>,
+    ) -> Option<SVector<f64, M>>
+    where
+        G: MatrixLieGroup<N, M>,
+        R: Trajectory<f64, N, M>,
+    {
+        let law = self.thrust.as_ref()?;
+        if !ThrustAxis::<f64>::flies(self.word) {
+            return None;
+        }
+        let desired = reference.desired();
+        law.demand((q, v), (&desired.q, &desired.v))
     }
 
     /// A record of the manager the controller runs (the pair's plant; `None`: no
@@ -93,6 +120,7 @@ impl Supervision {
             transitions: Vec::new(),
             tracking_at: None,
             codes: Vec::new(),
+            thrust: None,
         }
     }
 

@@ -425,11 +425,13 @@ where
         });
         let body = s.disturbance_at::<M>(k);
         let mut record = None;
+        let thrust = (supervision.as_ref())
+            .and_then(|sup| sup.thrust_demand((&q_hat, &v_hat), &sim.reference));
         let sample = sim
             .step_actuated(&q_hat, &v_hat, |plant, wrench, h| {
                 let (a, u) = run.cycle::<G, N>(
                     plant,
-                    (wrench, &r_hat, disarmed),
+                    (wrench, thrust.as_ref(), &r_hat, disarmed),
                     (&body, world.as_ref()),
                     (h, s.plant_substeps),
                 );
@@ -487,17 +489,26 @@ impl<const M: usize> VehicleRun<M> {
     }
 
     /// One period of the vehicle: the law's `wrench` allocated at the estimated attitude
-    /// `r_hat` (every actuator at its minimum when `disarmed`), the detector told the command,
+    /// `r_hat`, or the failsafe's `thrust` demand when it flies one (every actuator at its
+    /// minimum when `disarmed`), the detector told the command,
     /// the actuators commanded and the plant advanced over `h` in `substeps` with the body and
     /// world disturbances. Returns the actuation and what the actuators produced at its start.
     fn cycle<G: MatrixLieGroup<N, M>, const N: usize>(
         &mut self,
         plant: &mut RigidBody<f64, G, N, M>,
-        (wrench, r_hat, disarmed): (&SVector<f64, M>, &Matrix3<f64>, bool),
+        (wrench, thrust, r_hat, disarmed): (
+            &SVector<f64, M>,
+            Option<&SVector<f64, M>>,
+            &Matrix3<f64>,
+            bool,
+        ),
         (body, world): (&SVector<f64, M>, Option<&SVector<f64, M>>),
         (h, substeps): (f64, usize),
     ) -> (Actuation<f64, M>, Commands<f64>) {
-        let mut a = self.control.actuate(wrench, r_hat);
+        let mut a = match thrust {
+            Some(demand) => self.control.actuate_demand(*demand),
+            None => self.control.actuate(wrench, r_hat),
+        };
         if disarmed {
             self.control.disarm(&mut a);
         }

@@ -376,3 +376,102 @@ fn a_hexarotor_losing_a_rotor_unannounced_stays_level_with_the_tilt_priority() {
     println!("torque priority: R_zz down to {fallen:.4}");
     assert!(fallen < 0.0, "{fallen}");
 }
+
+/// The hexarotor losing rotor 2 unannounced, `descend` on the found failure: the thrust-axis
+/// law brings it down level at the set rate, with the allocation's default torque priority;
+/// without the failsafe the same flight turns over. Draws the comparison into
+/// `target/failsafe-figures/hexarotor_rotor_loss.png` (docs/figures holds a copy).
+#[test]
+fn a_hexarotor_losing_a_rotor_unannounced_descends_level_at_the_set_rate() {
+    let descend = run(&hexarotor_losing_a_rotor(
+        "\n[failsafe]\nactuators = \"descend\"\ndescend_rate = 0.5\n",
+    ));
+    let found = descend
+        .vehicle
+        .as_ref()
+        .unwrap()
+        .detections
+        .clone()
+        .unwrap();
+    assert_eq!((found[0].actuator, found[0].kind), (2, "dead"), "{found:?}");
+    let tr = transitions(&descend);
+    assert_eq!(tr.len(), 1, "{tr:?}");
+    assert_eq!(
+        (tr[0].cause, tr[0].action, tr[0].t),
+        (Some("actuators"), "descend", found[0].t)
+    );
+    // level: the thrust axis within 22° of vertical (R_zz ≥ 0.93) from the failure on
+    let level = level_after(&descend, 6.0);
+    // down at the set rate once the descent is established (from 8 s to the end)
+    let (a, b) = (row_at(&descend, 8.0), descend.rows.last().unwrap());
+    let rate = (position(a)[2] - position(b)[2]) / (b.t - a.t);
+    // and over its engaged point horizontally
+    let start = position(row_at(&descend, found[0].t));
+    let drift = descend
+        .rows
+        .iter()
+        .filter(|r| r.t >= found[0].t)
+        .map(|r| {
+            let p = position(r);
+            ((p[0] - start[0]).powi(2) + (p[1] - start[1]).powi(2)).sqrt()
+        })
+        .fold(0.0, f64::max);
+    println!("descend: R_zz at least {level:.4}, {rate:.4} m/s from 8 s, drift {drift:.3} m");
+    assert!(level > 0.9, "{level}");
+    assert!((rate - 0.5).abs() < 0.05, "{rate}");
+    assert!(drift < 0.6, "{drift}");
+    // the same failure without the failsafe turns over
+    let free = run(&hexarotor_losing_a_rotor(""));
+    let fallen = level_after(&free, 6.0);
+    println!("no failsafe: R_zz down to {fallen:.4}");
+    assert!(fallen < 0.0, "{fallen}");
+    figure(&descend, &free);
+}
+
+/// The comparison figure: height, tilt (`R_zz`), horizontal distance from the engaged point
+/// and spin, with `descend` and without a failsafe.
+fn figure(descend: &SimulatedTrajectory, free: &SimulatedTrajectory) {
+    use plant::plot::{Line, Panel, render};
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("failsafe-figures");
+    std::fs::create_dir_all(&dir).unwrap();
+    let series = |t: &SimulatedTrajectory, f: &dyn Fn(&Row) -> f64| -> Vec<(f64, f64)> {
+        t.rows.iter().map(|r| (r.t, f(r))).collect()
+    };
+    let panel = |title: &str, y: &str, f: &dyn Fn(&Row) -> f64| Panel {
+        title: title.to_owned(),
+        y_label: y.to_owned(),
+        lines: vec![
+            Line {
+                label: "descend (thrust-axis law)".to_owned(),
+                color: plant::plot::law_color("eqt"),
+                points: series(descend, f),
+            },
+            Line {
+                label: "no failsafe".to_owned(),
+                color: plant::plot::law_color("gt"),
+                points: series(free, f),
+            },
+        ],
+    };
+    let panels = [
+        panel("Height z", "z [m]", &|r| position(r)[2].max(-10.0)),
+        panel("Tilt: R_zz (1 level, < 0 upside down)", "R_zz", &|r| {
+            r.q[10]
+        }),
+        panel("Horizontal distance from the start", "[m]", &|r| {
+            let p = position(r);
+            p[0].hypot(p[1]).min(10.0)
+        }),
+        panel("Spin about the body axis", "ω_z [rad/s]", &|r| r.v[2]),
+    ];
+    let stem = dir.join("hexarotor_rotor_loss");
+    render(
+        &stem,
+        "Hexarotor, rotor 2 dead at 6 s, found at 6.06 s",
+        &panels,
+        2,
+        (1200, 800),
+    )
+    .unwrap();
+    assert!(stem.with_extension("png").metadata().unwrap().len() > 10_000);
+}

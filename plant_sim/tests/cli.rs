@@ -989,3 +989,72 @@ fn failsafe_tables_are_checked_and_a_runaway_exits_1_naming_the_time() {
     let (h, rows) = read_csv(&dir.path().join("f32/trajectory.csv"));
     assert!(column(&h, &rows, "failsafe").iter().all(|c| *c == 0.0));
 }
+
+/// The processor-in-the-loop firmware's controller (`--controller-scalar f32`, the code the
+/// board runs) flies the thrust-axis descent too: `pil_hexarotor` hovering, rotor 2 dead at
+/// 6 s unannounced, `descend` on the found failure. It comes down level at the set rate,
+/// as the f64 simulation does.
+#[test]
+fn the_firmware_flies_the_thrust_axis_descent() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(repo("scenarios/pil_hexarotor.toml"))
+        .unwrap()
+        .replace("duration = 4.0", "duration = 12.0")
+        .replace(
+            "velocity = [0.0, 0.0, 0.3, 0.5, 0.0, 0.0]",
+            "velocity = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]",
+        )
+        .replace("{ offset = 0.225 }", "{ offset = 0.0 }")
+        + "\n[fault_detection]\n\n[[vehicle.failure]]\nactuator = 2\nt = 6.0\nkind = \"dead\"\n\
+           reconfigure = false\n\n[failsafe]\nactuators = \"descend\"\n";
+    let file = dir.path().join("down.toml");
+    std::fs::write(&file, text).unwrap();
+    let mut heights = Vec::new();
+    for scalar in ["f32", "f64"] {
+        let out = dir.path().join(scalar);
+        let o = bin()
+            .args(["sim", "--controller-scalar", scalar, "--scenario"])
+            .arg(&file)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(0), "{scalar}: {err}");
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        let tr = summary["failsafe"].as_array().unwrap().clone();
+        assert_eq!(tr.len(), 1, "{scalar}: {tr:?}");
+        assert_eq!(
+            (tr[0]["cause"].as_str(), tr[0]["action"].as_str()),
+            (Some("actuators"), Some("descend"))
+        );
+        assert!((tr[0]["t"].as_f64().unwrap() - 6.06).abs() < 1e-9, "{tr:?}");
+        let (h, rows) = read_csv(&out.join("trajectory.csv"));
+        let (t, rzz, z) = (
+            column(&h, &rows, "t"),
+            column(&h, &rows, "q_22"),
+            column(&h, &rows, "q_23"),
+        );
+        let level = t
+            .iter()
+            .zip(&rzz)
+            .filter(|(t, _)| **t > 6.0)
+            .map(|(_, r)| *r)
+            .fold(1.0, f64::min);
+        let at = |time: f64| z[t.iter().position(|x| *x >= time - 1e-9).unwrap()];
+        let rate = (at(8.0) - at(12.0)) / 4.0;
+        println!("{scalar}: R_zz at least {level:.4}, {rate:.4} m/s from 8 s");
+        assert!(level > 0.9, "{scalar}: {level}");
+        assert!((rate - 0.5).abs() < 0.05, "{scalar}: {rate}");
+        heights.push(z);
+    }
+    // single precision flies the same descent to the millimetre
+    let worst = heights[0]
+        .iter()
+        .zip(&heights[1])
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-2, "{worst}");
+}

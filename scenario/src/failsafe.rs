@@ -81,6 +81,27 @@ pub(crate) struct Fit {
     pub(crate) control_period: f64,
 }
 
+impl crate::Scenario {
+    /// The failsafe's thrust-axis law for this scenario (docs/failsafe.md, "The thrust-axis
+    /// law"): on SE(3), for a vehicle with gravity, from the model's mass and inertia, the
+    /// law's translational gains (`K` and `K_d` at the first position entry) and the
+    /// actuators' time constant. `None` elsewhere, or without `[failsafe]`.
+    pub fn thrust_axis(&self) -> Option<failsafe::thrust_axis::ThrustAxis<f64>> {
+        let vehicle = self.vehicle.as_ref()?;
+        if self.failsafe.is_none() || self.group != GroupKind::Se3 || vehicle.gravity <= 0.0 {
+            return None;
+        }
+        let inertia = |i: usize| self.model_inertia[i * 6 + i];
+        Some(failsafe::thrust_axis::ThrustAxis::new(
+            inertia(3),
+            vehicle.gravity,
+            (inertia(0), inertia(1), inertia(2)),
+            (self.kp[3 * 4 + 3], self.kd[3 * 6 + 3]),
+            vehicle.actuator_time_constant,
+        ))
+    }
+}
+
 impl Validator<'_> {
     /// `[failsafe]` against the group, the vehicle and the estimator.
     pub(crate) fn failsafe(

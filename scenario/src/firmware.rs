@@ -98,6 +98,10 @@ impl Scenario {
                 ascend_rate: f.ascend_rate as f32,
                 limit_attitude: f.tracking_limit_attitude.map(|x| x as f32),
                 limit_position: f.tracking_limit_position.map(|x| x as f32),
+                lag: self
+                    .vehicle
+                    .as_ref()
+                    .map_or(0.0, |v| v.actuator_time_constant as f32),
             }),
         })
     }
