@@ -63,8 +63,8 @@ impl<T: Real> ThrustAxis<T> {
         })
     }
 
-    /// The body wrench `(τ, f)` the actuators are asked for (docs/failsafe.md, "The
-    /// thrust-axis law"), at the estimate `(q, v)` (SE(3): `q` the pose, `v = (ω, v_b)` the
+    /// The body wrench `(τ, f)` the actuators are asked for
+    /// (docs/failsafe.md, "The thrust-axis law"), at the estimate `(q, v)` (SE(3): `q` the pose, `v = (ω, v_b)` the
     /// body twist) flying the set-point `(q_d, v_d)` (its pose and body twist). The
     /// restoring wrench (the weight) is not in it: it is the demand itself, which the
     /// allocation meets as well as it can. `None` off SE(3).

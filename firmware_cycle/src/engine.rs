@@ -304,9 +304,10 @@ fn tell_failures<const M: usize>(
     }
 }
 
-/// The thrust-axis law of a configuration with a failsafe (docs/failsafe.md, "The
-/// thrust-axis law"): on SE(3), for a vehicle with weight, from the model's mass and
-/// inertia, the law's translational gains and the actuators' time constant `lag`.
+/// The thrust-axis law of a configuration with a failsafe
+/// (docs/failsafe.md, "The thrust-axis law"): on SE(3), for a vehicle with weight, from the
+/// model's mass and inertia, the law's translational gains and the actuators' time constant
+/// `lag`.
 fn thrust_axis(config: &Config, lag: f32) -> Option<failsafe::thrust_axis::ThrustAxis<f32>> {
     let weight = config.vehicle.as_ref()?.weight;
     let at = |xs: &[f32], i: usize| xs.get(i).copied();

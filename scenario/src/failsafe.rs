@@ -82,8 +82,8 @@ pub(crate) struct Fit {
 }
 
 impl crate::Scenario {
-    /// The failsafe's thrust-axis law for this scenario (docs/failsafe.md, "The thrust-axis
-    /// law"): on SE(3), for a vehicle with gravity, from the model's mass and inertia, the
+    /// The failsafe's thrust-axis law for this scenario
+    /// (docs/failsafe.md, "The thrust-axis law"): on SE(3), for a vehicle with gravity, from the model's mass and inertia, the
     /// law's translational gains (`K` and `K_d` at the first position entry) and the
     /// actuators' time constant. `None` elsewhere, or without `[failsafe]`.
     pub fn thrust_axis(&self) -> Option<failsafe::thrust_axis::ThrustAxis<f64>> {

@@ -296,10 +296,20 @@ fn allocation_check<T: Real>() -> bool {
     let Ok(alloc) = Allocator::new(geometry, &[], &[], Priority::Torque) else {
         return false;
     };
-    let hover = nalgebra::SVector::<T, 6>::from([T::zero(), T::zero(), T::zero(), T::zero(), T::zero(), real(20.0)]);
+    let hover = nalgebra::SVector::<T, 6>::from([
+        T::zero(),
+        T::zero(),
+        T::zero(),
+        T::zero(),
+        T::zero(),
+        real(20.0),
+    ]);
     let a = alloc.allocate(&hover);
     let met = a.status == Status::Met && (a.achieved - hover).amax() < real(1e-3);
-    let within = a.u.iter().take(6).all(|x| *x >= -real::<T>(1e-6) && *x <= real(8.0 + 1e-6));
+    let within =
+        a.u.iter()
+            .take(6)
+            .all(|x| *x >= -real::<T>(1e-6) && *x <= real(8.0 + 1e-6));
     let mut far = hover;
     far[2] = real(1.2);
     far[5] = real(45.0);
@@ -320,11 +330,20 @@ fn detection_check<T: Real>() -> bool {
     let Ok(alloc) = Allocator::new(geometry, &[], &[], Priority::Torque) else {
         return false;
     };
-    let none = Restoring { weight: T::zero(), buoyancy: T::zero(), centre: nalgebra::Vector3::zeros() };
+    let none = Restoring {
+        weight: T::zero(),
+        buoyancy: T::zero(),
+        centre: nalgebra::Vector3::zeros(),
+    };
     let h: T = real(0.01);
     let mut control = VehicleControl::new(alloc, none, T::zero(), h);
     let inertia = nalgebra::SMatrix::<T, 6, 6>::from_diagonal(&nalgebra::SVector::from([
-        real(0.02), real(0.02), real(0.04), real(1.5), real(1.5), real(1.5),
+        real(0.02),
+        real(0.02),
+        real(0.04),
+        real(1.5),
+        real(1.5),
+        real(1.5),
     ]));
     let config = Config {
         decimation: 1,
@@ -350,8 +369,13 @@ fn detection_check<T: Real>() -> bool {
     };
     let u = Commands::<T>::from_fn(|j, _| if j < 6 { real(3.0) } else { T::zero() });
     let b = *control.allocator().geometry().effectiveness();
-    let (mut mu, r) = (nalgebra::SVector::<T, 6>::zeros(), nalgebra::Matrix3::<T>::identity());
-    let inverse = inertia.try_inverse().unwrap_or_else(nalgebra::SMatrix::zeros);
+    let (mut mu, r) = (
+        nalgebra::SVector::<T, 6>::zeros(),
+        nalgebra::Matrix3::<T>::identity(),
+    );
+    let inverse = inertia
+        .try_inverse()
+        .unwrap_or_else(nalgebra::SMatrix::zeros);
     for k in 0..130 {
         let v = inverse * mu;
         if let Some(d) = detector.observe::<controller::group::Se3, 4>(&v, &r, &mut control) {
@@ -393,7 +417,10 @@ fn serial_check() -> bool {
         }
     }
     out[3] ^= 0x10;
-    let caught = matches!(decode(&out[..n - 1]), Err(FrameError::Crc | FrameError::Cobs));
+    let caught = matches!(
+        decode(&out[..n - 1]),
+        Err(FrameError::Crc | FrameError::Cobs)
+    );
     round_trip && found && caught
 }
 
@@ -443,7 +470,8 @@ fn firmware_cycle_check() -> bool {
     let Ok(mut cycle) = Cycle::from_bytes(&bytes[..n]) else {
         return false;
     };
-    let greeted = cycle.on_frame(&Frame::Hello(config.identity.clone())) == Some(Frame::Hello(config.identity));
+    let greeted = cycle.on_frame(&Frame::Hello(config.identity.clone()))
+        == Some(Frame::Hello(config.identity));
     let state = Frame::State(StateFrame {
         seq: 1,
         t: 0.01,
@@ -481,7 +509,8 @@ fn firmware_cycle_on_board_check() -> bool {
             applied: Vec::from_slice(&[0.0; 6]).unwrap_or_default(),
             samples: Some(Samples {
                 gyro: [0.01, -0.02, 0.015],
-                directions: Vec::from_slice(&[[1.0, 0.0, 0.0], [0.0, 0.6, 0.8]]).unwrap_or_default(),
+                directions: Vec::from_slice(&[[1.0, 0.0, 0.0], [0.0, 0.6, 0.8]])
+                    .unwrap_or_default(),
                 accel: Some([0.0, 0.0, 9.81]),
                 position: Some([0.0; 3]),
             }),
@@ -512,11 +541,30 @@ fn failsafe_check() -> bool {
     };
     let mut s = State::default();
     let mut modes = [Mode::Nominal; 4];
-    for (m, i) in modes.iter_mut().zip([est, both, est, est]) {
+    let mut thrust_axis = [false; 4];
+    for ((m, i), f) in modes
+        .iter_mut()
+        .zip([est, both, est, est])
+        .zip(thrust_axis.iter_mut())
+    {
         let (next, _) = step(&cfg, &s, &i);
         s = next;
         *m = s.mode();
+        *f = failsafe::thrust_axis::ThrustAxis::<f32>::flies(s.word());
     }
+    // the thrust-axis law in f32: level at its set-point, the weight and no torque
+    let law = failsafe::thrust_axis::ThrustAxis::<f32>::new(
+        1.5,
+        9.81,
+        (0.02, 0.02, 0.04),
+        (6.0, 4.0),
+        0.02,
+    );
+    let q = nalgebra::SMatrix::<f32, 4, 4>::identity();
+    let v = nalgebra::SVector::<f32, 6>::zeros();
+    let level = law
+        .demand((&q, &v), (&q, &v))
+        .is_some_and(|d| (d[5] - 1.5 * 9.81).abs() < 1e-4 && d[0] == 0.0 && d[1] == 0.0);
     let hold = Mode::Engaged {
         cause: Cause::Estimator,
         action: Action::Hold,
@@ -525,7 +573,7 @@ fn failsafe_check() -> bool {
         cause: Cause::Actuators,
         action: Action::Descend,
     };
-    modes == [hold, descend, descend, hold]
+    modes == [hold, descend, descend, hold] && thrust_axis == [false, true, true, false] && level
 }
 
 /// The innovation gate without std: a direction turned by 30° is rejected while the other
