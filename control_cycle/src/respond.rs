@@ -187,6 +187,27 @@ where
         }
     }
 
+    /// [`Responder::follow`], with the change of mode `cmd` records engaged at the earlier
+    /// state `at`, whose reference time was `t` (replay, once it has found the state the
+    /// controller engaged it at; [`crate::Supervisor::follow_engaged_at`]).
+    pub fn follow_engaged_at(&mut self, cmd: &CommandMsg, at: &StateMsg, t: T) {
+        if let Some(v) = &mut self.vehicle {
+            v.follow(cmd);
+        }
+        if let Some(s) = &mut self.supervisor {
+            let q = at.configuration::<N>().map(controller::real::<T>);
+            let v = at.velocity::<M>().map(controller::real::<T>);
+            s.follow_engaged_at(cmd.failsafe, (q, v, t));
+        }
+    }
+
+    /// Whether recorded command `cmd` changes the failsafe mode flown (replay).
+    pub fn changes_failsafe_mode(&self, cmd: &CommandMsg) -> bool {
+        self.supervisor
+            .as_ref()
+            .is_some_and(|s| s.changes_mode(cmd.failsafe))
+    }
+
     /// The controller.
     pub fn controller(&self) -> &Controller<T, G, N, M> {
         &self.controller

@@ -13,6 +13,9 @@ use nalgebra::SMatrix;
 use scenario::Scenario;
 use scenario::failsafe::FailsafeSpec;
 
+/// Where a change of mode was engaged: the estimate `(q, v)` and the reference's time.
+type Engagement<T, const N: usize, const M: usize> = (SMatrix<T, N, N>, nalgebra::SVector<T, M>, T);
+
 /// The manager and what it flies, between cycles.
 #[derive(Debug, Clone)]
 pub struct Supervisor<T: Real, G, const N: usize, const M: usize> {
@@ -25,6 +28,12 @@ pub struct Supervisor<T: Real, G, const N: usize, const M: usize> {
     /// Replay, once it can no longer follow the manager state by state: the recorded word of
     /// the state being answered, flown instead of the manager's own.
     recorded: Option<u32>,
+    /// Replay, from then on: the manager is not stepped again, and a state without a
+    /// recorded word flies the last one.
+    following: bool,
+    /// Replay: the estimate `(q, v)` and the reference's time of the state a recorded change
+    /// of mode was engaged at, when it was not the state answered.
+    engaged_at: Option<Engagement<T, N, M>>,
     /// The thrust-axis law `descend` flies once a direction of control is lost (SE(3) with
     /// gravity).
     thrust: Option<ThrustAxis<T>>,
@@ -48,6 +57,8 @@ impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Superviso
             ),
             word: 0,
             recorded: None,
+            following: false,
+            engaged_at: None,
             thrust: s.thrust_axis().map(|t| t.cast::<T>()),
         })
     }
@@ -73,6 +84,21 @@ impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Superviso
     /// state answered, as the controller engaged it.
     pub fn follow(&mut self, word: u32) {
         self.recorded = Some(word);
+        self.following = true;
+    }
+
+    /// [`Supervisor::follow`], with the change of mode `word` records engaged at an earlier
+    /// state than the one answered: at its estimate `(q, v)` and the reference's time `t`
+    /// there (replay, once it has found which state the controller engaged it at).
+    pub fn follow_engaged_at(&mut self, word: u32, engaged: Engagement<T, N, M>) {
+        self.follow(word);
+        self.engaged_at = Some(engaged);
+    }
+
+    /// Whether recorded `word` changes the mode flown (a transition the controller made).
+    pub fn changes_mode(&self, word: u32) -> bool {
+        let mode = |w: u32| failsafe::State::read_word(w).map(|(m, _)| m);
+        mode(word) != mode(self.word)
     }
 
     /// One tick before the law, at the reference's time `t` and control period `period`: the
@@ -85,13 +111,22 @@ impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Superviso
         period: f64,
         flags: Flags,
     ) -> u32 {
-        if let Some(word) = self.recorded.take() {
-            self.setpoint.observe(estimate.0, estimate.1);
-            let mode = |w: u32| failsafe::State::read_word(w).map(|(m, _)| m);
-            if mode(word) != mode(self.word) {
-                self.setpoint
-                    .engage(mode(word).and_then(failsafe::Mode::action), t);
+        if self.following {
+            let word = self.recorded.take().unwrap_or(self.word);
+            if self.changes_mode(word) {
+                let action = failsafe::State::read_word(word).and_then(|(m, _)| m.action());
+                match self.engaged_at.take() {
+                    Some((q0, v0, t0)) => {
+                        self.setpoint.observe(&q0, &v0);
+                        self.setpoint.engage(action, t0);
+                    }
+                    None => {
+                        self.setpoint.observe(estimate.0, estimate.1);
+                        self.setpoint.engage(action, t);
+                    }
+                }
             }
+            self.setpoint.observe(estimate.0, estimate.1);
             self.word = word;
             return word;
         }

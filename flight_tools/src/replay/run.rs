@@ -95,6 +95,8 @@ struct ReplayRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     estimation: Option<plant::estimation::Estimation>,
     /// The recorded states since the last one a command named as its previous.
     states: std::collections::BTreeMap<u64, StateMsg>,
+    /// The reference's time at each of those states, as the controller answered them.
+    times: std::collections::BTreeMap<u64, f64>,
     reference: Option<Source<f64, G, N, M>>,
     /// The cycle the next record should have.
     next: u64,
@@ -188,6 +190,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             }),
             estimation,
             states: std::collections::BTreeMap::new(),
+            times: std::collections::BTreeMap::new(),
             reference: None,
             next: 0,
             last_seq: None,
@@ -306,9 +309,10 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             let previous = self.states.get(&c.previous_seq).copied();
             self.responders[at].1.restore(c, previous.as_ref());
             if self.report.detector_lost_at.is_some() {
-                self.responders[at].1.follow(c);
+                self.follow_manager(r, at, c);
             }
             self.states.retain(|k, _| *k >= c.previous_seq);
+            self.times.retain(|k, _| *k >= c.previous_seq);
         } else if r.command.is_none() && !self.what_if && self.responders[at].1.carries_state() {
             // the controller may not have seen this state: its responder before answering
             self.unseen
@@ -428,6 +432,42 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         Ok(())
     }
 
+    /// Follows the recorded command `c` of record `r` once replay has lost the manager's
+    /// state (docs/failsafe.md, "In the pair and on the firmware"). A change of mode it
+    /// records was engaged at one of the states the controller answered since the last
+    /// recorded command, at that state's estimate: each is tried in turn, and the first
+    /// whose answer to `r` gives `c`'s torques and commands bit for bit is taken. If none
+    /// does (or a streamed reference makes a trial impossible), it is engaged at `r`.
+    fn follow_manager(&mut self, r: &Record, at: usize, c: &CommandMsg) {
+        let responder = &self.responders[at].1;
+        let after = self.last_recorded.map_or(0, |l| l.seq.saturating_add(1));
+        let engaged = match (
+            &self.reference,
+            &self.plans,
+            responder.changes_failsafe_mode(c),
+        ) {
+            (Some(reference), None, true) => self
+                .states
+                .range(after..r.state.seq)
+                .filter_map(|(k, st)| Some((st, *self.times.get(k)?)))
+                .find(|(st, t)| {
+                    let mut trial = responder.clone();
+                    trial.follow_engaged_at(c, st, *t);
+                    let mut reference = reference.clone();
+                    reference.advance();
+                    trial
+                        .respond(&mut reference, &r.state)
+                        .is_ok_and(|answer| same_answer::<M>(&answer, c))
+                })
+                .map(|(st, t)| (*st, t)),
+            _ => None,
+        };
+        match engaged {
+            Some((st, t)) => self.responders[at].1.follow_engaged_at(c, &st, t),
+            None => self.responders[at].1.follow(c),
+        }
+    }
+
     /// Whether replay still follows the state no command carries: the failure detector's or
     /// the failsafe manager's (the scenario has one, and it has not been lost).
     fn detector_followed(&self) -> bool {
@@ -469,7 +509,9 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         if !fresh {
             reference.advance();
         }
-        Ok(self.responders[at].1.respond(reference, &r.state).ok())
+        let answer = self.responders[at].1.respond(reference, &r.state).ok();
+        self.times.insert(r.state.seq, reference.time());
+        Ok(answer)
     }
 
     /// The report, and a what-if's `replay.csv` and figure.
@@ -528,6 +570,12 @@ fn unseen_fate(unseen: &[u64], p: u64) -> Unseen {
         Some(i) => Unseen::Back(i),
         None => Unseen::Keep,
     }
+}
+
+/// Whether `answer` has recorded command `c`'s torques and actuator commands, bit for bit.
+fn same_answer<const M: usize>(answer: &CommandMsg, c: &CommandMsg) -> bool {
+    let bits = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+    bits(&answer.tau[..M], &c.tau[..M]) && bits(&answer.u_cmd, &c.u_cmd)
 }
 
 /// A bad scenario, named.
