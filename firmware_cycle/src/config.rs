@@ -196,6 +196,10 @@ pub enum ConfigError {
     Controller(controller::Error),
     /// The estimator refused its settings.
     Estimator(estimator::EstimatorError),
+    /// The estimator's innovation gate: a threshold or band bound that is not a finite
+    /// number > 0, a noise that is not a finite number ≥ 0, or a window or rejection count
+    /// of 0.
+    Gate,
     /// The vehicle's actuators or allocation settings are refused (which).
     Vehicle(&'static str),
     /// The failure detector's settings are refused.
@@ -223,6 +227,9 @@ impl core::fmt::Display for ConfigError {
             ConfigError::Shape(what, n) => write!(f, "{what}: {n} entries, not the group's"),
             ConfigError::Controller(e) => write!(f, "{e}"),
             ConfigError::Estimator(e) => write!(f, "estimator: {e}"),
+            ConfigError::Gate => f.write_str(
+                "estimator gate: its thresholds and bands must be finite and > 0, its noises finite and ≥ 0, its window and rejections at least 1",
+            ),
             ConfigError::Vehicle(what) => write!(f, "vehicle: its {what} are refused"),
             ConfigError::Detector(e) => write!(f, "detector: {e}"),
             ConfigError::DetectorWithoutVehicle => {

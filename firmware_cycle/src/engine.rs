@@ -6,6 +6,7 @@ use crate::{Config, ConfigError, Dropped, Failure, MAX_SEQ_JUMP};
 use allocation::{Commands, VehicleControl};
 use controller::group::MatrixLieGroup;
 use controller::{Controller, Reference, Rejection};
+use estimator::health::{Gate, Health};
 use heapless::Vec;
 use nalgebra::{SMatrix, SVector, Vector3};
 use serial_wire::{Allocation, CommandFrame, Estimate, Samples, StateFrame};
@@ -22,6 +23,11 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     filter: Option<estimator::Filter<f32>>,
     /// The step of the samples the filter took last (its next step spans the gap).
     filtered: Option<u64>,
+    /// The innovation gate and health monitor, where the estimator has one, as at start and
+    /// now; the health after the last step.
+    gate_start: Option<Gate<f32>>,
+    gate: Option<Gate<f32>>,
+    health: Health,
     vehicle_start: Option<VehicleControl<f32, M>>,
     vehicle: Option<VehicleControl<f32, M>>,
     /// The actuator count and the failures the controller is told of, and which of them it
@@ -66,6 +72,14 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             None => None,
             Some(e) => Some(e.settings().build(N == 4).map_err(ConfigError::Estimator)?),
         };
+        let gate = match config.estimator.as_ref().and_then(|e| e.gate.as_ref()) {
+            None => None,
+            Some(g) => Some(Gate::new(
+                g.config()?,
+                config.estimator.as_ref().map_or(0, |e| e.world.len()),
+                N == 4,
+            )),
+        };
         let vehicle = match &config.vehicle {
             None => None,
             Some(v) => Some(v.control::<M>(config.identity.period as f32)?),
@@ -98,6 +112,9 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             filter_start: filter,
             filter,
             filtered: None,
+            gate_start: gate,
+            gate,
+            health: Health::Healthy,
             vehicle_start: vehicle,
             vehicle,
             failures: config
@@ -122,6 +139,8 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         self.rejection = self.rejection_start;
         self.filter = self.filter_start;
         self.filtered = None;
+        self.gate = self.gate_start;
+        self.health = Health::Healthy;
         self.vehicle = self.vehicle_start;
         if let Some(w) = &mut self.watcher {
             w.restart();
@@ -157,7 +176,9 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                     .filtered
                     .map_or(1, |p| s.seq.saturating_sub(p).clamp(1, MAX_FILTER_GAP));
                 self.filtered = Some(s.seq);
-                let e = estimate::<N, M>(f, samples, period * gap as f32);
+                let (e, health) =
+                    estimate::<N, M>(f, self.gate.as_mut(), samples, period * gap as f32);
+                self.health = health;
                 (e.q, e.v, Some(e))
             }
             _ => (
@@ -185,8 +206,8 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             Some(m) => {
                 let flags = failsafe::monitor::Flags {
                     link: self.previous.is_some() && !follows,
-                    // the firmware runs no innovation gate (a gated scenario is refused)
-                    estimator: false,
+                    // the on-board estimator's health, with `gate = true`
+                    estimator: self.health != Health::Healthy,
                     actuators: self.vehicle.as_ref().is_some_and(|c| m.span.lost(c)),
                 };
                 let t = self.reference.time();
@@ -264,25 +285,34 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
 /// restart of the samples, not a span to integrate over).
 const MAX_FILTER_GAP: u64 = 100;
 
-/// One step of the estimator on a tick's samples (docs/maths.md, "Estimators").
+/// One step of the estimator on a tick's samples (docs/maths.md, "Estimators"), behind the
+/// innovation gate when there is one, and the health after it
+/// (docs/estimators.md, "The innovation gate and health").
 fn estimate<const N: usize, const M: usize>(
     filter: &mut estimator::Filter<f32>,
+    gate: Option<&mut Gate<f32>>,
     samples: &Samples,
     period: f32,
-) -> estimator::Step<f32, N, M> {
+) -> (estimator::Step<f32, N, M>, Health) {
     let mut directions = [Vector3::zeros(); 4];
     for (d, x) in directions.iter_mut().zip(&samples.directions) {
         *d = Vector3::from(*x);
     }
     let accel = samples.accel.map_or_else(Vector3::zeros, Vector3::from);
     let position = samples.position.map(Vector3::from);
-    filter.step::<N, M>(
-        period,
-        &Vector3::from(samples.gyro),
+    let (gyro, directions) = (
+        Vector3::from(samples.gyro),
         &directions[..samples.directions.len()],
-        &accel,
-        position.as_ref(),
-    )
+    );
+    match gate {
+        Some(g) => {
+            filter.step_gated::<N, M>(g, period, &gyro, directions, &accel, position.as_ref())
+        }
+        None => (
+            filter.step::<N, M>(period, &gyro, directions, &accel, position.as_ref()),
+            Health::Healthy,
+        ),
+    }
 }
 
 /// Tells the allocator of the failures the controller is told of that have started at `t`

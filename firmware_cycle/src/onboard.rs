@@ -34,6 +34,78 @@ pub struct Estimator {
     pub accel_noise: f32,
     /// SE(3): the position fixes' noise.
     pub position_noise: f32,
+    /// The innovation gate and the health monitor (`[estimator] gate = true`; `None`: off).
+    pub gate: Option<Gate>,
+}
+
+/// The innovation gate's thresholds and the health monitor's window
+/// (docs/estimators.md, "The innovation gate and health"), as
+/// [`estimator::health::GateConfig`] in `f32`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Gate {
+    /// The χ²₂ threshold of a direction sample's NIS.
+    pub direction: f32,
+    /// The χ²₃ threshold of a position fix's NIS.
+    pub position: f32,
+    /// The noise each direction source is tested against (the complementary filter's test;
+    /// 0 in the slots no sensor uses).
+    pub noise: Vec<f32, 5>,
+    /// The window (ticks, ≥ 1).
+    pub window: u32,
+    /// Rejections within a window that degrade a source (1 to 8).
+    pub rejections: u32,
+    /// The directions' χ² band: `(samples per block, bound)`; 0 samples: none.
+    pub direction_band: (u32, f32),
+    /// The fixes' χ² band.
+    pub position_band: (u32, f32),
+}
+
+impl Gate {
+    /// The host's configuration cast to `f32`.
+    pub fn of(c: &estimator::health::GateConfig<f64>) -> Gate {
+        Gate {
+            direction: c.direction as f32,
+            position: c.position as f32,
+            noise: c.noise.iter().map(|x| *x as f32).collect(),
+            window: c.window,
+            rejections: c.rejections,
+            direction_band: (c.direction_band.samples, c.direction_band.upper as f32),
+            position_band: (c.position_band.samples, c.position_band.upper as f32),
+        }
+    }
+
+    /// The gate's configuration on the board: refused unless every threshold is a finite
+    /// number > 0 (a band's bound too, where it has samples), every noise a finite number
+    /// ≥ 0 (0 in the slots no sensor uses), and the window and the rejections at least 1.
+    pub fn config(&self) -> Result<estimator::health::GateConfig<f32>, ConfigError> {
+        let positive = |x: f32| x.is_finite() && x > 0.0;
+        let band = |(samples, upper): (u32, f32)| estimator::health::Band { samples, upper };
+        let bands_ok = [self.direction_band, self.position_band]
+            .iter()
+            .all(|(n, upper)| *n == 0 || positive(*upper));
+        if !(positive(self.direction)
+            && positive(self.position)
+            && self.noise.iter().all(|x| x.is_finite() && *x >= 0.0)
+            && self.window >= 1
+            && self.rejections >= 1
+            && bands_ok)
+        {
+            return Err(ConfigError::Gate);
+        }
+        let mut noise = [0.0f32; MAX_DIRECTIONS + 1];
+        for (o, x) in noise.iter_mut().zip(&self.noise) {
+            *o = *x;
+        }
+        Ok(estimator::health::GateConfig {
+            direction: self.direction,
+            position: self.position,
+            noise,
+            window: self.window,
+            rejections: self.rejections,
+            direction_band: band(self.direction_band),
+            position_band: band(self.position_band),
+        })
+    }
 }
 
 impl Estimator {
@@ -82,6 +154,7 @@ impl Estimator {
             accel_gate: s.accel_gate.map(|x| x as f32),
             accel_noise: s.accel_noise as f32,
             position_noise: s.position_noise as f32,
+            gate: None,
         }
     }
 

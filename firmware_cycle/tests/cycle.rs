@@ -332,6 +332,7 @@ fn on_board() -> Config {
             accel_gate: None,
             accel_noise: 0.0,
             position_noise: 0.0,
+            gate: None,
         }),
         vehicle: Some(Vehicle {
             actuators: [
@@ -518,6 +519,45 @@ fn an_estimator_or_a_vehicle_the_crates_refuse_is_a_configuration_error() {
         Cycle::new(&config).err(),
         Some(ConfigError::Estimator(_))
     ));
+    // the innovation gate: a good one makes a cycle and round-trips; a threshold or band
+    // bound that is not a finite number > 0, a negative noise, a window or rejection count
+    // of 0, refused
+    let good = firmware_cycle::Gate {
+        direction: 38.0,
+        position: 36.6,
+        noise: v(&[0.01, 0.01]),
+        window: 50,
+        rejections: 1,
+        direction_band: (50, 183.0),
+        position_band: (0, 0.0),
+    };
+    let mut config = on_board();
+    config.estimator.as_mut().unwrap().gate = Some(good.clone());
+    let mut buf = [0u8; 4096];
+    let n = config.to_bytes(&mut buf).unwrap();
+    assert_eq!(Config::from_bytes(&buf[..n]).unwrap(), config);
+    assert!(Cycle::new(&config).is_ok());
+    let bad: [fn(&mut firmware_cycle::Gate); 6] = [
+        |g| g.direction = f32::NAN,
+        |g| g.position = -1.0,
+        |g| g.noise[1] = -0.01,
+        |g| g.window = 0,
+        |g| g.rejections = 0,
+        |g| g.direction_band.1 = f32::INFINITY,
+    ];
+    for (i, spoil) in bad.iter().enumerate() {
+        let mut gate = good.clone();
+        spoil(&mut gate);
+        let mut config = on_board();
+        config.estimator.as_mut().unwrap().gate = Some(gate);
+        let e = Cycle::new(&config).err();
+        assert!(matches!(e, Some(ConfigError::Gate)), "{i}: {e:?}");
+    }
+    assert!(
+        ConfigError::Gate
+            .to_string()
+            .starts_with("estimator gate: ")
+    );
     let mut config = on_board();
     config.vehicle.as_mut().unwrap().actuators[0].axis = [0.0; 3];
     let e = Cycle::new(&config).err();

@@ -88,21 +88,35 @@ impl Scenario {
                 limit: i.limit.as_deref().map(f32s),
                 anti_windup: i.anti_windup,
             }),
-            estimator: self.filter_settings()?.as_ref().map(Estimator::of),
+            estimator: self.firmware_estimator()?,
             vehicle: self.vehicle.as_ref().map(firmware_vehicle),
             detector: self.firmware_detector()?,
-            failsafe: self.failsafe.map(|f| firmware_cycle::Failsafe {
-                actions: f.actions.map(|a| a.map_or(0, |a| a.code() as u8)),
-                clear_ticks: f.config(self.control_period).clear_ticks,
-                descend_rate: f.descend_rate as f32,
-                ascend_rate: f.ascend_rate as f32,
-                limit_attitude: f.tracking_limit_attitude.map(|x| x as f32),
-                limit_position: f.tracking_limit_position.map(|x| x as f32),
-                lag: self
-                    .vehicle
-                    .as_ref()
-                    .map_or(0.0, |v| v.actuator_time_constant as f32),
-            }),
+            failsafe: self.firmware_failsafe(),
+        })
+    }
+
+    /// The estimator's settings in `f32`, with the innovation gate's where `gate = true`.
+    fn firmware_estimator(&self) -> Result<Option<Estimator>, ScenarioError> {
+        Ok(self.filter_settings()?.as_ref().map(|f| Estimator {
+            gate: self.gate_config().as_ref().map(firmware_cycle::Gate::of),
+            ..Estimator::of(f)
+        }))
+    }
+
+    /// The failsafe manager's settings in `f32` (`[failsafe]`), with the actuators' time
+    /// constant the thrust-axis law turns its torques ahead by.
+    fn firmware_failsafe(&self) -> Option<firmware_cycle::Failsafe> {
+        self.failsafe.map(|f| firmware_cycle::Failsafe {
+            actions: f.actions.map(|a| a.map_or(0, |a| a.code() as u8)),
+            clear_ticks: f.config(self.control_period).clear_ticks,
+            descend_rate: f.descend_rate as f32,
+            ascend_rate: f.ascend_rate as f32,
+            limit_attitude: f.tracking_limit_attitude.map(|x| x as f32),
+            limit_position: f.tracking_limit_position.map(|x| x as f32),
+            lag: self
+                .vehicle
+                .as_ref()
+                .map_or(0.0, |v| v.actuator_time_constant as f32),
         })
     }
 

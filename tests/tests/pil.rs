@@ -644,3 +644,67 @@ fn the_failsafe_manager_runs_on_board_and_surfaces_the_rov_as_the_f64_simulation
     assert!(code[..at(2.57)].iter().all(|c| *c == 0.0));
     assert!(code[at(2.57)..].iter().all(|c| *c == 5.0));
 }
+
+/// The innovation gate on board: `pil_hexarotor` with `gate = true`, its position fixes lost
+/// from 2 s to 4 s, `estimator = "hold"`. The firmware's filter runs the gate, its health
+/// degrades a window after the last fix, and the manager on board holds, then flies on: the
+/// same transitions at the same ticks as the `f64` simulation, and the run equals the
+/// in-process `f32` simulation byte for byte.
+#[test]
+fn the_innovation_gate_runs_on_board_and_the_manager_holds_on_its_health() {
+    let _g = serial();
+    let d = TempDir::new("pil-gate");
+    let file = short(&d, "pil_hexarotor", "6.0", &|t| {
+        t.replace("accel_gate = 1.0", "accel_gate = 1.0\ngate = true")
+            .replace(
+                "[estimator]",
+                "[[sensors.fault]]\nsensor = \"position\"\nt = 2.0\nduration = 2.0\n\
+                 kind = \"dropout\"\n\n[estimator]",
+            )
+            + "\n[failsafe]\nestimator = \"hold\"\n"
+    });
+    let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
+    let fw = firmware(config_bytes(&s), Behaviour::Normal);
+    let (f32_out, pil_out, f64_out) = (d.join("f32"), d.join("pil"), d.join("f64"));
+    let (code, text) = plant(&[
+        "sim",
+        "--scenario",
+        &file,
+        "--controller-scalar",
+        "f32",
+        "--out",
+        &f32_out,
+    ]);
+    assert_eq!(code, 0, "{text}");
+    let tcp = format!("tcp:127.0.0.1:{}", fw.port);
+    let (code, text) = plant(&[
+        "run",
+        "--mode",
+        "lockstep",
+        "--scenario",
+        &file,
+        "--transport",
+        &tcp,
+        "--no-record",
+        "--out",
+        &pil_out,
+    ]);
+    assert_eq!(code, 0, "{text}");
+    let (_, bad) = fw.thread.join().unwrap();
+    assert_eq!(bad, 0);
+    assert!(
+        read(&format!("{f32_out}/trajectory.csv")) == read(&format!("{pil_out}/trajectory.csv")),
+        "the PIL run's trajectory.csv differs from the f32 simulation's"
+    );
+    let (code, text) = plant(&["sim", "--scenario", &file, "--out", &f64_out]);
+    assert_eq!(code, 0, "{text}");
+    let transitions = |dir: &str| summary(std::path::Path::new(dir))["failsafe"].clone();
+    assert_eq!(transitions(&pil_out), transitions(&f64_out));
+    assert_eq!(
+        transitions(&pil_out),
+        serde_json::json!([
+            { "t": 2.48, "cause": "estimator", "action": "hold" },
+            { "t": 4.998, "cause": null, "action": "nominal" }
+        ])
+    );
+}

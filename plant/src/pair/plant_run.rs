@@ -608,22 +608,13 @@ fn run_steps(opts: &PairOptions, s: &mut scenario::Scenario) -> u64 {
 }
 
 /// The slot for the estimate a controller on a serial link computes on board (it runs the
-/// scenario's filter itself), or `None`. The firmware does not run the innovation gate: a
-/// gated scenario is refused on a serial link.
+/// scenario's filter, and with `gate = true` its innovation gate, itself), or `None`.
 fn onboard(
     opts: &PairOptions,
     s: &scenario::Scenario,
 ) -> Result<Option<link::serial::OnboardSlot>, SimError> {
     if opts.serial.is_none() || s.filter_settings()?.is_none() {
         return Ok(None);
-    }
-    if s.estimator.gate.is_some() {
-        return Err(SimError::Input(format!(
-            "scenario `{}`: [estimator] gate = true is not run by the processor-in-the-loop \
-             firmware yet (its filter runs on board without the gate); run it in the \
-             simulation or the pair",
-            s.name
-        )));
     }
     Ok(Some(link::serial::OnboardSlot::default()))
 }
