@@ -113,9 +113,11 @@ impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Superviso
     ) -> u32 {
         if self.following {
             let word = self.recorded.take().unwrap_or(self.word);
+            // an engagement found for this word, and for no later one
+            let engaged_at = self.engaged_at.take();
             if self.changes_mode(word) {
                 let action = failsafe::State::read_word(word).and_then(|(m, _)| m.action());
-                match self.engaged_at.take() {
+                match engaged_at {
                     Some((q0, v0, t0)) => {
                         self.setpoint.observe(&q0, &v0);
                         self.setpoint.engage(action, t0);

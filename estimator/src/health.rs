@@ -107,7 +107,8 @@ pub struct GateConfig<T: Real> {
 }
 
 /// The χ² band on the mean NIS (docs/estimators.md, "The innovation gate and health"): a
-/// source's passed samples are summed in blocks of `samples`; a consistent filter's block
+/// source's passed samples are summed in blocks of `samples` in a row (a rejection or a reset
+/// starts a block again); a consistent filter's block
 /// sum is χ² with `samples` times the sample's degrees of freedom, and a sum above `upper`
 /// (that distribution's upper quantile at the stated false-alarm rate) makes the source
 /// inconsistent until a block passes. `samples = 0` turns the band off.
@@ -363,6 +364,11 @@ impl<T: Real> Gate<T> {
             }
             if verdicts.reset & bit != 0 {
                 self.reset_at[s] = now;
+            }
+            // a block sums passed samples in a row: a rejection or a reset starts it again
+            if (verdicts.rejected | verdicts.reset) & bit != 0 {
+                self.block_sum[s] = T::zero();
+                self.block_count[s] = 0;
             }
             if verdicts.rejected & (1 << s) != 0 {
                 self.totals[s] += 1;
@@ -633,5 +639,49 @@ mod tests {
         // the mean over the passed samples after the first window: (10·4.9 + 5·5.1 + 10·1)/25
         let mean = g.consistency().nth(1).unwrap().2.unwrap();
         assert!((mean - (49.0 + 25.5 + 10.0) / 25.0).abs() < 1e-12, "{mean}");
+    }
+
+    #[test]
+    fn a_rejection_starts_the_band_s_block_again() {
+        let cfg = GateConfig {
+            direction: 20.0,
+            position: 25.0,
+            noise: [0.01; SLOTS],
+            window: 10,
+            rejections: 2,
+            direction_band: Band {
+                samples: 5,
+                upper: 25.0,
+            },
+            position_band: Band::off(),
+        };
+        let run = |reject: bool| {
+            let mut g = Gate::new(cfg, 2, false);
+            let tick = |g: &mut Gate<f64>, b: f64| {
+                let mut x = v(&[0, 1], &[]);
+                x.nis = [1.0, b, 0.0, 0.0, 0.0, 0.0, 0.0];
+                g.observe(x, true)
+            };
+            for _ in 0..10 {
+                tick(&mut g, 1.0);
+            }
+            // four samples at 6.2 (24.8), then (or not) a rejection of source 1
+            for _ in 0..4 {
+                tick(&mut g, 6.2);
+            }
+            if reject {
+                let mut x = v(&[0], &[1]);
+                x.nis[0] = 1.0;
+                g.observe(x, true);
+            }
+            // five at 1: with the rejection a block of their own (5); without, the first
+            // closes the block at 25.8, above the band
+            for _ in 0..5 {
+                tick(&mut g, 1.0);
+            }
+            g.consistency().nth(1).unwrap().1
+        };
+        assert_eq!(run(true), 0);
+        assert_eq!(run(false), 1);
     }
 }

@@ -14,10 +14,11 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 /// The law's parameters: the model and the gains derived from the scenario's own.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ThrustAxis<T> {
-    /// The model's mass (kg).
+    /// The model's mass (kg): the position loop's natural frequency is `√(k_x/m)`.
     pub mass: T,
-    /// Gravity (m/s², along −z of the world).
-    pub gravity: T,
+    /// The vehicle's net weight (N, along −z of the world): its weight less its buoyancy,
+    /// what the thrust carries at rest.
+    pub weight: T,
     /// The model's inertia about a horizontal body axis (the mean of `J_xx` and `J_yy`) and
     /// about the thrust axis, `J_zz` (kg m²).
     pub inertia: (T, T),
@@ -39,20 +40,30 @@ pub const SEPARATION: f64 = 5.0;
 const LEAST_LIFT: f64 = 0.25;
 
 impl<T: Real> ThrustAxis<T> {
-    /// The law for a body of `mass` and inertia `(J_xx, J_yy, J_zz)` under `gravity`, with
-    /// the position gains `(k_x, k_v)` and the actuators' time constant `lag`. The attitude
-    /// bandwidth is [`SEPARATION`] times `√(k_x/m)`.
-    pub fn new(mass: T, gravity: T, inertia: (T, T, T), position: (T, T), lag: T) -> Self {
+    /// The law for a model of `mass` and inertia `(J_xx, J_yy, J_zz)` whose net weight
+    /// (weight less buoyancy) is `weight`, with the position gains `(k_x, k_v)` and the
+    /// actuators' time constant `lag`. The attitude bandwidth is [`SEPARATION`] times
+    /// `√(k_x/m)`. `None` unless the mass, the inertia and the net weight are finite and
+    /// positive (a buoyant vehicle does not come down on its thrust), the gains finite and
+    /// positive, and the lag finite and not negative.
+    pub fn new(mass: T, weight: T, inertia: (T, T, T), position: (T, T), lag: T) -> Option<Self> {
+        let positive = |x: T| x.is_finite() && x > T::zero();
+        let all = [
+            mass, weight, inertia.0, inertia.1, inertia.2, position.0, position.1,
+        ];
+        if !(all.iter().all(|x| positive(*x)) && lag.is_finite() && lag >= T::zero()) {
+            return None;
+        }
         let half: T = controller::real(0.5);
         let bandwidth = controller::real::<T>(SEPARATION) * (position.0 / mass).sqrt();
-        ThrustAxis {
+        Some(ThrustAxis {
             mass,
-            gravity,
+            weight,
             inertia: ((inertia.0 + inertia.1) * half, inertia.2),
             position,
             bandwidth,
             lag,
-        }
+        })
     }
 
     /// Whether state word `word` flies this law: `descend` engaged while the actuators'
@@ -67,7 +78,8 @@ impl<T: Real> ThrustAxis<T> {
     /// (docs/failsafe.md, "The thrust-axis law"), at the estimate `(q, v)` (SE(3): `q` the pose, `v = (ω, v_b)` the
     /// body twist) flying the set-point `(q_d, v_d)` (its pose and body twist). The
     /// restoring wrench (the weight) is not in it: it is the demand itself, which the
-    /// allocation meets as well as it can. `None` off SE(3).
+    /// allocation meets as well as it can. `None` off SE(3), or where it would not be finite
+    /// (a non-finite estimate or set-point): the law's own wrench is allocated then.
     pub fn demand<const N: usize, const M: usize>(
         &self,
         (q, v): (&SMatrix<T, N, N>, &SVector<T, M>),
@@ -84,6 +96,9 @@ impl<T: Real> ThrustAxis<T> {
         let vel = r * Vector3::new(v[3], v[4], v[5]);
         let vel_d = r_d * Vector3::new(v_d[3], v_d[4], v_d[5]);
         let (tau, thrust) = self.wrench(&r, &omega, (&x, &vel), (&x_d, &vel_d));
+        if !(tau.iter().all(|x| x.is_finite()) && thrust.is_finite()) {
+            return None;
+        }
         let mut out = SVector::<T, M>::zeros();
         for i in 0..3 {
             out[i] = tau[i];
@@ -102,7 +117,7 @@ impl<T: Real> ThrustAxis<T> {
         (x_d, vel_d): (&Vector3<T>, &Vector3<T>),
     ) -> (Vector3<T>, T) {
         let (kx, kv) = self.position;
-        let weight = self.mass * self.gravity;
+        let weight = self.weight;
         // (1) the force the set-point needs, Lee, Leok & McClamroch 2010 (its eq. 15),
         // never less than a quarter of the weight upward
         let mut force = Vector3::z() * weight - (x - x_d) * kx - (vel - vel_d) * kv;
@@ -134,7 +149,9 @@ impl<T: Real> ThrustAxis<T> {
         let tau = still * (T::one() - share) + precess * share;
         // (5) the actuators lag by τ_a: a torque fixed in the world turns in the body at −Ω,
         // so it is asked for ahead, by atan(Ω τ_a), and larger by √(1 + (Ω τ_a)²)
-        let phase = spin * self.lag;
+        // (a lag of more than a turn's worth is no lag to turn ahead for: clamped there)
+        let turn: T = controller::real(core::f64::consts::TAU);
+        let phase = (spin * self.lag).max(-turn).min(turn);
         let (c, s) = {
             let angle = -phase.atan();
             (angle.cos(), angle.sin())
@@ -155,7 +172,7 @@ impl ThrustAxis<f64> {
         let r = controller::real::<U>;
         ThrustAxis {
             mass: r(self.mass),
-            gravity: r(self.gravity),
+            weight: r(self.weight),
             inertia: (r(self.inertia.0), r(self.inertia.1)),
             position: (r(self.position.0), r(self.position.1)),
             bandwidth: r(self.bandwidth),
@@ -170,7 +187,7 @@ mod tests {
     use nalgebra::Rotation3;
 
     fn law() -> ThrustAxis<f64> {
-        ThrustAxis::new(1.5, 9.81, (0.02, 0.02, 0.04), (6.0, 4.0), 0.02)
+        ThrustAxis::new(1.5, 1.5 * 9.81, (0.02, 0.02, 0.04), (6.0, 4.0), 0.02).unwrap()
     }
 
     fn pose(r: Matrix3<f64>, x: Vector3<f64>) -> SMatrix<f64, 4, 4> {
@@ -229,7 +246,62 @@ mod tests {
             .demand::<4, 6>((&q, &SVector::zeros()), (&below, &SVector::zeros()))
             .unwrap();
         assert!(d[5] > 0.0 && d.iter().all(|x| x.is_finite()), "{d}");
-        assert_eq!((d[3], d[4]), (0.0, 0.0));
+        // a set-point 1 m along −x of a level body: the force leans toward it, so the body is
+        // pitched (about −y) to tilt its thrust that way, and the thrust is the force's
+        // vertical part, the weight
+        let level = pose(Matrix3::identity(), Vector3::new(1.0, 0.0, 0.0));
+        let origin = pose(Matrix3::identity(), Vector3::zeros());
+        let d = l
+            .demand::<4, 6>((&level, &SVector::zeros()), (&origin, &SVector::zeros()))
+            .unwrap();
+        let force = Vector3::<f64>::new(-6.0, 0.0, 1.5 * 9.81);
+        let b = force / force.norm();
+        assert!(
+            (d[1] - 0.02 * 100.0 * b[0]).abs() < 1e-12 && d[1] < 0.0,
+            "{d}"
+        );
+        assert!(
+            d[0].abs() < 1e-12 && (d[5] - 1.5 * 9.81).abs() < 1e-12,
+            "{d}"
+        );
+    }
+
+    #[test]
+    fn bad_parameters_and_non_finite_states_give_no_law_and_no_nan() {
+        let ok = (1.5, 14.7, (0.02, 0.02, 0.04), (6.0, 4.0), 0.02);
+        assert!(ThrustAxis::new(ok.0, ok.1, ok.2, ok.3, ok.4).is_some());
+        // a buoyant vehicle (no net weight), a zero mass or inertia, a NaN gain, a negative lag
+        for (m, w, j, k, lag) in [
+            (1.5, 0.0, ok.2, ok.3, ok.4),
+            (1.5, -3.0, ok.2, ok.3, ok.4),
+            (0.0, 14.7, ok.2, ok.3, ok.4),
+            (1.5, 14.7, (0.02, 0.0, 0.04), ok.3, ok.4),
+            (1.5, 14.7, ok.2, (f64::NAN, 4.0), ok.4),
+            (1.5, 14.7, ok.2, ok.3, -0.01),
+        ] {
+            assert!(
+                ThrustAxis::new(m, w, j, k, lag).is_none(),
+                "{m} {w} {j:?} {k:?} {lag}"
+            );
+        }
+        // a huge lag is clamped to a turn: finite
+        let slow = ThrustAxis::new(1.5, 14.7, ok.2, ok.3, 1e30).unwrap();
+        let q = pose(Matrix3::identity(), Vector3::zeros());
+        let mut v = SVector::<f64, 6>::zeros();
+        v[2] = -40.0;
+        v[0] = 0.1;
+        let d = slow
+            .demand::<4, 6>((&q, &v), (&q, &SVector::zeros()))
+            .unwrap();
+        assert!(d.iter().all(|x| x.is_finite()), "{d}");
+        // a NaN estimate: no demand (the law's own wrench is allocated)
+        let mut bad = q;
+        bad[(0, 3)] = f64::NAN;
+        assert!(
+            law()
+                .demand::<4, 6>((&bad, &v), (&q, &SVector::zeros()))
+                .is_none()
+        );
     }
 
     #[test]

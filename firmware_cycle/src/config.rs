@@ -197,8 +197,8 @@ pub enum ConfigError {
     /// The estimator refused its settings.
     Estimator(estimator::EstimatorError),
     /// The estimator's innovation gate: a threshold or band bound that is not a finite
-    /// number > 0, a noise that is not a finite number ≥ 0, or a window or rejection count
-    /// of 0.
+    /// number > 0, a noise that is not a finite number ≥ 0, a window of 0, or a rejection
+    /// count outside 1 to 8.
     Gate,
     /// The vehicle's actuators or allocation settings are refused (which).
     Vehicle(&'static str),
@@ -228,7 +228,7 @@ impl core::fmt::Display for ConfigError {
             ConfigError::Controller(e) => write!(f, "{e}"),
             ConfigError::Estimator(e) => write!(f, "estimator: {e}"),
             ConfigError::Gate => f.write_str(
-                "estimator gate: its thresholds and bands must be finite and > 0, its noises finite and ≥ 0, its window and rejections at least 1",
+                "estimator gate: its thresholds and bands must be finite and > 0, its noises finite and ≥ 0, its window at least 1, its rejections 1 to 8",
             ),
             ConfigError::Vehicle(what) => write!(f, "vehicle: its {what} are refused"),
             ConfigError::Detector(e) => write!(f, "detector: {e}"),

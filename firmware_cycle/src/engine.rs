@@ -335,26 +335,22 @@ fn tell_failures<const M: usize>(
 }
 
 /// The thrust-axis law of a configuration with a failsafe
-/// (docs/failsafe.md, "The thrust-axis law"): on SE(3), for a vehicle with weight, from the
-/// model's mass and inertia, the law's translational gains and the actuators' time constant
-/// `lag`.
+/// (docs/failsafe.md, "The thrust-axis law"): on SE(3), for a vehicle whose weight exceeds
+/// its buoyancy, from the model's mass and inertia, the net weight, the law's translational
+/// gains and the actuators' time constant `lag`.
 fn thrust_axis(config: &Config, lag: f32) -> Option<failsafe::thrust_axis::ThrustAxis<f32>> {
-    let weight = config.vehicle.as_ref()?.weight;
-    let at = |xs: &[f32], i: usize| xs.get(i).copied();
-    let (j, m) = (
-        |i: usize| at(&config.inertia, i * 6 + i),
-        at(&config.inertia, 21)?,
-    );
-    if config.inertia.len() != 36 || !(weight > 0.0 && m > 0.0) {
+    let vehicle = config.vehicle.as_ref()?;
+    if config.inertia.len() != 36 || config.k.len() != 16 || config.kd.len() != 36 {
         return None;
     }
-    Some(failsafe::thrust_axis::ThrustAxis::new(
-        m,
-        weight / m,
-        (j(0)?, j(1)?, j(2)?),
-        (at(&config.k, 15)?, at(&config.kd, 21)?),
+    let j = |i: usize| config.inertia[i * 6 + i];
+    failsafe::thrust_axis::ThrustAxis::new(
+        j(3),
+        vehicle.weight - vehicle.buoyancy,
+        (j(0), j(1), j(2)),
+        (config.k[15], config.kd[21]),
         lag,
-    ))
+    )
 }
 
 /// The law's wrench `tau` allocated to the vehicle's actuators at the attitude `r_hat`, or the

@@ -76,7 +76,7 @@ impl Gate {
 
     /// The gate's configuration on the board: refused unless every threshold is a finite
     /// number > 0 (a band's bound too, where it has samples), every noise a finite number
-    /// ≥ 0 (0 in the slots no sensor uses), and the window and the rejections at least 1.
+    /// ≥ 0 (0 in the slots no sensor uses), the window at least 1 and the rejections 1 to 8.
     pub fn config(&self) -> Result<estimator::health::GateConfig<f32>, ConfigError> {
         let positive = |x: f32| x.is_finite() && x > 0.0;
         let band = |(samples, upper): (u32, f32)| estimator::health::Band { samples, upper };
@@ -87,7 +87,7 @@ impl Gate {
             && positive(self.position)
             && self.noise.iter().all(|x| x.is_finite() && *x >= 0.0)
             && self.window >= 1
-            && self.rejections >= 1
+            && (1..=estimator::health::MAX_REJECTIONS as u32).contains(&self.rejections)
             && bands_ok)
         {
             return Err(ConfigError::Gate);

@@ -520,8 +520,8 @@ fn an_estimator_or_a_vehicle_the_crates_refuse_is_a_configuration_error() {
         Some(ConfigError::Estimator(_))
     ));
     // the innovation gate: a good one makes a cycle and round-trips; a threshold or band
-    // bound that is not a finite number > 0, a negative noise, a window or rejection count
-    // of 0, refused
+    // bound that is not a finite number > 0, a noise that is negative or not finite, a window
+    // of 0, a rejection count outside 1 to 8, refused
     let good = firmware_cycle::Gate {
         direction: 38.0,
         position: 36.6,
@@ -537,13 +537,17 @@ fn an_estimator_or_a_vehicle_the_crates_refuse_is_a_configuration_error() {
     let n = config.to_bytes(&mut buf).unwrap();
     assert_eq!(Config::from_bytes(&buf[..n]).unwrap(), config);
     assert!(Cycle::new(&config).is_ok());
-    let bad: [fn(&mut firmware_cycle::Gate); 6] = [
+    let bad: [fn(&mut firmware_cycle::Gate); 10] = [
         |g| g.direction = f32::NAN,
         |g| g.position = -1.0,
         |g| g.noise[1] = -0.01,
+        |g| g.noise[0] = f32::NAN,
+        |g| g.noise[0] = f32::INFINITY,
         |g| g.window = 0,
         |g| g.rejections = 0,
+        |g| g.rejections = 9,
         |g| g.direction_band.1 = f32::INFINITY,
+        |g| g.position_band = (5, 0.0),
     ];
     for (i, spoil) in bad.iter().enumerate() {
         let mut gate = good.clone();

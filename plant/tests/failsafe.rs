@@ -380,7 +380,7 @@ fn a_hexarotor_losing_a_rotor_unannounced_stays_level_with_the_tilt_priority() {
 /// The hexarotor losing rotor 2 unannounced, `descend` on the found failure: the thrust-axis
 /// law brings it down level at the set rate, with the allocation's default torque priority;
 /// without the failsafe the same flight turns over. Draws the comparison into
-/// `target/failsafe-figures/hexarotor_rotor_loss.png` (docs/figures holds a copy).
+/// `target/tmp/failsafe-figures/hexarotor_rotor_loss.png` (docs/figures holds a copy).
 #[test]
 fn a_hexarotor_losing_a_rotor_unannounced_descends_level_at_the_set_rate() {
     let descend = run(&hexarotor_losing_a_rotor(
@@ -474,4 +474,22 @@ fn figure(descend: &SimulatedTrajectory, free: &SimulatedTrajectory) {
     )
     .unwrap();
     assert!(stem.with_extension("png").metadata().unwrap().len() > 10_000);
+}
+
+/// The thrust-axis law carries the vehicle's net weight, `m g` less its buoyancy: the
+/// hexarotor's is its weight; the ROV floats (its buoyancy exceeds its weight), so it has no
+/// thrust-axis law and its `descend` flies the law's own wrench.
+#[test]
+fn the_thrust_axis_law_carries_the_net_weight_and_a_floating_vehicle_has_none() {
+    let hex = hexarotor_losing_a_rotor("\n[failsafe]\nactuators = \"descend\"\n");
+    let law = hex.thrust_axis().expect("the hexarotor's");
+    let v = hex.vehicle.as_ref().unwrap();
+    assert_eq!(law.weight, v.mass * v.gravity);
+    assert!((law.bandwidth - 10.0).abs() < 1e-12);
+    let rov = rov_losing_two_thrusters("\n[failsafe]\nactuators = \"descend\"\n");
+    let v = rov.vehicle.as_ref().unwrap();
+    assert!(v.buoyancy > v.mass * v.gravity, "{} {}", v.buoyancy, v.mass);
+    assert!(rov.thrust_axis().is_none());
+    // without [failsafe] there is none to fly
+    assert!(hexarotor_losing_a_rotor("").thrust_axis().is_none());
 }

@@ -1050,7 +1050,7 @@ fn the_firmware_flies_the_thrust_axis_descent() {
         assert!((rate - 0.5).abs() < 0.05, "{scalar}: {rate}");
         heights.push(z);
     }
-    // single precision flies the same descent to the millimetre
+    // single precision flies the same descent, within a centimetre
     let worst = heights[0]
         .iter()
         .zip(&heights[1])

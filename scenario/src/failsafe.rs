@@ -83,22 +83,24 @@ pub(crate) struct Fit {
 
 impl crate::Scenario {
     /// The failsafe's thrust-axis law for this scenario
-    /// (docs/failsafe.md, "The thrust-axis law"): on SE(3), for a vehicle with gravity, from the model's mass and inertia, the
-    /// law's translational gains (`K` and `K_d` at the first position entry) and the
-    /// actuators' time constant. `None` elsewhere, or without `[failsafe]`.
+    /// (docs/failsafe.md, "The thrust-axis law"): on SE(3), for a vehicle whose weight
+    /// exceeds its buoyancy, from the model's mass and inertia, the vehicle's net weight
+    /// (`m g` less the buoyancy), the law's translational gains (`K` and `K_d` at the first
+    /// position entry) and the actuators' time constant. `None` elsewhere (a buoyant vehicle
+    /// included: `descend` then flies the law's own wrench), or without `[failsafe]`.
     pub fn thrust_axis(&self) -> Option<failsafe::thrust_axis::ThrustAxis<f64>> {
         let vehicle = self.vehicle.as_ref()?;
-        if self.failsafe.is_none() || self.group != GroupKind::Se3 || vehicle.gravity <= 0.0 {
+        if self.failsafe.is_none() || self.group != GroupKind::Se3 {
             return None;
         }
         let inertia = |i: usize| self.model_inertia[i * 6 + i];
-        Some(failsafe::thrust_axis::ThrustAxis::new(
+        failsafe::thrust_axis::ThrustAxis::new(
             inertia(3),
-            vehicle.gravity,
+            vehicle.mass * vehicle.gravity - vehicle.buoyancy,
             (inertia(0), inertia(1), inertia(2)),
             (self.kp[3 * 4 + 3], self.kd[3 * 6 + 3]),
             vehicle.actuator_time_constant,
-        ))
+        )
     }
 }
 

@@ -553,13 +553,15 @@ fn failsafe_check() -> bool {
         *f = failsafe::thrust_axis::ThrustAxis::<f32>::flies(s.word());
     }
     // the thrust-axis law in f32: level at its set-point, the weight and no torque
-    let law = failsafe::thrust_axis::ThrustAxis::<f32>::new(
+    let Some(law) = failsafe::thrust_axis::ThrustAxis::<f32>::new(
         1.5,
-        9.81,
+        1.5 * 9.81,
         (0.02, 0.02, 0.04),
         (6.0, 4.0),
         0.02,
-    );
+    ) else {
+        return false;
+    };
     let q = nalgebra::SMatrix::<f32, 4, 4>::identity();
     let v = nalgebra::SVector::<f32, 6>::zeros();
     let level = law

@@ -24,6 +24,8 @@ pub struct GateSpec {
 pub const DEFAULT_FALSE_ALARM_RATE: f64 = 0.01;
 /// The default health window (s).
 pub const DEFAULT_WINDOW: f64 = 0.5;
+/// The most samples a window may span (of the control period, or of the position fixes).
+pub const MAX_WINDOW_SAMPLES: f64 = 100_000.0;
 
 impl Validator<'_> {
     /// `estimator.gate`, `false_alarm_rate` and `health_window` (and for the complementary
@@ -86,11 +88,34 @@ impl Validator<'_> {
                 .position
                 .map_or(DEFAULT_WINDOW, |p| DEFAULT_WINDOW.max(2.0 / p.rate_hz))
         });
+        self.window(window, period, sensors)?;
+        Ok(Some(GateSpec {
+            false_alarm_rate,
+            window,
+            noise,
+        }))
+    }
+
+    /// `estimator.health_window`: finite, at least one control period and two position
+    /// fixes, at most [`MAX_WINDOW_SAMPLES`] samples of the fastest sensor.
+    fn window(&self, window: f64, period: f64, sensors: &SensorsSpec) -> Result<(), ScenarioError> {
         if !(window.is_finite() && window >= period) {
             return Err(self.err(
                 "estimator.health_window",
                 format!(
                     "must be finite and at least one control period ({period} s), got {window}"
+                ),
+            ));
+        }
+        // the band sums a window's samples, and its bound is a χ² quantile of twice (three
+        // times) as many degrees of freedom: a bounded window keeps it computable
+        let samples = (window / period).max(sensors.position.map_or(0.0, |p| window * p.rate_hz));
+        if samples > MAX_WINDOW_SAMPLES {
+            return Err(self.err(
+                "estimator.health_window",
+                format!(
+                    "must span at most {MAX_WINDOW_SAMPLES} samples of the fastest sensor (control \
+                 periods of {period} s, or position fixes), got {window} s: {samples} samples"
                 ),
             ));
         }
@@ -106,11 +131,7 @@ impl Validator<'_> {
                 ),
             ));
         }
-        Ok(Some(GateSpec {
-            false_alarm_rate,
-            window,
-            noise,
-        }))
+        Ok(())
     }
 }
 

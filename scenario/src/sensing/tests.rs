@@ -449,6 +449,10 @@ gate = true
             "key `estimator.health_window`",
         ),
         (
+            gated.replace("gate = true", "gate = true\nhealth_window = 1e9"),
+            "key `estimator.health_window`: must span at most 100000 samples",
+        ),
+        (
             gated.replace("gate = true", "gate = \"yes\""),
             "invalid type: string \"yes\", expected a boolean",
         ),
