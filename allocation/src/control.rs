@@ -23,6 +23,15 @@ impl<T: RealField + Copy, const K: usize> Actuation<T, K> {
     pub fn applied(&self, restoring: &SVector<T, K>) -> SVector<T, K> {
         self.allocation.achieved + restoring
     }
+
+    /// The torque the allocation could not give, `|τ_demand − τ_achieved|` (the first three
+    /// rows; on SO(3) the whole demand).
+    pub fn torque_residual(&self) -> T {
+        let rows = K.min(3);
+        (self.demand - self.allocation.achieved)
+            .rows(0, rows)
+            .norm()
+    }
 }
 
 /// The controller's vehicle: an allocator, the restoring model, the rate limit per period

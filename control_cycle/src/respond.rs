@@ -243,7 +243,7 @@ where
                     estimator: msg.flags
                         & (ipc_types::flags::ESTIMATE_DEGRADED | ipc_types::flags::ESTIMATE_LOST)
                         != 0,
-                    actuators: self.vehicle.as_mut().is_some_and(|v| v.lost()),
+                    actuators: self.vehicle.as_mut().is_some_and(|v| v.lost() || v.short()),
                 };
                 let (nominal, t) = (reference.desired(), reference.time());
                 cmd.failsafe = sup.tick((&q, &v), (&nominal, t), msg.control_period, flags);

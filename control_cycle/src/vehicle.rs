@@ -28,6 +28,10 @@ pub struct ControllerVehicle<const M: usize> {
     told: Vec<bool>,
     /// The span test of the actuators, run again only after a failure is told or found.
     span: allocation::SpanWatch<f64, M>,
+    /// `[failsafe] actuators_residual` (N·m), and whether the last allocation fell short of
+    /// its torque by more (`failsafe::monitor::torque_short`).
+    residual_limit: Option<f64>,
+    short: bool,
 }
 
 impl<const M: usize> ControllerVehicle<M> {
@@ -44,6 +48,8 @@ impl<const M: usize> ControllerVehicle<M> {
             accounted: None,
             told: vec![false; spec.failures.len()],
             span: allocation::SpanWatch::default(),
+            residual_limit: None,
+            short: false,
         })
     }
 
@@ -53,6 +59,7 @@ impl<const M: usize> ControllerVehicle<M> {
     pub fn of(s: &Scenario) -> Result<Self, String> {
         let spec = s.vehicle.as_ref().ok_or("the scenario has no [vehicle]")?;
         let mut v = Self::new(spec, s.control_period)?;
+        v.residual_limit = s.failsafe.and_then(|f| f.actuators_residual);
         if s.fault_detection.is_some() {
             v.detector = Some(detector_at::<M>(s)?);
             v.detecting = Some(Box::new(s.clone()));
@@ -166,6 +173,13 @@ impl<const M: usize> ControllerVehicle<M> {
         self.span.lost(&self.control)
     }
 
+    /// Whether the last allocation fell short of its torque by more than
+    /// `[failsafe] actuators_residual` (the `actuators` cause's second condition;
+    /// docs/failsafe.md, "Causes"). Never without the key.
+    pub fn short(&self) -> bool {
+        self.short
+    }
+
     /// The second half of [`ControllerVehicle::answer`], after the law: the law's wrench `tau`
     /// allocated at the state's attitude, or the failsafe's `thrust` demand when it flies one
     /// (every actuator at its minimum when `disarmed`, the failsafe's `disarm`), the detector
@@ -185,6 +199,11 @@ impl<const M: usize> ControllerVehicle<M> {
             Some(demand) => self.control.actuate_demand(*demand),
             None => self.control.actuate(tau, &r_hat),
         };
+        self.short = failsafe::monitor::torque_short(
+            a.allocation.status.code(),
+            a.torque_residual(),
+            self.residual_limit,
+        );
         if disarmed {
             self.control.disarm(&mut a);
         }

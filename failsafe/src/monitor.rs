@@ -111,3 +111,12 @@ impl<T: Real> Monitor<T> {
         self.tripped.filter(|_| self.state.raised(Cause::Tracking))
     }
 }
+
+/// Whether an allocation fell short of its torque (docs/failsafe.md, "Causes"): its status
+/// says the torque could not be met within the bounds (`allocation::Status` code 1), and the
+/// torque it could not give, `|τ_demand − τ_achieved|`, exceeds `limit`
+/// (`actuators_residual`; `None`: never). One of the `actuators` cause's two conditions, read
+/// from the allocation before the tick.
+pub fn torque_short<T: Real>(status: u8, residual: T, limit: Option<T>) -> bool {
+    limit.is_some_and(|l| status == 1 && residual > l)
+}

@@ -134,6 +134,9 @@ pub struct Failsafe {
     /// The actuators' time constant (s, ≥ 0): the thrust-axis law turns a spinning body's
     /// torques ahead by it (docs/failsafe.md, "The thrust-axis law").
     pub lag: f32,
+    /// `actuators_residual` (N·m): an allocation that could not meet its torque by more
+    /// raises `actuators` (`None`: only the span test does).
+    pub actuators_residual: Option<f32>,
 }
 
 impl Failsafe {
@@ -155,6 +158,7 @@ impl Failsafe {
         let finite = |x: Option<f32>| x.is_none_or(|x| x.is_finite() && x > 0.0);
         if !(finite(self.limit_attitude)
             && finite(self.limit_position)
+            && finite(self.actuators_residual)
             && finite(Some(self.descend_rate))
             && finite(Some(self.ascend_rate))
             && self.lag.is_finite()

@@ -55,6 +55,10 @@ struct Manager<G, const N: usize, const M: usize> {
     /// The thrust-axis law `descend` flies once a direction of control is lost (SE(3),
     /// a vehicle with weight).
     thrust: Option<failsafe::thrust_axis::ThrustAxis<f32>>,
+    /// `actuators_residual`, and whether the last allocation fell short of its torque by
+    /// more (`failsafe::monitor::torque_short`).
+    residual_limit: Option<f32>,
+    short: bool,
 }
 
 fn vec<const C: usize>(xs: &[f32]) -> Vec<f32, C> {
@@ -101,6 +105,8 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                     ),
                     span: allocation::SpanWatch::default(),
                     thrust: thrust_axis(config, f.lag),
+                    residual_limit: f.actuators_residual,
+                    short: false,
                 })
             }
         };
@@ -208,7 +214,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                     link: self.previous.is_some() && !follows,
                     // the on-board estimator's health, with `gate = true`
                     estimator: self.health != Health::Healthy,
-                    actuators: self.vehicle.as_ref().is_some_and(|c| m.span.lost(c)),
+                    actuators: self.vehicle.as_ref().is_some_and(|c| m.span.lost(c)) || m.short,
                 };
                 let t = self.reference.time();
                 m.setpoint
@@ -241,8 +247,11 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             None => None,
             Some(control) => {
                 let wrench = (&out.torque, thrust.as_ref());
-                let (allocation, accounted, u) =
+                let (allocation, accounted, u, (status, residual)) =
                     allocate(control, self.actuators, &r_hat, wrench, disarmed);
+                if let Some(m) = &mut self.manager {
+                    m.short = failsafe::monitor::torque_short(status, residual, m.residual_limit);
+                }
                 if let Some(w) = &mut self.watcher {
                     w.after(&u, accounted);
                 }
@@ -356,18 +365,21 @@ fn thrust_axis(config: &Config, lag: f32) -> Option<failsafe::thrust_axis::Thrus
 /// The law's wrench `tau` allocated to the vehicle's actuators at the attitude `r_hat`, or the
 /// failsafe's `thrust` demand when it flies one (docs/maths.md, "Control allocation"; every
 /// actuator at its minimum when `disarmed`, the failsafe's `disarm`), the wrench it
-/// accounts for and the commands.
+/// accounts for, the commands, and the status and torque residual of what was allocated
+/// before any `disarm`.
 fn allocate<const M: usize>(
     control: &mut VehicleControl<f32, M>,
     count: usize,
     r_hat: &nalgebra::Matrix3<f32>,
     (tau, thrust): (&SVector<f32, M>, Option<&SVector<f32, M>>),
     disarmed: bool,
-) -> (Allocation, SVector<f32, M>, Commands<f32>) {
+) -> (Allocation, SVector<f32, M>, Commands<f32>, (u8, f32)) {
     let mut a = match thrust {
         Some(demand) => control.actuate_demand(*demand),
         None => control.actuate(tau, r_hat),
     };
+    // what the allocation met, before `disarm` sets the actuators to their minimum
+    let met = (a.allocation.status.code(), a.torque_residual());
     if disarmed {
         control.disarm(&mut a);
     }
@@ -382,5 +394,6 @@ fn allocate<const M: usize>(
         },
         accounted,
         a.allocation.u,
+        met,
     )
 }

@@ -140,6 +140,7 @@ fn the_configuration_round_trips_and_bad_bytes_are_refused() {
         limit_attitude: Some(1.0),
         limit_position: None,
         lag: 0.02,
+        actuators_residual: Some(0.05),
     };
     let mut with = config.clone();
     with.failsafe = Some(good);
@@ -164,6 +165,14 @@ fn the_configuration_round_trips_and_bad_bytes_are_refused() {
             ..good
         },
         firmware_cycle::Failsafe { lag: -0.01, ..good },
+        firmware_cycle::Failsafe {
+            actuators_residual: Some(0.0),
+            ..good
+        },
+        firmware_cycle::Failsafe {
+            actuators_residual: Some(f32::NAN),
+            ..good
+        },
         firmware_cycle::Failsafe {
             lag: f32::NAN,
             ..good

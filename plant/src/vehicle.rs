@@ -215,6 +215,10 @@ pub struct VehicleRun<const M: usize> {
     pub detector: Option<detection::Detector<f64, M>>,
     /// What it found, as `summary.json` has it.
     pub detections: Vec<DetectionReport>,
+    /// `[failsafe] actuators_residual` (N·m), and whether the last allocation fell short of
+    /// its torque by more (the `actuators` cause's second condition).
+    residual_limit: Option<f64>,
+    short: bool,
 }
 
 impl<const M: usize> VehicleRun<M> {
@@ -245,6 +249,8 @@ impl<const M: usize> VehicleRun<M> {
                 .transpose()
                 .map_err(|e| bad(format!("fault_detection: {e}")))?,
             detections: Vec::new(),
+            residual_limit: s.failsafe.and_then(|f| f.actuators_residual),
+            short: false,
         }))
     }
 
@@ -484,7 +490,7 @@ impl<const M: usize> VehicleRun<M> {
         ::failsafe::monitor::Flags {
             link: false,
             estimator: crate::trajectory::unhealthy(estimate),
-            actuators: !self.control.lost_directions().directions().is_empty(),
+            actuators: !self.control.lost_directions().directions().is_empty() || self.short,
         }
     }
 
@@ -509,6 +515,11 @@ impl<const M: usize> VehicleRun<M> {
             Some(demand) => self.control.actuate_demand(*demand),
             None => self.control.actuate(wrench, r_hat),
         };
+        self.short = ::failsafe::monitor::torque_short(
+            a.allocation.status.code(),
+            a.torque_residual(),
+            self.residual_limit,
+        );
         if disarmed {
             self.control.disarm(&mut a);
         }

@@ -493,3 +493,57 @@ fn the_thrust_axis_law_carries_the_net_weight_and_a_floating_vehicle_has_none() 
     // without [failsafe] there is none to fly
     assert!(hexarotor_losing_a_rotor("").thrust_axis().is_none());
 }
+
+/// `hexarotor_eight` with its rotors limited to 3 N (hover needs 2.8 N each), for 5 s: from
+/// 3.1 s the allocation cannot meet the torque the eight asks for.
+fn hexarotor_short_of_torque(extra: &str) -> Scenario {
+    variant(
+        "hexarotor_eight",
+        &[
+            ("duration = 22.0", "duration = 5.0"),
+            ("max = 8.0", "max = 3.0"),
+        ],
+        extra,
+    )
+}
+
+/// The allocation's status and residual raise `actuators` with `actuators_residual`: the first
+/// allocation whose torque could not be met by more than 0.05 N·m raises it at the next tick
+/// (the manager runs before the law, on the allocation before). Without the key only the
+/// span test does, and the five rotors that still span every wrench raise nothing; the
+/// nominal eight, whose allocation always meets its torque, raises nothing with the key.
+#[test]
+fn a_torque_the_allocation_cannot_give_raises_actuators_with_actuators_residual() {
+    let key = "\n[failsafe]\nactuators = \"warn\"\nactuators_residual = 0.05\n";
+    let short = run(&hexarotor_short_of_torque(key));
+    let first = short
+        .rows
+        .iter()
+        .find(|r| {
+            let v = r.vehicle.unwrap();
+            let residual = (0..3)
+                .map(|i| (v.demand[i] - v.achieved[i]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            v.status == 1 && residual > 0.05
+        })
+        .expect("an allocation short of its torque");
+    let tr = transitions(&short);
+    println!("first short at {}, {tr:?}", first.t);
+    assert!(first.t > 3.0, "{}", first.t);
+    assert_eq!(tr.len(), 1, "{tr:?}");
+    assert_eq!((tr[0].cause, tr[0].action), (Some("actuators"), "warn"));
+    assert!((tr[0].t - (first.t + 0.002)).abs() < 1e-9, "{tr:?}");
+    // without the key: the rotors still span every wrench, so nothing is raised
+    let span_only = run(&hexarotor_short_of_torque(
+        "\n[failsafe]\nactuators = \"warn\"\n",
+    ));
+    assert!(transitions(&span_only).is_empty());
+    // the nominal eight never falls short
+    let nominal = run(&variant(
+        "hexarotor_eight",
+        &[("duration = 22.0", "duration = 5.0")],
+        key,
+    ));
+    assert!(transitions(&nominal).is_empty());
+}

@@ -1058,3 +1058,37 @@ fn the_firmware_flies_the_thrust_axis_descent() {
         .fold(0.0, f64::max);
     assert!(worst < 1e-2, "{worst}");
 }
+
+/// The firmware's controller reads its allocation's status and residual too: `pil_hexarotor`
+/// with its rotors limited to 3 N and `actuators_residual`, flown by the firmware's code in
+/// process (`f32`) and by the simulation (`f64`): `actuators` is raised on the same tick.
+#[test]
+fn the_firmware_raises_actuators_on_a_torque_it_cannot_give() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(repo("scenarios/pil_hexarotor.toml"))
+        .unwrap()
+        .replace("max = 8.0", "max = 3.0")
+        + "\n[failsafe]\nactuators = \"warn\"\nactuators_residual = 0.05\n";
+    let file = dir.path().join("short.toml");
+    std::fs::write(&file, text).unwrap();
+    let mut seen = Vec::new();
+    for scalar in ["f32", "f64"] {
+        let out = dir.path().join(scalar);
+        let o = bin()
+            .args(["sim", "--controller-scalar", scalar, "--scenario"])
+            .arg(&file)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        seen.push((o.status.code(), summary["failsafe"].clone()));
+    }
+    assert_eq!(seen[0], seen[1]);
+    assert_eq!(
+        seen[0].1,
+        serde_json::json!([{ "t": 0.644, "cause": "actuators", "action": "warn" }])
+    );
+}

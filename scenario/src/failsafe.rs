@@ -19,6 +19,7 @@ pub(crate) struct RawFailsafe {
     ascend_rate: Option<f64>,
     tracking_limit_attitude: Option<f64>,
     tracking_limit_position: Option<f64>,
+    actuators_residual: Option<f64>,
     clear_time: Option<f64>,
 }
 
@@ -35,6 +36,9 @@ pub struct FailsafeSpec {
     pub tracking_limit_attitude: Option<f64>,
     /// `tracking_limit_position` (m): the position error that raises `tracking` (SE(3)).
     pub tracking_limit_position: Option<f64>,
+    /// `actuators_residual` (N·m): an allocation that could not meet its torque and fell
+    /// short of it by more than this raises `actuators` (`None`: only the span test does).
+    pub actuators_residual: Option<f64>,
     /// `clear_time` (s): how long an event's condition must stay away before it clears.
     pub clear_time: f64,
 }
@@ -148,6 +152,12 @@ impl Validator<'_> {
                 raw.tracking_limit_position,
                 (1e6, true),
                 "(0, 1e6] m",
+            )?,
+            actuators_residual: self.failsafe_limit(
+                "actuators_residual",
+                raw.actuators_residual,
+                (1e6, true),
+                "(0, 1e6] N·m",
             )?,
             clear_time: self.failsafe_clear_time(raw.clear_time, fit.control_period)?,
         };
@@ -277,6 +287,12 @@ impl Validator<'_> {
             return Err(self.err(
                 "failsafe.ascend_rate",
                 "is given but no event's action is `surface`",
+            ));
+        }
+        if raw.actuators_residual.is_some() && spec.action(Cause::Actuators).is_none() {
+            return Err(self.err(
+                "failsafe.actuators_residual",
+                "is given but `actuators` names no action",
             ));
         }
         let tracking = spec.action(Cause::Tracking).is_some();
@@ -487,6 +503,24 @@ mod tests {
                 "[failsafe]\ntracking = \"damp\"\ntracking_limit_position = 2",
                 "failsafe.tracking_limit_position",
                 "se3",
+            ),
+            (
+                hexa,
+                "[failsafe]\nactuators = \"warn\"\nactuators_residual = -0.1",
+                "failsafe.actuators_residual",
+                "got -0.1",
+            ),
+            (
+                hexa,
+                "[failsafe]\nactuators = \"warn\"\nactuators_residual = nan",
+                "failsafe.actuators_residual",
+                "N·m",
+            ),
+            (
+                hexa,
+                "[failsafe]\nlink = \"warn\"\nactuators_residual = 0.1",
+                "failsafe.actuators_residual",
+                "`actuators` names no action",
             ),
             (
                 hexa,

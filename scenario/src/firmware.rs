@@ -117,6 +117,7 @@ impl Scenario {
                 .vehicle
                 .as_ref()
                 .map_or(0.0, |v| v.actuator_time_constant as f32),
+            actuators_residual: f.actuators_residual.map(|x| x as f32),
         })
     }
 

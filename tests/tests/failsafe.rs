@@ -232,6 +232,34 @@ fn lockstep_with_the_failsafe_equals_the_simulation_under_a_cpu_hog_and_replays(
     }
 }
 
+/// The allocation's status and residual cross nothing but the controller: with
+/// `actuators_residual`, the pair's controller raises `actuators` on the tick after the first
+/// allocation short of its torque, as the simulation does (`hexarotor_eight` with its rotors
+/// limited to 3 N), and replay runs it again bit for bit.
+#[test]
+fn a_torque_the_allocation_cannot_give_raises_actuators_in_the_pair_as_in_the_simulation() {
+    let _g = serial();
+    let d = TempDir::new("failsafe-short");
+    let mut edits = vec![("duration = 22.0", "duration = 5.0")];
+    edits.extend(std::iter::repeat_n(("max = 8.0", "max = 3.0"), 6));
+    let file = variant(
+        Path::new(&d.join("short")),
+        "hexarotor_eight",
+        &edits,
+        "\n[failsafe]\nactuators = \"warn\"\nactuators_residual = 0.05\n",
+    );
+    let (sim, pair) = sim_equals_lockstep(&d, "short", &file);
+    let tr = transitions(&pair);
+    assert_eq!(tr, transitions(&sim));
+    assert_eq!(
+        tr,
+        [(3.106, Some("actuators".to_owned()), "warn".to_owned())]
+    );
+    let (code, text) = run("plant_sim", &["replay", &pair], LONG);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("2501 commands compared, 0 differ"), "{text}");
+}
+
 #[test]
 fn a_runaway_in_the_pair_exits_1_naming_the_time() {
     let _g = serial();

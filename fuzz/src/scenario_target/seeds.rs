@@ -323,7 +323,7 @@ fn failsafe_seeds() -> [String; 2] {
         .unwrap_or_default();
     [
         format!(
-            "{VEHICLE_SE3}\n[failsafe]\nlink = \"warn\"\nactuators = \"surface\"\ntracking = \"descend\"\nascend_rate = 0.2\ndescend_rate = 0.4\ntracking_limit_attitude = 1.0\ntracking_limit_position = 2.0\nclear_time = 0.05\n"
+            "{VEHICLE_SE3}\n[failsafe]\nlink = \"warn\"\nactuators = \"surface\"\ntracking = \"descend\"\nascend_rate = 0.2\ndescend_rate = 0.4\ntracking_limit_attitude = 1.0\ntracking_limit_position = 2.0\nactuators_residual = 0.05\nclear_time = 0.05\n"
         ),
         format!(
             "{gated}\n[failsafe]\nestimator = \"hold\"\ntracking = \"damp\"\ntracking_limit_attitude = 0.5\n"

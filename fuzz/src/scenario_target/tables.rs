@@ -72,7 +72,7 @@ pub(super) const STRINGS: [&str; 30] = [
 ];
 
 /// Known keys and values for [`TomlOp::SetKey`](super::mutation::TomlOp::SetKey).
-pub(super) const KEYS: [(&str, &[&str]); 40] = [
+pub(super) const KEYS: [(&str, &[&str]); 41] = [
     ("path", &["\"stop\"", "\"through\"", "\"curvy\"", "3"]),
     (
         "error_frame",
@@ -260,6 +260,7 @@ pub(super) const KEYS: [(&str, &[&str]); 40] = [
     ("ascend_rate", &["0.3", "-1", "101", "inf"]),
     ("tracking_limit_attitude", &["0.5", "4", "0", "-1"]),
     ("tracking_limit_position", &["2.0", "0", "1e7", "nan"]),
+    ("actuators_residual", &["0.05", "0", "-1", "1e7", "nan"]),
     ("clear_time", &["0.5", "0", "1e-6", "1e5"]),
     // `[fault_detection]`'s keys the number mutations reach least
     ("warmup", &["2.0", "-1", "1e9", "nan"]),
