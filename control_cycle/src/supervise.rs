@@ -71,11 +71,9 @@ impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Superviso
         (q, v): (&SMatrix<T, N, N>, &nalgebra::SVector<T, M>),
         desired: &Desired<T, N, M>,
     ) -> Option<nalgebra::SVector<T, M>> {
-        let law = self.thrust.as_ref()?;
-        if !ThrustAxis::<T>::flies(self.word) {
-            return None;
-        }
-        law.demand((q, v), (&desired.q, &desired.v))
+        self.thrust
+            .as_ref()?
+            .demand_when(self.word, (q, v), (&desired.q, &desired.v))
     }
 
     /// Flies the recorded `word` at the next tick instead of stepping the manager (replay,

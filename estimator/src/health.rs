@@ -584,21 +584,20 @@ mod tests {
         );
     }
 
-    #[test]
-    fn the_band_finds_samples_that_pass_one_by_one_but_not_together() {
-        let cfg = GateConfig {
-            direction: 20.0,
-            position: 25.0,
-            noise: [0.01; SLOTS],
-            window: 10,
-            rejections: 2,
+    /// [`gate`]'s settings with a band on the directions: blocks of 5, bound 25.
+    fn banded() -> GateConfig<f64> {
+        GateConfig {
             direction_band: Band {
                 samples: 5,
                 upper: 25.0,
             },
-            position_band: Band::off(),
-        };
-        let mut g = Gate::new(cfg, 2, false);
+            ..*gate(false).config()
+        }
+    }
+
+    #[test]
+    fn the_band_finds_samples_that_pass_one_by_one_but_not_together() {
+        let mut g = Gate::new(banded(), 2, false);
         // each direction passes with a NIS of `a` (source 0) and `b` (source 1)
         let tick = |g: &mut Gate<f64>, a: f64, b: f64| {
             let mut v = v(&[0, 1], &[]);
@@ -643,18 +642,7 @@ mod tests {
 
     #[test]
     fn a_rejection_starts_the_band_s_block_again() {
-        let cfg = GateConfig {
-            direction: 20.0,
-            position: 25.0,
-            noise: [0.01; SLOTS],
-            window: 10,
-            rejections: 2,
-            direction_band: Band {
-                samples: 5,
-                upper: 25.0,
-            },
-            position_band: Band::off(),
-        };
+        let cfg = banded();
         let run = |reject: bool| {
             let mut g = Gate::new(cfg, 2, false);
             let tick = |g: &mut Gate<f64>, b: f64| {

@@ -74,6 +74,20 @@ impl<T: Real> ThrustAxis<T> {
         })
     }
 
+    /// [`ThrustAxis::demand`] when state word `word` flies the law ([`ThrustAxis::flies`]);
+    /// `None` otherwise: the law's own wrench is allocated.
+    pub fn demand_when<const N: usize, const M: usize>(
+        &self,
+        word: u32,
+        estimate: (&SMatrix<T, N, N>, &SVector<T, M>),
+        set_point: (&SMatrix<T, N, N>, &SVector<T, M>),
+    ) -> Option<SVector<T, M>> {
+        if !Self::flies(word) {
+            return None;
+        }
+        self.demand(estimate, set_point)
+    }
+
     /// The body wrench `(τ, f)` the actuators are asked for
     /// (docs/failsafe.md, "The thrust-axis law"), at the estimate `(q, v)` (SE(3): `q` the pose, `v = (ω, v_b)` the
     /// body twist) flying the set-point `(q_d, v_d)` (its pose and body twist). The

@@ -238,9 +238,9 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         self.previous = Some(s.seq);
         // the failsafe's thrust-axis law, when `descend` flies it (docs/failsafe.md)
         let thrust = match (&self.manager, word) {
-            (Some(m), Some(w)) if failsafe::thrust_axis::ThrustAxis::<f32>::flies(w) => m
+            (Some(m), Some(w)) => m
                 .thrust
-                .and_then(|law| law.demand((&q, &v), (&desired.q, &desired.v))),
+                .and_then(|law| law.demand_when(w, (&q, &v), (&desired.q, &desired.v))),
             _ => None,
         };
         let allocation = match &mut self.vehicle {

@@ -98,6 +98,7 @@ impl Supervision {
         if !ThrustAxis::<f64>::flies(self.word) {
             return None;
         }
+        // (the reference's desired state is formed only when the law is flown)
         let desired = reference.desired();
         law.demand((q, v), (&desired.q, &desired.v))
     }

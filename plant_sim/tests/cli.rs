@@ -990,6 +990,23 @@ fn failsafe_tables_are_checked_and_a_runaway_exits_1_naming_the_time() {
     assert!(column(&h, &rows, "failsafe").iter().all(|c| *c == 0.0));
 }
 
+/// `plant_sim sim --controller-scalar SCALAR` of `file` into `out`: its output and its
+/// `summary.json`.
+fn sim_with_scalar(file: &Path, scalar: &str, out: &Path) -> (Output, serde_json::Value) {
+    let o = bin()
+        .args(["sim", "--controller-scalar", scalar, "--scenario"])
+        .arg(file)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    let text = std::fs::read_to_string(out.join("summary.json")).unwrap_or_default();
+    (
+        o,
+        serde_json::from_str(&text).unwrap_or(serde_json::Value::Null),
+    )
+}
+
 /// The processor-in-the-loop firmware's controller (`--controller-scalar f32`, the code the
 /// board runs) flies the thrust-axis descent too: `pil_hexarotor` hovering, rotor 2 dead at
 /// 6 s unannounced, `descend` on the found failure. It comes down level at the set rate,
@@ -1012,18 +1029,9 @@ fn the_firmware_flies_the_thrust_axis_descent() {
     let mut heights = Vec::new();
     for scalar in ["f32", "f64"] {
         let out = dir.path().join(scalar);
-        let o = bin()
-            .args(["sim", "--controller-scalar", scalar, "--scenario"])
-            .arg(&file)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap();
+        let (o, summary) = sim_with_scalar(&file, scalar, &out);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(0), "{scalar}: {err}");
-        let summary: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
-                .unwrap();
         let tr = summary["failsafe"].as_array().unwrap().clone();
         assert_eq!(tr.len(), 1, "{scalar}: {tr:?}");
         assert_eq!(
@@ -1073,17 +1081,7 @@ fn the_firmware_raises_actuators_on_a_torque_it_cannot_give() {
     std::fs::write(&file, text).unwrap();
     let mut seen = Vec::new();
     for scalar in ["f32", "f64"] {
-        let out = dir.path().join(scalar);
-        let o = bin()
-            .args(["sim", "--controller-scalar", scalar, "--scenario"])
-            .arg(&file)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap();
-        let summary: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
-                .unwrap();
+        let (o, summary) = sim_with_scalar(&file, scalar, &dir.path().join(scalar));
         seen.push((o.status.code(), summary["failsafe"].clone()));
     }
     assert_eq!(seen[0], seen[1]);

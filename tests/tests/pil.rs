@@ -573,6 +573,49 @@ fn a_greeting_starts_the_detector_and_the_told_failures_afresh() {
     );
 }
 
+/// Flies scenario `file` three ways into `d`: the firmware's code in process (`f32`), the
+/// firmware over the serial protocol in lockstep (PIL), and the `f64` simulation. Asserts the
+/// PIL run equals the `f32` one byte for byte, and returns the PIL run's directory and
+/// output, and the `f64` run's directory.
+fn f32_pil_f64(d: &TempDir, file: &str) -> (String, String, String) {
+    let s = scenario::Scenario::from_file(std::path::Path::new(file)).unwrap();
+    let fw = firmware(config_bytes(&s), Behaviour::Normal);
+    let (f32_out, pil_out, f64_out) = (d.join("f32"), d.join("pil"), d.join("f64"));
+    let (code, text) = plant(&[
+        "sim",
+        "--scenario",
+        file,
+        "--controller-scalar",
+        "f32",
+        "--out",
+        &f32_out,
+    ]);
+    assert_eq!(code, 0, "{text}");
+    let tcp = format!("tcp:127.0.0.1:{}", fw.port);
+    let (code, pil_text) = plant(&[
+        "run",
+        "--mode",
+        "lockstep",
+        "--scenario",
+        file,
+        "--transport",
+        &tcp,
+        "--no-record",
+        "--out",
+        &pil_out,
+    ]);
+    assert_eq!(code, 0, "{pil_text}");
+    let (_, bad) = fw.thread.join().unwrap();
+    assert_eq!(bad, 0);
+    assert!(
+        read(&format!("{f32_out}/trajectory.csv")) == read(&format!("{pil_out}/trajectory.csv")),
+        "the PIL run's trajectory.csv differs from the f32 simulation's"
+    );
+    let (code, text) = plant(&["sim", "--scenario", file, "--out", &f64_out]);
+    assert_eq!(code, 0, "{text}");
+    (pil_out, pil_text, f64_out)
+}
+
 /// The failsafe manager on board (docs/failsafe.md): `pil_rov_surface`'s ROV loses two
 /// horizontal thrusters unannounced; the firmware's detector finds both, its manager raises
 /// `actuators` and flies `surface`. The PIL run equals the in-process `f32` simulation byte for
@@ -583,45 +626,11 @@ fn the_failsafe_manager_runs_on_board_and_surfaces_the_rov_as_the_f64_simulation
     let _g = serial();
     let d = TempDir::new("pil-failsafe");
     let file = short(&d, "pil_rov_surface", "5.0", &|t| t);
-    let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
-    let fw = firmware(config_bytes(&s), Behaviour::Normal);
-    let (f32_out, pil_out, f64_out) = (d.join("f32"), d.join("pil"), d.join("f64"));
-    let (code, text) = plant(&[
-        "sim",
-        "--scenario",
-        &file,
-        "--controller-scalar",
-        "f32",
-        "--out",
-        &f32_out,
-    ]);
-    assert_eq!(code, 0, "{text}");
-    let tcp = format!("tcp:127.0.0.1:{}", fw.port);
-    let (code, text) = plant(&[
-        "run",
-        "--mode",
-        "lockstep",
-        "--scenario",
-        &file,
-        "--transport",
-        &tcp,
-        "--no-record",
-        "--out",
-        &pil_out,
-    ]);
-    assert_eq!(code, 0, "{text}");
+    let (pil_out, text, f64_out) = f32_pil_f64(&d, &file);
     assert!(
         text.contains("failsafe: t = 2.57 s: actuators → surface"),
         "{text}"
     );
-    let (_, bad) = fw.thread.join().unwrap();
-    assert_eq!(bad, 0);
-    assert!(
-        read(&format!("{f32_out}/trajectory.csv")) == read(&format!("{pil_out}/trajectory.csv")),
-        "the PIL run's trajectory.csv differs from the f32 simulation's"
-    );
-    let (code, text) = plant(&["sim", "--scenario", &file, "--out", &f64_out]);
-    assert_eq!(code, 0, "{text}");
     let transitions = |dir: &str| summary(std::path::Path::new(dir))["failsafe"].clone();
     assert_eq!(transitions(&pil_out), transitions(&f64_out));
     assert_eq!(
@@ -663,41 +672,7 @@ fn the_innovation_gate_runs_on_board_and_the_manager_holds_on_its_health() {
             )
             + "\n[failsafe]\nestimator = \"hold\"\n"
     });
-    let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
-    let fw = firmware(config_bytes(&s), Behaviour::Normal);
-    let (f32_out, pil_out, f64_out) = (d.join("f32"), d.join("pil"), d.join("f64"));
-    let (code, text) = plant(&[
-        "sim",
-        "--scenario",
-        &file,
-        "--controller-scalar",
-        "f32",
-        "--out",
-        &f32_out,
-    ]);
-    assert_eq!(code, 0, "{text}");
-    let tcp = format!("tcp:127.0.0.1:{}", fw.port);
-    let (code, text) = plant(&[
-        "run",
-        "--mode",
-        "lockstep",
-        "--scenario",
-        &file,
-        "--transport",
-        &tcp,
-        "--no-record",
-        "--out",
-        &pil_out,
-    ]);
-    assert_eq!(code, 0, "{text}");
-    let (_, bad) = fw.thread.join().unwrap();
-    assert_eq!(bad, 0);
-    assert!(
-        read(&format!("{f32_out}/trajectory.csv")) == read(&format!("{pil_out}/trajectory.csv")),
-        "the PIL run's trajectory.csv differs from the f32 simulation's"
-    );
-    let (code, text) = plant(&["sim", "--scenario", &file, "--out", &f64_out]);
-    assert_eq!(code, 0, "{text}");
+    let (pil_out, _, f64_out) = f32_pil_f64(&d, &file);
     let transitions = |dir: &str| summary(std::path::Path::new(dir))["failsafe"].clone();
     assert_eq!(transitions(&pil_out), transitions(&f64_out));
     assert_eq!(
