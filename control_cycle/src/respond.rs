@@ -79,6 +79,9 @@ pub struct Responder<T: controller::Real, G, const N: usize, const M: usize> {
     pub(crate) controller: Controller<T, G, N, M>,
     pub(crate) rejection: Option<Rejection<T, M>>,
     pub(crate) previous: Option<u64>,
+    /// The wrench the plant reports in the next state's `applied` if it applied the last
+    /// answer: its `accounted` with a vehicle, its `tau` without (docs/failsafe.md, "Causes").
+    pub(crate) sent: Option<[f64; ipc_types::MAX_M]>,
     pub(crate) vehicle: Option<crate::ControllerVehicle<M>>,
     pub(crate) supervisor: Option<crate::Supervisor<T, G, N, M>>,
 }
@@ -98,6 +101,7 @@ where
             controller,
             rejection,
             previous: None,
+            sent: None,
             vehicle: None,
             supervisor: None,
         })
@@ -238,8 +242,10 @@ where
             None => reference.desired(),
             Some(sup) => {
                 let flags = failsafe::monitor::Flags {
-                    // a state the controller never saw: the link lost it
-                    link: self.previous.is_some() && !follows,
+                    // a state the controller never saw (the link lost it), or an answer the
+                    // plant did not apply (it came too late)
+                    link: (self.previous.is_some() && !follows)
+                        || (follows && !applied_as_sent(self.sent.as_ref(), &msg.applied, M)),
                     estimator: msg.flags
                         & (ipc_types::flags::ESTIMATE_DEGRADED | ipc_types::flags::ESTIMATE_LOST)
                         != 0,
@@ -293,6 +299,11 @@ where
             }
         }
         self.previous = Some(msg.seq);
+        self.sent = Some(if self.vehicle.is_some() {
+            cmd.accounted
+        } else {
+            cmd.tau
+        });
         Ok(cmd)
     }
 
@@ -324,4 +335,23 @@ where
             );
         }
     }
+}
+
+/// Whether a state's `applied` wrench is, bit for bit in its first `m` entries, the one the
+/// answer before it would give if the plant applied it (`sent`; `None`: no answer yet). A
+/// command that reaches the plant after its deadline is not applied: the plant holds the one
+/// before it, or flies its safe mode, and reports that wrench instead (docs/failsafe.md,
+/// "Causes"). A held command equal bit for bit to the late one is not told apart, and
+/// changes nothing the law believes.
+pub(crate) fn applied_as_sent(
+    sent: Option<&[f64; ipc_types::MAX_M]>,
+    applied: &[f64; ipc_types::MAX_M],
+    m: usize,
+) -> bool {
+    sent.is_some_and(|s| {
+        s.iter()
+            .zip(applied)
+            .take(m)
+            .all(|(x, y)| x.to_bits() == y.to_bits())
+    })
 }

@@ -189,3 +189,64 @@ fn retune_changes_the_gains_at_once_or_not_at_all() {
     let plain = other.respond(&mut ref2, &msg).unwrap();
     assert_ne!(tuned.tau, plain.tau);
 }
+
+/// The failsafe's `link` cause (docs/failsafe.md, "Causes"): a command that reaches the plant
+/// after its deadline is not applied (the plant holds the one before), and the next state
+/// says so in its `applied` wrench. That state follows the last one answered, yet it raises
+/// `link`, and the hold is left once the commands have been applied for `clear_time`.
+#[test]
+fn a_command_the_plant_did_not_apply_raises_link() {
+    use failsafe::{Action, Cause, Mode, State};
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/reject_so3.toml"
+    ))
+    .unwrap()
+        + "\n[failsafe]\nlink = \"hold\"\nclear_time = 0.1\n";
+    let s = Scenario::from_toml(&text, "test", "reject_link").unwrap();
+    // the modes of the commands of a run in which the plant applied every command but `late`
+    let modes = |late: Option<u64>| -> Vec<Mode> {
+        let sup = control_cycle::Supervisor::of(&s).unwrap();
+        let mut live = responder(&s).with_supervisor(sup);
+        let mut reference: Source<f64, So3, 3, 3> = s.reference_source().unwrap();
+        let mut body = s.plant_body::<So3, 3, 3>().unwrap();
+        let mut applied = Vector3::zeros();
+        let mut modes = vec![];
+        for k in 0..100u64 {
+            let mut msg = StateMsg::new(ipc_types::WireGroup::So3);
+            msg.seq = k;
+            msg.t = k as f64 * s.control_period;
+            msg.control_period = s.control_period;
+            msg.set_state(body.configuration(), &body.velocity());
+            msg.set_applied(&applied);
+            let c = live.respond(&mut reference, &msg).unwrap();
+            reference.advance();
+            modes.push(State::read_word(c.failsafe).unwrap().0);
+            if late != Some(k) {
+                applied = c.torque::<3>();
+            }
+            body.advance(&applied, s.control_period, 10);
+        }
+        modes
+    };
+    let hold = Mode::Engaged {
+        cause: Cause::Link,
+        action: Action::Hold,
+    };
+    let on_time = modes(None);
+    assert!(on_time.iter().all(|m| *m == Mode::Nominal), "{on_time:?}");
+    let late = modes(Some(40));
+    assert!(late[..41].iter().all(|m| *m == Mode::Nominal), "{late:?}");
+    assert_eq!(
+        late[41], hold,
+        "the state after the late command raises link"
+    );
+    // clear_time 0.1 s: that many ticks with every command applied
+    let ticks = (0.1 / s.control_period).round() as usize;
+    let held = late.iter().filter(|m| **m == hold).count();
+    assert!(
+        (ticks..=ticks + 1).contains(&held),
+        "held {held} ticks: {late:?}"
+    );
+    assert_eq!(late[99], Mode::Nominal);
+}

@@ -10,7 +10,8 @@ use controller::Real;
 /// measures itself.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Flags {
-    /// A state lost on the way to the controller (a gap in the states it answers).
+    /// A state lost on the way to the controller (a gap in the states it answers), or a
+    /// command the plant did not apply (it came after its deadline).
     pub link: bool,
     /// The estimator's health is not `healthy`.
     pub estimator: bool,

@@ -59,6 +59,9 @@ struct Manager<G, const N: usize, const M: usize> {
     /// more (`failsafe::monitor::torque_short`).
     residual_limit: Option<f32>,
     short: bool,
+    /// The wrench the host reports in the next state's `applied` if it applied the last
+    /// command: its `accounted` with a vehicle, its `tau` without. Another raises `link`.
+    sent: Option<SVector<f32, M>>,
 }
 
 fn vec<const C: usize>(xs: &[f32]) -> Vec<f32, C> {
@@ -106,6 +109,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                     span: allocation::SpanWatch::default(),
                     thrust: thrust_axis(config, f.lag),
                     residual_limit: f.actuators_residual,
+                    sent: None,
                     short: false,
                 })
             }
@@ -210,8 +214,14 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         let (desired, word, disarmed): (_, Option<u32>, _) = match &mut self.manager {
             None => (nominal, None, false),
             Some(m) => {
+                // a state lost on the line, or a command the host did not apply
+                let as_sent = m.sent.is_some_and(|w| {
+                    w.iter()
+                        .zip(s.applied.iter())
+                        .all(|(x, y)| x.to_bits() == y.to_bits())
+                });
                 let flags = failsafe::monitor::Flags {
-                    link: self.previous.is_some() && !follows,
+                    link: (self.previous.is_some() && !follows) || (follows && !as_sent),
                     // the on-board estimator's health, with `gate = true`
                     estimator: self.health != Health::Healthy,
                     actuators: self.vehicle.as_ref().is_some_and(|c| m.span.lost(c)) || m.short,
@@ -243,8 +253,8 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                 .and_then(|law| law.demand_when(w, (&q, &v), (&desired.q, &desired.v))),
             _ => None,
         };
-        let allocation = match &mut self.vehicle {
-            None => None,
+        let (allocation, sent) = match &mut self.vehicle {
+            None => (None, out.torque),
             Some(control) => {
                 let wrench = (&out.torque, thrust.as_ref());
                 let (allocation, accounted, u, (status, residual)) =
@@ -255,9 +265,12 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                 if let Some(w) = &mut self.watcher {
                     w.after(&u, accounted);
                 }
-                Some(allocation)
+                (Some(allocation), accounted)
             }
         };
+        if let Some(m) = &mut self.manager {
+            m.sent = Some(sent);
+        }
         let terms = self.rejection.is_some();
         Ok(CommandFrame {
             seq: s.seq,

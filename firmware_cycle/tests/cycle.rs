@@ -744,3 +744,49 @@ fn a_detector_is_the_features() {
         "{e}"
     );
 }
+
+/// The failsafe's `link` cause on the firmware, as in the pair's controller
+/// (docs/failsafe.md, "Causes"): a command the host did not apply (the state after it reports
+/// the wrench of the one before) raises `link` on a state that follows the last one answered,
+/// and the hold is left after `clear_ticks` ticks with every command applied.
+#[test]
+fn a_command_the_host_did_not_apply_raises_link() {
+    let mut config = seed_like();
+    config.failsafe = Some(firmware_cycle::Failsafe {
+        actions: [2, 0, 0, 0],
+        clear_ticks: 5,
+        descend_rate: 0.5,
+        ascend_rate: 0.3,
+        limit_attitude: None,
+        limit_position: None,
+        lag: 0.0,
+        actuators_residual: None,
+    });
+    // the manager's words of a run in which the host applied every command but `late`
+    let words = |late: Option<u64>| -> std::vec::Vec<u32> {
+        let mut c = Cycle::new(&config).unwrap();
+        c.on_frame(&Frame::Hello(config.identity.clone()));
+        let mut applied: Vec<f32, 6> = v(&[0.0; 3]);
+        (0..30)
+            .map(|k| {
+                let mut s = state(k);
+                s.applied = applied.clone();
+                let Some(Frame::Command(cmd)) = c.on_frame(&Frame::State(s)) else {
+                    panic!("state {k} not answered");
+                };
+                if late != Some(k) {
+                    applied = cmd.tau.clone();
+                }
+                cmd.failsafe.unwrap()
+            })
+            .collect()
+    };
+    // action `hold` (code 2) for cause `link` (code 1), with `link` raised (bit 8)
+    let hold = 2 | 1 << 4 | 1 << 8;
+    assert!(words(None).iter().all(|w| *w == 0), "{:?}", words(None));
+    let late = words(Some(10));
+    assert!(late[..11].iter().all(|w| *w == 0), "{late:?}");
+    assert_eq!(late[11], hold, "{late:?}");
+    assert_eq!(late.iter().filter(|w| **w == hold).count(), 5, "{late:?}");
+    assert_eq!(late[29], 0);
+}

@@ -401,17 +401,14 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
         let seqs: Vec<u64> = self.unseen.iter().map(|(k, _, _)| *k).collect();
         match unseen_fate(&seqs, c.previous_seq) {
             Unseen::Keep => {}
-            Unseen::Back(i) => {
-                let (_, slot, mut responder) = self.unseen.swap_remove(i);
-                if let Some(g) = &self.gains {
-                    // run-time gains changed since it was kept
-                    responder
-                        .retune(g)
-                        .map_err(|e| SimError::Input(format!("run-time gains: {e}")))?;
-                }
-                self.responders[slot].1 = responder;
+            Unseen::Back(i) => self.take_back(i)?,
+            Unseen::Lost => {
+                // back to before the first state the log cannot say the controller saw: what
+                // replay's own manager made of the states after it is no guide to the
+                // controller's, whose recorded words are flown from here
+                self.take_back(0)?;
+                self.lose_detector(seqs[0]);
             }
-            Unseen::Lost => self.lose_detector(seqs[0]),
             Unseen::Restart if self.s.fault_detection.is_some() || self.s.failsafe.is_some() => {
                 // a controller started again: its detector and failsafe manager start afresh,
                 // as replay's
@@ -429,6 +426,19 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, 
             Unseen::Restart => {}
         }
         self.unseen.clear();
+        Ok(())
+    }
+
+    /// Puts back the responder kept before answering the `i`-th state the controller may not
+    /// have seen, with the run-time gains changed since it was kept.
+    fn take_back(&mut self, i: usize) -> Result<(), SimError> {
+        let (_, slot, mut responder) = self.unseen.swap_remove(i);
+        if let Some(g) = &self.gains {
+            responder
+                .retune(g)
+                .map_err(|e| SimError::Input(format!("run-time gains: {e}")))?;
+        }
+        self.responders[slot].1 = responder;
         Ok(())
     }
 
