@@ -16,7 +16,8 @@
 # 4 s in lockstep: the disturbance terms), the SE(3) equivariant filter (`eqf_se3.toml`, 2 s:
 # sensor samples, estimates, covariance), the complementary filter (`sensors_so3.toml`, 2 s:
 # its NEES is NaN in every estimate message) and `slew_so3.toml` streamed by the planner
-# (plan messages).
+# (plan messages); then vehicles: `rov_failure.toml` (actuators) and `pil_rov_surface.toml`
+# (the failure detector, and the failsafe manager with `surface` engaged).
 #
 #   scripts/mcap-readers.sh
 #
@@ -66,18 +67,13 @@ RUNS+=("$OUT/cf")
 "$BIN/plant_sim" run --scenario "$REPO/scenarios/rov_failure.toml" --mode lockstep --duration 2 \
 	--name "mcap-rov-$$" --out "$OUT/rov" >"$OUT/plant-rov.log" 2>&1 || die "the vehicle run failed: $(tail -3 "$OUT/plant-rov.log")"
 RUNS+=("$OUT/rov")
-# the failure detector's channel: rov_failure in a current with [fault_detection], its
-# thruster 1 dying unannounced at 4.5 s, past the detector's calibration (found 0.06 s later)
-sed -e 's/^reconfigure = true/reconfigure = false/' -e 's/^actuator = 5$/actuator = 1/' \
-	-e 's/^t = 20.0$/t = 4.5/' -e 's/^value = 0.0$/kind = "dead"/' \
-	-e 's/^\[plant\]$/[plant]\ndisturbance_world = [0.0, 0.0, 0.0, 15.0, 8.0, -10.0]/' \
-	"$REPO/scenarios/rov_failure.toml" >"$OUT/rov_detect.toml"
-# and the failsafe manager's channel (a link cause lockstep never raises: nominal throughout)
-printf '\n[fault_detection]\n\n[failsafe]\nlink = "hold"\n' >>"$OUT/rov_detect.toml"
-cp "$REPO/scenarios/rov_failure.csv" "$OUT/"
-"$BIN/plant_sim" run --scenario "$OUT/rov_detect.toml" --mode lockstep --duration 6 \
+# the failure detector's and the failsafe manager's channels: pil_rov_surface's ROV in a current
+# loses horizontal thrusters 1 and 2 unannounced; the detector finds both (1.47 s, 2.57 s) and
+# the manager engages `surface` when the thrusters left no longer push every way (2.57 s)
+"$BIN/plant_sim" run --scenario "$REPO/scenarios/pil_rov_surface.toml" --mode lockstep \
 	--name "mcap-det-$$" --out "$OUT/detect" >"$OUT/plant-detect.log" 2>&1 || die "the detector's run failed: $(tail -3 "$OUT/plant-detect.log")"
 grep -q "actuator 1 dead" "$OUT/plant-detect.log" || die "the detector's run found nothing: $(tail -3 "$OUT/plant-detect.log")"
+grep -q "actuators → surface" "$OUT/plant-detect.log" || die "the failsafe manager did not engage: $(tail -3 "$OUT/plant-detect.log")"
 RUNS+=("$OUT/detect")
 # streamed: the planner publishes the whole path, the controller takes it from the plan board
 SLEW=$REPO/scenarios/slew_so3.toml

@@ -70,6 +70,7 @@ fn scenario_inputs_never_panic() {
         "fault_detection.model_error",
         "fault_detection.unexplained",
         "fault_detection.ambiguity",
+        "failsafe.link",
         "failsafe.actuators",
         "failsafe.estimator",
         "failsafe.tracking",
@@ -78,6 +79,7 @@ fn scenario_inputs_never_panic() {
         "failsafe.tracking_limit_attitude",
         "failsafe.tracking_limit_position",
         "failsafe.clear_time",
+        "failsafe.actuators_residual",
     ] {
         assert!(
             r.rejected

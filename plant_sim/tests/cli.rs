@@ -941,22 +941,41 @@ fn failsafe_tables_are_checked_and_a_runaway_exits_1_naming_the_time() {
     );
     let (h, _) = read_csv(&dir.path().join("free/trajectory.csv"));
     assert!(!h.iter().any(|c| c == "failsafe"));
-    // a bad table exits 2 naming the key
-    for (table, key) in [
+    // a bad table exits 2 naming the key: an unknown action, an unknown event, an action
+    // that does not fit the vehicle (`surface` without buoyancy, `descend` without gravity),
+    // a negative rate
+    let circle = std::fs::read_to_string(repo("scenarios/se3_circle.toml")).unwrap();
+    for (base, table, says) in [
         (
+            &away,
             "[failsafe]\ntracking = \"land\"\ntracking_limit_position = 1.0",
-            "failsafe.tracking",
+            "key `failsafe.tracking`",
         ),
-        ("[failsafe]\nlink = \"surface\"", "failsafe.link"),
         (
+            &away,
+            "[failsafe]\nthruster = \"hold\"",
+            "unknown field `thruster`",
+        ),
+        (
+            &away,
+            "[failsafe]\nlink = \"surface\"",
+            "key `failsafe.link`",
+        ),
+        (
+            &circle,
+            "[failsafe]\nlink = \"descend\"",
+            "key `failsafe.link`: `descend` comes down along gravity",
+        ),
+        (
+            &away,
             "[failsafe]\nlink = \"descend\"\ndescend_rate = -1.0",
-            "failsafe.descend_rate",
+            "key `failsafe.descend_rate`",
         ),
     ] {
-        let out = sim(&write("bad.toml", &format!("{away}\n{table}\n")), "bad");
+        let out = sim(&write("bad.toml", &format!("{base}\n{table}\n")), "bad");
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{table}: {err}");
-        assert!(err.contains(&format!("key `{key}`")), "{table}: {err}");
+        assert!(err.contains(says), "{table}: {err}");
     }
     // the pair runs the manager on the controller's side: the same runaway, the same tick
     let pair = bin()

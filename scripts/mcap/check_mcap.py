@@ -174,9 +174,11 @@ def main(mcap_path, jsonl_path, log_path=None):
     against_log = ""
     if log_path is not None:
         records, commands = check_against_log(log_path, by_topic)
+        engaged = sorted({m.action for m in by_topic.get("/eqtrack/failsafe", []) if m.action != "nominal"})
         against_log = (
             f"; {records} records and {commands} commands of {os.path.basename(log_path)}, read with struct, "
             "equal to the state, cycle, command, actuators, detection and failsafe channels"
+            f" (failsafe actions engaged: {engaged or 'none'})"
         )
     print(
         f"python mcap {count} messages decoded with CRCs checked, all equal to the project's reading{against_log}; "

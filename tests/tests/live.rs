@@ -461,3 +461,78 @@ fn plant_sim_live_refuses_bad_input_and_passes_a_sigterm_on() {
         "{out}"
     );
 }
+
+/// Whether a status message's CDR carries the string `s` as a whole field (its 4-byte length,
+/// NUL included, then its bytes): the failsafe's action and cause are such fields.
+fn has_string_field(cdr: &[u8], s: &str) -> bool {
+    let mut field = ((s.len() + 1) as u32).to_le_bytes().to_vec();
+    field.extend_from_slice(s.as_bytes());
+    field.push(0);
+    cdr.windows(field.len()).any(|w| w == field.as_slice())
+}
+
+/// The failsafe manager on the live bridge's status channel (docs/failsafe.md, "In the pair
+/// and on the firmware"): a real-time pair flying `pil_rov_surface`, whose ROV loses two
+/// horizontal thrusters unannounced, shows `failsafe_action` "nominal" first and then
+/// "surface" for the cause "actuators", with the transition counted.
+#[test]
+fn the_status_channel_shows_the_failsafe_engaged() {
+    let _g = serial();
+    let run = "t-live-failsafe";
+    let d = TempDir::new("live-failsafe");
+    let out = d.join("run");
+    let mut bridge = Proc::start(
+        "plant_sim",
+        &["live", "--name", run, "--listen", "127.0.0.1:0"],
+    );
+    let addr = served_at(&bridge);
+    let scenario = pair_tests::repo("scenarios/pil_rov_surface.toml");
+    let mut plant = Proc::start(
+        "plant_sim",
+        &[
+            "run",
+            "--scenario",
+            scenario.to_str().unwrap(),
+            "--name",
+            run,
+            "--out",
+            &out,
+        ],
+    );
+    let (mut ws, _) = connect(&addr, Some("foxglove.sdk.v1")).unwrap();
+    greeting(&mut ws, run);
+    subscribe(&mut ws, &[(8, 3)]);
+    // the status messages' (action, cause), in order, until the run ends
+    let mut seen: Vec<(&str, &str)> = vec![];
+    loop {
+        match ws.read() {
+            Ok(Message::Binary(f)) => {
+                assert_eq!(data(&f).0, 8);
+                let cdr = &f[13..];
+                let now = if has_string_field(cdr, "surface") {
+                    assert!(has_string_field(cdr, "actuators"), "{cdr:?}");
+                    ("surface", "actuators")
+                } else {
+                    assert!(has_string_field(cdr, "nominal"), "{cdr:?}");
+                    ("nominal", "")
+                };
+                if seen.last() != Some(&now) {
+                    seen.push(now);
+                }
+            }
+            Ok(Message::Text(t)) if t.as_str().contains("ended at cycle") => break,
+            Ok(_) => {}
+            Err(e) => panic!("the client lost the bridge: {e}\n{}", bridge.output()),
+        }
+    }
+    assert_eq!(
+        seen,
+        [("nominal", ""), ("surface", "actuators")],
+        "{}",
+        plant.output()
+    );
+    plant.expect_exit(0, Duration::from_secs(60));
+    bridge.expect_exit(0, Duration::from_secs(20));
+    let tr = &summary(Path::new(&out))["failsafe"];
+    assert_eq!(tr[0]["action"], "surface", "{tr}");
+}
