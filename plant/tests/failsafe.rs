@@ -44,29 +44,22 @@ fn row_at(t: &SimulatedTrajectory, time: f64) -> &Row {
         .expect("a row at that time")
 }
 
-const DROPOUT: &str = r#"
-[[sensors.fault]]
-sensor = "position"
-t = 5.0
-duration = 10.0
-kind = "dropout"
-"#;
+/// `scenarios/hexarotor_fixes_lost.toml`, and the same without its `[failsafe]` table.
+fn fixes_lost() -> (Scenario, Scenario) {
+    let file = pair_tests::scenario("hexarotor_fixes_lost");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let base = pair_tests::repo("scenarios");
+    let parse = |t: &str| Scenario::from_toml_in(t, "fixes", "fixes", Some(base.as_ref())).unwrap();
+    let cut = text.find("\n[failsafe]").expect("a [failsafe] table");
+    (parse(&text), parse(&text[..cut]))
+}
 
 #[test]
 fn the_hexarotor_holds_while_its_fixes_are_lost_and_flies_on_when_they_return() {
-    let edits = [
-        ("duration = 10.0", "duration = 25.0"),
-        ("kind = \"eqf\"", "kind = \"eqf\"\ngate = true"),
-        ("[estimator]", &format!("{DROPOUT}\n[estimator]")),
-    ];
-    let held = run(&variant(
-        "hexarotor_eqf",
-        &edits,
-        // a tracking limit too: measured against the hold, which does not run away while the
-        // reference flies on without the vehicle
-        "\n[failsafe]\nestimator = \"hold\"\nclear_time = 1.0\ntracking = \"disarm\"\ntracking_limit_position = 1.0\n",
-    ));
-    let open = run(&variant("hexarotor_eqf", &edits, ""));
+    // its tracking limit is measured against the hold, which does not run away while the
+    // reference flies on without the vehicle
+    let (held, open) = fixes_lost();
+    let (held, open) = (run(&held), run(&open));
     let tr = transitions(&held);
     println!("{tr:?}");
     assert_eq!(tr.len(), 2, "{tr:?}");

@@ -3,7 +3,8 @@
 //! `advertise` and the run's messages whatever bad clients do (garbage, binary frames, huge
 //! messages, wrong subprotocols, connections dropped at once); a client that never reads
 //! costs the bridge bounded memory and the pair no deadline misses, and its drops are
-//! reported. Tests run one at a time ([`serial`]).
+//! reported; the status channel shows a failsafe the controller engaged. Tests run one at a
+//! time ([`serial`]).
 
 use pair_tests::{Proc, TempDir, realtime_priority, serial, summary};
 use std::net::TcpStream;
@@ -471,10 +472,10 @@ fn has_string_field(cdr: &[u8], s: &str) -> bool {
     cdr.windows(field.len()).any(|w| w == field.as_slice())
 }
 
-/// The failsafe manager on the live bridge's status channel (docs/failsafe.md, "In the pair
-/// and on the firmware"): a real-time pair flying `pil_rov_surface`, whose ROV loses two
-/// horizontal thrusters unannounced, shows `failsafe_action` "nominal" first and then
-/// "surface" for the cause "actuators", with the transition counted.
+/// The failsafe manager on the live bridge's status channel
+/// (docs/failsafe.md, "In the pair and on the firmware"): a real-time pair flying
+/// `pil_rov_surface`, whose ROV loses two horizontal thrusters unannounced, shows
+/// `failsafe_action` "nominal" first and then "surface" for the cause "actuators".
 #[test]
 fn the_status_channel_shows_the_failsafe_engaged() {
     let _g = serial();
