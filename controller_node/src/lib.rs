@@ -66,6 +66,9 @@ struct Cycles<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     tuned: Option<ipc_types::Gains>,
     /// The scenario's fingerprint: only the `params` board of this run is taken.
     fingerprint: u64,
+    /// The first state this process answered (a test's planted hang comes only in a process
+    /// that started before it).
+    first: Option<u64>,
 }
 
 /// Why a state of a run with run-time gains gets no answer.
@@ -178,6 +181,18 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M
                 if let Some(a) = self.baseline {
                     cmd.heap_allocations = allocations().saturating_sub(a);
                 }
+                // the first state at or after k (the controller may skip states), in a
+                // process that started before it (the one a watchdog restarts does not hang)
+                let first = *self.first.get_or_insert(msg.seq);
+                if let Some(Fault::HangAt(k) | Fault::HangWithSideNotifier(k)) = self.opts.fault
+                    && msg.seq >= k
+                    && first < k
+                {
+                    log(format_args!("fault injection: the loop hangs at seq {k}"));
+                    loop {
+                        std::thread::park();
+                    }
+                }
                 if self.opts.fault == Some(Fault::NanTorque(msg.seq)) {
                     cmd.tau[0] = f64::NAN;
                     log(format_args!(
@@ -247,6 +262,32 @@ fn first_reference<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 }
 
 /// Logs each rejection kind once.
+/// A notification the service manager did not take: logged, the run goes on (the manager
+/// restarts a process whose watchdog pings stop, which is what it is there for).
+fn notify(sent: std::io::Result<()>) {
+    if let Err(e) = sent {
+        log(format_args!("service manager: cannot notify: {e}"));
+    }
+}
+
+/// [`Fault::HangWithSideNotifier`]: a thread that pings the watchdog whatever the loop does
+/// (tests only; the mistake the watchdog tests must catch).
+fn side_notifier(fault: Option<Fault>) {
+    if let Some(Fault::HangWithSideNotifier(_)) = fault
+        && let Ok(mut n) = link::notify::Notifier::from_process()
+    {
+        log(format_args!(
+            "fault injection: a side thread pings the watchdog"
+        ));
+        std::thread::spawn(move || {
+            loop {
+                let _ = n.progress(clock::monotonic_ns());
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        });
+    }
+}
+
 fn log_invalid(ep: &mut ControllerEndpoint) {
     while let Some(r) = ep.next_invalid() {
         let m = &r.msg;
@@ -292,6 +333,9 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 ) -> Result<Report, NodeError> {
     let s = &opts.scenario;
     let responder = responder_for::<G, N, M>(s)?;
+    // a service manager's watchdog (docs/pair-on-a-board.md, "Watchdogs"): pinged from this
+    // loop only, once per pass when due
+    let mut notifier = link::notify::Notifier::from_process()?;
     let mut ep = ControllerEndpoint::open(ControllerEndpointConfig {
         run: opts.run.clone(),
         transport: opts.transport,
@@ -322,9 +366,17 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         params: None,
         tuned: None,
         fingerprint: s.fingerprint(),
+        first: None,
     };
+    notify(notifier.ready());
+    side_notifier(opts.fault);
     let started = Instant::now();
     let stop = loop {
+        notifier.keep_alive(clock::monotonic_ns(), |e| {
+            log(format_args!(
+                "service manager: cannot ping the watchdog: {e}"
+            ));
+        });
         if let Some(sig) = opts.stop.requested() {
             break Stop::Signal(sig);
         }
@@ -345,6 +397,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
         }
         log_invalid(&mut ep);
     };
+    notify(notifier.stopping());
     let allocations_after_startup = cycles
         .baseline
         .filter(|_| cycles.cycles >= 2)

@@ -65,6 +65,16 @@ struct Cli {
     #[cfg(feature = "fault-injection")]
     #[arg(long, value_name = "K", hide = true)]
     fault_nan_torque: Option<u64>,
+    /// Test builds only (feature `fault-injection`): the loop hangs for good at the first state at or after K (a
+    /// service manager's watchdog must restart the process).
+    #[cfg(feature = "fault-injection")]
+    #[arg(long, value_name = "K", hide = true)]
+    fault_hang_at: Option<u64>,
+    /// Test builds only: with `--fault-hang-at`, a side thread keeps pinging the watchdog
+    /// (the mistake the watchdog tests must catch).
+    #[cfg(feature = "fault-injection")]
+    #[arg(long, hide = true, requires = "fault_hang_at")]
+    fault_side_notifier: bool,
 }
 
 fn fail(exit: Exit, msg: std::fmt::Arguments) -> ExitCode {
@@ -117,7 +127,16 @@ fn main() -> ExitCode {
         startup_timeout: cli.startup_timeout,
         silence_timeout: cli.silence_timeout,
         #[cfg(feature = "fault-injection")]
-        fault: cli.fault_nan_torque.map(Fault::NanTorque),
+        fault: match (
+            cli.fault_nan_torque,
+            cli.fault_hang_at,
+            cli.fault_side_notifier,
+        ) {
+            (Some(k), _, _) => Some(Fault::NanTorque(k)),
+            (None, Some(k), false) => Some(Fault::HangAt(k)),
+            (None, Some(k), true) => Some(Fault::HangWithSideNotifier(k)),
+            (None, None, _) => None,
+        },
         #[cfg(not(feature = "fault-injection"))]
         fault: None::<Fault>,
         stop,

@@ -9,6 +9,12 @@ use std::time::Duration;
 pub enum Fault {
     /// At step k, publish a command with a NaN torque instead of the right one.
     NanTorque(u64),
+    /// At the first step at or after k, the loop hangs for good (a watchdog must restart
+    /// the process).
+    HangAt(u64),
+    /// [`Fault::HangAt`], with a side thread that keeps telling the service manager's
+    /// watchdog that all is well: the mistake the watchdog tests must catch.
+    HangWithSideNotifier(u64),
 }
 
 /// Where the desired trajectory comes from.
@@ -95,6 +101,9 @@ pub enum NodeError {
     /// The process layer failed.
     #[error(transparent)]
     Link(#[from] LinkError),
+    /// The service manager's notification environment is bad, or its socket unreachable.
+    #[error("service manager: {0}")]
+    Notify(#[from] link::notify::NotifyError),
     /// The scenario's vehicle does not make an allocator.
     #[error("scenario `{scenario}`: {what}")]
     Vehicle {
@@ -111,6 +120,7 @@ impl NodeError {
         match self {
             NodeError::Scenario { .. }
             | NodeError::Vehicle { .. }
+            | NodeError::Notify(_)
             | NodeError::Link(LinkError::InvalidRunName(_)) => link::Exit::BadInput,
             NodeError::Link(_) => link::Exit::Failed,
         }

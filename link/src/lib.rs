@@ -52,6 +52,7 @@ pub mod controller_side;
 pub mod deadline;
 pub mod iceoryx2;
 mod invalid;
+pub mod notify;
 pub mod params;
 pub mod plan;
 pub mod plant_side;

@@ -38,6 +38,15 @@ impl Spawned {
             .arg("--rt-report")
             .arg(&report)
             .stdin(Stdio::null());
+        // the service manager's watchdog is the plant's: the controller it starts does not
+        // answer to it (docs/pair-on-a-board.md, "Watchdogs")
+        for var in [
+            link::notify::SOCKET_VAR,
+            link::notify::WATCHDOG_USEC_VAR,
+            link::notify::WATCHDOG_PID_VAR,
+        ] {
+            cmd.env_remove(var);
+        }
         if opts.transport == TransportKind::Uds {
             cmd.args(["--transport", "uds"]);
         }

@@ -14,6 +14,8 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
+pub mod supervise;
+
 static SERIAL: Mutex<()> = Mutex::new(());
 
 /// Serialises the tests of a binary: real-time runs must not compete for the two cores.

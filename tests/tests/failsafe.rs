@@ -308,6 +308,21 @@ fn a_runaway_in_the_pair_exits_1_naming_the_time() {
     );
 }
 
+/// The cycle of the first recorded command that answers a state more than `gap` states after
+/// the one the controller answered before it (the first command after a stall).
+fn first_command_after_a_gap(out: &str, gap: u64) -> usize {
+    let mut log = recorder::LogReader::open(&Path::new(out).join(recorder::LOG_FILE)).unwrap();
+    while let Some(r) = log.next_record().unwrap() {
+        if let Some((c, _)) = r.command
+            && c.previous_seq != ipc_types::NO_PREVIOUS
+            && c.seq > c.previous_seq + gap
+        {
+            return r.cycle as usize;
+        }
+    }
+    panic!("{out}: no command after a gap of {gap} states");
+}
+
 #[test]
 fn a_stalled_controller_sees_the_gap_and_holds_in_real_time() {
     let _g = serial();
@@ -393,7 +408,7 @@ fn a_stalled_controller_sees_the_gap_and_holds_in_real_time() {
     // hold was engaged at. (Run on through the stall, its own manager would see each state's
     // held wrench, engage a hold of its own at the wrong pose, and not see the recorded
     // change of mode.)
-    let after = (tr[first].0 / 0.002).round() as usize;
+    let after = first_command_after_a_gap(&out, 25);
     let unlogged = without_commands(&out, "after-stall", &[after]);
     let (code, text) = run("plant_sim", &["replay", &unlogged], LONG);
     assert_eq!(code, 0, "{text}");

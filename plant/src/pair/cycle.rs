@@ -48,6 +48,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         let give_up = Instant::now() + self.opts.lockstep_timeout;
         let rejected = self.ep.invalid_commands();
         loop {
+            self.ping();
             match self.ep.wait_command(k, clock::monotonic_ns() + 20_000_000) {
                 Ok(c) => return Ok(c),
                 Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),

@@ -76,6 +76,9 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     for line in run.rt.plant.lines() {
         log(format_args!("real-time settings: {line}"));
     }
+    if let Err(e) = run.notifier.ready() {
+        log(format_args!("service manager: cannot notify READY=1: {e}"));
+    }
     let first = run.connect(&mut child)?;
     // the controller wrote its report before it started its transport, so before it answered
     if let Some(path) = child.rt_report() {
@@ -96,6 +99,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let mut interrupted = None;
     let mut allocations = None;
     for k in 0..=run.steps {
+        run.ping();
         run.cycle(k, pending.take(), &mut child)?;
         if k == run.steps {
             break;
@@ -122,6 +126,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     let wall = started.elapsed();
     let (rejected, late) = (run.ep.invalid_commands(), run.ep.late_commands());
     // The run is over: tell the controller, then reap it.
+    let _ = run.notifier.stopping();
     run.ep.shutdown();
     let controller_exit = child.finish(Duration::from_secs(3));
     let out = run.write(

@@ -73,6 +73,16 @@ pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M:
     pub(super) param_changes: Option<Vec<recorder::ParamChange>>,
     /// `[failsafe]`: the manager's transitions, as the controller's commands report them.
     pub(super) failsafe: Option<crate::failsafe::Supervision>,
+    /// A service manager's watchdog (docs/pair-on-a-board.md, "Watchdogs"), pinged from the
+    /// loop and its waits only.
+    pub(super) notifier: link::notify::Notifier,
+}
+
+/// The service manager's notifier the process's environment asks for
+/// (docs/pair-on-a-board.md, "Watchdogs"); a bad environment is bad input, naming the variable.
+fn notifier() -> Result<link::notify::Notifier, SimError> {
+    link::notify::Notifier::from_process()
+        .map_err(|e| SimError::Input(format!("service manager: {e}")))
 }
 
 /// `--tunable`: the run's `params` board with the scenario's gains (`None` without).
@@ -196,6 +206,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
                 &s,
                 (steps / opts.record_every.max(1)) as usize + 2,
             ),
+            notifier: notifier()?,
             s,
         })
     }
@@ -418,6 +429,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         self.publish(0)?;
         let give_up = Instant::now() + opts.connect_timeout;
         let first = loop {
+            self.ping();
             match self.ep.wait_command(0, clock::monotonic_ns() + 1_000_000) {
                 Ok(c) => break c,
                 Err(NoCommand::Refused(r)) => return Err(SimError::Mismatch(Box::new(r))),
@@ -456,6 +468,16 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             self.s.control_period
         ));
         Ok(first)
+    }
+
+    /// The service manager's watchdog: a ping when one is due; the first that cannot be
+    /// sent is logged.
+    pub(super) fn ping(&mut self) {
+        self.notifier.keep_alive(clock::monotonic_ns(), |e| {
+            log(format_args!(
+                "service manager: cannot ping the watchdog: {e}"
+            ));
+        });
     }
 
     /// Ends the flight recording and logs how it went; a failed recording (a full disk) is
