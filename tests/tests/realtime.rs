@@ -214,8 +214,38 @@ fn the_systemd_units_verify_against_the_built_binaries() {
         out.status.success() && text.trim().is_empty(),
         "systemd-analyze verify:\n{text}"
     );
+    // the watchdogs (docs/pair-on-a-board.md, "Watchdogs"): both notify, the controller is
+    // restarted on a failure or its watchdog, the plant on its watchdog only
     let controller = std::fs::read_to_string(&units[0]).unwrap();
-    assert!(controller.contains("Restart=always"));
+    let plant = std::fs::read_to_string(&units[1]).unwrap();
+    for text in [&controller, &plant] {
+        for key in [
+            "Type=notify",
+            "WatchdogSec=500ms",
+            "RestartSec=",
+            "StartLimitBurst=",
+        ] {
+            assert!(text.contains(key), "no {key}:\n{text}");
+        }
+    }
+    assert!(controller.contains("Restart=on-failure"));
+    assert!(plant.contains("Restart=on-watchdog"));
+    // and the check can fail: systemd-analyze names a bad value (it exits 0 all the same)
+    for (unit, from, to) in [
+        (0, "WatchdogSec=500ms", "WatchdogSec=banana"),
+        (1, "Restart=on-watchdog", "Restart=sometimes"),
+    ] {
+        let text = std::fs::read_to_string(&units[unit]).unwrap();
+        let planted = d.join(&format!("planted-{unit}.service"));
+        std::fs::write(&planted, text.replace(from, to)).unwrap();
+        let out = std::process::Command::new("systemd-analyze")
+            .arg("verify")
+            .arg(&planted)
+            .output()
+            .unwrap();
+        let said = String::from_utf8_lossy(&out.stderr);
+        assert!(said.contains(to.split('=').nth(1).unwrap()), "{to}: {said}");
+    }
 }
 
 /// The pid in the plant's `started controller_node (pid N)` line.
