@@ -473,9 +473,11 @@ fn has_string_field(cdr: &[u8], s: &str) -> bool {
 }
 
 /// The failsafe manager on the live bridge's status channel
-/// (docs/failsafe.md, "In the pair and on the firmware"): a real-time pair flying
+/// (docs/failsafe.md, "In the pair and on the firmware"): a lockstep pair flying
 /// `pil_rov_surface`, whose ROV loses two horizontal thrusters unannounced, shows
-/// `failsafe_action` "nominal" first and then "surface" for the cause "actuators".
+/// `failsafe_action` "surface" for the cause "actuators" once engaged, and "nominal" before
+/// (lockstep: the flight, and the engagement at 2.57 s, do not depend on the machine's load;
+/// a real-time run under CI's CPU hog missed too many deadlines for the detector).
 #[test]
 fn the_status_channel_shows_the_failsafe_engaged() {
     let _g = serial();
@@ -494,6 +496,8 @@ fn the_status_channel_shows_the_failsafe_engaged() {
             "run",
             "--scenario",
             scenario.to_str().unwrap(),
+            "--mode",
+            "lockstep",
             "--name",
             run,
             "--out",
@@ -526,11 +530,16 @@ fn the_status_channel_shows_the_failsafe_engaged() {
             Err(e) => panic!("the client lost the bridge: {e}\n{}", bridge.output()),
         }
     }
+    // the status board is sampled: the nominal stretch may pass before the client is served
     assert_eq!(
-        seen,
-        [("nominal", ""), ("surface", "actuators")],
+        seen.last(),
+        Some(&("surface", "actuators")),
         "{}",
         plant.output()
+    );
+    assert!(
+        seen[..seen.len() - 1].iter().all(|x| *x == ("nominal", "")),
+        "{seen:?}"
     );
     plant.expect_exit(0, Duration::from_secs(60));
     bridge.expect_exit(0, Duration::from_secs(20));
