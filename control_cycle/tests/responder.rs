@@ -24,6 +24,23 @@ fn responder(s: &Scenario) -> Responder<f64, So3, 3, 3> {
     Responder::new(s.controller().unwrap(), s.rejection_config()).unwrap()
 }
 
+/// The plant's state `k` of scenario `s`: the body's pose and velocity, and the torque it
+/// applied over the period before.
+fn state_msg(
+    s: &Scenario,
+    k: u64,
+    body: &controller::integrator::RigidBody<f64, So3, 3, 3>,
+    applied: &Vector3<f64>,
+) -> StateMsg {
+    let mut msg = StateMsg::new(ipc_types::WireGroup::So3);
+    msg.seq = k;
+    msg.t = k as f64 * s.control_period;
+    msg.control_period = s.control_period;
+    msg.set_state(body.configuration(), &body.velocity());
+    msg.set_applied(applied);
+    msg
+}
+
 #[test]
 fn a_skipped_gap_and_an_unrecorded_late_command_do_not_stop_replay() {
     let s = scenario();
@@ -33,12 +50,7 @@ fn a_skipped_gap_and_an_unrecorded_late_command_do_not_stop_replay() {
     let mut applied = Vector3::zeros();
     let (mut states, mut commands): (Vec<StateMsg>, Vec<Option<CommandMsg>>) = (vec![], vec![]);
     for k in 0..200u64 {
-        let mut msg = StateMsg::new(ipc_types::WireGroup::So3);
-        msg.seq = k;
-        msg.t = k as f64 * s.control_period;
-        msg.control_period = s.control_period;
-        msg.set_state(body.configuration(), &body.velocity());
-        msg.set_applied(&applied);
+        let msg = state_msg(&s, k, &body, &applied);
         states.push(msg);
         // the controller is stopped over ticks 80..95: the plant holds the last torque
         let cmd = (!(80..95).contains(&k)).then(|| live.respond(&mut reference, &msg).unwrap());
@@ -213,12 +225,7 @@ fn a_command_the_plant_did_not_apply_raises_link() {
         let mut applied = Vector3::zeros();
         let mut modes = vec![];
         for k in 0..100u64 {
-            let mut msg = StateMsg::new(ipc_types::WireGroup::So3);
-            msg.seq = k;
-            msg.t = k as f64 * s.control_period;
-            msg.control_period = s.control_period;
-            msg.set_state(body.configuration(), &body.velocity());
-            msg.set_applied(&applied);
+            let msg = state_msg(&s, k, &body, &applied);
             let c = live.respond(&mut reference, &msg).unwrap();
             reference.advance();
             modes.push(State::read_word(c.failsafe).unwrap().0);
