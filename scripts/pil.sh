@@ -23,7 +23,8 @@
 # The moved hexarotor's RMS position and attitude errors must be within twice the unmoved one's.
 # Then, on the seed at a 20 ms period in real time: a scenario mismatch is refused on both
 # sides, a frame corrupted on the line is counted and held over, a firmware reset through
-# QEMU's monitor (system_reset) enters safe mode and the handshake brings it back; and the
+# QEMU's monitor (system_reset) enters safe mode and the handshake brings it back, a control
+# task planted to hang is reset by the firmware's watchdog and the run flies on; and the
 # firmware built timer-driven (feature `timer`) equals the f32 simulation in lockstep. Last, the
 # firmware's flash, static RAM and stack high-water mark.
 #
@@ -323,6 +324,39 @@ assert 2 in status, "no safe-mode row"
 after = status[max(i for i, x in enumerate(status) if x == 2) + 1:]
 assert len(after) >= 40 and all(x == 0 for x in after[-40:]), f"safe mode did not end: {after[-40:]}"
 print(f"PIL: a firmware reset: safe mode for {s['safe_mode_cycles']} cycles ({s['safe_mode_entries']} entry), then the firmware greeted again and the plant left safe mode")
+PY
+
+	# the watchdog: a firmware whose control task hangs at state 40 (0.8 s; the feature `hang`)
+	# stops feeding it; its interrupt (the NMI) comes 500 ms later, its reset 500 ms after that.
+	# The plant enters safe mode, the firmware boots again and greets the plant, and the run
+	# flies on to its end with fresh commands.
+	step "real time at 50 Hz: the control task hangs at state 40 and the watchdog resets the firmware"
+	export PIL_HANG_AT=40
+	build "$slow" seed_hang hang
+	unset PIL_HANG_AT
+	start seed_hang
+	"$PLANT" run --mode realtime --rate-hz 50 --scenario "$slow" --transport "tcp:127.0.0.1:$PORT" --no-record \
+		--out "$OUT/hang" >"$OUT/hang.log" 2>&1 || die "hang: the run failed (log: $OUT/hang.log)"
+	stop_qemu
+	q=$OUT/seed_hang.qemu.out
+	grep -q "^PIL HANG at state 4[0-9]$" "$q" || die "hang: the planted hang did not happen: $(cat "$q")"
+	grep -q "^PIL WATCHDOG no cycle completed for 500 ms" "$q" || die "hang: the watchdog's interrupt did not come: $(cat "$q")"
+	(($(grep -c "^PIL READY .* watchdog 500 ms$" "$q") == 2)) || die "hang: not one reset by the watchdog: $(cat "$q")"
+	grep -q ", 1 firmware resets" "$OUT/hang.log" || die "hang: the plant did not see one reset: $(grep 'serial link' "$OUT/hang.log")"
+	python3 - "$OUT/hang/summary.json" "$OUT/hang/trajectory.csv" <<'PY' || die "hang: see $OUT/hang/summary.json"
+import csv, json, sys
+s = json.load(open(sys.argv[1]))
+assert s["cycles"] == 201, f"the run ended after {s['cycles']} cycles"
+assert s["safe_mode_entries"] >= 1, "no safe mode while the firmware hung"
+status = [int(float(r["command_status"])) for r in csv.DictReader(open(sys.argv[2]))]
+hung = status.index(2)
+assert hung >= 40, f"safe mode before the hang, at cycle {hung}"
+# the run carries on: the restarted firmware answers most of what is left (the emulator on a
+# busy host misses a deadline now and then), to the end
+fresh = sum(1 for x in status[hung:] if x == 0)
+assert fresh >= 50 and 0 in status[-5:], f"after the hang at cycle {hung}: {fresh} fresh commands, last {status[-5:]}"
+print(f"PIL: the control task hung at state 40; the watchdog reset the firmware; safe mode from cycle {hung} "
+      f"({s['safe_mode_cycles']} cycles in all), then {fresh} fresh commands to the end of the run")
 PY
 
 	# the timer-driven mode (feature `timer`): the 20 ms timer, not the frames, releases the

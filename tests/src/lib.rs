@@ -1,8 +1,8 @@
 //! Helpers for driving the real `plant_sim` and `controller_node` binaries.
 //!
 //! The binaries are the ones `cargo test --workspace` builds into the same target directory
-//! as this test (plant_sim's and controller_node's own integration tests make cargo build
-//! them). Processes are killed and reaped when their handle drops, so a failing test leaves
+//! as this test; [`bin`] builds them that way first when this `cargo test` did not ([`build`]),
+//! so `cargo test -p pair_tests` works on a fresh clone. Processes are killed and reaped when their handle drops, so a failing test leaves
 //! no process behind.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -14,6 +14,7 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
+pub mod build;
 pub mod supervise;
 
 static SERIAL: Mutex<()> = Mutex::new(());
@@ -23,18 +24,16 @@ pub fn serial() -> MutexGuard<'static, ()> {
     SERIAL.lock().unwrap_or_else(|p| p.into_inner())
 }
 
-/// The path of a workspace binary built next to this test.
+/// The path of a workspace binary, built next to this test as `cargo test --workspace` builds
+/// it (with the test-only flags; [`build`] builds it first when this `cargo test` has not).
 pub fn bin(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().expect("test executable path");
-    let dir = exe
-        .parent()
-        .and_then(Path::parent)
-        .expect("target directory");
-    let path = dir.join(name);
+    build::ensure();
+    let path = build::profile_dir().join(name);
     assert!(
-        path.exists(),
-        "{} is missing: run the workspace's tests (cargo test --workspace), which build it",
-        path.display()
+        path.is_file(),
+        "{} is missing: it is not one of the binaries pair_tests builds ({})",
+        path.display(),
+        build::BINARIES.join(", ")
     );
     path
 }

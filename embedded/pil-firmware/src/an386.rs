@@ -234,3 +234,53 @@ pub mod uart0 {
         }
     }
 }
+
+/// The watchdog (CMSDK APB watchdog, Arm DDI0479C section 4.5) at 0x4000_8000, which QEMU's
+/// mps2-an386 models: a 32-bit counter on the 25 MHz system clock, counting down from LOAD.
+/// At the first zero it raises its interrupt (the NMI on this board) and reloads; at the
+/// second, with the interrupt still uncleared, it resets the system. A write to INTCLR clears
+/// the interrupt and reloads the counter: that is the feed. Every register but LOCK ignores
+/// writes while the lock is on.
+pub mod watchdog {
+    const BASE: usize = 0x4000_8000;
+    const LOAD: *mut u32 = BASE as *mut u32;
+    const CONTROL: *mut u32 = (BASE + 0x8) as *mut u32;
+    const INTCLR: *mut u32 = (BASE + 0xC) as *mut u32;
+    const LOCK: *mut u32 = (BASE + 0xC00) as *mut u32;
+    /// The key that opens the lock (any other value closes it).
+    const KEY: u32 = 0x1ACC_E551;
+    /// CONTROL: the counter and its interrupt on (INTEN, bit 0), the reset on (RESEN, bit 1).
+    const INTEN_RESEN: u32 = 0b11;
+    /// The watchdog's clock (Hz): the board's system clock.
+    pub const CLOCK_HZ: u32 = 25_000_000;
+
+    /// Writes `value` to `reg` with the lock open, then closes it.
+    fn unlocked(reg: *mut u32, value: u32) {
+        // SAFETY: LOCK and `reg` are this watchdog's registers, valid, aligned MMIO addresses
+        // on this board; volatile, as hardware reads them.
+        unsafe {
+            LOCK.write_volatile(KEY);
+            reg.write_volatile(value);
+            LOCK.write_volatile(0);
+        }
+    }
+
+    /// Starts the watchdog: the interrupt after `ticks` clock ticks without a feed, the reset
+    /// after twice that.
+    pub fn arm(ticks: u32) {
+        unlocked(LOAD, ticks.max(1));
+        unlocked(INTCLR, 1);
+        unlocked(CONTROL, INTEN_RESEN);
+    }
+
+    /// Feeds it: clears the interrupt and reloads the counter.
+    pub fn feed() {
+        unlocked(INTCLR, 1);
+    }
+
+    /// Stops it (the counter, the interrupt and the reset off).
+    pub fn disarm() {
+        unlocked(CONTROL, 0);
+        unlocked(INTCLR, 1);
+    }
+}

@@ -24,9 +24,17 @@
 //! state is answered once, on the first tick after it arrived. The handshake and `Bye` are
 //! answered at once, as before. At `Bye` it prints `PIL TIMER ticks <n> answered <n>`.
 //!
+//! The watchdog (the board's CMSDK APB watchdog, which QEMU models): the control task arms
+//! it when it completes the first cycle of a run and feeds it at every cycle it completes,
+//! and nowhere else; `Bye` stops it. A control task that stops completing cycles (hung, or
+//! starved of states) raises the watchdog's interrupt, the NMI, after `PIL_WATCHDOG_MS`
+//! (default 500 ms), and the watchdog resets the board after twice that. The firmware then
+//! starts again and waits for the plant's handshake, as after a power cycle.
+//!
 //! The scenario's configuration is built in (`PIL_CONFIG`, from `plant_sim pil-config`).
-//! Over semihosting it prints `PIL READY <identity>` at start, and at each `Bye` the
-//! counts and the stack's high-water mark (`STACK <bytes>`).
+//! Over semihosting it prints `PIL READY <identity> watchdog <ms> ms` at start, at each
+//! `Bye` the counts and the stack's high-water mark (`STACK <bytes>`), and `PIL WATCHDOG`
+//! in the NMI when the watchdog's first stage expires.
 #![no_std]
 #![no_main]
 
@@ -36,6 +44,10 @@ mod an386;
 #[path = "../../firmware-cortex-m/src/memcopy.rs"]
 mod memcopy;
 mod stack;
+/// The build's settings (`build.rs`: `PIL_WATCHDOG_MS`, `PIL_HANG_AT`).
+mod settings {
+    include!(concat!(env!("OUT_DIR"), "/settings.rs"));
+}
 
 use core::panic::PanicInfo;
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE};
@@ -53,9 +65,30 @@ fn panic(info: &PanicInfo) -> ! {
     }
 }
 
+/// The watchdog's first stage expired: no cycle completed for `PIL_WATCHDOG_MS`. Says so
+/// once; the reset follows at the second stage (the interrupt stays uncleared).
+// SAFETY: cortex-m-rt asks an NMI handler not to touch what a critical section guards, as the
+// NMI preempts any: this one reads and writes only its own atomic, and writes through a host
+// stream of its own (`hio::hstdout` opens one per call), not `hprintln!`'s shared one.
+#[cortex_m_rt::exception]
+unsafe fn NonMaskableInt() {
+    use core::fmt::Write;
+    static TOLD: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+    if !TOLD.swap(true, core::sync::atomic::Ordering::Relaxed)
+        && let Ok(mut out) = cortex_m_semihosting::hio::hstdout()
+    {
+        let _ = writeln!(
+            out,
+            "PIL WATCHDOG no cycle completed for {} ms: reset follows",
+            crate::settings::WATCHDOG_MS
+        );
+    }
+}
+
 #[rtic::app(device = crate::an386, peripherals = true, dispatchers = [TIMER0, TIMER1])]
 mod app {
-    use crate::an386::uart0;
+    use crate::an386::{uart0, watchdog};
+    use crate::settings::{HANG_AT, WATCHDOG_MS};
     use crate::stack;
     use cortex_m::peripheral::syst::SystClkSource;
     use cortex_m_semihosting::debug::{self, EXIT_FAILURE};
@@ -103,6 +136,56 @@ mod app {
         out: [u8; MAX_ENCODED],
         painted: Option<stack::Painted>,
         corrupt: u64,
+        guard: Guard,
+    }
+
+    /// The control task's side of the watchdog.
+    pub struct Guard {
+        /// Whether the watchdog runs (from a run's first completed cycle to its `Bye`).
+        armed: bool,
+        /// The first state this boot answered (the planted hang's condition).
+        first: Option<u64>,
+    }
+
+    impl Guard {
+        /// The cycle on `state`: its command written to the UART, and the watchdog armed or
+        /// fed when the cycle completed with a command. With the feature `hang`, the task
+        /// hangs here instead at the first state numbered `PIL_HANG_AT` or later, in a boot
+        /// whose first state came before it (so the firmware the watchdog reset flies on).
+        fn cycle(&mut self, cycle: &mut Cycle, state: serial_wire::StateFrame, out: &mut [u8; MAX_ENCODED]) {
+            let first = *self.first.get_or_insert(state.seq);
+            if let Some(at) = HANG_AT
+                && first < at
+                && state.seq >= at
+            {
+                hprintln!("PIL HANG at state {}", state.seq);
+                loop {
+                    core::hint::spin_loop();
+                }
+            }
+            let Some(reply) = cycle.on_frame(&Frame::State(state)) else {
+                return;
+            };
+            if let Ok(n) = encode(&reply, out) {
+                uart0::write_all(&out[..n]);
+            }
+            if matches!(reply, Frame::Command(_)) {
+                if self.armed {
+                    watchdog::feed();
+                } else {
+                    watchdog::arm(WATCHDOG_MS * (watchdog::CLOCK_HZ / 1000));
+                    self.armed = true;
+                }
+            }
+        }
+
+        /// The run is over: the watchdog stops until the next run's first cycle.
+        fn bye(&mut self) {
+            if self.armed {
+                watchdog::disarm();
+                self.armed = false;
+            }
+        }
     }
 
     #[init]
@@ -130,12 +213,13 @@ mod app {
             // a whole number of milliseconds, at least one (SysTick counts them)
             period_ms = ((h.period * 1000.0) as u64).max(1);
             hprintln!(
-                "PIL READY group {} period {} fingerprint {:016x} scenario {}{}",
+                "PIL READY group {} period {} fingerprint {:016x} scenario {}{} watchdog {} ms",
                 h.group,
                 h.period,
                 h.fingerprint,
                 h.scenario.as_str(),
-                if TIMER { " timer-driven" } else { "" }
+                if TIMER { " timer-driven" } else { "" },
+                WATCHDOG_MS
             );
         }
         let (tx, rx) = make_channel!(Event, CAPACITY);
@@ -157,6 +241,10 @@ mod app {
                 out: [0; MAX_ENCODED],
                 painted,
                 corrupt: 0,
+                guard: Guard {
+                    armed: false,
+                    first: None,
+                },
             },
         )
     }
@@ -193,7 +281,7 @@ mod app {
     }
 
     /// Frames in, answers out.
-    #[task(priority = 1, local = [rx, cycle, deframer, out, painted, corrupt, latest, released])]
+    #[task(priority = 1, local = [rx, cycle, deframer, out, painted, corrupt, latest, released, guard])]
     async fn control(cx: control::Context) {
         let control::LocalResources {
             rx,
@@ -204,6 +292,7 @@ mod app {
             corrupt,
             latest,
             released,
+            guard,
             ..
         } = cx.local;
         while let Ok(event) = rx.recv().await {
@@ -214,11 +303,7 @@ mod app {
                     released.0 += 1;
                     if let Some(state) = latest.take() {
                         released.1 += 1;
-                        if let Some(reply) = cycle.on_frame(&Frame::State(state))
-                            && let Ok(n) = encode(&reply, out)
-                        {
-                            uart0::write_all(&out[..n]);
-                        }
+                        guard.cycle(cycle, state, out);
                     }
                     continue;
                 }
@@ -239,6 +324,13 @@ mod app {
                     *latest = Some(state.clone());
                     continue;
                 }
+            }
+            if let Frame::State(state) = frame {
+                guard.cycle(cycle, state, out);
+                continue;
+            }
+            if bye {
+                guard.bye();
             }
             if bye && TIMER {
                 hprintln!("PIL TIMER ticks {} answered {}", released.0, released.1);
