@@ -2,6 +2,7 @@
 
 use controller::group::MatrixLieGroup;
 use controller::{Controller, Rejection, RejectionConfig, Trajectory};
+use failsafe::monitor::applied_as_sent;
 use ipc_types::{CommandMsg, StateMsg};
 
 /// One controller cycle without IPC: steps the reference up to the state's k (normally it is
@@ -245,7 +246,11 @@ where
                     // a state the controller never saw (the link lost it), or an answer the
                     // plant did not apply (it came too late)
                     link: (self.previous.is_some() && !follows)
-                        || (follows && !applied_as_sent(self.sent.as_ref(), &msg.applied, M)),
+                        || (follows
+                            && !applied_as_sent(
+                                self.sent.as_ref().map(|s| &s[..M]),
+                                &msg.applied[..M],
+                            )),
                     estimator: msg.flags
                         & (ipc_types::flags::ESTIMATE_DEGRADED | ipc_types::flags::ESTIMATE_LOST)
                         != 0,
@@ -335,23 +340,4 @@ where
             );
         }
     }
-}
-
-/// Whether a state's `applied` wrench is, bit for bit in its first `m` entries, the one the
-/// answer before it would give if the plant applied it (`sent`; `None`: no answer yet). A
-/// command that reaches the plant after its deadline is not applied: the plant holds the one
-/// before it, or flies its safe mode, and reports that wrench instead (docs/failsafe.md,
-/// "Causes"). A held command equal bit for bit to the late one is not told apart, and
-/// changes nothing the law believes.
-pub(crate) fn applied_as_sent(
-    sent: Option<&[f64; ipc_types::MAX_M]>,
-    applied: &[f64; ipc_types::MAX_M],
-    m: usize,
-) -> bool {
-    sent.is_some_and(|s| {
-        s.iter()
-            .zip(applied)
-            .take(m)
-            .all(|(x, y)| x.to_bits() == y.to_bits())
-    })
 }

@@ -5,6 +5,7 @@
 
 use allocation::{Commands, VehicleControl};
 use controller::group::MatrixLieGroup;
+use failsafe::monitor::applied_as_sent;
 use ipc_types::{CommandMsg, MAX_ACTUATORS, StateMsg};
 use nalgebra::SVector;
 use scenario::Scenario;
@@ -144,11 +145,10 @@ impl<const M: usize> ControllerVehicle<M> {
         }
         if let Some(d) = &mut self.detector {
             let applied = msg.applied_torque::<M>();
-            let as_sent = self.accounted.is_some_and(|a| {
-                a.iter()
-                    .zip(applied.iter())
-                    .all(|(x, y)| x.to_bits() == y.to_bits())
-            });
+            let as_sent = applied_as_sent(
+                self.accounted.as_ref().map(|a| a.as_slice()),
+                applied.as_slice(),
+            );
             if !(follows && as_sent) {
                 d.gap();
             }

@@ -113,6 +113,35 @@ impl<T: Real> Monitor<T> {
     }
 }
 
+/// A scalar whose bits can be compared: `f32`, `f64`.
+pub trait Bits: Copy {
+    /// The IEEE 754 bits (an `f32`'s widened).
+    fn bits(self) -> u64;
+}
+
+impl Bits for f32 {
+    fn bits(self) -> u64 {
+        u64::from(self.to_bits())
+    }
+}
+
+impl Bits for f64 {
+    fn bits(self) -> u64 {
+        self.to_bits()
+    }
+}
+
+/// Whether a state's `applied` wrench is, bit for bit, the one the controller's answer before
+/// it counted as applied (`sent`, paired entry by entry with `applied`; `None`: no answer
+/// yet). A command that reaches the plant after its deadline is not applied: the plant holds
+/// the one before it, or flies its safe mode, and reports that wrench instead
+/// (docs/failsafe.md, "Causes"), which raises `link` and tells the failure detector the
+/// residual's window has a gap. A held command equal bit for bit to the late one is not told
+/// apart, and changes nothing the law believes.
+pub fn applied_as_sent<T: Bits>(sent: Option<&[T]>, applied: &[T]) -> bool {
+    sent.is_some_and(|s| s.iter().zip(applied).all(|(x, y)| x.bits() == y.bits()))
+}
+
 /// Whether an allocation fell short of its torque (docs/failsafe.md, "Causes"): its status
 /// says the torque could not be met within the bounds (`allocation::Status` code 1), and the
 /// torque it could not give, `|τ_demand − τ_achieved|`, exceeds `limit`

@@ -263,3 +263,18 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn applied_as_sent_compares_bits_not_values() {
+    use monitor::applied_as_sent;
+    let sent = [1.0f64, -0.0, 2.5];
+    assert!(applied_as_sent(Some(&sent[..]), &[1.0, -0.0, 2.5]));
+    // no answer yet, a held command, and a zero of the other sign all differ
+    assert!(!applied_as_sent(None, &[1.0, -0.0, 2.5]));
+    assert!(!applied_as_sent(Some(&sent[..]), &[1.0, -0.0, 2.4]));
+    assert!(!applied_as_sent(Some(&sent[..]), &[1.0, 0.0, 2.5]));
+    // a NaN equals itself here, bit for bit, as the wire carries it; f32 the same way
+    let nan = [f32::NAN, 3.0];
+    assert!(applied_as_sent(Some(&nan[..]), &[f32::NAN, 3.0]));
+    assert!(!applied_as_sent(Some(&nan[..]), &[-f32::NAN, 3.0]));
+}

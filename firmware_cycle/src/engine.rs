@@ -215,11 +215,10 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             None => (nominal, None, false),
             Some(m) => {
                 // a state lost on the line, or a command the host did not apply
-                let as_sent = m.sent.is_some_and(|w| {
-                    w.iter()
-                        .zip(s.applied.iter())
-                        .all(|(x, y)| x.to_bits() == y.to_bits())
-                });
+                let as_sent = failsafe::monitor::applied_as_sent(
+                    m.sent.as_ref().map(|w| w.as_slice()),
+                    &s.applied,
+                );
                 let flags = failsafe::monitor::Flags {
                     link: (self.previous.is_some() && !follows) || (follows && !as_sent),
                     // the on-board estimator's health, with `gate = true`

@@ -61,11 +61,10 @@ impl<const M: usize> Watcher<M> {
         v: &SVector<f32, M>,
         r_hat: &Matrix3<f32>,
     ) -> Detection {
-        let as_sent = self.accounted.is_some_and(|a| {
-            a.iter()
-                .zip(applied.iter())
-                .all(|(x, y)| x.to_bits() == y.to_bits())
-        });
+        let as_sent = failsafe::monitor::applied_as_sent(
+            self.accounted.as_ref().map(|a| a.as_slice()),
+            applied,
+        );
         let d = &mut self.detector;
         if !(follows && as_sent) {
             d.gap();

@@ -26,7 +26,7 @@ struct Run {
     out: String,
 }
 
-/// A 500 Hz real-time run of the seed, 5 s, with its controller under supervision started
+/// A 500 Hz real-time run of the seed, 3.5 s, with its controller under supervision started
 /// with `extra`; `hang` is called once 600 cycles are recorded and returns the stand-in's
 /// time of the hang. The stand-in waits `settle` for the controller to exit after the run.
 fn supervised_run(
@@ -45,7 +45,7 @@ fn supervised_run(
             "--rate-hz",
             "500",
             "--duration",
-            "5",
+            "3.5",
             "--name",
             name,
             "--out",
