@@ -73,6 +73,12 @@ if [[ -z ${PLANT_SIM:-} ]]; then
 	(cd "$REPO" && cargo build --locked -p plant_sim --features fault-injection >"$OUT/plant-build.log" 2>&1) ||
 		die "cannot build plant_sim (log: $OUT/plant-build.log)"
 fi
+# `plant_sim export` (the watchdog's flight log below) runs eqtrack-export from its directory
+if [[ ! -x $(dirname "$PLANT")/eqtrack-export ]]; then
+	step "building eqtrack-export"
+	(cd "$REPO" && cargo build --locked -p export >"$OUT/export-build.log" 2>&1) ||
+		die "cannot build eqtrack-export (log: $OUT/export-build.log)"
+fi
 
 if ((DEFAULT)); then
 	# pil_hexarotor a kilometre from the world origin (its own tag: pil_hexarotor_far)
@@ -335,7 +341,7 @@ PY
 	build "$slow" seed_hang hang
 	unset PIL_HANG_AT
 	start seed_hang
-	"$PLANT" run --mode realtime --rate-hz 50 --scenario "$slow" --transport "tcp:127.0.0.1:$PORT" --no-record \
+	"$PLANT" run --mode realtime --rate-hz 50 --scenario "$slow" --transport "tcp:127.0.0.1:$PORT" \
 		--out "$OUT/hang" >"$OUT/hang.log" 2>&1 || die "hang: the run failed (log: $OUT/hang.log)"
 	stop_qemu
 	q=$OUT/seed_hang.qemu.out
@@ -358,6 +364,39 @@ assert fresh >= 50 and 0 in status[-5:], f"after the hang at cycle {hung}: {fres
 print(f"PIL: the control task hung at state 40; the watchdog reset the firmware; safe mode from cycle {hung} "
       f"({s['safe_mode_cycles']} cycles in all), then {fresh} fresh commands to the end of the run")
 PY
+	# and the flight log recorded all of it: every state, and the commands of both boots
+	"$PLANT" export --format jsonl --out "$OUT/hang.jsonl" "$OUT/hang" >"$OUT/hang-export.log" 2>&1 ||
+		die "hang: the flight log does not export: $(tail -2 "$OUT/hang-export.log")"
+	python3 - "$OUT/hang.jsonl" "$OUT/hang/trajectory.csv" <<'PY' || die "hang: the flight log is not the run's"
+import collections, csv, json, sys
+topics = collections.Counter(json.loads(line)["topic"] for line in open(sys.argv[1]))
+fresh = sum(1 for r in csv.DictReader(open(sys.argv[2])) if int(float(r["command_status"])) == 0)
+assert topics["/eqtrack/state"] == 201 and topics["/eqtrack/cycle"] == 201, dict(topics)
+assert topics["/eqtrack/command"] >= fresh >= 90, (dict(topics), fresh)
+print(f"PIL: the hang's flight log: {topics['/eqtrack/state']} states, {topics['/eqtrack/command']} commands "
+      f"({fresh} fresh in trajectory.csv), through the watchdog's reset")
+PY
+
+	# the build's settings from the environment: a bad one stops the build, naming it
+	step "the firmware's build settings: bad values refused, naming the variable"
+	# bad_setting EXPECTED FEATURES [VAR=VALUE]...: the build must fail and say EXPECTED
+	bad_setting() {
+		local expect=$1 features=$2 log=$OUT/bad-setting.log
+		shift 2
+		if (
+			(($#)) && export "$@"
+			PIL_CONFIG="$OUT/seed_slow.config" fw_env cargo build --release --locked -Z build-std=core \
+				${features:+--features "$features"}
+		) >"$log" 2>&1; then
+			die "the firmware built with ${*:-the feature $features alone}"
+		fi
+		grep -qF "$expect" "$log" || { tail -5 "$log" >&2; die "the firmware's build did not say: $expect"; }
+	}
+	bad_setting 'PIL_WATCHDOG_MS=0: outside 1 to 85000' "" PIL_WATCHDOG_MS=0
+	bad_setting 'PIL_WATCHDOG_MS="soon": not a whole number' "" PIL_WATCHDOG_MS=soon
+	bad_setting 'PIL_HANG_AT is not set' hang
+	bad_setting 'PIL_HANG_AT=0: outside' hang PIL_HANG_AT=0
+	echo "PIL: bad build settings refused, naming the variable (PIL_WATCHDOG_MS 0 and soon; hang without PIL_HANG_AT, and at 0)"
 
 	# the timer-driven mode (feature `timer`): the 20 ms timer, not the frames, releases the
 	# cycle; in lockstep each state waits for a tick, is answered once, and the run equals the

@@ -261,7 +261,6 @@ fn first_reference<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     streamed_reference(&s).map_err(bad)
 }
 
-/// Logs each rejection kind once.
 /// A notification the service manager did not take: logged, the run goes on (the manager
 /// restarts a process whose watchdog pings stop, which is what it is there for).
 fn notify(sent: std::io::Result<()>) {
@@ -288,6 +287,7 @@ fn side_notifier(fault: Option<Fault>) {
     }
 }
 
+/// Logs each rejection kind once.
 fn log_invalid(ep: &mut ControllerEndpoint) {
     while let Some(r) = ep.next_invalid() {
         let m = &r.msg;
@@ -372,7 +372,7 @@ fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     side_notifier(opts.fault);
     let started = Instant::now();
     let stop = loop {
-        notifier.keep_alive(clock::monotonic_ns(), |e| {
+        notifier.keep_alive(clock::monotonic_ns, |e| {
             log(format_args!(
                 "service manager: cannot ping the watchdog: {e}"
             ));

@@ -11,7 +11,8 @@
 //!
 //! It runs once per `cargo test` invocation, not once per test binary: the first test binary
 //! that builds leaves a stamp naming the process that ran it (its parent: cargo), and the
-//! test binaries cargo runs after it see the stamp and skip the check.
+//! test binaries cargo runs after it see the stamp and skip the check. A test binary started
+//! by anything but cargo (by hand, from a shell that outlives edits) checks every time.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -45,10 +46,15 @@ pub fn ensure() {
     }
 }
 
-/// The process that ran this test binary (cargo, under `cargo test`): its id and its start
-/// time (`/proc/<pid>/stat`, field 22), which tell it from a later process given the same id.
+/// The `cargo test` that ran this test binary: its id and its start time
+/// (`/proc/<pid>/stat`, field 22), which tell it from a later process given the same id;
+/// `None` when the parent is not cargo.
 fn parent() -> Option<String> {
     let pid = std::os::unix::process::parent_id();
+    let comm = std::fs::read_to_string(format!("/proc/{pid}/comm")).ok()?;
+    if comm.trim_end() != "cargo" {
+        return None;
+    }
     let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
     // the fields after the command's name, which is in parentheses and may hold spaces
     let rest = &stat[stat.rfind(')')? + 1..];

@@ -216,8 +216,13 @@ fn the_systemd_units_verify_against_the_built_binaries() {
     );
     // the watchdogs (docs/pair-on-a-board.md, "Watchdogs"): both notify, the controller is
     // restarted on a failure or its watchdog, the plant on its watchdog only
+    // (whole lines: a key commented out, or one inside another's value, does not count)
     let controller = std::fs::read_to_string(&units[0]).unwrap();
     let plant = std::fs::read_to_string(&units[1]).unwrap();
+    let has = |text: &str, key: &str| {
+        text.lines()
+            .any(|l| l.trim_end() == key || (key.ends_with('=') && l.starts_with(key)))
+    };
     for text in [&controller, &plant] {
         for key in [
             "Type=notify",
@@ -225,11 +230,20 @@ fn the_systemd_units_verify_against_the_built_binaries() {
             "RestartSec=",
             "StartLimitBurst=",
         ] {
-            assert!(text.contains(key), "no {key}:\n{text}");
+            assert!(has(text, key), "no {key}:\n{text}");
         }
     }
-    assert!(controller.contains("Restart=on-failure"));
-    assert!(plant.contains("Restart=on-watchdog"));
+    assert!(has(&controller, "Restart=on-failure"), "{controller}");
+    // a configuration the controller refuses (exit 2) is not restarted over and over
+    assert!(
+        has(&controller, "RestartPreventExitStatus=2"),
+        "{controller}"
+    );
+    assert!(has(&plant, "Restart=on-watchdog"), "{plant}");
+    assert!(!has(
+        &controller.replace("Type=notify", "# Type=notify"),
+        "Type=notify"
+    ));
     // and the check can fail: systemd-analyze names a bad value (it exits 0 all the same)
     for (unit, from, to) in [
         (0, "WatchdogSec=500ms", "WatchdogSec=banana"),

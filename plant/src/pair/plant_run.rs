@@ -473,7 +473,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
     /// The service manager's watchdog: a ping when one is due; the first that cannot be
     /// sent is logged.
     pub(super) fn ping(&mut self) {
-        self.notifier.keep_alive(clock::monotonic_ns(), |e| {
+        self.notifier.keep_alive(clock::monotonic_ns, |e| {
             log(format_args!(
                 "service manager: cannot ping the watchdog: {e}"
             ));
