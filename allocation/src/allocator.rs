@@ -1,7 +1,7 @@
 //! The prioritised bounded allocation (docs/maths.md, "Control allocation").
 
 use crate::geometry::Geometry;
-use crate::qp::{MAX_EQ, Objective, Rows, Stage, clamp, solve};
+use crate::qp::{Factored, MAX_EQ, Objective, Rows, Stage, clamp, solve};
 use crate::{Commands, MAX_ACTUATORS};
 use core::fmt;
 use nalgebra::{RealField, SMatrix, SVector};
@@ -337,8 +337,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         previous: Option<&Commands<T>>,
         through: usize,
     ) -> Allocation<T, K> {
-        let (lo, hi) = (bounds.lo, bounds.hi);
-        let up = self.preferred.zip_zip_map(&lo, &hi, clamp);
+        let up = self.clamped(&self.preferred, bounds);
         if !demand.iter().all(|x| x.is_finite()) {
             return self.answer(up, Status::InvalidDemand, 0);
         }
@@ -350,11 +349,11 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             return self.answer(start, Status::Met, 0);
         }
         let start = match previous {
-            Some(p) if p.iter().all(|x| x.is_finite()) => p.zip_zip_map(&lo, &hi, clamp),
+            Some(p) if p.iter().all(|x| x.is_finite()) => self.clamped(p, bounds),
             _ => start,
         };
         let (u, spent, stopped) = self.active_set(demand, bounds, &up, start, split, through);
-        let u = u.zip_zip_map(&lo, &hi, clamp);
+        let u = self.clamped(&u, bounds);
         if !u.iter().all(|x| x.is_finite()) {
             return self.answer(up, Status::Stopped, spent);
         }
@@ -395,6 +394,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         }
         let mut spent = 0;
         let mut stopped = false;
+        let mut workspace = Factored::new();
         let mut run = |objective: Objective<'_, T>, c: &Rows<T>, k: usize, from: Commands<T>| {
             if stopped {
                 return from;
@@ -407,7 +407,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
                 lo: &bounds.lo,
                 hi: &bounds.hi,
             };
-            let s = solve(&stage, from, self.budget - spent);
+            let s = solve(&stage, from, self.budget - spent, &mut workspace);
             spent += s.iterations;
             stopped |= s.stopped;
             s.u
@@ -433,8 +433,11 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             };
             u = run(objective, &all, 3, u);
         }
-        // stage 3: nearest u_pref, keeping the wrench achieved
-        if through >= 3 {
+        // stage 3: nearest u_pref, keeping the wrench achieved; with as many actuators as
+        // wrench rows and `B` invertible (the Cholesky factor of `B W⁻¹ Bᵀ` exists), the
+        // wrench fixes the command: stage 3 has one feasible point, its start, and is skipped
+        // without forming its first working set (the six-rotor hexarotor)
+        if through >= 3 && !(m == K && self.gram.is_some()) {
             let objective = Objective::Nearest {
                 w: &self.weights,
                 up,
@@ -468,7 +471,17 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             .iter()
             .zip(bounds.lo.iter().zip(bounds.hi.iter()))
             .all(|(x, (l, h))| x.is_finite() && *x >= *l && *x <= *h);
-        (u.zip_zip_map(&bounds.lo, &bounds.hi, clamp), inside)
+        (self.clamped(&u, bounds), inside)
+    }
+
+    /// `x` clamped into `bounds` on the geometry's actuators, 0 past them (where the
+    /// geometry's bounds are 0).
+    fn clamped(&self, x: &Commands<T>, bounds: &Bounds<T>) -> Commands<T> {
+        let mut u = Commands::zeros();
+        for j in 0..self.geometry.count() {
+            u[j] = clamp(x[j], bounds.lo[j], bounds.hi[j]);
+        }
+        u
     }
 
     /// Whether `u` meets the demand: the torque (or wrench), then the force.

@@ -191,7 +191,7 @@ fn dot<T: RealField + Copy>(a: &[T; N], b: &[T; N], n: usize, metric: Option<&[T
 /// orthogonalised (in the metric `W⁻¹` on the last stage), and on a least-squares stage the
 /// objective's rows projected off them and orthogonalised in turn. Filled in place, once per
 /// working set.
-struct Factored<T> {
+pub(crate) struct Factored<T> {
     free: Free,
     /// The inverse weights of the free actuators (the last stage's metric).
     metric: [T; N],
@@ -203,7 +203,9 @@ struct Factored<T> {
 }
 
 impl<T: RealField + Copy> Factored<T> {
-    fn new() -> Self {
+    /// A workspace for a working set's factorisation (each factorisation writes what it
+    /// reads).
+    pub(crate) fn new() -> Self {
         Factored {
             free: Free { idx: [0; N], n: 0 },
             metric: [T::one(); N],
@@ -264,15 +266,26 @@ impl<'a, T: RealField + Copy> Stage<'a, T> {
         }
     }
 
-    /// The objective's gradient at `u` (`Aᵀ(Au − b)`, or `W(u − u_pref)`).
-    fn gradient(&self, u: &Commands<T>) -> [T; N] {
+    /// The objective's residual `r = Au − b` at `u` (least squares; 0 on the last stage).
+    fn residuals(&self, u: &Commands<T>) -> [T; MAX_EQ] {
+        let mut r = [T::zero(); MAX_EQ];
+        if let Objective::LeastSquares { a, b, q } = self.objective {
+            for (i, x) in r.iter_mut().enumerate().take(q) {
+                *x = residual(&a[i], b[i], u, self.m);
+            }
+        }
+        r
+    }
+
+    /// The objective's gradient at `u`, its residual `r` given (`Aᵀr`, or `W(u − u_pref)`).
+    fn gradient(&self, u: &Commands<T>, r: &[T; MAX_EQ]) -> [T; N] {
         let mut g = [T::zero(); N];
         match self.objective {
-            Objective::LeastSquares { a, b, q } => {
-                for r in 0..q {
-                    let res = residual(&a[r], b[r], u, self.m);
+            Objective::LeastSquares { a, q, .. } => {
+                for i in 0..q {
+                    let res = r[i];
                     for j in 0..self.m {
-                        g[j] += a[r][j] * res;
+                        g[j] += a[i][j] * res;
                     }
                 }
             }
@@ -291,17 +304,13 @@ impl<'a, T: RealField + Copy> Stage<'a, T> {
     /// equalities, `r = Au − b`; through `M = L S` (`S` orthogonal rows), `p = Sᵀ D⁻¹ t` with
     /// `t` the least-squares solution of `L t = −r`. The last stage projects in the metric `W⁻¹`:
     /// `p = −v + W⁻¹ Σ_i (q_i·v / ⟨q_i, q_i⟩) q_i` with `v = u − u_pref`.
-    fn step(&self, f: &Factored<T>, u: &Commands<T>) -> [T; N] {
+    fn step(&self, f: &Factored<T>, u: &Commands<T>, r: &[T; MAX_EQ]) -> [T; N] {
         let n = f.free.n;
         let mut compact = [T::zero(); N];
         match self.objective {
-            Objective::LeastSquares { a, b, q } => {
-                let mut r = [T::zero(); MAX_EQ];
-                for (i, x) in r.iter_mut().enumerate().take(q) {
-                    *x = residual(&a[i], b[i], u, self.m);
-                }
+            Objective::LeastSquares { q, .. } => {
                 let s = &f.ls;
-                let t = least_squares(&s.l, q, s.rank, &r);
+                let t = least_squares(&s.l, q, s.rank, r);
                 for i in 0..s.rank {
                     let c = t[i] / s.d[i];
                     for x in 0..n {
@@ -340,9 +349,10 @@ impl<'a, T: RealField + Copy> Stage<'a, T> {
         f: &Factored<T>,
         mask: &[Bound; N],
         u: &Commands<T>,
+        r: &[T; MAX_EQ],
         tol: T,
     ) -> Option<usize> {
-        let g = self.gradient(u);
+        let g = self.gradient(u, r);
         let n = f.free.n;
         let nearest = matches!(self.objective, Objective::Nearest { .. });
         let metric = nearest.then_some(&f.metric);
@@ -368,7 +378,10 @@ impl<'a, T: RealField + Copy> Stage<'a, T> {
             }
             mu[j] = s;
         }
-        let top = g.iter().fold(T::zero(), |a, x| larger(a, x.abs()));
+        let top = g
+            .iter()
+            .take(self.m)
+            .fold(T::zero(), |a, x| larger(a, x.abs()));
         let mtol = T::from_subset(&1e3) * T::default_epsilon() * (T::one() + top);
         let mut best: Option<(usize, T)> = None;
         for j in 0..self.m {
@@ -534,11 +547,13 @@ fn ldl_solve<T: RealField + Copy>(g: &mut [[T; MAX_EQ]; MAX_EQ], n: usize, x: &m
 }
 
 /// Solves the stage from `start`, which must be feasible (within the bounds, on `C u = d`),
-/// with at most `budget` factorisations.
+/// with at most `budget` factorisations, in the workspace `f` (one for an allocation's
+/// stages: each factorisation writes what it reads).
 pub(crate) fn solve<T: RealField + Copy>(
     stage: &Stage<'_, T>,
     start: Commands<T>,
     budget: u32,
+    f: &mut Factored<T>,
 ) -> Solved<T> {
     let (lo, hi, m) = (stage.lo, stage.hi, stage.m);
     let bound = (0..m).fold(T::zero(), |a, j| {
@@ -564,7 +579,6 @@ pub(crate) fn solve<T: RealField + Copy>(
         };
     }
     let mut iterations = 0;
-    let mut f = Factored::new();
     // whether `f` holds the present working set's factorisation
     let mut factored = false;
     // the full steps taken on one factorisation (the second and third refine the first)
@@ -583,14 +597,15 @@ pub(crate) fn solve<T: RealField + Copy>(
             // a planted slow path (scripts/cortex-m.sh's self-test): one more factorisation
             // per iteration must break the worst-case limits
             #[cfg(feature = "planted-slow-path")]
-            stage.factor(&mask, &inv_w, tau, core::hint::black_box(&mut f));
-            stage.factor(&mask, &inv_w, tau, &mut f);
+            stage.factor(&mask, &inv_w, tau, core::hint::black_box(&mut *f));
+            stage.factor(&mask, &inv_w, tau, f);
             factored = true;
         }
-        let p = stage.step(&f, &u);
+        let r = stage.residuals(&u);
+        let p = stage.step(f, &u, &r);
         let size = p.iter().take(m).fold(T::zero(), |a, x| larger(a, x.abs()));
         if size <= tol || refinements == 3 {
-            match stage.release(&f, &mask, &u, tol) {
+            match stage.release(f, &mask, &u, &r, tol) {
                 Some(j) => {
                     mask[j] = Bound::Free;
                     factored = false;
@@ -754,7 +769,7 @@ mod step_tests {
             }
             let mut f = Factored::new();
             stage.factor(&mask, &inv_w, 1e3 * f64::EPSILON, &mut f);
-            let p = stage.step(&f, &u);
+            let p = stage.step(&f, &u, &stage.residuals(&u));
             let free: Vec<usize> = (0..m).filter(|j| !held[*j]).collect();
             let n = free.len();
             prop_assume!(n > 0);

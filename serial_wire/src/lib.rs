@@ -18,12 +18,11 @@
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
+mod crc32;
 mod frames;
 pub use frames::{
     Allocation, CommandFrame, Detection, Estimate, Frame, Hello, Samples, StateFrame, mismatch,
 };
-
-use crc::{CRC_32_ISO_HDLC, Crc, Table};
 
 /// The version byte every frame starts with; a frame of another version is refused (2: the
 /// allocation carries the achieved wrench, and states the sensors' samples for an estimator
@@ -35,10 +34,6 @@ pub const MAX_FRAME: usize = 384;
 /// The largest encoded frame: COBS's worst case for [`MAX_FRAME`] bytes (one code byte per
 /// 254 data bytes, and one to start), plus the zero.
 pub const MAX_ENCODED: usize = MAX_FRAME + MAX_FRAME / 254 + 1 + 1;
-
-/// The CRC-32 by the `crc` crate's one 256-entry table (1 KiB of flash). Its sixteen-table
-/// variant (16 KiB) counted no fewer instructions on the Cortex-M4F (BENCHMARKS section 22).
-const CRC32: Crc<u32, Table<1>> = Crc::<u32, Table<1>>::new(&CRC_32_ISO_HDLC);
 
 /// Why bytes are not a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -111,22 +106,37 @@ pub fn encode_raw(
 /// run is encoded by [`cobs_encode`] from a copy instead, about a third dearer (bytes of
 /// arbitrary floats can go that long without a zero; `pil_hexarotor`'s frames do not).
 fn seal(out: &mut [u8; MAX_ENCODED], n: usize) -> usize {
-    let crc = CRC32.checksum(&out[1..1 + n]);
+    let crc = crc32::checksum(&out[1..1 + n]);
     out[1 + n..5 + n].copy_from_slice(&crc.to_le_bytes());
     let len = n + 4;
     // `next`: where the code of the block that starts after position `i` goes
     let mut next = len + 1;
     let mut i = len;
-    while i > 0 {
-        if out[i] == 0 {
-            let d = next - i;
-            if d >= 0xff {
-                break;
+    'scan: while i > 0 {
+        // four bytes at once: a word with no zero byte moves nothing (the test is exact:
+        // `(x − 0x01010101) & !x & 0x80808080` is non-zero exactly when a byte of x is zero)
+        let mut stop = 0;
+        if i >= 4 {
+            let mut word = [0u8; 4];
+            word.copy_from_slice(&out[i - 3..=i]);
+            let x = u32::from_le_bytes(word);
+            if x.wrapping_sub(0x0101_0101) & !x & 0x8080_8080 == 0 {
+                i -= 4;
+                continue;
             }
-            out[i] = d as u8;
-            next = i;
+            stop = i - 4;
         }
-        i -= 1;
+        while i > stop {
+            if out[i] == 0 {
+                let d = next - i;
+                if d >= 0xff {
+                    break 'scan;
+                }
+                out[i] = d as u8;
+                next = i;
+            }
+            i -= 1;
+        }
     }
     if i == 0 && next < 0xff {
         out[0] = next as u8;
@@ -280,27 +290,35 @@ fn cobs_decode_in_place(buf: &mut [u8]) -> Result<(usize, usize), FrameError> {
     if n == 0 {
         return Err(FrameError::Cobs);
     }
-    // the codes, checked: none zero, none past the end, whether any is a full block's
-    let (mut p, mut full) = (0, false);
+    // one walk from code to code: each checked (none zero, none past the end), each after the
+    // first turned to the zero it stands for, and whether any is a full block's
+    let mut p = 0;
+    let mut full = false;
     while p < n {
         let code = usize::from(buf[p]);
         if code == 0 || p + code > n {
             return Err(FrameError::Cobs);
         }
         full |= code == 0xff;
+        if p > 0 {
+            buf[p] = 0;
+        }
         p += code;
     }
     if !full {
         if n - 1 > MAX_FRAME {
             return Err(FrameError::TooLong);
         }
-        let mut p = usize::from(buf[0]);
-        while p < n {
-            let code = usize::from(buf[p]);
-            buf[p] = 0;
-            p += code;
-        }
         return Ok((1, n));
+    }
+    // a full block: the codes back (the encoded bytes hold no zero, so the zeros are exactly
+    // the codes turned, each the distance to the next), then the bytes moved down
+    let mut next = n;
+    for z in (1..n).rev() {
+        if buf[z] == 0 {
+            buf[z] = (next - z) as u8;
+            next = z;
+        }
     }
     let (mut r, mut w) = (0, 0);
     while r < n {
@@ -332,7 +350,7 @@ fn check(raw: &[u8]) -> Result<Frame, FrameError> {
     let (body, crc) = raw.split_at(n - 4);
     let mut sum = [0u8; 4];
     sum.copy_from_slice(crc);
-    if CRC32.checksum(body) != u32::from_le_bytes(sum) {
+    if crc32::checksum(body) != u32::from_le_bytes(sum) {
         return Err(FrameError::Crc);
     }
     if body[0] != SERIAL_VERSION {
@@ -347,6 +365,34 @@ fn check(raw: &[u8]) -> Result<Frame, FrameError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(2000))]
+        /// Undoing COBS in place gives back what the `cobs` crate encoded: data up to the
+        /// largest frame, with zeros dense, sparse or absent (runs of 254 and more, full
+        /// blocks), so that both the walk that turns codes to zeros and the full blocks' path
+        /// (which turns them back first) run.
+        #[test]
+        fn cobs_in_place_undoes_the_reference_encoder(
+            data in proptest::collection::vec(proptest::prelude::any::<u8>(), 1..=MAX_FRAME),
+            zeros in 0u32..4,
+        ) {
+            // zeros: 0 none, then about one byte in 2, 16 and 256
+            let data: std::vec::Vec<u8> = data
+                .iter()
+                .map(|b| match zeros {
+                    0 => b | 1,
+                    z if u32::from(*b) % [2, 16, 256][z as usize - 1] == 0 => 0,
+                    _ => b | 1,
+                })
+                .collect();
+            let mut enc = std::vec![0u8; MAX_ENCODED];
+            let n = cobs::encode(&data, &mut enc);
+            let mut buf = enc[..n].to_vec();
+            let (a, b) = cobs_decode_in_place(&mut buf).expect("a valid encoding decodes");
+            proptest::prop_assert_eq!(&buf[a..b], &data[..]);
+        }
+    }
 
     /// The COBS encoder against the `cobs` crate's, on the block boundaries: runs of 253 to
     /// 255 non-zero bytes at the start, inside and at the end, and the longest run. (A frame is
