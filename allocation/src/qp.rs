@@ -195,6 +195,9 @@ pub(crate) struct Factored<T> {
     free: Free,
     /// The inverse weights of the free actuators (the last stage's metric).
     metric: [T; N],
+    /// Whether the metric is not the identity: with every weight 1 (the default) the inner
+    /// products skip it, which changes no bit (`x · 1 = x`).
+    weighted: bool,
     /// The rows, compact: the equalities' `C_F`, then (least squares) the objective's `A_F`.
     c: Rows<T>,
     a: Rows<T>,
@@ -209,6 +212,7 @@ impl<T: RealField + Copy> Factored<T> {
         Factored {
             free: Free { idx: [0; N], n: 0 },
             metric: [T::one(); N],
+            weighted: false,
             c: [[T::zero(); N]; MAX_EQ],
             a: [[T::zero(); N]; MAX_EQ],
             eq: Ortho::new(),
@@ -242,7 +246,8 @@ impl<'a, T: RealField + Copy> Stage<'a, T> {
                 f.c[r][i] = self.c[r][j];
             }
         }
-        let metric = nearest.then_some(&f.metric);
+        f.weighted = nearest && f.metric[..n].iter().any(|w| *w != T::one());
+        let metric = f.weighted.then_some(&f.metric);
         let s = scale(&f.c, self.k, n, metric);
         f.eq.of(&f.c, self.k, n, metric, tau, s);
         if let Objective::LeastSquares { a, q, .. } = self.objective {
@@ -354,8 +359,7 @@ impl<'a, T: RealField + Copy> Stage<'a, T> {
     ) -> Option<usize> {
         let g = self.gradient(u, r);
         let n = f.free.n;
-        let nearest = matches!(self.objective, Objective::Nearest { .. });
-        let metric = nearest.then_some(&f.metric);
+        let metric = f.weighted.then_some(&f.metric);
         let mut gf = [T::zero(); N];
         for (i, j) in f.free.iter().enumerate() {
             gf[i] = g[j];
