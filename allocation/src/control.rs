@@ -137,7 +137,7 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     /// Tells the allocator that actuator `j` has failed, stuck at `value`: from now on it is
     /// held there and the others take over.
     pub fn fail(&mut self, j: usize, value: T) {
-        if j < MAX_ACTUATORS {
+        if j < self.nominal.geometry().count() {
             self.bounds.fail(j, value);
         }
     }

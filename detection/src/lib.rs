@@ -565,10 +565,16 @@ impl<T: Real, const K: usize> Detector<T, K> {
             }
         }
         let half: T = controller::real(0.5);
-        let b = control.allocator().geometry().effectiveness();
+        // `B ū` over the vehicle's actuators (the slots past them are zero columns)
+        let geometry = control.allocator().geometry();
+        let b = geometry.effectiveness();
+        let mut thrust = SVector::<T, K>::zeros();
+        for j in 0..geometry.count() {
+            thrust += b.column(j) * believed[j];
+        }
         let body = (mu - p.mu) / c.period
             - (p.gyro + gyro) * half
-            - b * believed
+            - thrust
             - (p.environment + environment) * half;
         let w = rotate_blocks(r, &body);
         let p = believed.component_mul(control.factors());
@@ -857,10 +863,13 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let bw = column.component_div(&s);
         let nb = bw.norm_squared();
         let shortfall = |e: &Entry<T, K>| bw.dot(&(e.w - older).component_div(&s)) / nb;
-        // the change point: the start whose mean shift is most significant
+        // the change point: the start whose mean shift is most significant (each period's
+        // shortfall kept for the next loop)
+        let mut shorts = [T::zero(); CAPACITY / 2];
         let (mut start, mut score, mut sum) = (wn - 1, T::zero(), T::zero());
         for i in (0..wn).rev() {
-            sum += shortfall(self.entry(wn, i));
+            shorts[i] = shortfall(self.entry(wn, i));
+            sum += shorts[i];
             let n: T = controller::real((wn - i) as f64);
             let t = sum * sum / n;
             if t > score {
@@ -871,12 +880,10 @@ impl<T: Real, const K: usize> Detector<T, K> {
         // the actual thrust since then: the believed one plus the shortfall; each period's
         // shortfall is then taken out of its residual
         let mut sums = self.sums[j];
-        for i in start..wn {
-            let at = (self.head + CAPACITY - wn + i) % CAPACITY;
-            let e = self.ring[at];
-            let short = shortfall(&e);
-            sums.add(e.u[j], e.p[j] + short);
-            self.ring[at].w -= column * short;
+        for (i, short) in shorts.iter().enumerate().take(wn).skip(start) {
+            let e = &mut self.ring[(self.head + CAPACITY - wn + i) % CAPACITY];
+            sums.add(e.u[j], e.p[j] + *short);
+            e.w -= column * *short;
         }
         self.sums[j] = sums;
         (self.fit(j, &sums, control), wn - start)

@@ -278,13 +278,16 @@ impl Deframer {
 }
 
 /// Undoes COBS in place; returns where the decoded bytes lie in `buf`. A code past the end is
-/// broken COBS, and more than [`MAX_FRAME`] decoded bytes too long.
+/// broken COBS, and more than [`MAX_FRAME`] decoded bytes too long. `buf` holds no zero (both
+/// callers make sure: the [`Deframer`] never stores one and [`decode`] refuses one); on an
+/// error its bytes are left changed.
 ///
 /// Each block's code gives the distance to the next code, and the decoded bytes are the
-/// encoded ones behind the first code with every later code a zero: while no block is a full
-/// one (code 0xFF, 254 bytes and no zero), a walk from code to code, O(blocks), turns them to
-/// zeros and the frame is `buf[1..]`. With a full block the bytes move down instead, a block
-/// at a time, and the frame starts at `buf[0]`.
+/// encoded ones behind the first code with every later code a zero. One walk from code to
+/// code, O(blocks), checks each code and turns every one after the first to a zero: without
+/// a full block (code 0xFF, 254 bytes and no zero) the frame is then `buf[1..]`. With one,
+/// the codes are put back from the zeros (each the distance to the next zero, or to the end)
+/// and the bytes move down a block at a time; the frame starts at `buf[0]`.
 fn cobs_decode_in_place(buf: &mut [u8]) -> Result<(usize, usize), FrameError> {
     let n = buf.len();
     if n == 0 {
