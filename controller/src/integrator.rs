@@ -57,32 +57,96 @@ where
     T: Real,
     F: FnMut(T, &SMatrix<T, N, N>, &SVector<T, M>) -> (SVector<T, M>, SVector<T, M>),
 {
+    let none = SVector::<T, 0>::zeros();
+    rkmk4_carrying::<G, T, _, N, M, 0, STAGE_Q>(x, &none, t, h, |s, q, p, _| {
+        let (v, pd) = field(s, q, p);
+        (v, pd, none)
+    })
+    .0
+}
+
+/// One RKMK4 step of length `h` from time `t` that carries `E` more states `e` in a vector
+/// space beside `(Q, p)`, for the system `Q̇ = Q·hat(V)`, `ṗ = P`, `ė = Ė` with
+/// `(V, P, Ė) = field(t, Q, p, e)`: `Q` and `p` as [`rkmk4_step`] moves them, `e` by classical
+/// RK4 with the same stages (docs/maths.md, "Reaction wheels": the wheels' momenta).
+pub fn rkmk4_extended<G, T, F, const N: usize, const M: usize, const E: usize>(
+    x: &Phase<T, N, M>,
+    e: &SVector<T, E>,
+    t: T,
+    h: T,
+    field: F,
+) -> (Phase<T, N, M>, SVector<T, E>)
+where
+    G: MatrixLieGroup<N, M>,
+    T: Real,
+    F: FnMut(
+        T,
+        &SMatrix<T, N, N>,
+        &SVector<T, M>,
+        &SVector<T, E>,
+    ) -> (SVector<T, M>, SVector<T, M>, SVector<T, E>),
+{
+    rkmk4_carrying::<G, T, F, N, M, E, true>(x, e, t, h, field)
+}
+
+/// [`rkmk4_extended`], with [`rkmk4`]'s `STAGE_Q`: the one body of both (with `E = 0` the
+/// carried state adds no operation on `Q` or `p`, so their numbers are [`rkmk4`]'s).
+fn rkmk4_carrying<G, T, F, const N: usize, const M: usize, const E: usize, const STAGE_Q: bool>(
+    x: &Phase<T, N, M>,
+    e: &SVector<T, E>,
+    t: T,
+    h: T,
+    mut field: F,
+) -> (Phase<T, N, M>, SVector<T, E>)
+where
+    G: MatrixLieGroup<N, M>,
+    T: Real,
+    F: FnMut(
+        T,
+        &SMatrix<T, N, N>,
+        &SVector<T, M>,
+        &SVector<T, E>,
+    ) -> (SVector<T, M>, SVector<T, M>, SVector<T, E>),
+{
     let stage_q = |u: &SVector<T, M>| {
         if STAGE_Q { x.q * G::exp(u) } else { x.q }
     };
     let half = h * real(0.5);
-    let (v1, pd1) = field(t, &x.q, &x.p);
+    let (v1, pd1, ed1) = field(t, &x.q, &x.p, e);
     let k1 = v1;
 
     let u2 = k1 * half;
-    let (v2, pd2) = field(t + half, &stage_q(&u2), &(x.p + pd1 * half));
+    let (v2, pd2, ed2) = field(
+        t + half,
+        &stage_q(&u2),
+        &(x.p + pd1 * half),
+        &(e + ed1 * half),
+    );
     let k2 = dexp_inv_neg::<G, T, N, M>(&u2, &v2);
 
     let u3 = k2 * half;
-    let (v3, pd3) = field(t + half, &stage_q(&u3), &(x.p + pd2 * half));
+    let (v3, pd3, ed3) = field(
+        t + half,
+        &stage_q(&u3),
+        &(x.p + pd2 * half),
+        &(e + ed2 * half),
+    );
     let k3 = dexp_inv_neg::<G, T, N, M>(&u3, &v3);
 
     let u4 = k3 * h;
-    let (v4, pd4) = field(t + h, &stage_q(&u4), &(x.p + pd3 * h));
+    let (v4, pd4, ed4) = field(t + h, &stage_q(&u4), &(x.p + pd3 * h), &(e + ed3 * h));
     let k4 = dexp_inv_neg::<G, T, N, M>(&u4, &v4);
 
     let sixth = h / real(6.0);
     let two: T = real(2.0);
     let u = (k1 + k2 * two + k3 * two + k4) * sixth;
-    Phase {
-        q: x.q * G::exp(&u),
-        p: x.p + (pd1 + pd2 * two + pd3 * two + pd4) * sixth,
-    }
+    (
+        Phase {
+            q: x.q * G::exp(&u),
+            p: x.p + (pd1 + pd2 * two + pd3 * two + pd4) * sixth,
+        },
+        e + (ed1 + ed2 * two + ed3 * two + ed4) * sixth,
+    )
 }
 
 /// One RKMK4 step of the physical system `Q̇ = Q·hat(V)`, `ṗ = ad_Vᵀp + τ(t)`, `V = I⁻¹p`

@@ -10,7 +10,9 @@
 //! * [`status`]: the run's live figures, published for `plant_sim monitor`;
 //! * [`output`], [`plot`]: `trajectory.csv`, `summary.json` and the figures of a run;
 //! * [`vehicle`]: gravity, buoyancy, drag and the actuators' lag and failures, integrated with
-//!   the rigid body.
+//!   the rigid body;
+//! * [`wheels`]: reaction wheels, their limits and friction, and the gyrostat they make with
+//!   the body.
 //!
 //! It depends on no crate of the controller process: the two processes meet only on the wire.
 #![forbid(unsafe_code)]
@@ -28,6 +30,7 @@ pub mod status;
 pub mod trajectory;
 pub mod tuning;
 pub mod vehicle;
+pub mod wheels;
 
 /// Errors of the simulation front end, split by who is to blame (for the exit code).
 #[derive(Debug, thiserror::Error)]
