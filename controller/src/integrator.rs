@@ -259,15 +259,35 @@ where
     where
         F: FnMut(T, &SMatrix<T, N, N>, &SVector<T, M>) -> SVector<T, M>,
     {
+        let mut none = SVector::<T, 0>::zeros();
+        self.advance_carrying(period, substeps, &mut none, |s, q, v, _| {
+            (wrench(s, q, v), SVector::zeros())
+        });
+    }
+
+    /// [`RigidBody::advance_with`] carrying `E` more states `e` beside the body, integrated
+    /// with the same RK4 stages: `(wrench, ė) = field(s, Q, V, e)` at every stage
+    /// (docs/maths.md, "Reaction wheels": the wheels' momenta and the torques they put on the
+    /// body).
+    pub fn advance_carrying<F, const E: usize>(
+        &mut self,
+        period: T,
+        substeps: usize,
+        e: &mut SVector<T, E>,
+        mut field: F,
+    ) where
+        F: FnMut(T, &SMatrix<T, N, N>, &SVector<T, M>, &SVector<T, E>) -> (SVector<T, M>, SVector<T, E>),
+    {
         let h = period / real(substeps as f64);
         let inv = self.inertia_inv;
         for i in 0..substeps {
             let t0 = h * real(i as f64);
-            self.state = rkmk4_step::<G, T, _, N, M>(&self.state, t0, h, |s, q, p| {
-                let v = inv * p;
-                let w = wrench(s, q, &v);
-                (v, G::ad(&v).tr_mul(p) + w)
-            });
+            (self.state, *e) =
+                rkmk4_extended::<G, T, _, N, M, E>(&self.state, e, t0, h, |s, q, p, x| {
+                    let v = inv * p;
+                    let (w, xd) = field(s, q, &v, x);
+                    (v, G::ad(&v).tr_mul(p) + w, xd)
+                });
         }
     }
 

@@ -2,11 +2,11 @@
 //! spinning about fixed body axes, their motors' torque and speed limits, their friction, and
 //! the gyrostat they make with the body, integrated inside the same RKMK4 substeps.
 //!
-//! The state is the body's configuration `Q`, its total momentum `p` (body and wheels, about
-//! the body origin, in body axes) and each wheel's absolute axial momentum
-//! `h_i = J_s,i (g_iᵀω + Ω_i)`. The motors' torques are internal: they move momentum between
-//! the body and the wheels, never `p` itself, so with no outside wrench the world momentum is
-//! conserved by the equations' form and only the integrator's error can move it.
+//! The state is the body's, `(Q, J V)` with `J = I − Σ J_s g gᵀ` the inertia with the wheels
+//! free, and each wheel's absolute axial momentum `h_i = J_s,i (g_iᵀω + Ω_i)`, integrated with
+//! the same stages. The motors' torques are internal: they move momentum between the body
+//! and the wheels and leave the total `p = J V + (Σ h g, 0)` to the outside wrench, so with
+//! none the world momentum is kept to the integrator's error.
 //!
 //! The limits and the friction follow Basilisk's `reactionWheelStateEffector` (its code, where
 //! its documentation differs): the command is clipped to `±max_torque`, then to `max_power`
@@ -15,8 +15,7 @@
 //! stage from the stage's wheel speed.
 
 use controller::group::MatrixLieGroup;
-use controller::integrator::rkmk4_extended;
-use controller::semidirect::Phase;
+use controller::integrator::RigidBody;
 use nalgebra::{SMatrix, SVector, Vector3};
 
 /// The most wheels a body carries.
@@ -171,49 +170,42 @@ pub enum WheelError {
     FreeInertia,
 }
 
-/// A rigid body with reaction wheels (docs/maths.md, "Reaction wheels"): `M` is the group's
-/// dimension (3 on SO(3), 6 on SE(3), torque first); the wheels act on the first three.
+/// The wheels a body carries, their state and their motors' commands (docs/maths.md,
+/// "Reaction wheels"). The body itself is a [`RigidBody`] of the inertia with the wheels free,
+/// `J = I − Σ J_s g gᵀ` ([`Wheels::free_inertia`]); [`Wheels::advance`] integrates the two
+/// together.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Gyrostat<G, const N: usize, const M: usize> {
-    /// `(Q, p)`, `p` the total momentum.
-    state: Phase<f64, N, M>,
+pub struct Wheels {
     /// The wheels' absolute axial momenta `h_i` (0 past the count).
     momenta: SVector<f64, MAX_WHEELS>,
     wheels: [Wheel; MAX_WHEELS],
     count: usize,
-    /// The inertia with the wheels locked, `I`.
-    inertia: SMatrix<f64, M, M>,
-    /// `J⁻¹`, `J = I − Σ J_s g gᵀ` on the rotation block: the body with the wheels free.
-    free_inv: SMatrix<f64, M, M>,
     /// The motor torques held over the period.
     applied: [f64; MAX_WHEELS],
     /// The wheels' speeds at the start of the period.
     before: [f64; MAX_WHEELS],
     /// Whether each wheel's friction is on its Stribeck branch.
     stribeck: [bool; MAX_WHEELS],
-    _group: core::marker::PhantomData<G>,
 }
 
-impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Gyrostat<G, N, M> {
-    /// A body of inertia `inertia` with its wheels locked (Basilisk's convention: the whole
-    /// spacecraft's), carrying `wheels` spinning at `speeds` relative to it (rad/s), at
-    /// configuration `q` with body velocity `v`. Each axis is made unit.
-    pub fn new(
-        inertia: SMatrix<f64, M, M>,
-        wheels: &[Wheel],
-        speeds: &[f64],
-        q: SMatrix<f64, N, N>,
-        v: SVector<f64, M>,
-    ) -> Result<Self, WheelError> {
+impl Wheels {
+    /// `wheels` spinning at `speeds` relative to a body turning at `omega` (rad/s), each
+    /// axis made unit, each checked.
+    pub fn new(wheels: &[Wheel], speeds: &[f64], omega: &Vector3<f64>) -> Result<Self, WheelError> {
         if wheels.len() > MAX_WHEELS {
             return Err(WheelError::Count(wheels.len()));
         }
         if speeds.len() != wheels.len() || speeds.iter().any(|s| !s.is_finite()) {
             return Err(WheelError::Speeds);
         }
-        let mut held = [Wheel::ideal([1.0, 0.0, 0.0], 1.0, 0.0, 0.0); MAX_WHEELS];
-        let mut spin = SMatrix::<f64, M, M>::zeros();
-        let mut p = inertia * v;
+        let mut out = Wheels {
+            momenta: SVector::zeros(),
+            wheels: [Wheel::ideal([1.0, 0.0, 0.0], 1.0, 1.0, 1.0); MAX_WHEELS],
+            count: wheels.len(),
+            applied: [0.0; MAX_WHEELS],
+            before: [0.0; MAX_WHEELS],
+            stribeck: [false; MAX_WHEELS],
+        };
         for (i, w) in wheels.iter().enumerate() {
             let axis = Vector3::from(w.axis);
             let norm = axis.norm();
@@ -225,40 +217,14 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Gyrostat<G, N, M> 
             }
             check(i, w)?;
             let g = axis / norm;
-            held[i] = Wheel {
+            out.wheels[i] = Wheel {
                 axis: g.into(),
                 ..*w
             };
-            let gg = g * g.transpose() * w.inertia;
-            let mut block = spin.fixed_view_mut::<3, 3>(0, 0);
-            block += gg;
-            let mut angular = p.fixed_rows_mut::<3>(0);
-            angular += g * (w.inertia * speeds[i]);
+            out.momenta[i] = w.inertia * (g.dot(omega) + speeds[i]);
+            out.before[i] = speeds[i];
         }
-        let free = inertia - spin;
-        let free_inv = free
-            .cholesky()
-            .map(|c| c.inverse())
-            .ok_or(WheelError::FreeInertia)?;
-        let mut body = Gyrostat {
-            state: Phase { q, p },
-            momenta: SVector::zeros(),
-            wheels: held,
-            count: wheels.len(),
-            inertia,
-            free_inv,
-            applied: [0.0; MAX_WHEELS],
-            before: [0.0; MAX_WHEELS],
-            stribeck: [false; MAX_WHEELS],
-            _group: core::marker::PhantomData,
-        };
-        let omega = v.fixed_rows::<3>(0).into_owned();
-        for i in 0..body.count {
-            let w = &body.wheels[i];
-            body.momenta[i] = w.inertia * (Vector3::from(w.axis).dot(&omega) + speeds[i]);
-            body.before[i] = speeds[i];
-        }
-        Ok(body)
+        Ok(out)
     }
 
     /// The wheels.
@@ -266,40 +232,38 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Gyrostat<G, N, M> 
         &self.wheels[..self.count]
     }
 
-    /// The configuration `Q`.
-    pub fn configuration(&self) -> &SMatrix<f64, N, N> {
-        &self.state.q
-    }
-
-    /// The total momentum `p` (body and wheels, body axes).
-    pub fn momentum(&self) -> &SVector<f64, M> {
-        &self.state.p
+    /// The body's inertia with the wheels free, `J = I − Σ J_s g gᵀ` on the rotation block,
+    /// from the inertia `locked` with them locked; refused when not positive definite.
+    pub fn free_inertia<const M: usize>(
+        &self,
+        locked: &SMatrix<f64, M, M>,
+    ) -> Result<SMatrix<f64, M, M>, WheelError> {
+        let mut free = *locked;
+        for w in self.wheels() {
+            let g = Vector3::from(w.axis);
+            let mut block = free.fixed_view_mut::<3, 3>(0, 0);
+            block -= g * g.transpose() * w.inertia;
+        }
+        match free.cholesky() {
+            Some(_) => Ok(free),
+            None => Err(WheelError::FreeInertia),
+        }
     }
 
     /// The wheels' absolute axial momenta `h_i = J_s (gᵀω + Ω_i)`.
-    pub fn wheel_momenta(&self) -> &[f64] {
+    pub fn momenta(&self) -> &[f64] {
         &self.momenta.as_slice()[..self.count]
     }
 
-    /// The inertia with the wheels locked.
-    pub fn inertia(&self) -> &SMatrix<f64, M, M> {
-        &self.inertia
+    /// The wheels' momentum in body axes on the rotation block, `(Σ h_i g_i, 0)`: what the
+    /// body's momentum `J V` lacks of the total.
+    pub fn momentum<const M: usize>(&self) -> SVector<f64, M> {
+        carried(&self.wheels, self.count, &self.momenta)
     }
 
-    /// The body velocity `V = J⁻¹(p − Σ g_i h_i)` (docs/maths.md, "Reaction wheels").
-    pub fn velocity(&self) -> SVector<f64, M> {
-        velocity(
-            &self.free_inv,
-            &self.wheels,
-            self.count,
-            &self.state.p,
-            &self.momenta,
-        )
-    }
-
-    /// The wheels' speeds relative to the body, `Ω_i = h_i/J_s − gᵀω`.
-    pub fn wheel_speeds(&self) -> [f64; MAX_WHEELS] {
-        speeds(&self.wheels, self.count, &self.momenta, &self.velocity())
+    /// The wheels' speeds relative to a body moving at `v`, `Ω_i = h_i/J_s − gᵀω`.
+    pub fn speeds<const M: usize>(&self, v: &SVector<f64, M>) -> [f64; MAX_WHEELS] {
+        speeds(&self.wheels, self.count, &self.momenta, v)
     }
 
     /// The motor torques held over the present period (after the limits).
@@ -308,10 +272,10 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Gyrostat<G, N, M> 
     }
 
     /// Holds the motor commands `u_cmd` (one per wheel; missing ones 0) over the period that
-    /// starts now, each limited by [`Wheel::limit`] at the wheel's present speed. Returns how
-    /// many were changed by a limit.
-    pub fn command(&mut self, u_cmd: &[f64]) -> usize {
-        let omega = self.wheel_speeds();
+    /// starts now on a body moving at `v`, each limited by [`Wheel::limit`] at the wheel's
+    /// present speed. Returns how many were changed by a limit.
+    pub fn command<const M: usize>(&mut self, u_cmd: &[f64], v: &SVector<f64, M>) -> usize {
+        let omega = self.speeds(v);
         let mut clamped = 0;
         for i in 0..self.count {
             let (u, changed) = self.wheels[i].limit(u_cmd.get(i).copied().unwrap_or(0.0), omega[i]);
@@ -322,38 +286,118 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Gyrostat<G, N, M> 
         clamped
     }
 
-    /// Advances by `period` in `substeps` RKMK4 steps under the motor torques held by
-    /// [`Gyrostat::command`] and the outside body wrench `wrench(s, Q, V)`, evaluated at every
-    /// stage (as `RigidBody::advance_with`): `ṗ = ad_Vᵀ p + wrench`,
-    /// `ḣ_i = u_i − f_i(Ω_i)` (docs/maths.md, "Reaction wheels").
-    pub fn advance_with<F>(&mut self, period: f64, substeps: usize, mut wrench: F)
+    /// Advances `body` (of inertia [`Wheels::free_inertia`]) and the wheels by `period` in
+    /// `substeps` RKMK4 steps, under the motor torques held by [`Wheels::command`] and the
+    /// outside wrench `wrench(s, Q, V)`, evaluated at every stage (docs/maths.md, "Reaction
+    /// wheels"): the body meets `ad_Vᵀ (Σ h g, 0) − (Σ ḣ g, 0)` besides the outside wrench,
+    /// each wheel `ḣ_i = u_i − f_i(Ω_i)`.
+    pub fn advance<G, F, const N: usize, const M: usize>(
+        &mut self,
+        body: &mut RigidBody<f64, G, N, M>,
+        period: f64,
+        substeps: usize,
+        mut wrench: F,
+    ) where
+        G: MatrixLieGroup<N, M>,
+        F: FnMut(f64, &SMatrix<f64, N, N>, &SVector<f64, M>) -> SVector<f64, M>,
+    {
+        let (wheels, count) = (self.wheels, self.count);
+        let (applied, before) = (self.applied, self.before);
+        let stribeck = &mut self.stribeck;
+        body.advance_carrying(period, substeps, &mut self.momenta, |s, q, v, hw| {
+            let omega = speeds(&wheels, count, hw, v);
+            let mut hd = SVector::<f64, MAX_WHEELS>::zeros();
+            for j in 0..count {
+                let w = &wheels[j];
+                stribeck[j] = w.stribeck(stribeck[j], omega[j], before[j]);
+                hd[j] = applied[j] - w.friction(omega[j], stribeck[j]);
+            }
+            let inside = G::ad(v).tr_mul(&carried(&wheels, count, hw))
+                - carried::<M>(&wheels, count, &hd);
+            (wrench(s, q, v) + inside, hd)
+        });
+    }
+}
+
+/// A rigid body with reaction wheels, for studying the pair alone: a [`RigidBody`] of the
+/// inertia with the wheels free and its [`Wheels`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gyrostat<G, const N: usize, const M: usize> {
+    body: RigidBody<f64, G, N, M>,
+    wheels: Wheels,
+    /// The inertia with the wheels locked, `I`.
+    locked: SMatrix<f64, M, M>,
+}
+
+impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Gyrostat<G, N, M> {
+    /// A body of inertia `inertia` with its wheels locked (Basilisk's convention: the whole
+    /// spacecraft's), carrying `wheels` spinning at `speeds` relative to it (rad/s), at
+    /// configuration `q` with body velocity `v`.
+    pub fn new(
+        inertia: SMatrix<f64, M, M>,
+        wheels: &[Wheel],
+        speeds: &[f64],
+        q: SMatrix<f64, N, N>,
+        v: SVector<f64, M>,
+    ) -> Result<Self, WheelError> {
+        let omega = Vector3::new(v[0], v[1], v[2]);
+        let set = Wheels::new(wheels, speeds, &omega)?;
+        let free = set.free_inertia(&inertia)?;
+        let body = RigidBody::new(free, q, v).map_err(|_| WheelError::FreeInertia)?;
+        Ok(Gyrostat {
+            body,
+            wheels: set,
+            locked: inertia,
+        })
+    }
+
+    /// The wheels.
+    pub fn wheels(&self) -> &[Wheel] {
+        self.wheels.wheels()
+    }
+
+    /// The configuration `Q`.
+    pub fn configuration(&self) -> &SMatrix<f64, N, N> {
+        self.body.configuration()
+    }
+
+    /// The total momentum `p = J V + (Σ h g, 0)` (body and wheels, body axes).
+    pub fn momentum(&self) -> SVector<f64, M> {
+        self.body.state().p + self.wheels.momentum::<M>()
+    }
+
+    /// The inertia with the wheels locked.
+    pub fn inertia(&self) -> &SMatrix<f64, M, M> {
+        &self.locked
+    }
+
+    /// The body velocity `V`.
+    pub fn velocity(&self) -> SVector<f64, M> {
+        self.body.velocity()
+    }
+
+    /// The wheels' speeds relative to the body.
+    pub fn wheel_speeds(&self) -> [f64; MAX_WHEELS] {
+        self.wheels.speeds(&self.body.velocity())
+    }
+
+    /// The motor torques held over the present period.
+    pub fn applied(&self) -> &[f64] {
+        self.wheels.applied()
+    }
+
+    /// [`Wheels::command`].
+    pub fn command(&mut self, u_cmd: &[f64]) -> usize {
+        let v = self.body.velocity();
+        self.wheels.command(u_cmd, &v)
+    }
+
+    /// [`Wheels::advance`].
+    pub fn advance_with<F>(&mut self, period: f64, substeps: usize, wrench: F)
     where
         F: FnMut(f64, &SMatrix<f64, N, N>, &SVector<f64, M>) -> SVector<f64, M>,
     {
-        let h = period / substeps as f64;
-        let (wheels, count, free_inv) = (self.wheels, self.count, self.free_inv);
-        let (applied, before) = (self.applied, self.before);
-        let stribeck = &mut self.stribeck;
-        for i in 0..substeps {
-            let t0 = h * i as f64;
-            (self.state, self.momenta) = rkmk4_extended::<G, f64, _, N, M, MAX_WHEELS>(
-                &self.state,
-                &self.momenta,
-                t0,
-                h,
-                |s, q, p, hw| {
-                    let v = velocity(&free_inv, &wheels, count, p, hw);
-                    let omega = speeds(&wheels, count, hw, &v);
-                    let mut hd = SVector::<f64, MAX_WHEELS>::zeros();
-                    for j in 0..count {
-                        let w = &wheels[j];
-                        stribeck[j] = w.stribeck(stribeck[j], omega[j], before[j]);
-                        hd[j] = applied[j] - w.friction(omega[j], stribeck[j]);
-                    }
-                    (v, G::ad(&v).tr_mul(p) + wrench(s, q, &v), hd)
-                },
-            );
-        }
+        self.wheels.advance(&mut self.body, period, substeps, wrench);
     }
 }
 
@@ -385,21 +429,19 @@ fn check(i: usize, w: &Wheel) -> Result<(), WheelError> {
     bad.map_or(Ok(()), |field| Err(WheelError::Parameter(i, field)))
 }
 
-/// `V = J⁻¹(p − Σ g_i h_i)`, the wheels' momenta on the rotation block.
-fn velocity<const M: usize>(
-    free_inv: &SMatrix<f64, M, M>,
+/// `(Σ x_i g_i, 0)`: per-wheel axial quantities `x` as a body wrench or momentum.
+fn carried<const M: usize>(
     wheels: &[Wheel; MAX_WHEELS],
     count: usize,
-    p: &SVector<f64, M>,
-    h: &SVector<f64, MAX_WHEELS>,
+    x: &SVector<f64, MAX_WHEELS>,
 ) -> SVector<f64, M> {
-    let mut body = *p;
-    for (w, hi) in wheels.iter().zip(h.iter()).take(count) {
+    let mut out = SVector::<f64, M>::zeros();
+    for (w, xi) in wheels.iter().zip(x.iter()).take(count) {
         for (r, g) in w.axis.iter().enumerate() {
-            body[r] -= g * hi;
+            out[r] += g * xi;
         }
     }
-    free_inv * body
+    out
 }
 
 /// `Ω_i = h_i/J_s,i − g_iᵀω`.
