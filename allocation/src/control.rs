@@ -5,6 +5,7 @@
 
 use crate::allocator::{Allocation, Allocator, Bounds};
 use crate::restoring::Restoring;
+use crate::wheels::{Wheel, WheelSet};
 use crate::{Commands, MAX_ACTUATORS};
 use nalgebra::{Matrix3, RealField, SVector};
 
@@ -50,6 +51,10 @@ pub struct VehicleControl<T, const K: usize> {
     rate_step: T,
     bounds: Bounds<T>,
     previous: Option<Commands<T>>,
+    /// The reaction wheels among the actuators (none by default).
+    wheels: WheelSet<T>,
+    /// The control period (s).
+    period: T,
 }
 
 impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
@@ -69,13 +74,30 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
             rate_limit,
             rate_step: rate_limit * period,
             previous: None,
+            wheels: WheelSet::none(),
+            period,
         }
+    }
+
+    /// The same vehicle whose actuators from column `first` on are the reaction wheels
+    /// `wheels` (as [`crate::Geometry::with_wheels`] put them; unit axes): its allocations
+    /// then cancel their gyroscopic torque and keep them below their top speed
+    /// ([`VehicleControl::actuate_wheeled`]).
+    pub fn with_wheels(mut self, wheels: &[Wheel<T>], first: usize) -> Self {
+        self.wheels = WheelSet::of(wheels, first);
+        self
+    }
+
+    /// The reaction wheels among the actuators.
+    pub fn wheels(&self) -> &WheelSet<T> {
+        &self.wheels
     }
 
     /// Sets the control period the rate limit applies over (a pair's controller learns it
     /// from the plant's first state).
     pub fn set_period(&mut self, period: T) {
         self.rate_step = self.rate_limit * period;
+        self.period = period;
     }
 
     /// The previous command, which the rate limit narrows the next one around (`None`
@@ -195,6 +217,29 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     /// restoring wrench already in it (the failsafe's thrust-axis law asks for its thrust
     /// and torque directly).
     pub fn actuate_demand(&mut self, demand: SVector<T, K>) -> Actuation<T, K> {
+        self.allocate(demand, None)
+    }
+
+    /// [`VehicleControl::actuate`] of a vehicle with reaction wheels, at body rate `omega` with
+    /// the wheels' measured `speeds` (relative to the body, one per wheel): the demand gains
+    /// the wheels' gyroscopic torque ([`WheelSet::gyroscopic`]), and each wheel's bounds close
+    /// on the side that would speed it past its top speed within the period
+    /// ([`WheelSet::narrow`]) (docs/maths.md, "Reaction wheels"). Without wheels it is
+    /// [`VehicleControl::actuate`].
+    pub fn actuate_wheeled(
+        &mut self,
+        wrench: &SVector<T, K>,
+        r_hat: &Matrix3<T>,
+        omega: &nalgebra::Vector3<T>,
+        speeds: &[T],
+    ) -> Actuation<T, K> {
+        let demand = wrench - self.restoring(r_hat) + self.wheels.gyroscopic(omega, speeds);
+        self.allocate(demand, Some(speeds))
+    }
+
+    /// One allocation of `demand` within the bounds, narrowed to the rate limit and, given the
+    /// wheels' `speeds`, to the wheels' top speeds.
+    fn allocate(&mut self, demand: SVector<T, K>, speeds: Option<&[T]>) -> Actuation<T, K> {
         let mut bounds = self.bounds;
         if let (Some(prev), true) = (&self.previous, self.rate_step > T::zero()) {
             for j in 0..self.allocator.geometry().count() {
@@ -202,6 +247,9 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
                     bounds.limit_rate(j, prev[j], self.rate_step);
                 }
             }
+        }
+        if let Some(speeds) = speeds {
+            self.wheels.narrow(&mut bounds, speeds, self.period);
         }
         let allocation = self
             .allocator

@@ -1,5 +1,6 @@
 //! Actuator geometry and the effectiveness matrix (docs/maths.md, "Control allocation").
 
+use crate::wheels::Wheel;
 use crate::{Commands, MAX_ACTUATORS};
 use core::fmt;
 use nalgebra::{RealField, SMatrix, SVector, Vector3};
@@ -151,17 +152,29 @@ impl<T: RealField + Copy, const K: usize> Geometry<T, K> {
     /// a count outside 1..=12, a non-finite number, a zero axis, `min > max`, and a geometry
     /// whose columns do not span the `K`-dimensional wrench space (naming what it misses).
     pub fn new(actuators: &[Actuator<T>]) -> Result<Self, GeometryError<T, K>> {
+        Self::with_wheels(actuators, &[])
+    }
+
+    /// [`Geometry::new`] with reaction wheels after the actuators (docs/maths.md, "Reaction
+    /// wheels"): wheel `i` is column `actuators.len() + i`, `(−g_i, 0)` with its axis made unit
+    /// (its motor's torque `u` on the wheel puts `−u g_i` on the body), bounded by
+    /// `±max_torque`. Together they count at most [`MAX_ACTUATORS`], at least one, and must
+    /// span the wrench space (wheels give torque only: on SE(3) the actuators give the force).
+    /// A wheel's error names its column.
+    pub fn with_wheels(
+        actuators: &[Actuator<T>],
+        wheels: &[Wheel<T>],
+    ) -> Result<Self, GeometryError<T, K>> {
         if K != 3 && K != 6 {
             return Err(GeometryError::Dimension);
         }
-        if actuators.is_empty() || actuators.len() > MAX_ACTUATORS {
-            return Err(GeometryError::Count {
-                count: actuators.len(),
-            });
+        let count = actuators.len() + wheels.len();
+        if count == 0 || count > MAX_ACTUATORS {
+            return Err(GeometryError::Count { count });
         }
         let mut g = Geometry {
             b: SMatrix::zeros(),
-            count: actuators.len(),
+            count,
             min: Commands::zeros(),
             max: Commands::zeros(),
         };
@@ -169,6 +182,25 @@ impl<T: RealField + Copy, const K: usize> Geometry<T, K> {
             g.b.set_column(j, &column::<T, K>(j, a)?);
             g.min[j] = a.min;
             g.max[j] = a.max;
+        }
+        for (i, w) in wheels.iter().enumerate() {
+            let j = actuators.len() + i;
+            // a wheel is a pure torque: an actuator at the origin whose thrust is zero and
+            // whose reaction torque is −1 per unit command, checked as one
+            let pure = Actuator {
+                position: [T::zero(); 3],
+                axis: w.axis,
+                torque_per_thrust: -T::one(),
+                min: -w.max_torque,
+                max: w.max_torque,
+            };
+            let mut c = column::<T, K>(j, &pure)?;
+            for r in 3..K {
+                c[r] = T::zero();
+            }
+            g.b.set_column(j, &c);
+            g.min[j] = pure.min;
+            g.max[j] = pure.max;
         }
         let lost = lost_directions(&g.b);
         if lost.count > 0 {

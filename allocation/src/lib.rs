@@ -12,6 +12,8 @@
 //!   with a [`Status`].
 //! * Failures: [`Bounds::fail`] holds a failed actuator at its stuck value;
 //!   [`Allocator::scaled`] scales the column of one that lost effectiveness.
+//! * [`Wheel`], [`WheelSet`]: reaction wheels as columns of `B`, the gyroscopic torque
+//!   their momentum puts on a turning body, and bounds that close at a wheel's top speed.
 //! * [`Restoring`]: gravity and buoyancy as a body wrench, which the controller compensates
 //!   and the plant integrates.
 //!
@@ -49,6 +51,7 @@ mod geometry;
 pub mod presets;
 mod qp;
 mod restoring;
+mod wheels;
 
 pub use allocator::{
     Allocation, Allocator, AllocatorError, Bounds, DEFAULT_BUDGET, Priority, Status,
@@ -56,6 +59,7 @@ pub use allocator::{
 pub use control::{Actuation, SpanWatch, VehicleControl};
 pub use geometry::{Actuator, Geometry, GeometryError, LostDirections};
 pub use restoring::Restoring;
+pub use wheels::{MAX_WHEELS, Wheel, WheelSet};
 
 /// The most actuators a geometry may have.
 pub const MAX_ACTUATORS: usize = 12;

@@ -276,7 +276,12 @@ where
         e: &mut SVector<T, E>,
         mut field: F,
     ) where
-        F: FnMut(T, &SMatrix<T, N, N>, &SVector<T, M>, &SVector<T, E>) -> (SVector<T, M>, SVector<T, E>),
+        F: FnMut(
+            T,
+            &SMatrix<T, N, N>,
+            &SVector<T, M>,
+            &SVector<T, E>,
+        ) -> (SVector<T, M>, SVector<T, E>),
     {
         let h = period / real(substeps as f64);
         let inv = self.inertia_inv;

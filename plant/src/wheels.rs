@@ -312,8 +312,8 @@ impl Wheels {
                 stribeck[j] = w.stribeck(stribeck[j], omega[j], before[j]);
                 hd[j] = applied[j] - w.friction(omega[j], stribeck[j]);
             }
-            let inside = G::ad(v).tr_mul(&carried(&wheels, count, hw))
-                - carried::<M>(&wheels, count, &hd);
+            let inside =
+                G::ad(v).tr_mul(&carried(&wheels, count, hw)) - carried::<M>(&wheels, count, &hd);
             (wrench(s, q, v) + inside, hd)
         });
     }
@@ -397,7 +397,8 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Gyrostat<G, N, M> 
     where
         F: FnMut(f64, &SMatrix<f64, N, N>, &SVector<f64, M>) -> SVector<f64, M>,
     {
-        self.wheels.advance(&mut self.body, period, substeps, wrench);
+        self.wheels
+            .advance(&mut self.body, period, substeps, wrench);
     }
 }
 
