@@ -40,6 +40,13 @@ impl<const M: usize> ControllerVehicle<M> {
     /// tables do not make an allocator on this group, which the scenario's load already
     /// refuses.
     pub fn new(spec: &VehicleSpec, period: f64) -> Result<Self, String> {
+        if !spec.wheels.is_empty() {
+            // the wire does not carry the wheels' speeds yet: only the in-process simulation
+            // flies them
+            return Err(
+                "vehicle.wheel: reaction wheels are flown by `plant_sim sim` only, not yet across the process pair".to_owned(),
+            );
+        }
         Ok(ControllerVehicle {
             control: spec.control::<M>(period)?,
             count: spec.actuators.len(),

@@ -183,6 +183,8 @@ struct Layout {
     health: bool,
     terms: bool,
     vehicle: Option<usize>,
+    /// The reaction wheels: their `wheel_speed_i` and `wheel_cmd_i` columns.
+    wheels: usize,
     status: bool,
     /// `[failsafe]`: the `failsafe` column.
     failsafe: bool,
@@ -206,6 +208,11 @@ impl Layout {
             health: traj.estimator.as_ref().is_some_and(|e| e.gate.is_some()),
             terms: traj.rows.first().is_some_and(|r| r.terms.is_some()),
             vehicle: traj.rows.first().and_then(|r| r.vehicle).map(|v| v.count),
+            wheels: traj
+                .rows
+                .first()
+                .and_then(|r| r.vehicle)
+                .map_or(0, |v| v.wheels),
             status: !traj.status.is_empty(),
             failsafe: traj.failsafe.is_some(),
             width: 0,
@@ -230,6 +237,8 @@ impl Layout {
         if let Some(count) = self.vehicle {
             header.extend(vehicle_header(m, count));
         }
+        header.extend((0..self.wheels).map(|i| format!("wheel_speed_{i}")));
+        header.extend((0..self.wheels).map(|i| format!("wheel_cmd_{i}")));
         if self.status {
             header.push("command_status".to_owned());
         }
@@ -288,6 +297,9 @@ impl Layout {
                 SimError::Run(format!("row {k} of a run with a vehicle has no allocation"))
             })?;
             vehicle_fields(v, m, count, rec);
+            for xs in [&v.wheel_speed[..self.wheels], &v.wheel_cmd[..self.wheels]] {
+                rec.extend(xs.iter().map(|x| Cell::Num(*x)));
+            }
         }
         if self.status {
             rec.push(Cell::Int(u64::from(

@@ -62,6 +62,13 @@ pub struct VehicleRow {
     pub count: usize,
     /// Which healthy actuators' commands are at a bound.
     pub saturated: [bool; 12],
+    /// The number of reaction wheels (the last of the actuators).
+    pub wheels: usize,
+    /// The wheels' speeds relative to the body at `t_k` (rad/s).
+    pub wheel_speed: [f64; 6],
+    /// The motor torque each wheel's drive applied over the period from `t_k`, after the
+    /// plant's limits (N·m; the command `u_cmd` unless a limit changed it).
+    pub wheel_cmd: [f64; 6],
 }
 
 /// The disturbance-rejection terms of a command (body frame, first m entries used).

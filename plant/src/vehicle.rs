@@ -5,12 +5,13 @@
 
 use crate::SimError;
 use crate::trajectory::{EstimateRow, Row, SimulatedTrajectory, Terms, VehicleRow, input};
+use crate::wheels::{Wheel, Wheels};
 use allocation::{Actuation, Commands, MAX_ACTUATORS, Restoring, VehicleControl};
 use controller::closed_loop::ClosedLoop;
 use controller::disturbance::rotate_blocks;
 use controller::group::MatrixLieGroup;
 use controller::integrator::RigidBody;
-use nalgebra::{Matrix3, SMatrix, SVector};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use scenario::Scenario;
 use scenario::vehicle::{FailureKind, FailureSpec};
 use serde::Serialize;
@@ -183,15 +184,41 @@ pub fn step_in_world<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     h: f64,
     substeps: usize,
 ) {
+    advance::<G, N, M>(
+        body,
+        None,
+        environment,
+        actuators,
+        (extra, world),
+        h,
+        substeps,
+    );
+}
+
+/// [`step_in_world`], with the reaction wheels `wheels` integrated beside the body when given
+/// (docs/maths.md, "Reaction wheels").
+fn advance<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    body: &mut RigidBody<f64, G, N, M>,
+    wheels: Option<&mut Wheels>,
+    environment: &Environment<M>,
+    actuators: &mut Actuators<M>,
+    (extra, world): (&SVector<f64, M>, Option<&SVector<f64, M>>),
+    h: f64,
+    substeps: usize,
+) {
     let a = *actuators;
-    body.advance_with(h, substeps, |s, q, v| {
+    let outside = |s: f64, q: &SMatrix<f64, N, N>, v: &SVector<f64, M>| {
         let r = G::rotation(q);
         let mut w = a.wrench_at(s) + environment.wrench(&r, v) + extra;
         if let Some(world) = world {
             w += rotate_blocks(&r.transpose(), world);
         }
         w
-    });
+    };
+    match wheels {
+        None => body.advance_with(h, substeps, outside),
+        Some(wheels) => wheels.advance(body, h, substeps, outside),
+    }
     actuators.end_period(h);
 }
 
@@ -219,6 +246,15 @@ pub struct VehicleRun<const M: usize> {
     /// its torque by more (the `actuators` cause's second condition).
     residual_limit: Option<f64>,
     short: bool,
+    /// The reaction wheels (`None`: the vehicle has none), the count of actuators before
+    /// them, the gyroscopic torque the last demand cancelled, and how many wheel commands
+    /// the plant's limits changed.
+    wheels: Option<Wheels>,
+    thrusters: usize,
+    gyroscopic: SVector<f64, M>,
+    wheel_clamps: usize,
+    /// The wheels' speeds at the start of the present period.
+    speeds_at_start: [f64; 6],
 }
 
 impl<const M: usize> VehicleRun<M> {
@@ -229,9 +265,14 @@ impl<const M: usize> VehicleRun<M> {
         };
         let bad = |e: String| SimError::Input(format!("scenario `{}`: {e}", s.name));
         let geometry = v.geometry::<M>().map_err(bad)?;
+        // the wheels' torque on the body is integrated with them, not as a thrust
+        let mut thrust = *geometry.effectiveness();
+        for j in v.actuators.len()..v.count() {
+            thrust.column_mut(j).fill(0.0);
+        }
         Ok(Some(VehicleRun {
             control: v.control(s.control_period).map_err(bad)?,
-            actuators: Actuators::new(*geometry.effectiveness(), v.actuator_time_constant),
+            actuators: Actuators::new(thrust, v.actuator_time_constant),
             environment: Environment {
                 restoring: v.restoring(),
                 damping_linear: SVector::from_row_slice(&v.damping_linear),
@@ -251,7 +292,29 @@ impl<const M: usize> VehicleRun<M> {
             detections: Vec::new(),
             residual_limit: s.failsafe.and_then(|f| f.actuators_residual),
             short: false,
+            wheels: plant_wheels(s, v).map_err(bad)?,
+            thrusters: v.actuators.len(),
+            gyroscopic: SVector::zeros(),
+            wheel_clamps: 0,
+            speeds_at_start: [0.0; 6],
         }))
+    }
+
+    /// The wrench the law takes as applied over the period (its rejection terms'): the
+    /// allocation's `B u_cmd` and the restoring wrench at `r_hat`, less the gyroscopic torque
+    /// the demand added to cancel (the body with its wheels answers to the rest as the
+    /// rigid body of inertia `J`).
+    pub fn applied(&self, a: &Actuation<f64, M>, r_hat: &Matrix3<f64>) -> SVector<f64, M> {
+        let applied = a.applied(&self.control.restoring(r_hat));
+        match self.wheels {
+            None => applied,
+            Some(_) => applied - self.gyroscopic,
+        }
+    }
+
+    /// The reaction wheels, if any.
+    pub fn wheels(&self) -> Option<&Wheels> {
+        self.wheels.as_ref()
     }
 
     /// The failures due at `t_k` (from the first tick `t_k ≥ t − h/2`): the plant's actuator
@@ -324,8 +387,10 @@ impl<const M: usize> VehicleRun<M> {
     /// `alarms` when the scenario runs the detector (`[fault_detection]`).
     pub fn report(&self, rows: &[Row], h: f64, alarms: Option<u32>) -> VehicleReport {
         let on = self.detector.is_some();
-        VehicleReport::of(rows, &self.failures, h)
-            .with_detections(on.then(|| self.detections.clone()), alarms.filter(|_| on))
+        let mut report = VehicleReport::of(rows, &self.failures, h)
+            .with_detections(on.then(|| self.detections.clone()), alarms.filter(|_| on));
+        report.wheel_clamps = self.wheels.map(|_| self.wheel_clamps);
+        report
     }
 
     /// The failures, as the scenario gives them.
@@ -367,7 +432,15 @@ impl<const M: usize> VehicleRun<M> {
             status: a.allocation.status.code(),
             count: self.count,
             saturated: [false; 12],
+            wheels: 0,
+            wheel_speed: [0.0; 6],
+            wheel_cmd: [0.0; 6],
         };
+        if let Some(w) = &self.wheels {
+            row.wheels = w.wheels().len();
+            row.wheel_speed = self.speeds_at_start;
+            row.wheel_cmd[..row.wheels].copy_from_slice(w.applied());
+        }
         for i in 0..M {
             row.demand[i] = a.demand[i];
             row.achieved[i] = a.allocation.achieved[i];
@@ -437,12 +510,12 @@ where
             .step_actuated(&q_hat, &v_hat, |plant, wrench, h| {
                 let (a, u) = run.cycle::<G, N>(
                     plant,
-                    (wrench, thrust.as_ref(), &r_hat, disarmed),
+                    (wrench, thrust.as_ref(), (&r_hat, &v_hat), disarmed),
                     (&body, world.as_ref()),
                     (h, s.plant_substeps),
                 );
                 record = Some((a, u));
-                a.applied(&run.control.restoring(&r_hat))
+                run.applied(&a, &r_hat)
             })
             .map_err(|e| SimError::Run(format!("closed loop stopped at t = {t} s: {e}")))?;
         let Some((a, u)) = record else {
@@ -502,18 +575,22 @@ impl<const M: usize> VehicleRun<M> {
     fn cycle<G: MatrixLieGroup<N, M>, const N: usize>(
         &mut self,
         plant: &mut RigidBody<f64, G, N, M>,
-        (wrench, thrust, r_hat, disarmed): (
-            &SVector<f64, M>,
-            Option<&SVector<f64, M>>,
-            &Matrix3<f64>,
-            bool,
-        ),
+        (wrench, thrust, (r_hat, v_hat), disarmed): Asked<'_, M>,
         (body, world): (&SVector<f64, M>, Option<&SVector<f64, M>>),
         (h, substeps): (f64, usize),
     ) -> (Actuation<f64, M>, Commands<f64>) {
-        let mut a = match thrust {
-            Some(demand) => self.control.actuate_demand(*demand),
-            None => self.control.actuate(wrench, r_hat),
+        let mut a = match (thrust, &self.wheels) {
+            (Some(demand), _) => self.control.actuate_demand(*demand),
+            (None, None) => self.control.actuate(wrench, r_hat),
+            (None, Some(wheels)) => {
+                // the wheels' tachometers and the body's rate as the controller has them
+                let all = wheels.speeds(&plant.velocity());
+                self.speeds_at_start = all;
+                let speeds = &all[..wheels.wheels().len()];
+                let omega = nalgebra::Vector3::new(v_hat[0], v_hat[1], v_hat[2]);
+                self.gyroscopic = self.control.wheels().gyroscopic(&omega, speeds);
+                self.control.actuate_wheeled(wrench, r_hat, &omega, speeds)
+            }
         };
         self.short = ::failsafe::monitor::torque_short(
             a.allocation.status.code(),
@@ -528,18 +605,32 @@ impl<const M: usize> VehicleRun<M> {
         }
         self.actuators.command(&a.allocation.u);
         let u = self.actuators.produced();
-        step_in_world::<G, N, M>(
+        if let Some(wheels) = &mut self.wheels {
+            let count = wheels.wheels().len();
+            let motors = &a.allocation.u.as_slice()[self.thrusters..self.thrusters + count];
+            self.wheel_clamps += wheels.command(motors, &plant.velocity());
+        }
+        advance::<G, N, M>(
             plant,
+            self.wheels.as_mut(),
             &self.environment,
             &mut self.actuators,
-            body,
-            world,
+            (body, world),
             h,
             substeps,
         );
         (a, u)
     }
 }
+
+/// What a cycle of [`VehicleRun`] is asked: the law's wrench, the failsafe's thrust demand
+/// when it flies one, the estimated attitude and velocity, and whether it is disarmed.
+type Asked<'a, const M: usize> = (
+    &'a SVector<f64, M>,
+    Option<&'a SVector<f64, M>>,
+    (&'a Matrix3<f64>, &'a SVector<f64, M>),
+    bool,
+);
 
 /// `summary.json` → `vehicle`: how long each actuator's command sat at a bound, how far the
 /// achieved wrench fell short of the demand, and the failures.
@@ -564,6 +655,10 @@ pub struct VehicleReport {
     /// not (absent when it is off). In nominal flight, at most the stated rate.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub alarms: Option<u32>,
+    /// The reaction wheels' commands the plant's limits changed (docs/maths.md, "Reaction
+    /// wheels"; absent without wheels).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wheel_clamps: Option<usize>,
 }
 
 /// One detection in `summary.json` (docs/vehicles.md, "Failures nobody announces").
@@ -719,6 +814,7 @@ impl VehicleReport {
             allocation_stopped: stopped,
             detections: None,
             alarms: None,
+            wheel_clamps: None,
             failures: failures
                 .iter()
                 .map(|f| FailureReport {
@@ -735,4 +831,36 @@ impl VehicleReport {
                 .collect(),
         }
     }
+}
+
+/// The plant's reaction wheels of scenario `s`'s vehicle `v` (`None`: it has none), at the
+/// initial body rate.
+fn plant_wheels(
+    s: &Scenario,
+    v: &scenario::vehicle::VehicleSpec,
+) -> Result<Option<Wheels>, String> {
+    if v.wheels.is_empty() {
+        return Ok(None);
+    }
+    let wheels: Vec<Wheel> = v
+        .wheels
+        .iter()
+        .map(|w| Wheel {
+            axis: w.axis,
+            inertia: w.inertia,
+            max_torque: w.max_torque,
+            max_speed: w.max_speed,
+            max_power: w.max_power,
+            friction_coulomb: w.friction_coulomb,
+            friction_static: w.friction_static,
+            stribeck_speed: w.stribeck_speed,
+            friction_viscous: w.friction_viscous,
+        })
+        .collect();
+    let speeds: Vec<f64> = v.wheels.iter().map(|w| w.speed).collect();
+    let omega = &s.initial.velocity;
+    let omega = Vector3::new(omega[0], omega[1], omega[2]);
+    Wheels::new(&wheels, &speeds, &omega)
+        .map(Some)
+        .map_err(|e| format!("vehicle.wheel: {e}"))
 }

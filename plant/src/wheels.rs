@@ -19,7 +19,7 @@ use controller::integrator::RigidBody;
 use nalgebra::{SMatrix, SVector, Vector3};
 
 /// The most wheels a body carries.
-pub const MAX_WHEELS: usize = 6;
+pub const MAX_WHEELS: usize = allocation::MAX_WHEELS;
 
 /// Below this speed (rad/s) friction is linear in the speed, as Basilisk's `omegaLimitCycle`
 /// (its default), so that the sign change of Coulomb friction does not chatter.
@@ -277,10 +277,10 @@ impl Wheels {
     pub fn command<const M: usize>(&mut self, u_cmd: &[f64], v: &SVector<f64, M>) -> usize {
         let omega = self.speeds(v);
         let mut clamped = 0;
-        for i in 0..self.count {
-            let (u, changed) = self.wheels[i].limit(u_cmd.get(i).copied().unwrap_or(0.0), omega[i]);
+        for (i, (w, s)) in self.wheels.iter().zip(omega).take(self.count).enumerate() {
+            let (u, changed) = w.limit(u_cmd.get(i).copied().unwrap_or(0.0), s);
             self.applied[i] = u;
-            self.before[i] = omega[i];
+            self.before[i] = s;
             clamped += usize::from(changed);
         }
         clamped

@@ -295,6 +295,14 @@ impl Scenario {
                 h.bytes(b"allocation budget");
                 h.f64s(&[f64::from(v.budget)]);
             }
+            // the wheels the controller allocates to: only when there are some
+            if !v.wheels.is_empty() {
+                h.bytes(b"reaction wheels");
+                for w in &v.wheels {
+                    h.f64s(&w.axis);
+                    h.f64s(&[w.inertia, w.max_torque, w.max_speed]);
+                }
+            }
             self.fingerprint_fault_detection(&mut h);
         }
         self.fingerprint_failsafe(&mut h);

@@ -165,6 +165,9 @@ impl Scenario {
         if self.path.is_some() {
             return Err(refuse("reference", "a waypoint or set-point reference"));
         }
+        if self.vehicle.as_ref().is_some_and(|v| !v.wheels.is_empty()) {
+            return Err(refuse("vehicle.wheel", "reaction wheels"));
+        }
         if self
             .vehicle
             .as_ref()

@@ -17,6 +17,7 @@ pub mod rejection;
 pub mod sensing;
 pub mod vehicle;
 pub mod waypoints;
+pub mod wheels;
 
 mod build;
 mod raw;

@@ -233,7 +233,7 @@ impl Validator<'_> {
         Ok(x)
     }
 
-    fn positive(&self, key: &str, x: f64) -> Result<f64, ScenarioError> {
+    pub(crate) fn positive(&self, key: &str, x: f64) -> Result<f64, ScenarioError> {
         if !x.is_finite() || x <= 0.0 {
             return Err(self.err(key, format!("must be a finite number > 0, got {x}")));
         }

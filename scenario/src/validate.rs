@@ -239,11 +239,7 @@ impl Validator<'_> {
             group,
             &plant.inertia,
         )?;
-        // the controller's model inertia defaults to the plant's total (added mass included)
-        let total = match vehicle.as_ref().and_then(|v| v.added_mass.as_ref()) {
-            None => plant.inertia.clone(),
-            Some(a) => plant.inertia.iter().zip(a).map(|(p, x)| p + x).collect(),
-        };
+        let total = default_model(vehicle.as_ref(), &plant.inertia, m);
         let controller = self.controller(&raw.controller, &total, n, m)?;
         let initial = self.state("initial", &raw.initial, group, m)?;
         let (reference, feedforward, path) =
@@ -257,6 +253,9 @@ impl Validator<'_> {
             None => EstimatorSpec::default(),
             Some(r) => self.estimator(r, sensors.as_ref(), group, raw.control_period)?,
         };
+        if vehicle.as_ref().is_some_and(|v| !v.wheels.is_empty()) {
+            self.refused_with_wheels(&raw)?;
+        }
         let fault_detection = self.fault_detection(
             raw.fault_detection.as_ref(),
             vehicle.as_ref().map(|v| v.actuators.len()),
@@ -662,4 +661,42 @@ fn zero_feedforward(m: usize) -> Vec<Axis> {
         };
         m
     ]
+}
+
+/// The controller's model inertia when `[controller]` gives none: the plant's total (added
+/// mass included), the body with its reaction wheels free (docs/maths.md, "Reaction wheels").
+fn default_model(
+    vehicle: Option<&crate::vehicle::VehicleSpec>,
+    plant: &[f64],
+    m: usize,
+) -> Vec<f64> {
+    let mut total: Vec<f64> = match vehicle.and_then(|v| v.added_mass.as_ref()) {
+        None => plant.to_vec(),
+        Some(a) => plant.iter().zip(a).map(|(p, x)| p + x).collect(),
+    };
+    if let Some(v) = vehicle {
+        let spin = crate::wheels::spin_inertia(&v.wheels, m);
+        for (t, s) in total.iter_mut().zip(spin) {
+            *t -= s;
+        }
+    }
+    total
+}
+
+impl Validator<'_> {
+    /// What a vehicle with reaction wheels does not have yet, refused naming the table: the
+    /// failure detector's model and the failsafe's laws know thrusters only.
+    fn refused_with_wheels(&self, raw: &RawScenario) -> Result<(), ScenarioError> {
+        let tables = [
+            ("fault_detection", raw.fault_detection.is_some()),
+            ("failsafe", raw.failsafe.is_some()),
+        ];
+        match tables.iter().find(|(_, given)| *given) {
+            Some((key, _)) => Err(self.err(
+                key,
+                "is not yet available on a vehicle with reaction wheels ([[vehicle.wheel]])",
+            )),
+            None => Ok(()),
+        }
+    }
 }

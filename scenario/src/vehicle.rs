@@ -41,6 +41,7 @@ use allocation::{
 
 /// The largest `[allocation] budget` accepted.
 const MAX_BUDGET: i64 = 1000;
+use crate::wheels::WheelSpec;
 use nalgebra::{SMatrix, Vector3};
 use serde::Deserialize;
 
@@ -55,8 +56,10 @@ pub(crate) struct RawVehicle {
     damping_quadratic: Option<Vec<f64>>,
     actuator_time_constant: Option<f64>,
     actuator_rate_limit: Option<f64>,
+    #[serde(default)]
     actuator: Vec<RawActuator>,
     failure: Option<Vec<RawFailure>>,
+    wheel: Option<Vec<crate::wheels::RawWheel>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -161,6 +164,8 @@ pub struct VehicleSpec {
     pub actuator_rate_limit: f64,
     /// The actuators.
     pub actuators: Vec<Actuator<f64>>,
+    /// The reaction wheels (`[[vehicle.wheel]]`), after the actuators in `u_cmd`.
+    pub wheels: Vec<WheelSpec>,
     /// The failures, in time order.
     pub failures: Vec<FailureSpec>,
     /// `[allocation] weights` (empty: all 1).
@@ -186,7 +191,18 @@ impl VehicleSpec {
 
     /// The actuators' geometry on a group of dimension `K` (checked at load).
     pub fn geometry<const K: usize>(&self) -> Result<Geometry<f64, K>, String> {
-        Geometry::new(&self.actuators).map_err(|e| format!("vehicle.actuator: {e}"))
+        Geometry::with_wheels(&self.actuators, &self.wheels_allocated())
+            .map_err(|e| format!("vehicle.actuator: {e}"))
+    }
+
+    /// The wheels as the allocation sees them.
+    pub fn wheels_allocated(&self) -> Vec<allocation::Wheel<f64>> {
+        self.wheels.iter().map(WheelSpec::allocation).collect()
+    }
+
+    /// The actuators and wheels together: the allocator's columns, `u_cmd`'s entries.
+    pub fn count(&self) -> usize {
+        self.actuators.len() + self.wheels.len()
     }
 
     /// The allocator (docs/maths.md, "Control allocation"; checked at load).
@@ -209,7 +225,8 @@ impl VehicleSpec {
             self.restoring(),
             self.actuator_rate_limit,
             h,
-        ))
+        )
+        .with_wheels(&self.wheels_allocated(), self.actuators.len()))
     }
 
     /// Tells `control` of every failure it is to be told of (`reconfigure = true`) that has
@@ -291,11 +308,18 @@ impl Validator<'_> {
                 None => Ok(v),
             }
         };
-        let actuators = self.actuators(&raw.actuator, m)?;
+        let total: Vec<f64> = match &added_mass {
+            None => plant_inertia.to_vec(),
+            Some(a) => plant_inertia.iter().zip(a).map(|(p, x)| p + x).collect(),
+        };
+        let wheels = self.wheels(raw.wheel.as_deref().unwrap_or(&[]), &total, m)?;
+        let allocated: Vec<allocation::Wheel<f64>> =
+            wheels.iter().map(WheelSpec::allocation).collect();
+        let actuators = self.actuators(&raw.actuator, &allocated, m)?;
         let ranges: Vec<(f64, f64)> = actuators.iter().map(|a| (a.min, a.max)).collect();
         let failures = self.failures(raw.failure.as_deref().unwrap_or(&[]), &ranges)?;
         let (weights, preferred, priority, budget) =
-            self.allocation(allocation, actuators.len())?;
+            self.allocation(allocation, actuators.len() + wheels.len())?;
         let spec = VehicleSpec {
             gravity,
             mass,
@@ -311,6 +335,7 @@ impl Validator<'_> {
             actuator_rate_limit: self
                 .optional_non_negative("vehicle.actuator_rate_limit", raw.actuator_rate_limit)?,
             actuators,
+            wheels,
             failures,
             weights,
             preferred,
@@ -388,11 +413,12 @@ impl Validator<'_> {
         Ok(flat)
     }
 
-    /// `[[vehicle.actuator]]`: 1 to 12, each with finite numbers, `min ≤ max`, a non-zero
-    /// axis, and together spanning the group's wrench space.
+    /// `[[vehicle.actuator]]`: each with finite numbers, `min ≤ max`, a non-zero axis; with
+    /// the `wheels` (checked before), 1 to 12 together, spanning the group's wrench space.
     fn actuators(
         &self,
         raw: &[RawActuator],
+        wheels: &[allocation::Wheel<f64>],
         m: usize,
     ) -> Result<Vec<Actuator<f64>>, ScenarioError> {
         let mut out = Vec::with_capacity(raw.len());
@@ -414,10 +440,10 @@ impl Validator<'_> {
             });
         }
         let spans = match m {
-            3 => Geometry::<f64, 3>::new(&out)
+            3 => Geometry::<f64, 3>::with_wheels(&out, wheels)
                 .map(drop)
                 .map_err(|e| self.geometry_refused(&e)),
-            _ => Geometry::<f64, 6>::new(&out)
+            _ => Geometry::<f64, 6>::with_wheels(&out, wheels)
                 .map(drop)
                 .map_err(|e| self.geometry_refused(&e)),
         };
@@ -585,9 +611,11 @@ impl Validator<'_> {
 }
 
 impl Scenario {
-    /// The plant's total inertia: the rigid body's plus any added mass (m×m, row-major).
+    /// The inertia of the body the plant integrates (m×m, row-major): the rigid body's plus
+    /// any added mass, less the reaction wheels' spin inertias `Σ J_s g gᵀ` (they spin free:
+    /// docs/maths.md, "Reaction wheels").
     pub fn total_inertia(&self) -> Vec<f64> {
-        match self.vehicle.as_ref().and_then(|v| v.added_mass.as_ref()) {
+        let mut total = match self.vehicle.as_ref().and_then(|v| v.added_mass.as_ref()) {
             None => self.plant_inertia.clone(),
             Some(a) => self
                 .plant_inertia
@@ -595,6 +623,14 @@ impl Scenario {
                 .zip(a)
                 .map(|(p, x)| p + x)
                 .collect(),
+        };
+        if let Some(v) = self.vehicle.as_ref().filter(|v| !v.wheels.is_empty()) {
+            let m = self.group.dims().1;
+            let spin = crate::wheels::spin_inertia(&v.wheels, m);
+            for (t, s) in total.iter_mut().zip(spin) {
+                *t -= s;
+            }
         }
+        total
     }
 }

@@ -30,6 +30,12 @@ pub(super) struct PairVehicle<const M: usize> {
 impl<const M: usize> PairVehicle<M> {
     /// The scenario's vehicle, if it has one.
     pub(super) fn of(s: &Scenario) -> Result<Option<Self>, crate::SimError> {
+        if s.vehicle.as_ref().is_some_and(|v| !v.wheels.is_empty()) {
+            return Err(crate::SimError::Input(format!(
+                "scenario `{}`: vehicle.wheel: reaction wheels are flown by `plant_sim sim` only, not yet across the process pair",
+                s.name
+            )));
+        }
         Ok(VehicleRun::of(s)?.map(|run| PairVehicle {
             run,
             u_cmd: Commands::zeros(),

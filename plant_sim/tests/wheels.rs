@@ -1,0 +1,303 @@
+//! Reaction wheels flown by `plant_sim sim` (docs/vehicles.md, "Reaction wheels"): the slew
+//! that saturates them, the world momentum kept over a whole flight, the plant's limits
+//! counted, and bad tables refused naming the key.
+
+mod common;
+
+use common::{ok, run, text};
+use pair_tests::{column, read_csv, repo};
+use std::path::Path;
+
+const SLEW: &str = "scenarios/wheels_slew.toml";
+
+fn slew_text() -> String {
+    std::fs::read_to_string(repo(SLEW)).unwrap()
+}
+
+/// Flies `text` as a scenario in `dir`; returns the trajectory's header and rows.
+fn fly(dir: &Path, name: &str, text: &str) -> (Vec<String>, Vec<Vec<String>>) {
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, text).unwrap();
+    let out_dir = dir.join(name);
+    let out = run(&[
+        "sim",
+        "--scenario",
+        path.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    ok(&out);
+    read_csv(&out_dir.join("trajectory.csv"))
+}
+
+fn summary(dir: &Path, name: &str) -> serde_json::Value {
+    let s = std::fs::read_to_string(dir.join(name).join("summary.json")).unwrap();
+    serde_json::from_str(&s).unwrap()
+}
+
+#[test]
+fn the_slew_saturates_its_wheels_and_arrives() {
+    let dir = tempfile::tempdir().unwrap();
+    let (h, rows) = fly(dir.path(), "slew", &slew_text());
+    let status = column(&h, &rows, "alloc_status");
+    let saturated = status.iter().filter(|s| **s == 1.0).count();
+    assert!(
+        saturated > 100,
+        "the torque asked for is out of the wheels' reach for a while: {saturated} ticks"
+    );
+    let u0 = column(&h, &rows, "u_cmd_0");
+    assert!(u0.iter().all(|u| u.abs() <= 0.01 + 1e-15));
+    assert!(
+        u0.iter().any(|u| (u.abs() - 0.01).abs() < 1e-12),
+        "a motor at its limit"
+    );
+    let speed = column(&h, &rows, "wheel_speed_0");
+    assert!(speed.iter().any(|s| s.abs() > 100.0), "the wheel spun up");
+    let err = column(&h, &rows, "attitude_error");
+    assert!(err[0] > 1.0, "a large slew: {}", err[0]);
+    assert!(
+        *err.last().unwrap() < 1e-3,
+        "it arrives: {}",
+        err.last().unwrap()
+    );
+    // the wheel's motor torque is its command: nothing was out of the plant's limits
+    assert_eq!(
+        column(&h, &rows, "wheel_cmd_0")[..rows.len() - 1],
+        u0[..rows.len() - 1]
+    );
+    let s = summary(dir.path(), "slew");
+    assert_eq!(s["vehicle"]["wheel_clamps"], 0, "{s}");
+    assert!(
+        s["vehicle"]["saturated_time_s"][0].as_f64().unwrap() > 1.0,
+        "{s}"
+    );
+}
+
+/// `R (I ω + Σ J_s Ω_i g_i)` at every row of a flight of the slew's spacecraft.
+fn world_momentum(h: &[String], rows: &[Vec<String>]) -> Vec<[f64; 3]> {
+    let inertia = [[0.5, 0.0, 0.02], [0.0, 0.6, 0.0], [0.02, 0.0, 0.4]];
+    let (c, s, js) = (0.8660254037844387, 0.5, 2e-4);
+    let axes = [[c, 0.0, s], [0.0, c, s], [-c, 0.0, s], [0.0, -c, s]];
+    let q: Vec<Vec<f64>> = (0..9)
+        .map(|k| column(h, rows, &format!("q_{}{}", k / 3, k % 3)))
+        .collect();
+    let v: Vec<Vec<f64>> = (0..3).map(|i| column(h, rows, &format!("v_{i}"))).collect();
+    let w: Vec<Vec<f64>> = (0..4)
+        .map(|i| column(h, rows, &format!("wheel_speed_{i}")))
+        .collect();
+    (0..rows.len())
+        .map(|k| {
+            let mut body = [0.0; 3];
+            for (r, b) in body.iter_mut().enumerate() {
+                *b = (0..3).map(|c| inertia[r][c] * v[c][k]).sum::<f64>()
+                    + (0..4).map(|i| js * w[i][k] * axes[i][r]).sum::<f64>();
+            }
+            let mut world = [0.0; 3];
+            for (r, x) in world.iter_mut().enumerate() {
+                *x = (0..3).map(|c| q[r * 3 + c][k] * body[c]).sum();
+            }
+            world
+        })
+        .collect()
+}
+
+#[test]
+fn the_world_momentum_is_kept_over_a_whole_saturating_flight() {
+    let dir = tempfile::tempdir().unwrap();
+    // the slew from a tumble with the wheels already turning: the law drives the wheels
+    // hard, but nothing outside touches the spacecraft
+    let base = slew_text().replace(
+        "velocity = [0.0, 0.0, 0.0]\n\n[reference]",
+        "velocity = [0.05, -0.04, 0.03]\n\n[reference]",
+    );
+    let base = base.replacen(
+        "stribeck_speed = 0.5",
+        "stribeck_speed = 0.5\nspeed = 150.0",
+        1,
+    );
+    assert_ne!(base, slew_text());
+    let frictionless = base
+        .replace("friction_coulomb = 5e-5", "friction_coulomb = 0.0")
+        .replace("friction_static = 1e-4", "friction_static = 0.0")
+        .replace("friction_viscous = 1e-7", "friction_viscous = 0.0");
+    for (name, text) in [("friction", base), ("frictionless", frictionless)] {
+        let (h, rows) = fly(dir.path(), name, &text);
+        let m = world_momentum(&h, &rows);
+        let size = m[0].iter().map(|x| x * x).sum::<f64>().sqrt();
+        assert!(size > 0.01, "{name}: a momentum to keep: {size}");
+        let drift = m
+            .iter()
+            .map(|x| (0..3).map(|i| (x[i] - m[0][i]).powi(2)).sum::<f64>().sqrt())
+            .fold(0.0, f64::max);
+        assert!(drift < 1e-9 * size, "{name}: drift {drift} of {size}");
+        let status = column(&h, &rows, "alloc_status");
+        assert!(status.contains(&1.0), "{name}: the wheels saturated");
+    }
+}
+
+#[test]
+fn a_power_limit_is_the_plants_and_each_clamp_is_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    // the allocator knows the torque and speed limits, not the power: the plant clamps
+    let text = slew_text().replace("max_speed = 600.0", "max_speed = 600.0\nmax_power = 0.5");
+    let (h, rows) = fly(dir.path(), "power", &text);
+    let clamps = summary(dir.path(), "power")["vehicle"]["wheel_clamps"]
+        .as_u64()
+        .unwrap();
+    let (cmd, applied, speed) = (
+        column(&h, &rows, "u_cmd_0"),
+        column(&h, &rows, "wheel_cmd_0"),
+        column(&h, &rows, "wheel_speed_0"),
+    );
+    let changed = (0..rows.len() - 1)
+        .filter(|&k| cmd[k] != applied[k])
+        .count();
+    assert!(
+        changed > 0 && clamps as usize >= changed,
+        "{changed} rows, {clamps} clamps"
+    );
+    for k in 0..rows.len() - 1 {
+        assert!(
+            (applied[k] * speed[k]).abs() <= 0.5 + 1e-12 || applied[k] == cmd[k],
+            "row {k}: {} N·m at {} rad/s",
+            applied[k],
+            speed[k]
+        );
+    }
+}
+
+#[test]
+fn bad_wheel_tables_exit_2_naming_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = slew_text();
+    let wheel = &good[good.find("[[vehicle.wheel]]").unwrap()..];
+    let first = wheel[1..]
+        .find("[[vehicle.wheel]]")
+        .map_or(wheel, |e| &wheel[..e + 1]);
+    let seven = format!("{good}\n{}", first.repeat(3));
+    let thrusters = std::fs::read_to_string(repo("scenarios/spacecraft.toml")).unwrap();
+    let cases = [
+        (
+            "zero-axis",
+            good.replacen(
+                "axis = [0.8660254037844387, 0.0, 0.5]",
+                "axis = [0.0, 0.0, 0.0]",
+                1,
+            ),
+            "vehicle.wheel[0].axis",
+            "zero",
+        ),
+        (
+            "nan-axis",
+            good.replacen(
+                "axis = [0.8660254037844387, 0.0, 0.5]",
+                "axis = [nan, 0.0, 0.5]",
+                1,
+            ),
+            "vehicle.wheel[0].axis",
+            "finite",
+        ),
+        (
+            "inertia",
+            good.replacen("inertia = 2e-4", "inertia = 0.0", 1),
+            "vehicle.wheel[0].inertia",
+            "> 0",
+        ),
+        (
+            "torque",
+            good.replacen("max_torque = 0.01", "max_torque = -0.01", 1),
+            "vehicle.wheel[0].max_torque",
+            "> 0",
+        ),
+        (
+            "speed-limit",
+            good.replacen("max_speed = 600.0", "max_speed = inf", 1),
+            "vehicle.wheel[0].max_speed",
+            "finite",
+        ),
+        (
+            "power",
+            good.replacen("max_speed = 600.0", "max_speed = 600.0\nmax_power = 0.0", 1),
+            "vehicle.wheel[0].max_power",
+            "> 0",
+        ),
+        (
+            "coulomb",
+            good.replacen("friction_coulomb = 5e-5", "friction_coulomb = -5e-5", 1),
+            "vehicle.wheel[0].friction_coulomb",
+            "≥ 0",
+        ),
+        (
+            "viscous",
+            good.replacen("friction_viscous = 1e-7", "friction_viscous = nan", 1),
+            "vehicle.wheel[0].friction_viscous",
+            "finite",
+        ),
+        (
+            "stribeck",
+            good.replacen("stribeck_speed = 0.5", "stribeck_speed = 0.0", 1),
+            "vehicle.wheel[0].stribeck_speed",
+            "> 0",
+        ),
+        (
+            "speed",
+            good.replacen(
+                "stribeck_speed = 0.5",
+                "stribeck_speed = 0.5\nspeed = 700.0",
+                1,
+            ),
+            "vehicle.wheel[0].speed",
+            "max_speed",
+        ),
+        (
+            "unknown",
+            good.replacen("inertia = 2e-4", "inertia = 2e-4\nmomentum = 1.0", 1),
+            "momentum",
+            "unknown",
+        ),
+        ("seven", seven, "vehicle.wheel", "at most 6"),
+        (
+            "spin",
+            good.replace("inertia = 2e-4", "inertia = 0.5"),
+            "vehicle.wheel",
+            "positive definite",
+        ),
+        (
+            "thirteen",
+            format!("{thrusters}\n{first}"),
+            "vehicle.actuator",
+            "12",
+        ),
+        (
+            "detector",
+            format!("{good}\n[fault_detection]\n"),
+            "fault_detection",
+            "reaction wheels",
+        ),
+    ];
+    for (name, text, key, what) in cases {
+        assert_ne!(text, good, "{name}: the case changes the file");
+        let path = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&path, &text).unwrap();
+        let out = run(&["sim", "--scenario", path.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{name}: {}", text_of(&out));
+        assert!(
+            err.contains(key) && err.contains(what),
+            "{name}: the message names neither `{key}` nor `{what}`: {err}"
+        );
+        assert!(!err.contains("panicked"), "{name}: {err}");
+    }
+    // the pair does not carry the wheels' speeds yet: refused, not flown wrong
+    let out = run(&["run", "--scenario", &repo(SLEW).to_string_lossy()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{}", text_of(&out));
+    assert!(
+        err.contains("vehicle.wheel") && err.contains("plant_sim sim"),
+        "{err}"
+    );
+}
+
+fn text_of(out: &std::process::Output) -> String {
+    text(out)
+}
