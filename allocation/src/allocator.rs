@@ -301,6 +301,25 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         self.budget
     }
 
+    /// The last stage's preferred command `u_pref` (0 past the count).
+    pub fn preferred(&self) -> &Commands<T> {
+        &self.preferred
+    }
+
+    /// Sets the last stage's preferred command `u_pref` for the allocations that follow (a
+    /// momentum manager's, every cycle: docs/maths.md, "Momentum management"); an entry that
+    /// is not finite, or past the count, is 0.
+    pub fn set_preferred(&mut self, preferred: &Commands<T>) {
+        for j in 0..MAX_ACTUATORS {
+            let x = preferred[j];
+            self.preferred[j] = if j < self.geometry.count() && x.is_finite() {
+                x
+            } else {
+                T::zero()
+            };
+        }
+    }
+
     /// The geometry.
     pub fn geometry(&self) -> &Geometry<T, K> {
         &self.geometry

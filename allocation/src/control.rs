@@ -5,7 +5,7 @@
 
 use crate::allocator::{Allocation, Allocator, Bounds};
 use crate::restoring::Restoring;
-use crate::wheels::{Wheel, WheelSet};
+use crate::wheels::{Momentum, Wheel, WheelSet};
 use crate::{Commands, MAX_ACTUATORS};
 use nalgebra::{Matrix3, RealField, SVector};
 
@@ -53,6 +53,8 @@ pub struct VehicleControl<T, const K: usize> {
     previous: Option<Commands<T>>,
     /// The reaction wheels among the actuators (none by default).
     wheels: WheelSet<T>,
+    /// Their momentum management (none by default).
+    momentum: Option<Momentum<T>>,
     /// The control period (s).
     period: T,
 }
@@ -75,6 +77,7 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
             rate_step: rate_limit * period,
             previous: None,
             wheels: WheelSet::none(),
+            momentum: None,
             period,
         }
     }
@@ -91,6 +94,14 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     /// The reaction wheels among the actuators.
     pub fn wheels(&self) -> &WheelSet<T> {
         &self.wheels
+    }
+
+    /// The same vehicle managing its wheels' momentum (docs/maths.md, "Momentum management"):
+    /// steering their speeds toward a bias through the null space, and dumping their momentum
+    /// through the thrusters, which then do nothing else.
+    pub fn with_momentum(mut self, momentum: Momentum<T>) -> Self {
+        self.momentum = Some(momentum);
+        self
     }
 
     /// Sets the control period the rate limit applies over (a pair's controller learns it
@@ -217,7 +228,7 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     /// restoring wrench already in it (the failsafe's thrust-axis law asks for its thrust
     /// and torque directly).
     pub fn actuate_demand(&mut self, demand: SVector<T, K>) -> Actuation<T, K> {
-        self.allocate(demand, None)
+        self.allocate(demand, None, None)
     }
 
     /// [`VehicleControl::actuate`] of a vehicle with reaction wheels, at body rate `omega` with
@@ -234,12 +245,46 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         speeds: &[T],
     ) -> Actuation<T, K> {
         let demand = wrench - self.restoring(r_hat) + self.wheels.gyroscopic(omega, speeds);
-        self.allocate(demand, Some(speeds))
+        let thrust = self.momentum.map(|m| self.manage(&m, omega, speeds));
+        self.allocate(demand, Some(speeds), thrust.flatten().as_ref())
+    }
+
+    /// Momentum management's part of a cycle (docs/maths.md, "Momentum management"): the
+    /// wheels' preferred torques for the null space set in the allocator, and, when it
+    /// dumps, the thrusters' commands for the dump torque alone (the wheels held at 0), which
+    /// the cycle's allocation then holds them at.
+    fn manage(
+        &mut self,
+        m: &Momentum<T>,
+        omega: &nalgebra::Vector3<T>,
+        speeds: &[T],
+    ) -> Option<Commands<T>> {
+        if m.null_gain > T::zero() {
+            let mut up = *self.nominal.preferred();
+            self.wheels.null_space(m, speeds, &mut up);
+            self.allocator.set_preferred(&up);
+        }
+        let first = self.wheels.first();
+        if m.dump_gain <= T::zero() || first == 0 {
+            return None;
+        }
+        let tau = WheelSet::dump::<K>(m, &self.wheels.momentum(omega, speeds));
+        let mut bounds = self.bounds;
+        for j in first..first + self.wheels.wheels().len() {
+            bounds.fail(j, T::zero().max(bounds.lo[j]).min(bounds.hi[j]));
+        }
+        Some(self.allocator.allocate_within(&tau, &bounds).u)
     }
 
     /// One allocation of `demand` within the bounds, narrowed to the rate limit and, given the
-    /// wheels' `speeds`, to the wheels' top speeds.
-    fn allocate(&mut self, demand: SVector<T, K>, speeds: Option<&[T]>) -> Actuation<T, K> {
+    /// wheels' `speeds`, to the wheels' top speeds, with the actuators before the wheels held
+    /// at `thrust` when given (a momentum dump's).
+    fn allocate(
+        &mut self,
+        demand: SVector<T, K>,
+        speeds: Option<&[T]>,
+        thrust: Option<&Commands<T>>,
+    ) -> Actuation<T, K> {
         let mut bounds = self.bounds;
         if let (Some(prev), true) = (&self.previous, self.rate_step > T::zero()) {
             for j in 0..self.allocator.geometry().count() {
@@ -250,6 +295,11 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         }
         if let Some(speeds) = speeds {
             self.wheels.narrow(&mut bounds, speeds, self.period);
+        }
+        if let Some(thrust) = thrust {
+            for j in 0..self.wheels.first() {
+                bounds.fail(j, thrust[j].max(bounds.lo[j]).min(bounds.hi[j]));
+            }
         }
         let allocation = self
             .allocator

@@ -155,12 +155,11 @@ impl<T: RealField + Copy, const K: usize> Geometry<T, K> {
         Self::with_wheels(actuators, &[])
     }
 
-    /// [`Geometry::new`] with reaction wheels after the actuators (docs/maths.md, "Reaction
-    /// wheels"): wheel `i` is column `actuators.len() + i`, `(−g_i, 0)` with its axis made unit
+    /// [`Geometry::new`] with reaction wheels after the actuators: wheel `i` is column `actuators.len() + i`, `(−g_i, 0)` with its axis made unit
     /// (its motor's torque `u` on the wheel puts `−u g_i` on the body), bounded by
     /// `±max_torque`. Together they count at most [`MAX_ACTUATORS`], at least one, and must
     /// span the wrench space (wheels give torque only: on SE(3) the actuators give the force).
-    /// A wheel's error names its column.
+    /// A wheel's error names its column (docs/maths.md, "Reaction wheels").
     pub fn with_wheels(
         actuators: &[Actuator<T>],
         wheels: &[Wheel<T>],

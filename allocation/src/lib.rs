@@ -59,7 +59,7 @@ pub use allocator::{
 pub use control::{Actuation, SpanWatch, VehicleControl};
 pub use geometry::{Actuator, Geometry, GeometryError, LostDirections};
 pub use restoring::Restoring;
-pub use wheels::{MAX_WHEELS, Wheel, WheelSet};
+pub use wheels::{MAX_WHEELS, Momentum, Wheel, WheelSet};
 
 /// The most actuators a geometry may have.
 pub const MAX_ACTUATORS: usize = 12;

@@ -4,6 +4,7 @@
 //! asked to cancel, and bounds that close on the side that would speed a wheel past its top
 //! speed.
 
+use crate::Commands;
 use crate::allocator::Bounds;
 use nalgebra::{RealField, SVector, Vector3};
 
@@ -21,6 +22,23 @@ pub struct Wheel<T> {
     pub max_torque: T,
     /// The top speed relative to the body (rad/s).
     pub max_speed: T,
+}
+
+/// Momentum management (docs/maths.md, "Momentum management"): the wheels' speeds steered
+/// toward a bias through the allocation's null space, and their momentum dumped through the
+/// thrusters above a threshold.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Momentum<T> {
+    /// The null space's gain `k_n` (1/s; 0: off): each wheel's preferred torque is
+    /// `−k_n J_s (Ω − Ω_bias)`.
+    pub null_gain: T,
+    /// Each wheel's bias speed `Ω_bias` (rad/s).
+    pub bias: [T; MAX_WHEELS],
+    /// The wheels' momentum `|h_w|` (N·m·s) above which the thrusters dump it.
+    pub dump_threshold: T,
+    /// The dump's gain `k_d` (1/s; 0: off): the thrusters' torque is
+    /// `−k_d (|h_w| − h_thr) h_w/|h_w|` while `|h_w| > h_thr`.
+    pub dump_gain: T,
 }
 
 /// A vehicle's wheels in the allocator's columns `first..first + count`.
@@ -83,6 +101,40 @@ impl<T: RealField + Copy> WheelSet<T> {
         let mut out = SVector::<T, K>::zeros();
         for i in 0..K.min(3) {
             out[i] = c[i];
+        }
+        out
+    }
+
+    /// The wheels' momentum in body axes, `h_w = Σ J_s (g_iᵀω + Ω_i) g_i`.
+    pub fn momentum(&self, omega: &Vector3<T>, speeds: &[T]) -> Vector3<T> {
+        let mut h = Vector3::zeros();
+        for (w, s) in self.wheels().iter().zip(speeds) {
+            let g = Vector3::from(w.axis);
+            h += g * (w.inertia * (g.dot(omega) + *s));
+        }
+        h
+    }
+
+    /// Writes each wheel's preferred torque for the null space into `preferred`:
+    /// `−k_n J_s (Ω − Ω_bias)`, which alone would bring its speed to the bias at the rate
+    /// `k_n` (docs/maths.md, "Momentum management").
+    pub fn null_space(&self, m: &Momentum<T>, speeds: &[T], preferred: &mut Commands<T>) {
+        for (i, (w, s)) in self.wheels().iter().zip(speeds).enumerate() {
+            preferred[self.first + i] = -(m.null_gain * w.inertia * (*s - m.bias[i]));
+        }
+    }
+
+    /// The torque the thrusters are to put on the body to dump the wheels' momentum `h`:
+    /// `−k_d (|h| − h_thr) h/|h|` above the threshold, else 0
+    /// (docs/maths.md, "Momentum management").
+    pub fn dump<const K: usize>(m: &Momentum<T>, h: &Vector3<T>) -> SVector<T, K> {
+        let size = h.norm();
+        let mut out = SVector::<T, K>::zeros();
+        if m.dump_gain > T::zero() && size > m.dump_threshold {
+            let d = h * (-(m.dump_gain * (size - m.dump_threshold)) / size);
+            for i in 0..K.min(3) {
+                out[i] = d[i];
+            }
         }
         out
     }

@@ -3,8 +3,8 @@
 //! a wheel's top speed.
 
 use allocation::{
-    Actuator, Allocator, Geometry, GeometryError, MAX_ACTUATORS, Priority, Restoring, Status,
-    VehicleControl, Wheel, presets,
+    Actuator, Allocator, Geometry, GeometryError, MAX_ACTUATORS, Momentum, Priority, Restoring,
+    Status, VehicleControl, Wheel, presets,
 };
 use nalgebra::{Matrix3, SVector, Vector3};
 
@@ -175,4 +175,84 @@ fn a_wheel_at_its_top_speed_is_not_sped_up() {
     );
     assert_eq!(b.allocation.u[0], 0.0);
     assert!(b.allocation.u.iter().all(|x| x.is_finite()));
+}
+
+#[test]
+fn the_null_space_moves_the_wheels_and_leaves_the_torque() {
+    let omega = Vector3::new(0.02, -0.01, 0.03);
+    let speeds = [120.0, -40.0, 10.0, 60.0];
+    let tau = SVector::<f64, 3>::from([0.004, -0.002, 0.003]);
+    let mut plain = wheeled();
+    let mut managed = wheeled().with_momentum(Momentum {
+        null_gain: 0.05,
+        bias: [100.0, -100.0, 100.0, -100.0, 0.0, 0.0],
+        dump_threshold: 0.0,
+        dump_gain: 0.0,
+    });
+    let a = plain.actuate_wheeled(&tau, &Matrix3::identity(), &omega, &speeds);
+    let b = managed.actuate_wheeled(&tau, &Matrix3::identity(), &omega, &speeds);
+    assert_eq!(a.allocation.status, Status::Met);
+    assert_eq!(b.allocation.status, Status::Met);
+    // the same torque on the body, to rounding
+    assert!((a.allocation.achieved - b.allocation.achieved).amax() < 1e-15);
+    let g = Geometry::<f64, 3>::with_wheels(&[], &pyramid()).unwrap();
+    assert!((g.wrench(&b.allocation.u) - g.wrench(&a.allocation.u)).amax() < 1e-15);
+    // the difference lies along the null space (1, −1, 1, −1) and pushes the speeds'
+    // null-space error toward the bias: e = Ω − Ω_bias = (20, 60, −90, 160), whose part
+    // along n is (20 − 60 − 90 − 160)/4 = −72.5 per wheel: the wheels speed up along n
+    let d = b.allocation.u - a.allocation.u;
+    let n = [1.0, -1.0, 1.0, -1.0];
+    for i in 0..4 {
+        assert!((d[i] - d[0] * n[i]).abs() < 1e-15, "{d}");
+    }
+    // −k J_s P e = −0.05 × 0.01 × (−72.5) n (within the bounds: nothing saturates)
+    assert!((d[0] - 0.05 * 0.01 * 72.5).abs() < 1e-12, "{}", d[0]);
+}
+
+#[test]
+fn a_dump_puts_the_thrusters_against_the_wheels_momentum() {
+    // six one-way thrusters, one per signed axis, and the pyramid
+    let thrusters: Vec<Actuator<f64>> = presets::spacecraft_twelve(0.5, 0.01)[..6].to_vec();
+    let g = Geometry::<f64, 3>::with_wheels(&thrusters, &pyramid()).unwrap();
+    let alloc = Allocator::new(g, &[], &[], Priority::Torque).unwrap();
+    let m = Momentum {
+        null_gain: 0.0,
+        bias: [0.0; 6],
+        dump_threshold: 0.05,
+        dump_gain: 0.2,
+    };
+    let mut c = VehicleControl::new(alloc, Restoring::none(), 0.0, 0.01)
+        .with_wheels(&pyramid(), 6)
+        .with_momentum(m);
+    // wheels holding 0.06 N·m·s along +z, the body still
+    let speeds = [3.0, 3.0, 3.0, 3.0];
+    let h = pyramid()
+        .iter()
+        .zip(speeds)
+        .fold(Vector3::zeros(), |h, (w, s)| {
+            h + Vector3::from(w.axis) * (w.inertia * s)
+        });
+    assert!(h.norm() > 0.05);
+    let tau = SVector::<f64, 3>::from([0.001, 0.0, 0.0]);
+    let a = c.actuate_wheeled(&tau, &Matrix3::identity(), &Vector3::zeros(), &speeds);
+    let b = *g.effectiveness();
+    let mut thrust = a.allocation.u;
+    thrust.rows_mut(6, 6).fill(0.0);
+    let dump = b * thrust;
+    // the thrusters' torque is −k_d (|h| − h_thr) ĥ
+    let want = -h * (0.2 * (h.norm() - 0.05) / h.norm());
+    assert!(
+        (dump - SVector::<f64, 3>::from([want.x, want.y, want.z])).amax() < 1e-12,
+        "{dump} vs {want}"
+    );
+    // and the body still gets the law's torque: the wheels cancel the thrusters'
+    assert!((a.allocation.achieved - tau).amax() < 1e-12);
+    // below the threshold, the thrusters rest
+    let slow = [1.0; 4];
+    let quiet = c.actuate_wheeled(&tau, &Matrix3::identity(), &Vector3::zeros(), &slow);
+    assert!(
+        quiet.allocation.u.iter().take(6).all(|x| *x == 0.0),
+        "{}",
+        quiet.allocation.u
+    );
 }

@@ -655,8 +655,8 @@ pub struct VehicleReport {
     /// not (absent when it is off). In nominal flight, at most the stated rate.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub alarms: Option<u32>,
-    /// The reaction wheels' commands the plant's limits changed (docs/maths.md, "Reaction
-    /// wheels"; absent without wheels).
+    /// The reaction wheels' commands the plant's limits changed (absent without wheels;
+    /// docs/maths.md, "Reaction wheels").
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wheel_clamps: Option<usize>,
 }

@@ -288,9 +288,9 @@ impl Wheels {
 
     /// Advances `body` (of inertia [`Wheels::free_inertia`]) and the wheels by `period` in
     /// `substeps` RKMK4 steps, under the motor torques held by [`Wheels::command`] and the
-    /// outside wrench `wrench(s, Q, V)`, evaluated at every stage (docs/maths.md, "Reaction
-    /// wheels"): the body meets `ad_Vᵀ (Σ h g, 0) − (Σ ḣ g, 0)` besides the outside wrench,
-    /// each wheel `ḣ_i = u_i − f_i(Ω_i)`.
+    /// outside wrench `wrench(s, Q, V)`, evaluated at every stage: the body meets
+    /// `ad_Vᵀ (Σ h g, 0) − (Σ ḣ g, 0)` besides the outside wrench, each wheel
+    /// `ḣ_i = u_i − f_i(Ω_i)` (docs/maths.md, "Reaction wheels").
     pub fn advance<G, F, const N: usize, const M: usize>(
         &mut self,
         body: &mut RigidBody<f64, G, N, M>,

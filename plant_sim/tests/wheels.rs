@@ -301,3 +301,165 @@ fn bad_wheel_tables_exit_2_naming_the_key() {
 fn text_of(out: &std::process::Output) -> String {
     text(out)
 }
+
+/// `|h_w| = |Σ J_s (g_iᵀω + Ω_i) g_i|` at every row of a flight with the slew's wheels.
+fn wheel_momentum(h: &[String], rows: &[Vec<String>]) -> Vec<f64> {
+    let (c, s, js) = (0.8660254037844387, 0.5, 2e-4);
+    let axes = [[c, 0.0, s], [0.0, c, s], [-c, 0.0, s], [0.0, -c, s]];
+    let v: Vec<Vec<f64>> = (0..3).map(|i| column(h, rows, &format!("v_{i}"))).collect();
+    let w: Vec<Vec<f64>> = (0..4)
+        .map(|i| column(h, rows, &format!("wheel_speed_{i}")))
+        .collect();
+    (0..rows.len())
+        .map(|k| {
+            let mut total = [0.0f64; 3];
+            for (i, g) in axes.iter().enumerate() {
+                let hi = js * ((0..3).map(|r| g[r] * v[r][k]).sum::<f64>() + w[i][k]);
+                for r in 0..3 {
+                    total[r] += hi * g[r];
+                }
+            }
+            total.iter().map(|x| x * x).sum::<f64>().sqrt()
+        })
+        .collect()
+}
+
+#[test]
+fn dumping_keeps_the_wheels_momentum_within_a_tenth_above_its_threshold() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(repo("scenarios/wheels_dump.toml")).unwrap();
+    let (h, rows) = fly(dir.path(), "dump", &text);
+    let t = column(&h, &rows, "t");
+    assert!(*t.last().unwrap() >= 600.0 - 1e-9, "ten minutes");
+    let hw = wheel_momentum(&h, &rows);
+    let first = hw
+        .iter()
+        .position(|x| *x > 0.05)
+        .expect("the momentum reached the threshold");
+    let top = hw[first..].iter().fold(0.0f64, |a, x| a.max(*x));
+    assert!(top <= 1.1 * 0.05, "|h_w| rose to {top}");
+    let fired = (0..6)
+        .map(|j| column(&h, &rows, &format!("u_cmd_{j}")))
+        .any(|u| u.iter().any(|x| *x > 1e-4));
+    assert!(fired, "the thrusters dumped");
+    let err = column(&h, &rows, "attitude_error");
+    assert!(err.iter().all(|e| *e < 5e-3), "the wheels kept pointing");
+    // without the dump the same torque fills the wheels far past the threshold
+    let start = text.find("[vehicle.momentum]").unwrap();
+    let (h2, rows2) = fly(dir.path(), "no-dump", &text[..start]);
+    let undumped = wheel_momentum(&h2, &rows2);
+    assert!(
+        undumped.iter().fold(0.0f64, |a, x| a.max(*x)) > 2.0 * 0.05,
+        "without dumping the momentum grows"
+    );
+}
+
+#[test]
+fn the_null_space_brings_the_wheels_to_their_bias_and_the_slew_still_arrives() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = format!(
+        "{}\n[vehicle.momentum]\nnull_space_gain = 0.5\nbias = [100.0, -100.0, 100.0, -100.0]\n",
+        slew_text()
+    );
+    let (h, rows) = fly(dir.path(), "null", &text);
+    let last = rows.len() - 1;
+    for (i, bias) in [100.0, -100.0, 100.0, -100.0].iter().enumerate() {
+        let s = column(&h, &rows, &format!("wheel_speed_{i}"))[last];
+        assert!(
+            (s - bias).abs() < 1.0,
+            "wheel {i} at {s} rad/s, bias {bias}"
+        );
+    }
+    let err = column(&h, &rows, "attitude_error");
+    assert!(err[last] < 1e-3, "it arrives: {}", err[last]);
+    // without it the wheels end near rest
+    let (h0, rows0) = fly(dir.path(), "plain", &slew_text());
+    let s0 = column(&h0, &rows0, "wheel_speed_0")[rows0.len() - 1];
+    assert!(s0.abs() < 10.0, "{s0}");
+}
+
+#[test]
+fn bad_momentum_tables_exit_2_naming_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let slew = slew_text();
+    let dump = std::fs::read_to_string(repo("scenarios/wheels_dump.toml")).unwrap();
+    let thrusters = std::fs::read_to_string(repo("scenarios/spacecraft.toml")).unwrap();
+    let with = |base: &str, table: &str| format!("{base}\n[vehicle.momentum]\n{table}\n");
+    let three = {
+        let cut = slew.rfind("[[vehicle.wheel]]").unwrap();
+        slew[..cut].to_owned()
+    };
+    let cases = [
+        (
+            "no-wheels",
+            with(&thrusters, "null_space_gain = 0.1"),
+            "vehicle.momentum",
+            "reaction wheels",
+        ),
+        (
+            "three",
+            with(&three, "null_space_gain = 0.1"),
+            "vehicle.momentum.null_space_gain",
+            "four or more",
+        ),
+        (
+            "fast",
+            with(&slew, "null_space_gain = 100.0"),
+            "vehicle.momentum.null_space_gain",
+            "1/h",
+        ),
+        (
+            "negative",
+            with(&slew, "null_space_gain = -0.1"),
+            "vehicle.momentum.null_space_gain",
+            "≥ 0",
+        ),
+        (
+            "bias-length",
+            with(&slew, "null_space_gain = 0.1\nbias = [1.0]"),
+            "vehicle.momentum.bias",
+            "4",
+        ),
+        (
+            "bias-speed",
+            with(&slew, "bias = [0.0, 0.0, 700.0, 0.0]"),
+            "vehicle.momentum.bias",
+            "max_speed",
+        ),
+        (
+            "no-thrusters",
+            with(&slew, "dump_gain = 0.2\ndump_threshold = 0.05"),
+            "vehicle.momentum.dump_gain",
+            "thrusters",
+        ),
+        (
+            "no-threshold",
+            dump.replace("dump_threshold = 0.05\n", ""),
+            "vehicle.momentum.dump_threshold",
+            "threshold",
+        ),
+        (
+            "threshold",
+            dump.replace("dump_threshold = 0.05", "dump_threshold = 0.0"),
+            "vehicle.momentum.dump_threshold",
+            "> 0",
+        ),
+        (
+            "unknown",
+            dump.replace("dump_gain = 0.2", "dump_gain = 0.2\ndump_rate = 1.0"),
+            "dump_rate",
+            "unknown",
+        ),
+    ];
+    for (name, text, key, what) in cases {
+        let path = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&path, &text).unwrap();
+        let out = run(&["sim", "--scenario", path.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{name}: {}", text_of(&out));
+        assert!(
+            err.contains(key) && err.contains(what),
+            "{name}: the message names neither `{key}` nor `{what}`: {err}"
+        );
+    }
+}

@@ -295,14 +295,7 @@ impl Scenario {
                 h.bytes(b"allocation budget");
                 h.f64s(&[f64::from(v.budget)]);
             }
-            // the wheels the controller allocates to: only when there are some
-            if !v.wheels.is_empty() {
-                h.bytes(b"reaction wheels");
-                for w in &v.wheels {
-                    h.f64s(&w.axis);
-                    h.f64s(&[w.inertia, w.max_torque, w.max_speed]);
-                }
-            }
+            self.fingerprint_wheels(&mut h);
             self.fingerprint_fault_detection(&mut h);
         }
         self.fingerprint_failsafe(&mut h);
@@ -329,6 +322,24 @@ impl Scenario {
     }
 
     /// [`Scenario::fingerprint`]'s part for `[fault_detection]`.
+    /// The reaction wheels the controller allocates to and their momentum management: only
+    /// when there are some, so scenarios without keep their fingerprints.
+    fn fingerprint_wheels(&self, h: &mut Fnv) {
+        let Some(v) = self.vehicle.as_ref().filter(|v| !v.wheels.is_empty()) else {
+            return;
+        };
+        h.bytes(b"reaction wheels");
+        for w in &v.wheels {
+            h.f64s(&w.axis);
+            h.f64s(&[w.inertia, w.max_torque, w.max_speed]);
+        }
+        if let Some(m) = &v.momentum {
+            h.bytes(b"momentum management");
+            h.f64s(&[m.null_gain, m.dump_threshold, m.dump_gain]);
+            h.f64s(&m.bias);
+        }
+    }
+
     fn fingerprint_fault_detection(&self, h: &mut Fnv) {
         // only when on, so scenarios without it keep their fingerprints
         if let Some(f) = &self.fault_detection {

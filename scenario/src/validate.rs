@@ -238,6 +238,7 @@ impl Validator<'_> {
             raw.allocation.as_ref(),
             group,
             &plant.inertia,
+            raw.control_period,
         )?;
         let total = default_model(vehicle.as_ref(), &plant.inertia, m);
         let controller = self.controller(&raw.controller, &total, n, m)?;
@@ -663,6 +664,14 @@ fn zero_feedforward(m: usize) -> Vec<Axis> {
     ]
 }
 
+/// The plant's inertia plus any added mass (row-major).
+pub(crate) fn plus(plant: &[f64], added: Option<&[f64]>) -> Vec<f64> {
+    match added {
+        None => plant.to_vec(),
+        Some(a) => plant.iter().zip(a).map(|(p, x)| p + x).collect(),
+    }
+}
+
 /// The controller's model inertia when `[controller]` gives none: the plant's total (added
 /// mass included), the body with its reaction wheels free (docs/maths.md, "Reaction wheels").
 fn default_model(
@@ -670,10 +679,7 @@ fn default_model(
     plant: &[f64],
     m: usize,
 ) -> Vec<f64> {
-    let mut total: Vec<f64> = match vehicle.and_then(|v| v.added_mass.as_ref()) {
-        None => plant.to_vec(),
-        Some(a) => plant.iter().zip(a).map(|(p, x)| p + x).collect(),
-    };
+    let mut total = plus(plant, vehicle.and_then(|v| v.added_mass.as_deref()));
     if let Some(v) = vehicle {
         let spin = crate::wheels::spin_inertia(&v.wheels, m);
         for (t, s) in total.iter_mut().zip(spin) {

@@ -60,6 +60,7 @@ pub(crate) struct RawVehicle {
     actuator: Vec<RawActuator>,
     failure: Option<Vec<RawFailure>>,
     wheel: Option<Vec<crate::wheels::RawWheel>>,
+    momentum: Option<crate::wheels::RawMomentum>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -166,6 +167,8 @@ pub struct VehicleSpec {
     pub actuators: Vec<Actuator<f64>>,
     /// The reaction wheels (`[[vehicle.wheel]]`), after the actuators in `u_cmd`.
     pub wheels: Vec<WheelSpec>,
+    /// Their momentum management (`[vehicle.momentum]`), if any.
+    pub momentum: Option<allocation::Momentum<f64>>,
     /// The failures, in time order.
     pub failures: Vec<FailureSpec>,
     /// `[allocation] weights` (empty: all 1).
@@ -227,6 +230,10 @@ impl VehicleSpec {
             h,
         )
         .with_wheels(&self.wheels_allocated(), self.actuators.len()))
+        .map(|c| match self.momentum {
+            Some(m) => c.with_momentum(m),
+            None => c,
+        })
     }
 
     /// Tells `control` of every failure it is to be told of (`reconfigure = true`) that has
@@ -263,6 +270,7 @@ impl Validator<'_> {
         allocation: Option<&RawAllocation>,
         group: controller::GroupKind,
         plant_inertia: &[f64],
+        h: f64,
     ) -> Result<Option<VehicleSpec>, ScenarioError> {
         let Some(raw) = raw else {
             return match allocation {
@@ -308,14 +316,12 @@ impl Validator<'_> {
                 None => Ok(v),
             }
         };
-        let total: Vec<f64> = match &added_mass {
-            None => plant_inertia.to_vec(),
-            Some(a) => plant_inertia.iter().zip(a).map(|(p, x)| p + x).collect(),
-        };
+        let total = crate::validate::plus(plant_inertia, added_mass.as_deref());
         let wheels = self.wheels(raw.wheel.as_deref().unwrap_or(&[]), &total, m)?;
         let allocated: Vec<allocation::Wheel<f64>> =
             wheels.iter().map(WheelSpec::allocation).collect();
         let actuators = self.actuators(&raw.actuator, &allocated, m)?;
+        let momentum = self.momentum(raw.momentum.as_ref(), &wheels, actuators.len(), h)?;
         let ranges: Vec<(f64, f64)> = actuators.iter().map(|a| (a.min, a.max)).collect();
         let failures = self.failures(raw.failure.as_deref().unwrap_or(&[]), &ranges)?;
         let (weights, preferred, priority, budget) =
@@ -336,6 +342,7 @@ impl Validator<'_> {
                 .optional_non_negative("vehicle.actuator_rate_limit", raw.actuator_rate_limit)?,
             actuators,
             wheels,
+            momentum,
             failures,
             weights,
             preferred,

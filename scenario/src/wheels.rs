@@ -13,6 +13,12 @@
 //! stribeck_speed = 0.1        # rad/s, optional (absent: no Stribeck effect)
 //! friction_viscous = 0.0      # N·m·s
 //! speed = 0.0                 # initial speed relative to the body, rad/s
+//!
+//! [vehicle.momentum]          # optional: momentum management (docs/maths.md)
+//! null_space_gain = 0.1       # 1/s: wheel speeds toward `bias` (four or more wheels)
+//! bias = [0.0, 0.0, 0.0, 0.0] # rad/s, one per wheel (default 0)
+//! dump_threshold = 0.05       # N·m·s: above it the thrusters dump the wheels' momentum
+//! dump_gain = 1.0             # 1/s (needs thrusters)
 //! ```
 
 use crate::{ScenarioError, Validator};
@@ -33,6 +39,15 @@ pub(crate) struct RawWheel {
     stribeck_speed: Option<f64>,
     friction_viscous: Option<f64>,
     speed: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawMomentum {
+    null_space_gain: Option<f64>,
+    bias: Option<Vec<f64>>,
+    dump_threshold: Option<f64>,
+    dump_gain: Option<f64>,
 }
 
 /// One reaction wheel (`[[vehicle.wheel]]`), in SI units.
@@ -87,6 +102,92 @@ pub(crate) fn spin_inertia(wheels: &[WheelSpec], m: usize) -> Vec<f64> {
 }
 
 impl Validator<'_> {
+    /// `[vehicle.momentum]` for `wheels` and `thrusters` actuators besides them, at control
+    /// period `h`: a null-space gain ≥ 0 below `1/h` (and then four or more wheels, whose
+    /// null space it uses), one finite bias per wheel, a dump gain ≥ 0 below `1/h` with a
+    /// positive threshold (and thrusters to dump with).
+    pub(crate) fn momentum(
+        &self,
+        raw: Option<&RawMomentum>,
+        wheels: &[WheelSpec],
+        thrusters: usize,
+        h: f64,
+    ) -> Result<Option<allocation::Momentum<f64>>, ScenarioError> {
+        let Some(raw) = raw else {
+            return Ok(None);
+        };
+        if wheels.is_empty() {
+            return Err(self.err(
+                "vehicle.momentum",
+                "needs reaction wheels ([[vehicle.wheel]])",
+            ));
+        }
+        let gain = |key: &str, x: Option<f64>| -> Result<f64, ScenarioError> {
+            let x = x.map_or(Ok(0.0), |x| self.non_negative(key, x))?;
+            if x * h >= 1.0 {
+                return Err(self.err(
+                    key,
+                    format!("{x} /s is not below 1/h = {} /s: the correction would overshoot in one period", 1.0 / h),
+                ));
+            }
+            Ok(x)
+        };
+        let null_gain = gain("vehicle.momentum.null_space_gain", raw.null_space_gain)?;
+        if null_gain > 0.0 && wheels.len() < 4 {
+            return Err(self.err(
+                "vehicle.momentum.null_space_gain",
+                format!(
+                    "needs four or more wheels (a null space to move them in), the vehicle has {}",
+                    wheels.len()
+                ),
+            ));
+        }
+        let mut bias = [0.0; MAX_WHEELS];
+        if let Some(b) = &raw.bias {
+            let b = self.vector(
+                "vehicle.momentum.bias",
+                b,
+                wheels.len(),
+                "one speed per wheel, rad/s",
+            )?;
+            for (i, (x, w)) in b.iter().zip(wheels).enumerate() {
+                if x.abs() > w.max_speed {
+                    return Err(self.err(
+                        "vehicle.momentum.bias",
+                        format!(
+                            "entry {i} ({x} rad/s) is beyond the wheel's max_speed {}",
+                            w.max_speed
+                        ),
+                    ));
+                }
+                bias[i] = *x;
+            }
+        }
+        let dump_gain = gain("vehicle.momentum.dump_gain", raw.dump_gain)?;
+        let dump_threshold = match (raw.dump_threshold, dump_gain > 0.0) {
+            (Some(t), _) => self.positive("vehicle.momentum.dump_threshold", t)?,
+            (None, true) => {
+                return Err(self.err(
+                    "vehicle.momentum.dump_threshold",
+                    "a dump needs its threshold (N·m·s)",
+                ));
+            }
+            (None, false) => 0.0,
+        };
+        if dump_gain > 0.0 && thrusters == 0 {
+            return Err(self.err(
+                "vehicle.momentum.dump_gain",
+                "a dump needs thrusters ([[vehicle.actuator]]) to put the torque on the body",
+            ));
+        }
+        Ok(Some(allocation::Momentum {
+            null_gain,
+            bias,
+            dump_threshold,
+            dump_gain,
+        }))
+    }
+
     /// `[[vehicle.wheel]]`: each with a non-zero finite axis (made unit), a positive finite
     /// inertia, torque and speed limit and power limit when given, friction finite and ≥ 0, a
     /// Stribeck speed positive and finite when given, an initial speed within the top speed;
