@@ -5,7 +5,7 @@ use super::Corpus;
 use scenario::BUILTINS;
 
 /// Hand-written valid scenarios that reach the optional keys the built-ins leave out.
-const EXTRA_SEEDS: [&str; 13] = [
+const EXTRA_SEEDS: [&str; 15] = [
     // the disturbance-rejection terms and the world and step disturbances
     include_str!("../../../scenarios/reject_so3.toml"),
     include_str!("../../../scenarios/reject_se3.toml"),
@@ -14,6 +14,9 @@ const EXTRA_SEEDS: [&str; 13] = [
     include_str!("../../../scenarios/sensors_se3.toml"),
     include_str!("../../../scenarios/eqf_so3.toml"),
     include_str!("../../../scenarios/eqf_se3.toml"),
+    // reaction wheels with friction, alone and beside thrusters, with momentum management
+    include_str!("../../../scenarios/wheels_slew.toml"),
+    include_str!("../../../scenarios/wheels_dump.toml"),
     // `[vehicle]` (actuators, gravity, buoyancy, added mass, drag, lag, a failure) and
     // `[allocation]`, on both groups
     VEHICLE_SE3,

@@ -72,8 +72,26 @@ pub(super) const STRINGS: [&str; 30] = [
 ];
 
 /// Known keys and values for [`TomlOp::SetKey`](super::mutation::TomlOp::SetKey).
-pub(super) const KEYS: [(&str, &[&str]); 41] = [
+pub(super) const KEYS: [(&str, &[&str]); 47] = [
     ("path", &["\"stop\"", "\"through\"", "\"curvy\"", "3"]),
+    // `[[vehicle.wheel]]` and `[vehicle.momentum]`
+    (
+        "axis",
+        &[
+            "[0.0, 0.0, 0.0]",
+            "[nan, 0.0, 1.0]",
+            "[1e308, 1e308, 0.0]",
+            "[1.0]",
+        ],
+    ),
+    ("max_speed", &["600.0", "0.0", "-1.0", "inf", "1e-300"]),
+    ("stribeck_speed", &["0.5", "0.0", "nan", "1e-300", "1e300"]),
+    ("speed", &["0.0", "600.0", "601.0", "-1e300", "nan"]),
+    (
+        "null_space_gain",
+        &["0.5", "0.0", "-0.5", "100.0", "99.99", "nan"],
+    ),
+    ("dump_threshold", &["0.05", "0.0", "-1.0", "1e-300", "inf"]),
     (
         "error_frame",
         &[
