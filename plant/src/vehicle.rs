@@ -332,6 +332,15 @@ impl<const M: usize> VehicleRun<M> {
                 }
                 FailureKind::Effectiveness { factor } => self.actuators.lose(f.actuator, factor),
             }
+            // a wheel's motor fails in the wheel's own model
+            if let Some(w) = &mut self.wheels
+                && let Some(i) = f.actuator.checked_sub(self.thrusters)
+            {
+                match f.kind {
+                    FailureKind::Stuck | FailureKind::Dead => w.fail(i, f.value),
+                    FailureKind::Effectiveness { factor } => w.lose(i, factor),
+                }
+            }
             if f.reconfigure {
                 match f.kind {
                     FailureKind::Effectiveness { factor } => {

@@ -182,6 +182,10 @@ pub struct Wheels {
     count: usize,
     /// The motor torques held over the period.
     applied: [f64; MAX_WHEELS],
+    /// Failed motors: the torque each is stuck at (0: dead).
+    stuck: [Option<f64>; MAX_WHEELS],
+    /// Each motor's effectiveness (1 until it loses some).
+    factor: [f64; MAX_WHEELS],
     /// The wheels' speeds at the start of the period.
     before: [f64; MAX_WHEELS],
     /// Whether each wheel's friction is on its Stribeck branch.
@@ -203,6 +207,8 @@ impl Wheels {
             wheels: [Wheel::ideal([1.0, 0.0, 0.0], 1.0, 1.0, 1.0); MAX_WHEELS],
             count: wheels.len(),
             applied: [0.0; MAX_WHEELS],
+            stuck: [None; MAX_WHEELS],
+            factor: [1.0; MAX_WHEELS],
             before: [0.0; MAX_WHEELS],
             stribeck: [false; MAX_WHEELS],
         };
@@ -271,14 +277,36 @@ impl Wheels {
         &self.applied[..self.count]
     }
 
+    /// Wheel `i`'s motor fails, stuck at the torque `value` (0: dead) from the next command
+    /// on, whatever it is commanded (the motor's limits still apply).
+    pub fn fail(&mut self, i: usize, value: f64) {
+        if i < self.count {
+            self.stuck[i] = Some(value);
+        }
+    }
+
+    /// Wheel `i`'s motor loses effectiveness: it gives `factor` times its limited command.
+    pub fn lose(&mut self, i: usize, factor: f64) {
+        if i < self.count {
+            self.factor[i] = factor;
+        }
+    }
+
     /// Holds the motor commands `u_cmd` (one per wheel; missing ones 0) over the period that
     /// starts now on a body moving at `v`, each limited by [`Wheel::limit`] at the wheel's
-    /// present speed. Returns how many were changed by a limit.
+    /// present speed (a failed motor's stuck torque in place of its command; one that lost
+    /// effectiveness gives that fraction). Returns how many commands a limit changed.
     pub fn command<const M: usize>(&mut self, u_cmd: &[f64], v: &SVector<f64, M>) -> usize {
         let omega = self.speeds(v);
         let mut clamped = 0;
         for (i, (w, s)) in self.wheels.iter().zip(omega).take(self.count).enumerate() {
-            let (u, changed) = w.limit(u_cmd.get(i).copied().unwrap_or(0.0), s);
+            let asked = self.stuck[i].unwrap_or(u_cmd.get(i).copied().unwrap_or(0.0));
+            let (u, changed) = w.limit(asked, s);
+            let u = if self.factor[i] == 1.0 {
+                u
+            } else {
+                u * self.factor[i]
+            };
             self.applied[i] = u;
             self.before[i] = s;
             clamped += usize::from(changed);

@@ -463,3 +463,73 @@ fn bad_momentum_tables_exit_2_naming_the_key() {
         );
     }
 }
+
+#[test]
+fn a_dead_wheel_told_to_the_allocator_leaves_three_that_still_arrive() {
+    let dir = tempfile::tempdir().unwrap();
+    // wheel 1 (actuator 1: the wheels are the only actuators) dies at 2 s, mid-slew; without
+    // friction, whose dead band (a command below f_C moves nothing) would leave a law without
+    // an integral short of the target by about f_C/k_p either way
+    let frictionless = slew_text()
+        .replace("friction_coulomb = 5e-5", "friction_coulomb = 0.0")
+        .replace("friction_static = 1e-4", "friction_static = 0.0")
+        .replace("friction_viscous = 1e-7", "friction_viscous = 0.0");
+    let dead = |told: bool| {
+        format!(
+            "{frictionless}\n[[vehicle.failure]]\nactuator = 1\nt = 2.0\nkind = \"dead\"\nreconfigure = {told}\n"
+        )
+    };
+    let (h, rows) = fly(dir.path(), "told", &dead(true));
+    let t = column(&h, &rows, "t");
+    let (cmd, applied) = (
+        column(&h, &rows, "u_cmd_1"),
+        column(&h, &rows, "wheel_cmd_1"),
+    );
+    let after: Vec<usize> = (0..rows.len() - 1)
+        .filter(|&k| t[k] >= 2.0 - 1e-9)
+        .collect();
+    assert!(
+        after.iter().all(|&k| applied[k] == 0.0),
+        "the dead motor gives nothing"
+    );
+    assert!(
+        after.iter().all(|&k| cmd[k] == 0.0),
+        "and the told allocator asks nothing of it"
+    );
+    let before = (0..rows.len()).filter(|&k| t[k] < 2.0 - 1e-9);
+    assert!(
+        before.clone().any(|k| applied[k] != 0.0),
+        "it worked before"
+    );
+    let err = column(&h, &rows, "attitude_error");
+    assert!(
+        *err.last().unwrap() < 1e-3,
+        "three wheels arrive: {}",
+        err.last().unwrap()
+    );
+    // untold, the allocator keeps asking the dead wheel for torque
+    let (h2, rows2) = fly(dir.path(), "untold", &dead(false));
+    let t2 = column(&h2, &rows2, "t");
+    let cmd2 = column(&h2, &rows2, "u_cmd_1");
+    let applied2 = column(&h2, &rows2, "wheel_cmd_1");
+    let asked = (0..rows2.len() - 1)
+        .filter(|&k| t2[k] >= 2.0 && cmd2[k] != 0.0)
+        .count();
+    assert!(asked > 100, "untold, it is still commanded: {asked}");
+    assert!(
+        (0..rows2.len() - 1)
+            .filter(|&k| t2[k] >= 2.0)
+            .all(|k| applied2[k] == 0.0)
+    );
+    // a wheel's stuck value is a torque within its motor's range
+    let bad = slew_text() + "\n[[vehicle.failure]]\nactuator = 2\nt = 1.0\nvalue = 0.5\n";
+    let path = dir.path().join("bad.toml");
+    std::fs::write(&path, bad).unwrap();
+    let out = run(&["sim", "--scenario", path.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{}", text_of(&out));
+    assert!(
+        err.contains("vehicle.failure[0].value") && err.contains("0.01"),
+        "{err}"
+    );
+}

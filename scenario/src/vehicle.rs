@@ -322,7 +322,10 @@ impl Validator<'_> {
             wheels.iter().map(WheelSpec::allocation).collect();
         let actuators = self.actuators(&raw.actuator, &allocated, m)?;
         let momentum = self.momentum(raw.momentum.as_ref(), &wheels, actuators.len(), h)?;
-        let ranges: Vec<(f64, f64)> = actuators.iter().map(|a| (a.min, a.max)).collect();
+        // the wheels follow the actuators: a failure may name one (its motor's torque range)
+        let ranges: Vec<(f64, f64)> = (actuators.iter().map(|a| (a.min, a.max)))
+            .chain(wheels.iter().map(|w| (-w.max_torque, w.max_torque)))
+            .collect();
         let failures = self.failures(raw.failure.as_deref().unwrap_or(&[]), &ranges)?;
         let (weights, preferred, priority, budget) =
             self.allocation(allocation, actuators.len() + wheels.len())?;
