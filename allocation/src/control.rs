@@ -287,8 +287,9 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     ) -> Actuation<T, K> {
         let mut bounds = self.bounds;
         if let (Some(prev), true) = (&self.previous, self.rate_step > T::zero()) {
+            // the rate limit is the thrusters' (N/s): a wheel's motor torque is not limited
             for j in 0..self.allocator.geometry().count() {
-                if bounds.hi[j] > bounds.lo[j] {
+                if bounds.hi[j] > bounds.lo[j] && !self.wheels.holds(j) {
                     bounds.limit_rate(j, prev[j], self.rate_step);
                 }
             }

@@ -86,6 +86,11 @@ impl<T: RealField + Copy> WheelSet<T> {
         self.first
     }
 
+    /// Whether the allocator's column `j` is a wheel's.
+    pub fn holds(&self, j: usize) -> bool {
+        j >= self.first && j < self.first + self.count
+    }
+
     /// The gyroscopic torque to cancel, `(ω × Σ h_i g_i, 0)` with each wheel's absolute
     /// momentum `h_i = J_s (g_iᵀω + Ω_i)` from the body rate `omega` and the wheels' measured
     /// speeds `speeds` relative to the body (docs/maths.md, "Reaction wheels": with it added

@@ -317,6 +317,28 @@ impl<const M: usize> VehicleRun<M> {
         self.wheels.as_ref()
     }
 
+    /// Sets the wheels spinning at scenario `s`'s initial speeds relative to the body as the
+    /// run starts it, at velocity `v` (a Monte Carlo draw starts elsewhere than `[initial]`).
+    pub fn spin_wheels(&mut self, s: &Scenario, v: &SVector<f64, M>) {
+        if let (Some(w), Some(spec)) = (self.wheels.as_mut(), &s.vehicle) {
+            let speeds: Vec<f64> = spec.wheels.iter().map(|w| w.speed).collect();
+            w.spin(&speeds, &Vector3::new(v[0], v[1], v[2]));
+        }
+    }
+
+    /// What the actuators produce at the start of the period (their outputs times their
+    /// effectiveness), the wheels' entries the motor torques their drives apply after the
+    /// plant's limits and failures (docs/maths.md, "Reaction wheels").
+    pub fn produced(&self) -> Commands<f64> {
+        let mut u = self.actuators.produced();
+        if let Some(w) = &self.wheels {
+            for (i, x) in w.applied().iter().enumerate() {
+                u[self.thrusters + i] = *x;
+            }
+        }
+        u
+    }
+
     /// The failures due at `t_k` (from the first tick `t_k ≥ t − h/2`): the plant's actuator
     /// sticks, dies (stuck at 0) or loses effectiveness, and the controller is told when the
     /// failure says `reconfigure`.
@@ -484,6 +506,7 @@ where
 {
     let mut estimation = crate::estimation::Estimation::new(s, s.control_period, faults)?;
     let controller = s.controller::<G, N, M>().map_err(input(s))?;
+    run.spin_wheels(s, &plant.velocity());
     let mut supervision = crate::failsafe::Supervision::of(s);
     let reference = crate::failsafe::Supervision::supervise::<G, R, N, M>(s, reference);
     let mut sim = ClosedLoop::new(controller, reference, plant, s.plant_substeps)
@@ -534,7 +557,7 @@ where
         };
         // what the plant holds at the next tick, for its accelerometer
         let r = G::rotation(sim.plant.configuration());
-        held = run.wrench_of(&run.actuators.produced())
+        held = run.wrench_of(&run.produced())
             + run.environment.wrench(&r, &sim.plant.velocity())
             + s.disturbance_wrench::<M>(k, &r);
         let c = sim.controller.config();
@@ -613,12 +636,12 @@ impl<const M: usize> VehicleRun<M> {
             d.commanded(&a.allocation.u);
         }
         self.actuators.command(&a.allocation.u);
-        let u = self.actuators.produced();
         if let Some(wheels) = &mut self.wheels {
             let count = wheels.wheels().len();
             let motors = &a.allocation.u.as_slice()[self.thrusters..self.thrusters + count];
             self.wheel_clamps += wheels.command(motors, &plant.velocity());
         }
+        let u = self.produced();
         advance::<G, N, M>(
             plant,
             self.wheels.as_mut(),

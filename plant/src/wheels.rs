@@ -238,6 +238,18 @@ impl Wheels {
         &self.wheels[..self.count]
     }
 
+    /// Sets the wheels spinning at `speeds` relative to a body turning at `omega` (a run that
+    /// starts elsewhere than where they were made: a Monte Carlo draw). Speeds past the count
+    /// are ignored; a missing one is 0.
+    pub fn spin(&mut self, speeds: &[f64], omega: &Vector3<f64>) {
+        for i in 0..self.count {
+            let w = &self.wheels[i];
+            let s = speeds.get(i).copied().unwrap_or(0.0);
+            self.momenta[i] = w.inertia * (Vector3::from(w.axis).dot(omega) + s);
+            self.before[i] = s;
+        }
+    }
+
     /// The body's inertia with the wheels free, `J = I − Σ J_s g gᵀ` on the rotation block,
     /// from the inertia `locked` with them locked; refused when not positive definite.
     pub fn free_inertia<const M: usize>(

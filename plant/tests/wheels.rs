@@ -482,3 +482,57 @@ fn bad_wheels_are_refused_by_name() {
         Some(WheelError::Speeds)
     );
 }
+
+#[test]
+fn the_allocated_wheel_torques_turn_the_body_as_the_law_asks() {
+    // a turning body with turning wheels: the controller allocates the law's torque τ with the
+    // wheels' gyroscopic torque added, and over a short step the body answers as the rigid
+    // body of inertia J = I − Σ J_s g gᵀ would: J ω̇ + ω × J ω = τ
+    use allocation::{Allocator, Geometry, Priority, Restoring, Status, VehicleControl};
+    let wheels = pyramid(Wheel::ideal([0.0; 3], 0.01, 1.0, 1e4));
+    let omega = Vector3::new(0.3, -0.2, 0.4);
+    let mut b = Gyrostat::<So3, 3, 3>::new(
+        spacecraft(),
+        &wheels,
+        &[50.0, -30.0, 20.0, 10.0],
+        Matrix3::identity(),
+        omega,
+    )
+    .unwrap();
+    let seen: Vec<allocation::Wheel<f64>> = b
+        .wheels()
+        .iter()
+        .map(|w| allocation::Wheel {
+            axis: w.axis,
+            inertia: w.inertia,
+            max_torque: w.max_torque,
+            max_speed: w.max_speed,
+        })
+        .collect();
+    let g = Geometry::<f64, 3>::with_wheels(&[], &seen).unwrap();
+    let alloc = Allocator::new(g, &[], &[], Priority::Torque).unwrap();
+    let mut c = VehicleControl::new(alloc, Restoring::none(), 0.0, 0.01).with_wheels(&seen, 0);
+    let tau = SVector::<f64, 3>::from([0.02, -0.01, 0.015]);
+    let speeds = b.wheel_speeds();
+    let a = c.actuate_wheeled(&tau, &Matrix3::identity(), &omega, &speeds[..4]);
+    assert_eq!(a.allocation.status, Status::Met);
+    let gyro = a.demand - tau;
+    assert!(
+        gyro.norm() > 2.0 * tau.norm(),
+        "a gyroscopic torque that matters: {gyro}"
+    );
+    b.command(&a.allocation.u.as_slice()[..4]);
+    let dt = 1e-7;
+    b.advance_with(dt, 1, |_, _, _| SVector::zeros());
+    let rate = (b.velocity() - omega) / dt;
+    let mut j = spacecraft();
+    for w in b.wheels() {
+        let g = Vector3::from(w.axis);
+        j -= g * g.transpose() * w.inertia;
+    }
+    let rigid = j * rate + omega.cross(&(j * omega)) - tau;
+    assert!(
+        rigid.norm() < 1e-5 * tau.norm(),
+        "J ω̇ + ω × Jω − τ = {rigid}"
+    );
+}

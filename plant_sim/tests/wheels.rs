@@ -274,6 +274,18 @@ fn bad_wheel_tables_exit_2_naming_the_key() {
             "fault_detection",
             "reaction wheels",
         ),
+        (
+            "failsafe",
+            format!("{good}\n[failsafe]\n"),
+            "failsafe",
+            "reaction wheels",
+        ),
+        (
+            "stiff",
+            good.replacen("friction_coulomb = 5e-5", "friction_coulomb = 1e-3", 1),
+            "vehicle.wheel[0].friction_coulomb",
+            "plant_substeps",
+        ),
     ];
     for (name, text, key, what) in cases {
         assert_ne!(text, good, "{name}: the case changes the file");
@@ -389,7 +401,13 @@ fn bad_momentum_tables_exit_2_naming_the_key() {
         let cut = slew.rfind("[[vehicle.wheel]]").unwrap();
         slew[..cut].to_owned()
     };
+    // the ROV (SE(3), eight thrusters) with the slew's four wheels and a dump
+    let rov = std::fs::read_to_string(repo("scenarios/rov_failure.toml")).unwrap();
+    let wheels = &slew[slew.find("[[vehicle.wheel]]").unwrap()..];
+    let se3 =
+        format!("{rov}\n{wheels}\n[vehicle.momentum]\ndump_threshold = 0.05\ndump_gain = 0.2\n");
     let cases = [
+        ("se3-dump", se3, "vehicle.momentum.dump_gain", "SE(3)"),
         (
             "no-wheels",
             with(&thrusters, "null_space_gain = 0.1"),

@@ -254,8 +254,9 @@ impl Validator<'_> {
             None => EstimatorSpec::default(),
             Some(r) => self.estimator(r, sensors.as_ref(), group, raw.control_period)?,
         };
-        if vehicle.as_ref().is_some_and(|v| !v.wheels.is_empty()) {
+        if let Some(v) = vehicle.as_ref().filter(|v| !v.wheels.is_empty()) {
             self.refused_with_wheels(&raw)?;
+            self.stiff_friction(&v.wheels, raw.control_period / plant_substeps as f64)?;
         }
         let fault_detection = self.fault_detection(
             raw.fault_detection.as_ref(),

@@ -321,7 +321,7 @@ impl Validator<'_> {
         let allocated: Vec<allocation::Wheel<f64>> =
             wheels.iter().map(WheelSpec::allocation).collect();
         let actuators = self.actuators(&raw.actuator, &allocated, m)?;
-        let momentum = self.momentum(raw.momentum.as_ref(), &wheels, actuators.len(), h)?;
+        let momentum = self.momentum(raw.momentum.as_ref(), &wheels, actuators.len(), (h, m))?;
         // the wheels follow the actuators: a failure may name one (its motor's torque range)
         let ranges: Vec<(f64, f64)> = (actuators.iter().map(|a| (a.min, a.max)))
             .chain(wheels.iter().map(|w| (-w.max_torque, w.max_torque)))

@@ -87,6 +87,28 @@ impl WheelSpec {
     }
 }
 
+/// The speed below which the plant's wheel friction is linear (Basilisk's `omegaLimitCycle`).
+const LIMIT_CYCLE_SPEED: f64 = 1e-4;
+
+/// The slope of a wheel's friction below [`LIMIT_CYCLE_SPEED`]: the larger of its Coulomb
+/// branch's, `f_C/ω_lc + c_v`, and (with a Stribeck speed `β`) its Stribeck branch's, the
+/// curve's value at `ω_lc` over `ω_lc`.
+fn friction_slope(w: &WheelSpec) -> f64 {
+    let lc = LIMIT_CYCLE_SPEED;
+    let coulomb = w.friction_coulomb / lc + w.friction_viscous;
+    let stribeck = w.stribeck_speed.map_or(0.0, |beta| {
+        ((2.0 * std::f64::consts::E).sqrt()
+            * (w.friction_static - w.friction_coulomb)
+            * (-(lc / beta) * (lc / beta) / 2.0).exp()
+            * lc
+            / (beta * std::f64::consts::SQRT_2)
+            + w.friction_coulomb * (lc * 10.0 / beta).tanh()
+            + w.friction_viscous * lc)
+            / lc
+    });
+    coulomb.max(stribeck)
+}
+
 /// `Σ J_s g gᵀ` of `wheels` on the rotation block of an `m`×`m` inertia (row-major): what the
 /// wheels' spin takes from the body's inertia when they turn free.
 pub(crate) fn spin_inertia(wheels: &[WheelSpec], m: usize) -> Vec<f64> {
@@ -103,15 +125,15 @@ pub(crate) fn spin_inertia(wheels: &[WheelSpec], m: usize) -> Vec<f64> {
 
 impl Validator<'_> {
     /// `[vehicle.momentum]` for `wheels` and `thrusters` actuators besides them, at control
-    /// period `h`: a null-space gain ≥ 0 below `1/h` (and then four or more wheels, whose
+    /// period `h` on a group of dimension `m`: a null-space gain ≥ 0 below `1/h` (and then four or more wheels, whose
     /// null space it uses), one finite bias per wheel, a dump gain ≥ 0 below `1/h` with a
-    /// positive threshold (and thrusters to dump with).
+    /// positive threshold (and thrusters to dump with, on SO(3)).
     pub(crate) fn momentum(
         &self,
         raw: Option<&RawMomentum>,
         wheels: &[WheelSpec],
         thrusters: usize,
-        h: f64,
+        (h, m): (f64, usize),
     ) -> Result<Option<allocation::Momentum<f64>>, ScenarioError> {
         let Some(raw) = raw else {
             return Ok(None);
@@ -174,6 +196,12 @@ impl Validator<'_> {
             }
             (None, false) => 0.0,
         };
+        if dump_gain > 0.0 && m == 6 {
+            return Err(self.err(
+                "vehicle.momentum.dump_gain",
+                "not on SE(3) yet: the thrusters, held at the dump's commands, would no longer give the force",
+            ));
+        }
         if dump_gain > 0.0 && thrusters == 0 {
             return Err(self.err(
                 "vehicle.momentum.dump_gain",
@@ -186,6 +214,30 @@ impl Validator<'_> {
             dump_threshold,
             dump_gain,
         }))
+    }
+
+    /// Each wheel's friction below the limit-cycle speed, where it is the line through 0 of
+    /// slope `σ` (N·m·s/rad): with the substep `h` the plant integrates at, `σ h / J_s` must stay
+    /// within RK4's stability interval on the negative real axis (about 2.785; 2.7 here), or
+    /// the wheel's speed rings near rest (docs/maths.md, "Reaction wheels"). Refused naming
+    /// the wheel's `friction_coulomb`, with the `plant_substeps` that would do.
+    pub(crate) fn stiff_friction(&self, wheels: &[WheelSpec], h: f64) -> Result<(), ScenarioError> {
+        const LIMIT: f64 = 2.7;
+        for (i, w) in wheels.iter().enumerate() {
+            let slope = friction_slope(w);
+            let stiffness = slope * h / w.inertia;
+            if stiffness > LIMIT {
+                return Err(self.err(
+                    &format!("vehicle.wheel[{i}].friction_coulomb"),
+                    format!(
+                        "friction below {LIMIT_CYCLE_SPEED} rad/s is a slope of {slope} N·m·s/rad, which with inertia {} and the plant's substep {h} s is {stiffness:.3} (more than RK4's {LIMIT}): raise plant_substeps {}-fold or lower the friction",
+                        w.inertia,
+                        (stiffness / LIMIT).ceil()
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// `[[vehicle.wheel]]`: each with a non-zero finite axis (made unit), a positive finite

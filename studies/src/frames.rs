@@ -433,8 +433,9 @@ fn fly(
     draw: Draw,
 ) -> Result<FrameRun, SimError> {
     let (q0, v0) = draw.initial(&table[0]);
-    let plant = RigidBody::<f64, Se3, 4, 6>::new(SMatrix::from_row_slice(&s.plant_inertia), q0, v0)
-        .map_err(|e| SimError::Input(format!("run {run}: {e}")))?;
+    let plant =
+        RigidBody::<f64, Se3, 4, 6>::new(SMatrix::from_row_slice(&crate::study_inertia(s)), q0, v0)
+            .map_err(|e| SimError::Input(format!("run {run}: {e}")))?;
     let reference = Moved {
         inner: Tabulated::new(table, s.control_period).map_err(input(s))?,
         world: draw.world(),

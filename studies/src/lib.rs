@@ -21,3 +21,12 @@ pub mod noise;
 pub mod reference;
 pub mod rejection;
 pub mod shard;
+
+/// The inertia of the body a run integrates: the rigid body's, or with reaction wheels the
+/// body with them free (`Scenario::total_inertia`; docs/maths.md, "Reaction wheels").
+pub(crate) fn study_inertia(s: &scenario::Scenario) -> Vec<f64> {
+    match &s.vehicle {
+        Some(v) if !v.wheels.is_empty() => s.total_inertia(),
+        _ => s.plant_inertia.clone(),
+    }
+}

@@ -254,7 +254,7 @@ pub fn fly_against(
 ) -> Result<plant::trajectory::SimulatedTrajectory, SimError> {
     let (r0, w0) = initial_state(s, sample);
     let plant = RigidBody::<f64, So3, 3, 3>::new(
-        SMatrix::from_row_slice(&s.plant_inertia),
+        SMatrix::from_row_slice(&crate::study_inertia(s)),
         r0,
         SVector::from(w0),
     )
