@@ -289,15 +289,7 @@ fn bad_wheel_tables_exit_2_naming_the_key() {
     ];
     for (name, text, key, what) in cases {
         assert_ne!(text, good, "{name}: the case changes the file");
-        let path = dir.path().join(format!("{name}.toml"));
-        std::fs::write(&path, &text).unwrap();
-        let out = run(&["sim", "--scenario", path.to_str().unwrap()]);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "{name}: {}", text_of(&out));
-        assert!(
-            err.contains(key) && err.contains(what),
-            "{name}: the message names neither `{key}` nor `{what}`: {err}"
-        );
+        let err = refused(dir.path(), name, &text, key, what);
         assert!(!err.contains("panicked"), "{name}: {err}");
     }
     // the pair does not carry the wheels' speeds yet: refused, not flown wrong
@@ -312,6 +304,21 @@ fn bad_wheel_tables_exit_2_naming_the_key() {
 
 fn text_of(out: &std::process::Output) -> String {
     text(out)
+}
+
+/// Writes `text` as scenario `name` in `dir` and requires `plant_sim sim` to refuse it with
+/// exit 2, its message naming `key` and `what`; returns the message.
+fn refused(dir: &Path, name: &str, text: &str, key: &str, what: &str) -> String {
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, text).unwrap();
+    let out = run(&["sim", "--scenario", path.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{name}: {}", text_of(&out));
+    assert!(
+        err.contains(key) && err.contains(what),
+        "{name}: the message names neither `{key}` nor `{what}`: {err}"
+    );
+    err
 }
 
 /// `|h_w| = |Σ J_s (g_iᵀω + Ω_i) g_i|` at every row of a flight with the slew's wheels.
@@ -470,15 +477,7 @@ fn bad_momentum_tables_exit_2_naming_the_key() {
         ),
     ];
     for (name, text, key, what) in cases {
-        let path = dir.path().join(format!("{name}.toml"));
-        std::fs::write(&path, &text).unwrap();
-        let out = run(&["sim", "--scenario", path.to_str().unwrap()]);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "{name}: {}", text_of(&out));
-        assert!(
-            err.contains(key) && err.contains(what),
-            "{name}: the message names neither `{key}` nor `{what}`: {err}"
-        );
+        refused(dir.path(), name, &text, key, what);
     }
 }
 
@@ -541,13 +540,5 @@ fn a_dead_wheel_told_to_the_allocator_leaves_three_that_still_arrive() {
     );
     // a wheel's stuck value is a torque within its motor's range
     let bad = slew_text() + "\n[[vehicle.failure]]\nactuator = 2\nt = 1.0\nvalue = 0.5\n";
-    let path = dir.path().join("bad.toml");
-    std::fs::write(&path, bad).unwrap();
-    let out = run(&["sim", "--scenario", path.to_str().unwrap()]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{}", text_of(&out));
-    assert!(
-        err.contains("vehicle.failure[0].value") && err.contains("0.01"),
-        "{err}"
-    );
+    refused(dir.path(), "bad", &bad, "vehicle.failure[0].value", "0.01");
 }
