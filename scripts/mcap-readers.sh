@@ -67,6 +67,10 @@ RUNS+=("$OUT/cf")
 "$BIN/plant_sim" run --scenario "$REPO/scenarios/rov_failure.toml" --mode lockstep --duration 2 \
 	--name "mcap-rov-$$" --out "$OUT/rov" >"$OUT/plant-rov.log" 2>&1 || die "the vehicle run failed: $(tail -3 "$OUT/plant-rov.log")"
 RUNS+=("$OUT/rov")
+# reaction wheels: the state channel carries their four speeds
+"$BIN/plant_sim" run --scenario "$REPO/scenarios/wheels_slew.toml" --mode lockstep --duration 2 \
+	--name "mcap-wheels-$$" --out "$OUT/wheels" >"$OUT/plant-wheels.log" 2>&1 || die "the wheels run failed: $(tail -3 "$OUT/plant-wheels.log")"
+RUNS+=("$OUT/wheels")
 # the failure detector's and the failsafe manager's channels: pil_rov_surface's ROV in a current
 # loses horizontal thrusters 1 and 2 unannounced; the detector finds both (1.47 s, 2.57 s) and
 # the manager engages `surface` when the thrusters left no longer push every way (2.57 s)

@@ -48,6 +48,8 @@ pub fn messages(r: &Record, n: usize, m: usize, terms: bool) -> Vec<Message> {
 
 /// The state channel: state `s` the plant published for cycle `cycle`, for a group with
 /// `n`×`n` configurations and `m`-vectors (`n` ≤ 4, `m` ≤ 6).
+/// `wheel_speeds` holds the reaction wheels' speeds relative to the body, one per wheel
+/// (empty without wheels: the schema is the same for every plant).
 pub fn state_message(cycle: u64, s: &StateMsg, n: usize, m: usize) -> Message {
     Message::of(
         STATE,
@@ -61,6 +63,7 @@ pub fn state_message(cycle: u64, s: &StateMsg, n: usize, m: usize) -> Message {
             ("q", Value::F64s(s.q[..n * n].to_vec())),
             ("v", Value::F64s(s.v[..m].to_vec())),
             ("applied_before", Value::F64s(s.applied[..m].to_vec())),
+            ("wheel_speeds", Value::F64s(s.wheel_speeds().to_vec())),
         ],
     )
 }
@@ -339,6 +342,14 @@ mod tests {
         assert_eq!(msg.fields[7].1, Value::F64s(s.v.to_vec()));
         let so3 = state_message(7, &s, 3, 3);
         assert_eq!(so3.fields[7].1, Value::F64s(vec![1.0, 2.0, 3.0]));
+        // the wheels' speeds: as many as the plant has, none without wheels
+        assert_eq!(so3.fields[9], ("wheel_speeds", Value::F64s(vec![])));
+        s.set_wheel_speeds(&[10.0, -20.0, 30.0, 0.5]);
+        let wheeled = state_message(7, &s, 3, 3);
+        assert_eq!(
+            wheeled.fields.last(),
+            Some(&("wheel_speeds", Value::F64s(vec![10.0, -20.0, 30.0, 0.5])))
+        );
         let mut c = CommandMsg::new(WireGroup::So3);
         c.tau[..3].copy_from_slice(&[0.5, -0.5, 0.25]);
         let cmd = command_message(7, &c, 0, 3);

@@ -231,6 +231,9 @@ where
         reference: &mut R,
         msg: &StateMsg,
     ) -> Result<CommandMsg, controller::Error> {
+        if let Some(vehicle) = &self.vehicle {
+            vehicle.check_wheels(msg)?;
+        }
         let (q, v) = catch_up(reference, msg);
         let follows = self
             .previous

@@ -40,16 +40,9 @@ impl<const M: usize> ControllerVehicle<M> {
     /// tables do not make an allocator on this group, which the scenario's load already
     /// refuses.
     pub fn new(spec: &VehicleSpec, period: f64) -> Result<Self, String> {
-        if !spec.wheels.is_empty() {
-            // the wire does not carry the wheels' speeds yet: only the in-process simulation
-            // flies them
-            return Err(
-                "vehicle.wheel: reaction wheels are flown by `plant_sim sim` only, not yet across the process pair".to_owned(),
-            );
-        }
         Ok(ControllerVehicle {
             control: spec.control::<M>(period)?,
-            count: spec.actuators.len(),
+            count: spec.count(),
             spec: spec.clone(),
             detector: None,
             detecting: None,
@@ -101,9 +94,28 @@ impl<const M: usize> ControllerVehicle<M> {
         self.detector.as_ref()
     }
 
-    /// The actuator count.
+    /// The actuator count (the reaction wheels' motors included, after the others).
     pub fn count(&self) -> usize {
         self.count
+    }
+
+    /// The reaction wheels' count (each state carries their speeds).
+    pub fn wheels(&self) -> usize {
+        self.spec.wheels.len()
+    }
+
+    /// Whether state `msg` carries as many wheel speeds as the vehicle has wheels: the
+    /// gyroscopic term needs every wheel's, so a plant with other wheels is not answered.
+    pub fn check_wheels(&self, msg: &StateMsg) -> Result<(), controller::Error> {
+        if msg.wheels as usize == self.wheels() {
+            Ok(())
+        } else {
+            Err(controller::Error::WrongShape {
+                quantity: controller::Quantity::State,
+                expected: self.wheels(),
+                found: msg.wheels as usize,
+            })
+        }
     }
 
     /// Allocates the law's wrench `tau` for state `msg` (attitude from its configuration,
@@ -202,9 +214,18 @@ impl<const M: usize> ControllerVehicle<M> {
         if let Some(p) = self.control.previous() {
             cmd.u_previous.copy_from_slice(p.as_slice());
         }
+        // the wheels' gyroscopic torque, added to the demand and not counted as applied
+        let mut gyroscopic = SVector::<f64, M>::zeros();
         let mut a = match thrust {
             Some(demand) => self.control.actuate_demand(*demand),
-            None => self.control.actuate(tau, &r_hat),
+            None if self.spec.wheels.is_empty() => self.control.actuate(tau, &r_hat),
+            None => {
+                let v = msg.velocity::<M>();
+                let omega = nalgebra::Vector3::new(v[0], v[1], v[2]);
+                let speeds = msg.wheel_speeds();
+                gyroscopic = self.control.wheels().gyroscopic(&omega, speeds);
+                self.control.actuate_wheeled(tau, &r_hat, &omega, speeds)
+            }
         };
         self.short = failsafe::monitor::torque_short(
             a.allocation.status.code(),
@@ -217,7 +238,11 @@ impl<const M: usize> ControllerVehicle<M> {
         if let Some(d) = &mut self.detector {
             d.commanded(&a.allocation.u);
         }
-        let accounted = a.applied(&self.control.restoring(&r_hat));
+        let accounted = if self.spec.wheels.is_empty() {
+            a.applied(&self.control.restoring(&r_hat))
+        } else {
+            a.applied(&self.control.restoring(&r_hat)) - gyroscopic
+        };
         self.accounted = Some(accounted);
         cmd.actuators = self.count as u32;
         cmd.alloc_status = u32::from(a.allocation.status.code());

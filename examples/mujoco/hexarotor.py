@@ -8,7 +8,7 @@
 MuJoCo integrates examples/mujoco/hexarotor.xml: the scenario's body, gravity and six tilted
 rotors as site actuators with their lag and limits. Each period of the scenario this process
 publishes the body's state on the run's iceoryx2 state board (the wire of docs/wire.md,
-protocol 9, with iceoryx2's own Python bindings), waits for the controller's command for that
+protocol 10, with iceoryx2's own Python bindings), waits for the controller's command for that
 state, and drives the rotors with its `u_cmd` over the period. It is a plant the way a board
 is one: no scenario fingerprint, its own physics, and the controller allocates. It writes
 `mujoco.csv` (t, the pose Q row-major as q_ij, V, the controller's L, u_cmd_j and the rotors'
@@ -32,7 +32,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
 from observe import SLOTS, CommandMsg, StateMsg  # noqa: E402  (the wire's ctypes layout)
 
-PROTOCOL, SE3, SHUTDOWN = 9, 2, 2
+PROTOCOL, SE3, SHUTDOWN = 10, 2, 2
 
 
 def fail(code, msg):

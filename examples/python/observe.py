@@ -24,12 +24,12 @@ import time
 
 import iceoryx2 as iox2
 
-MAX_N, MAX_M, NAME_BYTES, SLOTS, MAX_ACTUATORS = 4, 6, 32, 8, 12
+MAX_N, MAX_M, NAME_BYTES, SLOTS, MAX_ACTUATORS, MAX_WHEELS = 4, 6, 32, 8, 12, 6
 SHUTDOWN = 2
 
 
 class StateMsg(ctypes.Structure):
-    """eqtrack::StateMsg6 (docs/wire.md)."""
+    """eqtrack::StateMsg7 (docs/wire.md)."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -45,11 +45,14 @@ class StateMsg(ctypes.Structure):
         ("plant_pid", ctypes.c_uint32),
         ("fingerprint", ctypes.c_uint64),
         ("scenario", ctypes.c_uint8 * NAME_BYTES),
+        ("wheels", ctypes.c_uint32),
+        ("reserved_wheels", ctypes.c_uint32),
+        ("wheel_speeds", ctypes.c_double * MAX_WHEELS),
     ]
 
     @staticmethod
     def type_name():
-        return "eqtrack::StateMsg6"
+        return "eqtrack::StateMsg7"
 
 
 class CommandMsg(ctypes.Structure):

@@ -7,7 +7,7 @@
  *
  * Each message sits in an iceoryx2 blackboard entry (key type uint32_t, keys 0..7 are the
  * writer slots) of the service `eqtrack/<run>/state`, `eqtrack/<run>/command` or
- * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg6",
+ * `eqtrack/<run>/plan` or `eqtrack/<run>/status`; iceoryx2 type names "eqtrack::StateMsg7",
  * "eqtrack::CommandMsg9", "eqtrack::PlanMsg4", "eqtrack::StatusMsg6". All numbers are little-endian on the machines eqtrack runs on.
  */
 #ifndef EQTRACK_WIRE_H
@@ -16,12 +16,13 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define EQTRACK_PROTOCOL_VERSION 9u
+#define EQTRACK_PROTOCOL_VERSION 10u
 #define EQTRACK_MAX_N 4        /* configuration matrices are n x n, n <= 4 */
 #define EQTRACK_MAX_M 6        /* algebra dimension m <= 6 */
 #define EQTRACK_NAME_BYTES 32  /* scenario name, UTF-8, NUL-padded */
 #define EQTRACK_PLAN_WINDOW 8  /* segments per plan message */
 #define EQTRACK_MAX_ACTUATORS 12 /* actuator commands in a vehicle's command */
+#define EQTRACK_MAX_WHEELS 6     /* reaction-wheel speeds in a state */
 
 /* group codes */
 #define EQTRACK_GROUP_SO3 1u
@@ -54,6 +55,9 @@ typedef struct eqtrack_StateMsg {
     uint32_t plant_pid;
     uint64_t fingerprint;   /* scenario fingerprint, 0: none */
     uint8_t scenario[EQTRACK_NAME_BYTES];
+    uint32_t wheels;        /* reaction wheels carried, <= EQTRACK_MAX_WHEELS */
+    uint32_t reserved_wheels; /* 0 */
+    double wheel_speeds[EQTRACK_MAX_WHEELS]; /* rad/s relative to the body, first `wheels` */
 } eqtrack_StateMsg;
 
 /* the controller's answer to state k */

@@ -16,7 +16,8 @@ pub enum Invalid {
     Sequence,
     /// The control period is not positive, or differs from the one the receiver runs with.
     Period,
-    /// A command's actuator count is not the receiver's vehicle's (0 without a vehicle).
+    /// A command's actuator count is not the receiver's vehicle's (0 without a vehicle), or
+    /// a state carries more wheels than [`MAX_WHEELS`](crate::MAX_WHEELS).
     Actuators,
     /// A command's detection (or its last test's suspect) names no actuator of the vehicle or
     /// no kind, or has fields set when nothing was found or no detector runs.
@@ -104,6 +105,12 @@ pub fn check_state(
         || !msg.t.is_finite()
         || !msg.control_period.is_finite()
     {
+        return Err(Invalid::NonFinite);
+    }
+    if msg.wheels as usize > crate::MAX_WHEELS {
+        return Err(Invalid::Actuators);
+    }
+    if !all_finite(msg.wheel_speeds()) {
         return Err(Invalid::NonFinite);
     }
     let next = match last_seq {

@@ -1,10 +1,23 @@
 //! The little-endian byte encoding of the messages, field by field (for transports that carry bytes and for the flight recorder), and its typed errors.
 
-use crate::{CommandMsg, MAX_ACTUATORS, MAX_M, MAX_N, NAME_BYTES, StateMsg, WireGroup};
+use crate::{CommandMsg, MAX_ACTUATORS, MAX_M, MAX_N, MAX_WHEELS, NAME_BYTES, StateMsg, WireGroup};
 
 /// Bytes of an encoded [`StateMsg`] (little-endian, field by field).
-pub const STATE_BYTES: usize =
-    4 + 4 + 8 + 8 + 8 + 8 + 8 * MAX_N * MAX_N + 8 * MAX_M * 2 + 4 + 4 + 8 + NAME_BYTES;
+pub const STATE_BYTES: usize = 4
+    + 4
+    + 8
+    + 8
+    + 8
+    + 8
+    + 8 * MAX_N * MAX_N
+    + 8 * MAX_M * 2
+    + 4
+    + 4
+    + 8
+    + NAME_BYTES
+    + 4
+    + 4
+    + 8 * MAX_WHEELS;
 /// Bytes of an encoded [`CommandMsg`].
 pub const COMMAND_BYTES: usize = 4
     + 4
@@ -138,6 +151,9 @@ impl StateMsg {
         p.bytes(&self.plant_pid.to_le_bytes());
         p.bytes(&self.fingerprint.to_le_bytes());
         p.bytes(&self.scenario);
+        p.bytes(&self.wheels.to_le_bytes());
+        p.bytes(&self.reserved_wheels.to_le_bytes());
+        p.f64s(&self.wheel_speeds);
         buf
     }
 
@@ -160,6 +176,9 @@ impl StateMsg {
         m.plant_pid = g.u32();
         m.fingerprint = g.u64();
         m.scenario = g.take();
+        m.wheels = g.u32();
+        m.reserved_wheels = g.u32();
+        g.f64s(&mut m.wheel_speeds);
         Ok(m)
     }
 }

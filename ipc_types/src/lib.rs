@@ -40,7 +40,7 @@ pub use services::*;
 pub use state::StateMsg;
 
 /// Bumped whenever a message layout or meaning changes.
-pub const PROTOCOL_VERSION: u32 = 9;
+pub const PROTOCOL_VERSION: u32 = 10;
 /// [`CommandMsg::previous_seq`] when the controller processed no state before.
 pub const NO_PREVIOUS: u64 = u64::MAX;
 /// The largest n (configuration matrices are n×n) any supported group needs.
@@ -49,6 +49,9 @@ pub const MAX_N: usize = 4;
 pub const MAX_M: usize = 6;
 /// The most actuators a vehicle's command carries (the allocation crate's capacity).
 pub const MAX_ACTUATORS: usize = 12;
+/// The most reaction wheels a state carries speeds for (the allocation crate's wheel
+/// capacity).
+pub const MAX_WHEELS: usize = 6;
 /// Bytes of the scenario name carried in the messages (UTF-8, NUL-padded).
 pub const NAME_BYTES: usize = 32;
 
@@ -141,6 +144,23 @@ mod tests {
         let mut u = StateMsg::new(So3);
         u.group = 77;
         assert_eq!(check_state(&u, So3, None, None), Err(Invalid::Group));
+        // the wheels: a count past the capacity, a non-finite speed within the count
+        let mut w = StateMsg::new(So3);
+        w.control_period = 0.01;
+        w.set_wheel_speeds(&[1.0, -2.0, 3.0, 4.0]);
+        assert_eq!(w.wheel_speeds(), &[1.0, -2.0, 3.0, 4.0]);
+        assert_eq!(check_state(&w, So3, None, None), Ok(()));
+        w.wheel_speeds[3] = f64::NAN;
+        assert_eq!(check_state(&w, So3, None, None), Err(Invalid::NonFinite));
+        w.wheel_speeds[3] = 4.0;
+        w.wheel_speeds[5] = f64::NAN; // beyond the count: ignored
+        assert_eq!(check_state(&w, So3, None, None), Ok(()));
+        w.wheels = MAX_WHEELS as u32 + 1;
+        assert_eq!(check_state(&w, So3, None, None), Err(Invalid::Actuators));
+        w.set_wheel_speeds(&[0.5; MAX_WHEELS + 2]);
+        assert_eq!(w.wheels, MAX_WHEELS as u32 + 2);
+        assert_eq!(w.wheel_speeds().len(), MAX_WHEELS);
+        assert_eq!(check_state(&w, So3, None, None), Err(Invalid::Actuators));
     }
 
     #[test]
@@ -270,7 +290,11 @@ mod tests {
         s.plant_pid = 4242;
         s.fingerprint = 0xdead_beef_0123_4567;
         s.scenario = name_bytes("se3_circle");
+        s.set_wheel_speeds(&[0.5, -1e3, 7.25]);
+        s.reserved_wheels = 9;
         assert_eq!(StateMsg::from_bytes(&s.to_bytes()), Ok(s));
+        assert_eq!(STATE_BYTES, core::mem::size_of::<StateMsg>());
+        assert_eq!(core::mem::offset_of!(StateMsg, wheel_speeds), 320);
         assert_eq!(
             StateMsg::from_bytes(&[0u8; 3]),
             Err(DecodeError::Length {

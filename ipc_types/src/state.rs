@@ -1,6 +1,6 @@
 //! The plant's state message, [`StateMsg`], and its accessors.
 
-use crate::{Identity, MAX_M, MAX_N, NAME_BYTES, PROTOCOL_VERSION, WireGroup};
+use crate::{Identity, MAX_M, MAX_N, MAX_WHEELS, NAME_BYTES, PROTOCOL_VERSION, WireGroup};
 #[cfg(feature = "zero-copy")]
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 #[cfg(feature = "zero-copy")]
@@ -13,7 +13,7 @@ use nalgebra::{SMatrix, SVector};
 #[cfg_attr(
     feature = "zero-copy",
     derive(ZeroCopySend),
-    type_name("eqtrack::StateMsg6")
+    type_name("eqtrack::StateMsg7")
 )]
 #[repr(C)]
 pub struct StateMsg {
@@ -45,6 +45,14 @@ pub struct StateMsg {
     pub fingerprint: u64,
     /// The plant's scenario name, UTF-8, NUL-padded (empty: none).
     pub scenario: [u8; NAME_BYTES],
+    /// How many reaction wheels the plant carries (0: none; at most [`MAX_WHEELS`]).
+    pub wheels: u32,
+    /// Zero (keeps the speeds 8-byte aligned).
+    pub reserved_wheels: u32,
+    /// The wheels' speeds `Ω_i` relative to the body at `t_k` (rad/s), first `wheels`
+    /// entries in the scenario's `[[vehicle.wheel]]` order; the law's gyroscopic term needs
+    /// them.
+    pub wheel_speeds: [f64; MAX_WHEELS],
 }
 
 impl StateMsg {
@@ -64,6 +72,9 @@ impl StateMsg {
             plant_pid: 0,
             fingerprint: 0,
             scenario: [0; NAME_BYTES],
+            wheels: 0,
+            reserved_wheels: 0,
+            wheel_speeds: [0.0; MAX_WHEELS],
         }
     }
 
@@ -103,6 +114,23 @@ impl StateMsg {
         for i in 0..M.min(MAX_M) {
             self.applied[i] = tau[i];
         }
+    }
+
+    /// Writes the wheel count and speeds (relative to the body, rad/s). More than
+    /// [`MAX_WHEELS`] speeds keep the first [`MAX_WHEELS`] and set the count past it, which
+    /// [`check_state`](crate::check_state) refuses.
+    pub fn set_wheel_speeds(&mut self, speeds: &[f64]) {
+        self.wheels = u32::try_from(speeds.len()).unwrap_or(u32::MAX);
+        self.wheel_speeds = [0.0; MAX_WHEELS];
+        for (slot, w) in self.wheel_speeds.iter_mut().zip(speeds) {
+            *slot = *w;
+        }
+    }
+
+    /// The wheel speeds carried (the first `wheels` entries, at most [`MAX_WHEELS`]).
+    pub fn wheel_speeds(&self) -> &[f64] {
+        let k = (self.wheels as usize).min(MAX_WHEELS);
+        &self.wheel_speeds[..k]
     }
 
     /// The plant's identity carried by this state.

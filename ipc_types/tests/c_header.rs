@@ -45,6 +45,9 @@ fn rust_layout() -> Layout {
             plant_pid,
             fingerprint,
             scenario,
+            wheels,
+            reserved_wheels,
+            wheel_speeds,
         ]
     );
     fields!(

@@ -28,6 +28,8 @@ pub struct ControllerEndpointConfig {
 
 /// What [`ControllerEndpoint::wait_state`] saw.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// the state is returned by value: boxing it would allocate on every cycle
+#[allow(clippy::large_enum_variant)]
 pub enum Incoming {
     /// A state that passed the checks, and when it was received (CLOCK_MONOTONIC ns).
     State(StateMsg, u64),

@@ -5,7 +5,7 @@
 
 use crate::SimError;
 use crate::trajectory::{EstimateRow, Row, SimulatedTrajectory, Terms, VehicleRow, input};
-use crate::wheels::{Wheel, Wheels};
+use crate::wheels::{MAX_WHEELS, Wheel, Wheels};
 use allocation::{Actuation, Commands, MAX_ACTUATORS, Restoring, VehicleControl};
 use controller::closed_loop::ClosedLoop;
 use controller::disturbance::rotate_blocks;
@@ -254,7 +254,7 @@ pub struct VehicleRun<const M: usize> {
     gyroscopic: SVector<f64, M>,
     wheel_clamps: usize,
     /// The wheels' speeds at the start of the present period.
-    speeds_at_start: [f64; 6],
+    speeds_at_start: [f64; MAX_WHEELS],
 }
 
 impl<const M: usize> VehicleRun<M> {
@@ -296,7 +296,7 @@ impl<const M: usize> VehicleRun<M> {
             thrusters: v.actuators.len(),
             gyroscopic: SVector::zeros(),
             wheel_clamps: 0,
-            speeds_at_start: [0.0; 6],
+            speeds_at_start: [0.0; MAX_WHEELS],
         }))
     }
 
@@ -324,6 +324,69 @@ impl<const M: usize> VehicleRun<M> {
             let speeds: Vec<f64> = spec.wheels.iter().map(|w| w.speed).collect();
             w.spin(&speeds, &Vector3::new(v[0], v[1], v[2]));
         }
+    }
+
+    /// The wheels' speeds relative to the body (their tachometers) at body velocity `v`, and
+    /// how many there are (`0`: none).
+    pub fn wheel_speeds(&self, v: &SVector<f64, M>) -> ([f64; MAX_WHEELS], usize) {
+        match &self.wheels {
+            None => ([0.0; MAX_WHEELS], 0),
+            Some(w) => (w.speeds(v), w.wheels().len()),
+        }
+    }
+
+    /// The law's `wrench` allocated at the estimated attitude `r_hat` and velocity `v_hat`;
+    /// with wheels, their gyroscopic torque added at the speeds their tachometers read at the
+    /// body's true velocity `v` (docs/maths.md, "Reaction wheels"), which
+    /// [`VehicleRun::applied`] then takes out again.
+    pub fn actuate(
+        &mut self,
+        wrench: &SVector<f64, M>,
+        r_hat: &Matrix3<f64>,
+        v_hat: &SVector<f64, M>,
+        v: &SVector<f64, M>,
+    ) -> Actuation<f64, M> {
+        let Some(wheels) = &self.wheels else {
+            return self.control.actuate(wrench, r_hat);
+        };
+        let all = wheels.speeds(v);
+        let speeds = &all[..wheels.wheels().len()];
+        let omega = Vector3::new(v_hat[0], v_hat[1], v_hat[2]);
+        self.gyroscopic = self.control.wheels().gyroscopic(&omega, speeds);
+        self.control.actuate_wheeled(wrench, r_hat, &omega, speeds)
+    }
+
+    /// Drives the wheels' motors with the wheel entries of `u_cmd` (after the thrusters), at
+    /// body velocity `v` as the period starts: the plant's torque, speed and power limits
+    /// clamp them (counted in `wheel_clamps`). Nothing without wheels.
+    pub fn command_wheels(&mut self, u_cmd: &Commands<f64>, v: &SVector<f64, M>) {
+        if let Some(wheels) = &mut self.wheels {
+            self.speeds_at_start = wheels.speeds(v);
+            let count = wheels.wheels().len();
+            let motors = &u_cmd.as_slice()[self.thrusters..self.thrusters + count];
+            self.wheel_clamps += wheels.command(motors, v);
+        }
+    }
+
+    /// Integrates the body (with its wheels) over `h` in `substeps` under the actuators, the
+    /// environment and the body and world disturbances (docs/maths.md, "Vehicle physics" and
+    /// "Reaction wheels").
+    pub fn step<G: MatrixLieGroup<N, M>, const N: usize>(
+        &mut self,
+        plant: &mut RigidBody<f64, G, N, M>,
+        (body, world): (&SVector<f64, M>, Option<&SVector<f64, M>>),
+        h: f64,
+        substeps: usize,
+    ) {
+        advance::<G, N, M>(
+            plant,
+            self.wheels.as_mut(),
+            &self.environment,
+            &mut self.actuators,
+            (body, world),
+            h,
+            substeps,
+        );
     }
 
     /// What the actuators produce at the start of the period (their outputs times their
@@ -611,18 +674,9 @@ impl<const M: usize> VehicleRun<M> {
         (body, world): (&SVector<f64, M>, Option<&SVector<f64, M>>),
         (h, substeps): (f64, usize),
     ) -> (Actuation<f64, M>, Commands<f64>) {
-        let mut a = match (thrust, &self.wheels) {
-            (Some(demand), _) => self.control.actuate_demand(*demand),
-            (None, None) => self.control.actuate(wrench, r_hat),
-            (None, Some(wheels)) => {
-                // the wheels' tachometers and the body's rate as the controller has them
-                let all = wheels.speeds(&plant.velocity());
-                self.speeds_at_start = all;
-                let speeds = &all[..wheels.wheels().len()];
-                let omega = nalgebra::Vector3::new(v_hat[0], v_hat[1], v_hat[2]);
-                self.gyroscopic = self.control.wheels().gyroscopic(&omega, speeds);
-                self.control.actuate_wheeled(wrench, r_hat, &omega, speeds)
-            }
+        let mut a = match thrust {
+            Some(demand) => self.control.actuate_demand(*demand),
+            None => self.actuate(wrench, r_hat, v_hat, &plant.velocity()),
         };
         self.short = ::failsafe::monitor::torque_short(
             a.allocation.status.code(),
@@ -636,21 +690,9 @@ impl<const M: usize> VehicleRun<M> {
             d.commanded(&a.allocation.u);
         }
         self.actuators.command(&a.allocation.u);
-        if let Some(wheels) = &mut self.wheels {
-            let count = wheels.wheels().len();
-            let motors = &a.allocation.u.as_slice()[self.thrusters..self.thrusters + count];
-            self.wheel_clamps += wheels.command(motors, &plant.velocity());
-        }
+        self.command_wheels(&a.allocation.u, &plant.velocity());
         let u = self.produced();
-        advance::<G, N, M>(
-            plant,
-            self.wheels.as_mut(),
-            &self.environment,
-            &mut self.actuators,
-            (body, world),
-            h,
-            substeps,
-        );
+        self.step(plant, (body, world), h, substeps);
         (a, u)
     }
 }

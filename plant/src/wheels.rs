@@ -20,6 +20,8 @@ use nalgebra::{SMatrix, SVector, Vector3};
 
 /// The most wheels a body carries.
 pub const MAX_WHEELS: usize = allocation::MAX_WHEELS;
+// the wire carries as many wheel speeds as the allocation has wheels
+const _: () = assert!(MAX_WHEELS == ipc_types::MAX_WHEELS);
 
 /// Below this speed (rad/s) friction is linear in the speed, as Basilisk's `omegaLimitCycle`
 /// (its default), so that the sign change of Coulomb friction does not chatter.

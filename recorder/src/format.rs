@@ -41,7 +41,8 @@ pub struct Samples {
 
 /// The file's first eight bytes.
 pub const MAGIC: [u8; 8] = *b"EQTRKLOG";
-/// The format version this build writes and reads (7: protocol 9's messages, whose command
+/// The format version this build writes and reads (8: protocol 10's messages, whose state
+/// carries the reaction wheels' speeds, 1216-byte records; 7: protocol 9's messages, whose command
 /// carries the failsafe manager's state word and whose state the estimator's health, records
 /// as in 6; 6: protocol 8's messages, whose
 /// command carries the failure detector's finding and last test, 1160-byte records; 5:
@@ -51,7 +52,7 @@ pub const MAGIC: [u8; 8] = *b"EQTRKLOG";
 /// with sensors a [`SENSOR_BYTES`] sensor block after each; 3: protocol 5, 760 bytes; 2:
 /// protocols 3 and 4, 752 bytes; 1: before protocol 3. Other versions are refused, naming
 /// both).
-pub const FORMAT_VERSION: u32 = 7;
+pub const FORMAT_VERSION: u32 = 8;
 /// Bytes of the header.
 pub const HEADER_BYTES: usize = 192;
 /// Where a record's state message starts.

@@ -20,9 +20,9 @@ import os
 import struct
 import sys
 
-# the flight recorder's layout (format 7) and the wire messages' (protocol 9)
+# the flight recorder's layout (format 8) and the wire messages' (protocol 10)
 LOG_MAGIC = b"EQTRKLOG"
-STATE_AT, COMMAND_AT = 80, 392
+STATE_AT, COMMAND_AT = 80, 448
 GROUP_DIMS = {1: (3, 3), 2: (4, 6)}
 
 
@@ -34,8 +34,8 @@ def read_log(path):
     if data[:8] != LOG_MAGIC:
         sys.exit(f"{path}: not a flight recording")
     version, header_bytes, record_bytes, group = struct.unpack_from("<IIII", data, 8)
-    if version != 7:
-        sys.exit(f"{path}: format version {version}; this check reads 7")
+    if version != 8:
+        sys.exit(f"{path}: format version {version}; this check reads 8")
     n, m = GROUP_DIMS[group]
     records = []
     for at in range(header_bytes, len(data) - record_bytes + 1, record_bytes):
@@ -56,6 +56,8 @@ def read_log(path):
             "v": list(struct.unpack_from(f"<{m}d", data, s + 168)),
             "applied_before": list(struct.unpack_from(f"<{m}d", data, s + 216)),
         }
+        wheels = struct.unpack_from("<I", data, s + 312)[0]
+        rec["wheel_speeds"] = list(struct.unpack_from(f"<{wheels}d", data, s + 320))
         if has_command:
             c = at + COMMAND_AT
             rec["seq"] = struct.unpack_from("<Q", data, c + 8)[0]
@@ -91,7 +93,7 @@ def check_against_log(log_path, by_topic):
     records = read_log(log_path)
     commands = [r for r in records if r["has_command"]]
     checks = (
-        ("/eqtrack/state", records, ("cycle", "t", "q", "v", "applied_before")),
+        ("/eqtrack/state", records, ("cycle", "t", "q", "v", "applied_before", "wheel_speeds")),
         ("/eqtrack/cycle", records, ("cycle", "decision", "misses_in_row", "deadline_ns", "has_command", "received_ns", "applied")),
         ("/eqtrack/command", commands, ("cycle", "seq", "tau", "lyapunov")),
         ("/eqtrack/actuators", [r for r in commands if r["actuators"] > 0], ("cycle", "alloc_status", "demand", "u_cmd")),

@@ -597,3 +597,84 @@ fn the_pairs_controller_finds_unannounced_failures_in_real_time() {
         eprintln!("{text}");
     }
 }
+
+/// Reaction wheels through the pair (docs/vehicles.md, "Reaction wheels"): the plant's state
+/// carries the wheels' speeds, the controller forms their gyroscopic torque from them and
+/// allocates to their motors.
+const WHEELED: [&str; 2] = ["wheels_slew", "wheels_dump"];
+
+#[test]
+fn lockstep_with_reaction_wheels_equals_the_simulation_and_replays_from_the_wheel_speeds() {
+    let _g = serial();
+    let d = TempDir::new("vehicle-wheels");
+    for name in WHEELED {
+        let file = repo(&format!("scenarios/{name}.toml"));
+        let (sim, pair) = sim_equals_lockstep(&d, name, file.to_str().unwrap());
+        let (s, p) = (summary(Path::new(&sim)), summary(Path::new(&pair)));
+        assert_eq!(s["vehicle"], p["vehicle"], "{name}");
+        assert!(p["vehicle"]["wheel_clamps"].is_u64(), "{name}: {p}");
+        assert_eq!(p["controller_heap_allocations"].as_u64(), Some(0), "{p}");
+        assert_eq!(p["plant_loop_heap_allocations"].as_u64(), Some(0), "{p}");
+        let (code, text) = run("plant_sim", &["replay", &pair], LONG);
+        assert_eq!(code, 0, "{name}: {text}");
+        assert!(
+            text.contains("commands compared, 0 differ"),
+            "{name}: {text}"
+        );
+    }
+    let pair = d.join("wheels_slew-pair");
+    let csv = Csv::read(&Path::new(&pair).join("trajectory.csv"));
+    // the MCAP export's state channel carries the four speeds the trajectory has
+    let (code, text) = run("plant_sim", &["export", &pair, "--format", "jsonl"], LONG);
+    assert_eq!(code, 0, "{text}");
+    let k = 300;
+    let state = std::fs::read_to_string(Path::new(&pair).join("run.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .find(|l| l["topic"] == "/eqtrack/state" && l["sequence"] == k)
+        .expect("a state message at cycle 300");
+    let speeds: Vec<f64> = state["fields"]["wheel_speeds"]
+        .as_array()
+        .expect("wheel_speeds")
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let from_csv: Vec<f64> = (0..4)
+        .map(|i| csv.col(&format!("wheel_speed_{i}"))[k as usize])
+        .collect();
+    assert_eq!(speeds, from_csv);
+    assert!(speeds.iter().any(|w| w.abs() > 1.0), "{speeds:?}");
+    // the law reads the speeds from the state: one changed in the log changes the answer
+    let planted = format!("{pair}-speed");
+    std::fs::create_dir_all(&planted).unwrap();
+    for entry in std::fs::read_dir(&pair).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_file() {
+            std::fs::copy(&path, Path::new(&planted).join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    let log_file = format!("{planted}/messages.log");
+    let mut log = std::fs::read(&log_file).unwrap();
+    let header = recorder::Header::from_bytes(&log).unwrap();
+    let at = recorder::HEADER_BYTES
+        + k as usize * header.record_bytes()
+        + recorder::RECORD_STATE_OFFSET
+        + std::mem::offset_of!(ipc_types::StateMsg, wheel_speeds)
+        + 8;
+    let w = f64::from_le_bytes(log[at..at + 8].try_into().unwrap());
+    assert_eq!(w.to_bits(), speeds[1].to_bits());
+    log[at..at + 8].copy_from_slice(&(w + 5.0).to_le_bytes());
+    std::fs::write(&log_file, &log).unwrap();
+    let (code, text) = run("plant_sim", &["replay", &planted], LONG);
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains(&format!("cycle {k} ")), "{text}");
+    // a state with another wheel count than the vehicle's is not answered
+    let count_at = at - 8 - 8;
+    log[at..at + 8].copy_from_slice(&w.to_le_bytes());
+    log[count_at..count_at + 4].copy_from_slice(&3u32.to_le_bytes());
+    std::fs::write(&log_file, &log).unwrap();
+    let (code, text) = run("plant_sim", &["replay", &planted], LONG);
+    assert_ne!(code, 0, "{text}");
+    assert!(text.contains(&format!("cycle {k}")), "{text}");
+}

@@ -221,6 +221,7 @@ fn exercise_state(msg: &StateMsg, bytes: &[u8]) {
     black_box(msg.configuration::<4>());
     black_box(msg.velocity::<3>());
     black_box(msg.velocity::<6>());
+    black_box(msg.wheel_speeds());
     exercise_identity(&msg.identity());
 }
 
@@ -243,6 +244,9 @@ fn check_state_grid(msg: &StateMsg) {
                     assert_eq!(msg.version, PROTOCOL_VERSION);
                     assert_eq!(group_kind(msg.group), Some(g));
                     assert!(last.is_none_or(|l| msg.seq > l));
+                    // every wheel speed it carries is a number, and no more than the capacity
+                    assert!(msg.wheels as usize <= ipc_types::MAX_WHEELS);
+                    assert!(msg.wheel_speeds().iter().all(|w| w.is_finite()));
                 }
                 let _ = black_box(verdict);
             }

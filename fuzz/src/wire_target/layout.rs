@@ -15,7 +15,7 @@ pub(super) enum Ty {
 
 /// `(name, byte offset, type, count)` of the fields of an encoded
 /// [`StateMsg`](ipc_types::StateMsg).
-pub(super) const STATE_FIELDS: [(&str, usize, Ty, usize); 13] = [
+pub(super) const STATE_FIELDS: [(&str, usize, Ty, usize); 16] = [
     ("version", 0, Ty::U32, 1),
     ("group", 4, Ty::U32, 1),
     ("seq", 8, Ty::U64, 1),
@@ -29,6 +29,9 @@ pub(super) const STATE_FIELDS: [(&str, usize, Ty, usize); 13] = [
     ("plant_pid", 268, Ty::U32, 1),
     ("fingerprint", 272, Ty::U64, 1),
     ("scenario", 280, Ty::Name, 1),
+    ("wheels", 312, Ty::U32, 1),
+    ("reserved_wheels", 316, Ty::U32, 1),
+    ("wheel_speeds", 320, Ty::F64, 6),
 ];
 
 /// The fields of an encoded [`CommandMsg`](ipc_types::CommandMsg).

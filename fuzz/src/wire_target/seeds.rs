@@ -53,6 +53,10 @@ impl OnGroup for Realistic<'_> {
             st.plant_pid = 4242;
             st.fingerprint = fp;
             st.scenario = name;
+            if k == 2 {
+                // a plant with reaction wheels: their speeds relative to the body
+                st.set_wheel_speeds(&[120.0, -80.5, 0.0, 33.25]);
+            }
             let law = c
                 .compute_rejecting(
                     &mut terms,

@@ -26,6 +26,10 @@ fn field_tables_match_the_encoding() {
     assert_eq!(read_u64(&b2, 216 + 2 * 8), Some(1.25f64.to_bits()));
     assert_eq!(read_u32(&b, 268), Some(99));
     assert_eq!(&b[280..283], b"abc");
+    s.set_wheel_speeds(&[0.0, 0.0, -12.5]);
+    let b3 = s.to_bytes();
+    assert_eq!(read_u32(&b3, 312), Some(3));
+    assert_eq!(read_u64(&b3, 320 + 2 * 8), Some((-12.5f64).to_bits()));
     let last = STATE_FIELDS[STATE_FIELDS.len() - 1];
     assert_eq!(last.1 + width(last.2) * last.3, STATE_BYTES);
 

@@ -234,14 +234,14 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         }
         match (decision, got) {
             (Decision::Fresh, Some(c)) => {
-                vehicle.apply(&c.msg);
+                vehicle.apply(&c.msg, &v);
                 self.take_terms(c);
             }
             (Decision::Safe, _) => {
                 let damping = safe_mode_torque(&self.cfg.kd, &v, self.cfg.torque_limit.as_ref());
                 vehicle.safe(&damping, &self.plant);
             }
-            _ => vehicle.hold(),
+            _ => vehicle.hold(&v),
         }
         if let Some(vehicle) = &self.vehicle {
             self.tau = vehicle.accounted;

@@ -135,7 +135,7 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
             s.reference_source::<G, N, M>().map_err(input(&s))?,
         );
         let cfg = s.controller_config::<N, M>();
-        let vehicle = super::vehicle::PairVehicle::of(&s)?;
+        let vehicle = super::vehicle::PairVehicle::of(&s, &plant.velocity())?;
         let config = PlantEndpointConfig {
             actuators: vehicle.as_ref().map_or(0, |v| v.count()),
             run: opts.run.clone(),
@@ -315,6 +315,11 @@ impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G
         msg.t = k as f64 * self.s.control_period;
         // the torque applied over the last period (zero at k = 0): the rejection terms' input
         msg.set_applied(&self.tau);
+        if let Some(v) = &self.vehicle {
+            // the wheels' tachometers: the law's gyroscopic term needs them
+            let (speeds, count) = v.wheel_speeds(&self.plant.velocity());
+            msg.set_wheel_speeds(&speeds[..count]);
+        }
         match &mut self.estimation {
             None => msg.set_state(self.plant.configuration(), &self.plant.velocity()),
             Some(e) => {

@@ -4,7 +4,8 @@
 //! in-process simulation does. In safe mode the plant allocates the damping wrench itself.
 
 use crate::trajectory::VehicleRow;
-use crate::vehicle::{VehicleReport, VehicleRun, step_in_world};
+use crate::vehicle::{VehicleReport, VehicleRun};
+use crate::wheels::MAX_WHEELS;
 use allocation::{Actuation, Allocation, Commands, Status};
 use controller::group::MatrixLieGroup;
 use controller::integrator::RigidBody;
@@ -28,22 +29,22 @@ pub(super) struct PairVehicle<const M: usize> {
 }
 
 impl<const M: usize> PairVehicle<M> {
-    /// The scenario's vehicle, if it has one.
-    pub(super) fn of(s: &Scenario) -> Result<Option<Self>, crate::SimError> {
-        if s.vehicle.as_ref().is_some_and(|v| !v.wheels.is_empty()) {
-            return Err(crate::SimError::Input(format!(
-                "scenario `{}`: vehicle.wheel: reaction wheels are flown by `plant_sim sim` only, not yet across the process pair",
-                s.name
-            )));
-        }
-        Ok(VehicleRun::of(s)?.map(|run| PairVehicle {
-            run,
-            u_cmd: Commands::zeros(),
-            accounted: SVector::zeros(),
-            held: SVector::zeros(),
-            row: None,
-            alarms: 0,
-        }))
+    /// The scenario's vehicle, if it has one, its wheels spinning at their initial speeds
+    /// relative to the body at its initial velocity `v`.
+    pub(super) fn of(s: &Scenario, v: &SVector<f64, M>) -> Result<Option<Self>, crate::SimError> {
+        Ok(VehicleRun::of(s)?
+            .map(|mut run| {
+                run.spin_wheels(s, v);
+                run
+            })
+            .map(|run| PairVehicle {
+                run,
+                u_cmd: Commands::zeros(),
+                accounted: SVector::zeros(),
+                held: SVector::zeros(),
+                row: None,
+                alarms: 0,
+            }))
     }
 
     /// The actuator count (what the plant's endpoint expects in every command).
@@ -65,9 +66,15 @@ impl<const M: usize> PairVehicle<M> {
         self.alarms = c.alarms;
     }
 
-    /// Applies a fresh command: its `u_cmd` to the actuators (each within its range), and its
-    /// columns to the row.
-    pub(super) fn apply(&mut self, c: &CommandMsg) {
+    /// The wheels' speeds relative to the body at body velocity `v` (for the state), and how
+    /// many there are.
+    pub(super) fn wheel_speeds(&self, v: &SVector<f64, M>) -> ([f64; MAX_WHEELS], usize) {
+        self.run.wheel_speeds(v)
+    }
+
+    /// Applies a fresh command at body velocity `v`: its `u_cmd` to the actuators and the
+    /// wheels' motors (each within its range), and its columns to the row.
+    pub(super) fn apply(&mut self, c: &CommandMsg, v: &SVector<f64, M>) {
         let mut a = Actuation {
             demand: SVector::zeros(),
             allocation: Allocation {
@@ -83,14 +90,17 @@ impl<const M: usize> PairVehicle<M> {
             self.accounted[i] = c.accounted[i];
         }
         self.u_cmd = self.run.command_received(&a.allocation.u);
+        self.run.command_wheels(&self.u_cmd, v);
         self.row_of(&a);
     }
 
-    /// Holds the last command over a missed deadline.
-    pub(super) fn hold(&mut self) {
+    /// Holds the last command over a missed deadline (the wheels' motors limited anew at body
+    /// velocity `v`).
+    pub(super) fn hold(&mut self, v: &SVector<f64, M>) {
         let u = self.u_cmd;
         self.run.actuators.command(&u);
-        let out = self.run.actuators.produced();
+        self.run.command_wheels(&u, v);
+        let out = self.run.produced();
         if let Some((row, wrench)) = &mut self.row {
             for (j, x) in row.u.iter_mut().enumerate() {
                 *x = out[j];
@@ -107,21 +117,19 @@ impl<const M: usize> PairVehicle<M> {
         body: &RigidBody<f64, G, N, M>,
     ) {
         let r = G::rotation(body.configuration());
+        let v = body.velocity();
         // the rate limit narrows around what the actuators were last commanded
         self.run.control.set_previous(Some(self.u_cmd));
-        let a = self.run.control.actuate(wrench, &r);
-        self.accounted = a.applied(&self.run.control.restoring(&r));
-        self.command(&a);
-    }
-
-    fn command(&mut self, a: &Actuation<f64, M>) {
+        let a = self.run.actuate(wrench, &r, &v, &v);
+        self.accounted = self.run.applied(&a, &r);
         self.u_cmd = a.allocation.u;
         self.run.actuators.command(&a.allocation.u);
-        self.row_of(a);
+        self.run.command_wheels(&a.allocation.u, &v);
+        self.row_of(&a);
     }
 
     fn row_of(&mut self, a: &Actuation<f64, M>) {
-        let u = self.run.actuators.produced();
+        let u = self.run.produced();
         self.row = Some((self.run.row(a, &u), self.run.wrench_of(&u)));
     }
 
@@ -134,17 +142,14 @@ impl<const M: usize> PairVehicle<M> {
         k: u64,
     ) {
         let world = s.world_disturbance::<M>();
-        step_in_world::<G, N, M>(
+        self.run.step(
             body,
-            &self.run.environment,
-            &mut self.run.actuators,
-            &s.disturbance_at::<M>(k),
-            world.as_ref(),
+            (&s.disturbance_at::<M>(k), world.as_ref()),
             s.control_period,
             s.plant_substeps,
         );
         let r = G::rotation(body.configuration());
-        self.held = self.run.wrench_of(&self.run.actuators.produced())
+        self.held = self.run.wrench_of(&self.run.produced())
             + self.run.environment.wrench(&r, &body.velocity())
             + s.disturbance_wrench::<M>(k, &r);
     }
