@@ -171,7 +171,9 @@ impl<const M: usize> ControllerVehicle<M> {
             if !(follows && as_sent) {
                 d.gap();
             }
-            if let Some(found) = d.observe::<G, N>(&msg.velocity::<M>(), &r_hat, &mut self.control)
+            let v = msg.velocity::<M>();
+            if let Some(found) =
+                d.observe_wheeled::<G, N>(&v, &r_hat, msg.wheel_speeds(), &mut self.control)
             {
                 write_detection(cmd, &found);
             }

@@ -517,7 +517,21 @@ impl<T: Real, const K: usize> Detector<T, K> {
         r: &Matrix3<T>,
         control: &mut VehicleControl<T, K>,
     ) -> Option<Detection<T>> {
-        let found = self.period::<G, N>(v, r, control);
+        self.observe_wheeled::<G, N>(v, r, &[], control)
+    }
+
+    /// [`Detector::observe`] of a vehicle with reaction wheels turning at `speeds` (relative
+    /// to the body, one per wheel of `control`; docs/maths.md, "Failure detection" and
+    /// "Reaction wheels"): the body's momentum balance carries the wheels' momentum in its
+    /// gyroscopic term, and a wheel's motor torque acts at once (no actuator lag).
+    pub fn observe_wheeled<G: MatrixLieGroup<N, K>, const N: usize>(
+        &mut self,
+        v: &SVector<T, K>,
+        r: &Matrix3<T>,
+        speeds: &[T],
+        control: &mut VehicleControl<T, K>,
+    ) -> Option<Detection<T>> {
+        let found = self.period::<G, N>(v, r, speeds, control);
         // what the allocator holds over the next period: what this cycle told it, and any
         // failure the scenario told it of at this tick (the plant's actuator stuck from now)
         let count = control.allocator().geometry().count();
@@ -532,11 +546,12 @@ impl<T: Real, const K: usize> Detector<T, K> {
         &mut self,
         v: &SVector<T, K>,
         r: &Matrix3<T>,
+        speeds: &[T],
         control: &mut VehicleControl<T, K>,
     ) -> Option<Detection<T>> {
         let c = &self.config;
         let mu = c.inertia * v;
-        let gyro = G::ad_transpose_mul(v, &mu);
+        let gyro = G::ad_transpose_mul(v, &with_wheels(mu, v, speeds, control));
         let drag = -(c.damping_linear.component_mul(v)
             + c.damping_quadratic.component_mul(&v.abs().component_mul(v)));
         let environment = control.restoring(r) + drag;
@@ -550,6 +565,11 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let (Some(p), true) = (previous, self.held) else {
             return self.next_report();
         };
+        // a wheel's motor has no lag: its torque is the command held over the period
+        let first = control.wheels().first();
+        for j in first..first + control.wheels().wheels().len() {
+            self.output[j] = self.command[j];
+        }
         // the held period: the lag's mean output and its output at the end; the thrust
         // believed, a held value for an actuator held (found or told stuck or dead)
         let u = self.command + (self.output - self.command) * self.mean;
@@ -920,4 +940,24 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         best.0
     }
+}
+
+/// The momentum the body's gyroscopic term turns, `μ` plus the wheels' `h_w = Σ J_s (gᵀω + Ω) g`
+/// on the torque rows: with wheels `J ω̇ = (J ω + h_w) × ω − Σ g u + τ` (docs/maths.md,
+/// "Reaction wheels"). `μ` itself without wheels.
+fn with_wheels<T: Real, const K: usize>(
+    mu: SVector<T, K>,
+    v: &SVector<T, K>,
+    speeds: &[T],
+    control: &VehicleControl<T, K>,
+) -> SVector<T, K> {
+    let mut carried = mu;
+    if !speeds.is_empty() {
+        let omega = nalgebra::Vector3::new(v[0], v[1], v[2]);
+        let h = control.wheels().momentum(&omega, speeds);
+        for i in 0..K.min(3) {
+            carried[i] += h[i];
+        }
+    }
+    carried
 }

@@ -446,19 +446,21 @@ impl<const M: usize> VehicleRun<M> {
     }
 
     /// The detector's cycle at tick `t` (docs/maths.md, "Failure detection"), before the
-    /// allocation: the state the controller sees (`v`, `r`), and on a detection the
+    /// allocation: the state the controller sees (`v`, `r`) and the wheels' speeds at the
+    /// body's true velocity `v_true` (their tachometers), and on a detection the
     /// allocator told and the detection recorded, with its latency where the scenario
     /// scripted a failure of that actuator before `t`.
     pub fn detect<G: MatrixLieGroup<N, M>, const N: usize>(
         &mut self,
         t: f64,
-        v: &SVector<f64, M>,
-        r: &Matrix3<f64>,
+        (v, r): (&SVector<f64, M>, &Matrix3<f64>),
+        v_true: &SVector<f64, M>,
     ) {
+        let (all, count) = self.wheel_speeds(v_true);
         let Some(d) = &mut self.detector else {
             return;
         };
-        if let Some(found) = d.observe::<G, N>(v, r, &mut self.control) {
+        if let Some(found) = d.observe_wheeled::<G, N>(v, r, &all[..count], &mut self.control) {
             self.found(t, &found);
         }
     }
@@ -591,7 +593,7 @@ where
             }
         };
         let r_hat = G::rotation(&q_hat);
-        run.detect::<G, N>(t, &v_hat, &r_hat);
+        run.detect::<G, N>(t, (&v_hat, &r_hat), &sim.plant.velocity());
         let disarmed = supervision.as_mut().is_some_and(|sup| {
             let flags = run.failsafe_flags(estimate.as_ref());
             sup.tick(t, (&q_hat, &v_hat), flags, &mut sim.reference);

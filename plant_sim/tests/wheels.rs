@@ -269,12 +269,6 @@ fn bad_wheel_tables_exit_2_naming_the_key() {
             "12",
         ),
         (
-            "detector",
-            format!("{good}\n[fault_detection]\n"),
-            "fault_detection",
-            "reaction wheels",
-        ),
-        (
             "failsafe",
             format!("{good}\n[failsafe]\n"),
             "failsafe",
@@ -533,4 +527,39 @@ fn a_dead_wheel_told_to_the_allocator_leaves_three_that_still_arrive() {
     // a wheel's stuck value is a torque within its motor's range
     let bad = slew_text() + "\n[[vehicle.failure]]\nactuator = 2\nt = 1.0\nvalue = 0.5\n";
     refused(dir.path(), "bad", &bad, "vehicle.failure[0].value", "0.01");
+}
+
+#[test]
+fn the_detector_finds_an_unannounced_dead_wheel_and_flags_nothing_in_nominal_flight() {
+    let dir = tempfile::tempdir().unwrap();
+    // the slew with friction (which the detector does not model) and the detector's defaults:
+    // two seconds of warm-up, two of calibration
+    let watched = format!("{}\n[fault_detection]\n", slew_text());
+    fly(dir.path(), "nominal", &watched);
+    let s = summary(dir.path(), "nominal");
+    assert_eq!(s["vehicle"]["detections"], serde_json::json!([]), "{s}");
+    assert_eq!(s["vehicle"]["alarms"], 0, "{s}");
+    // wheel 1's motor dies at 8 s, mid-slew, and nobody says so
+    let dead = format!(
+        "{watched}\n[[vehicle.failure]]\nactuator = 1\nt = 8.0\nkind = \"dead\"\nreconfigure = false\n"
+    );
+    let (h, rows) = fly(dir.path(), "dead", &dead);
+    let s = summary(dir.path(), "dead");
+    let found = &s["vehicle"]["detections"];
+    assert_eq!(found.as_array().map(Vec::len), Some(1), "{s}");
+    assert_eq!(found[0]["actuator"], 1, "{s}");
+    assert_eq!(found[0]["kind"], "dead", "{s}");
+    let latency = found[0]["latency"].as_f64().unwrap();
+    assert!(latency > 0.0 && latency < 0.5, "{s}");
+    // told by the detector, the allocator asks nothing more of it and three wheels arrive
+    let t = column(&h, &rows, "t");
+    let cmd = column(&h, &rows, "u_cmd_1");
+    let after = found[0]["t"].as_f64().unwrap();
+    assert!(
+        (0..rows.len() - 1)
+            .filter(|&k| t[k] > after + 1e-9)
+            .all(|k| cmd[k] == 0.0)
+    );
+    let err = column(&h, &rows, "attitude_error");
+    assert!(*err.last().unwrap() < 1e-3, "{}", err.last().unwrap());
 }

@@ -692,12 +692,9 @@ fn default_model(
 
 impl Validator<'_> {
     /// What a vehicle with reaction wheels does not have yet, refused naming the table: the
-    /// failure detector's model and the failsafe's laws know thrusters only.
+    /// failsafe's laws know thrusters only.
     fn refused_with_wheels(&self, raw: &RawScenario) -> Result<(), ScenarioError> {
-        let tables = [
-            ("fault_detection", raw.fault_detection.is_some()),
-            ("failsafe", raw.failsafe.is_some()),
-        ];
+        let tables = [("failsafe", raw.failsafe.is_some())];
         match tables.iter().find(|(_, given)| *given) {
             Some((key, _)) => Err(self.err(
                 key,

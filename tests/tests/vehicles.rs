@@ -622,6 +622,20 @@ fn lockstep_with_reaction_wheels_equals_the_simulation_and_replays_from_the_whee
             "{name}: {text}"
         );
     }
+    // the controller's failure detector with wheels: a dead wheel found from the states'
+    // speeds, as in the simulation
+    let slew = std::fs::read_to_string(repo("scenarios/wheels_slew.toml")).unwrap();
+    let detected = d.join("wheels_detected.toml");
+    std::fs::write(
+        &detected,
+        slew.replace("name = \"wheels_slew\"", "name = \"wheels_detected\"")
+            + "\n[fault_detection]\n\n[[vehicle.failure]]\nactuator = 1\nt = 8.0\nkind = \"dead\"\nreconfigure = false\n",
+    )
+    .unwrap();
+    let (sim, pair) = sim_equals_lockstep(&d, "wheels_detected", &detected);
+    let (s, p) = (summary(Path::new(&sim)), summary(Path::new(&pair)));
+    assert_eq!(s["vehicle"], p["vehicle"]);
+    assert_eq!(p["vehicle"]["detections"][0]["actuator"], 1, "{p}");
     let pair = d.join("wheels_slew-pair");
     let csv = Csv::read(&Path::new(&pair).join("trajectory.csv"));
     // the MCAP export's state channel carries the four speeds the trajectory has
