@@ -111,7 +111,7 @@ impl<const M: usize> ControllerVehicle<M> {
             Ok(())
         } else {
             Err(controller::Error::WrongShape {
-                quantity: controller::Quantity::State,
+                quantity: controller::Quantity::WheelSpeeds,
                 expected: self.wheels(),
                 found: msg.wheels as usize,
             })

@@ -41,6 +41,8 @@ pub enum Quantity {
     IntegralLimit,
     /// The torque the plant applied over the last period.
     AppliedTorque,
+    /// The reaction wheels' speeds a state carries (one per wheel of the vehicle).
+    WheelSpeeds,
 }
 
 impl Quantity {
@@ -64,6 +66,7 @@ impl Quantity {
             Quantity::IntegralWeight => "integral weight c",
             Quantity::IntegralLimit => "integral limit",
             Quantity::AppliedTorque => "applied torque",
+            Quantity::WheelSpeeds => "wheel speeds",
         }
     }
 }

@@ -54,7 +54,7 @@ impl Invalid {
             Invalid::NonFinite => "non-finite number",
             Invalid::Sequence => "sequence number not increasing",
             Invalid::Period => "control period mismatch",
-            Invalid::Actuators => "actuator count not the plant's",
+            Invalid::Actuators => "actuator count not the plant's, or a wheel count past 6",
             Invalid::Detection => "detection of no actuator or kind",
             Invalid::Failsafe => "failsafe word of no action or cause",
         }
@@ -107,7 +107,7 @@ pub fn check_state(
     {
         return Err(Invalid::NonFinite);
     }
-    if msg.wheels as usize > crate::MAX_WHEELS {
+    if msg.wheels as usize > crate::MAX_WHEELS || msg.reserved_wheels != 0 {
         return Err(Invalid::Actuators);
     }
     if !all_finite(msg.wheel_speeds()) {

@@ -155,6 +155,9 @@ mod tests {
         w.wheel_speeds[3] = 4.0;
         w.wheel_speeds[5] = f64::NAN; // beyond the count: ignored
         assert_eq!(check_state(&w, So3, None, None), Ok(()));
+        w.reserved_wheels = 1;
+        assert_eq!(check_state(&w, So3, None, None), Err(Invalid::Actuators));
+        w.reserved_wheels = 0;
         w.wheels = MAX_WHEELS as u32 + 1;
         assert_eq!(check_state(&w, So3, None, None), Err(Invalid::Actuators));
         w.set_wheel_speeds(&[0.5; MAX_WHEELS + 2]);

@@ -516,6 +516,16 @@ impl<const M: usize> VehicleRun<M> {
         self.effectiveness * u
     }
 
+    /// The row's wheel columns: the speeds at the start of the period and the torques the
+    /// motors apply over it (nothing without wheels).
+    pub fn wheel_columns(&self, row: &mut VehicleRow) {
+        if let Some(w) = &self.wheels {
+            row.wheels = w.wheels().len();
+            row.wheel_speed = self.speeds_at_start;
+            row.wheel_cmd[..row.wheels].copy_from_slice(w.applied());
+        }
+    }
+
     /// The row's vehicle columns: the demand, `u_cmd`, the output `u(t_k)`, `B u_cmd`, the
     /// status.
     pub fn row(&self, a: &Actuation<f64, M>, u: &Commands<f64>) -> VehicleRow {
@@ -532,11 +542,7 @@ impl<const M: usize> VehicleRun<M> {
             wheel_speed: [0.0; 6],
             wheel_cmd: [0.0; 6],
         };
-        if let Some(w) = &self.wheels {
-            row.wheels = w.wheels().len();
-            row.wheel_speed = self.speeds_at_start;
-            row.wheel_cmd[..row.wheels].copy_from_slice(w.applied());
-        }
+        self.wheel_columns(&mut row);
         for i in 0..M {
             row.demand[i] = a.demand[i];
             row.achieved[i] = a.allocation.achieved[i];
@@ -677,7 +683,11 @@ impl<const M: usize> VehicleRun<M> {
         (h, substeps): (f64, usize),
     ) -> (Actuation<f64, M>, Commands<f64>) {
         let mut a = match thrust {
-            Some(demand) => self.control.actuate_demand(*demand),
+            Some(demand) => {
+                // the thrust-axis law's demand has no gyroscopic torque in it
+                self.gyroscopic = SVector::zeros();
+                self.control.actuate_demand(*demand)
+            }
             None => self.actuate(wrench, r_hat, v_hat, &plant.velocity()),
         };
         self.short = ::failsafe::monitor::torque_short(

@@ -120,6 +120,14 @@ impl Detector {
                 s.name
             )));
         }
+        if s.vehicle.as_ref().is_some_and(|v| !v.wheels.is_empty()) {
+            // `step` takes no wheel speeds: the gyroscopic term and the wheels' momentum in
+            // the residual would be missing
+            return Err(value_err(format!(
+                "scenario `{}`: vehicle.wheel: the Detector does not take reaction wheels' speeds yet (fly them with simulate or the process pair)",
+                s.name
+            )));
+        }
         let vehicle = match s.group {
             GroupKind::So3 => Vehicle::So3(Box::new(ControllerVehicle::of(&s).map_err(value_err)?)),
             GroupKind::Se3 => Vehicle::Se3(Box::new(ControllerVehicle::of(&s).map_err(value_err)?)),

@@ -135,6 +135,9 @@ def test_the_detector_checks_its_scenario_and_its_inputs():
         eqtrack.Detector(SEED)
     with pytest.raises(ValueError, match="fault_detection.window"):
         eqtrack.Detector(scenario, {"fault_detection": {"window": 0.0}})
+    # a step takes no wheel speeds: a vehicle with reaction wheels is refused, naming the key
+    with pytest.raises(ValueError, match=r"vehicle\.wheel: the Detector does not take"):
+        eqtrack.Detector(REPO / "scenarios" / "wheels_slew.toml", {"fault_detection": {"window": 0.1}})
     d = eqtrack.Detector(scenario)
     q, v, tau = np.eye(4), np.zeros(6), np.zeros(6)
     with pytest.raises(ValueError, match=r"v: expected shape \(6,\), got \(3,\)"):

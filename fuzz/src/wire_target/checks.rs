@@ -246,6 +246,7 @@ fn check_state_grid(msg: &StateMsg) {
                     assert!(last.is_none_or(|l| msg.seq > l));
                     // every wheel speed it carries is a number, and no more than the capacity
                     assert!(msg.wheels as usize <= ipc_types::MAX_WHEELS);
+                    assert_eq!(msg.reserved_wheels, 0);
                     assert!(msg.wheel_speeds().iter().all(|w| w.is_finite()));
                 }
                 let _ = black_box(verdict);

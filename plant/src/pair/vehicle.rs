@@ -105,6 +105,8 @@ impl<const M: usize> PairVehicle<M> {
             for (j, x) in row.u.iter_mut().enumerate() {
                 *x = out[j];
             }
+            // the wheels' speeds now and what their motors apply over the held period
+            self.run.wheel_columns(row);
             *wrench = self.run.wrench_of(&out);
         }
     }
