@@ -495,9 +495,8 @@ pub fn planted_copy(
     planted
 }
 
-/// A copy of the run in `out` beside it (`<out>-<tag>`) whose `messages.log` lacks the
-/// commands of `cycles`, as if they had come too late to be recorded; returns its directory.
-pub fn without_commands(out: &str, tag: &str, cycles: &[usize]) -> String {
+/// A copy of every file of the run in `out` beside it (`<out>-<tag>`); returns its directory.
+pub fn run_copy(out: &str, tag: &str) -> String {
     let copy = format!("{out}-{tag}");
     std::fs::create_dir_all(&copy).unwrap();
     for entry in std::fs::read_dir(out).unwrap() {
@@ -506,6 +505,13 @@ pub fn without_commands(out: &str, tag: &str, cycles: &[usize]) -> String {
             std::fs::copy(&path, Path::new(&copy).join(path.file_name().unwrap())).unwrap();
         }
     }
+    copy
+}
+
+/// A copy of the run in `out` beside it (`<out>-<tag>`) whose `messages.log` lacks the
+/// commands of `cycles`, as if they had come too late to be recorded; returns its directory.
+pub fn without_commands(out: &str, tag: &str, cycles: &[usize]) -> String {
+    let copy = run_copy(out, tag);
     let file = format!("{copy}/messages.log");
     let mut log = std::fs::read(&file).unwrap();
     let header = recorder::Header::from_bytes(&log).unwrap();

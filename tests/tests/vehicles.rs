@@ -3,7 +3,7 @@
 //! with them. Driven through the real binaries; tests run one at a time ([`serial`]).
 
 use pair_tests::{
-    Csv, TempDir, plant, planted_copy, repo, run, serial, sim_equals_lockstep, summary,
+    Csv, TempDir, plant, planted_copy, repo, run, run_copy, serial, sim_equals_lockstep, summary,
     without_commands,
 };
 use std::path::Path;
@@ -672,14 +672,7 @@ fn lockstep_with_reaction_wheels_equals_the_simulation_and_replays_from_the_whee
     assert_eq!(speeds, from_csv);
     assert!(speeds.iter().any(|w| w.abs() > 1.0), "{speeds:?}");
     // the law reads the speeds from the state: one changed in the log changes the answer
-    let planted = format!("{pair}-speed");
-    std::fs::create_dir_all(&planted).unwrap();
-    for entry in std::fs::read_dir(&pair).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_file() {
-            std::fs::copy(&path, Path::new(&planted).join(path.file_name().unwrap())).unwrap();
-        }
-    }
+    let planted = run_copy(&pair, "speed");
     let log_file = format!("{planted}/messages.log");
     let mut log = std::fs::read(&log_file).unwrap();
     let header = recorder::Header::from_bytes(&log).unwrap();
