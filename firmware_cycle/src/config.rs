@@ -204,7 +204,8 @@ pub enum ConfigError {
     /// number > 0, a noise that is not a finite number ≥ 0, a window of 0, or a rejection
     /// count outside 1 to 8.
     Gate,
-    /// The vehicle's actuators or allocation settings are refused (which).
+    /// The vehicle's actuators, wheels or allocation settings are refused (which: the key,
+    /// e.g. `wheel.inertia`).
     Vehicle(&'static str),
     /// The failure detector's settings are refused.
     Detector(detection::ConfigError),
@@ -234,7 +235,7 @@ impl core::fmt::Display for ConfigError {
             ConfigError::Gate => f.write_str(
                 "estimator gate: its thresholds and bands must be finite and > 0, its noises finite and ≥ 0, its window at least 1, its rejections 1 to 8",
             ),
-            ConfigError::Vehicle(what) => write!(f, "vehicle: its {what} are refused"),
+            ConfigError::Vehicle(what) => write!(f, "vehicle: `{what}` is refused"),
             ConfigError::Detector(e) => write!(f, "detector: {e}"),
             ConfigError::DetectorWithoutVehicle => {
                 f.write_str("detector: there is no vehicle for it to watch")

@@ -34,7 +34,10 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     /// has been told (each once, so that what the detector finds later stands).
     failures: Vec<Failure, 12>,
     told: [bool; 12],
+    /// The allocator's columns (thrusters, then wheels) and, of them, the reaction wheels:
+    /// a state must carry one speed per wheel.
     actuators: usize,
+    wheels: usize,
     /// The failure detector, where the configuration has one (and the crate is built with
     /// it, feature `detector`).
     watcher: Option<Watcher<M>>,
@@ -132,7 +135,8 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                 .as_ref()
                 .map(|v| v.failures.clone())
                 .unwrap_or_default(),
-            actuators: config.vehicle.as_ref().map_or(0, |v| v.actuators.len()),
+            actuators: config.vehicle.as_ref().map_or(0, crate::Vehicle::count),
+            wheels: config.vehicle.as_ref().map_or(0, |v| v.wheels.len()),
             controller,
             start: reference.clone(),
             reference,
@@ -165,8 +169,12 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         if s.applied.len() != M
             || s.samples.is_some() != estimates
             || (!estimates && (s.q.len() != N * N || s.v.len() != M))
+            || s.wheel_speeds.len() != self.wheels
         {
             return Err(Dropped::Shape);
+        }
+        if !s.wheel_speeds.iter().all(|x| x.is_finite()) {
+            return Err(Dropped::Law);
         }
         let at = self.reference.step_index();
         if s.seq < at {
@@ -207,7 +215,13 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
         if let Some(control) = &mut self.vehicle {
             tell_failures(control, &self.failures, &mut self.told, s.t, period);
             if let Some(w) = &mut self.watcher {
-                detection = Some(w.before::<G, N>(control, follows, &s.applied, &v, &r_hat));
+                detection = Some(w.before::<G, N>(
+                    control,
+                    follows,
+                    (&s.applied, &s.wheel_speeds),
+                    &v,
+                    &r_hat,
+                ));
             }
         }
         let nominal = self.reference.desired();
@@ -256,8 +270,9 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
             None => (None, out.torque),
             Some(control) => {
                 let wrench = (&out.torque, thrust.as_ref());
+                let body = (&r_hat, &v, s.wheel_speeds.as_slice());
                 let (allocation, accounted, u, (status, residual)) =
-                    allocate(control, self.actuators, &r_hat, wrench, disarmed);
+                    allocate(control, self.actuators, body, wrench, disarmed);
                 if let Some(m) = &mut self.manager {
                     m.short = failsafe::monitor::torque_short(status, residual, m.residual_limit);
                 }
@@ -378,24 +393,32 @@ fn thrust_axis(config: &Config, lag: f32) -> Option<failsafe::thrust_axis::Thrus
 /// failsafe's `thrust` demand when it flies one (docs/maths.md, "Control allocation"; every
 /// actuator at its minimum when `disarmed`, the failsafe's `disarm`), the wrench it
 /// accounts for, the commands, and the status and torque residual of what was allocated
-/// before any `disarm`.
+/// before any `disarm`. With reaction wheels the law's wrench gains their gyroscopic torque
+/// at the body velocity `v` and the wheels' `speeds` (docs/maths.md, "Reaction wheels"),
+/// which the wrench accounted for leaves out, as the pair's controller does.
 fn allocate<const M: usize>(
     control: &mut VehicleControl<f32, M>,
     count: usize,
-    r_hat: &nalgebra::Matrix3<f32>,
+    (r_hat, v, speeds): (&nalgebra::Matrix3<f32>, &SVector<f32, M>, &[f32]),
     (tau, thrust): (&SVector<f32, M>, Option<&SVector<f32, M>>),
     disarmed: bool,
 ) -> (Allocation, SVector<f32, M>, Commands<f32>, (u8, f32)) {
+    let mut gyroscopic = SVector::<f32, M>::zeros();
     let mut a = match thrust {
         Some(demand) => control.actuate_demand(*demand),
-        None => control.actuate(tau, r_hat),
+        None if speeds.is_empty() => control.actuate(tau, r_hat),
+        None => {
+            let omega = Vector3::new(v[0], v[1], v[2]);
+            gyroscopic = control.wheels().gyroscopic(&omega, speeds);
+            control.actuate_wheeled(tau, r_hat, &omega, speeds)
+        }
     };
     // what the allocation met, before `disarm` sets the actuators to their minimum
     let met = (a.allocation.status.code(), a.torque_residual());
     if disarmed {
         control.disarm(&mut a);
     }
-    let accounted = a.applied(&control.restoring(r_hat));
+    let accounted = a.applied(&control.restoring(r_hat)) - gyroscopic;
     (
         Allocation {
             status: a.allocation.status.code(),

@@ -28,7 +28,7 @@ mod watch;
 pub use config::{
     Axis, Config, ConfigError, Failsafe, Integral, MAX_CONFIG, Observer, Series, Term,
 };
-pub use onboard::{Detector, Estimator, Failure, Gate, Thruster, Vehicle};
+pub use onboard::{Detector, Estimator, Failure, Gate, Momentum, Thruster, Vehicle, Wheel};
 
 use controller::group::{Se3, So3};
 use engine::Engine;

@@ -3,7 +3,9 @@
 //! `allocation` crate's vehicle control).
 
 use crate::ConfigError;
-use allocation::{Actuator, Allocator, Commands, Geometry, Priority, Restoring, VehicleControl};
+use allocation::{
+    Actuator, Allocator, Commands, Geometry, MAX_WHEELS, Priority, Restoring, VehicleControl,
+};
 use estimator::{FilterKind, MAX_DIRECTIONS, Settings};
 use heapless::Vec;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
@@ -214,6 +216,102 @@ pub struct Thruster {
     pub max: f32,
 }
 
+/// A reaction wheel as the controller sees it (docs/maths.md, "Reaction wheels"): its
+/// motor is the allocator's column after the thrusters; friction and power are the plant's.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Wheel {
+    /// The spin axis in body axes (made unit on the board).
+    pub axis: [f32; 3],
+    /// The spin inertia `J_s` (kg·m²).
+    pub inertia: f32,
+    /// The motor's largest torque (N·m).
+    pub max_torque: f32,
+    /// The top speed relative to the body (rad/s).
+    pub max_speed: f32,
+}
+
+impl Wheel {
+    /// The wheel as the allocation takes it: refused (naming the key) unless the axis is
+    /// finite and not zero, and the inertia and the limits finite and positive.
+    fn allocation(&self) -> Result<allocation::Wheel<f32>, ConfigError> {
+        let finite = |x: f32| x.is_finite();
+        if !self.axis.iter().all(|x| finite(*x)) || self.axis.iter().all(|x| *x == 0.0) {
+            return Err(ConfigError::Vehicle("wheel.axis"));
+        }
+        if !(finite(self.inertia) && self.inertia > 0.0) {
+            return Err(ConfigError::Vehicle("wheel.inertia"));
+        }
+        if !(finite(self.max_torque) && self.max_torque > 0.0) {
+            return Err(ConfigError::Vehicle("wheel.max_torque"));
+        }
+        if !(finite(self.max_speed) && self.max_speed > 0.0) {
+            return Err(ConfigError::Vehicle("wheel.max_speed"));
+        }
+        Ok(allocation::Wheel {
+            axis: self.axis,
+            inertia: self.inertia,
+            max_torque: self.max_torque,
+            max_speed: self.max_speed,
+        })
+    }
+}
+
+/// Momentum management (docs/maths.md, "Momentum management"), as
+/// [`allocation::Momentum`] in `f32`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Momentum {
+    /// The null space's gain `k_n` (1/s; 0: off).
+    pub null_gain: f32,
+    /// Each wheel's bias speed (rad/s; one per wheel).
+    pub bias: Vec<f32, MAX_WHEELS>,
+    /// `|h_w|` (N·m·s) above which the thrusters dump it.
+    pub dump_threshold: f32,
+    /// The dump's gain `k_d` (1/s; 0: off).
+    pub dump_gain: f32,
+}
+
+impl Momentum {
+    /// The host's settings cast to `f32`, for `wheels` wheels.
+    pub fn of(m: &allocation::Momentum<f64>, wheels: usize) -> Momentum {
+        Momentum {
+            null_gain: m.null_gain as f32,
+            bias: m.bias[..wheels.min(MAX_WHEELS)]
+                .iter()
+                .map(|x| *x as f32)
+                .collect(),
+            dump_threshold: m.dump_threshold as f32,
+            dump_gain: m.dump_gain as f32,
+        }
+    }
+
+    /// The settings on the board, for `wheels` wheels: refused (naming the key) unless the
+    /// gains and the threshold are finite and not negative and there is a finite bias per
+    /// wheel.
+    fn allocation(&self, wheels: usize) -> Result<allocation::Momentum<f32>, ConfigError> {
+        let at_least_0 = |x: f32| x.is_finite() && x >= 0.0;
+        if !at_least_0(self.null_gain) {
+            return Err(ConfigError::Vehicle("momentum.null_gain"));
+        }
+        if !at_least_0(self.dump_threshold) {
+            return Err(ConfigError::Vehicle("momentum.dump_threshold"));
+        }
+        if !at_least_0(self.dump_gain) {
+            return Err(ConfigError::Vehicle("momentum.dump_gain"));
+        }
+        if self.bias.len() != wheels || !self.bias.iter().all(|x| x.is_finite()) {
+            return Err(ConfigError::Vehicle("momentum.bias"));
+        }
+        let mut bias = [0.0; MAX_WHEELS];
+        bias[..wheels].copy_from_slice(&self.bias);
+        Ok(allocation::Momentum {
+            null_gain: self.null_gain,
+            bias,
+            dump_threshold: self.dump_threshold,
+            dump_gain: self.dump_gain,
+        })
+    }
+}
+
 /// A failure the controller is told of: from the first `t_k ≥ t − h/2` the actuator is
 /// stuck at `value` and the allocator redistributes over the rest.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -249,10 +347,22 @@ pub struct Vehicle {
     pub failures: Vec<Failure, 12>,
     /// The allocation's budget of active-set iterations per cycle (1 or more).
     pub budget: u32,
+    /// The reaction wheels, the allocator's columns after the thrusters (docs/maths.md,
+    /// "Reaction wheels"): the states carry their speeds.
+    pub wheels: Vec<Wheel, MAX_WHEELS>,
+    /// The wheels' momentum management, where the scenario has `[vehicle.momentum]`.
+    pub momentum: Option<Momentum>,
 }
 
 impl Vehicle {
-    /// The vehicle's control on a group of dimension `K`, over periods of `period`.
+    /// The actuators and wheels together: the allocator's columns, `u_cmd`'s entries.
+    pub fn count(&self) -> usize {
+        self.actuators.len() + self.wheels.len()
+    }
+
+    /// The vehicle's control on a group of dimension `K`, over periods of `period`: its
+    /// thrusters, then its wheels (refused naming the key: a bad wheel or momentum setting,
+    /// actuators that do not span the wrench space or number more than 12).
     pub fn control<const K: usize>(
         &self,
         period: f32,
@@ -268,7 +378,17 @@ impl Vehicle {
                 max: a.max,
             })
             .collect();
-        let geometry = Geometry::new(&actuators).map_err(|_| ConfigError::Vehicle("actuators"))?;
+        let mut wheels: Vec<allocation::Wheel<f32>, MAX_WHEELS> = Vec::new();
+        for w in &self.wheels {
+            // at most MAX_WHEELS by the type
+            let _ = wheels.push(w.allocation()?);
+        }
+        let momentum = match &self.momentum {
+            None => None,
+            Some(m) => Some(m.allocation(wheels.len())?),
+        };
+        let geometry = Geometry::with_wheels(&actuators, &wheels)
+            .map_err(|_| ConfigError::Vehicle("actuators"))?;
         let allocator = Allocator::new(
             geometry,
             &self.weights,
@@ -289,12 +409,12 @@ impl Vehicle {
             buoyancy: self.buoyancy,
             centre: Vector3::from(self.centre),
         };
-        Ok(VehicleControl::new(
-            allocator,
-            restoring,
-            self.rate_limit,
-            period,
-        ))
+        let control = VehicleControl::new(allocator, restoring, self.rate_limit, period)
+            .with_wheels(&wheels, actuators.len());
+        Ok(match momentum {
+            Some(m) => control.with_momentum(m),
+            None => control,
+        })
     }
 }
 

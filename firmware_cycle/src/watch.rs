@@ -52,12 +52,13 @@ impl<const M: usize> Watcher<M> {
     /// The detector's cycle over the period that ended at this state, before the
     /// allocation: forgotten first unless the state followed the last one answered
     /// (`follows`) and the plant applied that answer's wrench (`applied`, bit for bit); what
-    /// it finds is told to the allocator, and carried by the command.
+    /// it finds is told to the allocator, and carried by the command. With reaction wheels,
+    /// their `speeds` enter the body's momentum balance.
     pub(crate) fn before<G: MatrixLieGroup<N, M>, const N: usize>(
         &mut self,
         control: &mut VehicleControl<f32, M>,
         follows: bool,
-        applied: &[f32],
+        (applied, speeds): (&[f32], &[f32]),
         v: &SVector<f32, M>,
         r_hat: &Matrix3<f32>,
     ) -> Detection {
@@ -69,7 +70,7 @@ impl<const M: usize> Watcher<M> {
         if !(follows && as_sent) {
             d.gap();
         }
-        let found = d.observe::<G, N>(v, r_hat, control);
+        let found = d.observe_wheeled::<G, N>(v, r_hat, speeds, control);
         let last = d.statistic();
         let code = |j: usize| u8::try_from(j + 1).unwrap_or(u8::MAX);
         let (suspect, statistic) = if last.testing {
@@ -120,7 +121,7 @@ impl<const M: usize> Watcher<M> {
         &mut self,
         _control: &mut VehicleControl<f32, M>,
         _follows: bool,
-        _applied: &[f32],
+        _applied: (&[f32], &[f32]),
         _v: &SVector<f32, M>,
         _r_hat: &Matrix3<f32>,
     ) -> Detection {

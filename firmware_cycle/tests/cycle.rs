@@ -72,6 +72,7 @@ fn state(seq: u64) -> StateFrame {
         v: v(&[0.4, -0.1, 0.2]),
         applied: v(&[0.0; 3]),
         samples: None,
+        wheel_speeds: Default::default(),
     }
 }
 
@@ -298,7 +299,7 @@ proptest! {
         applied in prop::collection::vec(prop::num::f32::ANY, 0..=6),
     ) {
         let mut c = greeted();
-        let s = StateFrame { seq, t: 0.0, q: v(&q), v: v(&vel), applied: v(&applied), samples: None };
+        let s = StateFrame { seq, t: 0.0, q: v(&q), v: v(&vel), applied: v(&applied), samples: None, wheel_speeds: Default::default() };
         if let Some(Frame::Command(cmd)) = c.on_frame(&Frame::State(s)) {
             prop_assert!(cmd.tau.iter().all(|x| x.is_finite()));
             prop_assert!(cmd.lyapunov.is_finite());
@@ -373,6 +374,8 @@ fn on_board() -> Config {
             }])
             .unwrap(),
             budget: allocation::DEFAULT_BUDGET,
+            wheels: Vec::new(),
+            momentum: None,
         }),
         ..seed_like()
     }
@@ -399,6 +402,7 @@ fn sampled(seq: u64, samples: Samples) -> StateFrame {
         v: Vec::new(),
         applied: v(&[0.0; 3]),
         samples: Some(samples),
+        wheel_speeds: Default::default(),
     }
 }
 
@@ -652,6 +656,7 @@ proptest! {
                     accel,
                     position,
                 }),
+                wheel_speeds: Default::default(),
             };
             if let Some(Frame::Command(cmd)) = c.on_frame(&Frame::State(s)) {
                 prop_assert!(cmd.tau.iter().chain(&cmd.observer).all(|x| x.is_finite()));
@@ -789,4 +794,340 @@ fn a_command_the_host_did_not_apply_raises_link() {
     assert_eq!(late[11], hold, "{late:?}");
     assert_eq!(late.iter().filter(|w| **w == hold).count(), 5, "{late:?}");
     assert_eq!(late[29], 0);
+}
+
+/// The seed with four reaction wheels in a pyramid (each axis 30° off the x-y plane) and no
+/// thrusters, as `wheels_slew` flies them, with momentum management when `managed`.
+fn wheeled(managed: bool) -> Config {
+    let (c, s) = (0.866_025_4f32, 0.5f32);
+    let wheels = [[c, 0.0, s], [0.0, c, s], [-c, 0.0, s], [0.0, -c, s]]
+        .iter()
+        .map(|axis| firmware_cycle::Wheel {
+            axis: *axis,
+            inertia: 0.01,
+            max_torque: 0.5,
+            max_speed: 100.0,
+        })
+        .collect();
+    Config {
+        vehicle: Some(Vehicle {
+            actuators: Vec::new(),
+            weights: Vec::new(),
+            preferred: Vec::new(),
+            torque_first: false,
+            weight: 0.0,
+            buoyancy: 0.0,
+            centre: [0.0; 3],
+            rate_limit: 0.0,
+            failures: Vec::new(),
+            budget: allocation::DEFAULT_BUDGET,
+            wheels,
+            momentum: managed.then(|| firmware_cycle::Momentum {
+                null_gain: 0.5,
+                bias: v(&[20.0, -20.0, 20.0, -20.0]),
+                dump_threshold: 0.0,
+                dump_gain: 0.0,
+            }),
+        }),
+        ..seed_like()
+    }
+}
+
+/// `state(seq)` with the wheels turning at `speeds`.
+fn spinning(seq: u64, speeds: &[f32]) -> StateFrame {
+    StateFrame {
+        wheel_speeds: v(speeds),
+        ..state(seq)
+    }
+}
+
+/// On board, a wheeled vehicle's command is the allocation crate's `actuate_wheeled` of the
+/// law's torque, bit for bit (with and without momentum management): the demand is the law's
+/// torque plus the gyroscopic torque of the wheels' absolute momentum
+/// `h_i = J_s (g_iᵀω + Ω_i)` (docs/maths.md, "Reaction wheels"; worked out here
+/// independently, in f64), and the wrench accounted for leaves that torque out.
+#[test]
+fn on_board_the_wheels_allocation_is_the_allocation_crates() {
+    for managed in [false, true] {
+        let config = wheeled(managed);
+        let mut c = Cycle::new(&config).unwrap();
+        c.on_frame(&Frame::Hello(config.identity.clone()));
+        let vehicle = config.vehicle.as_ref().unwrap();
+        let mut control = vehicle.control::<3>(0.01).unwrap();
+        let r = So3::exp(&Vector3::new(0.3f32, -0.2, 1.0));
+        let omega = Vector3::new(0.4f32, -0.1, 0.2);
+        for k in 0..20u64 {
+            let speeds = [
+                30.0 + k as f32,
+                -45.0,
+                80.0 - 2.0 * k as f32,
+                k as f32 * 0.5,
+            ];
+            let Some(Frame::Command(cmd)) = c.on_frame(&Frame::State(spinning(k, &speeds))) else {
+                panic!("state {k}: no command");
+            };
+            let a = cmd.allocation.expect("the allocation");
+            let tau = Vector3::from_row_slice(&cmd.tau);
+            let expected = control.actuate_wheeled(&tau, &r, &omega, &speeds);
+            assert_eq!(
+                a.u_cmd.as_slice(),
+                &expected.allocation.u.as_slice()[..4],
+                "{k}"
+            );
+            assert_eq!(a.demand.as_slice(), expected.demand.as_slice(), "{k}");
+            // the gyroscopic torque, in f64 from the frame's numbers
+            let w = omega.cast::<f64>();
+            let mut h = nalgebra::Vector3::<f64>::zeros();
+            for (wheel, s) in vehicle.wheels.iter().zip(speeds) {
+                let g = nalgebra::Vector3::from(wheel.axis)
+                    .cast::<f64>()
+                    .normalize();
+                h += g * (f64::from(wheel.inertia) * (g.dot(&w) + f64::from(s)));
+            }
+            let gyro = w.cross(&h);
+            let demand = Vector3::from_row_slice(&a.demand).cast::<f64>();
+            assert!(
+                (demand - tau.cast::<f64>() - gyro).norm() < 1e-5 * (1.0 + gyro.norm()),
+                "{k}: the demand {demand:?}, the law's {tau:?}, the gyroscopic {gyro:?}"
+            );
+            // the relative momentum J_s Ω alone would be another torque
+            let relative: nalgebra::Vector3<f64> = vehicle
+                .wheels
+                .iter()
+                .zip(speeds)
+                .map(|(wheel, s)| {
+                    let g = nalgebra::Vector3::from(wheel.axis)
+                        .cast::<f64>()
+                        .normalize();
+                    w.cross(&(g * f64::from(wheel.inertia * s)))
+                })
+                .sum();
+            assert!((relative - gyro).norm() > 1e-4, "{k}");
+            let accounted = Vector3::from_row_slice(&a.accounted).cast::<f64>();
+            let achieved = Vector3::from_row_slice(&a.achieved).cast::<f64>();
+            assert!((accounted - (achieved - gyro)).norm() < 1e-5, "{k}");
+        }
+    }
+}
+
+/// A wheel at its top speed gets no command that speeds it up: the command that would (at
+/// rest) is replaced by one that does not, the others take over; and within a period no
+/// command ever takes a wheel past its top speed, at random speeds within the limits.
+#[test]
+fn on_board_a_wheel_at_its_top_speed_is_not_sped_up() {
+    let config = wheeled(false);
+    let fresh = || {
+        let mut c = Cycle::new(&config).unwrap();
+        c.on_frame(&Frame::Hello(config.identity.clone()));
+        c
+    };
+    let u = |c: &mut Cycle, speeds: &[f32]| match c.on_frame(&Frame::State(spinning(0, speeds))) {
+        Some(Frame::Command(cmd)) => cmd.allocation.unwrap().u_cmd,
+        other => panic!("{other:?}"),
+    };
+    let at_rest = u(&mut fresh(), &[0.0; 4]);
+    let (j, most) =
+        at_rest.iter().enumerate().fold(
+            (0, f32::MIN),
+            |b, (j, x)| if *x > b.1 { (j, *x) } else { b },
+        );
+    assert!(most > 0.0, "{at_rest:?}");
+    let mut speeds = [0.0f32; 4];
+    speeds[j] = 100.0;
+    let fast = u(&mut fresh(), &speeds);
+    assert!(fast[j] <= 0.0, "wheel {j}: {fast:?} (at rest {at_rest:?})");
+    let mut rng = 0x2545_f491_4f6c_dd1du64;
+    for _ in 0..200 {
+        let mut speeds = [0.0f32; 4];
+        for s in &mut speeds {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            *s = ((rng >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0) * 100.0;
+        }
+        let cmd = u(&mut fresh(), &speeds);
+        for (x, s) in cmd.iter().zip(speeds) {
+            // the speed a period later, J_s dΩ/dt = u (the body's part aside)
+            let next = s + x * 0.01 / 0.01;
+            assert!(
+                next.abs() <= 100.0 + 1e-3 || next.abs() <= s.abs(),
+                "{speeds:?} {cmd:?}"
+            );
+            assert!(x.abs() <= 0.5, "{cmd:?}");
+        }
+    }
+}
+
+/// A state whose wheel speeds are not one per wheel is dropped as the wrong shape, one with a
+/// speed that is not a number as a non-finite state; random speeds never panic the cycle nor
+/// answer a NaN.
+#[test]
+fn on_board_bad_wheel_speeds_are_dropped() {
+    let config = wheeled(false);
+    let mut c = Cycle::new(&config).unwrap();
+    c.on_frame(&Frame::Hello(config.identity.clone()));
+    assert_eq!(c.on_frame(&Frame::State(spinning(0, &[1.0; 3]))), None);
+    assert_eq!(c.on_frame(&Frame::State(state(0))), None);
+    assert_eq!(c.on_frame(&Frame::State(spinning(0, &[1.0; 5]))), None);
+    assert_eq!(c.counts().dropped[Dropped::Shape as usize], 3);
+    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        assert_eq!(
+            c.on_frame(&Frame::State(spinning(0, &[1.0, bad, 0.0, 0.0]))),
+            None
+        );
+    }
+    assert_eq!(c.counts().dropped[Dropped::Law as usize], 3);
+    assert!(matches!(
+        c.on_frame(&Frame::State(spinning(0, &[1.0; 4]))),
+        Some(Frame::Command(_))
+    ));
+    // a vehicle without wheels drops a state that carries speeds
+    let mut plain = greeted();
+    assert_eq!(plain.on_frame(&Frame::State(spinning(0, &[1.0]))), None);
+    assert_eq!(plain.counts().dropped[Dropped::Shape as usize], 1);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    #[test]
+    fn random_wheel_speeds_never_panic_and_never_answer_a_nan(
+        seq in 0u64..50,
+        speeds in prop::collection::vec(prop::num::f32::ANY, 0..=6),
+        managed in any::<bool>(),
+    ) {
+        let config = wheeled(managed);
+        let mut c = Cycle::new(&config).unwrap();
+        c.on_frame(&Frame::Hello(config.identity.clone()));
+        if let Some(Frame::Command(cmd)) = c.on_frame(&Frame::State(spinning(seq, &speeds))) {
+            prop_assert_eq!(speeds.len(), 4);
+            let a = cmd.allocation.unwrap();
+            prop_assert!(cmd.tau.iter().chain(&a.u_cmd).chain(&a.accounted).all(|x| x.is_finite()));
+            prop_assert!(a.u_cmd.iter().all(|x| x.abs() <= 0.5));
+        }
+    }
+}
+
+/// Wheels and momentum management round-trip through the configuration's bytes; a bad
+/// wheel or momentum setting, or more actuators than the allocator holds, is refused naming
+/// its key.
+#[test]
+fn bad_wheels_are_refused_naming_the_key() {
+    let config = wheeled(true);
+    let mut buf = [0u8; MAX_CONFIG];
+    let n = config.to_bytes(&mut buf).unwrap();
+    assert_eq!(Config::from_bytes(&buf[..n]).unwrap(), config);
+    assert!(Cycle::new(&config).is_ok());
+    type Spoil = fn(&mut Vehicle);
+    let bad: [(Spoil, &str); 14] = [
+        (|v| v.wheels[0].axis = [0.0; 3], "wheel.axis"),
+        (|v| v.wheels[1].axis[2] = f32::NAN, "wheel.axis"),
+        (|v| v.wheels[2].inertia = 0.0, "wheel.inertia"),
+        (|v| v.wheels[2].inertia = -0.01, "wheel.inertia"),
+        (|v| v.wheels[3].inertia = f32::INFINITY, "wheel.inertia"),
+        (|v| v.wheels[0].max_torque = -0.5, "wheel.max_torque"),
+        (|v| v.wheels[0].max_torque = f32::NAN, "wheel.max_torque"),
+        (|v| v.wheels[1].max_speed = -1.0, "wheel.max_speed"),
+        (|v| v.wheels[1].max_speed = 0.0, "wheel.max_speed"),
+        (
+            |v| v.momentum.as_mut().unwrap().null_gain = -1.0,
+            "momentum.null_gain",
+        ),
+        (
+            |v| v.momentum.as_mut().unwrap().dump_threshold = f32::NAN,
+            "momentum.dump_threshold",
+        ),
+        (
+            |v| v.momentum.as_mut().unwrap().dump_gain = -0.1,
+            "momentum.dump_gain",
+        ),
+        (
+            |v| {
+                v.momentum.as_mut().unwrap().bias.pop();
+            },
+            "momentum.bias",
+        ),
+        (
+            |v| {
+                // twelve thrusters and four wheels: more than the allocator's 12 columns
+                let t = Thruster {
+                    position: [0.0; 3],
+                    axis: [1.0, 0.0, 0.0],
+                    torque_per_thrust: 1.0,
+                    min: -1.0,
+                    max: 1.0,
+                };
+                v.actuators = core::iter::repeat_n(t, 12).collect();
+            },
+            "actuators",
+        ),
+    ];
+    for (i, (spoil, key)) in bad.iter().enumerate() {
+        let mut config = wheeled(true);
+        spoil(config.vehicle.as_mut().unwrap());
+        let e = Cycle::new(&config).err();
+        assert_eq!(e, Some(ConfigError::Vehicle(key)), "{i}");
+        assert!(e.unwrap().to_string().contains(&format!("`{key}`")), "{i}");
+    }
+}
+
+/// The failure detector on board sees the wheels (docs/maths.md, "Failure detection" and
+/// "Reaction wheels"): over 150 states of a wheeled vehicle, each command's detector cycle is
+/// the `detection` crate's `observe_wheeled` of the frame's speeds, bit for bit (the
+/// allocation's commands told to it, as the cycle tells them), and not what a detector
+/// blind to the speeds computes.
+#[cfg(feature = "detector")]
+#[test]
+fn on_board_the_detector_takes_the_wheel_speeds() {
+    let mut config = wheeled(false);
+    config.detector = Some(detector());
+    let mut c = Cycle::new(&config).unwrap();
+    c.on_frame(&Frame::Hello(config.identity.clone()));
+    let vehicle = config.vehicle.as_ref().unwrap();
+    let inertia = nalgebra::Matrix3::from_row_slice(&INERTIA);
+    let settings = config
+        .detector
+        .as_ref()
+        .unwrap()
+        .config::<3>(inertia, 0.01)
+        .unwrap();
+    let replica = || {
+        let mut d = detection::Detector::<f32, 3>::new(settings).unwrap();
+        d.gap();
+        (d, vehicle.control::<3>(0.01).unwrap())
+    };
+    let ((mut seeing, mut control), (mut blind, mut blind_control)) = (replica(), replica());
+    let r = So3::exp(&Vector3::new(0.3f32, -0.2, 1.0));
+    let omega = Vector3::new(0.4f32, -0.1, 0.2);
+    let (mut applied, mut differs, mut tested) = ([0.0f32; 3], false, 0);
+    for k in 0..150u64 {
+        let t = k as f32 * 0.01;
+        let speeds = [40.0 * t, -30.0 + 10.0 * t, 25.0, 60.0 - 40.0 * t];
+        let frame = StateFrame {
+            applied: v(&applied),
+            ..spinning(k, &speeds)
+        };
+        let Some(Frame::Command(cmd)) = c.on_frame(&Frame::State(frame)) else {
+            panic!("state {k}: no command");
+        };
+        let tau = Vector3::from_row_slice(&cmd.tau);
+        seeing.observe_wheeled::<So3, 3>(&omega, &r, &speeds, &mut control);
+        blind.observe_wheeled::<So3, 3>(&omega, &r, &[], &mut blind_control);
+        let a = control.actuate_wheeled(&tau, &r, &omega, &speeds);
+        seeing.commanded(&a.allocation.u);
+        let b = blind_control.actuate_wheeled(&tau, &r, &omega, &speeds);
+        blind.commanded(&b.allocation.u);
+        let d = cmd.detection.unwrap();
+        let last = seeing.statistic();
+        if last.testing {
+            tested += 1;
+            assert_eq!(d.statistic.to_bits(), last.best.to_bits(), "state {k}");
+            differs |= blind.statistic().best.to_bits() != last.best.to_bits();
+        } else {
+            assert_eq!(d.statistic, 0.0, "state {k}");
+        }
+        applied.copy_from_slice(&cmd.allocation.unwrap().accounted);
+    }
+    assert!(tested > 20, "{tested} states tested");
+    assert!(differs, "a detector without the speeds computes the same");
 }

@@ -21,8 +21,8 @@ fn v<const N: usize>(xs: &[f32]) -> heapless::Vec<f32, N> {
     heapless::Vec::from_slice(xs).expect("within capacity")
 }
 
-/// The seed frames: each kind, SO(3) and SE(3), with and without samples, an estimate and an
-/// allocation.
+/// The seed frames: each kind, SO(3) and SE(3), with and without samples, wheel speeds, an
+/// estimate and an allocation.
 fn seed_frames() -> Vec<Frame> {
     let hello = Hello {
         group: 1,
@@ -37,6 +37,8 @@ fn seed_frames() -> Vec<Frame> {
         v: v(&[0.1, -0.2, 0.3]),
         applied: v(&[0.0; 3]),
         samples: None,
+        // four reaction wheels' speeds (rad/s)
+        wheel_speeds: v(&[120.0, -35.5, 0.0, 600.0]),
     };
     let se3_state = StateFrame {
         seq: 4000,
@@ -51,6 +53,7 @@ fn seed_frames() -> Vec<Frame> {
             accel: Some([0.0, 2.9, 9.4]),
             position: Some([0.1, 0.2, 0.3]),
         }),
+        wheel_speeds: Default::default(),
     };
     let command = CommandFrame {
         seq: 4000,

@@ -305,9 +305,9 @@ fn narrow<const C: usize>(xs: &[f64]) -> heapless::Vec<f32, C> {
     xs.iter().take(C).map(|x| *x as f32).collect()
 }
 
-/// The state as a frame: `Q` (n², row-major), `V` and the applied wrench (m), in `f32`; on
-/// SE(3) the position relative to `origin` (the firmware's local origin), the difference
-/// formed in `f64` before the cast.
+/// The state as a frame: `Q` (n², row-major), `V` and the applied wrench (m), and the
+/// reaction wheels' speeds, in `f32`; on SE(3) the position relative to `origin` (the
+/// firmware's local origin), the difference formed in `f64` before the cast.
 pub fn state_frame(msg: &StateMsg, origin: &[f64; 3]) -> StateFrame {
     let (n, m) = if msg.group == WireGroup::Se3.code() {
         (4, 6)
@@ -328,6 +328,7 @@ pub fn state_frame(msg: &StateMsg, origin: &[f64; 3]) -> StateFrame {
         v: narrow(&msg.v[..m]),
         applied: narrow(&msg.applied[..m]),
         samples: None,
+        wheel_speeds: narrow(msg.wheel_speeds()),
     }
 }
 

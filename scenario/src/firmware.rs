@@ -6,7 +6,8 @@ use crate::vehicle::VehicleSpec;
 use crate::{Scenario, ScenarioError};
 use controller::{ErrorFrame, Frame, GroupKind, Law};
 use firmware_cycle::{
-    Axis, Config, Detector, Estimator, Failure, Integral, Observer, Series, Term, Thruster, Vehicle,
+    Axis, Config, Detector, Estimator, Failure, Integral, Momentum, Observer, Series, Term,
+    Thruster, Vehicle, Wheel,
 };
 use heapless::Vec as HVec;
 
@@ -127,7 +128,7 @@ impl Scenario {
         if self.fault_detection.is_none() {
             return Ok(None);
         }
-        let count = self.vehicle.as_ref().map_or(0, |v| v.actuators.len());
+        let count = self.vehicle.as_ref().map_or(0, VehicleSpec::count);
         let settings = match self.group {
             GroupKind::So3 => self.detector_config::<3>().map(|c| Detector::of(&c, count)),
             GroupKind::Se3 => self.detector_config::<6>().map(|c| Detector::of(&c, count)),
@@ -164,9 +165,6 @@ impl Scenario {
         }
         if self.path.is_some() {
             return Err(refuse("reference", "a waypoint or set-point reference"));
-        }
-        if self.vehicle.as_ref().is_some_and(|v| !v.wheels.is_empty()) {
-            return Err(refuse("vehicle.wheel", "reaction wheels"));
         }
         if self
             .vehicle
@@ -245,6 +243,18 @@ fn firmware_vehicle(v: &VehicleSpec) -> Vehicle {
         centre: v.buoyancy_centre.map(|x| x as f32),
         rate_limit: v.actuator_rate_limit as f32,
         budget: v.budget,
+        wheels: v
+            .wheels
+            .iter()
+            .take(allocation::MAX_WHEELS)
+            .map(|w| Wheel {
+                axis: w.axis.map(|x| x as f32),
+                inertia: w.inertia as f32,
+                max_torque: w.max_torque as f32,
+                max_speed: w.max_speed as f32,
+            })
+            .collect(),
+        momentum: v.momentum.as_ref().map(|m| Momentum::of(m, v.wheels.len())),
         failures: v
             .failures
             .iter()

@@ -75,6 +75,9 @@ pub struct StateFrame {
     pub applied: Vec<f32, 6>,
     /// The sensors' samples, for a controller that estimates the state itself.
     pub samples: Option<Samples>,
+    /// The reaction wheels' speeds relative to the body (rad/s), in the vehicle's wheel
+    /// order (their tachometers; empty without wheels).
+    pub wheel_speeds: Vec<f32, 6>,
 }
 
 /// What the controller's estimator made of the samples.

@@ -27,8 +27,8 @@ pub use frames::{
 /// The version byte every frame starts with; a frame of another version is refused (2: the
 /// allocation carries the achieved wrench, and states the sensors' samples for an estimator
 /// on board; 3: commands carry the failure detector's cycle; 4: commands carry the failsafe
-/// manager's state word).
-pub const SERIAL_VERSION: u8 = 4;
+/// manager's state word; 5: states carry the reaction wheels' speeds).
+pub const SERIAL_VERSION: u8 = 5;
 /// The largest decoded frame (version, postcard message and CRC), in bytes.
 pub const MAX_FRAME: usize = 384;
 /// The largest encoded frame: COBS's worst case for [`MAX_FRAME`] bytes (one code byte per

@@ -21,7 +21,7 @@ fn hello(fingerprint: u64) -> Hello {
     }
 }
 
-/// An SE(3) state with every sample present.
+/// An SE(3) state with every sample present, and six reaction wheels.
 fn state() -> StateFrame {
     StateFrame {
         seq: 123_456,
@@ -35,6 +35,7 @@ fn state() -> StateFrame {
             accel: Some([0.0, 2.9, 9.4]),
             position: Some([1.5, -0.5, 0.25]),
         }),
+        wheel_speeds: vec(&[-512.5; 6]),
     }
 }
 
@@ -230,6 +231,7 @@ fn frame_sizes_are_what_the_docs_say() {
         v: vec(&[0.1; 3]),
         applied: vec(&[0.0; 3]),
         samples: None,
+        wheel_speeds: Default::default(),
     });
     let seed_command = Frame::Command(CommandFrame {
         seq: 1999,
@@ -252,7 +254,7 @@ fn frame_sizes_are_what_the_docs_say() {
     .iter()
     .map(|f| encoded(f).len())
     .collect();
-    assert_eq!(sizes, vec![82, 34, 222, 351]);
+    assert_eq!(sizes, vec![83, 34, 247, 351]);
 }
 
 /// `version | message | crc32` COBS-encoded by the `cobs` crate, with the closing zero: the

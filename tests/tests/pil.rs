@@ -152,9 +152,10 @@ fn pil_in_lockstep_equals_the_in_process_f32_simulation_byte_for_byte() {
     let _g = serial();
     let d = TempDir::new("pil-lockstep");
     // the seed; SE(3); the rejection terms; the estimator on board (the complementary filter
-    // on SO(3), the EqF on SE(3)); a vehicle's allocation on SO(3) (reaction wheels) and on
-    // SE(3) (rotors, with the EqF and the observer); the failure detector on board (the ROV,
-    // a thruster dying unannounced)
+    // on SO(3), the EqF on SE(3)); a vehicle's allocation on SO(3) (thrusters, and four
+    // reaction wheels saturating their motors, their speeds in the states) and on SE(3)
+    // (rotors, with the EqF and the observer); the failure detector on board (the ROV, a
+    // thruster dying unannounced)
     for name in [
         "seed",
         "se3_circle",
@@ -162,6 +163,7 @@ fn pil_in_lockstep_equals_the_in_process_f32_simulation_byte_for_byte() {
         "sensors_so3",
         "eqf_se3",
         "spacecraft",
+        "wheels_slew",
         "pil_hexarotor",
         "pil_rov_detect",
     ] {
@@ -217,6 +219,17 @@ fn pil_in_lockstep_equals_the_in_process_f32_simulation_byte_for_byte() {
             "{name}: {header}"
         );
         assert_eq!(header.contains("u_cmd_0"), s.vehicle.is_some(), "{name}");
+        if name == "wheels_slew" {
+            // the wheels' motors saturated on board, and their speeds came back in the states
+            let csv =
+                pair_tests::Csv::read(std::path::Path::new(&format!("{pil_out}/trajectory.csv")));
+            let status = csv.col("alloc_status");
+            assert!(status.contains(&1.0), "{name}: never saturated");
+            assert!(
+                csv.col("wheel_speed_0").iter().any(|x| x.abs() > 10.0),
+                "{name}"
+            );
+        }
         if s.filter_settings().unwrap().is_some() {
             let csv =
                 pair_tests::Csv::read(std::path::Path::new(&format!("{pil_out}/trajectory.csv")));
@@ -490,10 +503,11 @@ fn bad_transports_and_scenarios_the_firmware_cannot_run_are_refused_naming_them(
 
 #[test]
 fn the_instruction_count_firmware_carries_pil_hexarotors_configuration() {
-    // scripts/cortex-m.sh counts one processor-in-the-loop cycle of pil_hexarotor, and the
-    // failure detector's cycle on pil_rov_detect's ROV, from these bytes: they must be the
+    // scripts/cortex-m.sh counts one processor-in-the-loop cycle of pil_hexarotor, the
+    // failure detector's cycle on pil_rov_detect's ROV and wheels_slew's cycle on its
+    // reaction wheels, from these bytes: they must be the
     // scenarios', as `plant_sim pil-config` writes them
-    for name in ["pil_hexarotor", "pil_rov_detect"] {
+    for name in ["pil_hexarotor", "pil_rov_detect", "wheels_slew"] {
         let file = pair_tests::scenario(name);
         let s = scenario::Scenario::from_file(std::path::Path::new(&file)).unwrap();
         let committed = read(&format!(
@@ -546,6 +560,7 @@ fn a_greeting_starts_the_detector_and_the_told_failures_afresh() {
                 v: v.iter().map(|x| *x as f32).collect(),
                 applied: applied.iter().copied().collect(),
                 samples: None,
+                wheel_speeds: Default::default(),
             };
             let Some(Frame::Command(c)) = cycle.on_frame(&Frame::State(state)) else {
                 panic!("state {k}: no command");

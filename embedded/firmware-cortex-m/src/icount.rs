@@ -22,7 +22,7 @@
 //! | 24 → 25 | one allocation (`allocation`), the tilted hexarotor (6 rotors), a demand within reach, f32 |
 //! | 26 → 27 | one allocation, the eight-thruster ROV, a demand within reach, f32 |
 //! | 28 → 29 | one allocation, the hexarotor, a demand past its reach (saturated), f32 |
-//! | 30 → 31 | PIL framing in: a `pil_hexarotor` state frame with its samples (203 bytes) through the `Deframer` (COBS, CRC, postcard) |
+//! | 30 → 31 | PIL framing in: a `pil_hexarotor` state frame with its samples (204 bytes) through the `Deframer` (COBS, CRC, postcard) |
 //! | 32 → 33 | PIL: `Cycle::on_frame` on it: the EqF pose filter, the reference's step, the SE(3) law with the observer, the allocation to six rotors |
 //! | 34 → 35 | PIL framing out: the command frame encoded (postcard, CRC, COBS) |
 //! | 36 → 37 | its estimator alone: the pose filter with the EqF (two directions, accelerometer, fix) |
@@ -307,6 +307,7 @@ fn hover(k: u64) -> serial_wire::StateFrame {
             accel: Some([0.0, 0.0, 9.81]),
             position: (k % 10 == 0).then_some([0.0, 0.0, 0.0]),
         }),
+        wheel_speeds: Default::default(),
     }
 }
 

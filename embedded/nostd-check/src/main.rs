@@ -403,6 +403,7 @@ fn serial_check() -> bool {
         v: heapless::Vec::from_slice(&[0.5, -0.25, 0.125]).unwrap_or_default(),
         applied: heapless::Vec::new(),
         samples: None,
+        wheel_speeds: Default::default(),
     });
     let mut out = [0u8; MAX_ENCODED];
     let Ok(n) = encode(&state, &mut out) else {
@@ -479,6 +480,7 @@ fn firmware_cycle_check() -> bool {
         v: Vec::from_slice(&[0.1, 0.0, 0.0]).unwrap_or_default(),
         applied: Vec::from_slice(&[0.0; 3]).unwrap_or_default(),
         samples: None,
+        wheel_speeds: Default::default(),
     });
     let answered = matches!(cycle.on_frame(&state), Some(Frame::Command(c)) if c.seq == 1 && c.tau.iter().all(|x| x.is_finite()));
     greeted && answered && firmware_cycle_on_board_check()
@@ -514,6 +516,7 @@ fn firmware_cycle_on_board_check() -> bool {
                 accel: Some([0.0, 0.0, 9.81]),
                 position: Some([0.0; 3]),
             }),
+            wheel_speeds: Default::default(),
         });
         ok &= matches!(cycle.on_frame(&state), Some(Frame::Command(c))
             if c.seq == k

@@ -122,6 +122,7 @@ impl OnGroup for Exercise<'_> {
         // side runs them: the estimate is finite whatever the samples
         let mut estimation = plant::estimation::Estimation::new(s, s.control_period, &[])
             .map_err(|e| format!("Estimation::new(): {e}"))?;
+        firmware_checked::<N, M>(s, body.configuration(), &body.velocity());
         for k in 0..=cycles {
             let desired = reference.desired();
             if let Some(e) = &mut estimation {
@@ -226,6 +227,57 @@ fn vehicle_of<const M: usize>(
         v.actuator_rate_limit,
         s.control_period,
     )))
+}
+
+/// The processor-in-the-loop firmware's side of an accepted scenario: its configuration is
+/// refused by name or makes bytes; bytes that make a cycle answer the scenario's first state
+/// (`q`, `v`, as `link::serial::state_frame` sends it, the wheels at their initial speeds)
+/// with finite numbers, or drop it; never a panic.
+fn firmware_checked<const N: usize, const M: usize>(
+    s: &Scenario,
+    q: &nalgebra::SMatrix<f64, N, N>,
+    v: &nalgebra::SVector<f64, M>,
+) {
+    use serial_wire::{Frame, StateFrame};
+    let Ok(config) = s.firmware_config() else {
+        return;
+    };
+    let mut buf = vec![0u8; firmware_cycle::MAX_CONFIG];
+    let Ok(n) = config.to_bytes(&mut buf) else {
+        return;
+    };
+    let Ok(mut cycle) = firmware_cycle::Cycle::from_bytes(&buf[..n]) else {
+        return;
+    };
+    let _ = cycle.on_frame(&Frame::Hello(config.identity.clone()));
+    let mut rows = q.transpose();
+    if N == 4 {
+        for (i, o) in config.origin.iter().enumerate() {
+            rows[(3, i)] -= o;
+        }
+    }
+    let narrow = |xs: &[f64]| xs.iter().take(16).map(|x| *x as f32).collect();
+    let speeds: Vec<f64> = s
+        .vehicle
+        .iter()
+        .flat_map(|v| v.wheels.iter().map(|w| w.speed))
+        .collect();
+    let state = StateFrame {
+        seq: 0,
+        t: 0.0,
+        q: narrow(rows.as_slice()),
+        v: v.iter().take(6).map(|x| *x as f32).collect(),
+        applied: core::iter::repeat_n(0.0, M.min(6)).collect(),
+        samples: None,
+        wheel_speeds: speeds.iter().take(6).map(|x| *x as f32).collect(),
+    };
+    if let Some(Frame::Command(c)) = cycle.on_frame(&Frame::State(state)) {
+        let u = c.allocation.iter().flat_map(|a| a.u_cmd.iter());
+        assert!(
+            c.tau.iter().chain(u).all(|x| x.is_finite()),
+            "the firmware's cycle answered a non-finite number: {c:?}"
+        );
+    }
 }
 
 /// Tick `k` of the plant side's estimator (sensors, faults, filter and gate): the state it
