@@ -11,8 +11,9 @@
 # equivariant filter, the disturbance observer and a vehicle's allocation, pil_hexarotor_saturated
 # (its rotors at their limits for 1.5 s: the active set on board), pil_rov_detect (the ROV's
 # thruster 1 dies unannounced and the failure detector on board must find it), pil_rov_surface
-# (two thrusters die unannounced; the failsafe manager on board must surface the ROV), and
-# pil_hexarotor moved 1 km from the world origin by `plant_sim move`, whose firmware carries the local origin):
+# (two thrusters die unannounced; the failsafe manager on board must surface the ROV),
+# wheels_slew (SO(3): four reaction wheels, their speeds in the states; the gyroscopic torque,
+# the speed limits and the saturated allocation on board), and pil_hexarotor moved 1 km from the world origin by `plant_sim move`, whose firmware carries the local origin):
 #  1. plant_sim pil-config writes the scenario's firmware configuration; the firmware is
 #     built with it (private toolchain of scripts/lib/cortex-m-toolchain.sh);
 #  2. QEMU starts with UART0 on a TCP socket (nodelay) and waits for the plant;
@@ -48,7 +49,7 @@ while (($#)); do
 	*) echo "usage: scripts/pil.sh [--scenario FILE]... [--out DIR]" >&2; exit 2 ;;
 	esac
 done
-((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_se3.toml" "$REPO/scenarios/pil_hexarotor.toml" "$REPO/scenarios/pil_hexarotor_saturated.toml" "$REPO/scenarios/pil_rov_detect.toml" "$REPO/scenarios/pil_rov_surface.toml")
+((${#SCENARIOS[@]})) || SCENARIOS=("$REPO/scenarios/seed.toml" "$REPO/scenarios/se3_circle.toml" "$REPO/scenarios/reject_se3.toml" "$REPO/scenarios/pil_hexarotor.toml" "$REPO/scenarios/pil_hexarotor_saturated.toml" "$REPO/scenarios/pil_rov_detect.toml" "$REPO/scenarios/pil_rov_surface.toml" "$REPO/scenarios/wheels_slew.toml")
 
 skip() {
 	echo "SKIPPED: $*"
@@ -218,6 +219,25 @@ sys.exit(0 if first.get("actuator") == 1 and first.get("kind") == "dead" and 0 <
 PY
 ) || die "the detector on board did not find pil_rov_detect's dead thruster: $why"
 	echo "PIL: PASS pil_rov_detect, found on board: $why"
+fi
+
+# the wheels' motors saturated on board (the slew asks for more torque than they give) and
+# the slew ended at its target, as the f64 simulation's does
+if [[ -f $OUT/wheels_slew-pil/trajectory.csv ]]; then
+	"$PLANT" sim --scenario "$REPO/scenarios/wheels_slew.toml" --out "$OUT/wheels_slew-f64" >"$OUT/wheels_slew-f64.log" 2>&1 ||
+		die "plant_sim sim (f64) of wheels_slew failed (log: $OUT/wheels_slew-f64.log)"
+	why=$(python3 - "$OUT/wheels_slew-pil" "$OUT/wheels_slew-f64" <<'PY'
+import csv, json, sys
+rows = list(csv.DictReader(open(sys.argv[1] + "/trajectory.csv")))
+n = sum(1 for r in rows if r["alloc_status"] in ("1", "2"))
+top = max(abs(float(r[f"wheel_speed_{i}"])) for r in rows for i in range(4))
+e32, e64 = (json.load(open(d + "/summary.json"))["final"]["attitude_error"] for d in sys.argv[1:])
+print(f"{n} of {len(rows)} cycles saturated on board ({n * 0.01:.2f} s), wheels up to {top:.0f} rad/s, "
+      f"final attitude error {e32:.3g} rad (f64 simulation {e64:.3g})")
+sys.exit(0 if n >= 100 and e32 < 1e-3 and top > 100 else 1)
+PY
+) || die "wheels_slew on board: $why"
+	echo "PIL: PASS wheels_slew on board: $why"
 fi
 
 # the failsafe manager on board surfaced the ROV when its second horizontal thruster was found

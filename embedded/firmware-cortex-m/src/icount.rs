@@ -35,7 +35,7 @@
 //! papers' (world); the PIL cycle (30 → 41) flies `pil_hexarotor`'s, at the reference.
 //!
 //! Then the worst cases (docs/vehicles.md, "Bounded time"), each call between a pair of marks
-//! 46 → 47, in the order the `WORST`, `WARM` and `SATURATED` lines name them:
+//! 46 → 47, in the order the `WORST`, `WARM`, `SATURATED`, `DETECTOR` and `WHEELS` lines name them:
 //!
 //! * every demand of `firmware_cases::demands`, solved cold with the default budget: the
 //!   hexarotor, the ROV, the spacecraft (`WORST <vehicle> <demands> <stopped> <most iterations>`);
@@ -45,7 +45,9 @@
 //! * the failure detector's cycle on `pil_rov_detect`'s ROV, with its settings, over a
 //!   synthetic flight through the warm-up, the calibration, the tests, a thruster that dies
 //!   and its finding (`DETECTOR rov <cycles> <cycle found> <actuator> <kind code> <value>
-//!   <first cycle that tested>`).
+//!   <first cycle that tested>`);
+//! * `wheels_slew`'s whole cycle on four reaction wheels, on the frames of a slew whose
+//!   wheels sweep up to their top speed (`WHEELS <cycles> <saturated allocations>`).
 
 use controller::{ErrorFrame, Trajectory as _};
 use core::hint::black_box;
@@ -217,6 +219,7 @@ pub fn run() -> bool {
         ok &= worst_cases();
         ok &= saturated_cycles();
         ok &= detector_cycles();
+        ok &= wheel_cycles();
     }
     hprintln!("ICOUNT done {}", ok);
     ok
@@ -627,4 +630,59 @@ fn detector_cycles() -> bool {
         testing.unwrap_or(CYCLES)
     );
     actuator == 1 && v.iter().all(|x| x.is_finite())
+}
+
+/// `wheels_slew`'s configuration (`plant_sim pil-config --scenario scenarios/wheels_slew.toml`):
+/// four reaction wheels in a pyramid, no thrusters.
+#[cfg(feature = "worst-cases")]
+static WHEELS_CONFIG: &[u8] = include_bytes!("../wheels_slew.config");
+
+/// `wheels_slew`'s whole cycle (`Cycle::on_frame`: the SO(3) law, the wheels' gyroscopic
+/// torque, their bounds narrowed near the top speed, the allocation to four wheel motors;
+/// marks 46 → 47 around each) on the frames of a slew: the body 2 rad from the target and
+/// turning, the wheels' speeds sweeping up to their top speed, so that the law asks for more
+/// torque than the motors give and a wheel's bound closes (`WHEELS <cycles> <saturated
+/// allocations>`). True when every command was finite and the allocations saturated.
+#[cfg(feature = "worst-cases")]
+fn wheel_cycles() -> bool {
+    use controller::group::{MatrixLieGroup, So3};
+    use serial_wire::{Frame, StateFrame};
+    const CYCLES: usize = 40;
+    let Ok(mut cycle) = firmware_cycle::Cycle::from_bytes(WHEELS_CONFIG) else {
+        hprintln!("ERR icount - the wheels' configuration does not build");
+        return false;
+    };
+    let hello = cycle.hello();
+    cycle.on_frame(&hello);
+    let (mut ok, mut saturated) = (true, 0);
+    for k in 0..CYCLES as u64 {
+        let s = k as f32 / CYCLES as f32;
+        let r = So3::exp(&(nalgebra::Vector3::new(1.2f32, -1.0, 1.2) * (1.0 - 0.3 * s)));
+        let frame = black_box(Frame::State(StateFrame {
+            seq: k,
+            t: k as f64 * 0.01,
+            q: (0..9).map(|i| r[(i / 3, i % 3)]).collect(),
+            v: heapless::Vec::from_slice(&[0.05 * s, -0.04 * s, 0.05 * s]).unwrap_or_default(),
+            applied: heapless::Vec::from_slice(&[0.0; 3]).unwrap_or_default(),
+            samples: None,
+            wheel_speeds: heapless::Vec::from_slice(&[600.0 * s, -300.0 * s, 100.0, -600.0 * s])
+                .unwrap_or_default(),
+        }));
+        icount_mark(46);
+        let answer = black_box(cycle.on_frame(black_box(&frame)));
+        icount_mark(47);
+        match answer {
+            Some(Frame::Command(cmd)) => {
+                ok &= cmd.tau.iter().all(|x| x.is_finite());
+                let a = cmd.allocation.as_ref();
+                ok &= a.is_some_and(|a| a.u_cmd.len() == 4 && a.u_cmd.iter().all(|x| x.is_finite()));
+                let status = a.map_or(0, |a| a.status);
+                saturated += usize::from(status == 1 || status == 2);
+                ok &= status != 3;
+            }
+            _ => ok = false,
+        }
+    }
+    hprintln!("WHEELS {} {}", CYCLES, saturated);
+    ok && saturated > 0
 }
