@@ -12,26 +12,17 @@ difference and both runs' Lyapunov values, and draws the figure (with matplotlib
 when the position and attitude differences stay below --tol, 1 otherwise.
 """
 import argparse
-import csv
+import os
 import sys
 
 import numpy as np
 
-
-def load(path):
-    with open(path) as f:
-        rows = list(csv.DictReader(f))
-    if not rows:
-        sys.exit(f"compare: {path} has no rows")
-    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python"))
+from trajectories import load, rotation  # noqa: E402
 
 
 def position(d):
     return np.stack([d["q_03"], d["q_13"], d["q_23"]], axis=1)
-
-
-def rotation(d):
-    return np.stack([np.stack([d[f"q_{i}{j}"] for j in range(3)], axis=1) for i in range(3)], axis=1)
 
 
 def draw(path, a, b, dp, dr, rotors):

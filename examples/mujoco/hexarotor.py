@@ -17,7 +17,6 @@ scenario. Exit codes: 0 flown, 1 the run failed, 2 the model and the scenario di
 """
 import argparse
 import csv
-import ctypes
 import math
 import os
 import sys
@@ -30,14 +29,13 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
-from observe import SLOTS, CommandMsg, StateMsg  # noqa: E402  (the wire's ctypes layout)
-
-PROTOCOL, SE3, SHUTDOWN = 10, 2, 2
+import plant_wire  # noqa: E402  (the wire's ctypes layout and the plant's boards)
+from observe import StateMsg  # noqa: E402
+from plant_wire import PROTOCOL, SE3  # noqa: E402
 
 
 def fail(code, msg):
-    print(f"mujoco-plant: {msg}", file=sys.stderr)
-    sys.exit(code)
+    plant_wire.fail("mujoco-plant", code, msg)
 
 
 def check_model(model, s):
@@ -92,82 +90,6 @@ def pose_and_velocity(data):
     return q, v
 
 
-def board(node, run, what, msg_type):
-    """Opens the run's board `what`, or creates it with empty slots (the same settings as
-    link's: 8 slots, 6 readers, 8 nodes)."""
-    name = iox2.ServiceName.new(f"eqtrack/{run}/{what}")
-    until = time.monotonic() + 10.0
-    while True:
-        try:
-            return (
-                node.service_builder(name)
-                .blackboard_opener(ctypes.c_uint32)
-                .max_readers(6)
-                .max_nodes(8)
-                .open()
-            )
-        except Exception:
-            pass
-        try:
-            creator = node.service_builder(name).blackboard_creator(ctypes.c_uint32)
-            creator = creator.max_readers(6).max_nodes(8)
-            for k in range(SLOTS):
-                creator = creator.add(ctypes.c_uint32(k), msg_type())
-            return creator.create()
-        except Exception as e:
-            if time.monotonic() > until:
-                fail(1, f"cannot open or create eqtrack/{run}/{what}: {e}")
-            time.sleep(0.01)
-
-
-class Wire:
-    """The plant's side of the run: the state board's first free slot, the command board's
-    slots, and the state event that wakes the controller."""
-
-    def __init__(self, node, run):
-        state, command = board(node, run, "state", StateMsg), board(node, run, "command", CommandMsg)
-        event = (
-            node.service_builder(iox2.ServiceName.new(f"eqtrack/{run}/state_event"))
-            .event()
-            .max_notifiers(2)
-            .max_listeners(2)
-            .max_nodes(8)
-            .open_or_create()
-        )
-        self.notifier = event.notifier_builder().create()
-        self.writer = state.writer_builder().create()
-        self.out = None
-        for k in range(SLOTS):
-            try:
-                self.out = self.writer.entry(ctypes.c_uint32(k), StateMsg)
-                break
-            except Exception:
-                continue
-        if self.out is None:
-            fail(1, f"every writer slot of eqtrack/{run}/state is taken")
-        self.reader = command.reader_builder().create()
-        self.slots = [self.reader.entry(ctypes.c_uint32(k), CommandMsg) for k in range(SLOTS)]
-        self._keep = (state, command, event)
-
-    def publish(self, msg):
-        msg.stamp_ns = time.monotonic_ns()
-        self.out.update_with_copy(msg)
-        self.notifier.notify()
-
-    def command(self, seq, timeout):
-        """The controller's command for state `seq`, waited for (polled) up to `timeout` s."""
-        until = time.monotonic() + timeout
-        while time.monotonic() < until:
-            for h in self.slots:
-                c = h.get().decode_as(CommandMsg)
-                if c.version == PROTOCOL and c.seq == seq and c.group == SE3:
-                    if c.flags & 4:
-                        fail(1, f"the controller refused the run (mismatch bits {c.mismatch})")
-                    return c
-            time.sleep(20e-6)
-        fail(1, f"no command for state {seq} within {timeout} s")
-
-
 def fly(args, s, model, data, wire):
     """The lockstep loop: state k out, command k in, the rotors driven over the period."""
     h = s["control_period"]
@@ -195,10 +117,7 @@ def fly(args, s, model, data, wire):
         if k < steps:
             for _ in range(substeps):
                 mujoco.mj_step(model, data)
-    bye = StateMsg(version=PROTOCOL, group=SE3, seq=steps + 1, t=(steps + 1) * h, control_period=h)
-    bye.flags = SHUTDOWN
-    bye.plant_pid = os.getpid()
-    wire.publish(bye)
+    wire.bye(steps + 1, h)
     return rows, count
 
 
@@ -225,7 +144,7 @@ def main():
     initial_state(model, data, s)
     iox2.set_log_level_from_env_or(iox2.LogLevel.Error)
     node = iox2.NodeBuilder.new().create(iox2.ServiceType.Ipc)
-    wire = Wire(node, args.name)
+    wire = plant_wire.Wire(node, args.name, SE3, "mujoco-plant")
     started = time.monotonic()
     rows, count = fly(args, s, model, data, wire)
     os.makedirs(args.out, exist_ok=True)

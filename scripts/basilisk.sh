@@ -1,0 +1,129 @@
+#!/usr/bin/env bash
+# Basilisk (AVS Lab, PyPI `bsk`) flies eqtrack's controller: examples/basilisk/spacecraft.py
+# integrates a reaction-wheel scenario's spacecraft in Basilisk (its hub and its
+# reactionWheelStateEffector of balanced wheels) as the plant process, in Python, speaking the
+# wire through iceoryx2's own Python bindings; the unchanged controller_node flies it in
+# lockstep. examples/basilisk/compare.py puts each flight beside `plant_sim sim` of the same
+# scenario:
+#  1. bad wheel tables (a zero spin inertia, a zero axis) are refused before Basilisk starts,
+#     naming the key, and the model built from a good one is read back equal to it;
+#  2. wheels_slew without friction agrees within 1e-6 rad in attitude and 1e-6 rad/s in wheel
+#     speed over its 120 s;
+#  3. wheel 0's spin inertia planted 0.1 % larger in Basilisk must fail that comparison;
+#  4. wheels_slew with its friction (Coulomb, Stribeck, viscous) is compared and the
+#     differences printed, held within 1e-5 rad and 1e-2 rad/s (docs/vehicles.md, "Reaction
+#     wheels", says how close and why);
+#  5. the peer comparison, short: the same spacecraft on a rest-to-rest slew flown by
+#     Basilisk's own flight software (mrpFeedback + rwMotorTorque) inside Basilisk and by
+#     eqtrack's law through the plant process, and its table (examples/basilisk/peer.py).
+#
+#   scripts/basilisk.sh [--figure FILE.png] [--peer-seconds S]
+#
+# The venv (bsk caps matplotlib at 3.10.9, where the MuJoCo step pins 3.11.2, so it has its
+# own) is made in <repo>/.toolchain/basilisk-venv (TOOLCHAIN_CACHE overrides) and removed at
+# the end: it is some 600 MB. If pip cannot install bsk, prints one `SKIPPED: <reason>` line
+# and exits 0. Exit 1 on failure.
+set -euo pipefail
+REPO=$(cd -- "$(dirname -- "${BASH_SOURCE[0]}")/.." && pwd)
+CACHE=${TOOLCHAIN_CACHE:-$REPO/.toolchain}
+VENV=$CACHE/basilisk-venv
+OUT=$CACHE/basilisk
+PACKAGES="bsk==2.12.1 iceoryx2==0.10.0"
+FIGURE=$OUT/basilisk_wheels_slew.png
+PEER_SECONDS=40
+while (($#)); do
+	case $1 in
+	--figure) FIGURE=$2; shift 2 ;;
+	--peer-seconds) PEER_SECONDS=$2; shift 2 ;;
+	*) echo "usage: scripts/basilisk.sh [--figure FILE.png] [--peer-seconds S]" >&2; exit 2 ;;
+	esac
+done
+die() {
+	echo "basilisk: FAIL: $*" >&2
+	exit 1
+}
+mkdir -p "$CACHE" "$OUT"
+[[ -f $CACHE/.gitignore ]] || printf '*\n' >"$CACHE/.gitignore"
+trap 'rm -rf "$VENV"' EXIT
+
+# shellcheck source=scripts/lib/venv.sh
+source "$REPO/scripts/lib/venv.sh"
+pinned_venv "$VENV" "$OUT" "$PACKAGES"
+PY=$VENV/bin/python
+"$PY" -c "import Basilisk.simulation.reactionWheelStateEffector, iceoryx2, matplotlib" ||
+	die "$PACKAGES installed but do not import"
+
+TARGET=$(cd "$REPO" && cargo metadata --format-version 1 --no-deps |
+	python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
+BIN=$TARGET/debug
+[[ -x $BIN/plant_sim && -x $BIN/controller_node ]] ||
+	(cd "$REPO" && cargo build --locked -p plant_sim -p controller_node >"$OUT/build.log" 2>&1) ||
+	die "cannot build plant_sim and controller_node (log: $OUT/build.log)"
+PLANT=$REPO/examples/basilisk/spacecraft.py
+
+# fly SCENARIO DIR [--perturb]: the Basilisk plant and controller_node on SCENARIO, in lockstep,
+# writing DIR/basilisk.csv
+fly() {
+	local scenario=$1 dir=$2 run=basilisk-$$-$RANDOM
+	mkdir -p "$dir"
+	"$BIN/controller_node" --scenario "$scenario" --name "$run" >"$dir/controller.log" 2>&1 &
+	local ctl=$!
+	if ! "$PY" "$PLANT" --name "$run" --scenario "$scenario" --out "$dir" ${3:+"$3"} >"$dir/plant.log" 2>&1; then
+		kill "$ctl" 2>/dev/null || true
+		die "the Basilisk plant failed: $(tail -3 "$dir/plant.log")"
+	fi
+	wait "$ctl" || die "controller_node failed: $(tail -3 "$dir/controller.log")"
+}
+# sim SCENARIO DIR: plant_sim sim of SCENARIO into DIR/sim
+sim() {
+	"$BIN/plant_sim" sim --scenario "$1" --out "$2/sim" >"$2/sim.log" 2>&1 ||
+		die "plant_sim sim failed: $(tail -3 "$2/sim.log")"
+}
+
+# 1. bad tables, refused before Basilisk starts (no Basilisk import on that path), naming the key
+SLEW=$REPO/scenarios/wheels_slew.toml
+for spoil in 'inertia = 2e-4|inertia = 0.0|vehicle.wheel[0].inertia' \
+	'axis = [0.0, 0.8660254037844387, 0.5]|axis = [0.0, 0.0, 0.0]|vehicle.wheel[1].axis'; do
+	IFS='|' read -r from to key <<<"$spoil"
+	python3 - "$SLEW" "$from" "$to" >"$OUT/bad.toml" <<'PY'
+import sys
+text = open(sys.argv[1]).read()
+print(text.replace(sys.argv[2], sys.argv[3], 1), end="")
+PY
+	code=0
+	"$PY" "$PLANT" --scenario "$OUT/bad.toml" --check-only >"$OUT/bad.log" 2>&1 || code=$?
+	[[ $code == 2 ]] && grep -qF "$key" "$OUT/bad.log" ||
+		die "a bad table ($key) was not refused with exit 2 naming it: exit $code, $(cat "$OUT/bad.log")"
+	echo "  refused before Basilisk starts: $(head -1 "$OUT/bad.log")"
+done
+"$PY" "$PLANT" --scenario "$SLEW" --check-only | sed 's/^/  /' || die "the model of wheels_slew is not the scenario's"
+
+# 2. without friction: within 1e-6 rad and 1e-6 rad/s
+FREE=$OUT/wheels_slew_frictionless.toml
+grep -v -E '^(friction_|stribeck_speed)' "$SLEW" >"$FREE"
+fly "$FREE" "$OUT/free"
+sed 's/^/  /' "$OUT/free/plant.log"
+grep -h "heap allocations after" "$OUT/free/controller.log" | sed 's/^/  /' || true
+sim "$FREE" "$OUT/free"
+"$PY" "$REPO/examples/basilisk/compare.py" "$OUT/free/basilisk.csv" "$OUT/free/sim/trajectory.csv" \
+	--attitude 1e-6 --speed 1e-6 --figure "$FIGURE" \
+	--title "wheels_slew without friction: Basilisk as the plant process, the unchanged controller_node" |
+	sed 's/^/  without friction: /'
+((PIPESTATUS[0] == 0)) || die "Basilisk and plant_sim disagree on wheels_slew without friction"
+
+# 3. the comparison can fail: wheel 0's Js 0.1 % larger in Basilisk must be caught
+fly "$FREE" "$OUT/perturbed" --perturb
+if "$PY" "$REPO/examples/basilisk/compare.py" "$OUT/perturbed/basilisk.csv" "$OUT/free/sim/trajectory.csv" \
+	--attitude 1e-6 --speed 1e-6 >"$OUT/perturbed/compare.log"; then
+	die "a 0.1 % larger spin inertia passed the comparison: it cannot fail"
+fi
+echo "  planted error caught: $(grep -m1 largest "$OUT/perturbed/compare.log")"
+
+# 4. with friction: compared, and how close printed
+fly "$SLEW" "$OUT/friction"
+sim "$SLEW" "$OUT/friction"
+"$PY" "$REPO/examples/basilisk/compare.py" "$OUT/friction/basilisk.csv" "$OUT/friction/sim/trajectory.csv" \
+	--attitude 1e-5 --speed 1e-2 | sed 's/^/  with friction: /'
+((PIPESTATUS[0] == 0)) || die "Basilisk and plant_sim disagree on wheels_slew with friction beyond 1e-5 rad or 1e-2 rad/s"
+
+echo "basilisk: PASS"
