@@ -11,13 +11,16 @@
 #     speed over its 120 s;
 #  3. wheel 0's spin inertia planted 0.1 % larger in Basilisk must fail that comparison;
 #  4. wheels_slew with its friction (Coulomb, Stribeck, viscous) is compared and the
-#     differences printed, held within 1e-5 rad and 1e-2 rad/s (docs/vehicles.md, "Reaction
-#     wheels", says how close and why);
-#  5. the peer comparison, short: the same spacecraft on a rest-to-rest slew flown by
+#     differences printed, held within 1e-5 rad and 1e-2 rad/s (how close and why:
+#     docs/vehicles.md, "Reaction wheels");
+#  5. the peer comparison, short: scenarios/wheels_profile.toml's spacecraft on a rest-to-rest
+#     C² slew of 12 s that asks more than its wheels give, without friction, flown for 30 s by
 #     Basilisk's own flight software (mrpFeedback + rwMotorTorque) inside Basilisk and by
 #     eqtrack's law through the plant process, and its table (examples/basilisk/peer.py).
+#     With --peer-full, instead, the three full flights docs/vehicles.md's table gives (60 s
+#     each): wheels_profile as it is (with friction), without friction, and its slew in 12 s.
 #
-#   scripts/basilisk.sh [--figure FILE.png] [--peer-seconds S]
+#   scripts/basilisk.sh [--figure FILE.png] [--peer-full]
 #
 # The venv (bsk caps matplotlib at 3.10.9, where the MuJoCo step pins 3.11.2, so it has its
 # own) is made in <repo>/.toolchain/basilisk-venv (TOOLCHAIN_CACHE overrides) and removed at
@@ -30,12 +33,12 @@ VENV=$CACHE/basilisk-venv
 OUT=$CACHE/basilisk
 PACKAGES="bsk==2.12.1 iceoryx2==0.10.0"
 FIGURE=$OUT/basilisk_wheels_slew.png
-PEER_SECONDS=40
+PEER_FULL=0
 while (($#)); do
 	case $1 in
 	--figure) FIGURE=$2; shift 2 ;;
-	--peer-seconds) PEER_SECONDS=$2; shift 2 ;;
-	*) echo "usage: scripts/basilisk.sh [--figure FILE.png] [--peer-seconds S]" >&2; exit 2 ;;
+	--peer-full) PEER_FULL=1; shift ;;
+	*) echo "usage: scripts/basilisk.sh [--figure FILE.png] [--peer-full]" >&2; exit 2 ;;
 	esac
 done
 die() {
@@ -125,5 +128,40 @@ sim "$SLEW" "$OUT/friction"
 "$PY" "$REPO/examples/basilisk/compare.py" "$OUT/friction/basilisk.csv" "$OUT/friction/sim/trajectory.csv" \
 	--attitude 1e-5 --speed 1e-2 | sed 's/^/  with friction: /'
 ((PIPESTATUS[0] == 0)) || die "Basilisk and plant_sim disagree on wheels_slew with friction beyond 1e-5 rad or 1e-2 rad/s"
+
+# 5. the peer law: Basilisk's mrpFeedback + rwMotorTorque inside Basilisk, eqtrack's law
+# through the plant process, on the same slew
+# variant DIR SLEW_SECONDS DURATION FRICTION(0|1): wheels_profile.toml and its waypoints in DIR,
+# the slew's end at SLEW_SECONDS, flown for DURATION s, with or without its friction
+variant() {
+	local dir=$1
+	mkdir -p "$dir"
+	if (($4)); then cp "$REPO/scenarios/wheels_profile.toml" "$dir/"; else
+		grep -v -E '^(friction_|stribeck_speed)' "$REPO/scenarios/wheels_profile.toml" >"$dir/wheels_profile.toml"; fi
+	sed -i "s/^duration = .*/duration = $3/" "$dir/wheels_profile.toml"
+	sed "s/^30.0,/$2,/" "$REPO/scenarios/wheels_profile.csv" >"$dir/wheels_profile.csv"
+	grep -q "^$2," "$dir/wheels_profile.csv" || die "the variant's waypoints: $(cat "$dir/wheels_profile.csv")"
+}
+# peer DIR TITLE: both flights of DIR/wheels_profile.toml and their table
+peer() {
+	fly "$1/wheels_profile.toml" "$1/eqtrack"
+	"$PY" "$REPO/examples/basilisk/peer.py" --scenario "$1/wheels_profile.toml" --eqtrack "$1/eqtrack/basilisk.csv" \
+		--out "$1" --figure "$1/peer.png" --title "$2" >"$1/peer.log" 2>&1 ||
+		die "the peer comparison failed: $(tail -3 "$1/peer.log")"
+	echo "  peer comparison, $2:"
+	grep '^|' "$1/peer.log" | sed 's/^/    /'
+	grep '^|' "$1/peer.log" | python3 -c '
+import sys
+rows = [l.split("|")[1:-1] for l in sys.stdin]
+sys.exit(0 if len(rows) == 8 and all(len(r) == 3 and all(c.strip() for c in r) for r in rows) else 1)' ||
+		die "the peer table is not complete: $(cat "$1/peer.log")"
+}
+if ((PEER_FULL)); then
+	variant "$OUT/peer-friction" 30.0 60.0 1 && peer "$OUT/peer-friction" "wheels_profile (a 30 s slew, with friction)"
+	variant "$OUT/peer-free" 30.0 60.0 0 && peer "$OUT/peer-free" "wheels_profile without friction"
+	variant "$OUT/peer-fast" 12.0 60.0 0 && peer "$OUT/peer-fast" "wheels_profile's slew in 12 s, without friction"
+else
+	variant "$OUT/peer-short" 12.0 30.0 0 && peer "$OUT/peer-short" "a 12 s slew, 30 s flown, without friction"
+fi
 
 echo "basilisk: PASS"

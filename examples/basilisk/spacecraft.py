@@ -143,7 +143,8 @@ class Spacecraft:
         if step * substeps != macros.sec2nano(self.h):
             fail(2, f"plant_substeps: the control period {self.h} s is not a whole number of nanosecond steps")
         self.sim = SimulationBaseClass.SimBaseClass()
-        self.sim.CreateNewProcess("plant").addTask(self.sim.CreateNewTask("dynamics", step))
+        # the dynamics before any flight software at the same time (examples/basilisk/peer.py)
+        self.sim.CreateNewProcess("plant", 100).addTask(self.sim.CreateNewTask("dynamics", step))
         sc = spacecraft.Spacecraft()
         sc.ModelTag = "hub"
         sc.hub.mHub = 1.0  # the attitude does not depend on it: no force acts
@@ -173,8 +174,9 @@ class Spacecraft:
         self.rws = reactionWheelStateEffector.ReactionWheelStateEffector()
         self.rws.ModelTag = "wheels"
         factory.addToSpacecraft("wheels", self.rws, sc)
-        self.sim.AddModelToTask("dynamics", self.rws, 2)
-        self.sim.AddModelToTask("dynamics", sc, 1)
+        # the wheels read their command before the hub integrates
+        self.sim.AddModelToTask("dynamics", self.rws, ModelPriority=2)
+        self.sim.AddModelToTask("dynamics", sc, ModelPriority=1)
         self.cmd = messaging.ArrayMotorTorqueMsg()
         self.rws.rwMotorCmdInMsg.subscribeTo(self.cmd)
         self.sc, self.count = sc, len(wheels)
@@ -257,6 +259,22 @@ def fly(args, s, craft, wire):
     return rows
 
 
+def write_rows(path, rows, count):
+    """A flight's rows as CSV: t, q_ij (R row-major), v_i, wheel_speed_i, lyapunov, u_cmd_j, u_j."""
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(
+            ["t"]
+            + [f"q_{i}{j}" for i in range(3) for j in range(3)]
+            + [f"v_{i}" for i in range(3)]
+            + [f"wheel_speed_{i}" for i in range(count)]
+            + ["lyapunov"]
+            + [f"u_cmd_{j}" for j in range(count)]
+            + [f"u_{j}" for j in range(count)]
+        )
+        w.writerows([[repr(float(x)) for x in r] for r in rows])
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--name", default="basilisk", help="the run name (controller_node --name)")
@@ -293,19 +311,7 @@ def main():
     rows = fly(args, s, craft, wire)
     os.makedirs(args.out, exist_ok=True)
     path = os.path.join(args.out, "basilisk.csv")
-    count = craft.count
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(
-            ["t"]
-            + [f"q_{i}{j}" for i in range(3) for j in range(3)]
-            + [f"v_{i}" for i in range(3)]
-            + [f"wheel_speed_{i}" for i in range(count)]
-            + ["lyapunov"]
-            + [f"u_cmd_{j}" for j in range(count)]
-            + [f"u_{j}" for j in range(count)]
-        )
-        w.writerows([[repr(float(x)) for x in r] for r in rows])
+    write_rows(path, rows, craft.count)
     print(f"{WHO}: {len(rows)} cycles in {time.monotonic() - started:.2f} s; wrote {path}")
 
 
