@@ -77,6 +77,17 @@ fly() {
 	fi
 	wait "$ctl" || die "controller_node failed: $(tail -3 "$dir/controller.log")"
 }
+# compare LABEL BASILISK TRAJECTORY ARGS...: examples/basilisk/compare.py, its lines printed
+# under LABEL; dies naming LABEL when it fails
+compare() {
+	local label=$1 log=$2.compare.log
+	shift
+	if ! "$PY" "$REPO/examples/basilisk/compare.py" "$@" >"$log" 2>&1; then
+		sed "s/^/  $label: /" "$log"
+		die "Basilisk and plant_sim disagree ($label)"
+	fi
+	sed "s/^/  $label: /" "$log"
+}
 # sim SCENARIO DIR: plant_sim sim of SCENARIO into DIR/sim
 sim() {
 	"$BIN/plant_sim" sim --scenario "$1" --out "$2/sim" >"$2/sim.log" 2>&1 ||
@@ -108,26 +119,24 @@ fly "$FREE" "$OUT/free"
 sed 's/^/  /' "$OUT/free/plant.log"
 grep -h "heap allocations after" "$OUT/free/controller.log" | sed 's/^/  /' || true
 sim "$FREE" "$OUT/free"
-"$PY" "$REPO/examples/basilisk/compare.py" "$OUT/free/basilisk.csv" "$OUT/free/sim/trajectory.csv" \
+compare "without friction" "$OUT/free/basilisk.csv" "$OUT/free/sim/trajectory.csv" \
 	--attitude 1e-6 --speed 1e-6 --figure "$FIGURE" \
-	--title "wheels_slew without friction: Basilisk as the plant process, the unchanged controller_node" |
-	sed 's/^/  without friction: /'
-((PIPESTATUS[0] == 0)) || die "Basilisk and plant_sim disagree on wheels_slew without friction"
+	--title "wheels_slew without friction: Basilisk as the plant process, the unchanged controller_node"
 
 # 3. the comparison can fail: wheel 0's Js 0.1 % larger in Basilisk must be caught
 fly "$FREE" "$OUT/perturbed" --perturb
 if "$PY" "$REPO/examples/basilisk/compare.py" "$OUT/perturbed/basilisk.csv" "$OUT/free/sim/trajectory.csv" \
-	--attitude 1e-6 --speed 1e-6 >"$OUT/perturbed/compare.log"; then
+	--attitude 1e-6 --speed 1e-6 >"$OUT/perturbed/compare.log" 2>&1; then
 	die "a 0.1 % larger spin inertia passed the comparison: it cannot fail"
 fi
+grep -q "FAIL: a difference above" "$OUT/perturbed/compare.log" ||
+	die "the planted error's comparison failed for another reason: $(tail -3 "$OUT/perturbed/compare.log")"
 echo "  planted error caught: $(grep -m1 largest "$OUT/perturbed/compare.log")"
 
 # 4. with friction: compared, and how close printed
 fly "$SLEW" "$OUT/friction"
 sim "$SLEW" "$OUT/friction"
-"$PY" "$REPO/examples/basilisk/compare.py" "$OUT/friction/basilisk.csv" "$OUT/friction/sim/trajectory.csv" \
-	--attitude 1e-5 --speed 1e-2 | sed 's/^/  with friction: /'
-((PIPESTATUS[0] == 0)) || die "Basilisk and plant_sim disagree on wheels_slew with friction beyond 1e-5 rad or 1e-2 rad/s"
+compare "with friction" "$OUT/friction/basilisk.csv" "$OUT/friction/sim/trajectory.csv" --attitude 1e-5 --speed 1e-2
 
 # 5. the peer law: Basilisk's mrpFeedback + rwMotorTorque inside Basilisk, eqtrack's law
 # through the plant process, on the same slew
@@ -135,11 +144,16 @@ sim "$SLEW" "$OUT/friction"
 # the slew's end at SLEW_SECONDS, flown for DURATION s, with or without its friction
 variant() {
 	local dir=$1
-	mkdir -p "$dir"
-	if (($4)); then cp "$REPO/scenarios/wheels_profile.toml" "$dir/"; else
-		grep -v -E '^(friction_|stribeck_speed)' "$REPO/scenarios/wheels_profile.toml" >"$dir/wheels_profile.toml"; fi
-	sed -i "s/^duration = .*/duration = $3/" "$dir/wheels_profile.toml"
-	sed "s/^30.0,/$2,/" "$REPO/scenarios/wheels_profile.csv" >"$dir/wheels_profile.csv"
+	mkdir -p "$dir" || die "cannot make $dir"
+	if (($4)); then
+		cp "$REPO/scenarios/wheels_profile.toml" "$dir/" || die "cannot copy wheels_profile.toml"
+	else
+		grep -v -E '^(friction_|stribeck_speed)' "$REPO/scenarios/wheels_profile.toml" >"$dir/wheels_profile.toml" ||
+			die "cannot write $dir/wheels_profile.toml"
+	fi
+	sed -i "s/^duration = .*/duration = $3/" "$dir/wheels_profile.toml" || die "cannot set the duration"
+	grep -q "^duration = $3\$" "$dir/wheels_profile.toml" || die "the variant's duration is not $3"
+	sed "s/^30.0,/$2,/" "$REPO/scenarios/wheels_profile.csv" >"$dir/wheels_profile.csv" || die "cannot write the waypoints"
 	grep -q "^$2," "$dir/wheels_profile.csv" || die "the variant's waypoints: $(cat "$dir/wheels_profile.csv")"
 }
 # peer DIR TITLE: both flights of DIR/wheels_profile.toml and their table
@@ -149,19 +163,23 @@ peer() {
 		--out "$1" --figure "$1/peer.png" --title "$2" >"$1/peer.log" 2>&1 ||
 		die "the peer comparison failed: $(tail -3 "$1/peer.log")"
 	echo "  peer comparison, $2:"
-	grep '^|' "$1/peer.log" | sed 's/^/    /'
-	grep '^|' "$1/peer.log" | python3 -c '
+	{ grep '^|' "$1/peer.log" || true; } | sed 's/^/    /'
+	{ grep '^|' "$1/peer.log" || true; } | python3 -c '
 import sys
 rows = [l.split("|")[1:-1] for l in sys.stdin]
 sys.exit(0 if len(rows) == 8 and all(len(r) == 3 and all(c.strip() for c in r) for r in rows) else 1)' ||
 		die "the peer table is not complete: $(cat "$1/peer.log")"
 }
 if ((PEER_FULL)); then
-	variant "$OUT/peer-friction" 30.0 60.0 1 && peer "$OUT/peer-friction" "wheels_profile (a 30 s slew, with friction)"
-	variant "$OUT/peer-free" 30.0 60.0 0 && peer "$OUT/peer-free" "wheels_profile without friction"
-	variant "$OUT/peer-fast" 12.0 60.0 0 && peer "$OUT/peer-fast" "wheels_profile's slew in 12 s, without friction"
+	variant "$OUT/peer-friction" 30.0 60.0 1
+	peer "$OUT/peer-friction" "wheels_profile (a 30 s slew, with friction)"
+	variant "$OUT/peer-free" 30.0 60.0 0
+	peer "$OUT/peer-free" "wheels_profile without friction"
+	variant "$OUT/peer-fast" 12.0 60.0 0
+	peer "$OUT/peer-fast" "wheels_profile's slew in 12 s, without friction"
 else
-	variant "$OUT/peer-short" 12.0 30.0 0 && peer "$OUT/peer-short" "a 12 s slew, 30 s flown, without friction"
+	variant "$OUT/peer-short" 12.0 30.0 0
+	peer "$OUT/peer-short" "a 12 s slew, 30 s flown, without friction"
 fi
 
 echo "basilisk: PASS"

@@ -417,15 +417,15 @@ for g in groups:
         # wheels_slew's whole cycle on four reaction wheels (issue "Spacecraft on reaction
         # wheels"): within the controller cycle's budget, a tenth of a 168 MHz part's 1 kHz
         # period (wheels_slew's own period is 10 ms)
-        n, saturated = int(g[1]), int(g[2])
+        n, saturated, closed = int(g[1]), int(g[2]), int(g[3])
         counts = [c - base_call for c in calls[at:at + n]]
         at += n
         worst = max(counts)
         print(f"wheel cycle worst case: {worst} instructions (budget 16800: {met(worst, 16800)}); over {n} "
               f"cycles of wheels_slew sweeping its wheels to their top speed ({saturated} saturated "
-              f"allocations; mean {sum(counts) / n:.0f})")
-        if saturated == 0:
-            failed.append("the wheels' frames did not saturate their motors")
+              f"allocations, {closed} with wheel 0's bound closed at its top speed; mean {sum(counts) / n:.0f})")
+        if saturated == 0 or closed == 0:
+            failed.append("the wheels' frames did not saturate their motors and close a bound")
         if enforce and worst > 16800:
             failed.append(f"wheel cycle worst case {worst} > its budget 16800")
         continue

@@ -16,8 +16,8 @@ The gains: Basilisk's examples give `mrpFeedback` K = 3.5 and P = 30 (integral o
 900/800/600 kg m² hub, gains read from the linearised loop `I θ'' + P θ' + (K/4) θ = 0` (an MRP
 is a quarter of a small angle): a damping ratio of 0.53 and a time constant 2I/P of 60 s about
 the largest axis. The same rule gives this spacecraft's gains from eqtrack's: eqtrack's law has
-the stiffness `tr K − K_ii` = 2 k_p per axis and the damping k_d (docs/maths.md, "The
-geometric integral", its linearised loop), so K = 4·2 k_p and P = k_d make the two linearised
+the stiffness `tr K − K_ii` = 2 k_p per axis and the damping k_d (the linearised loop of
+docs/maths.md, "The geometric integral"), so K = 4·2 k_p and P = k_d make the two linearised
 loops one. The integral stays
 off in both, as in the examples.
 
@@ -25,7 +25,7 @@ For each flight it computes the settling time (the attitude within 1 mrad of the
 and staying there to the end of the run, at least 5 s), the largest error from the profile,
 the peak and total wheel torque (the motors' torques after Basilisk's limits; the total is
 Σ_i ∫|u_i| dt), the peak wheel speed and the final error, prints them as a table, and writes
-OUT/peer.csv (Basilisk's flight), OUT/peer_table.md and, with matplotlib, the figure.
+peer.csv (Basilisk's flight) and peer_table.md into --out and, with matplotlib, the figure.
 """
 import argparse
 import csv
@@ -69,8 +69,8 @@ def log_so3(m):
 
 class Profile:
     """The scenario's rest-to-rest slew: R_d(t) = R_0 exp(s(σ) ξ), ξ = log(R_0ᵀ R_1),
-    s = 10σ³ − 15σ⁴ + 6σ⁵, σ = (t − t_0)/(t_1 − t_0), held at its ends (docs/maths.md, "Paths
-    through waypoints")."""
+    s = 10σ³ − 15σ⁴ + 6σ⁵, σ = (t − t_0)/(t_1 − t_0), held at its ends
+    (docs/maths.md, "Paths through waypoints")."""
 
     def __init__(self, s, scenario_path):
         ref = s.get("reference", {})

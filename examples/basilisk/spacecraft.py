@@ -56,14 +56,32 @@ def number(x):
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
+def checked_run(s):
+    """The run's keys the plant reads, checked (exit 2 naming the key): `control_period` and
+    `duration` finite and > 0, `plant_substeps` a whole number >= 1, `[initial] rotation` and
+    `velocity` three finite numbers each."""
+    for key in ("control_period", "duration"):
+        x = s.get(key)
+        if not (number(x) and x > 0):
+            fail(2, f"{key}: a finite number > 0, not {x!r}")
+    n = s.get("plant_substeps", 1)
+    if not (isinstance(n, int) and not isinstance(n, bool) and n >= 1):
+        fail(2, f"plant_substeps: a whole number >= 1, not {n!r}")
+    for key in ("rotation", "velocity"):
+        x = s.get("initial", {}).get(key, [0.0, 0.0, 0.0])
+        if not (isinstance(x, list) and len(x) == 3 and all(number(v) for v in x)):
+            fail(2, f"initial.{key}: three finite numbers, not {x!r}")
+
+
 def checked_wheels(s):
     """The scenario's wheels, checked as `plant_sim` checks them (exit 2 naming the key):
-    an SO(3) scenario with one to six `[[vehicle.wheel]]` and no thrusters; each axis three
-    finite numbers, not zero; `inertia`, `max_torque`, `max_speed` finite and > 0; friction
-    finite and >= 0, `stribeck_speed` > 0 where given, `max_power` > 0 where given; the
+    the run's keys (`checked_run`); an SO(3) scenario with one to six `[[vehicle.wheel]]` and no
+    thrusters; each axis three finite numbers, not zero; `inertia`, `max_torque`, `max_speed`
+    finite and > 0; friction finite and >= 0, `stribeck_speed` > 0 where given, `max_power` > 0 where given; the
     initial `speed` within +-`max_speed`; `[plant] inertia` a symmetric 3x3 matrix whose part
     with the wheels free, I - sum Js g g^T, is positive definite. Returns the wheels with unit
     axes and the plant's inertia."""
+    checked_run(s)
     if s.get("group") != "so3":
         fail(2, f"group: the Basilisk plant flies SO(3) spacecraft, not {s.get('group')!r}")
     v = s.get("vehicle", {})

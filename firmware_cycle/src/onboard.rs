@@ -231,11 +231,15 @@ pub struct Wheel {
 }
 
 impl Wheel {
-    /// The wheel as the allocation takes it: refused (naming the key) unless the axis is
-    /// finite and not zero, and the inertia and the limits finite and positive.
+    /// The wheel as the allocation takes it, its axis made unit (the gyroscopic torque, the
+    /// null space and the detector's balance take `g` as a unit vector): refused (naming the
+    /// key) unless the axis is finite with a finite, non-zero length, and the inertia and the
+    /// limits finite and positive.
     fn allocation(&self) -> Result<allocation::Wheel<f32>, ConfigError> {
         let finite = |x: f32| x.is_finite();
-        if !self.axis.iter().all(|x| finite(*x)) || self.axis.iter().all(|x| *x == 0.0) {
+        let axis = Vector3::from(self.axis);
+        let length = axis.norm();
+        if !(self.axis.iter().all(|x| finite(*x)) && finite(length) && length > 0.0) {
             return Err(ConfigError::Vehicle("wheel.axis"));
         }
         if !(finite(self.inertia) && self.inertia > 0.0) {
@@ -247,8 +251,9 @@ impl Wheel {
         if !(finite(self.max_speed) && self.max_speed > 0.0) {
             return Err(ConfigError::Vehicle("wheel.max_speed"));
         }
+        let unit = axis / length;
         Ok(allocation::Wheel {
-            axis: self.axis,
+            axis: [unit[0], unit[1], unit[2]],
             inertia: self.inertia,
             max_torque: self.max_torque,
             max_speed: self.max_speed,

@@ -1131,3 +1131,40 @@ fn on_board_the_detector_takes_the_wheel_speeds() {
     assert!(tested > 20, "{tested} states tested");
     assert!(differs, "a detector without the speeds computes the same");
 }
+
+/// A wheel's axis is made unit on the board: axes three times as long fly the same commands
+/// (to f32's rounding of the division), where the gyroscopic torque taken from raw axes would
+/// be nine times as large.
+#[test]
+fn on_board_wheel_axes_are_made_unit() {
+    let answer = |config: &Config| {
+        let mut c = Cycle::new(config).unwrap();
+        c.on_frame(&Frame::Hello(config.identity.clone()));
+        match c.on_frame(&Frame::State(spinning(0, &[300.0, -200.0, 100.0, 50.0]))) {
+            Some(Frame::Command(cmd)) => cmd.allocation.unwrap(),
+            other => panic!("{other:?}"),
+        }
+    };
+    let unit = answer(&wheeled(false));
+    let mut long = wheeled(false);
+    for w in &mut long.vehicle.as_mut().unwrap().wheels {
+        w.axis = w.axis.map(|x| 3.0 * x);
+    }
+    let long = answer(&long);
+    for (a, b) in unit.demand.iter().zip(&long.demand) {
+        assert!(
+            (a - b).abs() <= 1e-6 * (1.0 + a.abs()),
+            "{:?} vs {:?}",
+            unit.demand,
+            long.demand
+        );
+    }
+    for (a, b) in unit.u_cmd.iter().zip(&long.u_cmd) {
+        assert!(
+            (a - b).abs() <= 1e-6,
+            "{:?} vs {:?}",
+            unit.u_cmd,
+            long.u_cmd
+        );
+    }
+}

@@ -47,7 +47,8 @@
 //!   and its finding (`DETECTOR rov <cycles> <cycle found> <actuator> <kind code> <value>
 //!   <first cycle that tested>`);
 //! * `wheels_slew`'s whole cycle on four reaction wheels, on the frames of a slew whose
-//!   wheels sweep up to their top speed (`WHEELS <cycles> <saturated allocations>`).
+//!   wheels sweep up to their top speed (`WHEELS <cycles> <saturated allocations> <frames with
+//!   a closed bound>`).
 
 use controller::{ErrorFrame, Trajectory as _};
 use core::hint::black_box;
@@ -640,9 +641,11 @@ static WHEELS_CONFIG: &[u8] = include_bytes!("../wheels_slew.config");
 /// `wheels_slew`'s whole cycle (`Cycle::on_frame`: the SO(3) law, the wheels' gyroscopic
 /// torque, their bounds narrowed near the top speed, the allocation to four wheel motors;
 /// marks 46 → 47 around each) on the frames of a slew: the body 2 rad from the target and
-/// turning, the wheels' speeds sweeping up to their top speed, so that the law asks for more
-/// torque than the motors give and a wheel's bound closes (`WHEELS <cycles> <saturated
-/// allocations>`). True when every command was finite and the allocations saturated.
+/// turning, so that the law asks for more torque than the motors give, and wheels 0 and 3
+/// sweeping up to their top speed by frame 30 and held there, so that from then on the bound
+/// that would speed wheel 0 further is closed (`WHEELS <cycles> <saturated allocations>
+/// <frames at the top speed whose wheel-0 command does not speed it up>`). True when every
+/// command was finite, the allocations saturated and the bound closed.
 #[cfg(feature = "worst-cases")]
 fn wheel_cycles() -> bool {
     use controller::group::{MatrixLieGroup, So3};
@@ -654,9 +657,10 @@ fn wheel_cycles() -> bool {
     };
     let hello = cycle.hello();
     cycle.on_frame(&hello);
-    let (mut ok, mut saturated) = (true, 0);
+    let (mut ok, mut saturated, mut closed) = (true, 0, 0);
     for k in 0..CYCLES as u64 {
         let s = k as f32 / CYCLES as f32;
+        let reach = (k as f32 / 30.0).min(1.0);
         let r = So3::exp(&(nalgebra::Vector3::new(1.2f32, -1.0, 1.2) * (1.0 - 0.3 * s)));
         let frame = black_box(Frame::State(StateFrame {
             seq: k,
@@ -665,7 +669,7 @@ fn wheel_cycles() -> bool {
             v: heapless::Vec::from_slice(&[0.05 * s, -0.04 * s, 0.05 * s]).unwrap_or_default(),
             applied: heapless::Vec::from_slice(&[0.0; 3]).unwrap_or_default(),
             samples: None,
-            wheel_speeds: heapless::Vec::from_slice(&[600.0 * s, -300.0 * s, 100.0, -600.0 * s])
+            wheel_speeds: heapless::Vec::from_slice(&[600.0 * reach, -300.0 * s, 100.0, -600.0 * reach])
                 .unwrap_or_default(),
         }));
         icount_mark(46);
@@ -679,10 +683,11 @@ fn wheel_cycles() -> bool {
                 let status = a.map_or(0, |a| a.status);
                 saturated += usize::from(status == 1 || status == 2);
                 ok &= status != 3;
+                closed += usize::from(reach == 1.0 && a.is_some_and(|a| a.u_cmd.first().is_some_and(|u| *u <= 0.0)));
             }
             _ => ok = false,
         }
     }
-    hprintln!("WHEELS {} {}", CYCLES, saturated);
-    ok && saturated > 0
+    hprintln!("WHEELS {} {} {}", CYCLES, saturated, closed);
+    ok && saturated > 0 && closed > 0
 }
