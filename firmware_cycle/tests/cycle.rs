@@ -1168,3 +1168,29 @@ fn on_board_wheel_axes_are_made_unit() {
         );
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    /// A wheeled configuration damaged anywhere (its wheels and momentum management among
+    /// the bytes) is refused or builds a cycle whose answer to a spinning state is finite;
+    /// never a panic.
+    #[test]
+    fn damaged_wheel_configurations_never_panic(flips in prop::collection::vec((0usize..600, any::<u8>()), 1..8)) {
+        let mut buf = [0u8; MAX_CONFIG];
+        let n = wheeled(true).to_bytes(&mut buf).unwrap();
+        let mut bytes = buf[..n].to_vec();
+        for (i, x) in flips {
+            let i = i % bytes.len();
+            bytes[i] ^= x;
+        }
+        if let Ok(mut c) = Cycle::from_bytes(&bytes) {
+            let hello = c.hello();
+            c.on_frame(&hello);
+            if let Some(Frame::Command(cmd)) = c.on_frame(&Frame::State(spinning(0, &[100.0, -50.0, 10.0, 0.0]))) {
+                let u = cmd.allocation.iter().flat_map(|a| a.u_cmd.iter());
+                prop_assert!(cmd.tau.iter().chain(u).all(|x| x.is_finite()));
+            }
+        }
+    }
+}
