@@ -24,8 +24,9 @@
 #
 # The venv (bsk caps matplotlib at 3.10.9, where the MuJoCo step pins 3.11.2, so it has its
 # own) is made in <repo>/.toolchain/basilisk-venv (TOOLCHAIN_CACHE overrides) and removed at
-# the end: it is some 600 MB. If pip cannot install bsk, prints one `SKIPPED: <reason>` line
-# and exits 0. Exit 1 on failure.
+# the end: it is some 600 MB. If pip cannot install bsk (or iceoryx2 beside it), prints one
+# `SKIPPED: <reason>` line and exits 0; a venv that cannot be made is a failure. Exit 1 on
+# failure.
 set -euo pipefail
 REPO=$(cd -- "$(dirname -- "${BASH_SOURCE[0]}")/.." && pwd)
 CACHE=${TOOLCHAIN_CACHE:-$REPO/.toolchain}
@@ -51,7 +52,7 @@ trap 'rm -rf "$VENV"' EXIT
 
 # shellcheck source=scripts/lib/venv.sh
 source "$REPO/scripts/lib/venv.sh"
-pinned_venv "$VENV" "$OUT" "$PACKAGES"
+pinned_venv "$VENV" "$OUT" "$PACKAGES" strict
 PY=$VENV/bin/python
 "$PY" -c "import Basilisk.simulation.reactionWheelStateEffector, iceoryx2, matplotlib" ||
 	die "$PACKAGES installed but do not import"
