@@ -32,14 +32,13 @@ import csv
 import math
 import os
 import sys
-import tomllib
 
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
-from spacecraft import Spacecraft, checked_wheels, fail, write_rows  # noqa: E402
+from spacecraft import Spacecraft, fail, load_scenario, write_rows  # noqa: E402
 from trajectories import angle_between, load, rotation  # noqa: E402
 
 SETTLE, HOLD = 1e-3, 5.0
@@ -223,12 +222,7 @@ def main():
     p.add_argument("--figure", help="draw the two flights here (needs matplotlib)")
     p.add_argument("--title", default="the same slew: eqtrack's EqT through the plant process, Basilisk's mrpFeedback")
     args = p.parse_args()
-    try:
-        with open(args.scenario, "rb") as f:
-            s = tomllib.load(f)
-    except (OSError, tomllib.TOMLDecodeError) as e:
-        fail(2, f"{args.scenario}: {e}")
-    wheels, inertia = checked_wheels(s)
+    s, wheels, inertia = load_scenario(args.scenario)
     profile = Profile(s, args.scenario)
     rows, count = fly_basilisk(s, args, wheels, inertia, profile)
     os.makedirs(args.out, exist_ok=True)

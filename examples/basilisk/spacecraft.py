@@ -42,8 +42,8 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
 import plant_wire  # noqa: E402  (the wire's ctypes layout and the plant's boards)
-from observe import MAX_WHEELS, StateMsg  # noqa: E402
-from plant_wire import PROTOCOL, SO3  # noqa: E402
+from observe import MAX_WHEELS  # noqa: E402
+from plant_wire import SO3  # noqa: E402
 
 WHO = "basilisk-plant"
 
@@ -126,6 +126,18 @@ def checked_wheels(s):
     if np.linalg.eigvalsh(free).min() <= 0:
         fail(2, "plant.inertia: with the wheels free, I - sum Js g g^T is not positive definite")
     return out, big_i
+
+
+def load_scenario(path):
+    """The scenario at `path` with its wheels and inertia checked (`checked_wheels`); exit 2
+    naming the file when it cannot be read as TOML."""
+    try:
+        with open(path, "rb") as f:
+            s = tomllib.load(f)
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        fail(2, f"{path}: {e}")
+    wheels, inertia = checked_wheels(s)
+    return s, wheels, inertia
 
 
 def rotation_to_mrp(r):
@@ -256,19 +268,7 @@ def fly(args, s, craft, wire):
     rows, accounted = [], [0.0] * 3
     for k in range(steps + 1):
         r, omega, speeds = craft.state()
-        msg = StateMsg(version=PROTOCOL, group=SO3, seq=k, t=k * h, control_period=h)
-        msg.q[:9] = list(r.flatten())
-        msg.v[:3] = list(omega)
-        msg.applied[:3] = accounted
-        msg.wheels = count
-        msg.wheel_speeds[:count] = speeds
-        msg.plant_pid = os.getpid()
-        wire.publish(msg)
-        c = wire.command(k, 30.0 if k == 0 else 10.0)
-        if c.actuators != count:
-            fail(1, f"the controller sends {c.actuators} actuator commands, the spacecraft has {count} wheels")
-        u_cmd = [c.u_cmd[j] for j in range(count)]
-        accounted = [c.accounted[i] for i in range(3)]
+        c, u_cmd, accounted = wire.exchange(k, h, r.flatten(), omega, accounted, count, speeds)
         if k < steps:
             craft.step(k, u_cmd)
         applied = craft.applied() if k < steps else [float("nan")] * count
@@ -306,12 +306,7 @@ def main():
     )
     p.add_argument("--check-only", action="store_true", help="check the scenario and the model, then exit")
     args = p.parse_args()
-    try:
-        with open(args.scenario, "rb") as f:
-            s = tomllib.load(f)
-    except (OSError, tomllib.TOMLDecodeError) as e:
-        fail(2, f"{args.scenario}: {e}")
-    wheels, inertia = checked_wheels(s)
+    s, wheels, inertia = load_scenario(args.scenario)
     craft = Spacecraft(s, wheels, inertia)
     craft.check(s, wheels, inertia)
     if args.check_only:

@@ -30,8 +30,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
 import plant_wire  # noqa: E402  (the wire's ctypes layout and the plant's boards)
-from observe import StateMsg  # noqa: E402
-from plant_wire import PROTOCOL, SE3  # noqa: E402
+from plant_wire import SE3  # noqa: E402
 
 
 def fail(code, msg):
@@ -99,20 +98,10 @@ def fly(args, s, model, data, wire):
     rows, accounted = [], [0.0] * 6
     for k in range(steps + 1):
         q, v = pose_and_velocity(data)
-        msg = StateMsg(version=PROTOCOL, group=SE3, seq=k, t=k * h, control_period=h)
-        msg.q[:] = list(q.flatten())
-        msg.v[:] = list(v)
-        msg.applied[:] = accounted
-        msg.plant_pid = os.getpid()
-        wire.publish(msg)
-        c = wire.command(k, 30.0 if k == 0 else 10.0)
-        if c.actuators != count:
-            fail(1, f"the controller sends {c.actuators} actuator commands, the model has {count}")
-        u_cmd = [c.u_cmd[j] for j in range(count)]
+        c, u_cmd, accounted = wire.exchange(k, h, q.flatten(), v, accounted, count)
         data.ctrl[:] = u_cmd
         if k == 0:
             data.act[:] = np.clip(u_cmd, model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1])
-        accounted = [c.accounted[i] for i in range(6)]
         rows.append([k * h] + list(q.flatten()) + list(v) + [c.lyapunov] + u_cmd + list(data.act))
         if k < steps:
             for _ in range(substeps):

@@ -98,6 +98,26 @@ class Wire:
             time.sleep(20e-6)
         fail(self.who, 1, f"no command for state {seq} within {timeout} s")
 
+    def exchange(self, k, h, q, v, applied, count, wheel_speeds=()):
+        """One lockstep period: state `k` out (the configuration `q` row-major, the body velocity
+        `v`, the wrench `applied` over the last period, the wheels' speeds), the controller's
+        command for it in (waited for 30 s for the first state, 10 s after). Exits 1 unless it
+        commands `count` actuators. Returns the command, its first `count` actuator commands and
+        the wrench it accounts for."""
+        m = 3 if self.group == SO3 else 6
+        msg = StateMsg(version=PROTOCOL, group=self.group, seq=k, t=k * h, control_period=h)
+        msg.q[: len(q)] = list(q)
+        msg.v[:m] = list(v)
+        msg.applied[:m] = list(applied)
+        msg.wheels = len(wheel_speeds)
+        msg.wheel_speeds[: len(wheel_speeds)] = list(wheel_speeds)
+        msg.plant_pid = os.getpid()
+        self.publish(msg)
+        c = self.command(k, 30.0 if k == 0 else 10.0)
+        if c.actuators != count:
+            fail(self.who, 1, f"the controller sends {c.actuators} actuator commands, the plant has {count}")
+        return c, [c.u_cmd[j] for j in range(count)], [c.accounted[i] for i in range(m)]
+
     def bye(self, seq, h):
         """The state after the last: the run is over (the controller exits)."""
         msg = StateMsg(version=PROTOCOL, group=self.group, seq=seq, t=seq * h, control_period=h)
