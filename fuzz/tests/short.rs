@@ -50,7 +50,8 @@ fn scenario_inputs_never_panic() {
     // the vehicle seeds' mutations reach every bad vehicle table: a geometry that loses a
     // direction or has too many actuators, a zero or non-finite axis, min > max, a failure
     // of an actuator that is not there, of a kind it does not know, stuck outside its range or
-    // with a factor outside (0, 1), a bad allocation table, bad failure-detection keys
+    // with a factor outside (0, 1), a bad allocation table, bad failure-detection keys, bad
+    // reaction wheels
     for key in [
         "vehicle.actuator",
         "vehicle.actuator[*].axis",
@@ -80,6 +81,16 @@ fn scenario_inputs_never_panic() {
         "failsafe.tracking_limit_position",
         "failsafe.clear_time",
         "failsafe.actuators_residual",
+        // reaction wheels: too many, a zero or non-finite axis, a spin inertia, torque or speed
+        // limit, friction or Stribeck speed out of range; momentum management's threshold
+        "vehicle.wheel",
+        "vehicle.wheel[*].axis",
+        "vehicle.wheel[*].inertia",
+        "vehicle.wheel[*].max_torque",
+        "vehicle.wheel[*].max_speed",
+        "vehicle.wheel[*].friction_coulomb",
+        "vehicle.wheel[*].stribeck_speed",
+        "vehicle.momentum.dump_threshold",
     ] {
         assert!(
             r.rejected
