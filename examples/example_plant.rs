@@ -27,7 +27,7 @@
 //! 2 safe mode).
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 use controller::GroupKind;
-use controller::group::{MatrixLieGroup, Se3, So3};
+use controller::group::{BuiltinGroup, MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;
 use controller::law::safe_mode_torque;
 use link::{
@@ -78,9 +78,9 @@ impl Filter {
 }
 
 /// The "hardware": a rigid body integrated over each period under the held torque.
-struct Body<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(RigidBody<f64, G, N, M>);
+struct Body<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(RigidBody<f64, G, N, M>);
 
-impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Body<G, N, M> {
+impl<G: BuiltinGroup<N, M>, const N: usize, const M: usize> Body<G, N, M> {
     /// Attitude (pose) and gyro rates (on a board: read the IMU and the position fix).
     fn read_sensors(&self) -> (SMatrix<f64, N, N>, SVector<f64, M>) {
         (*self.0.configuration(), self.0.velocity())
@@ -230,7 +230,7 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-fn fly<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn fly<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     run: &str,
     group: GroupKind,
     realtime: bool,

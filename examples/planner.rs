@@ -23,7 +23,7 @@
 //! done, 1 no plant or the plant is gone, 2 bad input).
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 use clap::Parser;
-use controller::group::{MatrixLieGroup, OnGroup};
+use controller::group::{BuiltinGroup, OnGroup};
 use ipc_types::{PLAN_WINDOW, PlanMsg, WireSegment, flags};
 use link::plan::PlanWriter;
 use link::{Exit, StopFlag, process_alive};
@@ -91,7 +91,7 @@ struct Stream<'a> {
 
 impl OnGroup for Stream<'_> {
     type Output = Result<(), (Exit, String)>;
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let s = self.scenario;
         let bad = |msg: String| (Exit::BadInput, format!("scenario `{}`: {msg}", s.name));
         let path = match s.path::<G, N, M>() {
@@ -127,7 +127,7 @@ impl OnGroup for Stream<'_> {
 /// only leaving the window are no reason to publish: the controller keeps what it has. So a
 /// planner whose first window holds the whole path publishes once, and a lockstep run's
 /// record does not depend on how fast the planner watched the plant's clock.
-fn stream<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn stream<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     board: &mut PlanWriter,
     pieces: &[WireSegment],
     cli: &Cli,

@@ -5,7 +5,7 @@
 
 use benches::*;
 use control_cycle::respond;
-use controller::group::{MatrixLieGroup, Se3, So3};
+use controller::group::{BuiltinGroup, Se3, So3};
 use controller::law::{eqt, so3};
 use controller::{Law, Real, Source, Trajectory, real};
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
@@ -22,7 +22,7 @@ fn controller_cycle<T, G, R, const N: usize, const M: usize>(
     setup: impl FnMut() -> R,
 ) where
     T: Real,
-    G: MatrixLieGroup<N, M>,
+    G: BuiltinGroup<N, M>,
     R: Trajectory<T, N, M>,
 {
     b.iter_batched_ref(
@@ -410,7 +410,7 @@ fn terms<T: Real>(c: &mut Criterion, scalar: &str) {
 /// series): the shipped slews flown `stop` (one exponential per sample) and `through` (five
 /// exponentials and adjoints, Sommer et al.'s recursion), at t = 5.5 s (inside the second leg).
 fn paths(c: &mut Criterion) {
-    fn group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    fn group<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         c: &mut Criterion,
         name: &str,
         file: &str,

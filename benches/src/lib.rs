@@ -5,7 +5,7 @@
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
-use controller::group::{MatrixLieGroup, Se3, So3};
+use controller::group::{BuiltinGroup, MatrixLieGroup, Se3, So3};
 use controller::integrator::RigidBody;
 use controller::law::Desired;
 use controller::law::so3::So3LawInput;
@@ -212,7 +212,7 @@ pub fn se3_plant<T: Real>() -> RigidBody<T, Se3, 4, 6> {
 }
 
 /// A state message as the plant would publish it.
-pub fn state_msg<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub fn state_msg<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     q: &SMatrix<f64, N, N>,
     v: &SVector<f64, M>,
 ) -> StateMsg {

@@ -1,6 +1,6 @@
 //! One answer to one state: the law (and the disturbance-rejection terms) at the state's time, as a command. The cycle the process runs and `plant_sim replay` runs again.
 
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::{Controller, Rejection, RejectionConfig, Trajectory};
 use failsafe::monitor::applied_as_sent;
 use ipc_types::{CommandMsg, StateMsg};
@@ -19,7 +19,7 @@ pub fn respond<T, G, R, const N: usize, const M: usize>(
 ) -> Result<CommandMsg, controller::Error>
 where
     T: controller::Real,
-    G: MatrixLieGroup<N, M>,
+    G: BuiltinGroup<N, M>,
     R: Trajectory<T, N, M>,
 {
     let (q, v) = catch_up(reference, msg);
@@ -90,7 +90,7 @@ pub struct Responder<T: controller::Real, G, const N: usize, const M: usize> {
 impl<T, G, const N: usize, const M: usize> Responder<T, G, N, M>
 where
     T: controller::Real,
-    G: MatrixLieGroup<N, M>,
+    G: BuiltinGroup<N, M>,
 {
     /// A responder with the terms of `rejection` (none: the plain law).
     pub fn new(

@@ -1,6 +1,6 @@
 //! A streamed reference: the plan board's messages taken into the path, and the path the node starts from.
 
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::path::{Path, PathReference};
 use controller::{Source, Trajectory};
 use ipc_types::{CommandMsg, PlanInvalid, PlanMsg, check_plan, flags};
@@ -10,7 +10,7 @@ use scenario::Scenario;
 /// holds, at rest, the pose the scenario's own reference starts from, at the scenario's
 /// control period, until plan messages append pieces ([`PlanIntake::take`]). The node and
 /// `plant_sim replay` start from it.
-pub fn streamed_reference<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub fn streamed_reference<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     s: &Scenario,
 ) -> Result<Source<f64, G, N, M>, controller::Error> {
     let start = s.reference_source::<G, N, M>()?.desired().q;
@@ -49,7 +49,7 @@ impl PlanIntake {
     /// Takes plan message `msg`: checks it ([`check_plan`] at the reference's period) and
     /// appends its pieces that start no earlier than the last piece appended ends and end no
     /// earlier than the reference's time. Allocation-free.
-    pub fn take<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn take<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &mut self,
         msg: &PlanMsg,
         reference: &mut PathReference<f64, G, N, M>,

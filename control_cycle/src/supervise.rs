@@ -4,7 +4,7 @@
 //! what it knows (the actuators its allocator may still move).
 
 use controller::Real;
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::law::Desired;
 use failsafe::monitor::{Flags, Limits, Monitor};
 use failsafe::setpoint::{Rates, Setpoint};
@@ -39,7 +39,7 @@ pub struct Supervisor<T: Real, G, const N: usize, const M: usize> {
     thrust: Option<ThrustAxis<T>>,
 }
 
-impl<T: Real, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Supervisor<T, G, N, M> {
+impl<T: Real, G: BuiltinGroup<N, M>, const N: usize, const M: usize> Supervisor<T, G, N, M> {
     /// Scenario `s`'s manager (`None`: no `[failsafe]`).
     pub fn of(s: &Scenario) -> Option<Self> {
         let spec = s.failsafe?;

@@ -4,7 +4,7 @@
 //! failures its detector finds. The command carries the answer.
 
 use allocation::{Commands, VehicleControl};
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use failsafe::monitor::applied_as_sent;
 use ipc_types::{CommandMsg, MAX_ACTUATORS, StateMsg};
 use nalgebra::SVector;
@@ -127,7 +127,7 @@ impl<const M: usize> ControllerVehicle<M> {
     /// that answer (the state's `applied` is the wrench it accounted, bit for bit): over a
     /// missed state, a held command or safe mode the thrust was not what the detector
     /// believes, and it starts afresh ([`detection::Detector::gap`]). Allocation-free.
-    pub fn answer<G: MatrixLieGroup<N, M>, const N: usize>(
+    pub fn answer<G: BuiltinGroup<N, M>, const N: usize>(
         &mut self,
         msg: &StateMsg,
         tau: &SVector<f64, M>,
@@ -140,7 +140,7 @@ impl<const M: usize> ControllerVehicle<M> {
 
     /// The first half of [`ControllerVehicle::answer`], before the law: the period, the
     /// failures told by now and the detector's cycle, its finding written into `cmd`.
-    pub fn observe<G: MatrixLieGroup<N, M>, const N: usize>(
+    pub fn observe<G: BuiltinGroup<N, M>, const N: usize>(
         &mut self,
         msg: &StateMsg,
         follows: bool,
@@ -205,7 +205,7 @@ impl<const M: usize> ControllerVehicle<M> {
     /// allocated at the state's attitude, or the failsafe's `thrust` demand when it flies one
     /// (every actuator at its minimum when `disarmed`, the failsafe's `disarm`), the detector
     /// told the command, and the vehicle's fields of `cmd`.
-    pub fn allocate<G: MatrixLieGroup<N, M>, const N: usize>(
+    pub fn allocate<G: BuiltinGroup<N, M>, const N: usize>(
         &mut self,
         msg: &StateMsg,
         (tau, thrust): (&SVector<f64, M>, Option<&SVector<f64, M>>),

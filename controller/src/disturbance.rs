@@ -272,7 +272,7 @@ impl<T: Real, const M: usize> Rejection<T, M> {
         &mut self,
         mu: &SVector<T, M>,
         gyro: &SVector<T, M>,
-        q: &SMatrix<T, N, N>,
+        r: &Matrix3<T>,
         applied: &SVector<T, M>,
         h: T,
     ) -> SVector<T, M> {
@@ -285,9 +285,9 @@ impl<T: Real, const M: usize> Rejection<T, M> {
             self.estimate += match o.frame {
                 Frame::Body => (base - self.estimate * h).component_mul(ell),
                 Frame::World => {
-                    let mean = (self.anchor_r + G::rotation(q)) * half;
-                    let body = base - rotate_blocks(&mean.transpose(), &self.estimate) * h;
-                    rotate_blocks(&mean, &body).component_mul(ell)
+                    let mean = (self.anchor_r + r) * half;
+                    let body = base - G::rotate_coordinates(&mean.transpose(), &self.estimate) * h;
+                    G::rotate_coordinates(&mean, &body).component_mul(ell)
                 }
             };
             saturate(&mut self.estimate, o.limit.as_ref());
@@ -295,9 +295,8 @@ impl<T: Real, const M: usize> Rejection<T, M> {
         match o.frame {
             Frame::Body => self.estimate,
             Frame::World => {
-                let r = G::rotation(q);
-                self.anchor_r = r;
-                rotate_blocks(&r.transpose(), &self.estimate)
+                self.anchor_r = *r;
+                G::rotate_coordinates(&r.transpose(), &self.estimate)
             }
         }
     }
@@ -369,8 +368,9 @@ where
                 .config
                 .observer
                 .is_some_and(|o| o.frame == Frame::World)
+                && let Some(r) = G::attitude(q)
             {
-                rejection.anchor_r = G::rotation(q);
+                rejection.anchor_r = r;
             }
             Anchor {
                 gyro: G::ad_transpose_mul(v, &mu),
@@ -412,7 +412,14 @@ where
         let c = self.config();
         let mu = c.inertia * v;
         let gyro = G::ad_transpose_mul(v, &mu);
-        let observer = rejection.observe::<G, N>(&mu, &gyro, q, applied, h);
+        // the world frame needs the attitude; the body frame never reads it
+        let r = match rejection.config.observer {
+            Some(o) if o.frame == Frame::World => {
+                G::attitude(q).ok_or(Error::NoAttitude { group: G::NAME })?
+            }
+            _ => Matrix3::identity(),
+        };
+        let observer = rejection.observe::<G, N>(&mu, &gyro, &r, applied, h);
         let mut torque = tau - observer;
         let integral = match &rejection.config.integral {
             Some(i) => {

@@ -1,6 +1,5 @@
 //! Typed errors: no panics, no NaN torques.
 
-use crate::group::GroupKind;
 use crate::law::Law;
 use core::fmt;
 
@@ -95,8 +94,15 @@ pub enum Error {
     LawNotDefined {
         /// The law asked for.
         law: Law,
-        /// The group it was asked of.
-        group: GroupKind,
+        /// The group it was asked of ([`MatrixLieGroup::NAME`](crate::MatrixLieGroup::NAME)).
+        group: &'static str,
+    },
+    /// A feature that works in world axes (the disturbance observer with
+    /// `frame = World`) was asked of a group without an attitude
+    /// ([`MatrixLieGroup::attitude`](crate::MatrixLieGroup::attitude) is `None`).
+    NoAttitude {
+        /// The group's name.
+        group: &'static str,
     },
     /// A feedforward axis holds more cosine terms than the fixed capacity.
     TooManyTerms {
@@ -151,7 +157,12 @@ impl fmt::Display for Error {
                 f,
                 "law {} is not defined for group {} (only eqt is defined on every group)",
                 law.name(),
-                group.name()
+                group
+            ),
+            Error::NoAttitude { group } => write!(
+                f,
+                "the observer's world frame needs an attitude, and group {group} has none \
+                 (its MatrixLieGroup::attitude is None): use frame = body"
             ),
             Error::TooManyTerms { axis, capacity } => write!(
                 f,

@@ -231,7 +231,9 @@ where
 
     /// Advances by `period` with the body torque held constant and a wrench `world` constant
     /// in world axes at the body's origin (docs/maths.md, "Disturbance rejection"): the body
-    /// receives `τ + Rᵀ·world` (per 3-block), `R` the rotation at each RKMK4 stage.
+    /// receives `τ + Rᵀ·world` (per 3-block), `R` the rotation at each RKMK4 stage. On a
+    /// group without an [`attitude`](MatrixLieGroup::attitude) world and body axes are one:
+    /// the body receives `τ + world`.
     pub fn advance_with_world(
         &mut self,
         torque: &SVector<T, M>,
@@ -244,7 +246,10 @@ where
         for _ in 0..substeps {
             self.state = rkmk4_step::<G, T, _, N, M>(&self.state, T::zero(), h, |_, q, p| {
                 let v = inv * p;
-                let body = crate::disturbance::rotate_blocks(&G::rotation(q).transpose(), world);
+                let body = match G::attitude(q) {
+                    Some(r) => G::rotate_coordinates(&r.transpose(), world),
+                    None => *world,
+                };
                 (v, G::ad(&v).tr_mul(p) + torque + body)
             });
         }

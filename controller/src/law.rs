@@ -44,9 +44,15 @@ impl Law {
         Law::ALL.iter().copied().find(|l| l.name() == name)
     }
 
-    /// Whether the law exists on the group.
+    /// Whether the law exists on the built-in group `group`.
     pub fn defined_for(self, group: GroupKind) -> bool {
         self == Law::Eqt || group == GroupKind::So3
+    }
+
+    /// Whether the law exists on the group type `G`: EqT on every group, the SO(3) closed
+    /// forms (GT, nog, asym) on [`So3`](crate::So3) only, whoever else has n = m = 3.
+    pub fn defined_on<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> bool {
+        self == Law::Eqt || core::any::TypeId::of::<G>() == core::any::TypeId::of::<crate::So3>()
     }
 }
 
@@ -555,10 +561,10 @@ where
     /// Validates the configuration (SPD inertia and gains, positive finite limits, law defined
     /// on the group) and builds the controller.
     pub fn new(config: ControllerConfig<T, N, M>) -> Result<Self, Error> {
-        if !config.law.defined_for(G::KIND) {
+        if !config.law.defined_on::<G, N, M>() {
             return Err(Error::LawNotDefined {
                 law: config.law,
-                group: G::KIND,
+                group: G::NAME,
             });
         }
         let inertia_inv = spd_inverse(Quantity::Inertia, &config.inertia)?;

@@ -44,7 +44,7 @@ pub mod validate;
 
 pub use disturbance::{Frame, IntegralConfig, ObserverConfig, Rejection, RejectionConfig};
 pub use error::{Error, Quantity};
-pub use group::{GroupKind, MatrixLieGroup, Se3, So3};
+pub use group::{BuiltinGroup, GroupKind, MatrixLieGroup, Se3, So3};
 pub use law::{Controller, ControllerConfig, ErrorFrame, Law, LawOutput};
 pub use path::{Path, PathReference, PathSample, Segment};
 pub use reference::{

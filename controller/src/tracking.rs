@@ -181,7 +181,8 @@ pub struct ErrorNorms<T> {
     pub config_error: T,
     /// `‖p_E‖`.
     pub momentum_error: T,
-    /// `‖I − R_dᵀR‖_F` (attitude part only).
+    /// `‖I − R_dᵀR‖_F` (attitude part only); on a group without an
+    /// [`attitude`](crate::MatrixLieGroup::attitude), `‖Q_E − I‖_F`.
     pub attitude_error: T,
     /// `‖V − V_d‖`.
     pub velocity_error: T,
@@ -198,12 +199,15 @@ where
     G: MatrixLieGroup<N, M>,
     T: Real,
 {
-    let r = G::rotation(q);
-    let r_d = G::rotation(q_d);
+    let config_error = (error.q - SMatrix::<T, N, N>::identity()).norm();
+    let attitude_error = match (G::attitude(q), G::attitude(q_d)) {
+        (Some(r), Some(r_d)) => (nalgebra::Matrix3::identity() - r_d.tr_mul(&r)).norm(),
+        _ => config_error,
+    };
     ErrorNorms {
-        config_error: (error.q - SMatrix::<T, N, N>::identity()).norm(),
+        config_error,
         momentum_error: error.p.norm(),
-        attitude_error: (nalgebra::Matrix3::identity() - r_d.tr_mul(&r)).norm(),
+        attitude_error,
         velocity_error: velocity_error.norm(),
     }
 }

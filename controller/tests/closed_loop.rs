@@ -106,7 +106,7 @@ fn check_lyapunov<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     }
     eprintln!(
         "{:?}: worst rise {worst_rise:.3e}, worst rate error {worst_rate:.3e} (scale {scale:.3e})",
-        G::KIND
+        G::NAME
     );
     assert!(worst_rise <= rise_tol, "L rose by {worst_rise:e}");
     assert!(

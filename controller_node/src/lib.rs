@@ -13,7 +13,7 @@
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
-use controller::group::{MatrixLieGroup, OnGroup};
+use controller::group::{BuiltinGroup, OnGroup};
 use controller::{Source, Trajectory};
 use ipc_types::{PlanInvalid, StateMsg, name_str};
 use link::{ControllerEndpoint, ControllerEndpointConfig, Incoming, clock};
@@ -39,7 +39,7 @@ struct Node<'a> {
 
 impl OnGroup for Node<'_> {
     type Output = Result<Report, NodeError>;
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         run_group::<G, N, M>(self.opts, self.allocations)
     }
 }
@@ -50,7 +50,7 @@ fn log(msg: std::fmt::Arguments) {
 }
 
 /// The loop's state between cycles.
-struct Cycles<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
+struct Cycles<'a, G: BuiltinGroup<N, M>, const N: usize, const M: usize> {
     opts: &'a Options,
     responder: Responder<f64, G, N, M>,
     reference: Option<Source<f64, G, N, M>>,
@@ -108,7 +108,7 @@ impl std::fmt::Display for Untuned {
     }
 }
 
-impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M> {
+impl<G: BuiltinGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M> {
     /// A state of a run with run-time gains: puts the gains the `params` board gives for it
     /// in force (docs/live.md, "Tuning a running pair"). Allocation-free after the board is
     /// open; the gains change only when the board's set for this state differs.
@@ -230,7 +230,7 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Cycles<'_, G, N, M
 }
 
 /// The reference, built on the first state with the plant's control period.
-fn first_reference<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn first_reference<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     opts: &Options,
     msg: &StateMsg,
 ) -> Result<Source<f64, G, N, M>, NodeError> {
@@ -300,7 +300,7 @@ fn log_invalid(ep: &mut ControllerEndpoint) {
 
 /// The controller's cycle for scenario `s`: the law, its rejection terms, and a vehicle's
 /// allocation.
-fn responder_for<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn responder_for<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     s: &scenario::Scenario,
 ) -> Result<Responder<f64, G, N, M>, NodeError> {
     let responder = s
@@ -327,7 +327,7 @@ fn responder_for<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     })
 }
 
-fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn run_group<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     opts: &Options,
     allocations: &dyn Fn() -> u64,
 ) -> Result<Report, NodeError> {

@@ -4,7 +4,7 @@
 use crate::{NodeError, log};
 use control_cycle::PlanIntake;
 use controller::Trajectory;
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::path::PathReference;
 use ipc_types::PlanInvalid;
 use link::plan::PlanReader;
@@ -35,7 +35,7 @@ impl Stream {
 
     /// Appends the new pieces of every unseen plan message: those that start no earlier
     /// than the last piece appended ends and end no earlier than now. Allocation-free.
-    pub(crate) fn pull<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub(crate) fn pull<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &mut self,
         reference: &mut PathReference<f64, G, N, M>,
     ) {
@@ -71,7 +71,7 @@ impl Stream {
 
     /// Logs once when the stream runs dry (the last pose given is held, at rest: every
     /// piece ends at rest) and once when pieces cover `t_k` again.
-    pub(crate) fn watch<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub(crate) fn watch<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &mut self,
         reference: &PathReference<f64, G, N, M>,
     ) {

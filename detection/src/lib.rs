@@ -30,7 +30,7 @@ pub mod threshold;
 use allocation::{Commands, MAX_ACTUATORS, VehicleControl};
 use controller::Real;
 use controller::disturbance::rotate_blocks;
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use nalgebra::{Matrix3, SMatrix, SVector};
 
 /// The most periods the detector keeps: two windows.
@@ -511,7 +511,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// the period that ended at this state (body velocity `v`, attitude `r`), the test, and on
     /// a detection the allocator told: a dead or stuck actuator held at its value, a weak one
     /// scaled ([`VehicleControl::fail`], [`VehicleControl::weaken`]). Allocation-free.
-    pub fn observe<G: MatrixLieGroup<N, K>, const N: usize>(
+    pub fn observe<G: BuiltinGroup<N, K>, const N: usize>(
         &mut self,
         v: &SVector<T, K>,
         r: &Matrix3<T>,
@@ -524,7 +524,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// to the body, one per wheel of `control`; docs/maths.md, "Failure detection" and
     /// "Reaction wheels"): the body's momentum balance carries the wheels' momentum in its
     /// gyroscopic term, and a wheel's motor torque acts at once (no actuator lag).
-    pub fn observe_wheeled<G: MatrixLieGroup<N, K>, const N: usize>(
+    pub fn observe_wheeled<G: BuiltinGroup<N, K>, const N: usize>(
         &mut self,
         v: &SVector<T, K>,
         r: &Matrix3<T>,
@@ -542,7 +542,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
     }
 
     /// [`Detector::observe`] but for what the allocator holds next.
-    fn period<G: MatrixLieGroup<N, K>, const N: usize>(
+    fn period<G: BuiltinGroup<N, K>, const N: usize>(
         &mut self,
         v: &SVector<T, K>,
         r: &Matrix3<T>,

@@ -4,7 +4,7 @@
 
 use crate::Action;
 use controller::Real;
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::group::so3::log_so3;
 use controller::law::Desired;
 use controller::reference::Trajectory;
@@ -53,7 +53,7 @@ pub struct Setpoint<T: Real, G, const N: usize, const M: usize> {
 impl<T, G, const N: usize, const M: usize> Setpoint<T, G, N, M>
 where
     T: Real,
-    G: MatrixLieGroup<N, M>,
+    G: BuiltinGroup<N, M>,
 {
     /// Flying the reference, with the model inertia (for `p_d = I V_d`) and the rates; `q` is
     /// the estimate until one is observed.
@@ -179,7 +179,7 @@ pub struct Supervised<T: Real, G, R, const N: usize, const M: usize> {
 impl<T, G, R, const N: usize, const M: usize> Supervised<T, G, R, N, M>
 where
     T: Real,
-    G: MatrixLieGroup<N, M>,
+    G: BuiltinGroup<N, M>,
     R: Trajectory<T, N, M>,
 {
     /// `inner` under supervision, with the model inertia (for `p_d = I V_d`) and the rates.
@@ -229,7 +229,7 @@ pub fn tracking_errors<T, G, const N: usize, const M: usize>(
 ) -> (T, T)
 where
     T: Real,
-    G: MatrixLieGroup<N, M>,
+    G: BuiltinGroup<N, M>,
 {
     let angle = log_so3(&G::rotation(q_d).tr_mul(&G::rotation(q))).norm();
     let distance = if N == 4 {
@@ -243,7 +243,7 @@ where
 impl<T, G, R, const N: usize, const M: usize> Trajectory<T, N, M> for Supervised<T, G, R, N, M>
 where
     T: Real,
-    G: MatrixLieGroup<N, M>,
+    G: BuiltinGroup<N, M>,
     R: Trajectory<T, N, M>,
 {
     fn time(&self) -> T {

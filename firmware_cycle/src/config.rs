@@ -1,7 +1,7 @@
 //! What the firmware is built with: the scenario's controller settings in `f32`, as postcard
 //! bytes (the host writes them from a scenario; the firmware's build includes them).
 
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::reference::{AxisTorque, CosTerm, Feedforward};
 use controller::{
     Controller, ControllerConfig, ErrorFrame, IntegralConfig, Law, ObserverConfig, Reference,
@@ -301,7 +301,7 @@ impl Config {
     }
 
     /// The controller on group `G`.
-    pub fn controller<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn controller<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
     ) -> Result<Controller<f32, G, N, M>, ConfigError> {
         Ok(Controller::new(ControllerConfig {
@@ -319,7 +319,7 @@ impl Config {
     }
 
     /// The reference generator on group `G`.
-    pub fn reference<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn reference<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
     ) -> Result<Reference<f32, G, N, M>, ConfigError> {
         let r = &self.reference;

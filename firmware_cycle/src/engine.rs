@@ -4,7 +4,7 @@
 use crate::watch::Watcher;
 use crate::{Config, ConfigError, Dropped, Failure, MAX_SEQ_JUMP};
 use allocation::{Commands, VehicleControl};
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::{Controller, Reference, Rejection};
 use estimator::health::{Gate, Health};
 use heapless::Vec;
@@ -72,7 +72,7 @@ fn vec<const C: usize>(xs: &[f32]) -> Vec<f32, C> {
     Vec::from_slice(&xs[..xs.len().min(C)]).unwrap_or_default()
 }
 
-impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
+impl<G: BuiltinGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
     pub(crate) fn new(config: &Config) -> Result<Self, ConfigError> {
         let controller = config.controller::<G, N, M>()?;
         let reference = config.reference::<G, N, M>()?;

@@ -6,7 +6,7 @@
 
 use crate::{Config, ConfigError};
 use allocation::{Commands, VehicleControl};
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use nalgebra::{Matrix3, SMatrix, SVector};
 use serial_wire::Detection;
 
@@ -54,7 +54,7 @@ impl<const M: usize> Watcher<M> {
     /// (`follows`) and the plant applied that answer's wrench (`applied`, bit for bit); what
     /// it finds is told to the allocator, and carried by the command. With reaction wheels,
     /// their `speeds` enter the body's momentum balance.
-    pub(crate) fn before<G: MatrixLieGroup<N, M>, const N: usize>(
+    pub(crate) fn before<G: BuiltinGroup<N, M>, const N: usize>(
         &mut self,
         control: &mut VehicleControl<f32, M>,
         follows: bool,
@@ -117,7 +117,7 @@ impl<const M: usize> Watcher<M> {
         clippy::extra_unused_type_parameters,
         reason = "the signature of the build with the detector"
     )]
-    pub(crate) fn before<G: MatrixLieGroup<N, M>, const N: usize>(
+    pub(crate) fn before<G: BuiltinGroup<N, M>, const N: usize>(
         &mut self,
         _control: &mut VehicleControl<f32, M>,
         _follows: bool,

@@ -11,7 +11,7 @@ use crate::rng::Gen;
 use crate::scenario_target::{INTERESTING, join_lines, number_spans, random_number, split_lines};
 use controller::group::OnGroup;
 use controller::path::{MAX_SEGMENTS, Path};
-use controller::{GroupKind, Law, MatrixLieGroup};
+use controller::{BuiltinGroup, GroupKind, Law};
 use ipc_types::plan::{SHAPE_REST, SHAPE_THROUGH};
 use ipc_types::{MAX_M, MAX_N, PLAN_WINDOW, PlanMsg, WireSegment, check_plan};
 use nalgebra::{SMatrix, SVector};
@@ -171,7 +171,7 @@ struct Exercise<'a> {
 }
 
 /// The EqT law with unit inertia and gains: what the fuzzed paths' samples are handed to.
-pub(crate) fn unit_controller<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>()
+pub(crate) fn unit_controller<G: BuiltinGroup<N, M>, const N: usize, const M: usize>()
 -> controller::Controller<f64, G, N, M> {
     controller::Controller::<f64, G, N, M>::new(controller::ControllerConfig {
         law: Law::Eqt,
@@ -185,7 +185,7 @@ pub(crate) fn unit_controller<G: MatrixLieGroup<N, M>, const N: usize, const M: 
 }
 
 /// The law on a desired sample from the identity at rest: a finite torque or an error.
-pub(crate) fn law_on<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub(crate) fn law_on<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     controller: &controller::Controller<f64, G, N, M>,
     sample: &controller::PathSample<f64, N, M>,
 ) {
@@ -203,7 +203,7 @@ pub(crate) fn law_on<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 impl OnGroup for Exercise<'_> {
     type Output = Result<(), String>;
 
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let spec = self.spec;
         let poses: Vec<SMatrix<f64, N, N>> = spec
             .poses

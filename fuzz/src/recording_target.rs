@@ -16,7 +16,7 @@ use crate::path_target::{FIELD_VALUES, law_on, unit_controller};
 use crate::rng::Gen;
 use control_cycle::PlanIntake;
 use controller::group::OnGroup;
-use controller::{GroupKind, MatrixLieGroup, Source, Trajectory};
+use controller::{BuiltinGroup, GroupKind, Source, Trajectory};
 use ipc_types::{CommandMsg, MAX_M, PLAN_WINDOW, PlanMsg, StateMsg, WireSegment};
 use nalgebra::SVector;
 use plant::estimation::Estimation;
@@ -65,7 +65,7 @@ struct SeedRecords<'a> {
 
 impl OnGroup for SeedRecords<'_> {
     type Output = ();
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) {
         let s = self.s;
         let mut body = s.plant_body::<G, N, M>().expect("the scenario's body");
         let mut e = Estimation::new(s, s.control_period, &[])
@@ -109,7 +109,7 @@ struct SeedPlans<'a> {
 
 impl OnGroup for SeedPlans<'_> {
     type Output = ();
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) {
         let spec = self.s.path.as_ref().expect("a slew has waypoints");
         for kind in [PathKind::Stop, PathKind::Through] {
             let mut spec = spec.clone();
@@ -232,7 +232,7 @@ struct Estimate<'a> {
 
 impl OnGroup for Estimate<'_> {
     type Output = ();
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) {
         let Ok(Some(mut e)) = Estimation::new(self.s, self.s.control_period, &[]) else {
             panic!("the shipped scenario's estimator");
         };
@@ -259,7 +259,7 @@ struct Intake<'a> {
 
 impl OnGroup for Intake<'_> {
     type Output = Result<(), String>;
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let mut reference = control_cycle::streamed_reference::<G, N, M>(self.s)
             .expect("the slew's streamed reference");
         let Source::Path(path) = &mut reference else {

@@ -7,7 +7,7 @@
 use crate::SimError;
 use crate::sensors::{SampleFault, Sensors};
 use crate::trajectory::{EstimateRow, Row};
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::group::so3::log_so3;
 use controller::integrator::RigidBody;
 use estimator::Filter;
@@ -173,7 +173,7 @@ impl Estimation {
     /// Tick k: samples the sensors from the true body (`held`: the torque held over the
     /// previous period, plus the disturbance), steps the filter, and returns the state the
     /// law is handed and the row's sensor and estimate columns.
-    pub fn measure<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn measure<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &mut self,
         k: u64,
         body: &RigidBody<f64, G, N, M>,
@@ -185,7 +185,7 @@ impl Estimation {
 
     /// Tick k's samples from the true body (with the test's planted faults), without
     /// stepping a filter: what a controller that estimates on board is sent.
-    pub fn sample<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn sample<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &mut self,
         k: u64,
         body: &RigidBody<f64, G, N, M>,

@@ -8,7 +8,7 @@ use ::failsafe::monitor::{Flags, Limits, Monitor};
 use ::failsafe::setpoint::{Rates, Supervised};
 use ::failsafe::thrust_axis::ThrustAxis;
 use ::failsafe::{Action, Cause, State};
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::reference::Trajectory;
 use nalgebra::{SMatrix, SVector};
 use scenario::Scenario;
@@ -91,7 +91,7 @@ impl Supervision {
         reference: &SupervisedReference<G, R, N, M>,
     ) -> Option<SVector<f64, M>>
     where
-        G: MatrixLieGroup<N, M>,
+        G: BuiltinGroup<N, M>,
         R: Trajectory<f64, N, M>,
     {
         let law = self.thrust.as_ref()?;
@@ -131,7 +131,7 @@ impl Supervision {
         inner: R,
     ) -> SupervisedReference<G, R, N, M>
     where
-        G: MatrixLieGroup<N, M>,
+        G: BuiltinGroup<N, M>,
         R: Trajectory<f64, N, M>,
     {
         Supervised::new(
@@ -151,7 +151,7 @@ impl Supervision {
         flags: Flags,
         reference: &mut SupervisedReference<G, R, N, M>,
     ) where
-        G: MatrixLieGroup<N, M>,
+        G: BuiltinGroup<N, M>,
         R: Trajectory<f64, N, M>,
     {
         if let Some(monitor) = &mut self.monitor {

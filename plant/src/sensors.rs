@@ -10,7 +10,7 @@
 //! Scripted faults (`[[sensors.fault]]`, docs/scenario.md, "Sensor faults") are applied to
 //! the samples after the draws, so they change nothing outside their own sensor and time.
 
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::integrator::RigidBody;
 use nalgebra::{Matrix3, SVector, Vector3};
 use rand_chacha::ChaCha8Rng;
@@ -139,7 +139,7 @@ impl Sensors {
     /// The samples at tick `k` from the true body. `torque` is what the plant held over the
     /// previous period (command plus disturbance; zero at k = 0): the accelerometer at `t_k`
     /// sees the acceleration it causes at `t_k`.
-    pub fn sample<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn sample<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &mut self,
         k: u64,
         body: &RigidBody<f64, G, N, M>,

@@ -3,7 +3,7 @@
 use crate::SimError;
 use controller::GroupKind;
 use controller::closed_loop::{ClosedLoop, Sample};
-use controller::group::{MatrixLieGroup, OnGroup};
+use controller::group::{BuiltinGroup, OnGroup};
 use controller::integrator::RigidBody;
 use controller::law::{ControllerConfig, Desired};
 use controller::reference::Trajectory;
@@ -140,7 +140,7 @@ impl Row {
     /// configuration `c` forms (its error frame, model inertia and K), through the same
     /// functions the controller uses, so the in-process simulation and the plant process of
     /// the pair record identical numbers.
-    pub fn new<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn new<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         t: f64,
         q: &SMatrix<f64, N, N>,
         v: &SVector<f64, M>,
@@ -208,7 +208,7 @@ impl Row {
     }
 
     /// The row of a closed-loop sample.
-    pub fn from_sample<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn from_sample<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         s: &Sample<f64, N, M>,
         c: &ControllerConfig<f64, N, M>,
     ) -> Row {
@@ -270,7 +270,7 @@ struct WorldFrameFinding<'a> {
 
 impl OnGroup for WorldFrameFinding<'_> {
     type Output = Option<(f64, f64)>;
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let s = self.s;
         let mut reference = s.reference_source::<G, N, M>().ok()?;
         let inertia = SMatrix::<f64, M, M>::from_row_slice(&s.model_inertia);
@@ -340,7 +340,7 @@ struct Simulate<'a> {
 
 impl OnGroup for Simulate<'_> {
     type Output = Result<SimulatedTrajectory, SimError>;
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let plant = self.s.plant_body::<G, N, M>().map_err(input(self.s))?;
         simulate_with_planted::<G, N, M>(self.s, plant, self.faults, self.on_step)
     }
@@ -352,7 +352,7 @@ pub fn input(s: &Scenario) -> impl Fn(controller::Error) -> SimError + '_ {
 }
 
 /// Runs the scenario's controller and reference against a given plant body.
-pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub fn simulate_with<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     s: &Scenario,
     plant: RigidBody<f64, G, N, M>,
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
@@ -364,7 +364,7 @@ pub fn simulate_with<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 /// builds' `--fault-sample`). With `[sensors]`, each tick samples the sensors from the true
 /// body, steps the estimator and hands the law its estimate
 /// (docs/architecture.md, "Sensors and the estimator").
-pub fn simulate_with_planted<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub fn simulate_with_planted<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     s: &Scenario,
     plant: RigidBody<f64, G, N, M>,
     faults: &[(u64, crate::sensors::SampleFault)],
@@ -386,7 +386,7 @@ pub fn simulate_against<G, const N: usize, const M: usize, R>(
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
 ) -> Result<SimulatedTrajectory, SimError>
 where
-    G: MatrixLieGroup<N, M>,
+    G: BuiltinGroup<N, M>,
     R: Trajectory<f64, N, M>,
 {
     if let Some(run) = crate::vehicle::VehicleRun::<M>::of(s)? {

@@ -9,7 +9,7 @@ use crate::wheels::{MAX_WHEELS, Wheel, Wheels};
 use allocation::{Actuation, Commands, MAX_ACTUATORS, Restoring, VehicleControl};
 use controller::closed_loop::ClosedLoop;
 use controller::disturbance::rotate_blocks;
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::integrator::RigidBody;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use scenario::Scenario;
@@ -162,7 +162,7 @@ impl<const M: usize> Actuators<M> {
 /// Advances `body` by one period `h` in `substeps` RKMK4 steps under the actuators' wrench
 /// (lagging inside the period), the environment's (at every stage's state) and a further
 /// body wrench `extra` held over the period; then ends the actuators' period.
-pub fn step<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub fn step<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     body: &mut RigidBody<f64, G, N, M>,
     environment: &Environment<M>,
     actuators: &mut Actuators<M>,
@@ -175,7 +175,7 @@ pub fn step<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 
 /// [`step`] with a wrench `world` constant in world axes at the body's origin as well
 /// (rotated into the body at every stage).
-pub fn step_in_world<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub fn step_in_world<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     body: &mut RigidBody<f64, G, N, M>,
     environment: &Environment<M>,
     actuators: &mut Actuators<M>,
@@ -197,7 +197,7 @@ pub fn step_in_world<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 
 /// [`step_in_world`], with the reaction wheels `wheels` integrated beside the body when given
 /// (docs/maths.md, "Reaction wheels").
-fn advance<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn advance<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     body: &mut RigidBody<f64, G, N, M>,
     wheels: Option<&mut Wheels>,
     environment: &Environment<M>,
@@ -371,7 +371,7 @@ impl<const M: usize> VehicleRun<M> {
     /// Integrates the body (with its wheels) over `h` in `substeps` under the actuators, the
     /// environment and the body and world disturbances (docs/maths.md, "Vehicle physics" and
     /// "Reaction wheels").
-    pub fn step<G: MatrixLieGroup<N, M>, const N: usize>(
+    pub fn step<G: BuiltinGroup<N, M>, const N: usize>(
         &mut self,
         plant: &mut RigidBody<f64, G, N, M>,
         (body, world): (&SVector<f64, M>, Option<&SVector<f64, M>>),
@@ -450,7 +450,7 @@ impl<const M: usize> VehicleRun<M> {
     /// body's true velocity `v_true` (their tachometers), and on a detection the
     /// allocator told and the detection recorded, with its latency where the scenario
     /// scripted a failure of that actuator before `t`.
-    pub fn detect<G: MatrixLieGroup<N, M>, const N: usize>(
+    pub fn detect<G: BuiltinGroup<N, M>, const N: usize>(
         &mut self,
         t: f64,
         (v, r): (&SVector<f64, M>, &Matrix3<f64>),
@@ -572,7 +572,7 @@ pub fn simulate<G, const N: usize, const M: usize, R>(
     on_step: &(dyn Fn(u64) -> Result<(), SimError> + Sync),
 ) -> Result<SimulatedTrajectory, SimError>
 where
-    G: MatrixLieGroup<N, M>,
+    G: BuiltinGroup<N, M>,
     R: controller::reference::Trajectory<f64, N, M>,
 {
     let mut estimation = crate::estimation::Estimation::new(s, s.control_period, faults)?;
@@ -675,7 +675,7 @@ impl<const M: usize> VehicleRun<M> {
     /// minimum when `disarmed`), the detector told the command,
     /// the actuators commanded and the plant advanced over `h` in `substeps` with the body and
     /// world disturbances. Returns the actuation and what the actuators produced at its start.
-    fn cycle<G: MatrixLieGroup<N, M>, const N: usize>(
+    fn cycle<G: BuiltinGroup<N, M>, const N: usize>(
         &mut self,
         plant: &mut RigidBody<f64, G, N, M>,
         (wrench, thrust, (r_hat, v_hat), disarmed): Asked<'_, M>,

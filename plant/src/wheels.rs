@@ -14,7 +14,7 @@
 //! up, once per control period from the speed at its start; friction is evaluated at every
 //! stage from the stage's wheel speed.
 
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::integrator::RigidBody;
 use nalgebra::{SMatrix, SVector, Vector3};
 
@@ -340,7 +340,7 @@ impl Wheels {
         substeps: usize,
         mut wrench: F,
     ) where
-        G: MatrixLieGroup<N, M>,
+        G: BuiltinGroup<N, M>,
         F: FnMut(f64, &SMatrix<f64, N, N>, &SVector<f64, M>) -> SVector<f64, M>,
     {
         let (wheels, count) = (self.wheels, self.count);
@@ -371,7 +371,7 @@ pub struct Gyrostat<G, const N: usize, const M: usize> {
     locked: SMatrix<f64, M, M>,
 }
 
-impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> Gyrostat<G, N, M> {
+impl<G: BuiltinGroup<N, M>, const N: usize, const M: usize> Gyrostat<G, N, M> {
     /// A body of inertia `inertia` with its wheels locked (Basilisk's convention: the whole
     /// spacecraft's), carrying `wheels` spinning at `speeds` relative to it (rad/s), at
     /// configuration `q` with body velocity `v`.

@@ -4,7 +4,7 @@
 //! (energy and spatial momentum conserved).
 
 use allocation::{Allocator, Commands, Geometry, Priority, Restoring, presets};
-use controller::group::{MatrixLieGroup, Se3};
+use controller::group::{BuiltinGroup, MatrixLieGroup, Se3};
 use controller::integrator::RigidBody;
 use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, Vector3};
 use plant::vehicle::{Actuators, Environment, step};

@@ -3,7 +3,7 @@
 //! decaying a wheel (Coulomb and viscous exactly, Stribeck against the scalar model), the
 //! motor's limits in Basilisk's order, and momentum kept over a whole saturating flight.
 
-use controller::group::{MatrixLieGroup, Se3, So3};
+use controller::group::{BuiltinGroup, MatrixLieGroup, Se3, So3};
 use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, Vector3};
 use plant::wheels::{Gyrostat, LIMIT_CYCLE_SPEED, MAX_WHEELS, Wheel, WheelError};
 

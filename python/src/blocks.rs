@@ -41,7 +41,7 @@ fn compute<G, const N: usize, const M: usize>(
     tau_d: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<(Py<PyArray1<f64>>, f64)>
 where
-    G: controller::MatrixLieGroup<N, M>,
+    G: controller::BuiltinGroup<N, M>,
 {
     let q = matrix::<N, N>(args[0], "q")?;
     let v = vector::<M>(args[1], "v")?;

@@ -8,7 +8,7 @@ use crate::arrays::{matrix, out1, vector};
 use crate::source;
 use control_cycle::ControllerVehicle;
 use controller::GroupKind;
-use controller::group::{MatrixLieGroup, Se3, So3};
+use controller::group::{BuiltinGroup, Se3, So3};
 use ipc_types::{CommandMsg, StateMsg, WireGroup};
 use nalgebra::SVector;
 use pyo3::exceptions::PyValueError;
@@ -42,7 +42,7 @@ struct Step<'a, 'py> {
     follows: bool,
 }
 
-fn step<'py, G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn step<'py, G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     py: Python<'py>,
     vehicle: &mut ControllerVehicle<M>,
     state: &mut StateMsg,

@@ -3,7 +3,7 @@
 use crate::{
     BUILTINS, PathKind, Scenario, ScenarioError, StateSpec, Validator, build_path, parse_law,
 };
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::group::so3::exp_so3;
 use controller::integrator::RigidBody;
 use controller::reference::{AxisTorque, CosTerm, Feedforward};
@@ -137,7 +137,7 @@ impl Scenario {
     }
 
     /// The controller.
-    pub fn controller<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn controller<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
     ) -> Result<Controller<f64, G, N, M>, controller::Error> {
         Controller::new(self.controller_config())
@@ -162,7 +162,7 @@ impl Scenario {
     }
 
     /// The reference generator (model inertia, control period, reference substeps).
-    pub fn reference_generator<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn reference_generator<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
     ) -> Result<Reference<f64, G, N, M>, controller::Error> {
         Reference::new(
@@ -176,7 +176,7 @@ impl Scenario {
     }
 
     /// The path of a waypoint or set-point scenario (`None` for a feedforward series).
-    pub fn path<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn path<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
     ) -> Option<Result<GroupPath<f64, G, N, M>, controller::Error>> {
         self.path.as_ref().map(build_path::<G, N, M>)
@@ -184,7 +184,7 @@ impl Scenario {
 
     /// The desired trajectory, whichever its kind: the feedforward series integrated, or the
     /// path through waypoints (a set-point) stepped at the control period.
-    pub fn reference_source<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn reference_source<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
     ) -> Result<Source<f64, G, N, M>, controller::Error> {
         Ok(match self.path::<G, N, M>() {
@@ -207,7 +207,7 @@ impl Scenario {
     }
 
     /// The plant body at its initial state (true inertia, any added mass included).
-    pub fn plant_body<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    pub fn plant_body<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
     ) -> Result<RigidBody<f64, G, N, M>, controller::Error> {
         RigidBody::new(

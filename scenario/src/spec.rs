@@ -2,7 +2,7 @@
 
 use crate::Scenario;
 use controller::Path as GroupPath;
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use nalgebra::{SMatrix, SVector};
 
 /// One cosine term of a feedforward axis.
@@ -85,7 +85,7 @@ pub struct PathSpec {
 
 /// The path of a [`PathSpec`] on its group: the stop path (`Path::through`) or the
 /// through-path (`Path::flying`, with the velocities given).
-pub fn build_path<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub fn build_path<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     spec: &PathSpec,
 ) -> Result<GroupPath<f64, G, N, M>, controller::Error> {
     let poses: Vec<SMatrix<f64, N, N>> = spec

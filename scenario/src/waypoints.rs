@@ -6,7 +6,7 @@
 
 use crate::{PathKind, PathSpec, Pose, ScenarioError};
 use controller::GroupKind;
-use controller::group::{MatrixLieGroup, OnGroup};
+use controller::group::{BuiltinGroup, OnGroup};
 use controller::path::MAX_SEGMENTS;
 use std::io::Read;
 use std::path::Path;
@@ -344,7 +344,7 @@ struct Build<'a>(&'a PathSpec);
 
 impl OnGroup for Build<'_> {
     type Output = Result<(), ScenarioError>;
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let spec = self.0;
         let path = crate::build_path::<G, N, M>(spec).map_err(|e| {
             let index = match e {

@@ -2,7 +2,7 @@
 //! `reference.csv` (`t`, `qd_ij`, `vd_i`, `vd_dot_i`, `tau_d_i`) and a figure — so that a
 //! manoeuvre is checked before it is flown.
 
-use controller::group::{MatrixLieGroup, OnGroup};
+use controller::group::{BuiltinGroup, OnGroup};
 use controller::{Source, Trajectory};
 use nalgebra::{SMatrix, SVector};
 use plant::SimError;
@@ -39,7 +39,7 @@ struct Sampler<'a>(&'a Scenario);
 
 impl OnGroup for Sampler<'_> {
     type Output = Result<Vec<ReferenceRow>, SimError>;
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let s = self.0;
         let mut source = s.reference_source::<G, N, M>().map_err(input(s))?;
         let inertia = SMatrix::<f64, M, M>::from_row_slice(&s.model_inertia);

@@ -62,7 +62,24 @@ pub trait OnGroup {
     /// What the code returns.
     type Output;
     /// Runs with the group `G` of n×n matrices and an m-dimensional algebra.
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output;
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output;
+}
+
+/// A group eqtrack ships: what messages, configuration and vehicles need beyond the
+/// mathematics ([`MatrixLieGroup`]).
+///
+/// The processes, the wire and the scenario files name a group by its [`GroupKind`] and fly
+/// vehicles whose actuators are fixed in a rotating body; both need this trait. The law, the
+/// phase-space group, the tracking error, the integrator, the references and the closed loop
+/// need only [`MatrixLieGroup`], so a group defined outside this crate runs them
+/// (docs/groups.md, "Add your own group").
+pub trait BuiltinGroup<const N: usize, const M: usize>: MatrixLieGroup<N, M> {
+    /// Which group this is (the wire's and the scenario's code for it).
+    const KIND: GroupKind;
+
+    /// The attitude part `R` of `Q` (SO(3): `Q` itself; SE(3): its rotation block), the
+    /// rotation from body to world axes.
+    fn rotation<T: Real>(q: &SMatrix<T, N, N>) -> nalgebra::Matrix3<T>;
 }
 
 /// A matrix Lie group of n×n matrices with an m-dimensional algebra.
@@ -70,11 +87,17 @@ pub trait OnGroup {
 /// Implementations are zero-sized markers; every operation is an associated function generic
 /// over the scalar. The defaults are the generic matrix definitions; groups override them with
 /// closed forms where they exist.
+///
+/// This is all the law and its proof need: a group defined outside eqtrack implements the
+/// seven required functions (and [`NAME`](Self::NAME)) and runs the law, the tracking error,
+/// the integrator and the closed loop; the property kit (`controller::kit`, feature `kit`)
+/// checks it. [`attitude`](Self::attitude) is optional, for the features that work in world
+/// axes.
 pub trait MatrixLieGroup<const N: usize, const M: usize>:
     Copy + Clone + core::fmt::Debug + Default + Send + Sync + 'static
 {
-    /// Which group this is.
-    const KIND: GroupKind;
+    /// The group's name in messages (`"so3"`, `"se3"`, `"se2"` for eqtrack's own groups).
+    const NAME: &'static str;
 
     /// `hat : ℝᵐ → g`, `hat(v) = Σ vᵢ Eᵢ`.
     fn hat<T: Real>(v: &SVector<T, M>) -> SMatrix<T, N, N>;
@@ -103,8 +126,25 @@ pub trait MatrixLieGroup<const N: usize, const M: usize>:
         Self::ad(v).tr_mul(mu)
     }
 
-    /// The attitude part `R` of `Q` (SO(3): `Q` itself; SE(3): its rotation block).
-    fn rotation<T: Real>(q: &SMatrix<T, N, N>) -> nalgebra::Matrix3<T>;
+    /// The rotation from body to world axes at `Q`, if the group has one; `None` (the
+    /// default) when it has not.
+    ///
+    /// Two features work in world axes and need it: the disturbance observer with
+    /// `frame = World` (refused, [`Error::NoAttitude`](crate::Error::NoAttitude), on a group
+    /// without one) and the attitude part of [`error_norms`](crate::tracking::error_norms).
+    fn attitude<T: Real>(q: &SMatrix<T, N, N>) -> Option<nalgebra::Matrix3<T>> {
+        let _ = q;
+        None
+    }
+
+    /// How the rotation `r` acts on algebra and dual coordinates: the rotated twist or wrench
+    /// `w`, each linear and angular part turned by `r`, with no lever arm (docs/maths.md,
+    /// "Disturbance rejection"). The default turns every block of three coordinates
+    /// ([`rotate_blocks`](crate::disturbance::rotate_blocks)), which is SO(3)'s and SE(3)'s;
+    /// a group whose coordinates are not blocks of three overrides it.
+    fn rotate_coordinates<T: Real>(r: &nalgebra::Matrix3<T>, w: &SVector<T, M>) -> SVector<T, M> {
+        crate::disturbance::rotate_blocks(r, w)
+    }
 
     /// The basis element `E_i` (`i < m`; any other index gives the zero matrix).
     fn basis<T: Real>(i: usize) -> SMatrix<T, N, N> {

@@ -2,7 +2,7 @@
 //! `Ad_(R,x) = [[R, 0], [x×R, R]]`, `ad_(ω,v) = [[ω×, 0], [v×, ω×]]` (docs/maths.md, "Conventions").
 
 use super::so3::{exp_so3, left_jacobian_so3, log_so3, skew};
-use super::{GroupKind, MatrixLieGroup};
+use super::{BuiltinGroup, GroupKind, MatrixLieGroup};
 use crate::{Real, real};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
@@ -51,8 +51,16 @@ fn blocks<T: Real>(a: &Matrix3<T>, b: &Matrix3<T>, c: &Matrix3<T>) -> SMatrix<T,
     m
 }
 
-impl MatrixLieGroup<4, 6> for Se3 {
+impl BuiltinGroup<4, 6> for Se3 {
     const KIND: GroupKind = GroupKind::Se3;
+
+    fn rotation<T: Real>(q: &SMatrix<T, 4, 4>) -> Matrix3<T> {
+        rotation(q)
+    }
+}
+
+impl MatrixLieGroup<4, 6> for Se3 {
+    const NAME: &'static str = "se3";
 
     fn hat<T: Real>(v: &SVector<T, 6>) -> SMatrix<T, 4, 4> {
         let (w, u) = split(v);
@@ -107,8 +115,8 @@ impl MatrixLieGroup<4, 6> for Se3 {
         from_parts(&rt, &(-(rt * translation(q))))
     }
 
-    fn rotation<T: Real>(q: &SMatrix<T, 4, 4>) -> Matrix3<T> {
-        rotation(q)
+    fn attitude<T: Real>(q: &SMatrix<T, 4, 4>) -> Option<Matrix3<T>> {
+        Some(rotation(q))
     }
 
     /// `(R_aᵀ R_b, R_aᵀ (x_b − x_a))`: the difference of the positions first.

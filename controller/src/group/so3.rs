@@ -1,6 +1,6 @@
 //! SO(3): n = m = 3, `hat(v)` the cross-product matrix, `Ad_R = R`, `ad_v = v×`.
 
-use super::{GroupKind, MatrixLieGroup};
+use super::{BuiltinGroup, GroupKind, MatrixLieGroup};
 use crate::{Real, real};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
@@ -114,8 +114,16 @@ pub fn log_so3<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
     }
 }
 
-impl MatrixLieGroup<3, 3> for So3 {
+impl BuiltinGroup<3, 3> for So3 {
     const KIND: GroupKind = GroupKind::So3;
+
+    fn rotation<T: Real>(q: &SMatrix<T, 3, 3>) -> Matrix3<T> {
+        *q
+    }
+}
+
+impl MatrixLieGroup<3, 3> for So3 {
+    const NAME: &'static str = "so3";
 
     fn hat<T: Real>(v: &SVector<T, 3>) -> SMatrix<T, 3, 3> {
         skew(v)
@@ -137,8 +145,8 @@ impl MatrixLieGroup<3, 3> for So3 {
         q.transpose()
     }
 
-    fn rotation<T: Real>(q: &SMatrix<T, 3, 3>) -> Matrix3<T> {
-        *q
+    fn attitude<T: Real>(q: &SMatrix<T, 3, 3>) -> Option<Matrix3<T>> {
+        Some(<Self as BuiltinGroup<3, 3>>::rotation(q))
     }
 
     fn adjoint<T: Real>(q: &SMatrix<T, 3, 3>) -> SMatrix<T, 3, 3> {

@@ -33,7 +33,7 @@ mod output;
 mod run;
 
 use controller::Law;
-use controller::group::{MatrixLieGroup, OnGroup};
+use controller::group::{BuiltinGroup, OnGroup};
 use ipc_types::{CommandMsg, flags};
 use link::wire::group_code;
 use plant::SimError;
@@ -275,7 +275,7 @@ struct Replay<'a> {
 
 impl OnGroup for Replay<'_> {
     type Output = Result<ReplayReport, SimError>;
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         replay_group::<G, N, M>(self.opts, self.log, self.s, self.plans)
     }
 }

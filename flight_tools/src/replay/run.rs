@@ -7,7 +7,7 @@ use super::output::{Row, figure, write_csv};
 use super::{Difference, EstimatorCheck, ReplayOptions, ReplayReport};
 use control_cycle::PlanIntake;
 use controller::Source;
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::{Law, Trajectory as _};
 use ipc_types::{CommandMsg, StateMsg};
 use plant::SimError;
@@ -28,7 +28,7 @@ impl Plans<'_> {
     /// Before state k is answered (the reference still at the previous state's time, as
     /// the node pulls after answering): hands over what the controller had taken by the
     /// time it answered, as recorded command `c` says.
-    fn catch_up<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+    fn catch_up<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &mut self,
         c: &CommandMsg,
         cycle: u64,
@@ -62,7 +62,7 @@ impl Plans<'_> {
     }
 }
 
-pub(super) fn replay_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub(super) fn replay_group<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     opts: &ReplayOptions,
     log: &mut LogReader,
     s: &Scenario,
@@ -81,7 +81,7 @@ type LawResponder<G, const N: usize, const M: usize> =
 
 /// The replay of one recording on group `G`: the controller's cycle (and the estimator) run
 /// again over the records in order, with the node's own checks and bookkeeping.
-struct ReplayRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
+struct ReplayRun<'a, G: BuiltinGroup<N, M>, const N: usize, const M: usize> {
     opts: &'a ReplayOptions,
     s: &'a Scenario,
     what_if: bool,
@@ -124,7 +124,7 @@ struct ReplayRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
     unseen: Vec<(u64, usize, control_cycle::Responder<f64, G, N, M>)>,
 }
 
-impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, G, N, M> {
+impl<'a, G: BuiltinGroup<N, M>, const N: usize, const M: usize> ReplayRun<'a, G, N, M> {
     fn new(
         opts: &'a ReplayOptions,
         log: &LogReader,
@@ -595,7 +595,7 @@ fn bad(s: &Scenario) -> impl Fn(controller::Error) -> SimError + '_ {
 
 /// The controller's cycle for scenario `s` with law `law` (the scenario's own, or another
 /// one a recorded command names).
-fn responder_for<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn responder_for<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     s: &Scenario,
     law: Law,
 ) -> Result<control_cycle::Responder<f64, G, N, M>, SimError> {

@@ -13,7 +13,7 @@ use crate::scenario_target::controller_error_kind;
 use crate::{Outcome, ParamsCase, ParamsKind, ParamsReceiver};
 use control_cycle::Responder;
 use controller::group::OnGroup;
-use controller::{GroupKind, MatrixLieGroup};
+use controller::{BuiltinGroup, GroupKind};
 use ipc_types::{Gains, MAX_M, MAX_N, PROTOCOL_VERSION, ParamMsg, StateMsg};
 use link::wire::wire_group;
 use scenario::Scenario;
@@ -388,7 +388,7 @@ pub(super) fn check(run: &Run, r: &ParamsReceiver, bytes: &[u8]) -> Outcome {
 }
 
 /// The run's responder, as `controller_node` builds it (the runs have no vehicle).
-pub(super) fn responder<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+pub(super) fn responder<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     s: &Scenario,
 ) -> Responder<f64, G, N, M> {
     s.controller::<G, N, M>()
@@ -398,7 +398,7 @@ pub(super) fn responder<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>
 
 /// Asserts that `r` runs with `gains` (its `K`, `K_d` and, for the terms it runs, `L`,
 /// `K_I` and `c`), bit for bit.
-fn assert_in_force<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn assert_in_force<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     r: &Responder<f64, G, N, M>,
     gains: &Gains,
 ) {
@@ -444,7 +444,7 @@ pub(super) struct Retuned<'a> {
 impl OnGroup for Retuned<'_> {
     type Output = Outcome;
 
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Outcome {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Outcome {
         let s = self.s;
         let mut retuned = responder::<G, N, M>(s);
         if let Err(e) = retuned.retune(self.gains) {

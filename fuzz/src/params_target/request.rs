@@ -13,7 +13,7 @@ use crate::rng::Gen;
 use crate::scenario_target::{INTERESTING, number_spans, parse_class, random_number};
 use crate::{Outcome, ParamsCase, ParamsKind, ParamsReceiver};
 use controller::group::OnGroup;
-use controller::{GroupKind, MatrixLieGroup};
+use controller::{BuiltinGroup, GroupKind};
 use ipc_types::params::{PARAM_KEY_BYTES, PARAM_TEXT_BYTES, PARAM_VALUE_BYTES};
 use ipc_types::{PROTOCOL_VERSION, ParamRequest, padded_bytes, padded_str, param_op};
 use link::params::{Answer, read_request, response};
@@ -608,7 +608,7 @@ struct Builds<'a>(&'a Scenario);
 impl OnGroup for Builds<'_> {
     type Output = ();
 
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) {
         let s = self.0;
         let c = s
             .controller::<G, N, M>()

@@ -3,7 +3,7 @@
 
 use crate::Outcome;
 use controller::group::OnGroup;
-use controller::{Law, MatrixLieGroup, Quantity};
+use controller::{BuiltinGroup, Law, Quantity};
 use scenario::{Scenario, ScenarioError};
 
 /// Closed-loop cycles run on an accepted scenario, at most.
@@ -72,7 +72,8 @@ pub(crate) fn controller_error_kind(e: &controller::Error) -> String {
         E::NotPositiveDefinite(x) => format!("NotPositiveDefinite({})", q(x)),
         E::NotPositive(x) => format!("NotPositive({})", q(x)),
         E::WrongShape { quantity, .. } => format!("WrongShape({})", q(quantity)),
-        E::LawNotDefined { law, group } => format!("LawNotDefined({law:?}, {group:?})"),
+        E::LawNotDefined { law, group } => format!("LawNotDefined({law:?}, {group})"),
+        E::NoAttitude { group } => format!("NoAttitude({group})"),
         E::TooManyTerms { .. } => "TooManyTerms".to_owned(),
         E::NotIncreasing { .. } => "NotIncreasing".to_owned(),
         E::TooManySegments { .. } => "TooManySegments".to_owned(),
@@ -92,7 +93,7 @@ struct Exercise<'a>(&'a Scenario);
 impl OnGroup for Exercise<'_> {
     type Output = Result<(), String>;
 
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let s = self.0;
         let controller = s
             .controller::<G, N, M>()
@@ -188,7 +189,7 @@ fn failsafe_checked<G, R, const N: usize, const M: usize>(
     q: &nalgebra::SMatrix<f64, N, N>,
     v: &nalgebra::SVector<f64, M>,
 ) where
-    G: MatrixLieGroup<N, M>,
+    G: BuiltinGroup<N, M>,
     R: controller::reference::Trajectory<f64, N, M> + Clone,
 {
     let rates = failsafe::setpoint::Rates {
@@ -282,7 +283,7 @@ fn firmware_checked<const N: usize, const M: usize>(
 
 /// Tick `k` of the plant side's estimator (sensors, faults, filter and gate): the state it
 /// hands the law must be finite, whatever the samples.
-fn estimate_checked<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn estimate_checked<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     e: &mut plant::estimation::Estimation,
     k: u64,
     body: &controller::integrator::RigidBody<f64, G, N, M>,

@@ -5,7 +5,7 @@ use super::rejection;
 use crate::scenario_target::controller_error_kind;
 use crate::{MsgKind, Outcome, Receiver, WireCase};
 use controller::group::OnGroup;
-use controller::{GroupKind, MatrixLieGroup};
+use controller::{BuiltinGroup, GroupKind};
 use ipc_types::{
     CommandMsg, DecodeError, Identity, PROTOCOL_VERSION, StateMsg, check_command, check_state,
     name_bytes, name_str,
@@ -71,7 +71,7 @@ struct LawOnState<'a> {
 impl OnGroup for LawOnState<'_> {
     type Output = Result<(), String>;
 
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         let stage = |name: &str, e: controller::Error| {
             format!("{name}: controller::Error::{}", controller_error_kind(&e))
         };
@@ -137,7 +137,7 @@ struct PlantOnCommand<'a> {
 impl OnGroup for PlantOnCommand<'_> {
     type Output = ();
 
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) {
         let s = self.scenario;
         let mut body = s.plant_body::<G, N, M>().expect("built-in plant");
         let applied = self.msg.torque::<M>() + s.disturbance_vector::<M>();

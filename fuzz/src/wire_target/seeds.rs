@@ -3,7 +3,7 @@
 
 use super::{Corpus, Item, rejection};
 use crate::MsgKind;
-use controller::MatrixLieGroup;
+use controller::BuiltinGroup;
 use controller::group::OnGroup;
 use ipc_types::{CommandMsg, Identity, StateMsg, flags, mismatch, name_bytes};
 use link::wire::wire_group;
@@ -16,7 +16,7 @@ struct Realistic<'a>(&'a Scenario);
 impl OnGroup for Realistic<'_> {
     type Output = Vec<Item>;
 
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Vec<Item> {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Vec<Item> {
         let s = self.0;
         // The built-in scenarios are valid: the unit tests check it.
         let c = s.controller::<G, N, M>().expect("built-in controller");

@@ -5,14 +5,14 @@ use crate::SimError;
 use crate::spawn::Spawned;
 use crate::trajectory::Row;
 use controller::Trajectory as _;
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::law::{safe_mode_torque, saturate};
 use link::{Command, Decision, NoCommand, Transition, clock};
 use recorder::Record;
 use std::io::IsTerminal;
 use std::time::Instant;
 
-impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G, N, M> {
+impl<'a, G: BuiltinGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G, N, M> {
     /// Command k in real time: waits for it until the tick's deadline and asks the
     /// [`DeadlinePolicy`] what to apply.
     pub(super) fn realtime_command(

@@ -15,7 +15,7 @@ use crate::SimError;
 use crate::output::ensure_dir;
 use crate::spawn::Spawned;
 use crate::trajectory::SimulatedTrajectory;
-use controller::group::{MatrixLieGroup, OnGroup};
+use controller::group::{BuiltinGroup, OnGroup};
 use std::time::{Duration, Instant};
 
 mod cycle;
@@ -57,12 +57,12 @@ struct Pair<'a>(&'a PairOptions);
 
 impl OnGroup for Pair<'_> {
     type Output = Result<(SimulatedTrajectory, PairSummary), SimError>;
-    fn run<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
+    fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
         run_group::<G, N, M>(self.0)
     }
 }
 
-fn run_group<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
+fn run_group<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     opts: &PairOptions,
 ) -> Result<(SimulatedTrajectory, PairSummary), SimError> {
     let mut run = PlantRun::<G, N, M>::new(opts)?;

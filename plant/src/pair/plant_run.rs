@@ -8,7 +8,7 @@ use crate::output::{Summary, write_json, write_trajectory_csv};
 use crate::plot::trajectory_figure;
 use crate::spawn::Spawned;
 use crate::trajectory::{Row, SimulatedTrajectory, input};
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use ipc_types::StateMsg;
 use link::wire::group_code;
 use link::{Command, DeadlinePolicy, NoCommand, PlantEndpoint, PlantEndpointConfig, clock};
@@ -18,7 +18,7 @@ use scenario::Scenario;
 use std::time::Instant;
 
 /// The plant side of one run: body, scenario, endpoint, policy and records.
-pub(super) struct PlantRun<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> {
+pub(super) struct PlantRun<'a, G: BuiltinGroup<N, M>, const N: usize, const M: usize> {
     pub(super) opts: &'a PairOptions,
     pub(super) s: Scenario,
     pub(super) steps: u64,
@@ -122,7 +122,7 @@ pub(super) fn corrupt(msg: &mut StateMsg, fault: StateFault, group: controller::
     }
 }
 
-impl<'a, G: MatrixLieGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G, N, M> {
+impl<'a, G: BuiltinGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G, N, M> {
     /// The scenario at the run's period, the body, the reference for the records, the
     /// endpoint.
     pub(super) fn new(opts: &'a PairOptions) -> Result<Self, SimError> {

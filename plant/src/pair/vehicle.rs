@@ -7,7 +7,7 @@ use crate::trajectory::VehicleRow;
 use crate::vehicle::{VehicleReport, VehicleRun};
 use crate::wheels::MAX_WHEELS;
 use allocation::{Actuation, Allocation, Commands, Status};
-use controller::group::MatrixLieGroup;
+use controller::group::BuiltinGroup;
 use controller::integrator::RigidBody;
 use ipc_types::CommandMsg;
 use nalgebra::SVector;
@@ -113,7 +113,7 @@ impl<const M: usize> PairVehicle<M> {
 
     /// Safe mode: the plant allocates `wrench` (the damping law) itself, compensating the
     /// restoring wrench at the body's true attitude.
-    pub(super) fn safe<G: MatrixLieGroup<N, M>, const N: usize>(
+    pub(super) fn safe<G: BuiltinGroup<N, M>, const N: usize>(
         &mut self,
         wrench: &SVector<f64, M>,
         body: &RigidBody<f64, G, N, M>,
@@ -137,7 +137,7 @@ impl<const M: usize> PairVehicle<M> {
 
     /// Integrates `[t_k, t_{k+1})` under the actuators, the environment and the scenario's
     /// disturbances of tick k, then takes the wrench held for the accelerometer at `t_{k+1}`.
-    pub(super) fn advance<G: MatrixLieGroup<N, M>, const N: usize>(
+    pub(super) fn advance<G: BuiltinGroup<N, M>, const N: usize>(
         &mut self,
         body: &mut RigidBody<f64, G, N, M>,
         s: &Scenario,
