@@ -34,6 +34,8 @@ pub mod disturbance;
 pub mod error;
 pub mod group;
 pub mod integrator;
+#[cfg(any(test, feature = "kit"))]
+pub mod kit;
 pub mod law;
 pub mod path;
 pub mod reference;
@@ -44,7 +46,7 @@ pub mod validate;
 
 pub use disturbance::{Frame, IntegralConfig, ObserverConfig, Rejection, RejectionConfig};
 pub use error::{Error, Quantity};
-pub use group::{BuiltinGroup, GroupKind, MatrixLieGroup, Se3, So3};
+pub use group::{BuiltinGroup, GroupKind, MatrixLieGroup, Se2, Se3, So3};
 pub use law::{Controller, ControllerConfig, ErrorFrame, Law, LawOutput};
 pub use path::{Path, PathReference, PathSample, Segment};
 pub use reference::{

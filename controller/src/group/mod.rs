@@ -4,9 +4,11 @@
 //! `v ∈ ℝᵐ` in the basis `E_1..E_m` (`hat(v) = Σ vᵢ Eᵢ`). Momenta are coordinate vectors dual
 //! to that basis, so `Ad*_X ≅ Ad_Xᵀ` and `ad*_v ≅ ad_vᵀ`.
 
+pub mod se2;
 pub mod se3;
 pub mod so3;
 
+pub use se2::Se2;
 pub use se3::Se3;
 pub use so3::So3;
 
