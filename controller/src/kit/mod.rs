@@ -343,14 +343,76 @@ where
     }
 }
 
+/// A state `(Q, V, Q_d, V_d)` of the continuous closed loop.
+type LoopState<const N: usize, const M: usize> = (
+    SMatrix<f64, N, N>,
+    SVector<f64, M>,
+    SMatrix<f64, N, N>,
+    SVector<f64, M>,
+);
+
+/// A state's rate `(V, V̇, V_d, V̇_d)`, the configurations' rates as body velocities.
+type LoopRate<const M: usize> = [SVector<f64, M>; 4];
+
+/// The continuous closed loop of [`check_lyapunov`]: the law, the plant with the model's
+/// inertia, and a reference with the constant body acceleration `accel`.
+struct ContinuousLoop<G, const N: usize, const M: usize> {
+    law: Controller<f64, G, N, M>,
+    accel: SVector<f64, M>,
+}
+
+impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ContinuousLoop<G, N, M> {
+    /// The reference at `(Q_d, V_d)` with the feed-forward `τ_d = I a − ad_{V_d}ᵀ I V_d` that
+    /// gives it the acceleration `a`.
+    fn desired(&self, x: &LoopState<N, M>) -> Desired<f64, N, M> {
+        let inertia = self.law.config().inertia;
+        Desired {
+            q: x.2,
+            p: inertia * x.3,
+            v: x.3,
+            tau: inertia * self.accel - G::ad(&x.3).tr_mul(&(inertia * x.3)),
+        }
+    }
+
+    /// The state's rate, or `None` where the law refuses the state.
+    fn rate(&self, x: &LoopState<N, M>) -> Option<LoopRate<M>> {
+        let out = self.law.compute(&x.0, &x.1, &self.desired(x)).ok()?;
+        let momentum = self.law.config().inertia * x.1;
+        let v_dot = self.law.inertia_inverse() * (G::ad(&x.1).tr_mul(&momentum) + out.torque);
+        Some([x.1, v_dot, x.3, self.accel])
+    }
+
+    /// `x` moved along the rate `k` for `h` seconds (configurations by the exponential).
+    fn moved(x: &LoopState<N, M>, k: &LoopRate<M>, h: f64) -> LoopState<N, M> {
+        (
+            x.0 * G::exp(&(k[0] * h)),
+            x.1 + k[1] * h,
+            x.2 * G::exp(&(k[2] * h)),
+            x.3 + k[3] * h,
+        )
+    }
+
+    /// One RK4 step of `h` in the algebra (frozen-frame increments, fine at small `h`), or
+    /// `None` where the law refuses a stage.
+    fn step(&self, x: &LoopState<N, M>, h: f64) -> Option<LoopState<N, M>> {
+        let k1 = self.rate(x)?;
+        let k2 = self.rate(&Self::moved(x, &k1, h / 2.0))?;
+        let k3 = self.rate(&Self::moved(x, &k2, h / 2.0))?;
+        let k4 = self.rate(&Self::moved(x, &k3, h))?;
+        let avg: LoopRate<M> =
+            core::array::from_fn(|i| (k1[i] + k2[i] * 2.0 + k3[i] * 2.0 + k4[i]) / 6.0);
+        Some(Self::moved(x, &avg, h))
+    }
+}
+
 /// The law's Lyapunov function along the continuous closed loop (docs/maths.md, "The EqT
 /// law"): the plant's inertia equal to the model's, the torque evaluated at every stage of
 /// RK4 steps of `10⁻⁴` s (no hold), a reference with a constant body acceleration and the
 /// feed-forward torque that carries it, from an initial error drawn from stream `seed`.
 /// Over 4 000 steps, the central difference of `L` equals the stated rate for
 /// `config.error_frame` within `10⁻⁵` of `1 + |L̇|`, and where that rate is a damping term
-/// (`Reference`, `World`) `L` never rises by more than `10⁻¹⁰(1 + L₀)` in a step. `config.law`
-/// must be EqT. Returns the number of checks made.
+/// (`Reference`, `World`) `L` never rises by more than `10⁻¹⁰(1 + L₀)` in a step. The law is
+/// EqT whatever `config.law` says, without a torque limit. Returns the number of checks made.
 pub fn check_lyapunov<G, const N: usize, const M: usize>(
     config: &ControllerConfig<f64, N, M>,
     seed: u64,
@@ -358,71 +420,47 @@ pub fn check_lyapunov<G, const N: usize, const M: usize>(
 where
     G: MatrixLieGroup<N, M>,
 {
+    let fail = |property: &'static str, sample: usize, error: f64, tolerance: f64| Failure {
+        property,
+        sample,
+        error,
+        tolerance,
+    };
+    let refused = |k: usize| {
+        fail(
+            "the law answers every state of the loop",
+            k,
+            f64::INFINITY,
+            0.0,
+        )
+    };
     let c = ControllerConfig {
         law: Law::Eqt,
         torque_limit: None,
         ..*config
     };
-    let Ok(law) = Controller::<f64, G, N, M>::new(c) else {
-        return Err(Failure {
-            property: "the controller accepts the configuration",
-            sample: 0,
-            error: f64::INFINITY,
-            tolerance: 0.0,
-        });
-    };
-    let s = |i: u64, scale: f64| sample::<M>(seed, i, scale);
-    let accel = s(0, 0.5);
-    let inertia = c.inertia;
-    let inertia_inv = *law.inertia_inverse();
-    let desired_at = |q_d: &SMatrix<f64, N, N>, v_d: &SVector<f64, M>| Desired {
-        q: *q_d,
-        p: inertia * v_d,
-        v: *v_d,
-        tau: inertia * accel - G::ad(v_d).tr_mul(&(inertia * v_d)),
-    };
-    type State<const N: usize, const M: usize> = (
-        SMatrix<f64, N, N>,
-        SVector<f64, M>,
-        SMatrix<f64, N, N>,
-        SVector<f64, M>,
-    );
-    // the rates (V, V̇, V_d, V̇_d) of one state, or None where the law refuses it
-    let rate = |x: &State<N, M>| {
-        let out = law.compute(&x.0, &x.1, &desired_at(&x.2, &x.3)).ok()?;
-        let v_dot = inertia_inv * (G::ad(&x.1).tr_mul(&(inertia * x.1)) + out.torque);
-        Some((x.1, v_dot, x.3, accel))
-    };
-    let moved = |x: &State<N, M>,
-                 k: &(
-        SVector<f64, M>,
-        SVector<f64, M>,
-        SVector<f64, M>,
-        SVector<f64, M>,
-    ),
-                 h: f64| {
-        (
-            x.0 * G::exp(&(k.0 * h)),
-            x.1 + k.1 * h,
-            x.2 * G::exp(&(k.2 * h)),
-            x.3 + k.3 * h,
+    let law = Controller::<f64, G, N, M>::new(c).map_err(|_| {
+        fail(
+            "the controller accepts the configuration",
+            0,
+            f64::INFINITY,
+            0.0,
         )
-    };
-    let refused = |k: usize| Failure {
-        property: "the law answers every state of the loop",
-        sample: k,
-        error: f64::INFINITY,
-        tolerance: 0.0,
+    })?;
+    let s = |i: u64, scale: f64| sample::<M>(seed, i, scale);
+    let sim = ContinuousLoop {
+        law,
+        accel: s(0, 0.5),
     };
     let h = 1e-4;
-    let mut x: State<N, M> = (G::exp(&s(1, 1.0)), s(2, 1.0), G::exp(&s(3, 1.0)), s(4, 1.0));
+    let mut x: LoopState<N, M> = (G::exp(&s(1, 1.0)), s(2, 1.0), G::exp(&s(3, 1.0)), s(4, 1.0));
     let mut checks = 0;
-    // (L, stated L̇) at the last two steps
-    let mut window: [(f64, f64); 2] = [(f64::NAN, f64::NAN); 2];
+    // (L, stated L̇) at the last two steps, and L at the start
+    let mut window = [(f64::NAN, f64::NAN); 2];
     let mut first = f64::NAN;
     for k in 0..4000 {
         let out = law
-            .compute(&x.0, &x.1, &desired_at(&x.2, &x.3))
+            .compute(&x.0, &x.1, &sim.desired(&x))
             .map_err(|_| refused(k))?;
         let l = out.lyapunov.total;
         let stated = stated_rate::<G, N, M>(&c, &x.0, &x.2, &x.3, &out.velocity_error);
@@ -435,42 +473,18 @@ where
             let err = (measured - expected).abs() / (1.0 + expected.abs());
             checks += 1;
             if err > 1e-5 {
-                return Err(Failure {
-                    property: "L̇ is the stated rate",
-                    sample: k - 1,
-                    error: err,
-                    tolerance: 1e-5,
-                });
+                return Err(fail("L̇ is the stated rate", k - 1, err, 1e-5));
             }
         }
         if k >= 1 && c.error_frame != ErrorFrame::Recentred {
             let rise = (l - window[1].0) / (1.0 + first.abs());
             checks += 1;
             if rise > 1e-10 {
-                return Err(Failure {
-                    property: "L never rises",
-                    sample: k,
-                    error: rise,
-                    tolerance: 1e-10,
-                });
+                return Err(fail("L never rises", k, rise, 1e-10));
             }
         }
         window = [window[1], (l, stated)];
-        let k1 = rate(&x).ok_or(refused(k))?;
-        let k2 = rate(&moved(&x, &k1, h / 2.0)).ok_or(refused(k))?;
-        let k3 = rate(&moved(&x, &k2, h / 2.0)).ok_or(refused(k))?;
-        let k4 = rate(&moved(&x, &k3, h)).ok_or(refused(k))?;
-        let avg = |a: SVector<f64, M>,
-                   b: SVector<f64, M>,
-                   c: SVector<f64, M>,
-                   d: SVector<f64, M>| { (a + b * 2.0 + c * 2.0 + d) / 6.0 };
-        let step = (
-            avg(k1.0, k2.0, k3.0, k4.0),
-            avg(k1.1, k2.1, k3.1, k4.1),
-            avg(k1.2, k2.2, k3.2, k4.2),
-            avg(k1.3, k2.3, k3.3, k4.3),
-        );
-        x = moved(&x, &step, h);
+        x = sim.step(&x, h).ok_or(refused(k))?;
     }
     Ok(checks)
 }
