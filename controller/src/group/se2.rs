@@ -1,7 +1,7 @@
 //! SE(2): n = m = 3, twists ordered **(ω, v_x, v_y)** (angular first), wrenches
 //! `(τ, f_x, f_y)`; `hat(ω, v) = [[0, −ω, v_x], [ω, 0, v_y], [0, 0, 0]]`,
 //! `Ad_(R,x) = [[1, 0], [−J x, R]]`, `ad_(ω,v) = [[0, 0], [−J v, ω J]]` with
-//! `J = [[0, −1], [1, 0]]` (docs/maths.md, "SE(2)").
+//! `J = [[0, −1], [1, 0]]` (docs/maths.md, "Conventions").
 
 use super::MatrixLieGroup;
 use crate::{Real, real};

@@ -7,8 +7,8 @@
 //!   for a group with a rotation in it, some near its cut locus (a rotation angle near π),
 //!   where `log` is hardest.
 //! * [`check_error_dynamics`]: the error-dynamics theorem along two trajectories of the
-//!   extended system, by central differences (docs/maths.md, "Tracking error and its
-//!   dynamics").
+//!   extended system, by central differences
+//!   (docs/maths.md, "Tracking error and its dynamics").
 //! * [`check_lyapunov`]: the law's `L` along the continuous closed loop, its rate against
 //!   the rate docs/maths.md states for the configured error frame, and no rise where that
 //!   rate is `−eᵀK_d e ≤ 0`.
@@ -405,8 +405,8 @@ impl<G: MatrixLieGroup<N, M>, const N: usize, const M: usize> ContinuousLoop<G, 
     }
 }
 
-/// The law's Lyapunov function along the continuous closed loop (docs/maths.md, "The EqT
-/// law"): the plant's inertia equal to the model's, the torque evaluated at every stage of
+/// The law's Lyapunov function along the continuous closed loop
+/// (docs/maths.md, "The EqT law"): the plant's inertia equal to the model's, the torque evaluated at every stage of
 /// RK4 steps of `10⁻⁴` s (no hold), a reference with a constant body acceleration and the
 /// feed-forward torque that carries it, from an initial error drawn from stream `seed`.
 /// Over 4 000 steps, the central difference of `L` equals the stated rate for
