@@ -55,6 +55,32 @@ pub enum GeometryError<T, const K: usize> {
     },
     /// The actuators cannot produce every wrench: the directions they miss.
     DoesNotSpan(LostDirections<T, K>),
+    /// A planar geometry's actuator `index` leaves the plane: a non-zero z in its
+    /// `position` or `axis`, or a reaction torque (`torque_per_thrust`) about an in-plane axis.
+    OutOfPlane {
+        /// The actuator (0-based).
+        index: usize,
+        /// `position`, `axis` or `torque_per_thrust`.
+        field: &'static str,
+    },
+}
+
+impl<T: Copy> GeometryError<T, 6> {
+    /// An actuator's own refusal (not finite, a zero axis, `min > max`) in a geometry of
+    /// another dimension; what concerns the whole geometry becomes
+    /// [`GeometryError::Dimension`].
+    fn of_actuator<const K: usize>(self) -> GeometryError<T, K> {
+        match self {
+            GeometryError::NonFinite { index, field } => GeometryError::NonFinite { index, field },
+            GeometryError::ZeroAxis { index } => GeometryError::ZeroAxis { index },
+            GeometryError::MinAboveMax { index, min, max } => {
+                GeometryError::MinAboveMax { index, min, max }
+            }
+            GeometryError::Count { count } => GeometryError::Count { count },
+            GeometryError::OutOfPlane { index, field } => GeometryError::OutOfPlane { index, field },
+            GeometryError::Dimension | GeometryError::DoesNotSpan(_) => GeometryError::Dimension,
+        }
+    }
 }
 
 /// The wrench directions a geometry cannot produce: an orthonormal basis of the complement
@@ -116,7 +142,7 @@ impl<T: RealField + Copy + fmt::Display, const K: usize> fmt::Display for Geomet
                 write!(f, "{count} actuators: a vehicle has 1 to {MAX_ACTUATORS}")
             }
             GeometryError::Dimension => {
-                write!(f, "the wrench has 3 (SO(3)) or 6 (SE(3)) components")
+                write!(f, "the wrench has 3 (SO(3), SE(2)) or 6 (SE(3)) components")
             }
             GeometryError::NonFinite { index, field } => {
                 write!(f, "actuator {index}: `{field}` is not a finite number")
@@ -130,6 +156,10 @@ impl<T: RealField + Copy + fmt::Display, const K: usize> fmt::Display for Geomet
             GeometryError::DoesNotSpan(lost) => write!(
                 f,
                 "the actuators cannot produce every wrench: they miss {lost}"
+            ),
+            GeometryError::OutOfPlane { index, field } => write!(
+                f,
+                "actuator {index}: `{field}` leaves the plane of a planar (SE(2)) vehicle"
             ),
         }
     }
@@ -200,6 +230,52 @@ impl<T: RealField + Copy, const K: usize> Geometry<T, K> {
             g.b.set_column(j, &c);
             g.min[j] = pure.min;
             g.max[j] = pure.max;
+        }
+        let lost = lost_directions(&g.b);
+        if lost.count > 0 {
+            return Err(GeometryError::DoesNotSpan(lost));
+        }
+        Ok(g)
+    }
+
+    /// A planar vehicle's geometry (SE(2), `K` = 3, wrenches `(τ, f_x, f_y)`): actuator `j`
+    /// at `(x, y)` in the body plane thrusting along the in-plane axis `a` (made unit) has the
+    /// column `(x a_y − y a_x, a_x, a_y)`, the rows `(τ_z, f_x, f_y)` of its SE(3) column
+    /// (docs/maths.md, "Control allocation"). Positions and axes are in the plane: their z
+    /// entries are 0, and a reaction torque about the axis (`torque_per_thrust`) would lie in
+    /// the plane, so it must be 0 too. The same refusals as [`Geometry::new`], and
+    /// [`GeometryError::Dimension`] for a `K` other than 3.
+    pub fn planar(actuators: &[Actuator<T>]) -> Result<Self, GeometryError<T, K>> {
+        if K != 3 {
+            return Err(GeometryError::Dimension);
+        }
+        let count = actuators.len();
+        if count == 0 || count > MAX_ACTUATORS {
+            return Err(GeometryError::Count { count });
+        }
+        let mut g = Geometry {
+            b: SMatrix::zeros(),
+            count,
+            min: Commands::zeros(),
+            max: Commands::zeros(),
+        };
+        for (j, a) in actuators.iter().enumerate() {
+            let out = [
+                ("position", a.position[2]),
+                ("axis", a.axis[2]),
+                ("torque_per_thrust", a.torque_per_thrust),
+            ];
+            if let Some((field, _)) = out.iter().find(|(_, x)| *x != T::zero()) {
+                return Err(GeometryError::OutOfPlane { index: j, field });
+            }
+            let full = column::<T, 6>(j, a).map_err(GeometryError::of_actuator)?;
+            let mut c = SVector::<T, K>::zeros();
+            for (r, row) in [2, 3, 4].into_iter().enumerate() {
+                c[r] = full[row];
+            }
+            g.b.set_column(j, &c);
+            g.min[j] = a.min;
+            g.max[j] = a.max;
         }
         let lost = lost_directions(&g.b);
         if lost.count > 0 {

@@ -164,7 +164,7 @@ def main():
             print("observe: the plant ended the run")
             break
         last_seq = s.seq
-        n, m = (3, 3) if s.group == 1 else (4, 6)
+        n, m = {1: (3, 3), 2: (4, 6), 3: (3, 3)}.get(s.group, (4, 6))
         err = math.sqrt(
             sum((s.q[i * n + j] - (1.0 if i == j else 0.0)) ** 2 for i in range(3) for j in range(3))
         )

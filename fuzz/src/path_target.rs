@@ -287,13 +287,16 @@ impl OnGroup for Exercise<'_> {
 }
 
 /// Checks one waypoint-file input on the group its header names (SE(3) when the fifth
-/// column is `x`) and both path kinds.
+/// column is `x`, SE(2) when the second is `theta`) and both path kinds.
 pub(crate) fn check(input: &[u8]) -> Outcome {
     let text = String::from_utf8_lossy(input);
     let hash = fnv(input);
     let header = text.lines().next().unwrap_or("");
-    let group = if header.split(',').nth(4).map(str::trim) == Some("x") {
+    let column = |i: usize| header.split(',').nth(i).map(str::trim);
+    let group = if column(4) == Some("x") {
         GroupKind::Se3
+    } else if column(1) == Some("theta") {
+        GroupKind::Se2
     } else {
         GroupKind::So3
     };

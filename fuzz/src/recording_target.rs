@@ -32,7 +32,7 @@ const RECORD_PART: usize = RECORD_BYTES + SENSOR_BYTES;
 /// slews' streamed references.
 struct Scenarios {
     sensors: [Scenario; 2],
-    slews: [Scenario; 2],
+    slews: [Scenario; 3],
 }
 
 fn scenarios() -> &'static Scenarios {
@@ -46,7 +46,7 @@ fn scenarios() -> &'static Scenarios {
         };
         Scenarios {
             sensors: [load("sensors_so3"), load("eqf_se3")],
-            slews: [load("slew_so3"), load("slew_se3")],
+            slews: [load("slew_so3"), load("slew_se3"), load("slew_se2")],
         }
     })
 }
@@ -317,6 +317,7 @@ pub(crate) fn check(input: &[u8]) -> Outcome {
     let s = match link::wire::group_kind(entry.msg.group) {
         Some(GroupKind::So3) => &sc.slews[0],
         Some(GroupKind::Se3) => &sc.slews[1],
+        Some(GroupKind::Se2) => &sc.slews[2],
         None => {
             // the intake checks the group first: on either slew it is refused, typed
             let r = sc.slews[0].group.dispatch(Intake {

@@ -27,6 +27,7 @@
 /* group codes */
 #define EQTRACK_GROUP_SO3 1u
 #define EQTRACK_GROUP_SE3 2u
+#define EQTRACK_GROUP_SE2 3u
 
 /* StateMsg.flags and CommandMsg.flags */
 #define EQTRACK_FLAG_WAKE_EVENT 1u

@@ -9,17 +9,20 @@ pub enum WireGroup {
     So3,
     /// SE(3): code 2, n = 4, m = 6.
     Se3,
+    /// SE(2): code 3, n = 3, m = 3.
+    Se2,
 }
 
 impl WireGroup {
     /// Every group the wire knows.
-    pub const ALL: [WireGroup; 2] = [WireGroup::So3, WireGroup::Se3];
+    pub const ALL: [WireGroup; 3] = [WireGroup::So3, WireGroup::Se3, WireGroup::Se2];
 
     /// Its code in a message's `group` field.
     pub fn code(self) -> u32 {
         match self {
             WireGroup::So3 => 1,
             WireGroup::Se3 => 2,
+            WireGroup::Se2 => 3,
         }
     }
 
@@ -33,14 +36,16 @@ impl WireGroup {
         match self {
             WireGroup::So3 => (3, 3),
             WireGroup::Se3 => (4, 6),
+            WireGroup::Se2 => (3, 3),
         }
     }
 
-    /// Its name in logs (`so3`, `se3`).
+    /// Its name in logs (`so3`, `se3`, `se2`).
     pub fn name(self) -> &'static str {
         match self {
             WireGroup::So3 => "so3",
             WireGroup::Se3 => "se3",
+            WireGroup::Se2 => "se2",
         }
     }
 }

@@ -265,7 +265,7 @@ fn the_c_header_has_the_rust_layout() {
 
 #[test]
 fn the_header_names_the_protocol_version_and_limits() {
-    use ipc_types::WireGroup::{Se3, So3};
+    use ipc_types::WireGroup::{Se2, Se3, So3};
     let h = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/include/eqtrack_wire.h"
@@ -294,6 +294,7 @@ fn the_header_names_the_protocol_version_and_limits() {
         ),
         ("EQTRACK_GROUP_SO3", format!("{}u", So3.code())),
         ("EQTRACK_GROUP_SE3", format!("{}u", Se3.code())),
+        ("EQTRACK_GROUP_SE2", format!("{}u", Se2.code())),
         (
             "EQTRACK_FLAG_WAKE_EVENT",
             format!("{}u", ipc_types::flags::WAKE_EVENT),

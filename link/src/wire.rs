@@ -13,6 +13,7 @@ pub fn wire_group(kind: GroupKind) -> WireGroup {
     match kind {
         GroupKind::So3 => WireGroup::So3,
         GroupKind::Se3 => WireGroup::Se3,
+        GroupKind::Se2 => WireGroup::Se2,
     }
 }
 
@@ -21,6 +22,7 @@ pub fn group_of(group: WireGroup) -> GroupKind {
     match group {
         WireGroup::So3 => GroupKind::So3,
         WireGroup::Se3 => GroupKind::Se3,
+        WireGroup::Se2 => GroupKind::Se2,
     }
 }
 

@@ -432,7 +432,7 @@ where
             .step_measured(&q_hat, &v_hat)
             .map_err(|e| SimError::Run(format!("closed loop stopped at t = {t} s: {e}")))?;
         held = sample.output.torque
-            + s.disturbance_wrench::<M>(k, &G::rotation(sim.plant.configuration()));
+            + s.disturbance_wrench::<G, N, M>(k, &G::rotation(sim.plant.configuration()));
         let c = sim.controller.config();
         rows.push(
             Row::from_sample::<G, N, M>(&sample, c)

@@ -8,7 +8,6 @@ use crate::trajectory::{EstimateRow, Row, SimulatedTrajectory, Terms, VehicleRow
 use crate::wheels::{MAX_WHEELS, Wheel, Wheels};
 use allocation::{Actuation, Commands, MAX_ACTUATORS, Restoring, VehicleControl};
 use controller::closed_loop::ClosedLoop;
-use controller::disturbance::rotate_blocks;
 use controller::group::BuiltinGroup;
 use controller::integrator::RigidBody;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
@@ -211,7 +210,7 @@ fn advance<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         let r = G::rotation(q);
         let mut w = a.wrench_at(s) + environment.wrench(&r, v) + extra;
         if let Some(world) = world {
-            w += rotate_blocks(&r.transpose(), world);
+            w += G::rotate_coordinates(&r.transpose(), world);
         }
         w
     };
@@ -630,7 +629,7 @@ where
         let r = G::rotation(sim.plant.configuration());
         held = run.wrench_of(&run.produced())
             + run.environment.wrench(&r, &sim.plant.velocity())
-            + s.disturbance_wrench::<M>(k, &r);
+            + s.disturbance_wrench::<G, N, M>(k, &r);
         let c = sim.controller.config();
         rows.push(
             Row::from_sample::<G, N, M>(&sample, c)

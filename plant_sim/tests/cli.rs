@@ -169,8 +169,8 @@ fn every_validation_error_names_the_key_and_exits_2() {
         ),
         (
             "unknown group",
-            base_with("group = \"so3\"", "group = \"se2\""),
-            &["group", "unknown group `se2`"],
+            base_with("group = \"so3\"", "group = \"se4\""),
+            &["group", "unknown group `se4`"],
         ),
         (
             "position on so3",

@@ -5,7 +5,7 @@
 
 use crate::arrays::{matrix, out1, out2, read_into, rows, rows3, vector};
 use crate::source;
-use controller::group::{Se3, So3};
+use controller::group::{Se2, Se3, So3};
 use controller::law::Desired;
 use controller::{Controller as Law, GroupKind};
 use estimator::{
@@ -25,6 +25,7 @@ fn value_err(e: impl std::fmt::Display) -> PyErr {
 enum Either {
     So3(Box<Law<f64, So3, 3, 3>>),
     Se3(Box<Law<f64, Se3, 4, 6>>),
+    Se2(Box<Law<f64, Se2, 3, 3>>),
 }
 
 /// The scenario's controller (its law, gains, model inertia and torque limit).
@@ -75,6 +76,9 @@ impl Controller {
             GroupKind::Se3 => {
                 Either::Se3(Box::new(s.controller::<Se3, 4, 6>().map_err(value_err)?))
             }
+            GroupKind::Se2 => {
+                Either::Se2(Box::new(s.controller::<Se2, 3, 3>().map_err(value_err)?))
+            }
         };
         Ok(Controller {
             law,
@@ -82,7 +86,7 @@ impl Controller {
         })
     }
 
-    /// The group: `"so3"` or `"se3"`.
+    /// The group: `"so3"`, `"se3"` or `"se2"`.
     #[getter]
     fn group(&self) -> &'static str {
         self.group.name()
@@ -104,6 +108,7 @@ impl Controller {
         match &self.law {
             Either::So3(l) => compute(py, l, [q, v, q_d, v_d], tau_d),
             Either::Se3(l) => compute(py, l, [q, v, q_d, v_d], tau_d),
+            Either::Se2(l) => compute(py, l, [q, v, q_d, v_d], tau_d),
         }
     }
 }
@@ -277,7 +282,10 @@ impl Allocator {
             PyValueError::new_err(format!("scenario `{}` has no [vehicle]", s.name))
         })?;
         let alloc = match s.group {
-            GroupKind::So3 => Alloc::Three(Box::new(v.allocator::<3>().map_err(value_err)?)),
+            // a planar (se2) vehicle's allocator has the columns (τ, f_x, f_y)
+            GroupKind::So3 | GroupKind::Se2 => {
+                Alloc::Three(Box::new(v.allocator::<3>().map_err(value_err)?))
+            }
             GroupKind::Se3 => Alloc::Six(Box::new(v.allocator::<6>().map_err(value_err)?)),
         };
         Ok(Allocator { alloc })
@@ -292,7 +300,7 @@ impl Allocator {
         }
     }
 
-    /// Allocates the wrench `demand` (3 on SO(3), 6 on SE(3)): returns `(u_cmd, B u_cmd,
+    /// Allocates the wrench `demand` (3 on SO(3) and SE(2), 6 on SE(3)): returns `(u_cmd, B u_cmd,
     /// status)`, the status code of `trajectory.csv`'s `alloc_status`.
     fn allocate<'py>(
         &self,

@@ -58,7 +58,7 @@ fn step<'py, G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     };
     state.set_state(&q, &v);
     state.set_applied(&applied);
-    let mut cmd = CommandMsg::new(wire_group(M));
+    let mut cmd = CommandMsg::new(link::wire::wire_group(G::KIND));
     vehicle.answer::<G, N>(state, &wrench, a.follows, &mut cmd);
     accounted[..M].copy_from_slice(&cmd.accounted[..M]);
     let count = vehicle.count();
@@ -89,14 +89,6 @@ fn step<'py, G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
 
 fn detection_kind(cmd: &CommandMsg) -> Option<detection::Kind<f64>> {
     detection::Kind::from_code(cmd.detected_kind, cmd.detected_value)
-}
-
-fn wire_group(m: usize) -> WireGroup {
-    if m == 6 {
-        WireGroup::Se3
-    } else {
-        WireGroup::So3
-    }
 }
 
 fn value_err(e: impl std::fmt::Display) -> PyErr {
@@ -131,6 +123,13 @@ impl Detector {
         let vehicle = match s.group {
             GroupKind::So3 => Vehicle::So3(Box::new(ControllerVehicle::of(&s).map_err(value_err)?)),
             GroupKind::Se3 => Vehicle::Se3(Box::new(ControllerVehicle::of(&s).map_err(value_err)?)),
+            // the scenario refuses [fault_detection] on se2 before
+            GroupKind::Se2 => {
+                return Err(value_err(format!(
+                    "scenario `{}`: the Detector does not run on se2",
+                    s.name
+                )));
+            }
         };
         Ok(Detector {
             vehicle,

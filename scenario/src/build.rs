@@ -105,7 +105,13 @@ impl Scenario {
         (self.duration / self.control_period).round() as u64
     }
 
-    /// n×n configuration from a [`StateSpec`].
+    /// n×n configuration from a [`StateSpec`]: SO(3) `exp(rotation)`; SE(3)
+    /// `[[exp(rotation), position], [0, 1]]`; SE(2) `[[R(θ), (x, y)], [0, 1]]`.
+    ///
+    /// An SE(2) state is stored as the rotation `(0, 0, θ)` and the position `(x, y, 0)`, so
+    /// its `exp` is the rotation about z whose third row and column are exactly `(0, 0, 1)`;
+    /// the position then takes the third column. An SO(3) state never has a position (the
+    /// scenario refuses one), so a 3 × 3 configuration with a non-zero position is SE(2)'s.
     pub fn configuration<const N: usize>(spec: &StateSpec) -> SMatrix<f64, N, N> {
         let r = exp_so3(&Vector3::from(spec.rotation));
         let mut q = SMatrix::<f64, N, N>::identity();
@@ -116,6 +122,10 @@ impl Scenario {
             if N > 3 {
                 q[(i, N - 1)] = spec.position[i];
             }
+        }
+        if N == 3 && (spec.position[0] != 0.0 || spec.position[1] != 0.0) {
+            q[(0, 2)] = spec.position[0];
+            q[(1, 2)] = spec.position[1];
         }
         q
     }

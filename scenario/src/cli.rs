@@ -13,7 +13,7 @@ pub struct ScenarioSource {
     /// Scenario file (TOML).
     #[arg(long, value_name = "FILE", conflicts_with = "builtin")]
     pub scenario: Option<PathBuf>,
-    /// Built-in scenario: seed, montecarlo, se3_circle.
+    /// Built-in scenario: seed, montecarlo, se3_circle, se2_circle.
     #[arg(long, value_name = "NAME")]
     pub builtin: Option<String>,
 }

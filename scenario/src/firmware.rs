@@ -41,6 +41,7 @@ impl Scenario {
                 group: match self.group {
                     GroupKind::So3 => 1,
                     GroupKind::Se3 => 2,
+                    GroupKind::Se2 => 3,
                 },
                 period: self.control_period,
                 fingerprint: self.fingerprint(),
@@ -130,7 +131,9 @@ impl Scenario {
         }
         let count = self.vehicle.as_ref().map_or(0, VehicleSpec::count);
         let settings = match self.group {
-            GroupKind::So3 => self.detector_config::<3>().map(|c| Detector::of(&c, count)),
+            GroupKind::So3 | GroupKind::Se2 => {
+                self.detector_config::<3>().map(|c| Detector::of(&c, count))
+            }
             GroupKind::Se3 => self.detector_config::<6>().map(|c| Detector::of(&c, count)),
         };
         settings.map(Some).ok_or_else(|| ScenarioError::Invalid {
@@ -149,6 +152,9 @@ impl Scenario {
             key: key.to_owned(),
             message: format!("the processor-in-the-loop controller does not run {what} yet"),
         };
+        if self.group == GroupKind::Se2 {
+            return Err(refuse("group", "a planar (se2) scenario"));
+        }
         let told_weaker = self.vehicle.as_ref().and_then(|v| {
             v.failures.iter().find(|f| {
                 f.reconfigure && matches!(f.kind, crate::vehicle::FailureKind::Effectiveness { .. })
@@ -195,7 +201,9 @@ impl Scenario {
             *x -= o;
         }
         let q0: Vec<f64> = match self.group {
-            GroupKind::So3 => Scenario::configuration::<3>(&local).as_slice().to_vec(),
+            GroupKind::So3 | GroupKind::Se2 => {
+                Scenario::configuration::<3>(&local).as_slice().to_vec()
+            }
             GroupKind::Se3 => Scenario::configuration::<4>(&local).as_slice().to_vec(),
         };
         // nalgebra stores column-major: the config is row-major

@@ -38,7 +38,7 @@ pub use sensing::{
 use controller::{ErrorFrame, GroupKind, Law};
 
 /// The built-in scenarios, shipped as TOML files in `scenarios/`.
-pub const BUILTINS: [(&str, &str); 3] = [
+pub const BUILTINS: [(&str, &str); 4] = [
     ("seed", include_str!("../../scenarios/seed.toml")),
     (
         "montecarlo",
@@ -47,6 +47,10 @@ pub const BUILTINS: [(&str, &str); 3] = [
     (
         "se3_circle",
         include_str!("../../scenarios/se3_circle.toml"),
+    ),
+    (
+        "se2_circle",
+        include_str!("../../scenarios/se2_circle.toml"),
     ),
 ];
 
@@ -94,7 +98,7 @@ pub enum ScenarioError {
         message: String,
     },
     /// No built-in scenario has that name.
-    #[error("unknown built-in scenario `{0}` (available: seed, montecarlo, se3_circle)")]
+    #[error("unknown built-in scenario `{0}` (available: seed, montecarlo, se3_circle, se2_circle)")]
     UnknownBuiltin(String),
 }
 

@@ -200,6 +200,13 @@ pub fn move_scenario(
         }
     }
     let scenario = crate::Scenario::from_toml_in(text, origin, origin, base)?;
+    if scenario.group == GroupKind::Se2 {
+        return Err(invalid(
+            origin,
+            "group",
+            "moving a planar (se2) scenario with the world is not available yet",
+        ));
+    }
     if scenario.group == GroupKind::So3 && m.offset != [0.0; 3] {
         return Err(invalid(
             origin,

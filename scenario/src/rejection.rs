@@ -16,7 +16,6 @@
 //! `gain`, `ki`, `c` and `limit`: a number (every axis) or one per axis, each finite and > 0.
 
 use crate::{NumberOrList, Scenario, ScenarioError, Validator};
-use controller::disturbance::rotate_blocks;
 use controller::{Frame, IntegralConfig, ObserverConfig, RejectionConfig};
 use nalgebra::{Matrix3, SVector};
 use serde::Deserialize;
@@ -211,10 +210,17 @@ impl Scenario {
     /// What the body receives besides the torque over the period that starts at tick `k`
     /// at rotation `r`: [`Scenario::disturbance_at`] plus the world wrench rotated into the
     /// body (what the accelerometer model is told was applied).
-    pub fn disturbance_wrench<const M: usize>(&self, k: u64, r: &Matrix3<f64>) -> SVector<f64, M> {
+    pub fn disturbance_wrench<G, const N: usize, const M: usize>(
+        &self,
+        k: u64,
+        r: &Matrix3<f64>,
+    ) -> SVector<f64, M>
+    where
+        G: controller::MatrixLieGroup<N, M>,
+    {
         let mut d = self.disturbance_at::<M>(k);
         if let Some(w) = self.world_disturbance::<M>() {
-            d += rotate_blocks(&r.transpose(), &w);
+            d += G::rotate_coordinates(&r.transpose(), &w);
         }
         d
     }
@@ -300,7 +306,7 @@ mod tests {
             0.0,
             core::f64::consts::FRAC_PI_2,
         ));
-        let w = s.disturbance_wrench::<6>(0, &r) - before;
+        let w = s.disturbance_wrench::<controller::Se3, 4, 6>(0, &r) - before;
         assert!(
             (w - SVector::<f64, 6>::from_row_slice(&[0.0, 0.0, 0.0, 0.0, -0.5, 0.0])).amax()
                 < 1e-15,

@@ -302,14 +302,16 @@ impl Validator<'_> {
         };
         let accelerometer = match (&raw.accelerometer, group) {
             (None, _) => None,
-            (Some(_), GroupKind::So3) => return Err(se3_only("sensors.accelerometer")),
+            (Some(_), GroupKind::So3 | GroupKind::Se2) => {
+                return Err(se3_only("sensors.accelerometer"));
+            }
             (Some(a), GroupKind::Se3) => {
                 Some(self.non_negative("sensors.accelerometer.noise", a.noise)?)
             }
         };
         let position = match (&raw.position, group) {
             (None, _) => None,
-            (Some(_), GroupKind::So3) => return Err(se3_only("sensors.position")),
+            (Some(_), GroupKind::So3 | GroupKind::Se2) => return Err(se3_only("sensors.position")),
             (Some(p), GroupKind::Se3) => Some(PositionSpec {
                 noise: self.non_negative("sensors.position.noise", p.noise)?,
                 rate_hz: self.positive("sensors.position.rate_hz", p.rate_hz)?,
@@ -522,7 +524,7 @@ impl Validator<'_> {
     ) -> Result<Option<f64>, ScenarioError> {
         match (gate, group) {
             (None, _) => Ok(None),
-            (Some(_), GroupKind::So3) => Err(self.err(
+            (Some(_), GroupKind::So3 | GroupKind::Se2) => Err(self.err(
                 "estimator.accel_gate",
                 "only se3 scenarios have an accelerometer",
             )),

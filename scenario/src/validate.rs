@@ -188,28 +188,33 @@ impl Validator<'_> {
         group: GroupKind,
         m: usize,
     ) -> Result<StateSpec, ScenarioError> {
-        let rot = self.vector(
-            &format!("{section}.rotation"),
-            rotation,
-            3,
-            "a rotation vector",
-        )?;
+        let rot = if group == GroupKind::Se2 {
+            // the heading θ, stored as the rotation vector (0, 0, θ) about z
+            let theta = self.vector(&format!("{section}.rotation"), rotation, 1, "a heading, rad")?;
+            vec![0.0, 0.0, theta[0]]
+        } else {
+            self.vector(&format!("{section}.rotation"), rotation, 3, "a rotation vector")?
+        };
         let pos = match (group, position) {
             (GroupKind::So3, Some(_)) => {
                 return Err(self.err(
                     &format!("{section}.position"),
-                    "only se3 scenarios have a position",
+                    "only se3 and se2 scenarios have a position",
                 ));
             }
-            (GroupKind::So3, None) | (GroupKind::Se3, None) => vec![0.0; 3],
+            (_, None) => vec![0.0; 3],
             (GroupKind::Se3, Some(p)) => {
                 self.vector(&format!("{section}.position"), p, 3, "x, y, z")?
             }
+            (GroupKind::Se2, Some(p)) => {
+                let xy = self.vector(&format!("{section}.position"), p, 2, "x, y")?;
+                vec![xy[0], xy[1], 0.0]
+            }
         };
-        let why = if m == 6 {
-            "ω then v"
-        } else {
-            "body angular velocity"
+        let why = match group {
+            GroupKind::Se3 => "ω then v",
+            GroupKind::Se2 => "ω, v_x, v_y",
+            GroupKind::So3 => "body angular velocity",
         };
         let vel = self.vector(&format!("{section}.velocity"), velocity, m, why)?;
         Ok(StateSpec {
@@ -227,6 +232,9 @@ impl Validator<'_> {
         default_name: &str,
     ) -> Result<Scenario, ScenarioError> {
         let group = self.group(&raw.group)?;
+        if group == GroupKind::Se2 {
+            self.refused_on_se2(&raw)?;
+        }
         let (n, m) = group.dims();
         let law = parse_law(&raw.law, group, "law", self.origin)?;
         self.timing(raw.duration, raw.control_period)?;
@@ -302,16 +310,14 @@ impl Validator<'_> {
         })
     }
 
-    /// `group`: `so3` or `se3`.
+    /// `group`: `so3`, `se3` or `se2`.
     fn group(&self, name: &str) -> Result<GroupKind, ScenarioError> {
-        match name {
-            "so3" => Ok(GroupKind::So3),
-            "se3" => Ok(GroupKind::Se3),
-            other => Err(self.err(
+        GroupKind::from_name(name).ok_or_else(|| {
+            self.err(
                 "group",
-                format!("unknown group `{other}` (expected so3 or se3)"),
-            )),
-        }
+                format!("unknown group `{other}` (expected so3, se3 or se2)", other = name),
+            )
+        })
     }
 
     /// `duration` and `control_period`: each finite and positive, the duration a whole number
@@ -693,6 +699,30 @@ fn default_model(
 impl Validator<'_> {
     /// What a vehicle with reaction wheels does not have yet, refused naming the table: the
     /// failsafe's laws know thrusters only.
+    /// The keys a planar (SE(2)) scenario cannot take, refused by name: the sensors and the
+    /// estimators (three-dimensional models), failure detection and the failsafe manager (not
+    /// yet planar), and the vehicle keys that need a third dimension
+    /// ([`crate::vehicle::planar_refusal`]).
+    fn refused_on_se2(&self, raw: &RawScenario) -> Result<(), ScenarioError> {
+        let tables = [
+            ("sensors", raw.sensors.is_some()),
+            ("estimator", raw.estimator.is_some()),
+            ("fault_detection", raw.fault_detection.is_some()),
+            ("failsafe", raw.failsafe.is_some()),
+        ];
+        let key = tables
+            .iter()
+            .find(|(_, given)| *given)
+            .map(|(key, _)| (*key).to_owned())
+            .or_else(|| {
+                crate::vehicle::planar_refusal(raw.vehicle.as_ref(), raw.allocation.as_ref())
+            });
+        match key {
+            Some(key) => Err(self.err(&key, "is not available on se2 (a planar scenario)")),
+            None => Ok(()),
+        }
+    }
+
     fn refused_with_wheels(&self, raw: &RawScenario) -> Result<(), ScenarioError> {
         let tables = [("failsafe", raw.failsafe.is_some())];
         match tables.iter().find(|(_, given)| *given) {

@@ -93,6 +93,33 @@ pub(crate) struct RawAllocation {
     budget: Option<i64>,
 }
 
+/// The first key of a vehicle or an allocation that a planar (SE(2)) scenario cannot take:
+/// what needs a third dimension (gravity, buoyancy, reaction wheels and their momentum, a
+/// thruster's reaction torque about its own axis, the tilt priority). `None`: all planar.
+pub(crate) fn planar_refusal(
+    vehicle: Option<&RawVehicle>,
+    allocation: Option<&RawAllocation>,
+) -> Option<String> {
+    if let Some(v) = vehicle {
+        let named = [
+            ("vehicle.gravity", v.gravity.is_some()),
+            ("vehicle.buoyancy", v.buoyancy.is_some()),
+            ("vehicle.buoyancy_centre", v.buoyancy_centre.is_some()),
+            ("vehicle.wheel", v.wheel.is_some()),
+            ("vehicle.momentum", v.momentum.is_some()),
+        ];
+        if let Some((key, _)) = named.iter().find(|(_, given)| *given) {
+            return Some((*key).to_owned());
+        }
+        if let Some(i) = v.actuator.iter().position(|a| a.torque_per_thrust.is_some()) {
+            return Some(format!("vehicle.actuator[{i}].torque_per_thrust"));
+        }
+    }
+    allocation
+        .filter(|a| a.priority.as_deref() == Some("tilt"))
+        .map(|_| "allocation.priority".to_owned())
+}
+
 /// How an actuator fails (`[[vehicle.failure]] kind`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FailureKind {
@@ -180,6 +207,9 @@ pub struct VehicleSpec {
     /// `[allocation] budget`: active-set iterations per allocation (docs/vehicles.md,
     /// "Bounded time").
     pub budget: u32,
+    /// A planar vehicle (an SE(2) scenario): its actuators' columns are `(τ_z, f_x, f_y)`
+    /// ([`Geometry::planar`]).
+    pub planar: bool,
 }
 
 impl VehicleSpec {
@@ -194,8 +224,12 @@ impl VehicleSpec {
 
     /// The actuators' geometry on a group of dimension `K` (checked at load).
     pub fn geometry<const K: usize>(&self) -> Result<Geometry<f64, K>, String> {
-        Geometry::with_wheels(&self.actuators, &self.wheels_allocated())
-            .map_err(|e| format!("vehicle.actuator: {e}"))
+        if self.planar {
+            Geometry::planar(&self.actuators)
+        } else {
+            Geometry::with_wheels(&self.actuators, &self.wheels_allocated())
+        }
+        .map_err(|e| format!("vehicle.actuator: {e}"))
     }
 
     /// The wheels as the allocation sees them.
@@ -320,7 +354,7 @@ impl Validator<'_> {
         let wheels = self.wheels(raw.wheel.as_deref().unwrap_or(&[]), &total, m)?;
         let allocated: Vec<allocation::Wheel<f64>> =
             wheels.iter().map(WheelSpec::allocation).collect();
-        let actuators = self.actuators(&raw.actuator, &allocated, m)?;
+        let actuators = self.actuators(&raw.actuator, &allocated, group)?;
         let momentum = self.momentum(raw.momentum.as_ref(), &wheels, actuators.len(), (h, m))?;
         // the wheels follow the actuators: a failure may name one (its motor's torque range)
         let ranges: Vec<(f64, f64)> = (actuators.iter().map(|a| (a.min, a.max)))
@@ -351,6 +385,7 @@ impl Validator<'_> {
             preferred,
             priority,
             budget,
+            planar: group == controller::GroupKind::Se2,
         };
         Ok(Some(spec))
     }
@@ -368,6 +403,10 @@ impl Validator<'_> {
         gravity: f64,
         inertia: &[f64],
     ) -> Result<f64, ScenarioError> {
+        if group == controller::GroupKind::Se2 {
+            // gravity is refused on se2 before (vehicle.gravity): a plane has no up
+            return Ok(0.0);
+        }
         if group == controller::GroupKind::So3 {
             if gravity != 0.0 {
                 return Err(self.err(
@@ -429,31 +468,37 @@ impl Validator<'_> {
         &self,
         raw: &[RawActuator],
         wheels: &[allocation::Wheel<f64>],
-        m: usize,
+        group: controller::GroupKind,
     ) -> Result<Vec<Actuator<f64>>, ScenarioError> {
+        let planar = group == controller::GroupKind::Se2;
+        // a planar vehicle's positions and axes are (x, y) in the body plane, stored with z = 0
+        let (d, place, direction) = if planar {
+            (2, "x, y in the body plane", "its thrust direction in the body plane")
+        } else {
+            (3, "x, y, z in body axes", "its thrust direction in body axes")
+        };
+        let three = |v: Vec<f64>| [v[0], v[1], v.get(2).copied().unwrap_or(0.0)];
         let mut out = Vec::with_capacity(raw.len());
         for (j, a) in raw.iter().enumerate() {
             let key = |field: &str| format!("vehicle.actuator[{j}].{field}");
-            let p = self.vector(&key("position"), &a.position, 3, "x, y, z in body axes")?;
-            let axis = self.vector(
-                &key("axis"),
-                &a.axis,
-                3,
-                "its thrust direction in body axes",
-            )?;
+            let p = self.vector(&key("position"), &a.position, d, place)?;
+            let axis = self.vector(&key("axis"), &a.axis, d, direction)?;
             out.push(Actuator {
-                position: [p[0], p[1], p[2]],
-                axis: [axis[0], axis[1], axis[2]],
+                position: three(p),
+                axis: three(axis),
                 torque_per_thrust: a.torque_per_thrust.unwrap_or(0.0),
                 min: a.min,
                 max: a.max,
             });
         }
-        let spans = match m {
-            3 => Geometry::<f64, 3>::with_wheels(&out, wheels)
+        let spans = match group {
+            controller::GroupKind::Se2 => Geometry::<f64, 3>::planar(&out)
                 .map(drop)
                 .map_err(|e| self.geometry_refused(&e)),
-            _ => Geometry::<f64, 6>::with_wheels(&out, wheels)
+            controller::GroupKind::So3 => Geometry::<f64, 3>::with_wheels(&out, wheels)
+                .map(drop)
+                .map_err(|e| self.geometry_refused(&e)),
+            controller::GroupKind::Se3 => Geometry::<f64, 6>::with_wheels(&out, wheels)
                 .map(drop)
                 .map_err(|e| self.geometry_refused(&e)),
         };
@@ -472,6 +517,9 @@ impl Validator<'_> {
             }
             GeometryError::ZeroAxis { index } => format!("vehicle.actuator[{index}].axis"),
             GeometryError::MinAboveMax { index, .. } => format!("vehicle.actuator[{index}].min"),
+            GeometryError::OutOfPlane { index, field } => {
+                format!("vehicle.actuator[{index}].{field}")
+            }
         };
         self.err(&key, e.to_string())
     }

@@ -22,6 +22,7 @@ pub fn header(group: GroupKind) -> &'static [&'static str] {
     match group {
         GroupKind::So3 => &["t", "rx", "ry", "rz"],
         GroupKind::Se3 => &["t", "rx", "ry", "rz", "x", "y", "z"],
+        GroupKind::Se2 => &["t", "theta", "x", "y"],
     }
 }
 
@@ -30,6 +31,7 @@ pub fn velocity_header(group: GroupKind) -> &'static [&'static str] {
     match group {
         GroupKind::So3 => &["wx", "wy", "wz"],
         GroupKind::Se3 => &["wx", "wy", "wz", "vx", "vy", "vz"],
+        GroupKind::Se2 => &["w", "vx", "vy"],
     }
 }
 
@@ -230,9 +232,16 @@ impl<'a> Columns<'a> {
             ));
         }
         spec.times.push(x[0]);
-        spec.poses.push(Pose {
-            rotation: [x[1], x[2], x[3]],
-            position: [x[4], x[5], x[6]],
+        spec.poses.push(match self.group {
+            // the heading as the rotation (0, 0, θ) about z, the position (x, y, 0)
+            GroupKind::Se2 => Pose {
+                rotation: [0.0, 0.0, x[1]],
+                position: [x[2], x[3], 0.0],
+            },
+            _ => Pose {
+                rotation: [x[1], x[2], x[3]],
+                position: [x[4], x[5], x[6]],
+            },
         });
         spec.velocities.push(velocity);
         spec.lines.push(line);

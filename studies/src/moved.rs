@@ -124,7 +124,7 @@ struct Moved {
 impl Moved {
     fn new(group: GroupKind, m: &WorldMotion, header: &[String]) -> Moved {
         let n = match group {
-            GroupKind::So3 => 3,
+            GroupKind::So3 | GroupKind::Se2 => 3,
             GroupKind::Se3 => 4,
         };
         let rt = m.rotation();

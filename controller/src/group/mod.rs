@@ -22,21 +22,24 @@ pub enum GroupKind {
     So3,
     /// The rigid-body group SE(3): n = 4, m = 6, twists ordered (ω, v).
     Se3,
+    /// The planar rigid-body group SE(2): n = m = 3, twists ordered (ω, v_x, v_y).
+    Se2,
 }
 
 impl GroupKind {
     /// Every supported group.
-    pub const ALL: [GroupKind; 2] = [GroupKind::So3, GroupKind::Se3];
+    pub const ALL: [GroupKind; 3] = [GroupKind::So3, GroupKind::Se3, GroupKind::Se2];
 
-    /// The lower-case name used in files and messages (`"so3"`, `"se3"`).
+    /// The lower-case name used in files and messages (`"so3"`, `"se3"`, `"se2"`).
     pub fn name(self) -> &'static str {
         match self {
             GroupKind::So3 => "so3",
             GroupKind::Se3 => "se3",
+            GroupKind::Se2 => "se2",
         }
     }
 
-    /// Parses a lower-case name (`"so3"`, `"se3"`).
+    /// Parses a lower-case name (`"so3"`, `"se3"`, `"se2"`).
     pub fn from_name(name: &str) -> Option<GroupKind> {
         GroupKind::ALL.iter().copied().find(|g| g.name() == name)
     }
@@ -46,6 +49,7 @@ impl GroupKind {
         match self {
             GroupKind::So3 => (3, 3),
             GroupKind::Se3 => (4, 6),
+            GroupKind::Se2 => (3, 3),
         }
     }
 
@@ -55,6 +59,7 @@ impl GroupKind {
         match self {
             GroupKind::So3 => f.run::<So3, 3, 3>(),
             GroupKind::Se3 => f.run::<Se3, 4, 6>(),
+            GroupKind::Se2 => f.run::<Se2, 3, 3>(),
         }
     }
 }

@@ -3,7 +3,7 @@
 //! `Ad_(R,x) = [[1, 0], [−J x, R]]`, `ad_(ω,v) = [[0, 0], [−J v, ω J]]` with
 //! `J = [[0, −1], [1, 0]]` (docs/maths.md, "Conventions").
 
-use super::MatrixLieGroup;
+use super::{BuiltinGroup, GroupKind, MatrixLieGroup};
 use crate::{Real, real};
 use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
 
@@ -91,6 +91,14 @@ pub fn rotation<T: Real>(q: &SMatrix<T, 3, 3>) -> Matrix3<T> {
         z,
         T::one(),
     )
+}
+
+impl BuiltinGroup<3, 3> for Se2 {
+    const KIND: GroupKind = GroupKind::Se2;
+
+    fn rotation<T: Real>(q: &SMatrix<T, 3, 3>) -> Matrix3<T> {
+        rotation(q)
+    }
 }
 
 impl MatrixLieGroup<3, 3> for Se2 {

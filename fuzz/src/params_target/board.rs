@@ -103,7 +103,7 @@ pub(super) fn decode(bytes: &[u8]) -> Option<ParamMsg> {
 /// `(n, m)` of a group: the used part of `K` (n×n) and of the others (`K_d` m×m, m).
 fn dims(group: GroupKind) -> (usize, usize) {
     match group {
-        GroupKind::So3 => (3, 3),
+        GroupKind::So3 | GroupKind::Se2 => (3, 3),
         GroupKind::Se3 => (4, 6),
     }
 }

@@ -317,7 +317,7 @@ const ODD_VALUES: [&str; 30] = [
 /// run's shape, odd TOML, garbage, or the key's numbers in force scaled (right shape).
 fn value_text(g: &mut Gen, run: &Run) -> String {
     let (n, m) = match run.scenario.group {
-        GroupKind::So3 => (3, 3),
+        GroupKind::So3 | GroupKind::Se2 => (3, 3),
         GroupKind::Se3 => (4, 6),
     };
     match g.below(10) {

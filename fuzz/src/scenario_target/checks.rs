@@ -363,7 +363,7 @@ fn moved(text: &str, s: &Scenario) {
     let far = WorldMotion {
         heading: 0.7,
         offset: match s.group {
-            controller::GroupKind::So3 => [0.0; 3],
+            controller::GroupKind::So3 | controller::GroupKind::Se2 => [0.0; 3],
             controller::GroupKind::Se3 => [1000.0, -700.0, 300.0],
         },
     };

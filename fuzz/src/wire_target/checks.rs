@@ -19,6 +19,7 @@ use std::sync::OnceLock;
 struct Context {
     so3: Scenario,
     se3: Scenario,
+    se2: Scenario,
     /// The ROV with its eight thrusters.
     vehicle: Scenario,
     identities: Vec<Identity>,
@@ -30,6 +31,7 @@ fn context() -> &'static Context {
     CONTEXT.get_or_init(|| {
         let so3 = Scenario::builtin("seed").expect("built-in scenario");
         let se3 = Scenario::builtin("se3_circle").expect("built-in scenario");
+        let se2 = Scenario::builtin("se2_circle").expect("built-in scenario");
         let identities = vec![
             Identity::new(ipc_types::WireGroup::So3, 0.0, so3.fingerprint(), &so3.name),
             Identity::new(
@@ -40,10 +42,12 @@ fn context() -> &'static Context {
             ),
             Identity::new(ipc_types::WireGroup::Se3, 0.0, se3.fingerprint(), &se3.name),
             Identity::new(ipc_types::WireGroup::Se3, 0.01, 0, ""),
+            Identity::new(ipc_types::WireGroup::Se2, 0.0, se2.fingerprint(), &se2.name),
         ];
         Context {
             so3,
             se3,
+            se2,
             vehicle: super::seeds::shipped("rov_failure"),
             identities,
         }
@@ -56,6 +60,7 @@ impl Context {
         match group {
             GroupKind::So3 => &self.so3,
             GroupKind::Se3 => &self.se3,
+            GroupKind::Se2 => &self.se2,
         }
     }
 }

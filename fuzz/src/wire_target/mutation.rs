@@ -88,7 +88,8 @@ impl Corpus {
     pub(super) fn receiver_for(&self, g: &mut Gen, base: &Item) -> Receiver {
         let other = |k: GroupKind| match k {
             GroupKind::So3 => GroupKind::Se3,
-            GroupKind::Se3 => GroupKind::So3,
+            GroupKind::Se3 => GroupKind::Se2,
+            GroupKind::Se2 => GroupKind::So3,
         };
         Receiver {
             group: if g.chance(9, 10) {

@@ -153,7 +153,7 @@ impl<const M: usize> PairVehicle<M> {
         let r = G::rotation(body.configuration());
         self.held = self.run.wrench_of(&self.run.produced())
             + self.run.environment.wrench(&r, &body.velocity())
-            + s.disturbance_wrench::<M>(k, &r);
+            + s.disturbance_wrench::<G, N, M>(k, &r);
     }
 
     /// `summary.json` → `vehicle` over the rows kept, `h` apart.
