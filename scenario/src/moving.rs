@@ -160,13 +160,25 @@ fn put(table: &mut Table, key: &str, xs: &[f64]) {
     );
 }
 
-/// Moves the pose `rotation` / `position` keys of `table`.
+/// Moves the pose `rotation` / `position` keys of `table`; on SE(2) the heading `[θ]` and the
+/// planar position `[x, y]`: `(θ, x) ↦ (θ + h, R(h) x + t)`.
 fn move_pose(
     m: &WorldMotion,
     origin: &str,
     table: &mut Table,
     prefix: &str,
+    group: GroupKind,
 ) -> Result<(), ScenarioError> {
+    if group == GroupKind::Se2 {
+        if let Some(r) = numbers(origin, table, prefix, "rotation", 1)? {
+            put(table, "rotation", &[r[0] + m.heading]);
+        }
+        if let Some(x) = numbers(origin, table, prefix, "position", 2)? {
+            let p = m.place([x[0], x[1], 0.0]);
+            put(table, "position", &[p[0], p[1]]);
+        }
+        return Ok(());
+    }
     if let Some(r) = three(origin, table, prefix, "rotation")? {
         put(table, "rotation", &m.rotate(r));
     }
@@ -200,11 +212,11 @@ pub fn move_scenario(
         }
     }
     let scenario = crate::Scenario::from_toml_in(text, origin, origin, base)?;
-    if scenario.group == GroupKind::Se2 {
+    if scenario.group == GroupKind::Se2 && m.offset[2] != 0.0 {
         return Err(invalid(
             origin,
-            "group",
-            "moving a planar (se2) scenario with the world is not available yet",
+            "offset z",
+            "an SE(2) scenario lives in the plane: it can be turned and shifted in x and y only (offset z 0)",
         ));
     }
     if scenario.group == GroupKind::So3 && m.offset != [0.0; 3] {
@@ -220,7 +232,7 @@ pub fn move_scenario(
             origin: origin.to_owned(),
             message: e.to_string(),
         })?;
-    let waypoint_file = move_table(&mut doc, origin, m)?;
+    let waypoint_file = move_table(&mut doc, origin, m, scenario.group)?;
     let waypoints = match waypoint_file {
         None => None,
         Some((file, name)) => {
@@ -251,15 +263,16 @@ fn move_table(
     doc: &mut Table,
     origin: &str,
     m: &WorldMotion,
+    group: GroupKind,
 ) -> Result<Option<(String, String)>, ScenarioError> {
     if let Some(t) = sub(doc, "initial") {
-        move_pose(m, origin, t, "initial.")?;
+        move_pose(m, origin, t, "initial.", group)?;
     }
     let mut waypoint_file = None;
     if let Some(t) = sub(doc, "reference") {
-        move_pose(m, origin, t, "reference.")?;
+        move_pose(m, origin, t, "reference.", group)?;
         if let Some(s) = sub(t, "setpoint") {
-            move_pose(m, origin, s, "reference.setpoint.")?;
+            move_pose(m, origin, s, "reference.setpoint.", group)?;
         }
         if let Some(file) = t
             .get("waypoints")
@@ -275,6 +288,16 @@ fn move_table(
             t.insert("waypoints".to_owned(), Value::String(name.clone()));
             waypoint_file = Some((file, name));
         }
+    }
+    if group == GroupKind::Se2 {
+        // (τ, f_x, f_y): the torque about z stays, the force turns
+        if let Some(t) = sub(doc, "plant")
+            && let Some(xs) = numbers(origin, t, "plant.", "disturbance_world", 3)?
+        {
+            let f = m.turn([xs[1], xs[2], 0.0]);
+            put(t, "disturbance_world", &[xs[0], f[0], f[1]]);
+        }
+        return Ok(waypoint_file);
     }
     if let Some(t) = sub(doc, "plant")
         && let Some(xs) = numbers(origin, t, "plant.", "disturbance_world", 0)?
@@ -337,7 +360,13 @@ pub fn move_waypoints(
     let mut out = vec![header.join(",")];
     for ((t, pose), v) in spec.times.iter().zip(&spec.poses).zip(&spec.velocities) {
         let mut row: Vec<String> = vec![format!("{t:?}")];
-        row.extend(m.rotate(pose.rotation).map(|x| format!("{x:?}")));
+        if group == GroupKind::Se2 {
+            // the heading (stored as the rotation (0, 0, θ)) and the planar position
+            let p = m.place(pose.position);
+            row.extend([pose.rotation[2] + m.heading, p[0], p[1]].map(|x| format!("{x:?}")));
+        } else {
+            row.extend(m.rotate(pose.rotation).map(|x| format!("{x:?}")));
+        }
         if se3 {
             row.extend(m.place(pose.position).map(|x| format!("{x:?}")));
         }

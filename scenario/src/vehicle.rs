@@ -111,7 +111,7 @@ pub(crate) fn planar_refusal(
         if let Some((key, _)) = named.iter().find(|(_, given)| *given) {
             return Some((*key).to_owned());
         }
-        if let Some(i) = v.actuator.iter().position(|a| a.torque_per_thrust.is_some()) {
+        if let Some(i) = (v.actuator.iter()).position(|a| a.torque_per_thrust.is_some_and(|c| c != 0.0)) {
             return Some(format!("vehicle.actuator[{i}].torque_per_thrust"));
         }
     }

@@ -135,6 +135,11 @@ impl Moved {
         if n == 4 {
             tm.fixed_view_mut::<3, 1>(0, 3).copy_from(&offset);
         }
+        if group == GroupKind::Se2 {
+            // the planar pose T = [[R(h), (x, y)], [0, 1]]
+            tm[(0, 2)] = offset[0];
+            tm[(1, 2)] = offset[1];
+        }
         let col = |name: String| header.iter().position(|c| *c == name);
         Moved {
             n,
