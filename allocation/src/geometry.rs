@@ -77,7 +77,9 @@ impl<T: Copy> GeometryError<T, 6> {
                 GeometryError::MinAboveMax { index, min, max }
             }
             GeometryError::Count { count } => GeometryError::Count { count },
-            GeometryError::OutOfPlane { index, field } => GeometryError::OutOfPlane { index, field },
+            GeometryError::OutOfPlane { index, field } => {
+                GeometryError::OutOfPlane { index, field }
+            }
             GeometryError::Dimension | GeometryError::DoesNotSpan(_) => GeometryError::Dimension,
         }
     }

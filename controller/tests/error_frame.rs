@@ -2,7 +2,7 @@
 //! the law at the reference gives the same wrench wherever the world frame is, the papers'
 //! form does not, and along the continuous closed loop `L̇` is what the docs state.
 
-use controller::group::{MatrixLieGroup, Se3, So3};
+use controller::group::{MatrixLieGroup, Se2, Se3, So3};
 use controller::law::Desired;
 use controller::tracking::potential_gradient;
 use controller::{Controller, ControllerConfig, ErrorFrame, Law, Real, real};
@@ -127,6 +127,47 @@ fn so3_case(xs: &[f64]) -> Case<3, 3> {
     }
 }
 
+/// An SE(2) case: `K = diag(K_R, k_x)` with an SPD 2 × 2 `K_R`, anisotropic inertia and
+/// damping.
+fn se2_case(xs: &[f64]) -> Case<3, 3> {
+    let inertia = spd::<3>(&xs[0..9], 0.3);
+    let v_d = Vector3::from_row_slice(&xs[9..12]);
+    let mut k = SMatrix::<f64, 3, 3>::zeros();
+    k.fixed_view_mut::<2, 2>(0, 0)
+        .copy_from(&spd::<2>(&xs[12..16], 0.2));
+    k[(2, 2)] = 0.5 + xs[16].abs() * 2.0;
+    Case {
+        config: ControllerConfig {
+            law: Law::Eqt,
+            error_frame: ErrorFrame::Reference,
+            inertia,
+            k,
+            kd: spd::<3>(&xs[21..30], 0.2),
+            torque_limit: None,
+        },
+        q: Se2::exp(&(Vector3::from_row_slice(&xs[30..33]) * 3.0)),
+        v: Vector3::from_row_slice(&xs[33..36]) * 2.0,
+        desired: Desired {
+            q: Se2::exp(&(Vector3::from_row_slice(&xs[36..39]) * 3.0)),
+            p: inertia * v_d,
+            v: v_d,
+            tau: Vector3::from_row_slice(&xs[39..42]),
+        },
+    }
+}
+
+/// A planar motion of the world: a turn by up to π, and a translation of up to `reach`
+/// metres in the plane.
+fn planar_motion(xs: &[f64], reach: f64) -> SMatrix<f64, 3, 3> {
+    let dir = nalgebra::Vector2::new(xs[1], xs[2]);
+    let dir = if dir.norm() > 1e-3 {
+        dir.normalize()
+    } else {
+        nalgebra::Vector2::x()
+    };
+    controller::group::se2::pose(xs[0] * 3.14, &(dir * reach * xs[3].abs()))
+}
+
 /// A rigid motion of the world: a turn by up to π about a random axis, and a translation of
 /// up to `reach` metres.
 fn world_motion(xs: &[f64], reach: f64) -> SMatrix<f64, 4, 4> {
@@ -182,6 +223,23 @@ proptest! {
         prop_assert!(within(&moved.torque::<So3, f64>(ErrorFrame::Reference), &at, 1e-9));
     }
 
+    /// SE(2), f64, the world moved up to 10 km in the plane and turned: the same wrench at the
+    /// reference and re-centred.
+    #[test]
+    fn the_reference_law_does_not_depend_on_where_the_world_is_se2(
+        xs in prop::collection::vec(-1.0..1.0f64, 42),
+        ts in prop::collection::vec(-1.0..1.0f64, 4),
+    ) {
+        let case = se2_case(&xs);
+        let moved = case.moved(&planar_motion(&ts, 10_000.0));
+        let at = case.torque::<Se2, f64>(ErrorFrame::Reference);
+        let there = moved.torque::<Se2, f64>(ErrorFrame::Reference);
+        prop_assert!(within(&there, &at, 1e-9), "{at} vs {there}");
+        let recentred = case.torque::<Se2, f64>(ErrorFrame::Recentred);
+        let recentred_there = moved.torque::<Se2, f64>(ErrorFrame::Recentred);
+        prop_assert!(within(&recentred_there, &recentred, 1e-9));
+    }
+
     /// f32 with the world moved up to 100 m: within 1e-3 of (1 + |wrench|).
     #[test]
     fn the_reference_law_in_f32_within_100_m(
@@ -230,6 +288,21 @@ fn the_world_law_depends_on_where_the_world_is() {
     assert!(
         so3_moved >= 45,
         "the world law turned with the world in {so3_moved} of 50 cases"
+    );
+    let mut se2_moved = 0;
+    for _ in 0..50 {
+        let case = se2_case(&rng.take(42));
+        let moved = case.moved(&planar_motion(&rng.take(4), 10_000.0));
+        let at = case.torque::<Se2, f64>(ErrorFrame::World);
+        se2_moved += usize::from(!within(
+            &moved.torque::<Se2, f64>(ErrorFrame::World),
+            &at,
+            1e-6,
+        ));
+    }
+    assert!(
+        se2_moved >= 45,
+        "the world law moved with the world in {se2_moved} of 50 SE(2) cases"
     );
 }
 

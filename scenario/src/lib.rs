@@ -98,7 +98,9 @@ pub enum ScenarioError {
         message: String,
     },
     /// No built-in scenario has that name.
-    #[error("unknown built-in scenario `{0}` (available: seed, montecarlo, se3_circle, se2_circle)")]
+    #[error(
+        "unknown built-in scenario `{0}` (available: seed, montecarlo, se3_circle, se2_circle)"
+    )]
     UnknownBuiltin(String),
 }
 

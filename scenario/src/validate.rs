@@ -190,10 +190,20 @@ impl Validator<'_> {
     ) -> Result<StateSpec, ScenarioError> {
         let rot = if group == GroupKind::Se2 {
             // the heading θ, stored as the rotation vector (0, 0, θ) about z
-            let theta = self.vector(&format!("{section}.rotation"), rotation, 1, "a heading, rad")?;
+            let theta = self.vector(
+                &format!("{section}.rotation"),
+                rotation,
+                1,
+                "a heading, rad",
+            )?;
             vec![0.0, 0.0, theta[0]]
         } else {
-            self.vector(&format!("{section}.rotation"), rotation, 3, "a rotation vector")?
+            self.vector(
+                &format!("{section}.rotation"),
+                rotation,
+                3,
+                "a rotation vector",
+            )?
         };
         let pos = match (group, position) {
             (GroupKind::So3, Some(_)) => {
@@ -315,7 +325,10 @@ impl Validator<'_> {
         GroupKind::from_name(name).ok_or_else(|| {
             self.err(
                 "group",
-                format!("unknown group `{other}` (expected so3, se3 or se2)", other = name),
+                format!(
+                    "unknown group `{other}` (expected so3, se3 or se2)",
+                    other = name
+                ),
             )
         })
     }

@@ -111,7 +111,9 @@ pub(crate) fn planar_refusal(
         if let Some((key, _)) = named.iter().find(|(_, given)| *given) {
             return Some((*key).to_owned());
         }
-        if let Some(i) = (v.actuator.iter()).position(|a| a.torque_per_thrust.is_some_and(|c| c != 0.0)) {
+        if let Some(i) =
+            (v.actuator.iter()).position(|a| a.torque_per_thrust.is_some_and(|c| c != 0.0))
+        {
             return Some(format!("vehicle.actuator[{i}].torque_per_thrust"));
         }
     }
@@ -473,9 +475,17 @@ impl Validator<'_> {
         let planar = group == controller::GroupKind::Se2;
         // a planar vehicle's positions and axes are (x, y) in the body plane, stored with z = 0
         let (d, place, direction) = if planar {
-            (2, "x, y in the body plane", "its thrust direction in the body plane")
+            (
+                2,
+                "x, y in the body plane",
+                "its thrust direction in the body plane",
+            )
         } else {
-            (3, "x, y, z in body axes", "its thrust direction in body axes")
+            (
+                3,
+                "x, y, z in body axes",
+                "its thrust direction in body axes",
+            )
         };
         let three = |v: Vec<f64>| [v[0], v[1], v.get(2).copied().unwrap_or(0.0)];
         let mut out = Vec::with_capacity(raw.len());

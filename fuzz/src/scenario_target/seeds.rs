@@ -5,7 +5,7 @@ use super::Corpus;
 use scenario::BUILTINS;
 
 /// Hand-written valid scenarios that reach the optional keys the built-ins leave out.
-const EXTRA_SEEDS: [&str; 15] = [
+const EXTRA_SEEDS: [&str; 17] = [
     // the disturbance-rejection terms and the world and step disturbances
     include_str!("../../../scenarios/reject_so3.toml"),
     include_str!("../../../scenarios/reject_se3.toml"),
@@ -14,6 +14,31 @@ const EXTRA_SEEDS: [&str; 15] = [
     include_str!("../../../scenarios/sensors_se3.toml"),
     include_str!("../../../scenarios/eqf_so3.toml"),
     include_str!("../../../scenarios/eqf_se3.toml"),
+    // SE(2): the planar vessel (its waypoint file replaced by a set-point) and a planar body
+    // with the world-frame observer, a world disturbance and a waypoint-free path
+    include_str!("../../../scenarios/se2_vessel.toml"),
+    r#"group = "se2"
+law = "eqt"
+duration = 0.2
+control_period = 0.01
+[plant]
+inertia = [[0.5, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 2.0]]
+disturbance_world = [0.1, 0.5, -0.2]
+[controller]
+kp = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 2.0]]
+kd = 1.5
+error_frame = "recentred"
+disturbance_observer = { gain = 5.0, frame = "world" }
+[initial]
+rotation = [2.0]
+position = [1.5, -1.0]
+velocity = [0.5, 0.3, -0.2]
+[reference]
+rotation = [0.0]
+position = [0.0, 0.0]
+velocity = [0.4, 0.4, 0.0]
+torque = [{ offset = 0.0 }, { offset = 0.0 }, { offset = 0.32 }]
+"#,
     // reaction wheels with friction, alone and beside thrusters, with momentum management
     include_str!("../../../scenarios/wheels_slew.toml"),
     include_str!("../../../scenarios/wheels_dump.toml"),
@@ -308,6 +333,10 @@ impl Corpus {
                 t.replace(
                     "waypoints = \"rov_failure.csv\"",
                     "setpoint = { rotation = [0.0, 0.0, 0.5], position = [0.6, 0.3, -0.3] }",
+                )
+                .replace(
+                    "waypoints = \"se2_vessel.csv\"",
+                    "setpoint = { rotation = [0.5], position = [0.6, 0.3] }",
                 )
                 .into_bytes()
             })

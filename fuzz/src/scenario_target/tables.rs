@@ -36,13 +36,14 @@ pub(crate) const INTERESTING: [&str; 30] = [
 ];
 
 /// What replaces the text of a string token.
-pub(super) const STRINGS: [&str; 30] = [
+pub(super) const STRINGS: [&str; 31] = [
     "reference",
     "world",
     "recentred",
     "up",
     "so3",
     "se3",
+    "se2",
     "eqt",
     "gt",
     "nog",

@@ -328,7 +328,10 @@ impl<'a, G: BuiltinGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G, 
                     Some(v) => v.held,
                     None => {
                         let r = G::rotation(self.plant.configuration());
-                        self.tau + self.s.disturbance_wrench::<G, N, M>(k.saturating_sub(1), &r)
+                        self.tau
+                            + self
+                                .s
+                                .disturbance_wrench::<G, N, M>(k.saturating_sub(1), &r)
                     }
                 };
                 if let Some((slot, sent, _)) = &mut self.onboard {
