@@ -165,7 +165,7 @@ fn planar_motion(xs: &[f64], reach: f64) -> SMatrix<f64, 3, 3> {
     } else {
         nalgebra::Vector2::x()
     };
-    controller::group::se2::pose(xs[0] * 3.14, &(dir * reach * xs[3].abs()))
+    controller::group::se2::pose(xs[0] * core::f64::consts::PI, &(dir * reach * xs[3].abs()))
 }
 
 /// A rigid motion of the world: a turn by up to π about a random axis, and a translation of

@@ -95,6 +95,27 @@ def test_the_allocator_is_the_scenarios():
         eqtrack.Allocator(SEED)
 
 
+def test_the_planar_blocks_take_se2():
+    # SE(2): a planar body 1 m along x of its reference, at rest, is pulled back along -x
+    # (the force k_x |x| = 2 N of se2_circle's K), with no torque and no sideways force
+    ctrl = eqtrack.Controller(REPO / "scenarios" / "se2_circle.toml")
+    assert ctrl.group == "se2"
+    q = np.eye(3)
+    q[0, 2] = 1.0
+    tau, lyapunov = ctrl.compute(q, np.zeros(3), np.eye(3), np.zeros(3))
+    assert np.allclose(tau, [0.0, -2.0, 0.0], atol=1e-12), tau
+    assert abs(lyapunov - 1.0) < 1e-12  # k_x |x|^2 / 2
+    # the vessel's four planar thrusters give any (torque, f_x, f_y) within their range
+    a = eqtrack.Allocator(REPO / "scenarios" / "se2_vessel.toml")
+    assert a.count == 4
+    demand = np.array([1.0, 20.0, -10.0])
+    u, achieved, status = a.allocate(demand)
+    assert u.shape == (4,) and status == 0
+    assert np.allclose(achieved, demand, atol=1e-9)
+    with pytest.raises(ValueError, match=r"demand: expected shape \(3,\), got \(6,\)"):
+        a.allocate(np.zeros(6))
+
+
 def test_the_detector_flies_as_the_simulations_controller():
     # pil_rov_detect: thruster 1 dies unannounced at 1.4 s; stepped on the states, the law's
     # wrenches and the times the simulation logged, the block allocates the same commands,

@@ -17,6 +17,7 @@ from conftest import REPO, cli, read_csv, same_bits
         "sensors_se3.toml",  # SE(3) with sensors (the pose filter)
         "slew_so3.toml",  # a waypoint path (its file beside it)
         "wheels_slew.toml",  # reaction wheels: the wheel_speed_i and wheel_cmd_i columns
+        "se2_vessel.toml",  # SE(2): a planar vessel, its waypoints and allocation
     ],
 )
 def test_simulate_equals_the_cli_bit_for_bit(scenario, plant_sim, tmp_path):

@@ -93,6 +93,14 @@ pub(crate) struct RawAllocation {
     budget: Option<i64>,
 }
 
+/// Each command's range: the actuators', then the wheels' motors' (the wheels follow the
+/// actuators, so a failure may name one).
+fn command_ranges(actuators: &[Actuator<f64>], wheels: &[WheelSpec]) -> Vec<(f64, f64)> {
+    (actuators.iter().map(|a| (a.min, a.max)))
+        .chain(wheels.iter().map(|w| (-w.max_torque, w.max_torque)))
+        .collect()
+}
+
 /// The first key of a vehicle or an allocation that a planar (SE(2)) scenario cannot take:
 /// what needs a third dimension (gravity, buoyancy, reaction wheels and their momentum, a
 /// thruster's reaction torque about its own axis, the tilt priority). `None`: all planar.
@@ -358,10 +366,7 @@ impl Validator<'_> {
             wheels.iter().map(WheelSpec::allocation).collect();
         let actuators = self.actuators(&raw.actuator, &allocated, group)?;
         let momentum = self.momentum(raw.momentum.as_ref(), &wheels, actuators.len(), (h, m))?;
-        // the wheels follow the actuators: a failure may name one (its motor's torque range)
-        let ranges: Vec<(f64, f64)> = (actuators.iter().map(|a| (a.min, a.max)))
-            .chain(wheels.iter().map(|w| (-w.max_torque, w.max_torque)))
-            .collect();
+        let ranges = command_ranges(&actuators, &wheels);
         let failures = self.failures(raw.failure.as_deref().unwrap_or(&[]), &ranges)?;
         let (weights, preferred, priority, budget) =
             self.allocation(allocation, actuators.len() + wheels.len())?;
