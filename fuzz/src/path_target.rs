@@ -22,9 +22,11 @@ use scenario::{PathKind, PathSpec, Scenario, ScenarioError};
 const PERIOD: f64 = 0.01;
 
 /// Seed files: the shipped slews, and through-path files with velocity columns.
-const SEEDS: [&str; 6] = [
+const SEEDS: [&str; 8] = [
     include_str!("../../scenarios/slew_so3.csv"),
     include_str!("../../scenarios/slew_se3.csv"),
+    include_str!("../../scenarios/slew_se2.csv"),
+    "t,theta,x,y,w,vx,vy\n0,0,0,0,,,\n1,1.5,1,0,0.5,1,0\n2,3,2,1,,,\n3,-3,2,1,,,\n4,0,1e3,-1e3,,,\n",
     "t,rx,ry,rz,wx,wy,wz\n0,0,0,0,,,\n1,0.5,0,0,0.3,0,0.1\n2,0.5,1,0,,,\n2.5,0.5,1,0,0,0,0\n4,3.5,0,1,,,\n5,0,0,0,0,0,0\n",
     "t,rx,ry,rz,x,y,z,wx,wy,wz,vx,vy,vz\n0,0,0,0,0,0,0,,,,,,\n1,0,0,1.5,1,0,0,0,0,0.5,1,0,0\n2,0,0,3,2,1,0,,,,,,\n3,0,0,3,2,1,0,,,,,,\n4,1,1,1,0,0,1,,,,,,\n",
     "t,rx,ry,rz\n0.5,0,0,0\n1.7,0,0,1\n3,0,0,2.5\n4.1,0,0,3.8\n5.6,0,0,5\n7,0,0,4\n",

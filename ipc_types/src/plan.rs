@@ -224,10 +224,20 @@ impl PlanMsg {
     }
 }
 
-/// Whether the top-left 3×3 block of the row-major n×n `q` is a rotation, and (n = 4) the
-/// last row is `0 0 0 1`.
-fn on_group(q: &[f64], n: usize) -> bool {
+/// Whether the row-major `q` is on `group`: SO(3) and SE(3), the top-left 3×3 block a
+/// rotation and (SE(3)) the last row `0 0 0 1`; SE(2), the top-left 2×2 block a rotation and
+/// the last row `0 0 1`.
+fn on_group(q: &[f64], group: WireGroup) -> bool {
+    let (n, _) = group.dims();
     let r = |i: usize, j: usize| q[i * n + j];
+    if group == WireGroup::Se2 {
+        let orthonormal = [(0, 0, 1.0), (0, 1, 0.0), (1, 1, 1.0)].iter().all(|&(i, j, want)| {
+            let dot: f64 = (0..2).map(|k| r(k, i) * r(k, j)).sum();
+            (dot - want).abs() <= POSE_TOLERANCE
+        });
+        let det = r(0, 0) * r(1, 1) - r(0, 1) * r(1, 0);
+        return orthonormal && det > 0.0 && r(2, 0) == 0.0 && r(2, 1) == 0.0 && r(2, 2) == 1.0;
+    }
     for i in 0..3 {
         for j in 0..3 {
             let dot: f64 = (0..3).map(|k| r(k, i) * r(k, j)).sum();
@@ -276,7 +286,7 @@ pub fn check_plan(msg: &PlanMsg, group: WireGroup, period: f64) -> Result<(), Pl
             return Err(PlanInvalid::ShortLeg);
         }
         end = s.t1;
-        if !on_group(&s.start, n) {
+        if !on_group(&s.start, group) {
             return Err(PlanInvalid::NotOnGroup);
         }
     }

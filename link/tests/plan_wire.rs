@@ -6,7 +6,7 @@ use ipc_types::plan::*;
 use ipc_types::{MAX_M, WireGroup};
 use link::wire::{segment, wire_segment};
 
-use controller::group::{MatrixLieGroup, Se3, So3};
+use controller::group::{MatrixLieGroup, Se2, Se3, So3};
 use nalgebra::{Matrix3, Vector3, Vector6};
 
 fn so3_segment(t0: f64, t1: f64) -> Segment<f64, 3, 3> {
@@ -142,6 +142,43 @@ fn plans_are_checked() {
     p.segments[0].start[14] = 0.5;
     assert_eq!(
         check_plan(&p, WireGroup::Se3, 0.01),
+        Err(PlanInvalid::NotOnGroup)
+    );
+}
+
+/// SE(2): a planar pose far from the origin is on the group (its third column is the
+/// position, not a rotation's); a scaled rotation block, a reflection or a wrong last row is
+/// not. On SO(3) the same matrix is refused.
+#[test]
+fn planar_plans_are_checked_on_se2() {
+    let mut p = PlanMsg::new(WireGroup::Se2);
+    p.count = 1;
+    let a = Se2::exp(&Vector3::new(2.5, 300.0, -40.0));
+    let b = Se2::exp(&Vector3::new(-1.0, 2.0, 1.0));
+    let s = Segment::between::<Se2>(0.0, &a, 1.0, &b);
+    assert_eq!(segment::<3, 3>(&wire_segment(&s)), s);
+    p.segments[0] = wire_segment(&s);
+    assert_eq!(check_plan(&p, WireGroup::Se2, 0.01), Ok(()));
+    let mut so3 = p;
+    so3.group = WireGroup::So3.code();
+    assert_eq!(
+        check_plan(&so3, WireGroup::So3, 0.01),
+        Err(PlanInvalid::NotOnGroup)
+    );
+    let bad = |f: &dyn Fn(&mut PlanMsg)| {
+        let mut q = p;
+        f(&mut q);
+        check_plan(&q, WireGroup::Se2, 0.01)
+    };
+    assert_eq!(bad(&|q| q.segments[0].start[0] *= 1.001), Err(PlanInvalid::NotOnGroup));
+    assert_eq!(bad(&|q| q.segments[0].start[7] = 0.5), Err(PlanInvalid::NotOnGroup));
+    assert_eq!(bad(&|q| q.segments[0].start[8] = 1.5), Err(PlanInvalid::NotOnGroup));
+    // the planar reflection diag(1, −1)
+    assert_eq!(
+        bad(&|q| {
+            q.segments[0].start[..9]
+                .copy_from_slice(&[1.0, 0.0, 3.0, 0.0, -1.0, 4.0, 0.0, 0.0, 1.0])
+        }),
         Err(PlanInvalid::NotOnGroup)
     );
 }

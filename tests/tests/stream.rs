@@ -99,7 +99,7 @@ fn through_scenario(d: &TempDir, group: &str) -> String {
 fn a_streamed_lockstep_run_equals_the_same_waypoints_from_the_file_bit_for_bit() {
     let _g = serial();
     let d = TempDir::new("stream-lock");
-    let cases = ["so3", "se3"].into_iter().flat_map(|group| {
+    let cases = ["so3", "se3", "se2"].into_iter().flat_map(|group| {
         [
             (
                 group.to_owned(),
