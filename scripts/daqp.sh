@@ -39,7 +39,7 @@ PLANT=$TARGET/debug/plant_sim
 	die "cannot build plant_sim (log: $OUT/build.log)"
 
 # 1. every row of every vehicle scenario, re-solved
-for s in hexarotor_eight hexarotor_eqf pil_hexarotor rov_failure spacecraft; do
+for s in hexarotor_eight hexarotor_eqf pil_hexarotor rov_failure spacecraft se2_vessel; do
 	"$PLANT" sim --scenario "$REPO/scenarios/$s.toml" --out "$OUT/$s" >"$OUT/$s.log" 2>&1 ||
 		die "plant_sim sim $s failed: $(tail -3 "$OUT/$s.log")"
 	"$VENV/bin/python" "$REPO/scripts/daqp/resolve.py" "$REPO/scenarios/$s.toml" "$OUT/$s/trajectory.csv" ||

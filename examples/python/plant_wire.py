@@ -104,7 +104,7 @@ class Wire:
         command for it in (waited for 30 s for the first state, 10 s after). Exits 1 unless it
         commands `count` actuators. Returns the command, its first `count` actuator commands and
         the wrench it accounts for."""
-        m = 3 if self.group == SO3 else 6
+        m = 6 if self.group == SE3 else 3
         msg = StateMsg(version=PROTOCOL, group=self.group, seq=k, t=k * h, control_period=h)
         msg.q[: len(q)] = list(q)
         msg.v[:m] = list(v)

@@ -231,10 +231,12 @@ fn on_group(q: &[f64], group: WireGroup) -> bool {
     let (n, _) = group.dims();
     let r = |i: usize, j: usize| q[i * n + j];
     if group == WireGroup::Se2 {
-        let orthonormal = [(0, 0, 1.0), (0, 1, 0.0), (1, 1, 1.0)].iter().all(|&(i, j, want)| {
-            let dot: f64 = (0..2).map(|k| r(k, i) * r(k, j)).sum();
-            (dot - want).abs() <= POSE_TOLERANCE
-        });
+        let orthonormal = [(0, 0, 1.0), (0, 1, 0.0), (1, 1, 1.0)]
+            .iter()
+            .all(|&(i, j, want)| {
+                let dot: f64 = (0..2).map(|k| r(k, i) * r(k, j)).sum();
+                (dot - want).abs() <= POSE_TOLERANCE
+            });
         let det = r(0, 0) * r(1, 1) - r(0, 1) * r(1, 0);
         return orthonormal && det > 0.0 && r(2, 0) == 0.0 && r(2, 1) == 0.0 && r(2, 2) == 1.0;
     }

@@ -170,9 +170,18 @@ fn planar_plans_are_checked_on_se2() {
         f(&mut q);
         check_plan(&q, WireGroup::Se2, 0.01)
     };
-    assert_eq!(bad(&|q| q.segments[0].start[0] *= 1.001), Err(PlanInvalid::NotOnGroup));
-    assert_eq!(bad(&|q| q.segments[0].start[7] = 0.5), Err(PlanInvalid::NotOnGroup));
-    assert_eq!(bad(&|q| q.segments[0].start[8] = 1.5), Err(PlanInvalid::NotOnGroup));
+    assert_eq!(
+        bad(&|q| q.segments[0].start[0] *= 1.001),
+        Err(PlanInvalid::NotOnGroup)
+    );
+    assert_eq!(
+        bad(&|q| q.segments[0].start[7] = 0.5),
+        Err(PlanInvalid::NotOnGroup)
+    );
+    assert_eq!(
+        bad(&|q| q.segments[0].start[8] = 1.5),
+        Err(PlanInvalid::NotOnGroup)
+    );
     // the planar reflection diag(1, −1)
     assert_eq!(
         bad(&|q| {

@@ -36,7 +36,8 @@ LAWS = ("eqt", "gt", "nog", "asym")
 
 
 def builtin_scenario(name: str) -> str:
-    """The TOML text of a built-in scenario (``seed``, ``montecarlo``, ``se3_circle``)."""
+    """The TOML text of a built-in scenario (``seed``, ``montecarlo``, ``se3_circle``,
+    ``se2_circle``)."""
     return _native.builtin_scenario(name)
 
 

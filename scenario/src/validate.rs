@@ -710,8 +710,6 @@ fn default_model(
 }
 
 impl Validator<'_> {
-    /// What a vehicle with reaction wheels does not have yet, refused naming the table: the
-    /// failsafe's laws know thrusters only.
     /// The keys a planar (SE(2)) scenario cannot take, refused by name: the sensors and the
     /// estimators (three-dimensional models), failure detection and the failsafe manager (not
     /// yet planar), and the vehicle keys that need a third dimension
@@ -736,6 +734,8 @@ impl Validator<'_> {
         }
     }
 
+    /// What a vehicle with reaction wheels does not have yet, refused naming the table: the
+    /// failsafe's laws know thrusters only.
     fn refused_with_wheels(&self, raw: &RawScenario) -> Result<(), ScenarioError> {
         let tables = [("failsafe", raw.failsafe.is_some())];
         match tables.iter().find(|(_, given)| *given) {

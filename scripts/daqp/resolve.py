@@ -35,14 +35,18 @@ def vehicle(path):
     with open(path, "rb") as f:
         s = tomllib.load(f)
     v = s["vehicle"]
-    k = 3 if s.get("group", "so3") == "so3" else 6
+    group = s.get("group", "so3")
+    k = 6 if group == "se3" else 3
     cols, lo, hi = [], [], []
     for a in v["actuator"]:
-        p = np.array(a["position"], float)
-        ax = np.array(a["axis"], float)
+        # a planar (se2) thruster's (x, y) and in-plane axis, with z = 0
+        p = np.array(list(a["position"]) + [0.0] * (3 - len(a["position"])), float)
+        ax = np.array(list(a["axis"]) + [0.0] * (3 - len(a["axis"])), float)
         ax = ax / np.linalg.norm(ax)
         c = a.get("torque_per_thrust", 0.0)
-        cols.append(np.concatenate([np.cross(p, ax) + c * ax, ax])[:k])
+        full = np.concatenate([np.cross(p, ax) + c * ax, ax])
+        # se2's columns are (τ_z, f_x, f_y): rows 2, 3, 4 of the SE(3) column
+        cols.append(full[2:5] if group == "se2" else full[:k])
         lo.append(a.get("min", 0.0))
         hi.append(a["max"])
     b = np.array(cols).T

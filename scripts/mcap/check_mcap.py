@@ -23,7 +23,7 @@ import sys
 # the flight recorder's layout (format 8) and the wire messages' (protocol 10)
 LOG_MAGIC = b"EQTRKLOG"
 STATE_AT, COMMAND_AT = 80, 448
-GROUP_DIMS = {1: (3, 3), 2: (4, 6)}
+GROUP_DIMS = {1: (3, 3), 2: (4, 6), 3: (3, 3)}
 
 
 def read_log(path):

@@ -3,7 +3,7 @@
 //! manoeuvre is checked before it is flown.
 
 use controller::group::{BuiltinGroup, OnGroup};
-use controller::{Source, Trajectory};
+use controller::{GroupKind, Source, Trajectory};
 use nalgebra::{SMatrix, SVector};
 use plant::SimError;
 use plant::output::{ensure_dir, num, write_json};
@@ -228,21 +228,23 @@ pub struct Feasibility {
     pub warnings: Vec<LimitWarning>,
 }
 
-/// The axis names of `τ_d` for an algebra of dimension `m`.
-fn axis_name(m: usize, i: usize) -> String {
-    const SO3: [&str; 3] = ["τ_x", "τ_y", "τ_z"];
-    const SE3: [&str; 6] = ["τ_x", "τ_y", "τ_z", "f_x", "f_y", "f_z"];
-    if m == 6 {
-        SE3[i].to_owned()
-    } else {
-        SO3.get(i)
-            .map_or_else(|| format!("τ_{i}"), |s| (*s).to_owned())
-    }
+/// The axis names of `τ_d` on `group`.
+fn axis_name(group: GroupKind, i: usize) -> String {
+    let names: &[&str] = match group {
+        GroupKind::So3 => &["τ_x", "τ_y", "τ_z"],
+        GroupKind::Se3 => &["τ_x", "τ_y", "τ_z", "f_x", "f_y", "f_z"],
+        GroupKind::Se2 => &["τ", "f_x", "f_y"],
+    };
+    names
+        .get(i)
+        .map_or_else(|| format!("τ_{i}"), |s| (*s).to_owned())
 }
 
 /// The feasibility report of sampled reference rows.
 pub fn feasibility(s: &Scenario, rows: &[ReferenceRow]) -> Feasibility {
     let m = s.group.dims().1;
+    let planar = s.group == GroupKind::Se2;
+    let positions = m == 6 || planar;
     let norm3 = |x: &[f64]| (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
     let mut report = Feasibility {
         scenario: s.name.clone(),
@@ -250,16 +252,31 @@ pub fn feasibility(s: &Scenario, rows: &[ReferenceRow]) -> Feasibility {
         control_period: s.control_period,
         angular_speed: Peak::none(),
         angular_acceleration: Peak::none(),
-        speed: (m == 6).then(Peak::none),
-        acceleration: (m == 6).then(Peak::none),
+        speed: positions.then(Peak::none),
+        acceleration: positions.then(Peak::none),
         torque: vec![Peak::none(); m],
         torque_limit: s.torque_limit.clone(),
         warnings: Vec::new(),
     };
     let mut over: Vec<Option<(f64, f64)>> = vec![None; m];
     for r in rows {
-        report.angular_speed.offer(norm3(&r.v[..3]), r.t);
-        report.angular_acceleration.offer(norm3(&r.v_dot[..3]), r.t);
+        if planar {
+            // (ω, v_x, v_y): the turn rate, the planar speed, and the acceleration of the
+            // body's origin in body axes, v̇ + ω J v
+            let (w, v, vd) = (r.v[0], [r.v[1], r.v[2]], [r.v_dot[1], r.v_dot[2]]);
+            report.angular_speed.offer(w.abs(), r.t);
+            report.angular_acceleration.offer(r.v_dot[0].abs(), r.t);
+            let a = [vd[0] - w * v[1], vd[1] + w * v[0]];
+            if let Some(p) = report.speed.as_mut() {
+                p.offer(v[0].hypot(v[1]), r.t);
+            }
+            if let Some(p) = report.acceleration.as_mut() {
+                p.offer(a[0].hypot(a[1]), r.t);
+            }
+        } else {
+            report.angular_speed.offer(norm3(&r.v[..3]), r.t);
+            report.angular_acceleration.offer(norm3(&r.v_dot[..3]), r.t);
+        }
         if m == 6 {
             let (w, v, vd) = (&r.v[..3], &r.v[3..6], &r.v_dot[3..6]);
             let a = [
@@ -289,7 +306,7 @@ pub fn feasibility(s: &Scenario, rows: &[ReferenceRow]) -> Feasibility {
         if let (Some((from, to)), Some(l)) = (span, &s.torque_limit) {
             report.warnings.push(LimitWarning {
                 axis: i,
-                name: axis_name(m, i),
+                name: axis_name(s.group, i),
                 limit: l[i],
                 peak: report.torque[i],
                 from: *from,
@@ -320,14 +337,14 @@ pub fn feasibility_text(f: &Feasibility) -> String {
     if let Some(p) = &f.acceleration {
         line("acceleration |p̈_d|", p, "m/s²", "");
     }
-    let m = f.torque.len();
+    let group = GroupKind::from_name(&f.group).unwrap_or(GroupKind::So3);
     for (i, p) in f.torque.iter().enumerate() {
         let limit = f.torque_limit.as_ref().map_or_else(
             || " (no limit)".to_owned(),
             |l| format!(" (limit {})", l[i]),
         );
         line(
-            &format!("|{}| (feedforward)", axis_name(m, i)),
+            &format!("|{}| (feedforward)", axis_name(group, i)),
             p,
             "",
             &limit,

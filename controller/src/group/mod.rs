@@ -145,8 +145,8 @@ pub trait MatrixLieGroup<const N: usize, const M: usize>:
     }
 
     /// How the rotation `r` acts on algebra and dual coordinates: the rotated twist or wrench
-    /// `w`, each linear and angular part turned by `r`, with no lever arm (docs/maths.md,
-    /// "Disturbance rejection"). The default turns every block of three coordinates
+    /// `w`, each linear and angular part turned by `r`, with no lever arm
+    /// (docs/maths.md, "Disturbance rejection"). The default turns every block of three coordinates
     /// ([`rotate_blocks`](crate::disturbance::rotate_blocks)), which is SO(3)'s and SE(3)'s;
     /// a group whose coordinates are not blocks of three overrides it.
     fn rotate_coordinates<T: Real>(r: &nalgebra::Matrix3<T>, w: &SVector<T, M>) -> SVector<T, M> {

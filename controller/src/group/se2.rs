@@ -38,7 +38,8 @@ pub fn pose<T: Real>(theta: T, x: &Vector2<T>) -> SMatrix<T, 3, 3> {
     from_parts2(&Matrix2::new(c, -s, s, c), x)
 }
 
-/// The heading `θ = atan2(R₂₁, R₁₁)` of an SE(2) matrix, in (−π, π].
+/// The heading `θ = atan2(R₂₁, R₁₁)` of an SE(2) matrix, in [−π, π] (±π only at a half
+/// turn, where both name the same rotation).
 pub fn heading<T: Real>(q: &SMatrix<T, 3, 3>) -> T {
     q[(1, 0)].atan2(q[(0, 0)])
 }
