@@ -275,7 +275,7 @@ impl<T: Real> ComplementaryFilter<T> {
     /// step starts the filter at the true attitude (TRIAD), and the bias is learnt (200 s).
     ///
     /// ```
-    /// use controller::group::{BuiltinGroup, So3};
+    /// use controller::group::{MatrixLieGroup, So3};
     /// use estimator::{ComplementaryConfig, ComplementaryFilter};
     /// use nalgebra::Vector3;
     ///

@@ -30,7 +30,8 @@ pub(crate) fn parse_class(message: &str) -> Option<&'static str> {
 }
 
 /// The report's name of a scenario error: the variant, and for `Invalid` the key (indices
-/// shown as `*`); for `Parse` a coarse class of the parser's message.
+/// shown as `*`, and `on se2` for a key a planar scenario refuses); for `Parse` a coarse
+/// class of the parser's message.
 pub(super) fn scenario_error_kind(e: &ScenarioError) -> String {
     match e {
         ScenarioError::Io { .. } => "ScenarioError::Io".to_owned(),
@@ -38,7 +39,7 @@ pub(super) fn scenario_error_kind(e: &ScenarioError) -> String {
             let class = parse_class(message).unwrap_or("syntax or value");
             format!("ScenarioError::Parse ({class})")
         }
-        ScenarioError::Invalid { key, .. } => {
+        ScenarioError::Invalid { key, message, .. } => {
             let mut k = String::with_capacity(key.len());
             let mut in_index = false;
             for c in key.chars() {
@@ -54,6 +55,9 @@ pub(super) fn scenario_error_kind(e: &ScenarioError) -> String {
                     _ if in_index => {}
                     _ => k.push(c),
                 }
+            }
+            if message.contains("is not available on se2") {
+                k.push_str(", on se2");
             }
             format!("ScenarioError::Invalid ({k})")
         }
