@@ -66,7 +66,10 @@ def bounds(veh, t, previous):
     lo, hi = veh["lo"].copy(), veh["hi"].copy()
     for f in veh["failures"]:
         if t >= f["t"] - veh["h"] / 2:
-            lo[f["actuator"]] = hi[f["actuator"]] = f["value"]
+            # a told "stuck" actuator is held at its value, a "dead" one at 0
+            if f.get("kind", "stuck") not in ("stuck", "dead"):
+                sys.exit(f"resolve.py: a told {f['kind']!r} failure is not modelled here")
+            lo[f["actuator"]] = hi[f["actuator"]] = f.get("value", 0.0)
     if veh["rate"] > 0 and previous is not None:
         for j in range(veh["m"]):
             if hi[j] > lo[j]:
