@@ -467,6 +467,27 @@ pub fn plant(args: &[&str]) -> (i32, String) {
     run("plant_sim", args, Duration::from_secs(300))
 }
 
+/// Scenario `name` of `scenarios/` with each `(from, to)` replaced and `extra` appended,
+/// written to `dir` beside copies of the scenarios' waypoint files; returns its path.
+pub fn variant(dir: &Path, name: &str, edits: &[(&str, &str)], extra: &str) -> String {
+    std::fs::create_dir_all(dir).unwrap();
+    for entry in std::fs::read_dir(repo("scenarios")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "csv") {
+            std::fs::copy(&path, dir.join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    let mut text = std::fs::read_to_string(repo(&format!("scenarios/{name}.toml"))).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{name} no longer has `{from}`");
+        text = text.replacen(from, to, 1);
+    }
+    text.push_str(extra);
+    let file = dir.join(format!("{name}-variant.toml"));
+    std::fs::write(&file, text).unwrap();
+    file.to_str().unwrap().to_owned()
+}
+
 /// A copy of the run in `out` (scenario, waypoints) beside `out`, whose `messages.log` has
 /// the command recorded at cycle `k` changed by `edit` (handed the command and its recorded
 /// bytes); returns the copy's directory.

@@ -6,34 +6,13 @@
 //! stalled controller raises `link`. Driven through the real binaries; one at a time.
 
 use pair_tests::{
-    CpuHog, TempDir, planted_copy, repo, run, serial, sim_equals_lockstep, summary,
+    CpuHog, TempDir, planted_copy, repo, run, serial, sim_equals_lockstep, summary, variant,
     without_commands,
 };
 use std::path::Path;
 use std::time::Duration;
 
 const LONG: Duration = Duration::from_secs(180);
-
-/// Scenario `name` of `scenarios/` with each `(from, to)` replaced and `extra` appended,
-/// written to `dir` beside copies of the scenarios' waypoint files; returns its path.
-fn variant(dir: &Path, name: &str, edits: &[(&str, &str)], extra: &str) -> String {
-    std::fs::create_dir_all(dir).unwrap();
-    for entry in std::fs::read_dir(repo("scenarios")).unwrap() {
-        let path = entry.unwrap().path();
-        if path.extension().is_some_and(|e| e == "csv") {
-            std::fs::copy(&path, dir.join(path.file_name().unwrap())).unwrap();
-        }
-    }
-    let mut text = std::fs::read_to_string(repo(&format!("scenarios/{name}.toml"))).unwrap();
-    for (from, to) in edits {
-        assert!(text.contains(from), "{name} no longer has `{from}`");
-        text = text.replacen(from, to, 1);
-    }
-    text.push_str(extra);
-    let file = dir.join(format!("{name}-failsafe.toml"));
-    std::fs::write(&file, text).unwrap();
-    file.to_str().unwrap().to_owned()
-}
 
 /// `rov_failure` in a (2, 1) N current, its horizontal thrusters 1 and 2 dying unannounced at
 /// 6.3 s and 9.1 s, found by the detector; `actuators = "surface"`.
