@@ -200,22 +200,11 @@ impl<T: RealField + Copy, const K: usize> Geometry<T, K> {
             return Err(GeometryError::Dimension);
         }
         let count = actuators.len() + wheels.len();
-        if count == 0 || count > MAX_ACTUATORS {
-            return Err(GeometryError::Count { count });
-        }
-        let mut g = Geometry {
-            b: SMatrix::zeros(),
-            count,
-            min: Commands::zeros(),
-            max: Commands::zeros(),
-        };
-        for (j, a) in actuators.iter().enumerate() {
-            g.b.set_column(j, &column::<T, K>(j, a)?);
-            g.min[j] = a.min;
-            g.max[j] = a.max;
-        }
-        for (i, w) in wheels.iter().enumerate() {
-            let j = actuators.len() + i;
+        Self::from_columns(count, |j| {
+            let Some(w) = j.checked_sub(actuators.len()).map(|i| &wheels[i]) else {
+                let a = &actuators[j];
+                return Ok((column::<T, K>(j, a)?, a.min, a.max));
+            };
             // a wheel is a pure torque: an actuator at the origin whose thrust is zero and
             // whose reaction torque is −1 per unit command, checked as one
             let pure = Actuator {
@@ -229,15 +218,8 @@ impl<T: RealField + Copy, const K: usize> Geometry<T, K> {
             for r in 3..K {
                 c[r] = T::zero();
             }
-            g.b.set_column(j, &c);
-            g.min[j] = pure.min;
-            g.max[j] = pure.max;
-        }
-        let lost = lost_directions(&g.b);
-        if lost.count > 0 {
-            return Err(GeometryError::DoesNotSpan(lost));
-        }
-        Ok(g)
+            Ok((c, pure.min, pure.max))
+        })
     }
 
     /// A planar vehicle's geometry (SE(2), `K` = 3, wrenches `(τ, f_x, f_y)`): actuator `j`
@@ -251,17 +233,8 @@ impl<T: RealField + Copy, const K: usize> Geometry<T, K> {
         if K != 3 {
             return Err(GeometryError::Dimension);
         }
-        let count = actuators.len();
-        if count == 0 || count > MAX_ACTUATORS {
-            return Err(GeometryError::Count { count });
-        }
-        let mut g = Geometry {
-            b: SMatrix::zeros(),
-            count,
-            min: Commands::zeros(),
-            max: Commands::zeros(),
-        };
-        for (j, a) in actuators.iter().enumerate() {
+        Self::from_columns(actuators.len(), |j| {
+            let a = &actuators[j];
             let out = [
                 ("position", a.position[2]),
                 ("axis", a.axis[2]),
@@ -275,9 +248,31 @@ impl<T: RealField + Copy, const K: usize> Geometry<T, K> {
             for (r, row) in [2, 3, 4].into_iter().enumerate() {
                 c[r] = full[row];
             }
+            Ok((c, a.min, a.max))
+        })
+    }
+
+    /// `count` columns, column `j` and its bounds `(min, max)` from `column_of(j)` (in order,
+    /// the first error returned): refuses a count outside 1..=[`MAX_ACTUATORS`] and columns
+    /// that do not span the wrench space.
+    fn from_columns(
+        count: usize,
+        mut column_of: impl FnMut(usize) -> Result<(SVector<T, K>, T, T), GeometryError<T, K>>,
+    ) -> Result<Self, GeometryError<T, K>> {
+        if count == 0 || count > MAX_ACTUATORS {
+            return Err(GeometryError::Count { count });
+        }
+        let mut g = Geometry {
+            b: SMatrix::zeros(),
+            count,
+            min: Commands::zeros(),
+            max: Commands::zeros(),
+        };
+        for j in 0..count {
+            let (c, min, max) = column_of(j)?;
             g.b.set_column(j, &c);
-            g.min[j] = a.min;
-            g.max[j] = a.max;
+            g.min[j] = min;
+            g.max[j] = max;
         }
         let lost = lost_directions(&g.b);
         if lost.count > 0 {

@@ -76,51 +76,63 @@ fn a_planar_vessel_has_planar_columns() {
 
 #[test]
 fn planar_keys_of_the_wrong_length_are_refused_naming_the_key() {
-    let c = circle();
-    refused(
-        &c.replace("rotation = [2.0]", "rotation = [2.0, 0.0, 0.0]"),
-        "initial.rotation",
-        "a heading",
-    );
-    refused(
-        &c.replace("position = [1.5, -1.0]", "position = [1.5, -1.0, 0.0]"),
-        "initial.position",
-        "x, y",
-    );
-    refused(
-        &c.replace("velocity = [0.5, 0.3, -0.2]", "velocity = [0.5, 0.3]"),
-        "initial.velocity",
-        "ω, v_x, v_y",
-    );
-    refused(
-        &c.replace("kd = 1.5", "kd = [[1.0, 0.0], [0.0, 1.0]]"),
-        "controller.kd",
-        "",
-    );
-    let v = vessel();
-    refused(
-        &v.replacen("position = [0.5, 0.3]", "position = [0.5, 0.3, 0.0]", 1),
-        "vehicle.actuator[0].position",
-        "x, y in the body plane",
-    );
-    refused(
-        &v.replacen(
+    // (text, from, to: the first occurrence replaced), the key named, what the message says
+    let (c, v) = (circle(), vessel());
+    let cases = [
+        (
+            &c,
+            "rotation = [2.0]",
+            "rotation = [2.0, 0.0, 0.0]",
+            "initial.rotation",
+            "a heading",
+        ),
+        (
+            &c,
+            "position = [1.5, -1.0]",
+            "position = [1.5, -1.0, 0.0]",
+            "initial.position",
+            "x, y",
+        ),
+        (
+            &c,
+            "velocity = [0.5, 0.3, -0.2]",
+            "velocity = [0.5, 0.3]",
+            "initial.velocity",
+            "ω, v_x, v_y",
+        ),
+        (
+            &c,
+            "kd = 1.5",
+            "kd = [[1.0, 0.0], [0.0, 1.0]]",
+            "controller.kd",
+            "",
+        ),
+        (
+            &v,
+            "position = [0.5, 0.3]",
+            "position = [0.5, 0.3, 0.0]",
+            "vehicle.actuator[0].position",
+            "x, y in the body plane",
+        ),
+        (
+            &v,
             "axis = [0.707106781187, -0.707106781187]",
             "axis = [0.7, -0.7, 0.1]",
-            1,
+            "vehicle.actuator[0].axis",
+            "in the body plane",
         ),
-        "vehicle.actuator[0].axis",
-        "in the body plane",
-    );
-    refused(
-        &v.replacen(
+        (
+            &v,
             "axis = [0.707106781187, -0.707106781187]",
             "axis = [0.0, 0.0]",
-            1,
+            "vehicle.actuator[0].axis",
+            "zero",
         ),
-        "vehicle.actuator[0].axis",
-        "zero",
-    );
+    ];
+    for (text, from, to, key, says) in cases {
+        assert!(text.contains(from), "the scenario no longer has `{from}`");
+        refused(&text.replacen(from, to, 1), key, says);
+    }
     // two thrusters along x cannot turn the vessel about z or push it sideways
     let two = v.split("[[vehicle.actuator]]").next().unwrap().to_owned()
         + "[[vehicle.actuator]]\nposition = [0.5, 0.0]\naxis = [1.0, 0.0]\nmin = -1.0\nmax = 1.0\n\

@@ -93,23 +93,28 @@ fn a_planar_scenario_tracks_in_real_time() {
     assert!(l < 0.3, "L = {l} after 5 s of a real-time run: {s}");
 }
 
+/// `plant_sim move` of `file` by `offset` (x, y, z) and a heading of 2.1 rad, `--check`ed,
+/// into `out`: its exit code and output.
+fn moved(file: &str, offset: &str, out: &str) -> (i32, String) {
+    plant(&[
+        "move",
+        "--scenario",
+        file,
+        "--offset",
+        offset,
+        "--heading",
+        "2.1",
+        "--check",
+        "--out",
+        out,
+    ])
+}
+
 #[test]
 fn a_planar_scenario_moved_a_kilometre_and_turned_flies_the_same_flight() {
     let d = TempDir::new("se2-moved");
     for name in PLANAR {
-        let out = d.join(name);
-        let (code, text) = plant(&[
-            "move",
-            "--scenario",
-            &scenario(name),
-            "--offset",
-            "1000,-700,0",
-            "--heading",
-            "2.1",
-            "--check",
-            "--out",
-            &out,
-        ]);
+        let (code, text) = moved(&scenario(name), "1000,-700,0", &d.join(name));
         assert_eq!(code, 0, "{name}: {text}");
         assert!(text.contains("the same flight"), "{name}: {text}");
     }
@@ -120,29 +125,10 @@ fn a_planar_scenario_moved_a_kilometre_and_turned_flies_the_same_flight() {
         .unwrap()
         .replace("[controller]\n", "[controller]\nerror_frame = \"world\"\n");
     std::fs::write(&world, text).unwrap();
-    let (code, out) = plant(&[
-        "move",
-        "--scenario",
-        &world,
-        "--offset",
-        "1000,-700,0",
-        "--heading",
-        "2.1",
-        "--check",
-        "--out",
-        &d.join("world"),
-    ]);
+    let (code, out) = moved(&world, "1000,-700,0", &d.join("world"));
     assert_ne!(code, 0, "{out}");
     // the plane has no z
-    let (code, out) = plant(&[
-        "move",
-        "--scenario",
-        &scenario("se2_circle"),
-        "--offset",
-        "0,0,1",
-        "--out",
-        &d.join("z"),
-    ]);
+    let (code, out) = moved(&scenario("se2_circle"), "0,0,1", &d.join("z"));
     assert_eq!(code, 2, "{out}");
     assert!(out.contains("offset z"), "{out}");
 }

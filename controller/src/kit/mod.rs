@@ -47,6 +47,33 @@ pub struct Failure {
     pub tolerance: f64,
 }
 
+/// Counts the checks a kit function makes; the first to exceed its tolerance (or to be NaN)
+/// is the [`Failure`].
+#[derive(Default)]
+struct Checks(usize);
+
+impl Checks {
+    fn check(
+        &mut self,
+        property: &'static str,
+        sample: usize,
+        error: f64,
+        tolerance: f64,
+    ) -> Result<(), Failure> {
+        self.0 += 1;
+        if error <= tolerance {
+            Ok(())
+        } else {
+            Err(Failure {
+                property,
+                sample,
+                error,
+                tolerance,
+            })
+        }
+    }
+}
+
 impl core::fmt::Display for Failure {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(
@@ -118,20 +145,7 @@ where
     T: Real,
 {
     let n = samples.len();
-    let mut checks = 0;
-    let mut check = |property: &'static str, sample: usize, error: f64, tolerance: f64| {
-        checks += 1;
-        if error <= tolerance {
-            Ok(())
-        } else {
-            Err(Failure {
-                property,
-                sample,
-                error,
-                tolerance,
-            })
-        }
-    };
+    let mut checks = Checks::default();
     let cast = |v: &SVector<f64, M>| SVector::<T, M>::from_fn(|i, _| real(v[i]));
     for i in 0..n {
         let (va, vb, vc) = (
@@ -142,29 +156,29 @@ where
         let (x, y, z) = (G::exp(&va), G::exp(&vb), G::exp(&vc));
         let id = G::identity::<T>();
         let e = relative(&G::compose(&id, &x), &x).max(relative(&G::compose(&x, &id), &x));
-        check("identity", i, e, tol)?;
+        checks.check("identity", i, e, tol)?;
         let inv = G::inverse(&x);
         let e = relative(&G::compose(&x, &inv), &id).max(relative(&G::compose(&inv, &x), &id));
-        check("inverse", i, e, tol)?;
+        checks.check("inverse", i, e, tol)?;
         let e = x
             .try_inverse()
             .map_or(f64::INFINITY, |m| relative(&inv, &m));
-        check("inverse equals the matrix inverse", i, e, tol)?;
+        checks.check("inverse equals the matrix inverse", i, e, tol)?;
         let l = G::compose(&G::compose(&x, &y), &z);
         let r = G::compose(&x, &G::compose(&y, &z));
-        check("associativity", i, relative(&l, &r), 10.0 * tol)?;
+        checks.check("associativity", i, relative(&l, &r), 10.0 * tol)?;
         let adab = G::adjoint(&x) * G::adjoint(&y);
         let e = relative(&adab, &G::adjoint(&G::compose(&x, &y)));
-        check("Ad(a)Ad(b) = Ad(ab)", i, e, 10.0 * tol)?;
+        checks.check("Ad(a)Ad(b) = Ad(ab)", i, e, 10.0 * tol)?;
         let lhs = x * G::hat(&vc) * inv;
         let e = relative(&lhs, &G::hat(&(G::adjoint(&x) * vc)));
-        check("X hat(v) X⁻¹ = hat(Ad_X v)", i, e, 10.0 * tol)?;
+        checks.check("X hat(v) X⁻¹ = hat(Ad_X v)", i, e, 10.0 * tol)?;
         let comm = G::hat(&va) * G::hat(&vb) - G::hat(&vb) * G::hat(&va);
         let e = relative(&(G::ad(&va) * vb), &G::vee(&comm));
-        check("ad against the commutator", i, e, tol)?;
+        checks.check("ad against the commutator", i, e, tol)?;
         let e = relative(&G::ad_transpose_mul(&va, &vc), &G::ad(&va).tr_mul(&vc));
-        check("ad_transpose_mul equals ad(a)ᵀ μ", i, e, tol)?;
-        check(
+        checks.check("ad_transpose_mul equals ad(a)ᵀ μ", i, e, tol)?;
+        checks.check(
             "vee(hat(v)) = v",
             i,
             relative(&G::vee(&G::hat(&va)), &va),
@@ -174,20 +188,20 @@ where
         for k in 0..M {
             sum += G::basis::<T>(k) * va[k];
         }
-        check("hat(v) = Σ vᵢ Eᵢ", i, relative(&sum, &G::hat(&va)), tol)?;
+        checks.check("hat(v) = Σ vᵢ Eᵢ", i, relative(&sum, &G::hat(&va)), tol)?;
         let mm = x * z.transpose();
         let via_basis = SVector::<T, M>::from_fn(|k, _| mm.dot(&G::basis::<T>(k)));
         let e = relative(&G::frobenius_coordinates(&mm), &via_basis);
-        check("the Frobenius coordinates", i, e, tol)?;
+        checks.check("the Frobenius coordinates", i, e, tol)?;
         let e = relative(&G::between(&x, &y), &G::compose(&inv, &y));
-        check("between(x, y) = x⁻¹ y", i, e, 10.0 * tol)?;
+        checks.check("between(x, y) = x⁻¹ y", i, e, 10.0 * tol)?;
         let e = relative(&x, &exp_series(&G::hat(&va)));
-        check("exp against its series", i, e, 10.0 * tol)?;
-        check("log(exp(v)) = v", i, relative(&G::log(&x), &va), 10.0 * tol)?;
+        checks.check("exp against its series", i, e, 10.0 * tol)?;
+        checks.check("log(exp(v)) = v", i, relative(&G::log(&x), &va), 10.0 * tol)?;
         let e = dexp_error::<G, N, M>(&samples[i], &samples[(i + 1) % n]);
-        check("dexp⁻¹ against finite differences", i, e.0, e.1)?;
+        checks.check("dexp⁻¹ against finite differences", i, e.0, e.1)?;
     }
-    Ok(checks)
+    Ok(checks.0)
 }
 
 /// `dexp⁻¹_{−u}` of the body velocity finite differences give for the curve
@@ -241,20 +255,7 @@ pub fn check_error_dynamics<G, const N: usize, const M: usize>(seed: u64) -> Res
 where
     G: MatrixLieGroup<N, M>,
 {
-    let mut checks = 0;
-    let mut check = |property: &'static str, sample: usize, error: f64, tolerance: f64| {
-        checks += 1;
-        if error <= tolerance {
-            Ok(())
-        } else {
-            Err(Failure {
-                property,
-                sample,
-                error,
-                tolerance,
-            })
-        }
-    };
+    let mut checks = Checks::default();
     let s = |i: u64| sample::<M>(seed, i, 1.0);
     let start = |i: u64| Phase::<f64, N, M> {
         q: G::exp(&s(i)),
@@ -287,14 +288,14 @@ where
             let fd_q = (e.q - before.q) / (2.0 * h);
             let fd_p = (e.p - before.p) / (2.0 * h);
             let err = (fd_q - rhs.q_dot).amax().max((fd_p - rhs.p_dot).amax()) / scale;
-            check("the error-dynamics theorem", k - 1, err, 1e-5)?;
+            checks.check("the error-dynamics theorem", k - 1, err, 1e-5)?;
             let diff = Input {
                 v: u.v - ud.v,
                 tau: u.tau - ud.tau,
             };
             let via_psi = input_action::<G, f64, N, M>(&xdc.inverse::<G>(), &diff);
             let err = relative(&via_psi.v, &ue.v).max(relative(&via_psi.tau, &ue.tau));
-            check(
+            checks.check(
                 "the error inputs are ψ of the differences",
                 k - 1,
                 err,
@@ -302,7 +303,7 @@ where
             )?;
             let tau = torque_from_error_torque::<G, f64, N, M>(&xdc, &ud.tau, &ue.v, &ue.tau);
             let err = relative(&tau, &u.tau);
-            check(
+            checks.check(
                 "the torque recovered from the error torque",
                 k - 1,
                 err,
@@ -314,7 +315,7 @@ where
         x = rkmk4_step::<G, f64, _, N, M>(&x, t, h, field(va, ta));
         xd = rkmk4_step::<G, f64, _, N, M>(&xd, t, h, field(vb, tb));
     }
-    Ok(checks)
+    Ok(checks.0)
 }
 
 /// The `L̇` docs/maths.md states for the law's error frame, at one state: `−eᵀK_d e` at the
@@ -456,7 +457,7 @@ where
     };
     let h = 1e-4;
     let mut x: LoopState<N, M> = (G::exp(&s(1, 1.0)), s(2, 1.0), G::exp(&s(3, 1.0)), s(4, 1.0));
-    let mut checks = 0;
+    let mut checks = Checks::default();
     // (L, stated L̇) at the last two steps, and L at the start
     let mut window = [(f64::NAN, f64::NAN); 2];
     let mut first = f64::NAN;
@@ -473,22 +474,16 @@ where
             let measured = (l - window[0].0) / (2.0 * h);
             let expected = window[1].1;
             let err = (measured - expected).abs() / (1.0 + expected.abs());
-            checks += 1;
-            if err > 1e-5 {
-                return Err(fail("L̇ is the stated rate", k - 1, err, 1e-5));
-            }
+            checks.check("L̇ is the stated rate", k - 1, err, 1e-5)?;
         }
         if k >= 1 && c.error_frame != ErrorFrame::Recentred {
             let rise = (l - window[1].0) / (1.0 + first.abs());
-            checks += 1;
-            if rise > 1e-10 {
-                return Err(fail("L never rises", k, rise, 1e-10));
-            }
+            checks.check("L never rises", k, rise, 1e-10)?;
         }
         window = [window[1], (l, stated)];
         x = sim.step(&x, h).ok_or(refused(k))?;
     }
-    Ok(checks)
+    Ok(checks.0)
 }
 
 /// How many checks [`check`] made, by part.
