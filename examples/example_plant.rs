@@ -17,7 +17,7 @@
 //! board: writes the valve or ESC outputs). The state's `applied` is the command's `accounted`.
 //!
 //! With `complementary` (SO(3)) the plant publishes what a board would: not the body's state
-//! but the `estimator` crate's complementary filter run on its IMU — a gyro and two direction
+//! but the `eqtrack-estimator` crate's complementary filter run on its IMU — a gyro and two direction
 //! sensors, "up" `(0, 0, 1)` and "north" `(1, 0, 0)` (`k_P = 1`, `k_I = 0.3`, unit weights,
 //! TRIAD start). With `eqf` (SO(3)) the filter is the equivariant filter instead, its noise
 //! model that of a common MEMS IMU (gyro 0.002 rad/s/√Hz, bias walk 1e-5 rad/s²/√Hz,
@@ -26,10 +26,10 @@
 //! One CSV line per tick on stdout: `k, t, Q (row-major), V, τ, status` (0 fresh, 1 held,
 //! 2 safe mode).
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
-use controller::GroupKind;
-use controller::group::{BuiltinGroup, MatrixLieGroup, Se3, So3};
-use controller::integrator::RigidBody;
-use controller::law::safe_mode_torque;
+use eqtrack_controller::GroupKind;
+use eqtrack_controller::group::{BuiltinGroup, MatrixLieGroup, Se3, So3};
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::law::safe_mode_torque;
 use link::{
     Command, DeadlinePolicy, Decision, NoCommand, PlantEndpoint, PlantEndpointConfig, Step, clock,
 };
@@ -46,22 +46,22 @@ const NORTH_UP: [Vector3<f64>; 2] = [Vector3::new(0.0, 0.0, 1.0), Vector3::new(1
 /// The attitude filter run on the IMU.
 enum Filter {
     /// The `complementary` variant.
-    Complementary(Box<estimator::ComplementaryFilter<f64>>),
+    Complementary(Box<eqtrack_estimator::ComplementaryFilter<f64>>),
     /// The `eqf` variant.
-    Eqf(Box<estimator::EquivariantFilter<f64>>),
+    Eqf(Box<eqtrack_estimator::EquivariantFilter<f64>>),
 }
 
 impl Filter {
     fn complementary() -> Filter {
-        let cfg = estimator::ComplementaryConfig::new(1.0, 0.3, &NORTH_UP, &[1.0, 1.0])
+        let cfg = eqtrack_estimator::ComplementaryConfig::new(1.0, 0.3, &NORTH_UP, &[1.0, 1.0])
             .expect("valid gains and directions");
-        Filter::Complementary(Box::new(estimator::ComplementaryFilter::new(cfg)))
+        Filter::Complementary(Box::new(eqtrack_estimator::ComplementaryFilter::new(cfg)))
     }
 
     fn eqf() -> Filter {
-        let cfg = estimator::EqfConfig::new(0.002, 1e-5, &NORTH_UP, &[0.01, 0.01])
+        let cfg = eqtrack_estimator::EqfConfig::new(0.002, 1e-5, &NORTH_UP, &[0.01, 0.01])
             .expect("valid noise and directions");
-        Filter::Eqf(Box::new(estimator::EquivariantFilter::new(cfg)))
+        Filter::Eqf(Box::new(eqtrack_estimator::EquivariantFilter::new(cfg)))
     }
 
     fn step(
@@ -110,8 +110,8 @@ impl<G: BuiltinGroup<N, M>, const N: usize, const M: usize> Body<G, N, M> {
 
 /// The spacecraft's twelve one-way thrusters, 0 to 3 N, 0.5 m out, two per signed body axis
 /// (`scenarios/spacecraft.toml`'s).
-fn thrusters() -> Vec<allocation::Actuator<f64>> {
-    let arm = |p: [f64; 3], a: [f64; 3]| allocation::Actuator {
+fn thrusters() -> Vec<eqtrack_allocation::Actuator<f64>> {
+    let arm = |p: [f64; 3], a: [f64; 3]| eqtrack_allocation::Actuator {
         position: p,
         axis: a,
         torque_per_thrust: 0.0,
@@ -137,19 +137,25 @@ fn thrusters() -> Vec<allocation::Actuator<f64>> {
 
 /// A vehicle's actuators: their allocator (for the safe mode's damping) and the commands held.
 struct Thrusters {
-    allocator: allocation::Allocator<f64, 3>,
-    u: allocation::Commands<f64>,
+    allocator: eqtrack_allocation::Allocator<f64, 3>,
+    u: eqtrack_allocation::Commands<f64>,
     /// What the law counts as applied (the next state's `applied`).
     accounted: Vector3<f64>,
 }
 
 impl Thrusters {
     fn new() -> Thrusters {
-        let geometry = allocation::Geometry::new(&thrusters()).expect("a spanning geometry");
+        let geometry =
+            eqtrack_allocation::Geometry::new(&thrusters()).expect("a spanning geometry");
         Thrusters {
-            allocator: allocation::Allocator::new(geometry, &[], &[], allocation::Priority::Torque)
-                .expect("default weights"),
-            u: allocation::Commands::zeros(),
+            allocator: eqtrack_allocation::Allocator::new(
+                geometry,
+                &[],
+                &[],
+                eqtrack_allocation::Priority::Torque,
+            )
+            .expect("default weights"),
+            u: eqtrack_allocation::Commands::zeros(),
             accounted: Vector3::zeros(),
         }
     }
@@ -165,7 +171,9 @@ impl Thrusters {
         let (lo, hi) = self.allocator.geometry().bounds();
         match (decision, got) {
             (Decision::Fresh, Some(c)) => {
-                self.u = allocation::Commands::from_fn(|j, _| c.msg.u_cmd[j].clamp(lo[j], hi[j]));
+                self.u = eqtrack_allocation::Commands::from_fn(|j, _| {
+                    c.msg.u_cmd[j].clamp(lo[j], hi[j])
+                });
                 self.accounted = Vector3::from_fn(|i, _| c.msg.accounted[i]);
             }
             (Decision::Safe, _) => {

@@ -4,7 +4,7 @@
 //! scenario's path through waypoints to a `controller_node --reference stream` of the same
 //! run while the pair runs — a stop path's legs or, with `path = "through"`, a through-path's.
 //! A planner that decides on the fly builds its segments the same way
-//! (`controller::path::Segment::between`, or `Segment::hermite` from the pose, body velocity
+//! (`eqtrack_controller::path::Segment::between`, or `Segment::hermite` from the pose, body velocity
 //! and acceleration at both ends) and publishes them the same way.
 //!
 //! ```text
@@ -23,7 +23,7 @@
 //! done, 1 no plant or the plant is gone, 2 bad input).
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 use clap::Parser;
-use controller::group::{BuiltinGroup, OnGroup};
+use eqtrack_controller::group::{BuiltinGroup, OnGroup};
 use ipc_types::{PLAN_WINDOW, PlanMsg, WireSegment, flags};
 use link::plan::PlanWriter;
 use link::{Exit, StopFlag, process_alive};

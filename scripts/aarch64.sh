@@ -21,7 +21,7 @@
 #    largest difference per column is printed and the run fails when any exceeds 1e-9
 #    (absolute): a one-ulp difference somewhere (a C-library routine, say) stays near 1e-15 in
 #    a contracting closed loop, while a real numerical defect shows far above 1e-9.
-# 4. Runs the `controller` crate's unit and integration tests for the target under emulation
+# 4. Runs the `eqtrack-controller` crate's unit and integration tests for the target under emulation
 #    (not its doctests: rustdoc would need the private compiler's libraries as well).
 #
 # Environment:
@@ -157,7 +157,7 @@ pair se3_circle --builtin se3_circle
 
 if [[ ${AARCH64_TESTS:-1} != 0 ]]; then
 	step "controller's test suite for $TARGET under qemu-aarch64"
-	cross cargo test --release --locked --target "$TARGET" -p controller --lib --tests >"$OUT/controller-tests.log" 2>&1 ||
+	cross cargo test --release --locked --target "$TARGET" -p eqtrack-controller --lib --tests >"$OUT/controller-tests.log" 2>&1 ||
 		{ grep -E "FAILED|panicked|error" "$OUT/controller-tests.log" | head -20 >&2; die "controller tests failed on $TARGET (log: $OUT/controller-tests.log)"; }
 	passed=$(grep -Eo '^test result: ok\. [0-9]+ passed' "$OUT/controller-tests.log" | awk '{s += $4} END {print s + 0}')
 	echo "controller tests on $TARGET: $passed passed"

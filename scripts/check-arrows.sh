@@ -151,10 +151,10 @@ plant channels/Cargo.toml 'mcap = { version = "0.26", default-features = false }
 plant live/Cargo.toml 'plant = { path = "../plant" }' "live depends on plant" --no-docs
 plant plant_sim/Cargo.toml 'tungstenite = "0.30"' "plant_sim links tungstenite" --no-docs
 plant controller_node/Cargo.toml 'live = { path = "../live" }' "controller_node links live" --no-docs
-plant ipc_types/Cargo.toml 'allocation = { path = "../allocation" }' "ipc_types depends on allocation" --no-docs
-plant recorder/Cargo.toml 'controller = { path = "../controller" }' "recorder depends on controller" --no-docs
+plant ipc_types/Cargo.toml 'eqtrack-allocation = { path = "../allocation" }' "ipc_types depends on eqtrack-allocation" --no-docs
+plant recorder/Cargo.toml 'eqtrack-controller = { path = "../controller" }' "recorder depends on eqtrack-controller" --no-docs
 plant recorder/Cargo.toml 'link = { path = "../link" }' "recorder depends on link" --no-docs
-plant ipc_types/Cargo.toml 'controller = { path = "../controller" }' "ipc_types depends on controller" --no-docs
+plant ipc_types/Cargo.toml 'eqtrack-controller = { path = "../controller" }' "ipc_types depends on eqtrack-controller" --no-docs
 plant controller_node/Cargo.toml 'mcap = { version = "0.26", default-features = false }' "controller_node links mcap" --no-docs
 plant plant/Cargo.toml 'controller_node = { path = "../controller_node" }' "plant depends on controller_node" --no-docs
 plant plant/Cargo.toml 'control_cycle = { path = "../control_cycle" }' "plant depends on control_cycle" --no-docs

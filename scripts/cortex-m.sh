@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs the `controller` crate on an emulated Cortex-M4F and compares it with the host.
+# Runs the `eqtrack-controller` crate on an emulated Cortex-M4F and compares it with the host.
 #
 #   scripts/cortex-m.sh
 #

@@ -49,9 +49,9 @@ def check_table(path, page, bad):
     """The crate table: | `name` | ... | depends on (ours) |."""
     rows = {}
     for l in page:
-        m = re.match(r"^\| `([a-z_]+)` \|(.*)\|\s*$", l)
+        m = re.match(r"^\| `((?:eqtrack-[a-z-]+|[a-z_]+))` \|(.*)\|\s*$", l)
         if m and m.group(1) in ours:
-            rows[m.group(1)] = set(re.findall(r"`([a-z_]+)`", m.group(2).split("|")[-1]))
+            rows[m.group(1)] = set(re.findall(r"`((?:eqtrack-[a-z-]+|[a-z_]+))`", m.group(2).split("|")[-1]))
     for name in order:
         if name == "pair_tests":
             continue  # tests/: only dev-dependencies
@@ -73,7 +73,7 @@ def check_embedded(path, page, bad):
         if not m:
             continue
         name = m.group(1)
-        said = set(re.findall(r"`([a-z_]+)`", m.group(2).split("|")[-1])) & ours
+        said = set(re.findall(r"`((?:eqtrack-[a-z-]+|[a-z_]+))`", m.group(2).split("|")[-1])) & ours
         out = subprocess.run(
             ["cargo", "metadata", "--format-version", "1", "--no-deps", "--offline",
              "--manifest-path", f"embedded/{name}/Cargo.toml"],

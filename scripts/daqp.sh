@@ -53,7 +53,7 @@ echo "daqp: a command moved by 1e-3 of the largest bound is caught: $(tail -1 "$
 
 # 2. the peer benchmark
 # the workspace's dev profile (opt-level 2): `cargo test --workspace` has built the example
-# already, with the workspace's features (`-p allocation` would resolve them anew and rebuild)
+# already, with the workspace's features (`-p eqtrack-allocation` would resolve them anew and rebuild)
 (cd "$REPO" && cargo build --locked -q --workspace --example peer) >"$OUT/peer-build.log" 2>&1 ||
 	die "cannot build the peer example (log: $OUT/peer-build.log)"
 (cd "$REPO" && "$TARGET/debug/examples/peer" "$OUT") >"$OUT/eqtrack.jsonl" 2>"$OUT/peer.log" ||

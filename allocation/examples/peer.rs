@@ -2,7 +2,7 @@
 //! DAQP on the same ones; docs/vehicles.md, "Bounded time"):
 //!
 //! ```text
-//! cargo run --release -p allocation --example peer -- OUT_DIR
+//! cargo run --release -p eqtrack-allocation --example peer -- OUT_DIR
 //! ```
 //!
 //! For the tilted hexarotor and the eight-thruster ROV: 200 seeded saturated demands, each
@@ -12,7 +12,7 @@
 //! the problems of each problem's median time over 51 calls, for stage 1 alone (the torque)
 //! and for the whole hierarchy.
 
-use allocation::{Allocator, Commands, Geometry, Priority, presets};
+use eqtrack_allocation::{Allocator, Commands, Geometry, Priority, presets};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
 use std::fmt::Write as _;

@@ -18,7 +18,7 @@
 //!   and the plant integrates.
 //!
 //! ```
-//! use allocation::{Allocator, Geometry, Priority, Status, presets};
+//! use eqtrack_allocation::{Allocator, Geometry, Priority, Status, presets};
 //! use nalgebra::SVector;
 //!
 //! // a tilted-rotor hexarotor: arm 0.25 m, rotors tilted 0.5 rad, drag 0.016 m, 0..8 N
@@ -40,10 +40,20 @@
 //! `no_std`, no `alloc`, fixed capacity of [`MAX_ACTUATORS`]; generic over the scalar (`f32`
 //! on a microcontroller, `f64` on Linux) and over the wrench dimension `K` (3 on SO(3), the
 //! torque alone; 6 on SE(3), torque then force).
+//!
+//! ## Features
+//!
+//! - `planted-slow-path` (off by default): eqtrack's own CI only, never a vehicle: one more
+//!   factorisation per active-set iteration, so that the firmware's worst-case check can be
+//!   shown to catch a slow path.
+//!
+//! [`nalgebra`] is re-exported, so a user's wrench is this crate's type.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
+
+pub use nalgebra;
 
 mod allocator;
 mod control;
@@ -66,3 +76,8 @@ pub const MAX_ACTUATORS: usize = 12;
 
 /// A vector over the actuators (entries past the geometry's count are 0).
 pub type Commands<T> = nalgebra::SVector<T, MAX_ACTUATORS>;
+
+/// This crate's README (its example), compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

@@ -2,7 +2,7 @@
 //! optimum in fewer iterations, and a budget that runs out still answers a command within the
 //! bounds that keeps what the finished stages reached.
 
-use allocation::{
+use eqtrack_allocation::{
     Actuator, Allocator, Bounds, Commands, Geometry, MAX_ACTUATORS, Priority, Status, presets,
 };
 use nalgebra::SVector;
@@ -24,7 +24,7 @@ fn spacecraft() -> Allocator<f64, 3> {
     Allocator::new(g, &[], &[], Priority::Torque).unwrap()
 }
 
-fn within<const K: usize>(a: &allocation::Allocation<f64, K>, b: &Bounds<f64>) -> bool {
+fn within<const K: usize>(a: &eqtrack_allocation::Allocation<f64, K>, b: &Bounds<f64>) -> bool {
     (0..MAX_ACTUATORS).all(|j| a.u[j].is_finite() && a.u[j] >= b.lo[j] && a.u[j] <= b.hi[j])
 }
 
@@ -285,7 +285,7 @@ fn within_reach_the_answer_is_the_former_closed_form_bit_for_bit() {
 /// itself, bit for bit.
 #[test]
 fn a_weakened_actuator_has_its_column_scaled() {
-    use allocation::{Restoring, VehicleControl};
+    use eqtrack_allocation::{Restoring, VehicleControl};
     let alloc = rov();
     assert_eq!(alloc.scaled(3, 1.0), alloc, "factor 1 changes no bit");
     let no_restoring = Restoring {

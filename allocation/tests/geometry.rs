@@ -1,7 +1,7 @@
 //! Actuator geometry: the effectiveness column, and what is refused
 //! (docs/maths.md, "Control allocation").
 
-use allocation::{
+use eqtrack_allocation::{
     Actuator, Allocator, AllocatorError, Geometry, GeometryError, Priority, Status, presets,
 };
 use nalgebra::SVector;
@@ -226,9 +226,9 @@ fn the_directions_lost_are_those_the_actuators_left_free_do_not_span() {
     let rov = presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0);
     let alloc =
         Allocator::<f64, 6>::new(Geometry::new(&rov).unwrap(), &[], &[], Priority::Torque).unwrap();
-    let mut control = allocation::VehicleControl::new(
+    let mut control = eqtrack_allocation::VehicleControl::new(
         alloc,
-        allocation::Restoring {
+        eqtrack_allocation::Restoring {
             weight: 0.0,
             buoyancy: 0.0,
             centre: nalgebra::Vector3::zeros(),

@@ -3,7 +3,7 @@
 //! equality-constrained least-squares problem by the SVD, the best feasible one kept. Each
 //! stage's optimum must be met to 1e-9 (docs/maths.md, "Control allocation").
 
-use allocation::{Actuator, Allocator, Geometry, MAX_ACTUATORS, Priority, Status, presets};
+use eqtrack_allocation::{Actuator, Allocator, Geometry, MAX_ACTUATORS, Priority, Status, presets};
 use nalgebra::{DMatrix, DVector, SVector};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};

@@ -2,7 +2,7 @@
 //! bounds, wheels alone turning a spacecraft, the gyroscopic torque, and bounds that close at
 //! a wheel's top speed.
 
-use allocation::{
+use eqtrack_allocation::{
     Actuator, Allocator, Geometry, GeometryError, MAX_ACTUATORS, Momentum, Priority, Restoring,
     Status, VehicleControl, Wheel, presets,
 };

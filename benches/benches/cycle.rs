@@ -5,10 +5,10 @@
 
 use benches::*;
 use control_cycle::respond;
-use controller::group::{BuiltinGroup, Se3, So3};
-use controller::law::{eqt, so3};
-use controller::{Law, Real, Source, Trajectory, real};
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use eqtrack_controller::group::{BuiltinGroup, Se3, So3};
+use eqtrack_controller::law::{eqt, so3};
+use eqtrack_controller::{Law, Real, Source, Trajectory, real};
 use nalgebra::{SVector, Vector3};
 use std::hint::black_box;
 
@@ -17,7 +17,7 @@ use std::hint::black_box;
 /// step to the next period; a fresh reference from `setup` per batch.
 fn controller_cycle<T, G, R, const N: usize, const M: usize>(
     b: &mut criterion::Bencher,
-    ctl: &controller::Controller<T, G, N, M>,
+    ctl: &eqtrack_controller::Controller<T, G, N, M>,
     msg: &ipc_types::StateMsg,
     setup: impl FnMut() -> R,
 ) where
@@ -91,7 +91,7 @@ fn laws<T: Real>(c: &mut Criterion, scalar: &str) {
 /// the law, the Lyapunov function), on the states of `eqt_generic`: one group per group and
 /// scalar, `error_frame/<group>/<scalar>`, with the functions `reference` and `world`.
 fn error_frames<T: Real>(c: &mut Criterion, scalar: &str) {
-    use controller::ErrorFrame;
+    use eqtrack_controller::ErrorFrame;
     let frames = [
         ("reference", ErrorFrame::Reference),
         ("world", ErrorFrame::World),
@@ -187,7 +187,7 @@ fn steps<T: Real>(c: &mut Criterion, scalar: &str) {
 /// complementary filter with two directions; the equivariant filter with the same two; the
 /// SE(3) pose filter with one direction, the accelerometer and a position fix).
 fn estimators<T: Real>(c: &mut Criterion, scalar: &str) {
-    use estimator::{
+    use eqtrack_estimator::{
         ComplementaryConfig, ComplementaryFilter, EqfConfig, EquivariantFilter, PoseConfig,
         PoseFilter,
     };
@@ -320,19 +320,19 @@ fn baseline(c: &mut Criterion) {
 
 /// The disturbance-rejection terms (docs/maths.md, "Disturbance rejection"): the four
 /// variants' configurations (none, observer, integral, both) for the SO(3) seed body.
-fn term_variants<T: Real>() -> [(&'static str, controller::RejectionConfig<T, 3>); 4] {
-    let observer = controller::ObserverConfig {
+fn term_variants<T: Real>() -> [(&'static str, eqtrack_controller::RejectionConfig<T, 3>); 4] {
+    let observer = eqtrack_controller::ObserverConfig {
         gain: Vector3::repeat(real(20.0)),
         limit: None,
-        frame: controller::Frame::Body,
+        frame: eqtrack_controller::Frame::Body,
     };
-    let integral = controller::IntegralConfig {
+    let integral = eqtrack_controller::IntegralConfig {
         ki: Vector3::repeat(real(0.5)),
         c: Vector3::repeat(real(0.2)),
         limit: Some(Vector3::repeat(real(0.5))),
         anti_windup: true,
     };
-    let config = |o, i| controller::RejectionConfig {
+    let config = |o, i| eqtrack_controller::RejectionConfig {
         observer: o,
         integral: i,
     };
@@ -355,7 +355,7 @@ fn terms<T: Real>(c: &mut Criterion, scalar: &str) {
     let mut g = c.benchmark_group("law_terms");
     g.throughput(Throughput::Elements(1));
     for (name, config) in term_variants::<T>() {
-        let Ok(mut terms) = controller::Rejection::new(config, None) else {
+        let Ok(mut terms) = eqtrack_controller::Rejection::new(config, None) else {
             continue;
         };
         for _ in 0..2 {
@@ -459,12 +459,17 @@ fn paths(c: &mut Criterion) {
 /// (m = 8), a demand within reach (stages 1–3 each converge in one or two iterations) and one
 /// past it (saturated: more active-set iterations).
 fn allocations<T: Real>(c: &mut Criterion, scalar: &str) {
-    use allocation::{Allocator, Geometry, Priority, presets};
+    use eqtrack_allocation::{Allocator, Geometry, Priority, presets};
     use nalgebra::SVector;
-    let r = |x: f64| controller::real::<T>(x);
+    let r = |x: f64| eqtrack_controller::real::<T>(x);
     let hexarotor = presets::hexarotor::<T>(r(0.25), r(0.5), r(0.016), r(8.0));
     let rov = presets::rov_heavy::<T>(r(0.4), r(0.3), r(0.12), r(0.22), r(40.0));
-    type Case<'a, T> = (&'a str, &'a [allocation::Actuator<T>], [f64; 6], [f64; 6]);
+    type Case<'a, T> = (
+        &'a str,
+        &'a [eqtrack_allocation::Actuator<T>],
+        [f64; 6],
+        [f64; 6],
+    );
     let cases: [Case<T>; 2] = [
         (
             "hexarotor_m6",

@@ -9,11 +9,11 @@
 
 use benches::*;
 use control_cycle::respond;
-use controller::group::{Se3, So3};
-use controller::integrator::RigidBody;
-use controller::law::so3::{self, So3LawInput};
-use controller::law::{Desired, eqt};
-use controller::{Controller, Law, Reference, real};
+use eqtrack_controller::group::{Se3, So3};
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::law::so3::{self, So3LawInput};
+use eqtrack_controller::law::{Desired, eqt};
+use eqtrack_controller::{Controller, Law, Reference, real};
 use gungraun::{library_benchmark, library_benchmark_group, main};
 use ipc_types::{CommandMsg, StateMsg};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
@@ -101,7 +101,7 @@ fn plain_nalgebra_eqt_so3_f64(x: So3LawInput<f64>) -> Vector3<f64> {
 type So3Cycle<T> = (Controller<T, So3, 3, 3>, Reference<T, So3, 3, 3>, StateMsg);
 type Se3Cycle<T> = (Controller<T, Se3, 4, 6>, Reference<T, Se3, 4, 6>, StateMsg);
 
-fn so3_cycle<T: controller::Real>(substeps: usize) -> So3Cycle<T> {
+fn so3_cycle<T: eqtrack_controller::Real>(substeps: usize) -> So3Cycle<T> {
     let (q, v, ..) = so3_generic::<f64>();
     (
         seed_controller::<T>(Law::Eqt),
@@ -110,7 +110,7 @@ fn so3_cycle<T: controller::Real>(substeps: usize) -> So3Cycle<T> {
     )
 }
 
-fn se3_cycle<T: controller::Real>(substeps: usize) -> Se3Cycle<T> {
+fn se3_cycle<T: eqtrack_controller::Real>(substeps: usize) -> Se3Cycle<T> {
     let (q, v, ..) = se3_generic::<f64>();
     (
         se3_controller::<T>(),

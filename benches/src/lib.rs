@@ -5,11 +5,11 @@
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
-use controller::group::{BuiltinGroup, MatrixLieGroup, Se3, So3};
-use controller::integrator::RigidBody;
-use controller::law::Desired;
-use controller::law::so3::So3LawInput;
-use controller::{
+use eqtrack_controller::group::{BuiltinGroup, MatrixLieGroup, Se3, So3};
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::law::Desired;
+use eqtrack_controller::law::so3::So3LawInput;
+use eqtrack_controller::{
     Controller, ControllerConfig, Feedforward, Law, Real, Reference, real, so3_seed_feedforward,
 };
 use ipc_types::StateMsg;
@@ -111,7 +111,7 @@ pub fn seed_controller<T: Real>(law: Law) -> Controller<T, So3, 3, 3> {
     let h = real::<T>(0.5);
     Controller::new(ControllerConfig {
         law,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia: fixed_wing(),
         k: Matrix3::identity() * h,
         kd: Matrix3::identity() * h,
@@ -144,7 +144,7 @@ pub fn seed_plant<T: Real>() -> RigidBody<T, So3, 3, 3> {
 /// EqT on SO(3) with the gains and inertia of [`so3_generic`] (non-diagonal `K`,
 /// `K_d = K/2`, no torque limit), its error formed in `error_frame`.
 pub fn so3_law_controller<T: Real>(
-    error_frame: controller::ErrorFrame,
+    error_frame: eqtrack_controller::ErrorFrame,
 ) -> Controller<T, So3, 3, 3> {
     let x = so3_input::<T>();
     Controller::new(ControllerConfig {
@@ -161,7 +161,7 @@ pub fn so3_law_controller<T: Real>(
 /// EqT on SE(3) with the gains and inertia of [`se3_generic`] (no torque limit), its error
 /// formed in `error_frame`.
 pub fn se3_law_controller<T: Real>(
-    error_frame: controller::ErrorFrame,
+    error_frame: eqtrack_controller::ErrorFrame,
 ) -> Controller<T, Se3, 4, 6> {
     let (_, _, _, _, k, kd) = se3_generic::<T>();
     Controller::new(ControllerConfig {
@@ -180,7 +180,7 @@ pub fn se3_controller<T: Real>() -> Controller<T, Se3, 4, 6> {
     let (_, _, _, _, k, kd) = se3_generic::<T>();
     Controller::new(ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia: se3_inertia(),
         k,
         kd,
@@ -192,7 +192,7 @@ pub fn se3_controller<T: Real>() -> Controller<T, Se3, 4, 6> {
 /// The se3_circle reference at 1 kHz with `substeps` RKMK4 steps per period.
 pub fn se3_reference<T: Real>(substeps: usize) -> Reference<T, Se3, 4, 6> {
     let mut ff = Feedforward::<T, 6>::zero();
-    ff.axes[4] = controller::AxisTorque::constant(real(0.32));
+    ff.axes[4] = eqtrack_controller::AxisTorque::constant(real(0.32));
     let v_d = SVector::<f64, 6>::new(0.0, 0.0, 0.4, 0.4, 0.0, 0.0).map(real::<T>);
     Reference::new(
         SMatrix::identity(),

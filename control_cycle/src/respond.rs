@@ -1,7 +1,7 @@
 //! One answer to one state: the law (and the disturbance-rejection terms) at the state's time, as a command. The cycle the process runs and `plant_sim replay` runs again.
 
-use controller::group::BuiltinGroup;
-use controller::{Controller, Rejection, RejectionConfig, Trajectory};
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::{Controller, Rejection, RejectionConfig, Trajectory};
 use failsafe::monitor::applied_as_sent;
 use ipc_types::{CommandMsg, StateMsg};
 
@@ -16,9 +16,9 @@ pub fn respond<T, G, R, const N: usize, const M: usize>(
     controller: &Controller<T, G, N, M>,
     reference: &mut R,
     msg: &StateMsg,
-) -> Result<CommandMsg, controller::Error>
+) -> Result<CommandMsg, eqtrack_controller::Error>
 where
-    T: controller::Real,
+    T: eqtrack_controller::Real,
     G: BuiltinGroup<N, M>,
     R: Trajectory<T, N, M>,
 {
@@ -35,20 +35,20 @@ pub(crate) fn catch_up<T, R, const N: usize, const M: usize>(
     msg: &StateMsg,
 ) -> (nalgebra::SMatrix<T, N, N>, nalgebra::SVector<T, M>)
 where
-    T: controller::Real,
+    T: eqtrack_controller::Real,
     R: Trajectory<T, N, M>,
 {
     while reference.step_index() < msg.seq {
         reference.advance();
     }
     (
-        msg.configuration::<N>().map(controller::real::<T>),
-        msg.velocity::<M>().map(controller::real::<T>),
+        msg.configuration::<N>().map(eqtrack_controller::real::<T>),
+        msg.velocity::<M>().map(eqtrack_controller::real::<T>),
     )
 }
 
 /// A scalar as `f64` (NaN if it cannot be converted).
-pub(crate) fn to_f64<T: controller::Real>(x: T) -> f64 {
+pub(crate) fn to_f64<T: eqtrack_controller::Real>(x: T) -> f64 {
     nalgebra::try_convert::<T, f64>(x).unwrap_or(f64::NAN)
 }
 
@@ -56,10 +56,10 @@ pub(crate) fn to_f64<T: controller::Real>(x: T) -> f64 {
 pub(crate) fn write_law<T, const N: usize, const M: usize>(
     cmd: &mut CommandMsg,
     seq: u64,
-    out: &controller::LawOutput<T, N, M>,
-    law: controller::Law,
+    out: &eqtrack_controller::LawOutput<T, N, M>,
+    law: eqtrack_controller::Law,
 ) where
-    T: controller::Real,
+    T: eqtrack_controller::Real,
 {
     cmd.seq = seq;
     cmd.law = link::wire::law_code(law);
@@ -76,7 +76,7 @@ pub(crate) fn write_law<T, const N: usize, const M: usize>(
 /// plant applied, and the sequence number of the last state processed. The node and
 /// `plant_sim replay` answer states through it, so replay repeats the node bit for bit.
 #[derive(Debug, Clone)]
-pub struct Responder<T: controller::Real, G, const N: usize, const M: usize> {
+pub struct Responder<T: eqtrack_controller::Real, G, const N: usize, const M: usize> {
     pub(crate) controller: Controller<T, G, N, M>,
     pub(crate) rejection: Option<Rejection<T, M>>,
     pub(crate) previous: Option<u64>,
@@ -89,14 +89,14 @@ pub struct Responder<T: controller::Real, G, const N: usize, const M: usize> {
 
 impl<T, G, const N: usize, const M: usize> Responder<T, G, N, M>
 where
-    T: controller::Real,
+    T: eqtrack_controller::Real,
     G: BuiltinGroup<N, M>,
 {
     /// A responder with the terms of `rejection` (none: the plain law).
     pub fn new(
         controller: Controller<T, G, N, M>,
         rejection: RejectionConfig<T, M>,
-    ) -> Result<Self, controller::Error> {
+    ) -> Result<Self, eqtrack_controller::Error> {
         let rejection = Rejection::of(rejection, controller.config().torque_limit.as_ref())?;
         Ok(Responder {
             controller,
@@ -131,12 +131,13 @@ where
     /// and, for the terms the responder runs, the observer's `L` and the integral's `K_I`
     /// and `c`, all at once, checked as at start-up (an error leaves the responder as it
     /// was). The law, the model, the limit and the terms' state carry over. Allocation-free.
-    pub fn retune(&mut self, gains: &ipc_types::Gains) -> Result<(), controller::Error> {
+    pub fn retune(&mut self, gains: &ipc_types::Gains) -> Result<(), eqtrack_controller::Error> {
         let mut config = *self.controller.config();
-        config.k = nalgebra::SMatrix::from_fn(|i, j| controller::real(gains.k[i * N + j]));
-        config.kd = nalgebra::SMatrix::from_fn(|i, j| controller::real(gains.kd[i * M + j]));
+        config.k = nalgebra::SMatrix::from_fn(|i, j| eqtrack_controller::real(gains.k[i * N + j]));
+        config.kd =
+            nalgebra::SMatrix::from_fn(|i, j| eqtrack_controller::real(gains.kd[i * M + j]));
         let axes = |xs: &[f64; ipc_types::MAX_M]| {
-            nalgebra::SVector::<T, M>::from_fn(|i, _| controller::real(xs[i]))
+            nalgebra::SVector::<T, M>::from_fn(|i, _| eqtrack_controller::real(xs[i]))
         };
         let rejection = match &self.rejection {
             None => None,
@@ -200,8 +201,8 @@ where
             v.follow(cmd);
         }
         if let Some(s) = &mut self.supervisor {
-            let q = at.configuration::<N>().map(controller::real::<T>);
-            let v = at.velocity::<M>().map(controller::real::<T>);
+            let q = at.configuration::<N>().map(eqtrack_controller::real::<T>);
+            let v = at.velocity::<M>().map(eqtrack_controller::real::<T>);
             s.follow_engaged_at(cmd.failsafe, (q, v, t));
         }
     }
@@ -230,7 +231,7 @@ where
         &mut self,
         reference: &mut R,
         msg: &StateMsg,
-    ) -> Result<CommandMsg, controller::Error> {
+    ) -> Result<CommandMsg, eqtrack_controller::Error> {
         if let Some(vehicle) = &self.vehicle {
             vehicle.check_wheels(msg)?;
         }
@@ -272,14 +273,14 @@ where
         let out = match &mut self.rejection {
             None => self.controller.compute(&q, &v, &desired)?,
             Some(r) => {
-                let applied = msg.applied_torque::<M>().map(controller::real::<T>);
+                let applied = msg.applied_torque::<M>().map(eqtrack_controller::real::<T>);
                 self.controller.compute_rejecting(
                     r,
                     &q,
                     &v,
                     &desired,
                     &applied,
-                    controller::real(msg.control_period),
+                    eqtrack_controller::real(msg.control_period),
                     follows,
                 )?
             }
@@ -327,12 +328,12 @@ where
         }
         if let Some(r) = &mut self.rejection {
             let from = |xs: &[f64; ipc_types::MAX_M]| {
-                nalgebra::SVector::<T, M>::from_fn(|i, _| controller::real::<T>(xs[i]))
+                nalgebra::SVector::<T, M>::from_fn(|i, _| eqtrack_controller::real::<T>(xs[i]))
             };
             let anchor = previous.map(|p| {
                 (
-                    p.configuration::<N>().map(controller::real::<T>),
-                    p.velocity::<M>().map(controller::real::<T>),
+                    p.configuration::<N>().map(eqtrack_controller::real::<T>),
+                    p.velocity::<M>().map(eqtrack_controller::real::<T>),
                 )
             });
             self.controller.restore_rejection(

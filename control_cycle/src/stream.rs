@@ -1,8 +1,8 @@
 //! A streamed reference: the plan board's messages taken into the path, and the path the node starts from.
 
-use controller::group::BuiltinGroup;
-use controller::path::{Path, PathReference};
-use controller::{Source, Trajectory};
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::path::{Path, PathReference};
+use eqtrack_controller::{Source, Trajectory};
 use ipc_types::{CommandMsg, PlanInvalid, PlanMsg, check_plan, flags};
 use scenario::Scenario;
 
@@ -12,7 +12,7 @@ use scenario::Scenario;
 /// `plant_sim replay` start from it.
 pub fn streamed_reference<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     s: &Scenario,
-) -> Result<Source<f64, G, N, M>, controller::Error> {
+) -> Result<Source<f64, G, N, M>, eqtrack_controller::Error> {
     let start = s.reference_source::<G, N, M>()?.desired().q;
     let held = PathReference::new(
         Path::hold(start)?,

@@ -3,9 +3,9 @@
 //! (the estimate, the estimator's health the state's flags carry, a gap in the states) and
 //! what it knows (the actuators its allocator may still move).
 
-use controller::Real;
-use controller::group::BuiltinGroup;
-use controller::law::Desired;
+use eqtrack_controller::Real;
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::law::Desired;
 use failsafe::monitor::{Flags, Limits, Monitor};
 use failsafe::setpoint::{Rates, Setpoint};
 use failsafe::thrust_axis::ThrustAxis;
@@ -49,10 +49,10 @@ impl<T: Real, G: BuiltinGroup<N, M>, const N: usize, const M: usize> Supervisor<
             monitor: None,
             setpoint: Setpoint::new(
                 SMatrix::identity(),
-                inertia.map(controller::real::<T>),
+                inertia.map(eqtrack_controller::real::<T>),
                 Rates {
-                    descend: controller::real(spec.descend_rate),
-                    ascend: controller::real(spec.ascend_rate),
+                    descend: eqtrack_controller::real(spec.descend_rate),
+                    ascend: eqtrack_controller::real(spec.ascend_rate),
                 },
             ),
             word: 0,
@@ -132,7 +132,7 @@ impl<T: Real, G: BuiltinGroup<N, M>, const N: usize, const M: usize> Supervisor<
         }
         let spec = &self.spec;
         let monitor = self.monitor.get_or_insert_with(|| {
-            let limit = |l: Option<f64>| l.map(controller::real::<T>);
+            let limit = |l: Option<f64>| l.map(eqtrack_controller::real::<T>);
             Monitor::new(
                 spec.config(period),
                 Limits {

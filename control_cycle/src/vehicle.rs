@@ -3,8 +3,8 @@
 //! rate limit and the failures the controller is told of, and with `[fault_detection]` the
 //! failures its detector finds. The command carries the answer.
 
-use allocation::{Commands, VehicleControl};
-use controller::group::BuiltinGroup;
+use eqtrack_allocation::{Commands, VehicleControl};
+use eqtrack_controller::group::BuiltinGroup;
 use failsafe::monitor::applied_as_sent;
 use ipc_types::{CommandMsg, MAX_ACTUATORS, StateMsg};
 use nalgebra::SVector;
@@ -28,7 +28,7 @@ pub struct ControllerVehicle<const M: usize> {
     /// Which of the scenario's failures the allocator has been told of (each once).
     told: Vec<bool>,
     /// The span test of the actuators, run again only after a failure is told or found.
-    span: allocation::SpanWatch<f64, M>,
+    span: eqtrack_allocation::SpanWatch<f64, M>,
     /// `[failsafe] actuators_residual` (N·m), and whether the last allocation fell short of
     /// its torque by more (`failsafe::monitor::torque_short`).
     residual_limit: Option<f64>,
@@ -48,7 +48,7 @@ impl<const M: usize> ControllerVehicle<M> {
             detecting: None,
             accounted: None,
             told: vec![false; spec.failures.len()],
-            span: allocation::SpanWatch::default(),
+            span: eqtrack_allocation::SpanWatch::default(),
             residual_limit: None,
             short: false,
         })
@@ -106,12 +106,12 @@ impl<const M: usize> ControllerVehicle<M> {
 
     /// Whether state `msg` carries as many wheel speeds as the vehicle has wheels: the
     /// gyroscopic term needs every wheel's, so a plant with other wheels is not answered.
-    pub fn check_wheels(&self, msg: &StateMsg) -> Result<(), controller::Error> {
+    pub fn check_wheels(&self, msg: &StateMsg) -> Result<(), eqtrack_controller::Error> {
         if msg.wheels as usize == self.wheels() {
             Ok(())
         } else {
-            Err(controller::Error::WrongShape {
-                quantity: controller::Quantity::WheelSpeeds,
+            Err(eqtrack_controller::Error::WrongShape {
+                quantity: eqtrack_controller::Quantity::WheelSpeeds,
                 expected: self.wheels(),
                 found: msg.wheels as usize,
             })

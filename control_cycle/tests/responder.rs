@@ -3,8 +3,8 @@
 //! restoring its terms from each recorded command.
 
 use control_cycle::Responder;
-use controller::group::So3;
-use controller::{Source, Trajectory};
+use eqtrack_controller::group::So3;
+use eqtrack_controller::{Source, Trajectory};
 use ipc_types::{CommandMsg, NO_PREVIOUS, StateMsg};
 use nalgebra::Vector3;
 use scenario::Scenario;
@@ -29,7 +29,7 @@ fn responder(s: &Scenario) -> Responder<f64, So3, 3, 3> {
 fn state_msg(
     s: &Scenario,
     k: u64,
-    body: &controller::integrator::RigidBody<f64, So3, 3, 3>,
+    body: &eqtrack_controller::integrator::RigidBody<f64, So3, 3, 3>,
     applied: &Vector3<f64>,
 ) -> StateMsg {
     let mut msg = StateMsg::new(ipc_types::WireGroup::So3);

@@ -1,19 +1,19 @@
 //! The seed paper's simulation (docs/maths.md, "The simulations") with the controller crate alone:
 //! prints L, ‖Q_E − I‖_F and ‖p_E‖ once a second of simulated time.
 //!
-//! `cargo run --release -p controller --example seed`
+//! `cargo run --release -p eqtrack-controller --example seed`
 
-use controller::closed_loop::ClosedLoop;
-use controller::group::{MatrixLieGroup, So3};
-use controller::integrator::RigidBody;
-use controller::{Controller, ControllerConfig, Law, Reference, so3_seed_feedforward};
+use eqtrack_controller::closed_loop::ClosedLoop;
+use eqtrack_controller::group::{MatrixLieGroup, So3};
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::{Controller, ControllerConfig, Law, Reference, so3_seed_feedforward};
 use nalgebra::{Matrix3, Vector3};
 
-fn main() -> Result<(), controller::Error> {
+fn main() -> Result<(), eqtrack_controller::Error> {
     let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759);
     let controller = Controller::new(ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia,
         k: Matrix3::identity() * 0.5,
         kd: Matrix3::identity() * 0.5,

@@ -682,9 +682,9 @@ where
     /// is the feedforward; off it, the law pulls back, and a NaN state is refused:
     ///
     /// ```
-    /// use controller::group::{MatrixLieGroup, So3};
-    /// use controller::law::Desired;
-    /// use controller::{Controller, ControllerConfig, ErrorFrame, Law};
+    /// use eqtrack_controller::group::{MatrixLieGroup, So3};
+    /// use eqtrack_controller::law::Desired;
+    /// use eqtrack_controller::{Controller, ControllerConfig, ErrorFrame, Law};
     /// use nalgebra::{Matrix3, Vector3};
     ///
     /// let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759);
@@ -707,7 +707,7 @@ where
     /// let off = law.compute(&(q_d * So3::exp(&Vector3::new(0.0, 0.0, 0.5))), &v_d, &desired)?;
     /// assert!(off.lyapunov.total > 0.0);
     /// assert!(law.compute(&q_d, &Vector3::new(f64::NAN, 0.0, 0.0), &desired).is_err());
-    /// # Ok::<(), controller::Error>(())
+    /// # Ok::<(), eqtrack_controller::Error>(())
     /// ```
     pub fn compute(
         &self,

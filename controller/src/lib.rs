@@ -22,8 +22,19 @@
 //! | [`integrator`] | RKMK4 on the group, the rigid body |
 //! | [`closed_loop`] | controller + reference + plant in one loop (simulation, firmware) |
 //!
-//! The example in docs/getting-started.md, "The `controller` crate's API" (doc-tested), shows the
-//! whole loop; [`closed_loop::ClosedLoop`] is the place to start reading.
+//! The example in docs/getting-started.md, "The `eqtrack-controller` crate's API" (doc-tested), shows the
+//! whole loop; [`closed_loop::ClosedLoop`] is the place to start reading. docs/firmware.md,
+//! "Using eqtrack in your firmware", starts from `cargo add` and ends with the law in a
+//! board's loop.
+//!
+//! ## Features
+//!
+//! - `kit` (off by default): the property kit, `eqtrack_controller::kit`, which checks a
+//!   group of your own and the law's error dynamics and Lyapunov function on it
+//!   (docs/groups.md).
+//!
+//! [`nalgebra`] and [`heapless`] (the reference's feedforward series) are re-exported, so a
+//! user's matrices are this crate's.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -61,7 +72,9 @@ pub use reference::{
 pub trait Real: nalgebra::RealField + Copy + 'static {}
 impl<T: nalgebra::RealField + Copy + 'static> Real for T {}
 
-pub use hw_sqrt;
+pub use eqtrack_hw_sqrt as hw_sqrt;
+pub use heapless;
+pub use nalgebra;
 
 /// Converts an `f64` constant into the scalar type.
 #[inline(always)]
@@ -69,7 +82,18 @@ pub fn real<T: Real>(x: f64) -> T {
     nalgebra::convert(x)
 }
 
-/// The README's code blocks, compiled and run as doc tests.
+/// This crate's README (its example), compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct CrateReadmeDoctests;
+
+/// The guide "Using eqtrack in your firmware" (docs/firmware.md), compiled and run as doc
+/// tests.
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/firmware.md")]
+pub struct FirmwareGuideDoctests;
+
+/// The repository's README's code blocks, compiled and run as doc tests.
 #[cfg(doctest)]
 #[doc = include_str!("../../README.md")]
 pub struct ReadmeDoctests;

@@ -3,12 +3,12 @@
 
 mod common;
 
-use controller::closed_loop::{ClosedLoop, Sample};
-use controller::group::{MatrixLieGroup, Se2, Se3, So3};
-use controller::integrator::RigidBody;
-use controller::reference::{AxisTorque, CosTerm, Feedforward};
-use controller::tracking::{potential, potential_gradient};
-use controller::{Controller, ControllerConfig, Law, Reference};
+use eqtrack_controller::closed_loop::{ClosedLoop, Sample};
+use eqtrack_controller::group::{MatrixLieGroup, Se2, Se3, So3};
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::reference::{AxisTorque, CosTerm, Feedforward};
+use eqtrack_controller::tracking::{potential, potential_gradient};
+use eqtrack_controller::{Controller, ControllerConfig, Law, Reference};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// A fully actuated rigid body on SE(3) tracking a moving, accelerating reference.
@@ -30,7 +30,7 @@ fn se3_loop(period: f64, substeps: usize, feedforward: bool) -> ClosedLoop<f64, 
     kd[(1, 0)] = 0.1;
     let config = ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia,
         k,
         kd,
@@ -257,7 +257,7 @@ fn identity_is_a_strict_minimum() {
 /// table among its runs on this.
 #[test]
 fn a_tabulated_reference_flies_the_same_loop_bit_for_bit() {
-    use controller::reference::{Tabulated, Trajectory};
+    use eqtrack_controller::reference::{Tabulated, Trajectory};
     let steps = 300;
     let mut direct = se3_loop(0.01, 4, true);
     let mut source = direct.reference.clone();
@@ -289,7 +289,7 @@ fn se2_loop(xs: &[f64]) -> ClosedLoop<f64, Se2, 3, 3> {
     let k = SMatrix::<f64, 3, 3>::from_diagonal(&Vector3::new(1.0, 1.0, 2.0));
     let config = ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::Reference,
+        error_frame: eqtrack_controller::ErrorFrame::Reference,
         inertia,
         k,
         kd: SMatrix::<f64, 3, 3>::identity() * 1.5,
@@ -300,7 +300,7 @@ fn se2_loop(xs: &[f64]) -> ClosedLoop<f64, Se2, 3, 3> {
     circle.axes[2] = AxisTorque::constant(0.32);
     let vd0 = SVector::<f64, 3>::new(0.4, 0.4, 0.0);
     let reference = Reference::new(SMatrix::identity(), vd0, inertia, circle, 1e-3, 1).unwrap();
-    let q0 = controller::group::se2::pose(
+    let q0 = eqtrack_controller::group::se2::pose(
         xs[0] * 3.0,
         &nalgebra::Vector2::new(xs[1] * 3.0, xs[2] * 3.0),
     );

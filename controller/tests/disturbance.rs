@@ -2,12 +2,12 @@
 //! the geometric integral against constant disturbances, windup under saturation, a world
 //! force on SE(3), and the observer's error rate.
 
-use controller::closed_loop::ClosedLoop;
-use controller::group::{MatrixLieGroup, Se3, So3};
-use controller::integrator::RigidBody;
-use controller::path::{Path, PathReference};
-use controller::reference::Feedforward;
-use controller::{
+use eqtrack_controller::closed_loop::ClosedLoop;
+use eqtrack_controller::group::{MatrixLieGroup, Se3, So3};
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::path::{Path, PathReference};
+use eqtrack_controller::reference::Feedforward;
+use eqtrack_controller::{
     Controller, ControllerConfig, Frame, IntegralConfig, Law, ObserverConfig, Reference,
     RejectionConfig,
 };
@@ -51,7 +51,7 @@ fn setpoint(
 ) -> ClosedLoop<f64, So3, 3, 3, PathReference<f64, So3, 3, 3>> {
     let controller = Controller::new(ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia: body(),
         k: Matrix3::identity(),
         kd: Matrix3::identity() * 0.28,
@@ -198,7 +198,7 @@ fn yawing(frame: Option<Frame>) -> f64 {
         .copy_from(&(Matrix3::identity() * 0.28));
     let controller = Controller::<f64, Se3, 4, 6>::new(ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia,
         k: SMatrix::identity(),
         kd,
@@ -235,7 +235,8 @@ fn yawing(frame: Option<Frame>) -> f64 {
     for k in 0..(20.0 / H) as usize {
         let s = sim.step().unwrap();
         if k as f64 * H >= 15.0 {
-            let offset = controller::group::se3::translation(&(s.q * Se3::inverse(&s.desired.q)));
+            let offset =
+                eqtrack_controller::group::se3::translation(&(s.q * Se3::inverse(&s.desired.q)));
             worst = worst.max(offset.norm());
         }
     }

@@ -1,12 +1,12 @@
 //! The semidirect group, the actions, equivariance and the error-dynamics theorem, checked
 //! numerically on SO(3) and SE(3).
 
-use controller::group::{MatrixLieGroup, Se3, So3};
-use controller::integrator::rkmk4_step;
-use controller::semidirect::{
+use eqtrack_controller::group::{MatrixLieGroup, Se3, So3};
+use eqtrack_controller::integrator::rkmk4_step;
+use eqtrack_controller::semidirect::{
     Input, Phase, input_action, state_action, state_action_differential, vector_field,
 };
-use controller::tracking::{
+use eqtrack_controller::tracking::{
     error_inertia, error_inertia_inverse, error_inertia_inverse_rate, error_input,
     torque_from_error_torque, tracking_error,
 };
@@ -180,7 +180,7 @@ fn inertia_rate<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(a: &[f6
     let tau = v::<M>(&a[12..18]);
     let mut prev = xd;
     for k in 0..200 {
-        let next = controller::integrator::physical_step::<G, f64, _, N, M>(
+        let next = eqtrack_controller::integrator::physical_step::<G, f64, _, N, M>(
             &xd,
             k as f64 * h,
             h,
@@ -244,7 +244,7 @@ proptest! {
 }
 
 fn free_step_is_the_full_step<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(a: &[f64]) {
-    use controller::integrator::physical_step;
+    use eqtrack_controller::integrator::physical_step;
     let x = phase::<G, N, M>(a);
     let inertia = spd::<M>(&a[12..24]);
     let inv = inertia.try_inverse().unwrap();

@@ -2,10 +2,10 @@
 //! the law at the reference gives the same wrench wherever the world frame is, the papers'
 //! form does not, and along the continuous closed loop `L̇` is what the docs state.
 
-use controller::group::{MatrixLieGroup, Se2, Se3, So3};
-use controller::law::Desired;
-use controller::tracking::potential_gradient;
-use controller::{Controller, ControllerConfig, ErrorFrame, Law, Real, real};
+use eqtrack_controller::group::{MatrixLieGroup, Se2, Se3, So3};
+use eqtrack_controller::law::Desired;
+use eqtrack_controller::tracking::potential_gradient;
+use eqtrack_controller::{Controller, ControllerConfig, ErrorFrame, Law, Real, real};
 use nalgebra::{SMatrix, SVector, Vector3};
 use proptest::prelude::*;
 
@@ -165,7 +165,10 @@ fn planar_motion(xs: &[f64], reach: f64) -> SMatrix<f64, 3, 3> {
     } else {
         nalgebra::Vector2::x()
     };
-    controller::group::se2::pose(xs[0] * core::f64::consts::PI, &(dir * reach * xs[3].abs()))
+    eqtrack_controller::group::se2::pose(
+        xs[0] * core::f64::consts::PI,
+        &(dir * reach * xs[3].abs()),
+    )
 }
 
 /// A rigid motion of the world: a turn by up to π about a random axis, and a translation of
@@ -428,7 +431,7 @@ fn stated_rate<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
     q: &SMatrix<f64, N, N>,
     q_d: &SMatrix<f64, N, N>,
     v_d: &SVector<f64, M>,
-    out: &controller::LawOutput<f64, N, M>,
+    out: &eqtrack_controller::LawOutput<f64, N, M>,
 ) -> f64 {
     let e = out.velocity_error;
     let damping = -(kd * e).dot(&e);

@@ -1,9 +1,9 @@
 //! The logarithm of every group near zero, at generic angles and near its cut locus, in both
-//! scalars. The identities every group satisfies are the property kit's (`controller::kit`,
+//! scalars. The identities every group satisfies are the property kit's (`eqtrack_controller::kit`,
 //! run by the crate's unit tests on SO(3), SE(3) and SE(2)).
 
-use controller::group::{MatrixLieGroup, Se2, Se3, So3};
-use controller::{Real, real};
+use eqtrack_controller::group::{MatrixLieGroup, Se2, Se3, So3};
+use eqtrack_controller::{Real, real};
 use nalgebra::{SMatrix, SVector};
 use proptest::prelude::*;
 

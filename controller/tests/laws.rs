@@ -2,11 +2,11 @@
 
 mod common;
 
-use controller::group::{BuiltinGroup, MatrixLieGroup, Se3, So3};
-use controller::law::so3::{self, So3LawInput};
-use controller::law::{Desired, eqt};
-use controller::validate::gain_from_slice;
-use controller::{Controller, ControllerConfig, Error, GroupKind, Law, Quantity};
+use eqtrack_controller::group::{BuiltinGroup, MatrixLieGroup, Se3, So3};
+use eqtrack_controller::law::so3::{self, So3LawInput};
+use eqtrack_controller::law::{Desired, eqt};
+use eqtrack_controller::validate::gain_from_slice;
+use eqtrack_controller::{Controller, ControllerConfig, Error, GroupKind, Law, Quantity};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use proptest::prelude::*;
 
@@ -98,7 +98,7 @@ proptest! {
 fn config3(law: Law) -> ControllerConfig<f64, 3, 3> {
     ControllerConfig {
         law,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia: common::fixed_wing(),
         k: Matrix3::identity(),
         kd: Matrix3::identity() * 0.5,
@@ -109,7 +109,7 @@ fn config3(law: Law) -> ControllerConfig<f64, 3, 3> {
 fn config6(law: Law) -> ControllerConfig<f64, 4, 6> {
     ControllerConfig {
         law,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia: SMatrix::<f64, 6, 6>::identity() * 2.0,
         k: SMatrix::<f64, 4, 4>::identity(),
         kd: SMatrix::<f64, 6, 6>::identity(),
@@ -274,7 +274,7 @@ fn saturation_clamps_each_axis() {
 fn the_law_works_in_f32_on_both_groups() {
     let c = Controller::<f32, So3, 3, 3>::new(ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia: common::fixed_wing(),
         k: Matrix3::identity(),
         kd: Matrix3::identity(),
@@ -312,7 +312,7 @@ fn the_law_works_in_f32_on_both_groups() {
     }
     let c6 = Controller::<f32, Se3, 4, 6>::new(ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia: SMatrix::<f32, 6, 6>::identity(),
         k: SMatrix::<f32, 4, 4>::identity(),
         kd: SMatrix::<f32, 6, 6>::identity(),
@@ -339,7 +339,7 @@ proptest! {
         d in prop::collection::vec(0.05..5.0f64, 6),
         l in prop::collection::vec(0.01..3.0f64, 6),
     ) {
-        use controller::law::safe_mode_torque;
+        use eqtrack_controller::law::safe_mode_torque;
         let v = SVector::<f64, 6>::from_column_slice(&v);
         let kd = SMatrix::<f64, 6, 6>::from_diagonal(&SVector::from_column_slice(&d));
         let limit = SVector::<f64, 6>::from_column_slice(&l);
@@ -356,7 +356,7 @@ proptest! {
 
 #[test]
 fn saturation_clamps_each_axis_and_says_so() {
-    use controller::law::saturate;
+    use eqtrack_controller::law::saturate;
     let limit = Vector3::new(1.0, 2.0, 3.0);
     let mut tau = Vector3::new(-5.0, 1.5, 3.5);
     assert!(saturate(&mut tau, Some(&limit)));
@@ -377,7 +377,7 @@ fn saturation_clamps_each_axis_and_says_so() {
 
 #[test]
 fn group_dispatch_gives_each_kind_its_type() {
-    use controller::group::OnGroup;
+    use eqtrack_controller::group::OnGroup;
     struct Dims;
     impl OnGroup for Dims {
         type Output = (GroupKind, usize, usize);

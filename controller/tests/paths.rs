@@ -9,11 +9,11 @@
 
 mod common;
 
-use controller::closed_loop::ClosedLoop;
-use controller::group::{MatrixLieGroup, Se3, So3};
-use controller::integrator::{RigidBody, physical_step};
-use controller::semidirect::Phase;
-use controller::{
+use eqtrack_controller::closed_loop::ClosedLoop;
+use eqtrack_controller::group::{MatrixLieGroup, Se3, So3};
+use eqtrack_controller::integrator::{RigidBody, physical_step};
+use eqtrack_controller::semidirect::Phase;
+use eqtrack_controller::{
     Controller, ControllerConfig, Law, Path, PathReference, PathSample, Real, Segment, Trajectory,
     real,
 };
@@ -160,7 +160,7 @@ fn more_than_pi_between_two_waypoints_goes_the_short_way_round() {
     let b = pose::<So3, f64, 3, 3>([3.5, 0.0, 0.0], [0.0; 3]);
     let path = Path::<f64, So3, 3, 3>::through(&[0.0, 2.0], &[a, b]).unwrap();
     let seg = path.segments().next().unwrap();
-    let controller::path::Shape::Rest { twist } = seg.shape else {
+    let eqtrack_controller::path::Shape::Rest { twist } = seg.shape else {
         panic!("a stop path is made of rest-to-rest pieces")
     };
     assert!((twist - Vector3::new(3.5 - 2.0 * core::f64::consts::PI, 0.0, 0.0)).norm() < 1e-12);
@@ -175,15 +175,18 @@ fn more_than_pi_between_two_waypoints_goes_the_short_way_round() {
 fn bad_paths_are_typed_errors() {
     let q = pose::<So3, f64, 3, 3>([0.0; 3], [0.0; 3]);
     let e = Path::<f64, So3, 3, 3>::through(&[0.0, 1.0, 1.0], &[q, q, q]).unwrap_err();
-    assert_eq!(e, controller::Error::NotIncreasing { index: 2 });
-    let times: Vec<f64> = (0..=controller::path::MAX_SEGMENTS + 1)
+    assert_eq!(e, eqtrack_controller::Error::NotIncreasing { index: 2 });
+    let times: Vec<f64> = (0..=eqtrack_controller::path::MAX_SEGMENTS + 1)
         .map(|i| i as f64)
         .collect();
     let poses = vec![q; times.len()];
     let e = Path::<f64, So3, 3, 3>::through(&times, &poses).unwrap_err();
-    assert!(matches!(e, controller::Error::TooManySegments { .. }));
+    assert!(matches!(
+        e,
+        eqtrack_controller::Error::TooManySegments { .. }
+    ));
     let e = Path::<f64, So3, 3, 3>::through(&[0.0, f64::NAN], &[q, q]).unwrap_err();
-    assert!(matches!(e, controller::Error::NonFinite(_)));
+    assert!(matches!(e, eqtrack_controller::Error::NonFinite(_)));
 }
 
 /// Integrates `ṗ = ad_Vᵀp + τ_d(t)` with τ_d evaluated at every RKMK4 stage, from the
@@ -242,7 +245,7 @@ fn converges<G: MatrixLieGroup<N, M>, const N: usize, const M: usize>(
 ) -> (f64, f64) {
     let controller = Controller::<f64, G, N, M>::new(ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia,
         k: SMatrix::identity() * 2.0,
         kd: SMatrix::identity() * 2.0,
@@ -536,16 +539,16 @@ fn given_velocities_are_honoured_and_holds_rest() {
     // a moving first or last waypoint is refused
     given[0] = Some(w);
     let e = Path::<f64, So3, 3, 3>::flying(&t, &q, &given).unwrap_err();
-    assert_eq!(e, controller::Error::NotAtRest { index: 0 });
+    assert_eq!(e, eqtrack_controller::Error::NotAtRest { index: 0 });
     given[0] = None;
     given[4] = Some(w);
     let e = Path::<f64, So3, 3, 3>::flying(&t, &q, &given).unwrap_err();
-    assert_eq!(e, controller::Error::NotAtRest { index: 4 });
+    assert_eq!(e, eqtrack_controller::Error::NotAtRest { index: 4 });
     given[4] = Some(Vector3::new(f64::NAN, 0.0, 0.0));
     let e = Path::<f64, So3, 3, 3>::flying(&t, &q, &given).unwrap_err();
-    assert!(matches!(e, controller::Error::NonFinite(_)));
+    assert!(matches!(e, eqtrack_controller::Error::NonFinite(_)));
     let e = Path::<f64, So3, 3, 3>::flying(&[0.0, 1.0, 1.0], &q[..3], &[None; 3]).unwrap_err();
-    assert_eq!(e, controller::Error::NotIncreasing { index: 2 });
+    assert_eq!(e, eqtrack_controller::Error::NotIncreasing { index: 2 });
 }
 
 #[test]

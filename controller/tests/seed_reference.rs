@@ -4,8 +4,8 @@
 mod common;
 
 use common::{close, seed_loop};
-use controller::Law;
-use controller::group::So3;
+use eqtrack_controller::Law;
+use eqtrack_controller::group::So3;
 
 fn reference_rows() -> (Vec<String>, Vec<Vec<f64>>) {
     let text = include_str!("data/seed_eqt.csv");
@@ -27,7 +27,7 @@ fn reference_rows() -> (Vec<String>, Vec<Vec<f64>>) {
     (header, rows)
 }
 
-fn columns(s: &controller::closed_loop::Sample<f64, 3, 3>) -> Vec<(&'static str, f64)> {
+fn columns(s: &eqtrack_controller::closed_loop::Sample<f64, 3, 3>) -> Vec<(&'static str, f64)> {
     let n = s.norms::<So3>();
     let tau = s.output.torque;
     vec![

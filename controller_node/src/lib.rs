@@ -13,8 +13,8 @@
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
-use controller::group::{BuiltinGroup, OnGroup};
-use controller::{Source, Trajectory};
+use eqtrack_controller::group::{BuiltinGroup, OnGroup};
+use eqtrack_controller::{Source, Trajectory};
 use ipc_types::{PlanInvalid, StateMsg, name_str};
 use link::{ControllerEndpoint, ControllerEndpointConfig, Incoming, clock};
 use std::time::{Duration, Instant};
@@ -79,13 +79,13 @@ enum Untuned {
     /// The board cannot answer this state.
     Board(ipc_types::ParamInvalid),
     /// The gains on the board are refused by the law's checks.
-    Gains(controller::Error),
+    Gains(eqtrack_controller::Error),
 }
 
 /// Why a state gets no answer: the law's refusal, or the run-time gains'.
 #[derive(Debug)]
 enum Refusal {
-    Law(controller::Error),
+    Law(eqtrack_controller::Error),
     Untuned(Untuned),
 }
 

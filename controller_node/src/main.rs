@@ -7,8 +7,8 @@
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
 use clap::Parser;
-use controller::Law;
 use controller_node::{Fault, Options, ReferenceMode, Report, Stop, run};
+use eqtrack_controller::Law;
 use link::{Exit, StopFlag, TransportKind};
 use scenario::cli::{ScenarioSource, law_parser, positive_seconds};
 use std::process::ExitCode;

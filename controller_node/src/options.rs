@@ -96,7 +96,7 @@ pub enum NodeError {
         /// Its name.
         scenario: String,
         /// What is wrong.
-        source: controller::Error,
+        source: eqtrack_controller::Error,
     },
     /// The process layer failed.
     #[error(transparent)]

@@ -3,9 +3,9 @@
 
 use crate::{NodeError, log};
 use control_cycle::PlanIntake;
-use controller::Trajectory;
-use controller::group::BuiltinGroup;
-use controller::path::PathReference;
+use eqtrack_controller::Trajectory;
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::path::PathReference;
 use ipc_types::PlanInvalid;
 use link::plan::PlanReader;
 

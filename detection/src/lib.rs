@@ -27,10 +27,10 @@
 
 pub mod threshold;
 
-use allocation::{Commands, MAX_ACTUATORS, VehicleControl};
-use controller::Real;
-use controller::disturbance::rotate_blocks;
-use controller::group::BuiltinGroup;
+use eqtrack_allocation::{Commands, MAX_ACTUATORS, VehicleControl};
+use eqtrack_controller::Real;
+use eqtrack_controller::disturbance::rotate_blocks;
+use eqtrack_controller::group::BuiltinGroup;
 use nalgebra::{Matrix3, SMatrix, SVector};
 
 /// The most periods the detector keeps: two windows.
@@ -468,7 +468,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
     pub fn gap(&mut self) {
         self.previous = None;
         if self.held && self.config.time_constant > T::zero() {
-            let lag = controller::real::<T>(5.0) * self.config.time_constant / self.config.period;
+            let lag =
+                eqtrack_controller::real::<T>(5.0) * self.config.time_constant / self.config.period;
             self.settling = nalgebra::try_convert::<T, f64>(lag.ceil()).unwrap_or(0.0) as usize;
         }
     }
@@ -584,7 +585,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
                 believed[j] = *v;
             }
         }
-        let half: T = controller::real(0.5);
+        let half: T = eqtrack_controller::real(0.5);
         // `B ū` over the vehicle's actuators (the slots past them are zero columns)
         let geometry = control.allocator().geometry();
         let b = geometry.effectiveness();
@@ -611,7 +612,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let mut entry = if self.periods == 1 {
             *a
         } else {
-            let n: T = controller::real(self.periods as f64);
+            let n: T = eqtrack_controller::real(self.periods as f64);
             Entry {
                 w: a.w / n,
                 u: a.u / n,
@@ -735,7 +736,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             older += self.entry(2 * wn, i).w;
             recent += self.entry(wn, i).w;
         }
-        let n: T = controller::real(wn as f64);
+        let n: T = eqtrack_controller::real(wn as f64);
         (older / n, recent / n)
     }
 
@@ -758,12 +759,12 @@ impl<T: Real, const K: usize> Detector<T, K> {
             .zip_map(&self.config.floor, |v, f| if v > f * f { v } else { f * f });
         if self.learned < self.config.calibration {
             self.learned += 1;
-            let n: T = controller::real(self.learned as f64);
+            let n: T = eqtrack_controller::real(self.learned as f64);
             self.variance += (d.component_mul(&d) - self.variance) / n;
             return None;
         }
         // the FPU's square root on a Cortex-M4F, the same bits as libm's
-        let s = s2.map(controller::hw_sqrt::sqrt);
+        let s = s2.map(eqtrack_controller::hw_sqrt::sqrt);
         let dw = d.component_div(&s);
         let total = dw.norm_squared();
         let (best, second) = self.bank(&dw, &s, control);
@@ -878,7 +879,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         control: &VehicleControl<T, K>,
     ) -> (Kind<T>, usize) {
         let wn = self.config.window;
-        let s = s2.map(controller::hw_sqrt::sqrt);
+        let s = s2.map(eqtrack_controller::hw_sqrt::sqrt);
         let column = self.healthy_column(j, control);
         let bw = column.component_div(&s);
         let nb = bw.norm_squared();
@@ -890,7 +891,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         for i in (0..wn).rev() {
             shorts[i] = shortfall(self.entry(wn, i));
             sum += shorts[i];
-            let n: T = controller::real((wn - i) as f64);
+            let n: T = eqtrack_controller::real((wn - i) as f64);
             let t = sum * sum / n;
             if t > score {
                 score = t;
@@ -918,7 +919,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let (lo, hi) = control.nominal_bounds();
         let res = self.config.resolution[j];
         let floor = n * res * res;
-        let two: T = controller::real(2.0);
+        let two: T = eqtrack_controller::real(2.0);
         let bic = |rss: T, params: T| n * ((rss.max(T::zero()) + floor) / n).ln() + params * n.ln();
         let mut best = (Kind::Dead, bic(sums.yy, T::zero()));
         let v = (sums.y / n).max(lo[j]).min(hi[j]);
@@ -931,7 +932,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             if k > T::zero() && k < T::one() {
                 // a weak actuator only on strong evidence (a BIC lower by 6): while its
                 // command has not moved, weak and stuck fit alike, and stuck is reported
-                let strong: T = controller::real(6.0);
+                let strong: T = eqtrack_controller::real(6.0);
                 let b = bic(sums.yy - two * k * sums.uy + k * k * sums.uu, T::one());
                 if b < best.1 - strong {
                     best = (Kind::Weak(k), b);

@@ -6,9 +6,11 @@
 //! nominal flight must raise no alarm at the stated rate, and must raise some at a rate a
 //! million times higher; a gust that no single thruster explains must not be taken for one.
 
-use allocation::{Allocator, Commands, Geometry, Priority, Restoring, VehicleControl, presets};
-use controller::group::{MatrixLieGroup, Se3};
 use detection::{Config, ConfigError, Detection, Detector, Kind, threshold};
+use eqtrack_allocation::{
+    Allocator, Commands, Geometry, Priority, Restoring, VehicleControl, presets,
+};
+use eqtrack_controller::group::{MatrixLieGroup, Se3};
 use nalgebra::{DMatrix, Matrix3, SMatrix, SVector};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
@@ -471,9 +473,11 @@ fn in_f32_a_dead_rotor_is_found() {
     let mut found = Vec::new();
     for k in 0..400 {
         let v = inverse * mu;
-        if let Some(d) =
-            detector.observe::<controller::group::Se3, 4>(&v, &Matrix3::identity(), &mut control)
-        {
+        if let Some(d) = detector.observe::<eqtrack_controller::group::Se3, 4>(
+            &v,
+            &Matrix3::identity(),
+            &mut control,
+        ) {
             found.push((k, d));
         }
         detector.commanded(&u);

@@ -6,9 +6,11 @@
 //! (the rigid body's balance) the residual carries `h_w × ω`, and its spread is orders of
 //! magnitude larger: the test fails if the speeds are ignored.
 
-use allocation::{Allocator, Commands, Geometry, Priority, Restoring, VehicleControl, Wheel};
-use controller::group::{MatrixLieGroup, So3};
 use detection::{Config, Detector, threshold};
+use eqtrack_allocation::{
+    Allocator, Commands, Geometry, Priority, Restoring, VehicleControl, Wheel,
+};
+use eqtrack_controller::group::{MatrixLieGroup, So3};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 const H: f64 = 0.01;

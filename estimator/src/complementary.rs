@@ -3,8 +3,8 @@
 //! 53(5), 2008 (docs/maths.md, "The complementary filter on SO(3)").
 
 use crate::{EstimatorError, Faults, MAX_DIRECTIONS, StateEstimate, all_finite, direction, triad};
-use controller::group::so3::exp_so3;
-use controller::{Real, real};
+use eqtrack_controller::group::so3::exp_so3;
+use eqtrack_controller::{Real, real};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// The builders both attitude filters' configurations share: `bias_limit`,
@@ -275,8 +275,8 @@ impl<T: Real> ComplementaryFilter<T> {
     /// step starts the filter at the true attitude (TRIAD), and the bias is learnt (200 s).
     ///
     /// ```
-    /// use controller::group::{MatrixLieGroup, So3};
-    /// use estimator::{ComplementaryConfig, ComplementaryFilter};
+    /// use eqtrack_controller::group::{MatrixLieGroup, So3};
+    /// use eqtrack_estimator::{ComplementaryConfig, ComplementaryFilter};
     /// use nalgebra::Vector3;
     ///
     /// let world = [Vector3::z(), Vector3::new(0.5, 0.0, 0.866)];
@@ -496,10 +496,10 @@ pub(crate) fn first_attitude<T: Real>(
 /// steps (docs/maths.md, "The complementary filter on SO(3)").
 pub(crate) fn orthonormalise<T: Real>(r: &Matrix3<T>) -> Matrix3<T> {
     let c0 = r.column(0).into_owned();
-    let c0 = c0 / controller::hw_sqrt::norm(&c0);
+    let c0 = c0 / eqtrack_controller::hw_sqrt::norm(&c0);
     let c1 = r.column(1).into_owned();
     let c1 = c1 - c0 * c0.dot(&c1);
-    let c1 = c1 / controller::hw_sqrt::norm(&c1);
+    let c1 = c1 / eqtrack_controller::hw_sqrt::norm(&c1);
     Matrix3::from_columns(&[c0, c1, c0.cross(&c1)])
 }
 
@@ -527,7 +527,7 @@ mod tests {
     }
 
     use super::*;
-    use controller::group::so3::exp_so3;
+    use eqtrack_controller::group::so3::exp_so3;
 
     #[test]
     fn orthonormalise_keeps_a_rotation_and_repairs_a_perturbed_one() {

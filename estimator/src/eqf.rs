@@ -14,10 +14,10 @@ use crate::complementary::{
     checked_rotation, filter_accessors, first_attitude, orthonormalise, start_builders, usable,
 };
 use crate::{AttitudeEstimate, EstimatorError, Faults, MAX_DIRECTIONS, all_finite};
-use controller::group::se3::{from_parts, rotation, translation};
-use controller::group::so3::{exp_so3, left_jacobian_so3, skew};
-use controller::group::{MatrixLieGroup, Se3};
-use controller::{Real, real};
+use eqtrack_controller::group::se3::{from_parts, rotation, translation};
+use eqtrack_controller::group::so3::{exp_so3, left_jacobian_so3, skew};
+use eqtrack_controller::group::{MatrixLieGroup, Se3};
+use eqtrack_controller::{Real, real};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// A 6×6 matrix: the covariance of the error coordinates `ε = (ε_Ω, ε_α)`.

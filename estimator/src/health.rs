@@ -7,7 +7,7 @@
 
 use crate::complementary::SLOTS;
 use crate::{AttitudeConfig, AttitudeFilter, Directions};
-use controller::Real;
+use eqtrack_controller::Real;
 use nalgebra::{Matrix3, Vector3};
 
 /// At most this many rejections within a window are kept per source.
@@ -241,8 +241,9 @@ impl<T: Real> Gate<T> {
     /// 2 for a direction, 3 for a fix.
     pub fn consistency(&self) -> impl Iterator<Item = (Source, u64, Option<T>)> + '_ {
         let mean = |s: usize| {
-            (self.nis_samples[s] > 0)
-                .then(|| self.nis_total[s] / controller::real::<T>(self.nis_samples[s] as f64))
+            (self.nis_samples[s] > 0).then(|| {
+                self.nis_total[s] / eqtrack_controller::real::<T>(self.nis_samples[s] as f64)
+            })
         };
         (0..self.slots)
             .chain(self.se3.then_some(POSITION))
@@ -281,8 +282,8 @@ impl<T: Real> Gate<T> {
             let s_matrix = match (sigma, filter.noise(s)) {
                 // the EqF: S = M Σ_RR Mᵀ + σ² I with M = ½(d + R̂y)×
                 (Some(p), noise) => {
-                    let half: T = controller::real(0.5);
-                    let m = controller::group::so3::skew(&((d + ry) * half));
+                    let half: T = eqtrack_controller::real(0.5);
+                    let m = eqtrack_controller::group::so3::skew(&((d + ry) * half));
                     m * p * m.transpose() + Matrix3::identity() * (noise * noise)
                 }
                 // the complementary filter: the sensors' noise model alone

@@ -1,7 +1,7 @@
 //! # estimator — what a board measures, turned into the state the law needs
 //!
 //! `#![no_std]`, no `alloc`, no `unsafe`; fixed-size nalgebra maths, generic over the scalar
-//! (`f32`, `f64`), with the group maths of the `controller` crate. It is not part of the law:
+//! (`f32`, `f64`), with the group maths of the `eqtrack-controller` crate. It is not part of the law:
 //! on a board it runs where the sensors are read (the plant side) and hands the controller
 //! `(Q̂, V̂)` (docs/maths.md, "Estimators").
 //!
@@ -16,10 +16,19 @@
 //!
 //! Bad samples never make a filter panic or publish a non-finite estimate: they are skipped
 //! or the previous estimate is held, and each is counted in [`Faults`].
+//!
+//! ## Features
+//!
+//! - `serde` (off by default): `Serialize` on [`Faults`] and on the health monitor's
+//!   [`health::Source`] and [`health::Reason`].
+//!
+//! [`nalgebra`] is re-exported, so a user's vectors are this crate's.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
+
+pub use nalgebra;
 
 mod complementary;
 pub mod eqf;
@@ -124,8 +133,8 @@ pub struct Faults {
 
 /// An estimate in the controller's form `(Q̂, V̂)` on a group of n×n matrices with an
 /// m-dimensional algebra: `SO(3)` (n = m = 3) for [`AttitudeEstimate`], `SE(3)` (n = 4,
-/// m = 6, twists ordered (ω, v) as `controller::group::Se3`) for [`PoseEstimate`].
-pub trait StateEstimate<T: controller::Real, const N: usize, const M: usize> {
+/// m = 6, twists ordered (ω, v) as `eqtrack_controller::group::Se3`) for [`PoseEstimate`].
+pub trait StateEstimate<T: eqtrack_controller::Real, const N: usize, const M: usize> {
     /// `Q̂`: the estimated configuration.
     fn q_hat(&self) -> SMatrix<T, N, N>;
     /// `V̂`: the estimated body velocity.
@@ -141,7 +150,7 @@ pub trait StateEstimate<T: controller::Real, const N: usize, const M: usize> {
 pub type Directions<T> = [Option<nalgebra::Vector3<T>>; MAX_DIRECTIONS + 1];
 
 /// An attitude filter's configuration, as the SE(3) [`PoseFilter`] reads it.
-pub trait AttitudeConfig<T: controller::Real>: Copy + core::fmt::Debug + PartialEq {
+pub trait AttitudeConfig<T: eqtrack_controller::Real>: Copy + core::fmt::Debug + PartialEq {
     /// The filter it configures.
     type Filter: AttitudeFilter<T, Config = Self>;
     /// Checks the configuration again (its public fields may have been written directly).
@@ -156,7 +165,7 @@ pub trait AttitudeConfig<T: controller::Real>: Copy + core::fmt::Debug + Partial
 
 /// An attitude filter the SE(3) [`PoseFilter`] can drive: the [`ComplementaryFilter`] or the
 /// [`EquivariantFilter`].
-pub trait AttitudeFilter<T: controller::Real>: Copy + core::fmt::Debug + PartialEq {
+pub trait AttitudeFilter<T: eqtrack_controller::Real>: Copy + core::fmt::Debug + PartialEq {
     /// Its configuration.
     type Config: AttitudeConfig<T>;
     /// Whether the attitude it publishes at tick k runs one tick ahead of the samples, so
@@ -198,7 +207,7 @@ pub trait AttitudeFilter<T: controller::Real>: Copy + core::fmt::Debug + Partial
 
 macro_rules! attitude_filter {
     ($filter:ident, $config:ident, $leads:expr) => {
-        impl<T: controller::Real> AttitudeConfig<T> for $config<T> {
+        impl<T: eqtrack_controller::Real> AttitudeConfig<T> for $config<T> {
             type Filter = $filter<T>;
             fn check(self) -> Result<Self, EstimatorError> {
                 $config::check(self)
@@ -217,7 +226,7 @@ macro_rules! attitude_filter {
             }
         }
 
-        impl<T: controller::Real> AttitudeFilter<T> for $filter<T> {
+        impl<T: eqtrack_controller::Real> AttitudeFilter<T> for $filter<T> {
             type Config = $config<T>;
             const LEADS: bool = $leads;
             fn from_config(cfg: Self::Config) -> Self {
@@ -261,14 +270,21 @@ attitude_filter!(ComplementaryFilter, ComplementaryConfig, true);
 attitude_filter!(EquivariantFilter, EqfConfig, false);
 
 /// Whether every entry is finite.
-fn all_finite<T: controller::Real, const R: usize>(v: &nalgebra::SVector<T, R>) -> bool {
+fn all_finite<T: eqtrack_controller::Real, const R: usize>(v: &nalgebra::SVector<T, R>) -> bool {
     v.iter().all(|x| x.is_finite())
 }
 
 /// A sample's direction `y/|y|` and length `|y|`, or `None` when it has a non-finite entry,
 /// its length overflows, or it is shorter than [`MIN_DIRECTION_NORM`].
-fn direction<T: controller::Real>(y: &nalgebra::Vector3<T>) -> Option<(nalgebra::Vector3<T>, T)> {
-    let n = controller::hw_sqrt::norm(y);
-    (all_finite(y) && n.is_finite() && n >= controller::real(MIN_DIRECTION_NORM))
+fn direction<T: eqtrack_controller::Real>(
+    y: &nalgebra::Vector3<T>,
+) -> Option<(nalgebra::Vector3<T>, T)> {
+    let n = eqtrack_controller::hw_sqrt::norm(y);
+    (all_finite(y) && n.is_finite() && n >= eqtrack_controller::real(MIN_DIRECTION_NORM))
         .then(|| (y / n, n))
 }
+
+/// This crate's README (its example), compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

@@ -9,8 +9,8 @@ use crate::{
     AttitudeConfig, AttitudeFilter, EstimatorError, Faults, GRAVITY, MAX_DIRECTIONS, StateEstimate,
     all_finite, direction,
 };
-use controller::group::se3::from_parts;
-use controller::{Real, real};
+use eqtrack_controller::group::se3::from_parts;
+use eqtrack_controller::{Real, real};
 use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, Vector2, Vector3};
 
 /// Gains, noise and guards of a [`PoseFilter`].
@@ -236,7 +236,7 @@ impl<T: Real> PoseEstimate<T> {
         from_parts(&self.r, &self.x)
     }
 
-    /// `V̂ = (ω_k − b̂_k, R̂ᵀv̂)`, ordered (ω, v) as `controller::group::Se3`'s twists.
+    /// `V̂ = (ω_k − b̂_k, R̂ᵀv̂)`, ordered (ω, v) as `eqtrack_controller::group::Se3`'s twists.
     pub fn twist(&self) -> SVector<T, 6> {
         let v = self.body_velocity();
         SVector::<T, 6>::new(self.rate[0], self.rate[1], self.rate[2], v[0], v[1], v[2])
@@ -445,7 +445,7 @@ impl<T: Real, C: AttitudeConfig<T>> PoseFilter<T, C> {
         n: usize,
     ) -> bool {
         let g: T = real(GRAVITY);
-        let accel_ok = all_finite(accel) && controller::hw_sqrt::norm(accel).is_finite();
+        let accel_ok = all_finite(accel) && eqtrack_controller::hw_sqrt::norm(accel).is_finite();
         if !accel_ok {
             self.attitude.faults_mut().accel += 1;
         } else if let Some((up, norm)) = direction(accel) {

@@ -7,7 +7,7 @@ use crate::{
     AttitudeConfig, AttitudeFilter, ComplementaryConfig, ComplementaryFilter, EqfConfig,
     EquivariantFilter, EstimatorError, Faults, MAX_DIRECTIONS, PoseConfig, PoseFilter,
 };
-use controller::Real;
+use eqtrack_controller::Real;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// The filter's kind and its own numbers (docs/maths.md, "Estimators").

@@ -1,7 +1,7 @@
 //! TRIAD (docs/maths.md, "TRIAD").
 
 use crate::all_finite;
-use controller::{Real, real};
+use eqtrack_controller::{Real, real};
 use nalgebra::{Matrix3, Vector3};
 
 /// The attitude `R` with `y₁ ∥ Rᵀd₁` exactly and `y₂` in the plane `Rᵀ{d₁, d₂}`, from two
@@ -19,14 +19,17 @@ pub fn triad<T: Real>(
         if !all_finite(a) || !all_finite(b) {
             return None;
         }
-        let (na, nb) = (controller::hw_sqrt::norm(a), controller::hw_sqrt::norm(b));
+        let (na, nb) = (
+            eqtrack_controller::hw_sqrt::norm(a),
+            eqtrack_controller::hw_sqrt::norm(b),
+        );
         let tiny: T = real(1e-12);
         if na <= tiny || nb <= tiny {
             return None;
         }
         let t1 = a / na;
         let c = a.cross(b);
-        let nc = controller::hw_sqrt::norm(&c);
+        let nc = eqtrack_controller::hw_sqrt::norm(&c);
         if nc <= na * nb * real(1e-6) {
             return None;
         }

@@ -3,15 +3,15 @@
 //! linearisation against finite differences, convergence without noise, consistency with
 //! noise, bad samples. Every bound states the value measured when it was set.
 
-use controller::group::so3::{exp_so3, log_so3, skew};
-use controller::group::{MatrixLieGroup, Se3};
-use controller::{Real, real};
-use estimator::eqf::{
+use eqtrack_controller::group::so3::{exp_so3, log_so3, skew};
+use eqtrack_controller::group::{MatrixLieGroup, Se3};
+use eqtrack_controller::{Real, real};
+use eqtrack_estimator::eqf::{
     Matrix6, Symmetry, Vector6, act, act_input, act_output, input_matrix, lift, output_matrix,
     process_noise, propagate_covariance, reset_covariance, reset_jacobian, state_matrix, state_of,
     symmetry, symmetry_of, transition,
 };
-use estimator::{EqfConfig, EquivariantFilter, EstimatorError};
+use eqtrack_estimator::{EqfConfig, EquivariantFilter, EstimatorError};
 use nalgebra::{Matrix3, SMatrix, Vector3};
 use proptest::prelude::*;
 use rand_chacha::ChaCha8Rng;
@@ -541,7 +541,7 @@ fn configurations_are_checked() {
 
 #[test]
 fn on_se3_the_pose_filter_flies_the_eqf_with_the_accelerometer_as_up() {
-    use estimator::{GRAVITY, PoseConfig, PoseFilter};
+    use eqtrack_estimator::{GRAVITY, PoseConfig, PoseFilter};
     let h = 0.01;
     let d = Vector3::new(1.0, 0.0, 0.2).normalize();
     let r0 = exp_so3(&Vector3::new(0.3, -0.4, 0.2));

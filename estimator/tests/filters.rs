@@ -8,9 +8,9 @@
 //! against `R_{k+1}` (converges to rounding) and check that the error against `R_k` is
 //! exactly the lead `h|ω(t_k)|`.
 
-use controller::group::so3::{exp_so3, log_so3};
-use controller::{Real, real};
-use estimator::{
+use eqtrack_controller::group::so3::{exp_so3, log_so3};
+use eqtrack_controller::{Real, real};
+use eqtrack_estimator::{
     ComplementaryConfig, ComplementaryFilter, EstimatorError, GRAVITY, PoseConfig, PoseEstimate,
     PoseFilter, StateEstimate, triad,
 };
@@ -828,14 +828,14 @@ proptest! {
         let mut pf = PoseFilter::new(
             PoseConfig::new(2.0, 1.0, &w[1..], &[1.0, 1.0], 0.05, 0.01).unwrap().accel_gate(2.0).unwrap(),
         );
-        let mut eqf = estimator::EquivariantFilter::new(
-            estimator::EqfConfig::new(0.002, 1e-4, &w, &[0.01, 0.02]).unwrap().bias_limit(0.5).unwrap(),
+        let mut eqf = eqtrack_estimator::EquivariantFilter::new(
+            eqtrack_estimator::EqfConfig::new(0.002, 1e-4, &w, &[0.01, 0.02]).unwrap().bias_limit(0.5).unwrap(),
         );
         let mut pe = PoseFilter::new(
             PoseConfig::eqf(0.002, 1e-4, &w[1..], &[0.01, 0.01], 0.05, 0.01).unwrap().accel_gate(2.0).unwrap(),
         );
-        let mut eqf32 = estimator::EquivariantFilter::new(
-            estimator::EqfConfig::new(0.002f32, 1e-4, &w.map(|d| d.cast::<f32>()), &[0.01, 0.02]).unwrap(),
+        let mut eqf32 = eqtrack_estimator::EquivariantFilter::new(
+            eqtrack_estimator::EqfConfig::new(0.002f32, 1e-4, &w.map(|d| d.cast::<f32>()), &[0.01, 0.02]).unwrap(),
         );
         for (gyro, d0, d1, acc, fix, h) in &ticks {
             let e = eqf.step(*h, gyro, &[*d0, *d1]);

@@ -36,7 +36,7 @@ fn hand_made_log() -> tempfile::TempDir {
 /// none in 1.
 fn write_log(dir: &Path) {
     let header = Header {
-        group: group_code(controller::GroupKind::So3),
+        group: group_code(eqtrack_controller::GroupKind::So3),
         control_period: 0.01,
         rate_hz: 0.0,
         realtime: false,

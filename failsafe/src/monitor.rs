@@ -4,7 +4,7 @@
 //! the firmware run this one, so they raise the same causes on the same ticks.
 
 use crate::{Action, Cause, Config, Inputs, Mode, State, Transition};
-use controller::Real;
+use eqtrack_controller::Real;
 
 /// The flags of the causes the caller measures: all but `tracking`, which the monitor
 /// measures itself.
@@ -143,7 +143,7 @@ pub fn applied_as_sent<T: Bits>(sent: Option<&[T]>, applied: &[T]) -> bool {
 }
 
 /// Whether an allocation fell short of its torque (docs/failsafe.md, "Causes"): its status
-/// says the torque could not be met within the bounds (`allocation::Status` code 1), and the
+/// says the torque could not be met within the bounds (`eqtrack_allocation::Status` code 1), and the
 /// torque it could not give, `|τ_demand − τ_achieved|`, exceeds `limit`
 /// (`actuators_residual`; `None`: never). One of the `actuators` cause's two conditions, read
 /// from the allocation before the tick.

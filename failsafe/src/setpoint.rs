@@ -3,12 +3,12 @@
 //! nominal it is the reference, bit for bit.
 
 use crate::Action;
-use controller::Real;
-use controller::group::BuiltinGroup;
-use controller::group::so3::log_so3;
-use controller::law::Desired;
-use controller::reference::Trajectory;
 use core::marker::PhantomData;
+use eqtrack_controller::Real;
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::group::so3::log_so3;
+use eqtrack_controller::law::Desired;
+use eqtrack_controller::reference::Trajectory;
 use nalgebra::{SMatrix, SVector, Vector3};
 
 /// The speeds the vertical actions fly at (m/s, positive).

@@ -8,7 +8,7 @@
 //! `no_std`, allocation-free.
 
 use crate::{Action, Cause, State};
-use controller::Real;
+use eqtrack_controller::Real;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// The law's parameters: the model and the gains derived from the scenario's own.
@@ -54,8 +54,8 @@ impl<T: Real> ThrustAxis<T> {
         if !(all.iter().all(|x| positive(*x)) && lag.is_finite() && lag >= T::zero()) {
             return None;
         }
-        let half: T = controller::real(0.5);
-        let bandwidth = controller::real::<T>(SEPARATION) * (position.0 / mass).sqrt();
+        let half: T = eqtrack_controller::real(0.5);
+        let bandwidth = eqtrack_controller::real::<T>(SEPARATION) * (position.0 / mass).sqrt();
         Some(ThrustAxis {
             mass,
             weight,
@@ -135,7 +135,7 @@ impl<T: Real> ThrustAxis<T> {
         // (1) the force the set-point needs, Lee, Leok & McClamroch 2010 (its eq. 15),
         // never less than a quarter of the weight upward
         let mut force = Vector3::z() * weight - (x - x_d) * kx - (vel - vel_d) * kv;
-        let least = weight * controller::real::<T>(LEAST_LIFT);
+        let least = weight * eqtrack_controller::real::<T>(LEAST_LIFT);
         if force[2] < least {
             force[2] = least;
         }
@@ -146,9 +146,9 @@ impl<T: Real> ThrustAxis<T> {
         let b = r.transpose() * (force / force.norm());
         let (j_t, j_z) = self.inertia;
         let w_a = self.bandwidth;
-        let two: T = controller::real(2.0);
-        let half: T = controller::real(0.5);
-        let zeta: T = controller::real(0.7);
+        let two: T = eqtrack_controller::real(2.0);
+        let half: T = eqtrack_controller::real(0.5);
+        let zeta: T = eqtrack_controller::real(0.7);
         let spin = omega[2];
         let rates = Vector3::new(omega[0], omega[1], T::zero());
         // (4a) a body that does not spin: a PD on the reduced attitude, e₃ × b
@@ -164,7 +164,7 @@ impl<T: Real> ThrustAxis<T> {
         // (5) the actuators lag by τ_a: a torque fixed in the world turns in the body at −Ω,
         // so it is asked for ahead, by atan(Ω τ_a), and larger by √(1 + (Ω τ_a)²)
         // (a lag of more than a turn's worth is no lag to turn ahead for: clamped there)
-        let turn: T = controller::real(core::f64::consts::TAU);
+        let turn: T = eqtrack_controller::real(core::f64::consts::TAU);
         let phase = (spin * self.lag).max(-turn).min(turn);
         let (c, s) = {
             let angle = -phase.atan();
@@ -183,7 +183,7 @@ impl<T: Real> ThrustAxis<T> {
 impl ThrustAxis<f64> {
     /// The same law in scalar `U` (the firmware's f32).
     pub fn cast<U: Real>(&self) -> ThrustAxis<U> {
-        let r = controller::real::<U>;
+        let r = eqtrack_controller::real::<U>;
         ThrustAxis {
             mass: r(self.mass),
             weight: r(self.weight),

@@ -1,16 +1,16 @@
 //! What the firmware is built with: the scenario's controller settings in `f32`, as postcard
 //! bytes (the host writes them from a scenario; the firmware's build includes them).
 
-use controller::group::BuiltinGroup;
-use controller::reference::{AxisTorque, CosTerm, Feedforward};
-use controller::{
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::reference::{AxisTorque, CosTerm, Feedforward};
+use eqtrack_controller::{
     Controller, ControllerConfig, ErrorFrame, IntegralConfig, Law, ObserverConfig, Reference,
     RejectionConfig,
 };
+use eqtrack_serial_wire::Hello;
 use heapless::Vec;
 use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
-use serial_wire::Hello;
 
 /// One cosine term of a feedforward axis: `amplitude·cos(frequency·t + phase)`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -76,9 +76,9 @@ pub struct Config {
     /// The identity it answers a `Hello` with: group (1 SO(3), 2 SE(3)), the control period,
     /// the scenario's fingerprint and name.
     pub identity: Hello,
-    /// The law: its index in `controller::Law::ALL` (0 EqT, 1 GT, 2 nog, 3 asym).
+    /// The law: its index in `eqtrack_controller::Law::ALL` (0 EqT, 1 GT, 2 nog, 3 asym).
     pub law: u8,
-    /// Where EqT forms its error: its index in `controller::ErrorFrame::ALL` (0 reference,
+    /// Where EqT forms its error: its index in `eqtrack_controller::ErrorFrame::ALL` (0 reference,
     /// 1 world, 2 recentred).
     pub error_frame: u8,
     /// The local origin (m, world axes; zero on SO(3) and for a law that depends on where the
@@ -197,9 +197,9 @@ pub enum ConfigError {
     /// A vector with the wrong number of entries for the group: which, and how many.
     Shape(&'static str, usize),
     /// The controller refused the settings.
-    Controller(controller::Error),
+    Controller(eqtrack_controller::Error),
     /// The estimator refused its settings.
-    Estimator(estimator::EstimatorError),
+    Estimator(eqtrack_estimator::EstimatorError),
     /// The estimator's innovation gate: a threshold or band bound that is not a finite
     /// number > 0, a noise that is not a finite number ≥ 0, a window of 0, or a rejection
     /// count outside 1 to 8.
@@ -250,8 +250,8 @@ impl core::fmt::Display for ConfigError {
     }
 }
 
-impl From<controller::Error> for ConfigError {
-    fn from(e: controller::Error) -> Self {
+impl From<eqtrack_controller::Error> for ConfigError {
+    fn from(e: eqtrack_controller::Error) -> Self {
         ConfigError::Controller(e)
     }
 }
@@ -360,9 +360,9 @@ impl Config {
                     gain: vector::<M>("observer.gain", &o.gain)?,
                     limit: limit("observer.limit", &o.limit)?,
                     frame: if o.world {
-                        controller::Frame::World
+                        eqtrack_controller::Frame::World
                     } else {
-                        controller::Frame::Body
+                        eqtrack_controller::Frame::Body
                     },
                 }),
             },

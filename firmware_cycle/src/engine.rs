@@ -3,13 +3,13 @@
 
 use crate::watch::Watcher;
 use crate::{Config, ConfigError, Dropped, Failure, MAX_SEQ_JUMP};
-use allocation::{Commands, VehicleControl};
-use controller::group::BuiltinGroup;
-use controller::{Controller, Reference, Rejection};
-use estimator::health::{Gate, Health};
+use eqtrack_allocation::{Commands, VehicleControl};
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::{Controller, Reference, Rejection};
+use eqtrack_estimator::health::{Gate, Health};
+use eqtrack_serial_wire::{Allocation, CommandFrame, Estimate, Samples, StateFrame};
 use heapless::Vec;
 use nalgebra::{SMatrix, SVector, Vector3};
-use serial_wire::{Allocation, CommandFrame, Estimate, Samples, StateFrame};
 
 pub(crate) struct Engine<G, const N: usize, const M: usize> {
     controller: Controller<f32, G, N, M>,
@@ -19,8 +19,8 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     rejection: Option<Rejection<f32, M>>,
     previous: Option<u64>,
     law: u8,
-    filter_start: Option<estimator::Filter<f32>>,
-    filter: Option<estimator::Filter<f32>>,
+    filter_start: Option<eqtrack_estimator::Filter<f32>>,
+    filter: Option<eqtrack_estimator::Filter<f32>>,
     /// The step of the samples the filter took last (its next step spans the gap).
     filtered: Option<u64>,
     /// The innovation gate and health monitor, where the estimator has one, as at start and
@@ -54,7 +54,7 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
 struct Manager<G, const N: usize, const M: usize> {
     monitor: failsafe::monitor::Monitor<f32>,
     setpoint: failsafe::setpoint::Setpoint<f32, G, N, M>,
-    span: allocation::SpanWatch<f32, M>,
+    span: eqtrack_allocation::SpanWatch<f32, M>,
     /// The thrust-axis law `descend` flies once a direction of control is lost (SE(3),
     /// a vehicle with weight).
     thrust: Option<failsafe::thrust_axis::ThrustAxis<f32>>,
@@ -109,7 +109,7 @@ impl<G: BuiltinGroup<N, M>, const N: usize, const M: usize> Engine<G, N, M> {
                             ascend: f.ascend_rate,
                         },
                     ),
-                    span: allocation::SpanWatch::default(),
+                    span: eqtrack_allocation::SpanWatch::default(),
                     thrust: thrust_axis(config, f.lag),
                     residual_limit: f.actuators_residual,
                     sent: None,
@@ -325,11 +325,11 @@ const MAX_FILTER_GAP: u64 = 100;
 /// innovation gate when there is one, and the health after it
 /// (docs/estimators.md, "The innovation gate and health").
 fn estimate<const N: usize, const M: usize>(
-    filter: &mut estimator::Filter<f32>,
+    filter: &mut eqtrack_estimator::Filter<f32>,
     gate: Option<&mut Gate<f32>>,
     samples: &Samples,
     period: f32,
-) -> (estimator::Step<f32, N, M>, Health) {
+) -> (eqtrack_estimator::Step<f32, N, M>, Health) {
     let mut directions = [Vector3::zeros(); 4];
     for (d, x) in directions.iter_mut().zip(&samples.directions) {
         *d = Vector3::from(*x);

@@ -30,9 +30,9 @@ pub use config::{
 };
 pub use onboard::{Detector, Estimator, Failure, Gate, Momentum, Thruster, Vehicle, Wheel};
 
-use controller::group::{Se3, So3};
 use engine::Engine;
-use serial_wire::{Frame, Hello, StateFrame};
+use eqtrack_controller::group::{Se3, So3};
+use eqtrack_serial_wire::{Frame, Hello, StateFrame};
 
 /// Why a state got no command (counted by the cycle; the plant sees a missing command and
 /// applies its deadline policy).

@@ -1,17 +1,17 @@
 //! The estimator and the vehicle a firmware carries: their settings in `f32` as postcard
-//! fields, and what they become on the board (the `estimator` crate's filter, the
-//! `allocation` crate's vehicle control).
+//! fields, and what they become on the board (the `eqtrack-estimator` crate's filter, the
+//! `eqtrack-allocation` crate's vehicle control).
 
 use crate::ConfigError;
-use allocation::{
+use eqtrack_allocation::{
     Actuator, Allocator, Commands, Geometry, MAX_WHEELS, Priority, Restoring, VehicleControl,
 };
-use estimator::{FilterKind, MAX_DIRECTIONS, Settings};
+use eqtrack_estimator::{FilterKind, MAX_DIRECTIONS, Settings};
 use heapless::Vec;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use serde::{Deserialize, Serialize};
 
-/// The estimator's settings (docs/maths.md, "Estimators"), as [`estimator::Settings`] in
+/// The estimator's settings (docs/maths.md, "Estimators"), as [`eqtrack_estimator::Settings`] in
 /// `f32`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Estimator {
@@ -42,7 +42,7 @@ pub struct Estimator {
 
 /// The innovation gate's thresholds and the health monitor's window
 /// (docs/estimators.md, "The innovation gate and health"), as
-/// [`estimator::health::GateConfig`] in `f32`.
+/// [`eqtrack_estimator::health::GateConfig`] in `f32`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Gate {
     /// The χ²₂ threshold of a direction sample's NIS.
@@ -64,7 +64,7 @@ pub struct Gate {
 
 impl Gate {
     /// The host's configuration cast to `f32`.
-    pub fn of(c: &estimator::health::GateConfig<f64>) -> Gate {
+    pub fn of(c: &eqtrack_estimator::health::GateConfig<f64>) -> Gate {
         Gate {
             direction: c.direction as f32,
             position: c.position as f32,
@@ -79,9 +79,10 @@ impl Gate {
     /// The gate's configuration on the board: refused unless every threshold is a finite
     /// number > 0 (a band's bound too, where it has samples), every noise a finite number
     /// ≥ 0 (0 in the slots no sensor uses), the window at least 1 and the rejections 1 to 8.
-    pub fn config(&self) -> Result<estimator::health::GateConfig<f32>, ConfigError> {
+    pub fn config(&self) -> Result<eqtrack_estimator::health::GateConfig<f32>, ConfigError> {
         let positive = |x: f32| x.is_finite() && x > 0.0;
-        let band = |(samples, upper): (u32, f32)| estimator::health::Band { samples, upper };
+        let band =
+            |(samples, upper): (u32, f32)| eqtrack_estimator::health::Band { samples, upper };
         let bands_ok = [self.direction_band, self.position_band]
             .iter()
             .all(|(n, upper)| *n == 0 || positive(*upper));
@@ -89,7 +90,7 @@ impl Gate {
             && positive(self.position)
             && self.noise.iter().all(|x| x.is_finite() && *x >= 0.0)
             && self.window >= 1
-            && (1..=estimator::health::MAX_REJECTIONS as u32).contains(&self.rejections)
+            && (1..=eqtrack_estimator::health::MAX_REJECTIONS as u32).contains(&self.rejections)
             && bands_ok)
         {
             return Err(ConfigError::Gate);
@@ -98,7 +99,7 @@ impl Gate {
         for (o, x) in noise.iter_mut().zip(&self.noise) {
             *o = *x;
         }
-        Ok(estimator::health::GateConfig {
+        Ok(eqtrack_estimator::health::GateConfig {
             direction: self.direction,
             position: self.position,
             noise,
@@ -235,7 +236,7 @@ impl Wheel {
     /// null space and the detector's balance take `g` as a unit vector): refused (naming the
     /// key) unless the axis is finite with a finite, non-zero length, and the inertia and the
     /// limits finite and positive.
-    fn allocation(&self) -> Result<allocation::Wheel<f32>, ConfigError> {
+    fn allocation(&self) -> Result<eqtrack_allocation::Wheel<f32>, ConfigError> {
         let finite = |x: f32| x.is_finite();
         let axis = Vector3::from(self.axis);
         let length = axis.norm();
@@ -252,7 +253,7 @@ impl Wheel {
             return Err(ConfigError::Vehicle("wheel.max_speed"));
         }
         let unit = axis / length;
-        Ok(allocation::Wheel {
+        Ok(eqtrack_allocation::Wheel {
             axis: [unit[0], unit[1], unit[2]],
             inertia: self.inertia,
             max_torque: self.max_torque,
@@ -262,7 +263,7 @@ impl Wheel {
 }
 
 /// Momentum management (docs/maths.md, "Momentum management"), as
-/// [`allocation::Momentum`] in `f32`.
+/// [`eqtrack_allocation::Momentum`] in `f32`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Momentum {
     /// The null space's gain `k_n` (1/s; 0: off).
@@ -277,7 +278,7 @@ pub struct Momentum {
 
 impl Momentum {
     /// The host's settings cast to `f32`, for `wheels` wheels.
-    pub fn of(m: &allocation::Momentum<f64>, wheels: usize) -> Momentum {
+    pub fn of(m: &eqtrack_allocation::Momentum<f64>, wheels: usize) -> Momentum {
         Momentum {
             null_gain: m.null_gain as f32,
             bias: m.bias[..wheels.min(MAX_WHEELS)]
@@ -292,7 +293,7 @@ impl Momentum {
     /// The settings on the board, for `wheels` wheels: refused (naming the key) unless the
     /// gains and the threshold are finite and not negative and there is a finite bias per
     /// wheel.
-    fn allocation(&self, wheels: usize) -> Result<allocation::Momentum<f32>, ConfigError> {
+    fn allocation(&self, wheels: usize) -> Result<eqtrack_allocation::Momentum<f32>, ConfigError> {
         let at_least_0 = |x: f32| x.is_finite() && x >= 0.0;
         if !at_least_0(self.null_gain) {
             return Err(ConfigError::Vehicle("momentum.null_gain"));
@@ -308,7 +309,7 @@ impl Momentum {
         }
         let mut bias = [0.0; MAX_WHEELS];
         bias[..wheels].copy_from_slice(&self.bias);
-        Ok(allocation::Momentum {
+        Ok(eqtrack_allocation::Momentum {
             null_gain: self.null_gain,
             bias,
             dump_threshold: self.dump_threshold,
@@ -383,7 +384,7 @@ impl Vehicle {
                 max: a.max,
             })
             .collect();
-        let mut wheels: Vec<allocation::Wheel<f32>, MAX_WHEELS> = Vec::new();
+        let mut wheels: Vec<eqtrack_allocation::Wheel<f32>, MAX_WHEELS> = Vec::new();
         for w in &self.wheels {
             // at most MAX_WHEELS by the type
             let _ = wheels.push(w.allocation()?);

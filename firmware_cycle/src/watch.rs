@@ -5,10 +5,10 @@
 //! refused.
 
 use crate::{Config, ConfigError};
-use allocation::{Commands, VehicleControl};
-use controller::group::BuiltinGroup;
+use eqtrack_allocation::{Commands, VehicleControl};
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_serial_wire::Detection;
 use nalgebra::{Matrix3, SMatrix, SVector};
-use serial_wire::Detection;
 
 /// The detector and what it needs of the last command.
 #[cfg(feature = "detector")]

@@ -2,8 +2,9 @@
 //! a state (equal to the controller crate's own f32 law), and states it must drop; random
 //! frames never panic it.
 
-use controller::group::{MatrixLieGroup, So3};
-use controller::{Controller, ControllerConfig, Law};
+use eqtrack_controller::group::{MatrixLieGroup, So3};
+use eqtrack_controller::{Controller, ControllerConfig, Law};
+use eqtrack_serial_wire::{Frame, Hello, Samples, StateFrame};
 use firmware_cycle::{
     Axis, Config, ConfigError, Cycle, Dropped, Estimator, Failure, MAX_CONFIG, Series, Term,
     Thruster, Vehicle,
@@ -11,7 +12,6 @@ use firmware_cycle::{
 use heapless::Vec;
 use nalgebra::{Matrix3, Vector3};
 use proptest::prelude::*;
-use serial_wire::{Frame, Hello, Samples, StateFrame};
 
 fn v<const C: usize>(xs: &[f32]) -> Vec<f32, C> {
     Vec::from_slice(xs).unwrap()
@@ -212,7 +212,7 @@ fn the_handshake_refuses_a_mismatch_and_greets_a_match() {
         Some(Frame::Refused { mismatch, identity }) => {
             assert_eq!(
                 mismatch,
-                serial_wire::mismatch::SCENARIO | serial_wire::mismatch::PERIOD
+                eqtrack_serial_wire::mismatch::SCENARIO | eqtrack_serial_wire::mismatch::PERIOD
             );
             assert_eq!(identity, config.identity);
         }
@@ -236,7 +236,7 @@ fn the_answer_is_the_f32_laws_and_bad_states_are_dropped() {
     // the same law and reference built directly
     let law = Controller::<f32, So3, 3, 3>::new(ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia: Matrix3::from_row_slice(&INERTIA),
         k: Matrix3::identity() * 0.5,
         kd: Matrix3::identity() * 0.5,
@@ -373,7 +373,7 @@ fn on_board() -> Config {
                 value: 0.01,
             }])
             .unwrap(),
-            budget: allocation::DEFAULT_BUDGET,
+            budget: eqtrack_allocation::DEFAULT_BUDGET,
             wheels: Vec::new(),
             momentum: None,
         }),
@@ -820,7 +820,7 @@ fn wheeled(managed: bool) -> Config {
             centre: [0.0; 3],
             rate_limit: 0.0,
             failures: Vec::new(),
-            budget: allocation::DEFAULT_BUDGET,
+            budget: eqtrack_allocation::DEFAULT_BUDGET,
             wheels,
             momentum: managed.then(|| firmware_cycle::Momentum {
                 null_gain: 0.5,

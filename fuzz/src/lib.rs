@@ -87,7 +87,7 @@ mod serial_target;
 mod shard_target;
 mod wire_target;
 
-use controller::GroupKind;
+use eqtrack_controller::GroupKind;
 use std::cell::{Cell, RefCell};
 use std::collections::BTreeMap;
 use std::fmt;

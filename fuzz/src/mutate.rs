@@ -2,7 +2,7 @@
 //! is set to.
 
 use crate::rng::Gen;
-use controller::GroupKind;
+use eqtrack_controller::GroupKind;
 use ipc_types::PROTOCOL_VERSION;
 use link::wire::group_code;
 

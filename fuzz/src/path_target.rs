@@ -9,9 +9,9 @@ use crate::Outcome;
 use crate::mutate::{ByteOp, MAX_INPUT, byte_op};
 use crate::rng::Gen;
 use crate::scenario_target::{INTERESTING, join_lines, number_spans, random_number, split_lines};
-use controller::group::OnGroup;
-use controller::path::{MAX_SEGMENTS, Path};
-use controller::{BuiltinGroup, GroupKind, Law};
+use eqtrack_controller::group::OnGroup;
+use eqtrack_controller::path::{MAX_SEGMENTS, Path};
+use eqtrack_controller::{BuiltinGroup, GroupKind, Law};
 use ipc_types::plan::{SHAPE_REST, SHAPE_THROUGH};
 use ipc_types::{MAX_M, MAX_N, PLAN_WINDOW, PlanMsg, WireSegment, check_plan};
 use nalgebra::{SMatrix, SVector};
@@ -174,10 +174,10 @@ struct Exercise<'a> {
 
 /// The EqT law with unit inertia and gains: what the fuzzed paths' samples are handed to.
 pub(crate) fn unit_controller<G: BuiltinGroup<N, M>, const N: usize, const M: usize>()
--> controller::Controller<f64, G, N, M> {
-    controller::Controller::<f64, G, N, M>::new(controller::ControllerConfig {
+-> eqtrack_controller::Controller<f64, G, N, M> {
+    eqtrack_controller::Controller::<f64, G, N, M>::new(eqtrack_controller::ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia: SMatrix::identity(),
         k: SMatrix::identity(),
         kd: SMatrix::identity(),
@@ -188,8 +188,8 @@ pub(crate) fn unit_controller<G: BuiltinGroup<N, M>, const N: usize, const M: us
 
 /// The law on a desired sample from the identity at rest: a finite torque or an error.
 pub(crate) fn law_on<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
-    controller: &controller::Controller<f64, G, N, M>,
-    sample: &controller::PathSample<f64, N, M>,
+    controller: &eqtrack_controller::Controller<f64, G, N, M>,
+    sample: &eqtrack_controller::PathSample<f64, N, M>,
 ) {
     let inertia = SMatrix::<f64, M, M>::identity();
     let desired = sample.desired::<G>(&inertia);

@@ -10,7 +10,7 @@
 use crate::Outcome;
 use crate::mutate::{ByteOp, MAX_INPUT, byte_op};
 use crate::rng::Gen;
-use serial_wire::{
+use eqtrack_serial_wire::{
     Allocation, CommandFrame, Deframer, Detection, Estimate, Frame, FrameError, Hello, MAX_ENCODED,
     MAX_FRAME, SERIAL_VERSION, Samples, StateFrame, decode, encode, encode_raw,
 };

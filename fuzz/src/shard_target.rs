@@ -7,7 +7,7 @@
 use crate::Outcome;
 use crate::mutate::{ByteOp, MAX_INPUT, byte_op};
 use crate::rng::Gen;
-use controller::Law;
+use eqtrack_controller::Law;
 use studies::shard::{Shard, Study, decode_shard, encode_shard, merge_encoded};
 
 /// The seed corpus and the mutator of the shard target.

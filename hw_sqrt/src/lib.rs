@@ -10,9 +10,15 @@
 //! byte, at five instructions a call instead of libm's fifty or so.
 //!
 //! This is the one crate of eqtrack's libraries with `unsafe` code: one `asm!` block.
+//!
+//! ## Features
+//!
+//! None. [`nalgebra`] is re-exported (the generic [`sqrt`] and [`norm`] take its types).
 #![no_std]
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
+
+pub use nalgebra;
 
 use core::any::Any;
 use nalgebra::RealField;
@@ -102,3 +108,8 @@ mod tests {
         assert_eq!(norm(&v), 13.0);
     }
 }
+
+/// This crate's README (its example), compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

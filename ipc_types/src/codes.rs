@@ -1,6 +1,6 @@
 //! The wire's own codes for what the maths crate calls a group and a law: the contract owns
 //! them, so a message's layout and meaning do not change when the maths crate does. `link`
-//! converts between these and `controller::GroupKind` / `controller::Law`.
+//! converts between these and `eqtrack_controller::GroupKind` / `eqtrack_controller::Law`.
 
 /// A group on the wire: its code and its dimensions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -1,7 +1,7 @@
 //! The streamed reference: a planner process publishes the pieces of a path ahead of time,
 //! [`PLAN_WINDOW`] segments per [`PlanMsg`], and the controller appends the ones it does not
-//! have yet to its `controller::path::Path` (docs/maths.md, "Streamed pieces"). A segment is
-//! exactly `controller::path::Segment`: start time, end time, start pose, its shape (a
+//! have yet to its `eqtrack_controller::path::Path` (docs/maths.md, "Streamed pieces"). A segment is
+//! exactly `eqtrack_controller::path::Segment`: start time, end time, start pose, its shape (a
 //! rest-to-rest geodesic or a through-waypoint quintic Hermite piece) and the shape's
 //! body-frame displacements — so the controller evaluates it at any `t_k` without allocating,
 //! and a streamed path equals, bit for bit, the same path built from a file.
@@ -32,7 +32,7 @@ pub const SHAPE_REST: u32 = 0;
 /// [`WireSegment::shape`] of a through-waypoint quintic Hermite piece (`path = "through"`).
 pub const SHAPE_THROUGH: u32 = 1;
 
-/// One piece of a path on the wire (`controller::path::Segment`, padded to the largest
+/// One piece of a path on the wire (`eqtrack_controller::path::Segment`, padded to the largest
 /// group).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(

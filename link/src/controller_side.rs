@@ -5,7 +5,7 @@ use crate::invalid::{InvalidCounts, InvalidMessage};
 use crate::transport::{ControllerTransport, open};
 use crate::wire::group_code;
 use crate::{LinkError, Refusal, Role, TransportKind, check_run_name, clock};
-use controller::GroupKind;
+use eqtrack_controller::GroupKind;
 use ipc_types::{CommandMsg, Identity, PROTOCOL_VERSION, StateMsg, check_state, flags};
 use std::time::{Duration, Instant};
 
@@ -52,7 +52,7 @@ const LIVENESS_EVERY: Duration = Duration::from_millis(100);
 /// A controller process in outline (`controller_node` is the whole thing, with the law):
 ///
 /// ```no_run
-/// use controller::GroupKind;
+/// use eqtrack_controller::GroupKind;
 /// use link::{ControllerEndpointConfig, ControllerEndpoint, Incoming, TransportKind};
 /// use nalgebra::Vector3;
 /// use std::time::Duration;

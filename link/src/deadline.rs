@@ -7,7 +7,7 @@
 //! * **Held**: no such command (none, one for an older tick, or one after the deadline): hold
 //!   the previous torque.
 //! * **Safe**: the N-th consecutive miss and every one after it: apply the safe-mode torque
-//!   (`controller::law::safe_mode_torque`) until the next fresh command.
+//!   (`eqtrack_controller::law::safe_mode_torque`) until the next fresh command.
 
 /// A command as it arrived: the tick it answers and when it arrived (CLOCK_MONOTONIC ns).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -18,7 +18,7 @@
 //! A plant for a board, in outline (the whole example is `examples/example_plant.rs`):
 //!
 //! ```no_run
-//! use controller::GroupKind;
+//! use eqtrack_controller::GroupKind;
 //! use link::{Decision, DeadlinePolicy, PlantEndpointConfig, PlantEndpoint, clock};
 //! use nalgebra::{Matrix3, Vector3};
 //!

@@ -4,7 +4,7 @@ use crate::deadline::Arrival;
 use crate::invalid::{InvalidCounts, InvalidMessage};
 use crate::transport::{PlantTransport, open};
 use crate::{LinkError, Role, TransportKind, Wake, check_run_name, clock};
-use controller::GroupKind;
+use eqtrack_controller::GroupKind;
 use ipc_types::{
     CommandMsg, Identity, Invalid, PROTOCOL_VERSION, StateMsg, check_command, flags, mismatch,
 };

@@ -12,10 +12,10 @@
 
 use crate::LinkError;
 use crate::transport::Transport;
-use ipc_types::{CommandMsg, Identity, StateMsg, WireGroup, flags};
-use serial_wire::{
+use eqtrack_serial_wire::{
     CommandFrame, Deframer, Estimate, Frame, Hello, MAX_ENCODED, Samples, StateFrame, encode,
 };
+use ipc_types::{CommandMsg, Identity, StateMsg, WireGroup, flags};
 use std::io::{self, Read, Write};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -358,7 +358,7 @@ pub fn command_msg(c: &CommandFrame, group: u32) -> Option<CommandMsg> {
     }
     let mut msg = CommandMsg::new(wire);
     msg.seq = c.seq;
-    msg.law = controller::Law::ALL
+    msg.law = eqtrack_controller::Law::ALL
         .get(usize::from(c.law))
         .map_or(u32::MAX, |l| crate::wire::law_code(*l));
     let widen = |out: &mut [f64], xs: &[f32]| {

@@ -62,7 +62,7 @@ mod tests {
     use super::*;
     use crate::status::StatusWriter;
     use crate::{PlantEndpoint, PlantEndpointConfig};
-    use controller::GroupKind;
+    use eqtrack_controller::GroupKind;
     use nalgebra::{Matrix3, Vector3};
 
     #[test]

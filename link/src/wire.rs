@@ -2,8 +2,8 @@
 //! crate's types (`controller`): groups, laws and path segments. They live here, above both,
 //! so that neither depends on the other.
 
-use controller::path::{Segment, Shape};
-use controller::{GroupKind, Law};
+use eqtrack_controller::path::{Segment, Shape};
+use eqtrack_controller::{GroupKind, Law};
 use ipc_types::plan::{SHAPE_REST, SHAPE_THROUGH};
 use ipc_types::{MAX_M, MAX_N, WireGroup, WireLaw, WireSegment};
 use nalgebra::{SMatrix, SVector};

@@ -1,12 +1,12 @@
 //! Plan messages and their segments through the wire: the conversions of `link::wire` and
 //! the checks of `ipc_types::plan`, on both groups.
 
-use controller::path::Segment;
+use eqtrack_controller::path::Segment;
 use ipc_types::plan::*;
 use ipc_types::{MAX_M, WireGroup};
 use link::wire::{segment, wire_segment};
 
-use controller::group::{MatrixLieGroup, Se2, Se3, So3};
+use eqtrack_controller::group::{MatrixLieGroup, Se2, Se3, So3};
 use nalgebra::{Matrix3, Vector3, Vector6};
 
 fn so3_segment(t0: f64, t1: f64) -> Segment<f64, 3, 3> {
@@ -24,7 +24,7 @@ fn segments_cross_the_wire_unchanged_on_both_groups() {
     let s = Segment::between::<Se3>(0.0, &a, 4.0, &b);
     assert_eq!(segment::<4, 6>(&wire_segment(&s)), s);
     // through-waypoint pieces too
-    let knot = |q, v: Vector6<f64>| controller::PathSample {
+    let knot = |q, v: Vector6<f64>| eqtrack_controller::PathSample {
         q,
         v,
         v_dot: v * 0.5,
@@ -39,12 +39,17 @@ fn segments_cross_the_wire_unchanged_on_both_groups() {
     assert_eq!(w.shape, SHAPE_THROUGH);
     assert_eq!(segment::<4, 6>(&w), s);
     let t = So3::exp(&Vector3::new(0.3, 0.0, 0.1));
-    let s = Segment::hermite::<So3>(1.0, &controller::PathSample::rest(t), 2.0, &knot3(t));
+    let s = Segment::hermite::<So3>(
+        1.0,
+        &eqtrack_controller::PathSample::rest(t),
+        2.0,
+        &knot3(t),
+    );
     assert_eq!(segment::<3, 3>(&wire_segment(&s)), s);
 }
 
-fn knot3(q: Matrix3<f64>) -> controller::PathSample<f64, 3, 3> {
-    controller::PathSample {
+fn knot3(q: Matrix3<f64>) -> eqtrack_controller::PathSample<f64, 3, 3> {
+    eqtrack_controller::PathSample {
         q: q * So3::exp(&Vector3::new(0.0, 1.0, 0.0)),
         v: Vector3::new(0.5, -0.1, 0.0),
         v_dot: Vector3::new(0.0, 0.2, 0.1),

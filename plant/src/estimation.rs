@@ -1,5 +1,5 @@
 //! The plant side's estimator: the sensors ([`crate::sensors`]) sampled from the true body at
-//! each tick, the `estimator` crate's filter stepped on them, and the estimate the law is
+//! each tick, the `eqtrack-estimator` crate's filter stepped on them, and the estimate the law is
 //! handed (docs/architecture.md, "Sensors and the estimator"). The same code runs in
 //! `plant_sim sim` and in the plant of the pair, so lockstep equals the simulation bit for
 //! bit.
@@ -7,11 +7,11 @@
 use crate::SimError;
 use crate::sensors::{SampleFault, Sensors};
 use crate::trajectory::{EstimateRow, Row};
-use controller::group::BuiltinGroup;
-use controller::group::so3::log_so3;
-use controller::integrator::RigidBody;
-use estimator::Filter;
-use estimator::health::{Gate, Health};
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::group::so3::log_so3;
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_estimator::Filter;
+use eqtrack_estimator::health::{Gate, Health};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use scenario::{EstimatorKind, Scenario};
 use serde::Serialize;
@@ -26,7 +26,7 @@ pub struct EstimatorReport {
     /// Direction sensors.
     pub directions: usize,
     /// What the filter skipped, held and clamped.
-    pub faults: estimator::Faults,
+    pub faults: eqtrack_estimator::Faults,
     /// Test builds: faults planted in the samples (`--fault-sample`).
     pub planted_faults: u64,
     /// The attitude angle of `R̂ᵀR` at the end (rad).
@@ -84,8 +84,8 @@ pub struct HealthChange {
 
 /// A source's name in the scenario's spelling (`direction0`, `accelerometer`, `gyro`,
 /// `position`, and `attitude` for two usable directions).
-pub fn source_name(s: estimator::health::Source) -> String {
-    use estimator::health::Source;
+pub fn source_name(s: eqtrack_estimator::health::Source) -> String {
+    use eqtrack_estimator::health::Source;
     match s {
         Source::Direction(i) => format!("direction{i}"),
         Source::Accelerometer => "accelerometer".to_owned(),
@@ -97,7 +97,7 @@ pub fn source_name(s: estimator::health::Source) -> String {
 
 /// The health's name and its reason in words (`rejected direction0`, `missing gyro`).
 pub fn describe(h: &Health) -> (&'static str, String) {
-    use estimator::health::Reason;
+    use eqtrack_estimator::health::Reason;
     let name = match h {
         Health::Healthy => "healthy",
         Health::Degraded(_) => "degraded",
@@ -127,7 +127,7 @@ pub struct Estimation {
     planted: u64,
 }
 
-fn bad(e: estimator::EstimatorError) -> SimError {
+fn bad(e: eqtrack_estimator::EstimatorError) -> SimError {
     SimError::Input(format!("[estimator]: {e}"))
 }
 
@@ -147,7 +147,7 @@ impl Estimation {
             None => None,
             Some(settings) => Some(
                 settings
-                    .build(s.group == controller::GroupKind::Se3)
+                    .build(s.group == eqtrack_controller::GroupKind::Se3)
                     .map_err(bad)?,
             ),
         };
@@ -155,7 +155,7 @@ impl Estimation {
             Gate::new(
                 c,
                 spec.directions.len(),
-                s.group == controller::GroupKind::Se3,
+                s.group == eqtrack_controller::GroupKind::Se3,
             )
         });
         Ok(Some(Estimation {
@@ -277,7 +277,7 @@ impl Estimation {
         let faults = self
             .filter
             .as_ref()
-            .map_or_else(estimator::Faults::default, |f| *f.faults());
+            .map_or_else(eqtrack_estimator::Faults::default, |f| *f.faults());
         let nees: Vec<f64> = rows
             .iter()
             .filter_map(|r| r.estimate.and_then(|e| e.nees))

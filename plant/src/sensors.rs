@@ -10,8 +10,8 @@
 //! Scripted faults (`[[sensors.fault]]`, docs/scenario.md, "Sensor faults") are applied to
 //! the samples after the draws, so they change nothing outside their own sensor and time.
 
-use controller::group::BuiltinGroup;
-use controller::integrator::RigidBody;
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::integrator::RigidBody;
 use nalgebra::{Matrix3, SVector, Vector3};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
@@ -225,7 +225,7 @@ impl Sensors {
             if let Some(SensorFaultKind::Bias(r)) = kind {
                 // a direction's bias turns it (body axes)
                 s.directions[i] =
-                    controller::group::so3::exp_so3(&Vector3::from(r)) * s.directions[i];
+                    eqtrack_controller::group::so3::exp_so3(&Vector3::from(r)) * s.directions[i];
             } else {
                 every(kind, &mut s.directions[i], &mut last.directions[i]);
             }

@@ -1,13 +1,13 @@
 //! The in-process closed loop and what it records per control step.
 
 use crate::SimError;
-use controller::GroupKind;
-use controller::closed_loop::{ClosedLoop, Sample};
-use controller::group::{BuiltinGroup, OnGroup};
-use controller::integrator::RigidBody;
-use controller::law::{ControllerConfig, Desired};
-use controller::reference::Trajectory;
-use controller::tracking::{error_norms, lyapunov};
+use eqtrack_controller::GroupKind;
+use eqtrack_controller::closed_loop::{ClosedLoop, Sample};
+use eqtrack_controller::group::{BuiltinGroup, OnGroup};
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::law::{ControllerConfig, Desired};
+use eqtrack_controller::reference::Trajectory;
+use eqtrack_controller::tracking::{error_norms, lyapunov};
 use nalgebra::{SMatrix, SVector};
 use scenario::Scenario;
 
@@ -56,7 +56,7 @@ pub struct VehicleRow {
     pub u: [f64; 12],
     /// `B u_cmd`.
     pub achieved: [f64; 6],
-    /// The allocator's status code (`allocation::Status`).
+    /// The allocator's status code (`eqtrack_allocation::Status`).
     pub status: u8,
     /// The number of actuators.
     pub count: usize,
@@ -115,7 +115,7 @@ pub struct EstimateRow {
     /// (docs/maths.md, "Consistency").
     pub nees: Option<f64>,
     /// `[estimator] gate = true`: the estimator's health after this tick.
-    pub health: Option<estimator::health::Health>,
+    pub health: Option<eqtrack_estimator::health::Health>,
 }
 
 impl EstimateRow {
@@ -251,14 +251,14 @@ pub fn first_non_finite(traj: &SimulatedTrajectory) -> Option<f64> {
 
 /// A run of the papers' world-frame law on SE(3): the first time `t_k` (k ≤ `steps`), and the
 /// reference's distance from the world origin then, at which the law's damping, held over a
-/// control period, stops being stable ([`controller::law::world_damping_holds`];
+/// control period, stops being stable ([`eqtrack_controller::law::world_damping_holds`];
 /// docs/maths.md, "Where the world-frame law breaks"). `None` for any other run, or when the
 /// reference stays where the damping holds. It steps the scenario's own reference again, off
 /// the control loop.
 pub fn world_frame_finding(s: &Scenario, steps: u64) -> Option<(f64, f64)> {
-    (s.group == controller::GroupKind::Se3
-        && s.law == controller::Law::Eqt
-        && s.error_frame == controller::ErrorFrame::World)
+    (s.group == eqtrack_controller::GroupKind::Se3
+        && s.law == eqtrack_controller::Law::Eqt
+        && s.error_frame == eqtrack_controller::ErrorFrame::World)
         .then(|| s.group.dispatch(WorldFrameFinding { s, steps }))
         .flatten()
 }
@@ -277,7 +277,7 @@ impl OnGroup for WorldFrameFinding<'_> {
         let kd = SMatrix::<f64, M, M>::from_row_slice(&s.kd);
         for _ in 0..=self.steps {
             let q_d = reference.desired().q;
-            if !controller::law::world_damping_holds::<G, f64, N, M>(
+            if !eqtrack_controller::law::world_damping_holds::<G, f64, N, M>(
                 &q_d,
                 &inertia,
                 &kd,
@@ -347,7 +347,7 @@ impl OnGroup for Simulate<'_> {
 }
 
 /// Maps a `controller` error met while building scenario `s`'s parts to bad input naming the scenario.
-pub fn input(s: &Scenario) -> impl Fn(controller::Error) -> SimError + '_ {
+pub fn input(s: &Scenario) -> impl Fn(eqtrack_controller::Error) -> SimError + '_ {
     move |e| SimError::Input(format!("scenario `{}`: {e}", s.name))
 }
 
@@ -376,7 +376,7 @@ pub fn simulate_with_planted<G: BuiltinGroup<N, M>, const N: usize, const M: usi
 
 /// [`simulate_with_planted`] against a given desired trajectory instead of the scenario's
 /// own source: a reference computed once and shared by many runs
-/// ([`controller::reference::Tabulated`]; the Monte Carlo study) gives the same numbers as
+/// ([`eqtrack_controller::reference::Tabulated`]; the Monte Carlo study) gives the same numbers as
 /// the source it was recorded from.
 pub fn simulate_against<G, const N: usize, const M: usize, R>(
     s: &Scenario,
@@ -460,7 +460,7 @@ where
 pub(crate) fn unhealthy(estimate: Option<&EstimateRow>) -> bool {
     estimate
         .and_then(|e| e.health)
-        .is_some_and(|h| h != estimator::health::Health::Healthy)
+        .is_some_and(|h| h != eqtrack_estimator::health::Health::Healthy)
 }
 
 /// Number of control steps with `t_k < horizon`: `Σ_{t_k < T}` ranges over these.

@@ -6,10 +6,10 @@
 use crate::SimError;
 use crate::trajectory::{EstimateRow, Row, SimulatedTrajectory, Terms, VehicleRow, input};
 use crate::wheels::{MAX_WHEELS, Wheel, Wheels};
-use allocation::{Actuation, Commands, MAX_ACTUATORS, Restoring, VehicleControl};
-use controller::closed_loop::ClosedLoop;
-use controller::group::BuiltinGroup;
-use controller::integrator::RigidBody;
+use eqtrack_allocation::{Actuation, Commands, MAX_ACTUATORS, Restoring, VehicleControl};
+use eqtrack_controller::closed_loop::ClosedLoop;
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::integrator::RigidBody;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use scenario::Scenario;
 use scenario::vehicle::{FailureKind, FailureSpec};
@@ -61,7 +61,7 @@ impl<const M: usize> Environment<M> {
 /// following it with a first-order lag, failed ones stuck.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Actuators<const M: usize> {
-    /// The effectiveness matrix (`allocation::Geometry::effectiveness`).
+    /// The effectiveness matrix (`eqtrack_allocation::Geometry::effectiveness`).
     b: SMatrix<f64, M, MAX_ACTUATORS>,
     /// The lag's time constant `T` (s); 0: the output is the command.
     time_constant: f64,
@@ -572,7 +572,7 @@ pub fn simulate<G, const N: usize, const M: usize, R>(
 ) -> Result<SimulatedTrajectory, SimError>
 where
     G: BuiltinGroup<N, M>,
-    R: controller::reference::Trajectory<f64, N, M>,
+    R: eqtrack_controller::reference::Trajectory<f64, N, M>,
 {
     let mut estimation = crate::estimation::Estimation::new(s, s.control_period, faults)?;
     let controller = s.controller::<G, N, M>().map_err(input(s))?;
@@ -875,7 +875,7 @@ impl VehicleReport {
         let mut saturated = vec![0.0; count];
         let (mut max, mut sum, mut n, mut stopped) = (0.0_f64, 0.0, 0usize, 0);
         for (k, v) in rows.iter().filter_map(|r| r.vehicle).enumerate() {
-            stopped += usize::from(v.status == allocation::Status::Stopped.code());
+            stopped += usize::from(v.status == eqtrack_allocation::Status::Stopped.code());
             if k < held {
                 for (j, s) in saturated.iter_mut().enumerate() {
                     if v.saturated[j] {

@@ -14,12 +14,12 @@
 //! up, once per control period from the speed at its start; friction is evaluated at every
 //! stage from the stage's wheel speed.
 
-use controller::group::BuiltinGroup;
-use controller::integrator::RigidBody;
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::integrator::RigidBody;
 use nalgebra::{SMatrix, SVector, Vector3};
 
 /// The most wheels a body carries.
-pub const MAX_WHEELS: usize = allocation::MAX_WHEELS;
+pub const MAX_WHEELS: usize = eqtrack_allocation::MAX_WHEELS;
 // the wire carries as many wheel speeds as the allocation has wheels
 const _: () = assert!(MAX_WHEELS == ipc_types::MAX_WHEELS);
 

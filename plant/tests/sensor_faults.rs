@@ -3,7 +3,7 @@
 //! sees the exact state here, so the flight, and with it every clean sample, is the same with
 //! and without the faults, and the two runs compare tick by tick.
 
-use controller::group::so3::exp_so3;
+use eqtrack_controller::group::so3::exp_so3;
 use nalgebra::Vector3;
 use plant::sensors::Samples;
 use plant::trajectory::simulate;

@@ -3,9 +3,9 @@
 //! pendulum), terminal velocity under drag, and Kirchhoff's equations with added mass
 //! (energy and spatial momentum conserved).
 
-use allocation::{Allocator, Commands, Geometry, Priority, Restoring, presets};
-use controller::group::{BuiltinGroup, MatrixLieGroup, Se3};
-use controller::integrator::RigidBody;
+use eqtrack_allocation::{Allocator, Commands, Geometry, Priority, Restoring, presets};
+use eqtrack_controller::group::{BuiltinGroup, MatrixLieGroup, Se3};
+use eqtrack_controller::integrator::RigidBody;
 use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, Vector3};
 use plant::vehicle::{Actuators, Environment, step};
 

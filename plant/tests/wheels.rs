@@ -3,7 +3,7 @@
 //! decaying a wheel (Coulomb and viscous exactly, Stribeck against the scalar model), the
 //! motor's limits in Basilisk's order, and momentum kept over a whole saturating flight.
 
-use controller::group::{BuiltinGroup, MatrixLieGroup, Se3, So3};
+use eqtrack_controller::group::{BuiltinGroup, MatrixLieGroup, Se3, So3};
 use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, Vector3};
 use plant::wheels::{Gyrostat, LIMIT_CYCLE_SPEED, MAX_WHEELS, Wheel, WheelError};
 
@@ -488,7 +488,7 @@ fn the_allocated_wheel_torques_turn_the_body_as_the_law_asks() {
     // a turning body with turning wheels: the controller allocates the law's torque τ with the
     // wheels' gyroscopic torque added, and over a short step the body answers as the rigid
     // body of inertia J = I − Σ J_s g gᵀ would: J ω̇ + ω × J ω = τ
-    use allocation::{Allocator, Geometry, Priority, Restoring, Status, VehicleControl};
+    use eqtrack_allocation::{Allocator, Geometry, Priority, Restoring, Status, VehicleControl};
     let wheels = pyramid(Wheel::ideal([0.0; 3], 0.01, 1.0, 1e4));
     let omega = Vector3::new(0.3, -0.2, 0.4);
     let mut b = Gyrostat::<So3, 3, 3>::new(
@@ -499,10 +499,10 @@ fn the_allocated_wheel_torques_turn_the_body_as_the_law_asks() {
         omega,
     )
     .unwrap();
-    let seen: Vec<allocation::Wheel<f64>> = b
+    let seen: Vec<eqtrack_allocation::Wheel<f64>> = b
         .wheels()
         .iter()
-        .map(|w| allocation::Wheel {
+        .map(|w| eqtrack_allocation::Wheel {
             axis: w.axis,
             inertia: w.inertia,
             max_torque: w.max_torque,

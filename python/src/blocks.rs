@@ -5,10 +5,10 @@
 
 use crate::arrays::{matrix, out1, out2, read_into, rows, rows3, vector};
 use crate::source;
-use controller::group::{Se2, Se3, So3};
-use controller::law::Desired;
-use controller::{Controller as Law, GroupKind};
-use estimator::{
+use eqtrack_controller::group::{Se2, Se3, So3};
+use eqtrack_controller::law::Desired;
+use eqtrack_controller::{Controller as Law, GroupKind};
+use eqtrack_estimator::{
     AttitudeEstimate, ComplementaryConfig, ComplementaryFilter as Cf, EqfConfig,
     EquivariantFilter as Eqf,
 };
@@ -42,7 +42,7 @@ fn compute<G, const N: usize, const M: usize>(
     tau_d: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<(Py<PyArray1<f64>>, f64)>
 where
-    G: controller::BuiltinGroup<N, M>,
+    G: eqtrack_controller::BuiltinGroup<N, M>,
 {
     let q = matrix::<N, N>(args[0], "q")?;
     let v = vector::<M>(args[1], "v")?;
@@ -243,8 +243,8 @@ impl EquivariantFilter {
 }
 
 enum Alloc {
-    Three(Box<allocation::Allocator<f64, 3>>),
-    Six(Box<allocation::Allocator<f64, 6>>),
+    Three(Box<eqtrack_allocation::Allocator<f64, 3>>),
+    Six(Box<eqtrack_allocation::Allocator<f64, 6>>),
 }
 
 /// `(u_cmd, B u_cmd, status)`.
@@ -258,7 +258,7 @@ struct Allocator {
 
 fn allocate<'py, const K: usize>(
     py: Python<'py>,
-    a: &allocation::Allocator<f64, K>,
+    a: &eqtrack_allocation::Allocator<f64, K>,
     demand: &Bound<'py, PyAny>,
 ) -> PyResult<Allocated<'py>> {
     let d = vector::<K>(demand, "demand")?;

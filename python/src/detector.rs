@@ -7,8 +7,8 @@
 use crate::arrays::{matrix, out1, vector};
 use crate::source;
 use control_cycle::ControllerVehicle;
-use controller::GroupKind;
-use controller::group::{BuiltinGroup, Se3, So3};
+use eqtrack_controller::GroupKind;
+use eqtrack_controller::group::{BuiltinGroup, Se3, So3};
 use ipc_types::{CommandMsg, StateMsg, WireGroup};
 use nalgebra::SVector;
 use pyo3::exceptions::PyValueError;

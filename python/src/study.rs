@@ -3,7 +3,7 @@
 //! merged, so that every engine gives the command line's `runs.csv`, bit for bit.
 
 use crate::{sim_err, source};
-use controller::Law;
+use eqtrack_controller::Law;
 use numpy::PyArray1;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;

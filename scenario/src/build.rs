@@ -3,11 +3,11 @@
 use crate::{
     BUILTINS, PathKind, Scenario, ScenarioError, StateSpec, Validator, build_path, parse_law,
 };
-use controller::group::BuiltinGroup;
-use controller::group::so3::exp_so3;
-use controller::integrator::RigidBody;
-use controller::reference::{AxisTorque, CosTerm, Feedforward};
-use controller::{
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::group::so3::exp_so3;
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::reference::{AxisTorque, CosTerm, Feedforward};
+use eqtrack_controller::{
     Controller, ControllerConfig, ErrorFrame, Law, Path as GroupPath, PathReference, Reference,
     Source,
 };
@@ -149,12 +149,14 @@ impl Scenario {
     /// The controller.
     pub fn controller<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
-    ) -> Result<Controller<f64, G, N, M>, controller::Error> {
+    ) -> Result<Controller<f64, G, N, M>, eqtrack_controller::Error> {
         Controller::new(self.controller_config())
     }
 
     /// The feedforward torque.
-    pub fn feedforward<const M: usize>(&self) -> Result<Feedforward<f64, M>, controller::Error> {
+    pub fn feedforward<const M: usize>(
+        &self,
+    ) -> Result<Feedforward<f64, M>, eqtrack_controller::Error> {
         let mut ff = Feedforward::<f64, M>::zero();
         for (i, axis) in self.feedforward.iter().enumerate().take(M) {
             let terms: Vec<CosTerm<f64>> = axis
@@ -174,7 +176,7 @@ impl Scenario {
     /// The reference generator (model inertia, control period, reference substeps).
     pub fn reference_generator<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
-    ) -> Result<Reference<f64, G, N, M>, controller::Error> {
+    ) -> Result<Reference<f64, G, N, M>, eqtrack_controller::Error> {
         Reference::new(
             Self::configuration::<N>(&self.reference),
             SVector::from_row_slice(&self.reference.velocity),
@@ -188,7 +190,7 @@ impl Scenario {
     /// The path of a waypoint or set-point scenario (`None` for a feedforward series).
     pub fn path<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
-    ) -> Option<Result<GroupPath<f64, G, N, M>, controller::Error>> {
+    ) -> Option<Result<GroupPath<f64, G, N, M>, eqtrack_controller::Error>> {
         self.path.as_ref().map(build_path::<G, N, M>)
     }
 
@@ -196,7 +198,7 @@ impl Scenario {
     /// path through waypoints (a set-point) stepped at the control period.
     pub fn reference_source<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
-    ) -> Result<Source<f64, G, N, M>, controller::Error> {
+    ) -> Result<Source<f64, G, N, M>, eqtrack_controller::Error> {
         Ok(match self.path::<G, N, M>() {
             None => Source::Series(self.reference_generator()?),
             Some(path) => Source::Path(PathReference::new(
@@ -219,7 +221,7 @@ impl Scenario {
     /// The plant body at its initial state (true inertia, any added mass included).
     pub fn plant_body<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
         &self,
-    ) -> Result<RigidBody<f64, G, N, M>, controller::Error> {
+    ) -> Result<RigidBody<f64, G, N, M>, eqtrack_controller::Error> {
         RigidBody::new(
             SMatrix::from_row_slice(&self.total_inertia()),
             Self::configuration::<N>(&self.initial),
@@ -288,9 +290,9 @@ impl Scenario {
             h.f64s(&v.weights);
             h.f64s(&v.preferred);
             h.bytes(match v.priority {
-                allocation::Priority::Torque => b"torque first",
-                allocation::Priority::None => b"no priority",
-                allocation::Priority::Tilt => b"tilt first",
+                eqtrack_allocation::Priority::Torque => b"torque first",
+                eqtrack_allocation::Priority::None => b"no priority",
+                eqtrack_allocation::Priority::Tilt => b"tilt first",
             });
             for f in v.failures.iter().filter(|f| f.reconfigure) {
                 h.f64s(&[f.actuator as f64, f.t, f.value]);
@@ -301,7 +303,7 @@ impl Scenario {
                 }
             }
             // only when not the default, so scenarios from before it keep their fingerprints
-            if v.budget != allocation::DEFAULT_BUDGET {
+            if v.budget != eqtrack_allocation::DEFAULT_BUDGET {
                 h.bytes(b"allocation budget");
                 h.f64s(&[f64::from(v.budget)]);
             }

@@ -3,7 +3,7 @@
 
 use crate::{Scenario, ScenarioError};
 use clap::builder::{PossibleValuesParser, TypedValueParser};
-use controller::{GroupKind, Law};
+use eqtrack_controller::{GroupKind, Law};
 use std::path::PathBuf;
 use std::time::Duration;
 

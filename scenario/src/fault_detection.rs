@@ -4,8 +4,8 @@
 
 use crate::validate::Validator;
 use crate::{Scenario, ScenarioError};
-use allocation::Commands;
 use detection::threshold::{chi2_upper, per_test};
+use eqtrack_allocation::Commands;
 use nalgebra::{SMatrix, SVector};
 use serde::Deserialize;
 

@@ -4,7 +4,7 @@
 
 use crate::vehicle::VehicleSpec;
 use crate::{Scenario, ScenarioError};
-use controller::{ErrorFrame, Frame, GroupKind, Law};
+use eqtrack_controller::{ErrorFrame, Frame, GroupKind, Law};
 use firmware_cycle::{
     Axis, Config, Detector, Estimator, Failure, Integral, Momentum, Observer, Series, Term,
     Thruster, Vehicle, Wheel,
@@ -37,7 +37,7 @@ impl Scenario {
             }
         }
         Ok(Config {
-            identity: serial_wire::Hello {
+            identity: eqtrack_serial_wire::Hello {
                 group: match self.group {
                     GroupKind::So3 => 1,
                     GroupKind::Se3 => 2,
@@ -175,7 +175,7 @@ impl Scenario {
         if self
             .vehicle
             .as_ref()
-            .is_some_and(|v| v.priority == allocation::Priority::Tilt)
+            .is_some_and(|v| v.priority == eqtrack_allocation::Priority::Tilt)
         {
             return Err(refuse("allocation.priority", "the tilt priority"));
         }
@@ -245,7 +245,7 @@ fn firmware_vehicle(v: &VehicleSpec) -> Vehicle {
             .collect(),
         weights: v.weights.iter().take(12).map(|x| *x as f32).collect(),
         preferred: v.preferred.iter().take(12).map(|x| *x as f32).collect(),
-        torque_first: v.priority == allocation::Priority::Torque,
+        torque_first: v.priority == eqtrack_allocation::Priority::Torque,
         weight: (v.mass * v.gravity) as f32,
         buoyancy: v.buoyancy as f32,
         centre: v.buoyancy_centre.map(|x| x as f32),
@@ -254,7 +254,7 @@ fn firmware_vehicle(v: &VehicleSpec) -> Vehicle {
         wheels: v
             .wheels
             .iter()
-            .take(allocation::MAX_WHEELS)
+            .take(eqtrack_allocation::MAX_WHEELS)
             .map(|w| Wheel {
                 axis: w.axis.map(|x| x as f32),
                 inertia: w.inertia as f32,

@@ -35,7 +35,7 @@ pub use sensing::{
     DirectionSpec, EqfSpec, EstimatorKind, EstimatorSpec, GyroSpec, PositionSpec, SensorsSpec,
 };
 
-use controller::{ErrorFrame, GroupKind, Law};
+use eqtrack_controller::{ErrorFrame, GroupKind, Law};
 
 /// The built-in scenarios, shipped as TOML files in `scenarios/`.
 pub const BUILTINS: [(&str, &str); 4] = [

@@ -17,8 +17,8 @@
 //! scenario with position fixes flies the same flight only when it is moved without a turn.
 
 use crate::{ScenarioError, waypoints};
-use controller::GroupKind;
-use controller::group::{MatrixLieGroup, So3};
+use eqtrack_controller::GroupKind;
+use eqtrack_controller::group::{MatrixLieGroup, So3};
 use nalgebra::{Matrix3, Vector3};
 use std::path::{Path, PathBuf};
 use toml::{Table, Value};

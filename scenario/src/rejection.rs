@@ -16,7 +16,7 @@
 //! `gain`, `ki`, `c` and `limit`: a number (every axis) or one per axis, each finite and > 0.
 
 use crate::{NumberOrList, Scenario, ScenarioError, Validator};
-use controller::{Frame, IntegralConfig, ObserverConfig, RejectionConfig};
+use eqtrack_controller::{Frame, IntegralConfig, ObserverConfig, RejectionConfig};
 use nalgebra::{Matrix3, SVector};
 use serde::Deserialize;
 
@@ -216,7 +216,7 @@ impl Scenario {
         r: &Matrix3<f64>,
     ) -> SVector<f64, M>
     where
-        G: controller::MatrixLieGroup<N, M>,
+        G: eqtrack_controller::MatrixLieGroup<N, M>,
     {
         let mut d = self.disturbance_at::<M>(k);
         if let Some(w) = self.world_disturbance::<M>() {
@@ -301,12 +301,12 @@ mod tests {
             SVector::<f64, 6>::from_row_slice(&[0.0, 0.0, 0.01, 0.0, 0.2, 0.0])
         );
         // the world wrench enters the body rotated: a quarter turn about z
-        let r = controller::group::so3::exp_so3(&nalgebra::Vector3::new(
+        let r = eqtrack_controller::group::so3::exp_so3(&nalgebra::Vector3::new(
             0.0,
             0.0,
             core::f64::consts::FRAC_PI_2,
         ));
-        let w = s.disturbance_wrench::<controller::Se3, 4, 6>(0, &r) - before;
+        let w = s.disturbance_wrench::<eqtrack_controller::Se3, 4, 6>(0, &r) - before;
         assert!(
             (w - SVector::<f64, 6>::from_row_slice(&[0.0, 0.0, 0.0, 0.0, -0.5, 0.0])).amax()
                 < 1e-15,

@@ -4,9 +4,9 @@
 //! `kind = "truth"`) the law sees the exact state, as before they existed.
 
 use crate::{ScenarioError, Validator};
-use controller::GroupKind;
-use controller::group::so3::exp_so3;
-use estimator::{FilterKind, MAX_DIRECTIONS as SLOTS, Settings};
+use eqtrack_controller::GroupKind;
+use eqtrack_controller::group::so3::exp_so3;
+use eqtrack_estimator::{FilterKind, MAX_DIRECTIONS as SLOTS, Settings};
 use nalgebra::Vector3;
 use serde::Deserialize;
 

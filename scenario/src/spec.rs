@@ -1,8 +1,8 @@
 //! The validated pieces of a scenario: the reference's series terms, states, poses and the waypoint path.
 
 use crate::Scenario;
-use controller::Path as GroupPath;
-use controller::group::BuiltinGroup;
+use eqtrack_controller::Path as GroupPath;
+use eqtrack_controller::group::BuiltinGroup;
 use nalgebra::{SMatrix, SVector};
 
 /// One cosine term of a feedforward axis.
@@ -87,7 +87,7 @@ pub struct PathSpec {
 /// through-path (`Path::flying`, with the velocities given).
 pub fn build_path<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     spec: &PathSpec,
-) -> Result<GroupPath<f64, G, N, M>, controller::Error> {
+) -> Result<GroupPath<f64, G, N, M>, eqtrack_controller::Error> {
     let poses: Vec<SMatrix<f64, N, N>> = spec
         .poses
         .iter()

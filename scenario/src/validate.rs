@@ -5,9 +5,9 @@ use crate::{
     RawController, RawPlant, RawPose, RawReference, RawScenario, RawState, RejectionSpec, Scenario,
     ScenarioError, StateSpec, StepSpec, Term, waypoints,
 };
-use controller::reference::MAX_TERMS;
-use controller::validate::spd_inverse;
-use controller::{ErrorFrame, GroupKind, Law, Quantity};
+use eqtrack_controller::reference::MAX_TERMS;
+use eqtrack_controller::validate::spd_inverse;
+use eqtrack_controller::{ErrorFrame, GroupKind, Law, Quantity};
 use nalgebra::SMatrix;
 use std::path::Path;
 
@@ -130,7 +130,7 @@ impl Validator<'_> {
         };
         check.map_err(|e| {
             let what = match e {
-                controller::Error::NotSymmetric(_) => "the matrix is not symmetric",
+                eqtrack_controller::Error::NotSymmetric(_) => "the matrix is not symmetric",
                 _ => "the matrix is not positive definite",
             };
             self.err(key, what)

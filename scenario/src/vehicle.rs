@@ -34,7 +34,7 @@
 //! ```
 
 use crate::{Scenario, ScenarioError, Validator};
-use allocation::{
+use eqtrack_allocation::{
     Actuator, Allocator, DEFAULT_BUDGET, Geometry, GeometryError, Priority, Restoring,
     VehicleControl,
 };
@@ -205,7 +205,7 @@ pub struct VehicleSpec {
     /// The reaction wheels (`[[vehicle.wheel]]`), after the actuators in `u_cmd`.
     pub wheels: Vec<WheelSpec>,
     /// Their momentum management (`[vehicle.momentum]`), if any.
-    pub momentum: Option<allocation::Momentum<f64>>,
+    pub momentum: Option<eqtrack_allocation::Momentum<f64>>,
     /// The failures, in time order.
     pub failures: Vec<FailureSpec>,
     /// `[allocation] weights` (empty: all 1).
@@ -243,7 +243,7 @@ impl VehicleSpec {
     }
 
     /// The wheels as the allocation sees them.
-    pub fn wheels_allocated(&self) -> Vec<allocation::Wheel<f64>> {
+    pub fn wheels_allocated(&self) -> Vec<eqtrack_allocation::Wheel<f64>> {
         self.wheels.iter().map(WheelSpec::allocation).collect()
     }
 
@@ -312,7 +312,7 @@ impl Validator<'_> {
         &self,
         raw: Option<&RawVehicle>,
         allocation: Option<&RawAllocation>,
-        group: controller::GroupKind,
+        group: eqtrack_controller::GroupKind,
         plant_inertia: &[f64],
         h: f64,
     ) -> Result<Option<VehicleSpec>, ScenarioError> {
@@ -362,7 +362,7 @@ impl Validator<'_> {
         };
         let total = crate::validate::plus(plant_inertia, added_mass.as_deref());
         let wheels = self.wheels(raw.wheel.as_deref().unwrap_or(&[]), &total, m)?;
-        let allocated: Vec<allocation::Wheel<f64>> =
+        let allocated: Vec<eqtrack_allocation::Wheel<f64>> =
             wheels.iter().map(WheelSpec::allocation).collect();
         let actuators = self.actuators(&raw.actuator, &allocated, group)?;
         let momentum = self.momentum(raw.momentum.as_ref(), &wheels, actuators.len(), (h, m))?;
@@ -392,7 +392,7 @@ impl Validator<'_> {
             preferred,
             priority,
             budget,
-            planar: group == controller::GroupKind::Se2,
+            planar: group == eqtrack_controller::GroupKind::Se2,
         };
         Ok(Some(spec))
     }
@@ -406,15 +406,15 @@ impl Validator<'_> {
     /// coupling, required when gravity acts; gravity is refused on SO(3).
     fn mass(
         &self,
-        group: controller::GroupKind,
+        group: eqtrack_controller::GroupKind,
         gravity: f64,
         inertia: &[f64],
     ) -> Result<f64, ScenarioError> {
-        if group == controller::GroupKind::Se2 {
+        if group == eqtrack_controller::GroupKind::Se2 {
             // gravity is refused on se2 before (vehicle.gravity): a plane has no up
             return Ok(0.0);
         }
-        if group == controller::GroupKind::So3 {
+        if group == eqtrack_controller::GroupKind::So3 {
             if gravity != 0.0 {
                 return Err(self.err(
                     "vehicle.gravity",
@@ -474,10 +474,10 @@ impl Validator<'_> {
     fn actuators(
         &self,
         raw: &[RawActuator],
-        wheels: &[allocation::Wheel<f64>],
-        group: controller::GroupKind,
+        wheels: &[eqtrack_allocation::Wheel<f64>],
+        group: eqtrack_controller::GroupKind,
     ) -> Result<Vec<Actuator<f64>>, ScenarioError> {
-        let planar = group == controller::GroupKind::Se2;
+        let planar = group == eqtrack_controller::GroupKind::Se2;
         // a planar vehicle's positions and axes are (x, y) in the body plane, stored with z = 0
         let (d, place, direction) = if planar {
             (
@@ -507,13 +507,13 @@ impl Validator<'_> {
             });
         }
         let spans = match group {
-            controller::GroupKind::Se2 => Geometry::<f64, 3>::planar(&out)
+            eqtrack_controller::GroupKind::Se2 => Geometry::<f64, 3>::planar(&out)
                 .map(drop)
                 .map_err(|e| self.geometry_refused(&e)),
-            controller::GroupKind::So3 => Geometry::<f64, 3>::with_wheels(&out, wheels)
+            eqtrack_controller::GroupKind::So3 => Geometry::<f64, 3>::with_wheels(&out, wheels)
                 .map(drop)
                 .map_err(|e| self.geometry_refused(&e)),
-            controller::GroupKind::Se3 => Geometry::<f64, 6>::with_wheels(&out, wheels)
+            eqtrack_controller::GroupKind::Se3 => Geometry::<f64, 6>::with_wheels(&out, wheels)
                 .map(drop)
                 .map_err(|e| self.geometry_refused(&e)),
         };

@@ -5,9 +5,9 @@
 //! to have them chosen. Every error names the file, the line and the column.
 
 use crate::{PathKind, PathSpec, Pose, ScenarioError};
-use controller::GroupKind;
-use controller::group::{BuiltinGroup, OnGroup};
-use controller::path::MAX_SEGMENTS;
+use eqtrack_controller::GroupKind;
+use eqtrack_controller::group::{BuiltinGroup, OnGroup};
+use eqtrack_controller::path::MAX_SEGMENTS;
 use std::io::Read;
 use std::path::Path;
 
@@ -357,9 +357,9 @@ impl OnGroup for Build<'_> {
         let spec = self.0;
         let path = crate::build_path::<G, N, M>(spec).map_err(|e| {
             let index = match e {
-                controller::Error::NotIncreasing { index }
-                | controller::Error::NotAtRest { index }
-                | controller::Error::MissesWaypoint { index } => index,
+                eqtrack_controller::Error::NotIncreasing { index }
+                | eqtrack_controller::Error::NotAtRest { index }
+                | eqtrack_controller::Error::MissesWaypoint { index } => index,
                 _ => 0,
             };
             ScenarioError::Waypoints {

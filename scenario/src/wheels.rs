@@ -22,7 +22,7 @@
 //! ```
 
 use crate::{ScenarioError, Validator};
-use allocation::MAX_WHEELS;
+use eqtrack_allocation::MAX_WHEELS;
 use nalgebra::{SMatrix, Vector3};
 use serde::Deserialize;
 
@@ -77,8 +77,8 @@ pub struct WheelSpec {
 
 impl WheelSpec {
     /// The wheel as the controller's allocation sees it.
-    pub fn allocation(&self) -> allocation::Wheel<f64> {
-        allocation::Wheel {
+    pub fn allocation(&self) -> eqtrack_allocation::Wheel<f64> {
+        eqtrack_allocation::Wheel {
             axis: self.axis,
             inertia: self.inertia,
             max_torque: self.max_torque,
@@ -134,7 +134,7 @@ impl Validator<'_> {
         wheels: &[WheelSpec],
         thrusters: usize,
         (h, m): (f64, usize),
-    ) -> Result<Option<allocation::Momentum<f64>>, ScenarioError> {
+    ) -> Result<Option<eqtrack_allocation::Momentum<f64>>, ScenarioError> {
         let Some(raw) = raw else {
             return Ok(None);
         };
@@ -208,7 +208,7 @@ impl Validator<'_> {
                 "a dump needs thrusters ([[vehicle.actuator]]) to put the torque on the body",
             ));
         }
-        Ok(Some(allocation::Momentum {
+        Ok(Some(eqtrack_allocation::Momentum {
             null_gain,
             bias,
             dump_threshold,

@@ -2,8 +2,8 @@
 //! planar thrusters) is read as documented, and what needs a third dimension is refused
 //! naming the key.
 
-use controller::GroupKind;
-use controller::group::se2;
+use eqtrack_controller::GroupKind;
+use eqtrack_controller::group::se2;
 use nalgebra::{Matrix3, Vector2};
 use scenario::Scenario;
 

@@ -54,7 +54,7 @@ fn path_kind_and_velocity_columns_are_read() {
     assert_eq!(p.velocities[3], Some(vec![0.0; 3]));
     assert_eq!(p.lines, vec![2, 3, 4, 5]);
     // the velocity given is the path's velocity at the waypoint
-    let path = s.path::<controller::So3, 3, 3>().unwrap().unwrap();
+    let path = s.path::<eqtrack_controller::So3, 3, 3>().unwrap().unwrap();
     let v = path.sample(2.0).v;
     assert!(
         (v - nalgebra::Vector3::new(0.5, -0.25, 0.0)).norm() < 1e-12,

@@ -570,7 +570,7 @@ fn the_tilt_priority_is_read_fingerprinted_and_refused_by_the_firmware() {
     let (torque, tilt) = (load(""), load("[allocation]\npriority = \"tilt\"\n"));
     assert_eq!(
         tilt.vehicle.as_ref().unwrap().priority,
-        allocation::Priority::Tilt
+        eqtrack_allocation::Priority::Tilt
     );
     assert_ne!(torque.fingerprint(), tilt.fingerprint());
     assert!(torque.firmware_config().is_ok());

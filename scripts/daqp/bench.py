@@ -3,7 +3,7 @@
 
     python bench.py PROBLEMS.csv EQTRACK.jsonl
 
-PROBLEMS.csv and EQTRACK.jsonl come from `cargo run --release -p allocation --example peer`:
+PROBLEMS.csv and EQTRACK.jsonl come from `cargo run --release -p eqtrack-allocation --example peer`:
 saturated hexarotor and ROV demands, each solved cold, and a saturating trajectory, each tick
 warm. DAQP solves each problem two ways, posed on residual variables so that its row
 normalisation leaves every least-squares level as eqtrack means it (scripts/daqp/resolve.py):

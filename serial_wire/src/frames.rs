@@ -130,7 +130,7 @@ pub struct Detection {
 pub struct CommandFrame {
     /// The state's k.
     pub seq: u64,
-    /// The law that computed it: its index in `controller::Law::ALL` (0 EqT, 1 GT, 2 nog,
+    /// The law that computed it: its index in `eqtrack_controller::Law::ALL` (0 EqT, 1 GT, 2 nog,
     /// 3 asym).
     pub law: u8,
     /// The law's wrench (m entries).

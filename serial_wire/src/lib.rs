@@ -13,10 +13,16 @@
 //! [`FrameError`]. A flipped bit anywhere is caught by the CRC, or by COBS; a frame longer
 //! than [`MAX_FRAME`] is dropped and counted; line noise between frames only costs the frame
 //! it lands in. `no_std`, no `alloc`: the firmware uses the same code as the host.
+//!
+//! ## Features
+//!
+//! None. [`heapless`] is re-exported: the frames' strings and vectors are its types.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
+
+pub use heapless;
 
 mod crc32;
 mod frames;
@@ -428,3 +434,8 @@ mod tests {
         }
     }
 }
+
+/// This crate's README (its example), compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

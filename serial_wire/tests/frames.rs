@@ -2,11 +2,11 @@
 //! single flipped bit of a frame, by the CRC or COBS), another version is refused, and line
 //! noise never panics the deframer nor costs more than the frame it lands in.
 
-use proptest::prelude::*;
-use serial_wire::{
+use eqtrack_serial_wire::{
     Allocation, CommandFrame, Deframer, Detection, Estimate, Frame, FrameError, Hello, MAX_ENCODED,
     SERIAL_VERSION, Samples, StateFrame, decode, encode, mismatch,
 };
+use proptest::prelude::*;
 
 fn vec<const N: usize>(xs: &[f32]) -> heapless::Vec<f32, N> {
     heapless::Vec::from_slice(xs).unwrap()
@@ -138,7 +138,7 @@ fn every_flipped_bit_is_caught_and_the_next_frame_still_decodes() {
 fn other_version(version: u8) -> Vec<u8> {
     let mut out = [0u8; MAX_ENCODED];
     let message = postcard::to_allocvec(&Frame::Bye).unwrap();
-    let n = serial_wire::encode_raw(version, &message, &mut out).unwrap();
+    let n = eqtrack_serial_wire::encode_raw(version, &message, &mut out).unwrap();
     out[..n - 1].to_vec()
 }
 
@@ -156,11 +156,11 @@ fn another_version_truncation_and_length_are_refused() {
     assert_eq!(decode(&[]), Err(FrameError::Cobs));
     // a valid envelope around a message that does not decode, or leaves bytes over
     let mut out = [0u8; MAX_ENCODED];
-    let n = serial_wire::encode_raw(SERIAL_VERSION, &[0xff, 0xff, 0xff], &mut out).unwrap();
+    let n = eqtrack_serial_wire::encode_raw(SERIAL_VERSION, &[0xff, 0xff, 0xff], &mut out).unwrap();
     assert_eq!(decode(&out[..n - 1]), Err(FrameError::Message));
     let mut bye_and_more = postcard::to_allocvec(&Frame::Bye).unwrap();
     bye_and_more.push(7);
-    let n = serial_wire::encode_raw(SERIAL_VERSION, &bye_and_more, &mut out).unwrap();
+    let n = eqtrack_serial_wire::encode_raw(SERIAL_VERSION, &bye_and_more, &mut out).unwrap();
     assert_eq!(decode(&out[..n - 1]), Err(FrameError::Message));
     // a run of non-zero bytes longer than any frame is dropped and counted; the next frame
     // decodes
@@ -275,7 +275,7 @@ fn reference_encoding(version: u8, message: &[u8]) -> Vec<u8> {
 fn the_encoding_is_the_reference_cobs_and_crc() {
     assert_eq!(
         MAX_ENCODED,
-        cobs::max_encoding_length(serial_wire::MAX_FRAME) + 1
+        cobs::max_encoding_length(eqtrack_serial_wire::MAX_FRAME) + 1
     );
     for f in all_frames() {
         let message = postcard::to_allocvec(&f).unwrap();
@@ -293,7 +293,7 @@ fn the_encoding_is_the_reference_cobs_and_crc() {
                 message[z] = 0;
             }
             let mut out = [0u8; MAX_ENCODED];
-            let n = serial_wire::encode_raw(7, &message, &mut out).unwrap();
+            let n = eqtrack_serial_wire::encode_raw(7, &message, &mut out).unwrap();
             assert_eq!(
                 out[..n].to_vec(),
                 reference_encoding(7, &message),
@@ -305,7 +305,7 @@ fn the_encoding_is_the_reference_cobs_and_crc() {
     }
     let mut out = [0u8; MAX_ENCODED];
     assert_eq!(
-        serial_wire::encode_raw(7, &[1; 380], &mut out),
+        eqtrack_serial_wire::encode_raw(7, &[1; 380], &mut out),
         Err(FrameError::TooLong)
     );
 }
@@ -320,7 +320,7 @@ proptest! {
     ) {
         let reference = reference_encoding(9, &message);
         let mut out = [0u8; MAX_ENCODED];
-        let n = serial_wire::encode_raw(9, &message, &mut out).unwrap();
+        let n = eqtrack_serial_wire::encode_raw(9, &message, &mut out).unwrap();
         prop_assert_eq!(&out[..n], &reference[..]);
         let mut d = Deframer::new();
         let got: Vec<_> = reference.iter().filter_map(|b| d.push(*b)).collect();
@@ -334,7 +334,7 @@ proptest! {
 fn a_candidate_past_the_largest_frame_is_dropped() {
     let mut d = Deframer::new();
     // 0x01 codes decode to zeros: 2 × MAX_FRAME codes are MAX_FRAME zeros too many
-    for _ in 0..2 * serial_wire::MAX_FRAME {
+    for _ in 0..2 * eqtrack_serial_wire::MAX_FRAME {
         assert_eq!(d.push(0x01), None);
     }
     assert_eq!(d.push(0), Some(Err(FrameError::TooLong)));

@@ -9,8 +9,8 @@
 use crate::montecarlo::{
     Sample, fly_against, in_pool, initial_state, reference_table, run_sensors,
 };
-use controller::Law;
-use controller::group::so3::{exp_so3, log_so3};
+use eqtrack_controller::Law;
+use eqtrack_controller::group::so3::{exp_so3, log_so3};
 use nalgebra::Vector3;
 use plant::SimError;
 use plant::output::num;
@@ -110,7 +110,7 @@ pub fn run_study(
     on_done: &(dyn Fn() + Sync),
     stop: &link::StopFlag,
 ) -> Result<Vec<StudyRun>, SimError> {
-    if base.group != controller::GroupKind::So3 {
+    if base.group != eqtrack_controller::GroupKind::So3 {
         return Err(SimError::Input(format!(
             "scenario `{}`: the Monte Carlo study is defined on so3, not {}",
             base.name,

@@ -16,14 +16,14 @@
 
 use crate::montecarlo::{euler_zyx, in_pool};
 use crate::rejection::angle;
-use controller::closed_loop::{ClosedLoop, Sample};
-use controller::group::se3::{from_parts, rotation, translation};
-use controller::group::{GroupKind, Se3};
-use controller::integrator::RigidBody;
-use controller::law::Desired;
-use controller::reference::{Tabulated, Trajectory};
-use controller::tracking::lyapunov;
-use controller::{ControllerConfig, ErrorFrame, Law};
+use eqtrack_controller::closed_loop::{ClosedLoop, Sample};
+use eqtrack_controller::group::se3::{from_parts, rotation, translation};
+use eqtrack_controller::group::{GroupKind, Se3};
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::law::Desired;
+use eqtrack_controller::reference::{Tabulated, Trajectory};
+use eqtrack_controller::tracking::lyapunov;
+use eqtrack_controller::{ControllerConfig, ErrorFrame, Law};
 use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, Vector3};
 use plant::SimError;
 use plant::output::num;

@@ -5,12 +5,12 @@
 //! `w ~ N(0, 1)` per axis, all from one ChaCha8 stream seeded with `--seed` in run order, so
 //! the numbers do not depend on the thread count.
 
-use controller::group::So3;
-use controller::group::so3::{exp_so3, log_so3};
-use controller::integrator::RigidBody;
-use controller::law::Desired;
-use controller::reference::Tabulated;
-use controller::{GroupKind, Law};
+use eqtrack_controller::group::So3;
+use eqtrack_controller::group::so3::{exp_so3, log_so3};
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::law::Desired;
+use eqtrack_controller::reference::Tabulated;
+use eqtrack_controller::{GroupKind, Law};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use plant::SimError;
 use plant::output::num;

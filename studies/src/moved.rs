@@ -12,7 +12,7 @@
 //! Each column's largest difference is relative to `1 + |expected value|`; a run is the same
 //! flight when none exceeds [`TOLERANCE`].
 
-use controller::GroupKind;
+use eqtrack_controller::GroupKind;
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use plant::SimError;
 use plant::output::{Cell, trajectory_table};

@@ -2,8 +2,8 @@
 //! `reference.csv` (`t`, `qd_ij`, `vd_i`, `vd_dot_i`, `tau_d_i`) and a figure — so that a
 //! manoeuvre is checked before it is flown.
 
-use controller::group::{BuiltinGroup, OnGroup};
-use controller::{GroupKind, Source, Trajectory};
+use eqtrack_controller::group::{BuiltinGroup, OnGroup};
+use eqtrack_controller::{GroupKind, Source, Trajectory};
 use nalgebra::{SMatrix, SVector};
 use plant::SimError;
 use plant::output::{ensure_dir, num, write_json};

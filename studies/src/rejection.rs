@@ -5,7 +5,7 @@
 //! disturbances (seeded), the final error's distribution per variant
 //! (`rejection_montecarlo.csv`).
 
-use controller::Frame;
+use eqtrack_controller::Frame;
 use plant::SimError;
 use plant::output::num;
 use plant::plot::{Line, Panel, law_color, render};

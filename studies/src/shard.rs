@@ -13,7 +13,7 @@
 //! NaN for none), the series length (u64) and the series (4 f64 per step).
 
 use crate::montecarlo::{RunResult, Sample};
-use controller::Law;
+use eqtrack_controller::Law;
 use plant::SimError;
 use std::path::Path;
 

@@ -27,7 +27,7 @@ fn study(
         base,
         &samples,
         kinds,
-        controller::Law::Eqt,
+        eqtrack_controller::Law::Eqt,
         initial,
         None,
         &|| {},
@@ -116,7 +116,7 @@ fn the_filters_fly_each_run_once_and_the_eqf_estimates_better() {
 fn the_study_refuses_se3_and_no_samples_with_an_error() {
     let stop = link::StopFlag::never();
     let kinds = [EstimatorKind::Eqf];
-    let law = controller::Law::Eqt;
+    let law = eqtrack_controller::Law::Eqt;
     let e = run_study(
         &eqf_se3(),
         &draw_samples(2, 1),

@@ -141,7 +141,7 @@ fn the_monte_carlo_study_gives_each_run_its_own_sensors_whatever_the_thread_coun
         studies::montecarlo::run_all(
             &base,
             &samples,
-            &[controller::Law::Eqt],
+            &[eqtrack_controller::Law::Eqt],
             Some(threads),
             &|| {},
             &stop,

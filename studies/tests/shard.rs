@@ -2,7 +2,7 @@
 //! flipped byte and an absurd count is refused or read, never a panic, never an allocation
 //! the file cannot back.
 
-use controller::Law;
+use eqtrack_controller::Law;
 use studies::montecarlo::{RunResult, Sample};
 use studies::shard::{SHARD_FILE, Shard, Study, read_shard, write_shard};
 

@@ -2,9 +2,9 @@
 //! rows equal, bit for bit, those of the same run simulated with its own reference, with and
 //! without sensors, for every law.
 
-use controller::Law;
-use controller::group::So3;
-use controller::integrator::RigidBody;
+use eqtrack_controller::Law;
+use eqtrack_controller::group::So3;
+use eqtrack_controller::integrator::RigidBody;
 use nalgebra::{SMatrix, SVector};
 use plant::trajectory::simulate_with;
 use scenario::Scenario;

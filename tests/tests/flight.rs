@@ -436,7 +436,7 @@ fn a_run_answered_by_a_hand_started_controller_with_another_law_replays_bit_for_
         records
             .iter()
             .filter_map(|r| r.command.as_ref())
-            .all(|(c, _)| link::wire::law_from_code(c.law) == Some(controller::Law::Gt)),
+            .all(|(c, _)| link::wire::law_from_code(c.law) == Some(eqtrack_controller::Law::Gt)),
         "every command names GT"
     );
     let (code, text) = replay(&[&out]);

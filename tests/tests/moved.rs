@@ -19,12 +19,12 @@ fn se3_scenarios() -> Vec<(String, bool)> {
             continue;
         }
         let s = scenario::Scenario::from_file(&path).unwrap();
-        if s.group != controller::GroupKind::Se3 {
+        if s.group != eqtrack_controller::GroupKind::Se3 {
             continue;
         }
         assert_eq!(
             s.error_frame,
-            controller::ErrorFrame::Reference,
+            eqtrack_controller::ErrorFrame::Reference,
             "{}: an SE(3) scenario that pins another error frame is not checked here",
             s.name
         );
@@ -110,7 +110,9 @@ fn every_so3_scenario_flies_the_same_flight_turned() {
             continue;
         }
         let s = scenario::Scenario::from_file(&path).unwrap();
-        if s.group != controller::GroupKind::So3 || s.error_frame == controller::ErrorFrame::World {
+        if s.group != eqtrack_controller::GroupKind::So3
+            || s.error_frame == eqtrack_controller::ErrorFrame::World
+        {
             continue;
         }
         let file = path.display().to_string();

@@ -4,9 +4,9 @@
 //! --transport tcp:…` drives it. `scripts/pil.sh` does the same with the firmware on the
 //! emulated Cortex-M4F.
 
+use eqtrack_serial_wire::{Deframer, Frame, MAX_ENCODED, encode};
 use firmware_cycle::{Cycle, MAX_CONFIG};
 use pair_tests::{TempDir, plant, serial, summary};
-use serial_wire::{Deframer, Frame, MAX_ENCODED, encode};
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::thread::JoinHandle;
@@ -106,9 +106,12 @@ fn firmware(config: Vec<u8>, behaviour: Behaviour) -> Firmware {
                     let n = encode(&cycle.hello(), &mut out).unwrap();
                     let _ = stream.write_all(&out[..n / 2]);
                     let _ = stream.write_all(&[0]);
-                    let n =
-                        serial_wire::encode_raw(serial_wire::SERIAL_VERSION + 1, &[4], &mut out)
-                            .unwrap();
+                    let n = eqtrack_serial_wire::encode_raw(
+                        eqtrack_serial_wire::SERIAL_VERSION + 1,
+                        &[4],
+                        &mut out,
+                    )
+                    .unwrap();
                     let _ = stream.write_all(&out[..n]);
                 }
                 if let Some(reply) = cycle.on_frame(&frame) {
@@ -553,7 +556,7 @@ fn a_greeting_starts_the_detector_and_the_told_failures_afresh() {
                 0.1,
                 0.0,
             ];
-            let state = serial_wire::StateFrame {
+            let state = eqtrack_serial_wire::StateFrame {
                 seq: k,
                 t,
                 q: q.iter().copied().collect(),
@@ -573,10 +576,10 @@ fn a_greeting_starts_the_detector_and_the_told_failures_afresh() {
     let first = pass(&mut cycle);
     let second = pass(&mut cycle);
     assert!(first == second, "the second run differs from the first");
-    let u3 = |c: &serial_wire::CommandFrame| c.allocation.as_ref().unwrap().u_cmd[3];
+    let u3 = |c: &eqtrack_serial_wire::CommandFrame| c.allocation.as_ref().unwrap().u_cmd[3];
     assert_ne!(u3(&first[40]), 5.0, "told before its time");
     assert_eq!(u3(&first[60]), 5.0, "not held at the told value");
-    let detection = |c: &serial_wire::CommandFrame| c.detection.unwrap();
+    let detection = |c: &eqtrack_serial_wire::CommandFrame| c.detection.unwrap();
     assert_eq!(
         detection(&first[100]).suspect,
         0,

@@ -2,9 +2,9 @@
 //! run's plan board, `controller_node --reference stream` tracks them, `plant_sim run
 //! --no-spawn` is the plant. Tests run one at a time ([`serial`]).
 
-use controller::group::So3;
-use controller::path::{Path as GroupPath, PathReference};
-use controller::{Controller, Trajectory};
+use eqtrack_controller::group::So3;
+use eqtrack_controller::path::{Path as GroupPath, PathReference};
+use eqtrack_controller::{Controller, Trajectory};
 use nalgebra::{Matrix3, SMatrix, Vector3};
 use pair_tests::{
     CpuHog, Csv, Proc, TempDir, realtime_priority, recorded_cycles, run, serial, wait_for_cycles,

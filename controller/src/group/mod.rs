@@ -97,7 +97,7 @@ pub trait BuiltinGroup<const N: usize, const M: usize>: MatrixLieGroup<N, M> {
 ///
 /// This is all the law and its proof need: a group defined outside eqtrack implements the
 /// seven required functions (and [`NAME`](Self::NAME)) and runs the law, the tracking error,
-/// the integrator and the closed loop; the property kit (`controller::kit`, feature `kit`)
+/// the integrator and the closed loop; the property kit (`eqtrack_controller::kit`, feature `kit`)
 /// checks it. [`attitude`](Self::attitude) is optional, for the features that work in world
 /// axes.
 pub trait MatrixLieGroup<const N: usize, const M: usize>:

@@ -102,7 +102,7 @@ impl MatrixLieGroup<4, 6> for Se3 {
                 + theta2 * theta2 / real(30240.0)
                 + theta2 * theta2 * theta2 / real(1209600.0)
         } else {
-            let theta = hw_sqrt::sqrt(theta2);
+            let theta = eqtrack_hw_sqrt::sqrt(theta2);
             let half = theta * real(0.5);
             (T::one() - half * crate::trig::cos(half) / crate::trig::sin(half)) / theta2
         };

@@ -39,7 +39,7 @@ pub fn exp_so3<T: Real>(w: &Vector3<T>) -> Matrix3<T> {
             real::<T>(0.5) - theta2 / real(24.0) + theta2 * theta2 / real(720.0),
         )
     } else {
-        let theta = hw_sqrt::sqrt(theta2);
+        let theta = eqtrack_hw_sqrt::sqrt(theta2);
         let half = theta * real(0.5);
         let s = crate::trig::sin(half) / half;
         (crate::trig::sin(theta) / theta, s * s * real(0.5))
@@ -61,7 +61,7 @@ pub fn left_jacobian_so3<T: Real>(w: &Vector3<T>) -> Matrix3<T> {
                 - theta2 * theta2 * theta2 / real(362880.0),
         )
     } else {
-        let theta = hw_sqrt::sqrt(theta2);
+        let theta = eqtrack_hw_sqrt::sqrt(theta2);
         let half = theta * real(0.5);
         let s = crate::trig::sin(half) / half;
         (
@@ -81,7 +81,7 @@ pub fn log_so3<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
     let c = (r.trace() - T::one()) * real(0.5);
     let c = c.clamp(-T::one(), T::one());
     let w = vee_skew(r); // sinθ·k
-    let s = hw_sqrt::norm(&w);
+    let s = eqtrack_hw_sqrt::norm(&w);
     let theta = s.atan2(c);
     if c > real(-0.5) {
         let theta2 = theta * theta;
@@ -100,10 +100,10 @@ pub fn log_so3<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
                 i = j;
             }
         }
-        let denom = hw_sqrt::sqrt(b[(i, i)] * one_minus_c);
+        let denom = eqtrack_hw_sqrt::sqrt(b[(i, i)] * one_minus_c);
         let mut k: Vector3<T> = b.column(i).into_owned() / denom;
         // Normalise away rounding, then fix the sign from sinθ·k (sinθ ≥ 0).
-        let kn = hw_sqrt::norm(&k);
+        let kn = eqtrack_hw_sqrt::norm(&k);
         if kn > T::zero() {
             k /= kn;
         }

@@ -18,8 +18,8 @@
 //! same functions:
 //!
 //! ```
-//! use controller::group::So3;
-//! use controller::kit::{check_group, sample};
+//! use eqtrack_controller::group::So3;
+//! use eqtrack_controller::kit::{check_group, sample};
 //! let samples: [_; 12] = core::array::from_fn(|i| sample::<3>(7, i as u64, 1.5));
 //! assert!(check_group::<So3, f64, 3, 3>(&samples, 1e-9).is_ok());
 //! ```

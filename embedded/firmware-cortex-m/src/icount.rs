@@ -50,7 +50,7 @@
 //!   wheels sweep up to their top speed (`WHEELS <cycles> <saturated allocations> <frames with
 //!   a closed bound>`).
 
-use controller::{ErrorFrame, Trajectory as _};
+use eqtrack_controller::{ErrorFrame, Trajectory as _};
 use core::hint::black_box;
 use cortex_m_semihosting::hprintln;
 use firmware_cases::{
@@ -119,19 +119,19 @@ pub fn run() -> bool {
     let f_up = r.tr_mul(&nalgebra::Vector3::new(0.0, 0.0, 9.81f32));
     let x = nalgebra::Vector3::new(1.0f32, 2.0, 3.0);
     let (Ok(cc), Ok(pc)) = (
-        estimator::ComplementaryConfig::new(2.0f32, 1.0, &w, &[1.0, 1.0]),
-        estimator::PoseConfig::new(2.0f32, 1.0, &w[1..], &[1.0, 1.0], 0.05, 0.01),
+        eqtrack_estimator::ComplementaryConfig::new(2.0f32, 1.0, &w, &[1.0, 1.0]),
+        eqtrack_estimator::PoseConfig::new(2.0f32, 1.0, &w[1..], &[1.0, 1.0], 0.05, 0.01),
     ) else {
         hprintln!("ERR icount - estimator construction failed");
         return false;
     };
-    let Ok(ec) = estimator::EqfConfig::new(0.002f32, 1e-5, &w, &[0.01, 0.01]) else {
+    let Ok(ec) = eqtrack_estimator::EqfConfig::new(0.002f32, 1e-5, &w, &[0.01, 0.01]) else {
         hprintln!("ERR icount - EqF construction failed");
         return false;
     };
-    let mut cf = estimator::ComplementaryFilter::new(cc);
-    let mut pf = estimator::PoseFilter::new(pc);
-    let mut eqf = estimator::EquivariantFilter::new(ec);
+    let mut cf = eqtrack_estimator::ComplementaryFilter::new(cc);
+    let mut pf = eqtrack_estimator::PoseFilter::new(pc);
+    let mut eqf = eqtrack_estimator::EquivariantFilter::new(ec);
     for _ in 0..10 {
         cf.step(0.01, &gyro, &y);
         pf.step(0.01, &gyro, &y[1..], &f_up, Some(&x));
@@ -162,12 +162,12 @@ pub fn run() -> bool {
 
     // the disturbance-rejection terms: each run on two states first, so the measured call is
     // a running cycle's update
-    let observer = controller::ObserverConfig {
+    let observer = eqtrack_controller::ObserverConfig {
         gain: nalgebra::Vector3::repeat(20.0f32),
         limit: None,
-        frame: controller::Frame::Body,
+        frame: eqtrack_controller::Frame::Body,
     };
-    let integral = controller::IntegralConfig {
+    let integral = eqtrack_controller::IntegralConfig {
         ki: nalgebra::Vector3::repeat(1.0f32),
         c: nalgebra::Vector3::repeat(5.0),
         limit: Some(nalgebra::Vector3::repeat(0.15)),
@@ -179,7 +179,7 @@ pub fn run() -> bool {
         (20, Some(observer), Some(integral)),
         (
             22,
-            Some(controller::ObserverConfig {
+            Some(eqtrack_controller::ObserverConfig {
                 limit: Some(nalgebra::Vector3::repeat(1.0)),
                 ..observer
             }),
@@ -188,8 +188,8 @@ pub fn run() -> bool {
     ];
     let applied = nalgebra::Vector3::new(0.1f32, -0.2, 0.05);
     for (first, observer, integral) in variants {
-        let config = controller::RejectionConfig { observer, integral };
-        let Ok(mut terms) = controller::Rejection::new(config, None) else {
+        let config = eqtrack_controller::RejectionConfig { observer, integral };
+        let Ok(mut terms) = eqtrack_controller::Rejection::new(config, None) else {
             hprintln!("ERR icount - rejection construction failed");
             return false;
         };
@@ -258,7 +258,7 @@ fn at_the_reference() -> bool {
 /// One allocation each (docs/maths.md, "Control allocation"): the two presets within reach,
 /// and the hexarotor saturated; true when every answer was finite.
 fn allocations() -> bool {
-    use allocation::{Allocator, Geometry, Priority, presets};
+    use eqtrack_allocation::{Allocator, Geometry, Priority, presets};
     use nalgebra::SVector;
     let hexarotor = presets::hexarotor(0.25f32, 0.5, 0.016, 8.0);
     let rov = presets::rov_heavy(0.4f32, 0.3, 0.12, 0.22, 40.0);
@@ -295,17 +295,17 @@ static PIL_CONFIG: &[u8] = include_bytes!("../pil_hexarotor.config");
 
 /// A hovering hexarotor's samples at tick k: level, at rest, the gyro's bias, the two
 /// directions and gravity's specific force, a position fix every tenth tick.
-fn hover(k: u64) -> serial_wire::StateFrame {
+fn hover(k: u64) -> eqtrack_serial_wire::StateFrame {
     let mut directions = heapless::Vec::new();
     let _ = directions.push([1.0f32, 0.0, 0.0]);
     let _ = directions.push([0.0f32, 0.6, 0.8]);
-    serial_wire::StateFrame {
+    eqtrack_serial_wire::StateFrame {
         seq: k,
         t: k as f64 * 0.002,
         q: heapless::Vec::new(),
         v: heapless::Vec::new(),
         applied: heapless::Vec::from_slice(&[0.0, 0.0, 0.0, 0.1, 0.0, 14.7]).unwrap_or_default(),
-        samples: Some(serial_wire::Samples {
+        samples: Some(eqtrack_serial_wire::Samples {
             gyro: [0.01, -0.02, 0.015],
             directions,
             accel: Some([0.0, 0.0, 9.81]),
@@ -322,7 +322,7 @@ fn running_cycle() -> Option<firmware_cycle::Cycle> {
     let hello = cycle.hello();
     cycle.on_frame(&hello);
     for k in 0..20 {
-        cycle.on_frame(&serial_wire::Frame::State(hover(k)));
+        cycle.on_frame(&eqtrack_serial_wire::Frame::State(hover(k)));
     }
     Some(cycle)
 }
@@ -331,7 +331,7 @@ fn running_cycle() -> Option<firmware_cycle::Cycle> {
 /// when every answer was finite.
 fn pil_cycle() -> bool {
     use firmware_cycle::Config;
-    use serial_wire::{Deframer, Frame, MAX_ENCODED, encode};
+    use eqtrack_serial_wire::{Deframer, Frame, MAX_ENCODED, encode};
     let (Ok(config), Some(cycle)) = (Config::from_bytes(PIL_CONFIG), running_cycle()) else {
         hprintln!("ERR icount - the PIL configuration does not build");
         return false;
@@ -387,7 +387,7 @@ fn pil_cycle() -> bool {
     // the parts alone, from the same configuration
     let (Some(e), Ok(se3), Ok(terms), Some(v)) = (
         config.estimator.as_ref(),
-        config.controller::<controller::group::Se3, 4, 6>(),
+        config.controller::<eqtrack_controller::group::Se3, 4, 6>(),
         config.rejection::<6>(),
         config.vehicle.as_ref(),
     ) else {
@@ -396,7 +396,7 @@ fn pil_cycle() -> bool {
     };
     let (Ok(mut filter), Ok(Some(mut rejection)), Ok(mut control)) = (
         e.settings().build(true),
-        controller::Rejection::of(terms, se3.config().torque_limit.as_ref()),
+        eqtrack_controller::Rejection::of(terms, se3.config().torque_limit.as_ref()),
         v.control::<6>(0.002),
     ) else {
         hprintln!("ERR icount - the PIL parts do not build");
@@ -461,8 +461,8 @@ fn worst_cases() -> bool {
 }
 
 #[cfg(feature = "worst-cases")]
-fn vehicle<const K: usize>(name: &str, alloc: &allocation::Allocator<f32, K>) -> bool {
-    use allocation::Status;
+fn vehicle<const K: usize>(name: &str, alloc: &eqtrack_allocation::Allocator<f32, K>) -> bool {
+    use eqtrack_allocation::Status;
     use firmware_cases::demands::{self, PER_KIND, Seeded, TRAJECTORY};
     let mut rng = Seeded::new(demands::seed(name));
     let (mut ok, mut stopped, mut most) = (true, 0, 0);
@@ -500,7 +500,7 @@ fn vehicle<const K: usize>(name: &str, alloc: &allocation::Allocator<f32, K>) ->
 /// finite and the allocations saturated.
 #[cfg(feature = "worst-cases")]
 fn saturated_cycles() -> bool {
-    use serial_wire::Frame;
+    use eqtrack_serial_wire::Frame;
     const CYCLES: usize = 40;
     let Some(mut cycle) = running_cycle() else {
         hprintln!("ERR icount - the PIL configuration does not build");
@@ -546,7 +546,7 @@ static ROV_CONFIG: &[u8] = include_bytes!("../pil_rov_detect.config");
 /// the detector a bias: it is printed, not judged).
 #[cfg(feature = "worst-cases")]
 fn detector_cycles() -> bool {
-    use controller::group::{MatrixLieGroup, Se3};
+    use eqtrack_controller::group::{MatrixLieGroup, Se3};
     use firmware_cases::demands::Seeded;
     use nalgebra::{Matrix3, SMatrix, SVector};
     const CYCLES: usize = 200;
@@ -648,8 +648,8 @@ static WHEELS_CONFIG: &[u8] = include_bytes!("../wheels_slew.config");
 /// command was finite, the allocations saturated and the bound closed.
 #[cfg(feature = "worst-cases")]
 fn wheel_cycles() -> bool {
-    use controller::group::{MatrixLieGroup, So3};
-    use serial_wire::{Frame, StateFrame};
+    use eqtrack_controller::group::{MatrixLieGroup, So3};
+    use eqtrack_serial_wire::{Frame, StateFrame};
     const CYCLES: usize = 40;
     let Ok(mut cycle) = firmware_cycle::Cycle::from_bytes(WHEELS_CONFIG) else {
         hprintln!("ERR icount - the wheels' configuration does not build");

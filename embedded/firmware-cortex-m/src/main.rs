@@ -1,4 +1,4 @@
-//! The `controller` crate on a Cortex-M4F (thumbv7em-none-eabihf), run under QEMU's
+//! The `eqtrack-controller` crate on a Cortex-M4F (thumbv7em-none-eabihf), run under QEMU's
 //! mps2-an386 board. Everything is f32, on the FPU.
 //!
 //! Over semihosting it prints:
@@ -8,7 +8,7 @@
 //! * `STACK <what> <bytes>` lines: the stack used by one law evaluation (SO(3), SE(3)), by
 //!   one closed-loop cycle and by the whole report, measured by painting the stack (see
 //!   [`stack`]);
-//! * `SQRT <n> inputs, <k> differ`: the FPU's square root (`hw_sqrt::sqrtf`, `VSQRT.F32`)
+//! * `SQRT <n> inputs, <k> differ`: the FPU's square root (`eqtrack_hw_sqrt::sqrtf`, `VSQRT.F32`)
 //!   against libm's `sqrtf` over `n` inputs (see [`sqrt_check`]); then `END`.
 //!
 //! It exits with `EXIT_SUCCESS` when every number is finite and every measurement worked,
@@ -96,7 +96,7 @@ fn sqrt_check(out: &mut hio::HostStream) -> bool {
     let (mut n, mut differ) = (0u32, 0u32);
     for bits in SPECIAL.into_iter().chain(hashed).chain(subnormal) {
         let x = f32::from_bits(bits);
-        let (a, b) = (controller::hw_sqrt::sqrtf(x), libm::sqrtf(x));
+        let (a, b) = (eqtrack_controller::hw_sqrt::sqrtf(x), libm::sqrtf(x));
         let same = if b.is_nan() {
             a.is_nan()
         } else {

@@ -9,18 +9,18 @@
 
 mod rt;
 
-use controller::closed_loop::ClosedLoop;
-use controller::group::{MatrixLieGroup, Se3, So3};
-use controller::integrator::RigidBody;
-use controller::law::Desired;
-use controller::{Controller, ControllerConfig, Law, Real, Reference, real, so3_seed_feedforward};
+use eqtrack_controller::closed_loop::ClosedLoop;
+use eqtrack_controller::group::{MatrixLieGroup, Se3, So3};
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::law::Desired;
+use eqtrack_controller::{Controller, ControllerConfig, Law, Real, Reference, real, so3_seed_feedforward};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 fn so3_check<T: Real>(law: Law) -> bool {
     let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759).map(real::<T>);
     let c = match Controller::<T, So3, 3, 3>::new(ControllerConfig {
         law,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia,
         k: Matrix3::identity(),
         kd: Matrix3::identity() * real::<T>(0.5),
@@ -51,7 +51,7 @@ fn so3_check<T: Real>(law: Law) -> bool {
 fn se3_check<T: Real>() -> bool {
     let c = match Controller::<T, Se3, 4, 6>::new(ControllerConfig {
         law: Law::Eqt,
-        error_frame: controller::ErrorFrame::World,
+        error_frame: eqtrack_controller::ErrorFrame::World,
         inertia: SMatrix::<T, 6, 6>::identity(),
         k: SMatrix::<T, 4, 4>::identity(),
         kd: SMatrix::<T, 6, 6>::identity(),
@@ -77,10 +77,10 @@ fn se3_check<T: Real>() -> bool {
 
 fn closed_loop_check<T: Real>() -> bool {
     let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759).map(real::<T>);
-    let build = || -> Result<ClosedLoop<T, So3, 3, 3>, controller::Error> {
+    let build = || -> Result<ClosedLoop<T, So3, 3, 3>, eqtrack_controller::Error> {
         let c = Controller::new(ControllerConfig {
             law: Law::Eqt,
-            error_frame: controller::ErrorFrame::World,
+            error_frame: eqtrack_controller::ErrorFrame::World,
             inertia,
             k: Matrix3::identity() * real::<T>(0.5),
             kd: Matrix3::identity() * real::<T>(0.5),
@@ -137,7 +137,7 @@ fn ipc_check() -> bool {
 /// The estimators without std: the complementary filter and the pose filter converge on
 /// exact samples of a body at rest from a TRIAD start, and skip a NaN sample.
 fn estimator_check<T: Real>() -> bool {
-    use estimator::{ComplementaryConfig, ComplementaryFilter, PoseConfig, PoseFilter};
+    use eqtrack_estimator::{ComplementaryConfig, ComplementaryFilter, PoseConfig, PoseFilter};
     let w = [Vector3::z(), Vector3::new(real(1.0), real(0.0), real(0.2))];
     let r = So3::exp(&Vector3::new(real::<T>(0.3), real(-0.4), real(0.2)));
     let y = [r.tr_mul(&w[0]), r.tr_mul(&w[1].normalize())];
@@ -183,7 +183,7 @@ fn eqf_check<T: Real>(
     y: &[Vector3<T>; 2],
     b: &Vector3<T>,
 ) -> bool {
-    use estimator::{EqfConfig, EquivariantFilter};
+    use eqtrack_estimator::{EqfConfig, EquivariantFilter};
     let Ok(cfg) = EqfConfig::new(real(0.01), real(0.01), w, &[real(0.01), real(0.01)]) else {
         return false;
     };
@@ -206,10 +206,10 @@ fn eqf_check<T: Real>(
 fn rejection_check<T: Real>() -> bool {
     let inertia = Matrix3::new(0.824, 0.0, 0.12, 0.0, 1.135, 0.0, 0.12, 0.0, 1.759).map(real::<T>);
     let d = Vector3::new(real::<T>(0.1), real(-0.05), real(0.08));
-    let build = || -> Result<ClosedLoop<T, So3, 3, 3>, controller::Error> {
+    let build = || -> Result<ClosedLoop<T, So3, 3, 3>, eqtrack_controller::Error> {
         let c = Controller::new(ControllerConfig {
             law: Law::Eqt,
-            error_frame: controller::ErrorFrame::World,
+            error_frame: eqtrack_controller::ErrorFrame::World,
             inertia,
             k: Matrix3::identity() * real::<T>(0.5),
             kd: Matrix3::identity() * real::<T>(0.5),
@@ -226,13 +226,13 @@ fn rejection_check<T: Real>() -> bool {
         let p = RigidBody::new(inertia, Matrix3::identity(), Vector3::zeros())?;
         ClosedLoop::new(c, r, p, 10)?
             .with_disturbance(d)?
-            .with_rejection(controller::RejectionConfig {
-                observer: Some(controller::ObserverConfig {
+            .with_rejection(eqtrack_controller::RejectionConfig {
+                observer: Some(eqtrack_controller::ObserverConfig {
                     gain: Vector3::repeat(real(10.0)),
                     limit: None,
-                    frame: controller::Frame::Body,
+                    frame: eqtrack_controller::Frame::Body,
                 }),
-                integral: Some(controller::IntegralConfig {
+                integral: Some(eqtrack_controller::IntegralConfig {
                     ki: Vector3::repeat(real(0.1)),
                     c: Vector3::repeat(real(0.1)),
                     limit: None,
@@ -255,7 +255,7 @@ fn rejection_check<T: Real>() -> bool {
 /// A through-waypoint path on SE(3) (`Path::flying`, fixed capacity, no allocation): it
 /// passes its waypoints and does not stop at the interior one.
 fn through_path_check<T: Real>() -> bool {
-    use controller::path::Path;
+    use eqtrack_controller::path::Path;
     let twist = |a: f64, b: f64, c: f64, x: f64| {
         SVector::<T, 6>::from_column_slice(&[
             real(a),
@@ -288,7 +288,7 @@ fn through_path_check<T: Real>() -> bool {
 /// Allocation without std: the hexarotor's hover wrench met exactly within the bounds, and a
 /// demand past its reach keeps the torque (status 2, the force given up).
 fn allocation_check<T: Real>() -> bool {
-    use allocation::{Allocator, Geometry, Priority, Status, presets};
+    use eqtrack_allocation::{Allocator, Geometry, Priority, Status, presets};
     let rotors = presets::hexarotor::<T>(real(0.25), real(0.5), real(0.016), real(8.0));
     let Ok(geometry) = Geometry::<T, 6>::new(&rotors) else {
         return false;
@@ -321,7 +321,7 @@ fn allocation_check<T: Real>() -> bool {
 /// Failure detection without std: a hexarotor held at rest (its rotors' wrench balanced by a
 /// steady push), rotor 2 dies at cycle 100; the detector names it, dead, within 30 cycles.
 fn detection_check<T: Real>() -> bool {
-    use allocation::{Allocator, Commands, Geometry, Priority, Restoring, VehicleControl, presets};
+    use eqtrack_allocation::{Allocator, Commands, Geometry, Priority, Restoring, VehicleControl, presets};
     use detection::{Config, Detector, Kind, threshold};
     let rotors = presets::hexarotor::<T>(real(0.25), real(0.5), real(0.016), real(8.0));
     let Ok(geometry) = Geometry::<T, 6>::new(&rotors) else {
@@ -378,7 +378,7 @@ fn detection_check<T: Real>() -> bool {
         .unwrap_or_else(nalgebra::SMatrix::zeros);
     for k in 0..130 {
         let v = inverse * mu;
-        if let Some(d) = detector.observe::<controller::group::Se3, 4>(&v, &r, &mut control) {
+        if let Some(d) = detector.observe::<eqtrack_controller::group::Se3, 4>(&v, &r, &mut control) {
             return k > 100 && k <= 130 && d.actuator == 2 && d.kind == Kind::Dead;
         }
         detector.commanded(&u);
@@ -394,7 +394,7 @@ fn detection_check<T: Real>() -> bool {
 /// The serial link's frames without std: a state frame encoded and decoded, a flipped bit
 /// refused by the CRC, the deframer finding the frame in a stream.
 fn serial_check() -> bool {
-    use serial_wire::{Deframer, Frame, FrameError, MAX_ENCODED, StateFrame, decode, encode};
+    use eqtrack_serial_wire::{Deframer, Frame, FrameError, MAX_ENCODED, StateFrame, decode, encode};
     let state = Frame::State(StateFrame {
         seq: 3,
         t: 0.03,
@@ -430,7 +430,7 @@ fn serial_check() -> bool {
 fn firmware_cycle_check() -> bool {
     use firmware_cycle::{Axis, Config, Cycle, MAX_CONFIG, Series};
     use heapless::Vec;
-    use serial_wire::{Frame, Hello, StateFrame};
+    use eqtrack_serial_wire::{Frame, Hello, StateFrame};
     let v = |xs: &[f32]| -> Vec<f32, 36> { Vec::from_slice(xs).unwrap_or_default() };
     let eye = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
     let axis = || Axis {
@@ -495,7 +495,7 @@ static HEXAROTOR: &[u8] = include_bytes!("../../firmware-cortex-m/pil_hexarotor.
 fn firmware_cycle_on_board_check() -> bool {
     use firmware_cycle::Cycle;
     use heapless::Vec;
-    use serial_wire::{Frame, Samples, StateFrame};
+    use eqtrack_serial_wire::{Frame, Samples, StateFrame};
     let Ok(mut cycle) = Cycle::from_bytes(HEXAROTOR) else {
         return false;
     };
@@ -584,8 +584,8 @@ fn failsafe_check() -> bool {
 /// The innovation gate without std: a direction turned by 30° is rejected while the other
 /// passes, and the health says which.
 fn gate_check<T: Real>() -> bool {
-    use estimator::health::{GateConfig, Health, Reason, Source};
-    use estimator::{FilterKind, Settings};
+    use eqtrack_estimator::health::{GateConfig, Health, Reason, Source};
+    use eqtrack_estimator::{FilterKind, Settings};
     let w = [Vector3::z(), Vector3::x()];
     let r = So3::exp(&Vector3::new(real::<T>(0.3), real(-0.4), real(0.2)));
     let settings = Settings {
@@ -614,13 +614,13 @@ fn gate_check<T: Real>() -> bool {
         noise: [real(0.01); 5],
         window: 10,
         rejections: 1,
-        direction_band: estimator::health::Band {
+        direction_band: eqtrack_estimator::health::Band {
             samples: 5,
             upper: real(41.3),
         },
-        position_band: estimator::health::Band::off(),
+        position_band: eqtrack_estimator::health::Band::off(),
     };
-    let mut gate = estimator::health::Gate::new(cfg, 2, false);
+    let mut gate = eqtrack_estimator::health::Gate::new(cfg, 2, false);
     let turned = So3::exp(&Vector3::new(T::zero(), T::zero(), real(0.5236)));
     let zero = Vector3::zeros();
     let mut health = Health::Healthy;
@@ -628,7 +628,7 @@ fn gate_check<T: Real>() -> bool {
         let y0 = r.tr_mul(&w[0]);
         let y1 = r.tr_mul(&w[1]);
         let y = if k < 20 { [y0, y1] } else { [y0, turned * y1] };
-        let (_, h): (estimator::Step<T, 3, 3>, Health) =
+        let (_, h): (eqtrack_estimator::Step<T, 3, 3>, Health) =
             f.step_gated(&mut gate, real(0.01), &zero, &y, &zero, None);
         health = h;
     }
@@ -672,7 +672,7 @@ fn run() -> i32 {
         }
     }
     rt::write(if code == 0 {
-        b"nostd-check: controller, estimator, allocation, detection, failsafe, ipc_types, serial_wire and firmware_cycle run with no std, no alloc, no allocator\n"
+        b"nostd-check: eqtrack-controller, eqtrack-estimator, eqtrack-allocation, detection, failsafe, ipc_types, eqtrack-serial-wire and firmware_cycle run with no std, no alloc, no allocator\n"
     } else {
         b"nostd-check: FAILED\n"
     });

@@ -96,7 +96,7 @@ mod app {
     use firmware_cycle::Cycle;
     use rtic_sync::channel::{Receiver, Sender};
     use rtic_sync::make_channel;
-    use serial_wire::{Deframer, Frame, MAX_ENCODED, encode};
+    use eqtrack_serial_wire::{Deframer, Frame, MAX_ENCODED, encode};
 
     /// Events the channel holds (rtic-sync's maximum).
     const CAPACITY: usize = 255;
@@ -128,7 +128,7 @@ mod app {
         period_ms: u64,
         rx: Receiver<'static, Event, CAPACITY>,
         /// The newest state not answered yet (timer-driven mode).
-        latest: Option<serial_wire::StateFrame>,
+        latest: Option<eqtrack_serial_wire::StateFrame>,
         /// Timer ticks, and states answered on them (timer-driven mode).
         released: (u64, u64),
         cycle: Cycle,
@@ -152,7 +152,7 @@ mod app {
         /// fed when the cycle completed with a command. With the feature `hang`, the task
         /// hangs here instead at the first state numbered `PIL_HANG_AT` or later, in a boot
         /// whose first state came before it (so the firmware the watchdog reset flies on).
-        fn cycle(&mut self, cycle: &mut Cycle, state: serial_wire::StateFrame, out: &mut [u8; MAX_ENCODED]) {
+        fn cycle(&mut self, cycle: &mut Cycle, state: eqtrack_serial_wire::StateFrame, out: &mut [u8; MAX_ENCODED]) {
             let first = *self.first.get_or_insert(state.seq);
             if let Some(at) = HANG_AT
                 && first < at

@@ -10,9 +10,9 @@
 #![no_std]
 #![forbid(unsafe_code)]
 
-use controller::Real;
-use controller::group::MatrixLieGroup;
-use controller::group::so3::{exp_so3, log_so3, skew};
+use eqtrack_controller::Real;
+use eqtrack_controller::group::MatrixLieGroup;
+use eqtrack_controller::group::so3::{exp_so3, log_so3, skew};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// SO(3) × ℝ³ as 7 × 7 matrices, algebra coordinates `(ω, v)`.
@@ -116,11 +116,11 @@ impl MatrixLieGroup<7, 6> for So3xR3 {
 /// integrated in 10 RKMK4 substeps per period.
 pub mod scenario {
     use super::{So3xR3, element};
-    use controller::closed_loop::ClosedLoop;
-    use controller::group::so3::exp_so3;
-    use controller::integrator::RigidBody;
-    use controller::reference::{AxisTorque, CosTerm, Feedforward, Reference};
-    use controller::{Controller, ControllerConfig, Error, ErrorFrame, Law};
+    use eqtrack_controller::closed_loop::ClosedLoop;
+    use eqtrack_controller::group::so3::exp_so3;
+    use eqtrack_controller::integrator::RigidBody;
+    use eqtrack_controller::reference::{AxisTorque, CosTerm, Feedforward, Reference};
+    use eqtrack_controller::{Controller, ControllerConfig, Error, ErrorFrame, Law};
     use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
     /// The controller's period (s).
@@ -194,7 +194,7 @@ pub struct Flight {
 }
 
 /// Flies [`scenario`] and measures it.
-pub fn fly() -> Result<Flight, controller::Error> {
+pub fn fly() -> Result<Flight, eqtrack_controller::Error> {
     let mut sim = scenario::closed_loop()?;
     let mut flight = Flight {
         first: (0.0, 0.0),

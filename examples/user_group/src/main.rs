@@ -1,7 +1,7 @@
 //! Runs the property kit on SO(3) × ℝ³, then flies the crate's scenario with eqtrack's law;
 //! exits 1 when the kit fails or the flight does not converge.
 
-use controller::kit::{check, sample};
+use eqtrack_controller::kit::{check, sample};
 use nalgebra::SVector;
 use std::process::ExitCode;
 use user_group::{So3xR3, fly, scenario};

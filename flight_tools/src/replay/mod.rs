@@ -32,8 +32,8 @@
 mod output;
 mod run;
 
-use controller::Law;
-use controller::group::{BuiltinGroup, OnGroup};
+use eqtrack_controller::Law;
+use eqtrack_controller::group::{BuiltinGroup, OnGroup};
 use ipc_types::{CommandMsg, flags};
 use link::wire::group_code;
 use plant::SimError;
@@ -214,7 +214,7 @@ fn scenario_for(opts: &ReplayOptions, log: &LogReader) -> Result<Scenario, SimEr
     // is not "world", tells the two apart
     if opts.scenario.is_none() && s.fingerprint() != h.fingerprint {
         let world = Scenario {
-            error_frame: controller::ErrorFrame::World,
+            error_frame: eqtrack_controller::ErrorFrame::World,
             ..s.clone()
         };
         if world.fingerprint() == h.fingerprint {

@@ -6,9 +6,9 @@
 use super::output::{Row, figure, write_csv};
 use super::{Difference, EstimatorCheck, ReplayOptions, ReplayReport};
 use control_cycle::PlanIntake;
-use controller::Source;
-use controller::group::BuiltinGroup;
-use controller::{Law, Trajectory as _};
+use eqtrack_controller::Source;
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::{Law, Trajectory as _};
 use ipc_types::{CommandMsg, StateMsg};
 use plant::SimError;
 use plant::output::ensure_dir;
@@ -589,7 +589,7 @@ fn same_answer<const M: usize>(answer: &CommandMsg, c: &CommandMsg) -> bool {
 }
 
 /// A bad scenario, named.
-fn bad(s: &Scenario) -> impl Fn(controller::Error) -> SimError + '_ {
+fn bad(s: &Scenario) -> impl Fn(eqtrack_controller::Error) -> SimError + '_ {
     move |e| SimError::Input(format!("scenario `{}`: {e}", s.name))
 }
 

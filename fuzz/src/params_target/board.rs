@@ -12,8 +12,8 @@ use crate::rng::Gen;
 use crate::scenario_target::controller_error_kind;
 use crate::{Outcome, ParamsCase, ParamsKind, ParamsReceiver};
 use control_cycle::Responder;
-use controller::group::OnGroup;
-use controller::{BuiltinGroup, GroupKind};
+use eqtrack_controller::group::OnGroup;
+use eqtrack_controller::{BuiltinGroup, GroupKind};
 use ipc_types::{Gains, MAX_M, MAX_N, PROTOCOL_VERSION, ParamMsg, StateMsg};
 use link::wire::wire_group;
 use scenario::Scenario;
@@ -449,7 +449,7 @@ impl OnGroup for Retuned<'_> {
         let mut retuned = responder::<G, N, M>(s);
         if let Err(e) = retuned.retune(self.gains) {
             return Outcome::Rejected(format!(
-                "Responder::retune: controller::Error::{}",
+                "Responder::retune: eqtrack_controller::Error::{}",
                 controller_error_kind(&e)
             ));
         }
@@ -481,7 +481,7 @@ impl OnGroup for Retuned<'_> {
                 Ok(c) => c,
                 Err(e) => {
                     return Outcome::Rejected(format!(
-                        "Responder::respond: controller::Error::{}",
+                        "Responder::respond: eqtrack_controller::Error::{}",
                         controller_error_kind(&e)
                     ));
                 }

@@ -134,7 +134,8 @@ fn a_refused_board_names_its_reason() {
     assert_eq!(
         check(&case(&b, s.fingerprint())),
         Outcome::Rejected(
-            "Responder::retune: controller::Error::NotPositiveDefinite(DampingGain)".to_owned()
+            "Responder::retune: eqtrack_controller::Error::NotPositiveDefinite(DampingGain)"
+                .to_owned()
         )
     );
     assert_eq!(

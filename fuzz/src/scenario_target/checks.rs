@@ -2,8 +2,8 @@
 //! an accepted scenario; the report's names of the errors.
 
 use crate::Outcome;
-use controller::group::OnGroup;
-use controller::{BuiltinGroup, Law, Quantity};
+use eqtrack_controller::group::OnGroup;
+use eqtrack_controller::{BuiltinGroup, Law, Quantity};
 use scenario::{Scenario, ScenarioError};
 
 /// Closed-loop cycles run on an accepted scenario, at most.
@@ -67,8 +67,8 @@ pub(super) fn scenario_error_kind(e: &ScenarioError) -> String {
 }
 
 /// The report's name of a controller error: variant and quantity (no sizes or indices).
-pub(crate) fn controller_error_kind(e: &controller::Error) -> String {
-    use controller::Error as E;
+pub(crate) fn controller_error_kind(e: &eqtrack_controller::Error) -> String {
+    use eqtrack_controller::Error as E;
     let q = |q: &Quantity| format!("{q:?}");
     match e {
         E::NonFinite(x) => format!("NonFinite({})", q(x)),
@@ -86,9 +86,12 @@ pub(crate) fn controller_error_kind(e: &controller::Error) -> String {
     }
 }
 
-/// `controller::Error` of one stage, as a rejection name.
-fn stage(name: &str, e: controller::Error) -> String {
-    format!("{name}: controller::Error::{}", controller_error_kind(&e))
+/// `eqtrack_controller::Error` of one stage, as a rejection name.
+fn stage(name: &str, e: eqtrack_controller::Error) -> String {
+    format!(
+        "{name}: eqtrack_controller::Error::{}",
+        controller_error_kind(&e)
+    )
 }
 
 /// What the processes do with an accepted scenario, on its group.
@@ -112,7 +115,7 @@ impl OnGroup for Exercise<'_> {
             .feedforward::<M>()
             .map_err(|e| stage("feedforward()", e))?;
         // the disturbance-rejection terms, fed with the torque applied, as the node runs them
-        let mut terms = controller::Rejection::new(
+        let mut terms = eqtrack_controller::Rejection::new(
             s.rejection_config::<M>(),
             controller.config().torque_limit.as_ref(),
         )
@@ -188,13 +191,13 @@ impl OnGroup for Exercise<'_> {
 /// Every action of the failsafe manager engaged at state `(q, v)` over `reference`: each
 /// set-point is one the law answers with a finite torque.
 fn failsafe_checked<G, R, const N: usize, const M: usize>(
-    controller: &controller::Controller<f64, G, N, M>,
+    controller: &eqtrack_controller::Controller<f64, G, N, M>,
     reference: &R,
     q: &nalgebra::SMatrix<f64, N, N>,
     v: &nalgebra::SVector<f64, M>,
 ) where
     G: BuiltinGroup<N, M>,
-    R: controller::reference::Trajectory<f64, N, M> + Clone,
+    R: eqtrack_controller::reference::Trajectory<f64, N, M> + Clone,
 {
     let rates = failsafe::setpoint::Rates {
         descend: 0.5,
@@ -221,12 +224,12 @@ fn failsafe_checked<G, R, const N: usize, const M: usize>(
 /// The scenario's vehicle as the controller side allocates for it (`None`: no vehicle).
 fn vehicle_of<const M: usize>(
     s: &Scenario,
-) -> Result<Option<allocation::VehicleControl<f64, M>>, String> {
+) -> Result<Option<eqtrack_allocation::VehicleControl<f64, M>>, String> {
     let Some(v) = &s.vehicle else {
         return Ok(None);
     };
     let allocator = v.allocator::<M>().map_err(|_| "vehicle: allocator()")?;
-    Ok(Some(allocation::VehicleControl::new(
+    Ok(Some(eqtrack_allocation::VehicleControl::new(
         allocator,
         v.restoring(),
         v.actuator_rate_limit,
@@ -243,7 +246,7 @@ fn firmware_checked<const N: usize, const M: usize>(
     q: &nalgebra::SMatrix<f64, N, N>,
     v: &nalgebra::SVector<f64, M>,
 ) {
-    use serial_wire::{Frame, StateFrame};
+    use eqtrack_serial_wire::{Frame, StateFrame};
     let Ok(config) = s.firmware_config() else {
         return;
     };
@@ -290,7 +293,7 @@ fn firmware_checked<const N: usize, const M: usize>(
 fn estimate_checked<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
     e: &mut plant::estimation::Estimation,
     k: u64,
-    body: &controller::integrator::RigidBody<f64, G, N, M>,
+    body: &eqtrack_controller::integrator::RigidBody<f64, G, N, M>,
     applied: &nalgebra::SVector<f64, M>,
 ) {
     let (q_hat, v_hat, _) = e.measure(k, body, applied);
@@ -304,7 +307,7 @@ fn estimate_checked<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(
 /// they give) must be finite and within the bounds, whatever the wrench (a demand that
 /// overflows is answered with status 4).
 fn allocate_checked<const M: usize>(
-    vehicle: &mut allocation::VehicleControl<f64, M>,
+    vehicle: &mut eqtrack_allocation::VehicleControl<f64, M>,
     wrench: &nalgebra::SVector<f64, M>,
     r: &nalgebra::Matrix3<f64>,
 ) {
@@ -317,7 +320,7 @@ fn allocate_checked<const M: usize>(
             .all(|x| x.is_finite()),
         "the allocation returned a non-finite number: {a:?}"
     );
-    for j in 0..allocation::MAX_ACTUATORS {
+    for j in 0..eqtrack_allocation::MAX_ACTUATORS {
         let tol = 1e-9 * (1.0 + lo[j].abs().max(hi[j].abs()));
         assert!(
             u[j] >= lo[j] - tol && u[j] <= hi[j] + tol,
@@ -367,8 +370,8 @@ fn moved(text: &str, s: &Scenario) {
     let far = WorldMotion {
         heading: 0.7,
         offset: match s.group {
-            controller::GroupKind::So3 | controller::GroupKind::Se2 => [0.0; 3],
-            controller::GroupKind::Se3 => [1000.0, -700.0, 300.0],
+            eqtrack_controller::GroupKind::So3 | eqtrack_controller::GroupKind::Se2 => [0.0; 3],
+            eqtrack_controller::GroupKind::Se3 => [1000.0, -700.0, 300.0],
         },
     };
     if let Ok(m) = move_scenario(text, "fuzz input", None, &far)

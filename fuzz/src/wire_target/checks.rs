@@ -4,8 +4,8 @@
 use super::rejection;
 use crate::scenario_target::controller_error_kind;
 use crate::{MsgKind, Outcome, Receiver, WireCase};
-use controller::group::OnGroup;
-use controller::{BuiltinGroup, GroupKind};
+use eqtrack_controller::group::OnGroup;
+use eqtrack_controller::{BuiltinGroup, GroupKind};
 use ipc_types::{
     CommandMsg, DecodeError, Identity, PROTOCOL_VERSION, StateMsg, check_command, check_state,
     name_bytes, name_str,
@@ -77,8 +77,11 @@ impl OnGroup for LawOnState<'_> {
     type Output = Result<(), String>;
 
     fn run<G: BuiltinGroup<N, M>, const N: usize, const M: usize>(self) -> Self::Output {
-        let stage = |name: &str, e: controller::Error| {
-            format!("{name}: controller::Error::{}", controller_error_kind(&e))
+        let stage = |name: &str, e: eqtrack_controller::Error| {
+            format!(
+                "{name}: eqtrack_controller::Error::{}",
+                controller_error_kind(&e)
+            )
         };
         let mut s = self.scenario.clone();
         s.control_period = self.msg.control_period;
@@ -101,7 +104,7 @@ impl OnGroup for LawOnState<'_> {
         // with both disturbance-rejection terms: the state twice (anchor, then update) with
         // the torque it says was applied
         let mut terms =
-            controller::Rejection::new(rejection::<M>(), c.config().torque_limit.as_ref())
+            eqtrack_controller::Rejection::new(rejection::<M>(), c.config().torque_limit.as_ref())
                 .map_err(|e| stage("Rejection::new()", e))?;
         let applied = self.msg.applied_torque::<M>();
         for _ in 0..2 {
@@ -335,7 +338,7 @@ fn check_command_grid(msg: &CommandMsg) {
 /// commands, each clamped to its range, drive the actuators over one period, and the state
 /// it publishes next is finite.
 fn vehicle_on_command(s: &Scenario, msg: &CommandMsg) {
-    type Se3 = controller::group::Se3;
+    type Se3 = eqtrack_controller::group::Se3;
     let mut run = plant::vehicle::VehicleRun::<6>::of(s)
         .expect("the shipped vehicle loads")
         .expect("it has a vehicle");

@@ -18,7 +18,7 @@ mod seeds;
 mod tests;
 
 use crate::MsgKind;
-use controller::GroupKind;
+use eqtrack_controller::GroupKind;
 
 pub(crate) use checks::check;
 
@@ -41,14 +41,14 @@ pub(crate) struct Corpus {
 
 /// Both disturbance-rejection terms, as a scenario would give them (observer in the world
 /// frame, so the rotation enters; the integral clamped).
-fn rejection<const M: usize>() -> controller::RejectionConfig<f64, M> {
-    controller::RejectionConfig {
-        observer: Some(controller::ObserverConfig {
+fn rejection<const M: usize>() -> eqtrack_controller::RejectionConfig<f64, M> {
+    eqtrack_controller::RejectionConfig {
+        observer: Some(eqtrack_controller::ObserverConfig {
             gain: nalgebra::SVector::repeat(20.0),
             limit: Some(nalgebra::SVector::repeat(5.0)),
-            frame: controller::Frame::World,
+            frame: eqtrack_controller::Frame::World,
         }),
-        integral: Some(controller::IntegralConfig {
+        integral: Some(eqtrack_controller::IntegralConfig {
             ki: nalgebra::SVector::repeat(1.0),
             c: nalgebra::SVector::repeat(5.0),
             limit: Some(nalgebra::SVector::repeat(0.5)),

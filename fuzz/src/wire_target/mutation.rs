@@ -6,7 +6,7 @@ use super::{Corpus, Item};
 use crate::mutate::{ByteOp, F64S, MAX_INPUT, byte_op, f64_value, u32_value, u64_value};
 use crate::rng::Gen;
 use crate::{MsgKind, Receiver, WireCase};
-use controller::GroupKind;
+use eqtrack_controller::GroupKind;
 use ipc_types::{COMMAND_BYTES, STATE_BYTES};
 
 /// The mutations of an encoded message.

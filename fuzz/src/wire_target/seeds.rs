@@ -3,8 +3,8 @@
 
 use super::{Corpus, Item, rejection};
 use crate::MsgKind;
-use controller::BuiltinGroup;
-use controller::group::OnGroup;
+use eqtrack_controller::BuiltinGroup;
+use eqtrack_controller::group::OnGroup;
 use ipc_types::{CommandMsg, Identity, StateMsg, flags, mismatch, name_bytes};
 use link::wire::wire_group;
 use scenario::Scenario;
@@ -38,7 +38,7 @@ impl OnGroup for Realistic<'_> {
         let mut last = StateMsg::new(link::wire::wire_group(G::KIND));
         // the realistic commands carry both disturbance-rejection terms
         let mut terms =
-            controller::Rejection::new(rejection::<M>(), c.config().torque_limit.as_ref())
+            eqtrack_controller::Rejection::new(rejection::<M>(), c.config().torque_limit.as_ref())
                 .expect("valid terms");
         let mut applied = nalgebra::SVector::<f64, M>::zeros();
         for k in 0..4u64 {
@@ -111,7 +111,7 @@ pub(super) fn shipped(name: &str) -> Scenario {
 /// A vehicle's commands as the controller's cycle answers them: the ROV of `rov_failure`,
 /// states 0..4 of its body at rest, answered by the responder with its allocation.
 fn vehicle_commands() -> Vec<Item> {
-    type Se3 = controller::group::Se3;
+    type Se3 = eqtrack_controller::group::Se3;
     let s = shipped("rov_failure");
     let spec = s.vehicle.as_ref().expect("rov_failure has a vehicle");
     let mut responder = s
@@ -128,7 +128,7 @@ fn vehicle_commands() -> Vec<Item> {
     let body = s.plant_body::<Se3, 4, 6>().expect("the shipped plant");
     (0..4u64)
         .map(|k| {
-            let mut st = StateMsg::new(wire_group(controller::GroupKind::Se3));
+            let mut st = StateMsg::new(wire_group(eqtrack_controller::GroupKind::Se3));
             st.seq = k;
             st.t = k as f64 * s.control_period;
             st.control_period = s.control_period;
@@ -138,7 +138,7 @@ fn vehicle_commands() -> Vec<Item> {
                 .expect("the law answers the body at rest");
             Item {
                 kind: MsgKind::Command,
-                group: controller::GroupKind::Se3,
+                group: eqtrack_controller::GroupKind::Se3,
                 seq: k,
                 period: s.control_period,
                 actuators: cmd.actuators,

@@ -3,7 +3,7 @@ use super::mutation::WIRE_OPS;
 use super::{Corpus, check};
 use crate::rng::Streams;
 use crate::{Outcome, Receiver, WireCase};
-use controller::GroupKind;
+use eqtrack_controller::GroupKind;
 use ipc_types::{COMMAND_BYTES, CommandMsg, STATE_BYTES, StateMsg, name_bytes};
 use link::wire::group_code;
 

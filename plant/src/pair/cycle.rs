@@ -4,9 +4,9 @@ use super::{PlantRun, log};
 use crate::SimError;
 use crate::spawn::Spawned;
 use crate::trajectory::Row;
-use controller::Trajectory as _;
-use controller::group::BuiltinGroup;
-use controller::law::{safe_mode_torque, saturate};
+use eqtrack_controller::Trajectory as _;
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::law::{safe_mode_torque, saturate};
 use link::{Command, Decision, NoCommand, Transition, clock};
 use recorder::Record;
 use std::io::IsTerminal;
@@ -263,7 +263,7 @@ impl<'a, G: BuiltinGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G, 
         if !k.is_multiple_of(self.opts.record_every.max(1)) && k != self.steps {
             return;
         }
-        let t = controller::real::<f64>(k as f64) * self.s.control_period;
+        let t = eqtrack_controller::real::<f64>(k as f64) * self.s.control_period;
         let row = Row::new::<G, N, M>(
             t,
             self.plant.configuration(),

@@ -6,7 +6,7 @@
 //! * **realtime**: tick k+1 comes at `t0 + (k+1)/F` on CLOCK_MONOTONIC
 //!   ([`link::clock::sleep_until`]); command k must arrive before it. What is applied is the
 //!   [`DeadlinePolicy`](link::DeadlinePolicy)'s decision: the command, the held torque, or the safe-mode torque
-//!   (`controller::law::safe_mode_torque`) after `miss_limit` consecutive misses.
+//!   (`eqtrack_controller::law::safe_mode_torque`) after `miss_limit` consecutive misses.
 //!
 //! SIGINT/SIGTERM stop the loop at the next cycle; the cycles that ran are written and the
 //! summary says `"interrupted": true` (docs/architecture.md, "Stopping a run").
@@ -15,7 +15,7 @@ use crate::SimError;
 use crate::output::ensure_dir;
 use crate::spawn::Spawned;
 use crate::trajectory::SimulatedTrajectory;
-use controller::group::{BuiltinGroup, OnGroup};
+use eqtrack_controller::group::{BuiltinGroup, OnGroup};
 use std::time::{Duration, Instant};
 
 mod cycle;

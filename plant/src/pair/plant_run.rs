@@ -8,7 +8,7 @@ use crate::output::{Summary, write_json, write_trajectory_csv};
 use crate::plot::trajectory_figure;
 use crate::spawn::Spawned;
 use crate::trajectory::{Row, SimulatedTrajectory, input};
-use controller::group::BuiltinGroup;
+use eqtrack_controller::group::BuiltinGroup;
 use ipc_types::StateMsg;
 use link::wire::group_code;
 use link::{Command, DeadlinePolicy, NoCommand, PlantEndpoint, PlantEndpointConfig, clock};
@@ -23,12 +23,12 @@ pub(super) struct PlantRun<'a, G: BuiltinGroup<N, M>, const N: usize, const M: u
     pub(super) s: Scenario,
     pub(super) steps: u64,
     pub(super) period_ns: u64,
-    pub(super) plant: controller::integrator::RigidBody<f64, G, N, M>,
+    pub(super) plant: eqtrack_controller::integrator::RigidBody<f64, G, N, M>,
     /// The reference for the records, under the failsafe's set-points as the controller's
     /// commands engage them (nominal: the reference bit for bit).
     pub(super) reference:
-        crate::failsafe::SupervisedReference<G, controller::Source<f64, G, N, M>, N, M>,
-    pub(super) cfg: controller::ControllerConfig<f64, N, M>,
+        crate::failsafe::SupervisedReference<G, eqtrack_controller::Source<f64, G, N, M>, N, M>,
+    pub(super) cfg: eqtrack_controller::ControllerConfig<f64, N, M>,
     pub(super) ep: PlantEndpoint,
     pub(super) policy: DeadlinePolicy,
     pub(super) stats: Stats,
@@ -60,7 +60,7 @@ pub(super) struct PlantRun<'a, G: BuiltinGroup<N, M>, const N: usize, const M: u
     pub(super) onboard: Option<(
         link::serial::OnboardSlot,
         Option<crate::sensors::Samples>,
-        Option<serial_wire::Estimate>,
+        Option<eqtrack_serial_wire::Estimate>,
     )>,
     /// The same, with the true state, for the flight recorder.
     pub(super) sensor_record: Option<recorder::SensorRecord>,
@@ -108,11 +108,11 @@ fn params_board(
 }
 
 /// Corrupts a state as a test asks.
-pub(super) fn corrupt(msg: &mut StateMsg, fault: StateFault, group: controller::GroupKind) {
+pub(super) fn corrupt(msg: &mut StateMsg, fault: StateFault, group: eqtrack_controller::GroupKind) {
     match fault {
         StateFault::Version => msg.version += 1,
         StateFault::Group => {
-            let other = controller::GroupKind::ALL
+            let other = eqtrack_controller::GroupKind::ALL
                 .into_iter()
                 .find(|g| *g != group)
                 .unwrap_or(group);
@@ -346,10 +346,12 @@ impl<'a, G: BuiltinGroup<N, M>, const N: usize, const M: usize> PlantRun<'a, G, 
                     msg.set_state(&q_hat, &v_hat);
                     // the gated estimator's health, the failsafe's `estimator` cause
                     msg.flags |= match row.health {
-                        Some(estimator::health::Health::Degraded(_)) => {
+                        Some(eqtrack_estimator::health::Health::Degraded(_)) => {
                             ipc_types::flags::ESTIMATE_DEGRADED
                         }
-                        Some(estimator::health::Health::Lost(_)) => ipc_types::flags::ESTIMATE_LOST,
+                        Some(eqtrack_estimator::health::Health::Lost(_)) => {
+                            ipc_types::flags::ESTIMATE_LOST
+                        }
                         _ => 0,
                     };
                     if self.recorder.is_some() {
@@ -615,10 +617,10 @@ fn figure_title(s: &Scenario, opts: &PairOptions, realtime: bool, interrupted: b
 
 /// The samples as the serial frame carries them (`f32`, as the board's sensors give them);
 /// a position fix relative to the firmware's local origin, the difference formed in `f64`.
-fn wire_samples(s: &crate::sensors::Samples, origin: &[f64; 3]) -> serial_wire::Samples {
+fn wire_samples(s: &crate::sensors::Samples, origin: &[f64; 3]) -> eqtrack_serial_wire::Samples {
     let f = |v: &nalgebra::Vector3<f64>| [v[0] as f32, v[1] as f32, v[2] as f32];
     let o = nalgebra::Vector3::from(*origin);
-    serial_wire::Samples {
+    eqtrack_serial_wire::Samples {
         gyro: f(&s.gyro),
         directions: s.directions[..s.count.min(4)].iter().map(f).collect(),
         accel: s.accel.as_ref().map(f),

@@ -6,9 +6,9 @@
 use crate::trajectory::VehicleRow;
 use crate::vehicle::{VehicleReport, VehicleRun};
 use crate::wheels::MAX_WHEELS;
-use allocation::{Actuation, Allocation, Commands, Status};
-use controller::group::BuiltinGroup;
-use controller::integrator::RigidBody;
+use eqtrack_allocation::{Actuation, Allocation, Commands, Status};
+use eqtrack_controller::group::BuiltinGroup;
+use eqtrack_controller::integrator::RigidBody;
 use ipc_types::CommandMsg;
 use nalgebra::SVector;
 use scenario::Scenario;

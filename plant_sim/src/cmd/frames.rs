@@ -3,7 +3,7 @@
 use super::progress;
 use clap::Args;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
-use controller::ErrorFrame;
+use eqtrack_controller::ErrorFrame;
 use link::StopFlag;
 use plant::SimError;
 use plant::output::ensure_dir;

@@ -2,7 +2,7 @@
 
 use super::progress;
 use clap::Args;
-use controller::Law;
+use eqtrack_controller::Law;
 use link::StopFlag;
 use plant::SimError;
 use plant::output::{ensure_dir, write_json};

@@ -2,7 +2,7 @@
 //! flown beside the original and compared column by column.
 
 use clap::Args;
-use controller::group::{MatrixLieGroup, So3};
+use eqtrack_controller::group::{MatrixLieGroup, So3};
 use link::StopFlag;
 use nalgebra::Vector3;
 use plant::SimError;

@@ -5,6 +5,7 @@
 //! processor-in-the-loop run and this one differ only if the microcontroller computes
 //! differently.
 
+use eqtrack_serial_wire::{Deframer, MAX_ENCODED, encode};
 use firmware_cycle::{Cycle, MAX_CONFIG};
 use link::StopFlag;
 use link::serial::{ByteLink, SerialCounts};
@@ -12,7 +13,6 @@ use plant::SimError;
 use plant::pair::{Mode, PairOptions, SerialController, run_pair};
 use scenario::Scenario;
 use scenario::cli::ScenarioSource;
-use serial_wire::{Deframer, MAX_ENCODED, encode};
 use std::collections::VecDeque;
 use std::io;
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! `plant_sim replay`: a recording answered again, bit for bit, or a what-if.
 
 use clap::Args;
-use controller::Law;
+use eqtrack_controller::Law;
 use plant::SimError;
 use scenario::cli::law_parser;
 use std::path::PathBuf;

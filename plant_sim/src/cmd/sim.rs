@@ -4,7 +4,7 @@
 use super::sample_faults;
 use super::simulate_shown;
 use clap::Args;
-use controller::Law;
+use eqtrack_controller::Law;
 use link::StopFlag;
 use plant::SimError;
 use plant::output::{Summary, ensure_dir, write_json, write_trajectory_csv};

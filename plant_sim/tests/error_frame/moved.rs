@@ -4,7 +4,7 @@
 //! move with the world; every other column is unchanged.
 
 use crate::common::{ok, run};
-use controller::group::{MatrixLieGroup, So3};
+use eqtrack_controller::group::{MatrixLieGroup, So3};
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use pair_tests::{read_csv, repo};
 use scenario::moving::{WorldMotion, move_scenario};
@@ -197,7 +197,7 @@ fn the_world_form_warns_where_its_damping_loses_stability() {
 /// computed directly, on `se3_circle`'s inertia and damping along the x axis.
 #[test]
 fn the_warning_bound_is_the_damping_eigenvalue() {
-    use controller::group::Se3;
+    use eqtrack_controller::group::Se3;
     use nalgebra::{SMatrix, SymmetricEigen};
     let inertia =
         SMatrix::<f64, 6, 6>::from_diagonal(&nalgebra::Vector6::new(0.8, 1.0, 1.2, 2.0, 2.0, 2.0));
@@ -214,7 +214,8 @@ fn the_warning_bound_is_the_damping_eigenvalue() {
         let lambda = SymmetricEigen::new(s * a.transpose() * kd * a * s)
             .eigenvalues
             .max();
-        let holds = controller::law::world_damping_holds::<Se3, f64, 4, 6>(&q, &inertia, &kd, h);
+        let holds =
+            eqtrack_controller::law::world_damping_holds::<Se3, f64, 4, 6>(&q, &inertia, &kd, h);
         assert_eq!(holds, h * lambda < 2.0, "x = {x}: λ_max = {lambda}");
         flips += usize::from(holds != last);
         last = holds;

@@ -5,7 +5,7 @@
 use super::{EstimatorKind, RawEstimator, SensorsSpec};
 use crate::{Scenario, ScenarioError, Validator};
 use detection::threshold::chi2_upper;
-use estimator::health::{Band, GateConfig, MAX_REJECTIONS};
+use eqtrack_estimator::health::{Band, GateConfig, MAX_REJECTIONS};
 
 /// The gate's settings as the scenario gives them.
 #[derive(Debug, Clone, PartialEq)]
@@ -198,7 +198,7 @@ impl Scenario {
         let rejections = (1..=MAX_REJECTIONS as u64)
             .find(|r| rate_of(*r) <= rate * (1.0 + 1e-9))
             .unwrap_or(MAX_REJECTIONS as u64);
-        let mut noise = [0.0; estimator::MAX_DIRECTIONS + 1];
+        let mut noise = [0.0; eqtrack_estimator::MAX_DIRECTIONS + 1];
         for (n, x) in noise.iter_mut().zip(&spec.noise) {
             *n = *x;
         }

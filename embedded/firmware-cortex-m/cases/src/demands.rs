@@ -3,7 +3,7 @@
 //! spacecraft, [`PER_KIND`] demands of each of four kinds, and a saturating trajectory for the
 //! warm-started mean. `no_std`, f32; the stream is splitmix64 from a fixed seed per vehicle.
 
-use allocation::{Allocator, Bounds, Commands, Geometry, Priority, presets};
+use eqtrack_allocation::{Allocator, Bounds, Commands, Geometry, Priority, presets};
 use nalgebra::SVector;
 
 /// Demands of each kind per vehicle.

@@ -20,11 +20,11 @@
 
 pub mod demands;
 
-use controller::closed_loop::ClosedLoop;
-use controller::group::{MatrixLieGroup, Se3, So3};
-use controller::integrator::RigidBody;
-use controller::law::Desired;
-use controller::{
+use eqtrack_controller::closed_loop::ClosedLoop;
+use eqtrack_controller::group::{MatrixLieGroup, Se3, So3};
+use eqtrack_controller::integrator::RigidBody;
+use eqtrack_controller::law::Desired;
+use eqtrack_controller::{
     Controller, ControllerConfig, Error, ErrorFrame, Law, Reference, so3_seed_feedforward,
 };
 use core::fmt::{self, Write};
