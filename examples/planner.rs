@@ -1,5 +1,5 @@
 //! A trajectory planner process, written only against the public APIs of `link` (the plan
-//! board), `ipc_types` (the plan message), `scenario` (the waypoint file) and `controller`
+//! board), `ipc_types` (the plan message), `scenario` (the waypoint file) and `eqtrack-controller`
 //! (the path): it streams a
 //! scenario's path through waypoints to a `controller_node --reference stream` of the same
 //! run while the pair runs — a stop path's legs or, with `path = "through"`, a through-path's.

@@ -375,8 +375,21 @@ s = json.load(open(sys.argv[1]))
 assert s["cycles"] == 201, f"the run ended after {s['cycles']} cycles"
 assert s["safe_mode_entries"] >= 1, "no safe mode while the firmware hung"
 status = [int(float(r["command_status"])) for r in csv.DictReader(open(sys.argv[2]))]
-hung = status.index(2)
-assert hung >= 40, f"safe mode before the hang, at cycle {hung}"
+# the hang's safe mode: the longest run of safe-mode rows. It starts at the hang (state 40) or
+# after, and lasts at least the watchdog's 500 ms (25 cycles). The emulator on a busy host may
+# miss a deadline before it, a cycle or two in safe mode (seen once in CI, at cycle 6), which
+# is the deadline policy at work, not the hang.
+runs, start = [], None
+for i, x in enumerate(status + [0]):
+    if x == 2 and start is None:
+        start = i
+    elif x != 2 and start is not None:
+        runs.append((i - start, start))
+        start = None
+length, hung = max(runs)
+assert hung >= 40 and length >= 25, f"the longest safe mode ({length} cycles) starts at cycle {hung}, not at the hang (40)"
+early = sum(n for n, at in runs if at < 40)
+assert early <= 3, f"{early} safe-mode cycles before the hang"
 # the run carries on: the restarted firmware answers most of what is left (the emulator on a
 # busy host misses a deadline now and then), to the end
 fresh = sum(1 for x in status[hung:] if x == 0)

@@ -1,7 +1,7 @@
 //! The controller's cycle without a process (docs/architecture.md, "One control cycle"):
 //!
 //! * [`respond`] and [`Responder`]: one answer to one plant state — the reference stepped to
-//!   the state's time, the law (with its disturbance-rejection terms) through the `controller`
+//!   the state's time, the law (with its disturbance-rejection terms) through the `eqtrack-controller`
 //!   crate, the command filled in. Allocation-free and generic over the scalar.
 //! * [`ControllerVehicle`]: with a vehicle, the law's wrench allocated to its actuators, and
 //!   with `[fault_detection]` the failure detector's cycle before it.

@@ -85,21 +85,4 @@ pub fn real<T: Real>(x: f64) -> T {
 /// This crate's README (its example), compiled and run as a doc test.
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]
-pub struct CrateReadmeDoctests;
-
-/// The guide "Using eqtrack in your firmware" (docs/firmware.md), compiled and run as doc
-/// tests.
-#[cfg(doctest)]
-#[doc = include_str!("../../docs/firmware.md")]
-pub struct FirmwareGuideDoctests;
-
-/// The repository's README's code blocks, compiled and run as doc tests.
-#[cfg(doctest)]
-#[doc = include_str!("../../README.md")]
 pub struct ReadmeDoctests;
-
-/// The getting-started guide's code blocks (the whole loop on SO(3)), compiled and run as doc
-/// tests.
-#[cfg(doctest)]
-#[doc = include_str!("../../docs/getting-started.md")]
-pub struct GettingStartedDoctests;

@@ -1,7 +1,7 @@
 //! The controller process: waits for plant states, runs the reference generator and the law
 //! through the controller crate (the same code path as the in-process simulation), and
 //! publishes torque commands — all through `link`'s [`ControllerEndpoint`]. Thin: the
-//! mathematics is `controller`'s, the process layer is `link`'s.
+//! mathematics is `eqtrack-controller`'s, the process layer is `link`'s.
 //!
 //! It follows the plant: the control period and the wake-up mode come from the state
 //! messages. The first state's settings are compared with the controller's own (group,

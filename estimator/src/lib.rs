@@ -22,12 +22,17 @@
 //! - `serde` (off by default): `Serialize` on [`Faults`] and on the health monitor's
 //!   [`health::Source`] and [`health::Reason`].
 //!
-//! [`nalgebra`] is re-exported, so a user's vectors are this crate's.
+//! [`nalgebra`] is re-exported, so a user's vectors are this crate's, and so are
+//! [`eqtrack_controller`] and its scalar bound [`Real`].
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
+/// The group maths this crate builds on, and its scalar bound [`Real`] that every filter's
+/// `T` meets: generic code over the filters needs no second dependency to name it.
+pub use eqtrack_controller;
+pub use eqtrack_controller::Real;
 pub use nalgebra;
 
 mod complementary;

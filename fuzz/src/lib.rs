@@ -27,7 +27,7 @@
 //!   `PlanEntry::from_bytes` and `control_cycle::PlanIntake::take` on a streamed
 //!   reference, its pieces handed to the law. Seeds: the first ticks of the two sensor
 //!   scenarios, the slews' plan messages.
-//! * **serial** — bytes on the processor-in-the-loop line through `serial_wire`'s deframer
+//! * **serial** — bytes on the processor-in-the-loop line through `eqtrack-serial-wire`'s deframer
 //!   and decoder (COBS, CRC, version, postcard); a decoded frame must re-encode to itself.
 //!   Seeds: every frame kind, alone and back to back; a third of the cases wrap a mutated
 //!   message in a valid envelope so that the message decoder is reached past the CRC.

@@ -1,4 +1,4 @@
-//! The serial target: bytes on the processor-in-the-loop line through `serial_wire`'s
+//! The serial target: bytes on the processor-in-the-loop line through `eqtrack-serial-wire`'s
 //! `Deframer` and `decode` (COBS, CRC, version, postcard). Every frame that decodes must
 //! re-encode, and that encoding must decode and encode to the same bytes again (a frame may
 //! carry NaN, which is not equal to itself: the receiver's checks refuse it, not the

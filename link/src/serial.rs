@@ -1,5 +1,5 @@
 //! The processor-in-the-loop serial link as the plant's transport (docs/pil.md): each state
-//! goes out as a `serial_wire` frame (numbers in `f32`, as the firmware computes), each
+//! goes out as a `eqtrack-serial-wire` frame (numbers in `f32`, as the firmware computes), each
 //! command frame comes back as a [`CommandMsg`], so the plant's loop, its deadline policy and
 //! its outputs are those of the iceoryx2 pair.
 //!

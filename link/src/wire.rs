@@ -1,5 +1,5 @@
 //! Conversions between the wire's codes (`ipc_types`, which knows no maths) and the maths
-//! crate's types (`controller`): groups, laws and path segments. They live here, above both,
+//! crate's types (`eqtrack-controller`): groups, laws and path segments. They live here, above both,
 //! so that neither depends on the other.
 
 use eqtrack_controller::path::{Segment, Shape};

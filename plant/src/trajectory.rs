@@ -346,7 +346,7 @@ impl OnGroup for Simulate<'_> {
     }
 }
 
-/// Maps a `controller` error met while building scenario `s`'s parts to bad input naming the scenario.
+/// Maps a `eqtrack-controller` error met while building scenario `s`'s parts to bad input naming the scenario.
 pub fn input(s: &Scenario) -> impl Fn(eqtrack_controller::Error) -> SimError + '_ {
     move |e| SimError::Input(format!("scenario `{}`: {e}", s.name))
 }

@@ -8,6 +8,27 @@
 #![deny(missing_docs)]
 #![cfg_attr(not(test), warn(clippy::too_many_lines))]
 
+// The repository's pages with code (the README, the getting-started guide, the firmware
+// guide) are doc-tested here, not in `eqtrack-controller`: a published crate holds only its
+// own files. (Doc tests see this crate's dev-dependencies: eqtrack-controller, nalgebra.)
+
+/// The guide "Using eqtrack in your firmware" (docs/firmware.md), compiled and run as doc
+/// tests.
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/firmware.md")]
+pub struct FirmwareGuideDoctests;
+
+/// The repository's README's code blocks, compiled and run as doc tests.
+#[cfg(doctest)]
+#[doc = include_str!("../../README.md")]
+pub struct ReadmeDoctests;
+
+/// The getting-started guide's code blocks (the whole loop on SO(3)), compiled and run as doc
+/// tests.
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/getting-started.md")]
+pub struct GettingStartedDoctests;
+
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};

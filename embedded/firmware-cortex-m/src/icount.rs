@@ -12,14 +12,14 @@
 //! | 4 → 5 | `Controller::compute`, SE(3) EqT (the generic law), `error_frame` world, f32 |
 //! | 6 → 7 | one controller cycle: reference `desired()`, `compute`, reference `advance()` with 1 RKMK4 substep |
 //! | 8 → 9 | the same with the seed's 10 substeps |
-//! | 10 → 11 | one complementary-filter step (`estimator`), two directions, f32 |
+//! | 10 → 11 | one complementary-filter step (`eqtrack-estimator`), two directions, f32 |
 //! | 12 → 13 | one pose-filter step (SE(3): one direction, the accelerometer, a position fix), f32 |
-//! | 14 → 15 | one equivariant-filter step (`estimator`, attitude and gyro bias), two directions, f32 |
+//! | 14 → 15 | one equivariant-filter step (`eqtrack-estimator`, attitude and gyro bias), two directions, f32 |
 //! | 16 → 17 | `Controller::compute_rejecting`, SO(3) EqT with the momentum observer (body frame), f32 |
 //! | 18 → 19 | the same with the geometric integral (anti-windup, clamp) instead |
 //! | 20 → 21 | the same with both terms |
 //! | 22 → 23 | the observer alone again, with its optional clamp |
-//! | 24 → 25 | one allocation (`allocation`), the tilted hexarotor (6 rotors), a demand within reach, f32 |
+//! | 24 → 25 | one allocation (`eqtrack-allocation`), the tilted hexarotor (6 rotors), a demand within reach, f32 |
 //! | 26 → 27 | one allocation, the eight-thruster ROV, a demand within reach, f32 |
 //! | 28 → 29 | one allocation, the hexarotor, a demand past its reach (saturated), f32 |
 //! | 30 → 31 | PIL framing in: a `pil_hexarotor` state frame with its samples (204 bytes) through the `Deframer` (COBS, CRC, postcard) |

@@ -1,7 +1,7 @@
 //! Calls the controller for SO(3) and SE(3) in f32 and f64, runs short closed loops (one with
 //! the disturbance-rejection terms), builds a through-waypoint path, steps the estimators
-//! (`estimator`), allocates a wrench to a hexarotor's rotors (`allocation`) and uses the
-//! `ipc_types` wire contract, the serial link's frames (`serial_wire`) and the firmware's
+//! (`eqtrack-estimator`), allocates a wrench to a hexarotor's rotors (`eqtrack-allocation`) and uses the
+//! `ipc_types` wire contract, the serial link's frames (`eqtrack-serial-wire`) and the firmware's
 //! cycle (`firmware_cycle`), in a binary with no std, no alloc and no global allocator.
 //! Exits 0 when every check holds.
 #![no_std]

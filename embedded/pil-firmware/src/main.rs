@@ -1,7 +1,7 @@
 //! eqtrack's processor-in-the-loop firmware (docs/pil.md): the controller's cycle
 //! (`firmware_cycle`: the estimator, the law with its rejection terms and a vehicle's
 //! allocation, in `f32`) on a Cortex-M4F, answering
-//! the plant over a UART with `serial_wire` frames. QEMU's mps2-an386 runs it with the UART on
+//! the plant over a UART with `eqtrack-serial-wire` frames. QEMU's mps2-an386 runs it with the UART on
 //! a TCP socket; a board runs it on its own UART.
 //!
 //! The shape of a real application, with RTIC:
