@@ -28,6 +28,9 @@
 #   TOOLCHAIN_CACHE=dir   toolchain cache (default <repo>/.toolchain)
 #   AARCH64_PERTURB=1     multiply one host value by 1 + 1e-6 before comparing: must fail
 #   AARCH64_TESTS=0       skip step 4 (the controller's test suite under emulation)
+#   PLANT_SIM=path        the host's plant_sim, the reference (default: built here, with
+#                         `cargo build -p plant_sim`; CI passes the tests step's, whose
+#                         test-only flags change no flight)
 #
 # Exit: 0 on PASS or SKIPPED, 1 on any failure.
 set -euo pipefail
@@ -91,13 +94,16 @@ BIN=$CROSS_DIR/$TARGET/release
 file -b "$BIN/plant_sim" 2>/dev/null | grep -q aarch64 || [[ $(head -c 20 "$BIN/plant_sim" | od -An -tx1 -j18 -N2 | tr -d ' ') == b700 ]] ||
 	die "$BIN/plant_sim is not an aarch64 executable"
 
-step "building the host plant_sim (the reference)"
-(cd "$REPO" && env -u RUSTC cargo build --locked -p plant_sim >"$OUT/host-build.log" 2>&1) ||
-	{ tail -30 "$OUT/host-build.log" >&2; die "host build failed"; }
 # wherever cargo puts the host's build (CARGO_TARGET_DIR, or the workspace's target/)
 HOST_TARGET=$(cd "$REPO" && env -u RUSTC cargo metadata --format-version 1 --no-deps |
 	python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
-HOST_PLANT=$HOST_TARGET/debug/plant_sim
+HOST_PLANT=${PLANT_SIM:-$HOST_TARGET/debug/plant_sim}
+if [[ -z ${PLANT_SIM:-} ]]; then
+	step "building the host plant_sim (the reference)"
+	(cd "$REPO" && env -u RUSTC cargo build --locked -p plant_sim >"$OUT/host-build.log" 2>&1) ||
+		{ tail -30 "$OUT/host-build.log" >&2; die "host build failed"; }
+fi
+[[ -x $HOST_PLANT ]] || die "no host plant_sim at $HOST_PLANT"
 
 # --- 3. the emulated pair against the host simulation ----------------------------------------
 
