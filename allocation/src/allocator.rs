@@ -372,6 +372,12 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         self.stages(demand, bounds, previous, 1)
     }
 
+    /// Stages 1 and 2 alone (research: the iterations of each stage).
+    #[doc(hidden)]
+    pub fn allocate_two_stages(&self, demand: &SVector<T, K>, bounds: &Bounds<T>) -> Allocation<T, K> {
+        self.stages(demand, bounds, None, 2)
+    }
+
     /// The stages up to `through` (1 to 3).
     fn stages(
         &self,
