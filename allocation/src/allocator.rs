@@ -1,5 +1,6 @@
 //! The prioritised bounded allocation (docs/maths.md, "Control allocation").
 
+use crate::dual;
 use crate::geometry::Geometry;
 use crate::qp::{Factored, MAX_EQ, Objective, Rows, Stage, clamp, solve};
 use crate::{Commands, MAX_ACTUATORS};
@@ -172,6 +173,8 @@ pub struct Allocator<T, const K: usize> {
     /// and is not started: as many actuators as wrench rows, and each column far enough from
     /// the others' span that the last stage's first working set would free them all.
     fixed: bool,
+    /// `B⁻¹` when `fixed`: stage 2 is then solved in the force (`dual.rs`).
+    inverse: Option<SMatrix<T, K, K>>,
     /// `√ε`, the tolerance of [`Status::Met`].
     sqrt_eps: T,
 }
@@ -242,6 +245,11 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         }
         let gram = nalgebra::Cholesky::new(bw * b.transpose()).map(|c| c.unpack_dirty());
         let fixed = gram.is_some() && geometry.count() == K && Self::separated(b);
+        let inverse = if fixed {
+            b.fixed_columns::<K>(0).into_owned().try_inverse()
+        } else {
+            None
+        };
         Allocator {
             geometry,
             weights,
@@ -251,6 +259,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             bw,
             gram,
             fixed,
+            inverse,
             sqrt_eps: T::default_epsilon().sqrt(),
         }
     }
@@ -374,7 +383,11 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
 
     /// Stages 1 and 2 alone (research: the iterations of each stage).
     #[doc(hidden)]
-    pub fn allocate_two_stages(&self, demand: &SVector<T, K>, bounds: &Bounds<T>) -> Allocation<T, K> {
+    pub fn allocate_two_stages(
+        &self,
+        demand: &SVector<T, K>,
+        bounds: &Bounds<T>,
+    ) -> Allocation<T, K> {
         self.stages(demand, bounds, None, 2)
     }
 
@@ -444,8 +457,13 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         let mut spent = 0;
         let mut stopped = false;
         let mut workspace = Factored::new();
-        let mut run = |objective: Objective<'_, T>, c: &Rows<T>, k: usize, from: Commands<T>| {
-            if stopped {
+        let mut run = |objective: Objective<'_, T>,
+                       c: &Rows<T>,
+                       k: usize,
+                       from: Commands<T>,
+                       spent: &mut u32,
+                       stopped: &mut bool| {
+            if *stopped {
                 return from;
             }
             let stage = Stage {
@@ -456,9 +474,9 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
                 lo: &bounds.lo,
                 hi: &bounds.hi,
             };
-            let s = solve(&stage, from, self.budget - spent, &mut workspace);
-            spent += s.iterations;
-            stopped |= s.stopped;
+            let s = solve(&stage, from, self.budget - *spent, &mut workspace);
+            *spent += s.iterations;
+            *stopped |= s.stopped;
             s.u
         };
         // stage 1: the torque (or the whole wrench)
@@ -468,19 +486,33 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             b: &wanted,
             q: first,
         };
-        let mut u = run(objective, &all, 0, start);
-        // stage 2: the force, keeping the torque
+        let mut u = run(objective, &all, 0, start, &mut spent, &mut stopped);
+        // stage 2: the force, keeping the torque; with `B` square and well separated, in the
+        // force by the dual method (dual.rs), the primal method if rounding defeats it
         if split && through >= 2 {
             let mut force: Rows<T> = [[T::zero(); MAX_ACTUATORS]; MAX_EQ];
             let mut f = [T::zero(); MAX_EQ];
             force[..3].copy_from_slice(&all[3..6]);
             f[..3].copy_from_slice(&wanted[3..6]);
-            let objective = Objective::LeastSquares {
-                a: &force,
-                b: &f,
-                q: 3,
-            };
-            u = run(objective, &all, 3, u);
+            let mut done = false;
+            if let (Some(inv), false) = (&self.inverse, stopped) {
+                let (answer, changes, spent_all) =
+                    Self::force_by_dual(inv, &all, &f, &order, u, bounds, m, self.budget - spent);
+                spent += changes;
+                if let Some(answer) = answer {
+                    u = answer;
+                    stopped = spent_all;
+                    done = true;
+                }
+            }
+            if !done {
+                let objective = Objective::LeastSquares {
+                    a: &force,
+                    b: &f,
+                    q: 3,
+                };
+                u = run(objective, &all, 3, u, &mut spent, &mut stopped);
+            }
         }
         // stage 3: nearest u_pref, keeping the wrench achieved; when the wrench fixes the
         // command (`fixed`: as many actuators as wrench rows, the columns well apart, as the
@@ -491,9 +523,53 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
                 w: &self.weights,
                 up,
             };
-            u = run(objective, &all, K, u);
+            u = run(objective, &all, K, u, &mut spent, &mut stopped);
         }
         (u, spent, stopped)
+    }
+
+    /// Stage 2 in the force by the dual method (dual.rs; docs/maths.md, "Control allocation":
+    /// stage 2 of a square geometry): `u = P τ* + S (f_d + x)`, `P` and `S` the columns of
+    /// `B⁻¹` of the stages' rows. Returns the command (`None`: rounding defeated the method,
+    /// the primal one takes over; stage 1's `u` when the budget ran out), the changes spent,
+    /// and whether the budget ran out.
+    #[allow(clippy::too_many_arguments)]
+    fn force_by_dual(
+        inv: &SMatrix<T, K, K>,
+        all: &Rows<T>,
+        f: &[T; MAX_EQ],
+        order: &[usize; 6],
+        u: Commands<T>,
+        bounds: &Bounds<T>,
+        m: usize,
+        budget: u32,
+    ) -> (Option<Commands<T>>, u32, bool) {
+        let mut s_rows = [[T::zero(); 3]; MAX_ACTUATORS];
+        let mut c = [T::zero(); MAX_ACTUATORS];
+        let mut torque = [T::zero(); 3];
+        for (a, t) in torque.iter_mut().enumerate() {
+            *t = (0..m).fold(T::zero(), |s, j| s + all[a][j] * u[j]);
+        }
+        for j in 0..m {
+            let mut cj = T::zero();
+            for a in 0..3 {
+                s_rows[j][a] = inv[(j, order[3 + a])];
+                cj += inv[(j, order[a])] * torque[a] + s_rows[j][a] * f[a];
+            }
+            c[j] = cj;
+        }
+        match dual::solve(&s_rows, &c, &bounds.lo, &bounds.hi, m, budget) {
+            dual::Dual::Solved { x, changes } => {
+                let mut answer = u;
+                for j in 0..m {
+                    answer[j] =
+                        c[j] + s_rows[j][0] * x[0] + s_rows[j][1] * x[1] + s_rows[j][2] * x[2];
+                }
+                (Some(answer), changes, false)
+            }
+            dual::Dual::Stopped { changes } => (Some(u), changes, true),
+            dual::Dual::Failed { changes } => (None, changes, false),
+        }
     }
 
     /// Where stage 1 starts: the command nearest `u_pref` in the `W`-norm that produces the

@@ -57,6 +57,7 @@ pub use nalgebra;
 
 mod allocator;
 mod control;
+mod dual;
 mod geometry;
 pub mod presets;
 mod qp;

@@ -521,7 +521,11 @@ fn least_squares<T: RealField + Copy>(
 
 /// Solves `G x = h` in place (`G` symmetric positive definite, `n × n`) by `G = L D Lᵀ`:
 /// no square root.
-fn ldl_solve<T: RealField + Copy>(g: &mut [[T; MAX_EQ]; MAX_EQ], n: usize, x: &mut [T; MAX_EQ]) {
+pub(crate) fn ldl_solve<T: RealField + Copy>(
+    g: &mut [[T; MAX_EQ]; MAX_EQ],
+    n: usize,
+    x: &mut [T; MAX_EQ],
+) {
     for j in 0..n {
         for k in 0..j {
             let ljk = g[j][k];
