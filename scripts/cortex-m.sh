@@ -374,14 +374,19 @@ need = sum(int(g[1] if g[0] in ("SATURATED", "WHEELS") else g[2]) for g in group
 if sys.argv[2].startswith("opt-level-3") and (len(groups) != 9 or len(calls) != need):
     sys.exit(f"the worst-case sets: {len(groups)} groups and {len(calls)} calls, expected 9 groups and {need} calls")
 base_call = sum(gaps[0].values())
-# The limits (12 000, 12 000, 24 000; the saturated cycle 25 200) are not met yet
-# (docs/vehicles.md, "Bounded time"): each line names its limit and whether it is met, and what
-# is enforced is a ceiling 15 % over the count measured last (BENCHMARKS sections 28 and 30), so
-# that it cannot grow (the planted slow path, one more factorisation per iteration, breaks it).
+# The limits (12 000, 12 000, 24 000; the saturated cycle 25 200): each line names its
+# limit and whether it is met (docs/vehicles.md, "Bounded time"). The hexarotor's and the
+# saturated cycle's are met and enforced as they are (BENCHMARKS section 31); for the others,
+# not met yet, what is enforced is a ceiling 15 % over the count measured last (BENCHMARKS
+# section 28), so that it cannot grow (the planted slow path, one more factorisation per
+# iteration or per change of a dual working set, breaks them).
 at, failed = 0, []
 limits_wc = {"hexarotor": 12000, "rov": 12000, "spacecraft": 24000}
-ceilings = {"hexarotor": 21400, "rov": 62000, "spacecraft": 32900, "cycle": 35900, "detector": 4700}
+ceilings = {"hexarotor": 12000, "rov": 62000, "spacecraft": 32900, "cycle": 25200, "detector": 4700}
 met = lambda n, limit: "met" if n <= limit else "not met yet"
+# "(limit N)" where the limit itself is enforced; else the limit, whether it is met, and the ceiling
+limit_text = lambda n, limit, ceiling: (f"(limit {limit})" if ceiling == limit
+                                        else f"(limit {limit}: {met(n, limit)}; enforced ceiling {ceiling})")
 enforce = sys.argv[2].startswith("opt-level-3")
 cycle_worst = None
 for g in groups:
@@ -435,14 +440,13 @@ for g in groups:
         at += n
         worst = max(counts)
         cycle_worst = worst
-        print(f"controller cycle worst case: {worst} instructions (limit 25200: {met(worst, 25200)}; "
-              f"enforced ceiling {ceilings['cycle']})")
+        print(f"controller cycle worst case: {worst} instructions {limit_text(worst, 25200, ceilings['cycle'])}")
         print(f"  over {n} cycles of pil_hexarotor on frames that saturate its rotors ({saturated} saturated allocations; "
               f"mean {sum(counts) / n:.0f})")
         if saturated == 0:
             failed.append("the saturated PIL frames did not saturate the rotors")
         if enforce and worst > ceilings["cycle"]:
-            failed.append(f"controller cycle worst case {worst} > its ceiling {ceilings['cycle']}")
+            failed.append(f"controller cycle worst case {worst} > {ceilings['cycle']}")
         continue
     name, n = g[1], int(g[2])
     counts = [c - base_call for c in calls[at:at + n]]
@@ -451,13 +455,13 @@ for g in groups:
         stopped, most = int(g[3]), int(g[4])
         worst = max(counts)
         print(f"allocation worst case ({name}): {worst} instructions over {n} demands, {stopped} stopped "
-              f"(limit {limits_wc[name]}: {met(worst, limits_wc[name])}; enforced ceiling {ceilings[name]})")
+              f"{limit_text(worst, limits_wc[name], ceilings[name])}")
         kinds = ["within reach", "saturated", "one failed", "two failed"]
         per = n // len(kinds)
         print("  by kind: " + ", ".join(f"{k} {max(counts[i * per:(i + 1) * per])}" for i, k in enumerate(kinds))
               + f"; most iterations {most}")
         if enforce and (worst > ceilings[name] or stopped != 0):
-            failed.append(f"allocation worst case ({name}) {worst} > its ceiling {ceilings[name]}, or {stopped} stopped")
+            failed.append(f"allocation worst case ({name}) {worst} > {ceilings[name]}, or {stopped} stopped")
     else:
         print(f"allocation warm mean ({name}): {sum(counts) / n:.0f} instructions over {n} ticks of a saturating "
               f"trajectory ({int(g[3]) / n:.2f} iterations a tick; worst {max(counts)})")

@@ -3,6 +3,7 @@
 use crate::dual;
 use crate::geometry::Geometry;
 use crate::qp::{Factored, MAX_EQ, Objective, Rows, Stage, clamp, solve};
+use crate::zonotope::Facets;
 use crate::{Commands, MAX_ACTUATORS};
 use core::fmt;
 use nalgebra::{RealField, SMatrix, SVector};
@@ -175,6 +176,9 @@ pub struct Allocator<T, const K: usize> {
     fixed: bool,
     /// `B⁻¹` when `fixed`: stage 2 is then solved in the force (`dual.rs`).
     inverse: Option<SMatrix<T, K, K>>,
+    /// Stage 1's reach by its facets when `fixed` with a priority: stage 1 is then solved in
+    /// the torque (`zonotope.rs`).
+    facets: Option<Facets<T>>,
     /// `√ε`, the tolerance of [`Status::Met`].
     sqrt_eps: T,
 }
@@ -250,6 +254,12 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         } else {
             None
         };
+        let facets = (inverse.is_some() && K == 6 && priority != Priority::None).then(|| {
+            let order = row_order(priority);
+            Facets::new(&core::array::from_fn(|k| {
+                core::array::from_fn(|r| b[(order[r], k)])
+            }))
+        });
         Allocator {
             geometry,
             weights,
@@ -260,6 +270,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             gram,
             fixed,
             inverse,
+            facets,
             sqrt_eps: T::default_epsilon().sqrt(),
         }
     }
@@ -414,7 +425,18 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             Some(p) if p.iter().all(|x| x.is_finite()) => self.clamped(p, bounds),
             _ => start,
         };
-        let (u, spent, stopped) = self.active_set(demand, bounds, &up, start, split, through);
+        // stages 1 and 2 of a square geometry in the torque and the force, by the dual method;
+        // where rounding defeats it or the budget runs out, the primal stages with what is
+        // left of the budget
+        let (square, changes) = if split && through >= 2 {
+            self.square_stages(demand, bounds)
+        } else {
+            (None, 0)
+        };
+        let (u, spent, stopped) = match square {
+            Some(u) => (u, changes, false),
+            None => self.active_set(demand, bounds, &up, start, changes, through),
+        };
         let u = self.clamped(&u, bounds);
         if !u.iter().all(|x| x.is_finite()) {
             return self.answer(up, Status::Stopped, spent);
@@ -436,25 +458,23 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         bounds: &Bounds<T>,
         up: &Commands<T>,
         start: Commands<T>,
-        split: bool,
+        mut spent: u32,
         through: usize,
     ) -> (Commands<T>, u32, bool) {
+        let split = K == 6 && self.priority != Priority::None;
         let m = self.geometry.count();
         let b = self.geometry.effectiveness();
         let mut all: Rows<T> = [[T::zero(); MAX_ACTUATORS]; MAX_EQ];
         let mut wanted = [T::zero(); MAX_EQ];
-        let order = if K == 6 {
-            row_order(self.priority)
-        } else {
-            row_order(Priority::Torque)
-        };
+        let order = self.order();
         for r in 0..K {
             for j in 0..m {
                 all[r][j] = b[(order[r], j)];
             }
             wanted[r] = demand[order[r]];
         }
-        let mut spent = 0;
+        let mut f = [T::zero(); MAX_EQ];
+        f[..3].copy_from_slice(&wanted[3..6]);
         let mut stopped = false;
         let mut workspace = Factored::new();
         let mut run = |objective: Objective<'_, T>,
@@ -491,19 +511,19 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         // force by the dual method (dual.rs), the primal method if rounding defeats it
         if split && through >= 2 {
             let mut force: Rows<T> = [[T::zero(); MAX_ACTUATORS]; MAX_EQ];
-            let mut f = [T::zero(); MAX_EQ];
             force[..3].copy_from_slice(&all[3..6]);
-            f[..3].copy_from_slice(&wanted[3..6]);
             let mut done = false;
             if let (Some(inv), false) = (&self.inverse, stopped) {
+                let torque: [T; 3] =
+                    core::array::from_fn(|a| (0..m).fold(T::zero(), |s, j| s + all[a][j] * u[j]));
                 let (answer, changes, spent_all) =
-                    Self::force_by_dual(inv, &all, &f, &order, u, bounds, m, self.budget - spent);
+                    Self::force_by_dual(inv, &torque, &f, &order, bounds, m, self.budget - spent);
                 spent += changes;
+                stopped = spent_all;
                 if let Some(answer) = answer {
                     u = answer;
-                    stopped = spent_all;
-                    done = true;
                 }
+                done = answer.is_some() || spent_all;
             }
             if !done {
                 let objective = Objective::LeastSquares {
@@ -528,28 +548,70 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         (u, spent, stopped)
     }
 
+    /// The wrench's rows in the stages' order (the torque's first with three rotations).
+    fn order(&self) -> [usize; 6] {
+        row_order(if K == 6 {
+            self.priority
+        } else {
+            Priority::Torque
+        })
+    }
+
+    /// Stages 1 and 2 of a square, well-separated geometry by the dual method
+    /// (docs/maths.md, "Control allocation": stages 1 and 2 of a square geometry): the torque
+    /// of the reach nearest the demand's (zonotope.rs), then the force (dual.rs). Returns the
+    /// command (`None`: not such a geometry, rounding defeated the method or the budget ran
+    /// out) and the working-set changes spent.
+    fn square_stages(
+        &self,
+        demand: &SVector<T, K>,
+        bounds: &Bounds<T>,
+    ) -> (Option<Commands<T>>, u32) {
+        let (Some(facets), Some(inv)) = (&self.facets, &self.inverse) else {
+            return (None, 0);
+        };
+        let order = &row_order(self.priority);
+        let wanted: [T; MAX_EQ] = core::array::from_fn(|r| demand[order[r]]);
+        let m = self.geometry.count();
+        let bound = (0..m).fold(T::zero(), |a, j| {
+            let (l, h) = (bounds.lo[j].abs(), bounds.hi[j].abs());
+            let a = if l > a { l } else { a };
+            if h > a { h } else { a }
+        });
+        let tol = T::from_subset(&1e3) * T::default_epsilon() * (T::one() + bound);
+        let (lo, hi) = (bounds.lo.as_slice(), bounds.hi.as_slice());
+        let mut torque = [wanted[0], wanted[1], wanted[2]];
+        match facets.nearest(&torque, lo, hi, tol, self.budget) {
+            dual::Dual::Solved { x, changes } => {
+                for a in 0..3 {
+                    torque[a] += x[a];
+                }
+                let mut f = [T::zero(); MAX_EQ];
+                f[..3].copy_from_slice(&wanted[3..6]);
+                let (answer, more, _) =
+                    Self::force_by_dual(inv, &torque, &f, order, bounds, m, self.budget - changes);
+                (answer, changes + more)
+            }
+            dual::Dual::Stopped { changes } | dual::Dual::Failed { changes } => (None, changes),
+        }
+    }
+
     /// Stage 2 in the force by the dual method (dual.rs; docs/maths.md, "Control allocation":
     /// stage 2 of a square geometry): `u = P τ* + S (f_d + x)`, `P` and `S` the columns of
-    /// `B⁻¹` of the stages' rows. Returns the command (`None`: rounding defeated the method,
-    /// the primal one takes over; stage 1's `u` when the budget ran out), the changes spent,
-    /// and whether the budget ran out.
-    #[allow(clippy::too_many_arguments)]
+    /// `B⁻¹` of the stages' rows, `τ*` stage 1's torque. Returns the command (`None`: rounding
+    /// defeated the method, or the budget ran out), the changes spent, and whether the budget
+    /// ran out.
     fn force_by_dual(
         inv: &SMatrix<T, K, K>,
-        all: &Rows<T>,
+        torque: &[T; 3],
         f: &[T; MAX_EQ],
         order: &[usize; 6],
-        u: Commands<T>,
         bounds: &Bounds<T>,
         m: usize,
         budget: u32,
     ) -> (Option<Commands<T>>, u32, bool) {
         let mut s_rows = [[T::zero(); 3]; MAX_ACTUATORS];
         let mut c = [T::zero(); MAX_ACTUATORS];
-        let mut torque = [T::zero(); 3];
-        for (a, t) in torque.iter_mut().enumerate() {
-            *t = (0..m).fold(T::zero(), |s, j| s + all[a][j] * u[j]);
-        }
         for j in 0..m {
             let mut cj = T::zero();
             for a in 0..3 {
@@ -558,16 +620,23 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             }
             c[j] = cj;
         }
-        match dual::solve(&s_rows, &c, &bounds.lo, &bounds.hi, m, budget) {
+        match dual::solve(
+            &s_rows,
+            &c,
+            bounds.lo.as_slice(),
+            bounds.hi.as_slice(),
+            m,
+            budget,
+        ) {
             dual::Dual::Solved { x, changes } => {
-                let mut answer = u;
+                let mut answer = Commands::zeros();
                 for j in 0..m {
                     answer[j] =
                         c[j] + s_rows[j][0] * x[0] + s_rows[j][1] * x[1] + s_rows[j][2] * x[2];
                 }
                 (Some(answer), changes, false)
             }
-            dual::Dual::Stopped { changes } => (Some(u), changes, true),
+            dual::Dual::Stopped { changes } => (None, changes, true),
             dual::Dual::Failed { changes } => (None, changes, false),
         }
     }
@@ -613,11 +682,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     fn met(&self, u: &Commands<T>, demand: &SVector<T, K>, split: bool) -> Status {
         let miss = self.geometry.wrench(u) - demand;
         let tol = self.sqrt_eps * (T::one() + demand.amax());
-        let order = if K == 6 {
-            row_order(self.priority)
-        } else {
-            row_order(Priority::Torque)
-        };
+        let order = self.order();
         let part = |r: core::ops::Range<usize>| r.into_iter().any(|i| miss[order[i]].abs() > tol);
         if part(0..if split { 3 } else { K }) {
             Status::TorqueInfeasible
@@ -674,6 +739,41 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(2000))]
+        /// The tilted hexarotor's stages 1 and 2 by the dual method
+        /// (docs/maths.md, "Control allocation": stage 1 of a square geometry) answer what the
+        /// primal stages answer, to 1e-9 of the largest bound, and take that path on every
+        /// demand past the closed form: no rotor held, one, or two (opposite ones leave the
+        /// torques' reach flat).
+        #[test]
+        fn the_dual_stages_answer_what_the_primal_stages_answer(
+            us in proptest::collection::vec(0.0f64..=1.0, 6),
+            scale in 0.5f64..4.0,
+            held in proptest::option::of((0usize..6, 0.0f64..=1.0)),
+            second in proptest::option::of((1usize..6, 0.0f64..=1.0)),
+        ) {
+            let dual = hexarotor::<f64>(0.5);
+            let mut primal = dual;
+            (primal.fixed, primal.inverse, primal.facets) = (false, None, None);
+            let mut u = Commands::<f64>::zeros();
+            for j in 0..6 {
+                u[j] = 8.0 * us[j];
+            }
+            let demand = dual.geometry().wrench(&u) * scale;
+            let mut bounds = dual.bounds();
+            if let Some((j, at)) = held {
+                bounds.fail(j, 8.0 * at);
+                if let Some((k, at)) = second {
+                    bounds.fail((j + k) % 6, 8.0 * at);
+                }
+            }
+            let (a, b) = (dual.allocate_within(&demand, &bounds), primal.allocate_within(&demand, &bounds));
+            prop_assert!((a.u - b.u).amax() <= 1e-9 * 9.0, "{:?} against {:?}", a, b);
+            prop_assert_eq!(a.status, b.status);
+            if b.iterations > 0 {
+                prop_assert!(dual.square_stages(&demand, &bounds).0.is_some(), "{:?}", bounds);
+            }
+        }
+
         /// Skipping the last stage changes no bit: the tilted hexarotor's allocations of
         /// demands within reach and up to four times past it, with a rotor failed or not,
         /// equal those that run the last stage, in f32.

@@ -7,7 +7,9 @@
 //! min ½‖x‖²  subject to  lo − c ≤ S x ≤ hi − c,   c = P τ* + S f_d,  x = f − f_d,
 //! ```
 //!
-//! strictly convex in three unknowns. It is solved by the dual active-set method of Goldfarb
+//! strictly convex in three unknowns. (Stage 1 of the same geometries has this form too, in the
+//! torque against the facets of its reach: `zonotope.rs`.) It is solved by the dual active-set
+//! method of Goldfarb
 //! and Idnani (1983) with the identity as Hessian, from the unconstrained optimum `x = 0`:
 //! each violated row is added, rows whose multipliers would turn negative dropped on the way,
 //! and every working set holds at most three independent rows.
@@ -15,10 +17,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::qp::{MAX_EQ, ldl_solve};
-use crate::{Commands, MAX_ACTUATORS};
 use nalgebra::RealField;
-
-const N: usize = MAX_ACTUATORS;
 
 /// What the dual stage returns: `x` (the force's change from `f_d`) and the working-set
 /// changes it spent, or that it stopped (the budget) or could not finish (rounding made the
@@ -30,7 +29,7 @@ pub(crate) enum Dual<T> {
 }
 
 /// A constraint `n · x ≥ b`: row `k / 2` of `S` (lower bound, `k` even) or its negative (upper).
-fn normal<T: RealField + Copy>(s: &[[T; 3]; N], k: usize) -> [T; 3] {
+fn normal<T: RealField + Copy, const R: usize>(s: &[[T; 3]; R], k: usize) -> [T; 3] {
     let r = s[k / 2];
     if k.is_multiple_of(2) {
         r
@@ -43,34 +42,43 @@ fn dot3<T: RealField + Copy>(a: &[T; 3], b: &[T; 3]) -> T {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-/// The rows: `S`'s, their squared norms, each constraint's `b`, and the working set (its rows
-/// and multipliers).
-struct Rows<'a, T> {
-    s: &'a [[T; 3]; N],
-    norms: [T; N],
-    b: [T; 2 * N],
+/// The rows: `S`'s (at most `R`), their squared norms, each constraint's `b` (`b[k / 2][k % 2]`),
+/// and the working set (its rows and multipliers).
+struct Rows<'a, T, const R: usize> {
+    s: &'a [[T; 3]; R],
+    norms: [T; R],
+    b: [[T; 2]; R],
     m: usize,
     active: [usize; 3],
     lambda: [T; 3],
     na: usize,
+    /// The working set as a mask over the constraints (`1 << k`).
+    held: u64,
 }
 
-impl<T: RealField + Copy> Rows<'_, T> {
+impl<T: RealField + Copy, const R: usize> Rows<'_, T, R> {
+    /// Constraint `k`'s right-hand side.
+    fn rhs(&self, k: usize) -> T {
+        self.b[k / 2][k % 2]
+    }
+
     /// The most violated constraint at `x` by more than `tol`, its violation measured in `x`'s
-    /// units (`(b − n · x) / |n|`, compared squared).
+    /// units (`(b − n · x) / |n|`, compared squared). Each row's two constraints share `s_j · x`.
     fn most_violated(&self, x: &[T; 3], tol: T) -> Option<usize> {
         let mut best: Option<(usize, T)> = None;
-        for k in 0..2 * self.m {
-            if self.active[..self.na].contains(&k) || self.norms[k / 2] <= T::zero() {
+        for j in 0..self.m {
+            if self.norms[j] <= T::zero() {
                 continue;
             }
-            let v = self.b[k] - dot3(&normal(self.s, k), x);
-            if v <= tol {
-                continue;
-            }
-            let measure = v * v / self.norms[k / 2];
-            if best.is_none_or(|(_, b)| measure > b) {
-                best = Some((k, measure));
+            let v = dot3(&self.s[j], x);
+            for (k, violation) in [(2 * j, self.b[j][0] - v), (2 * j + 1, self.b[j][1] + v)] {
+                if violation <= tol || self.held & (1 << k) != 0 {
+                    continue;
+                }
+                let measure = violation * violation / self.norms[j];
+                if best.is_none_or(|(_, b)| measure > b) {
+                    best = Some((k, measure));
+                }
             }
         }
         best.map(|(k, _)| k)
@@ -107,6 +115,7 @@ impl<T: RealField + Copy> Rows<'_, T> {
 
     /// The working set's row `a` leaves it.
     fn drop(&mut self, a: usize) {
+        self.held &= !(1 << self.active[a]);
         for b in a..self.na - 1 {
             self.active[b] = self.active[b + 1];
             self.lambda[b] = self.lambda[b + 1];
@@ -117,11 +126,11 @@ impl<T: RealField + Copy> Rows<'_, T> {
 
 /// Goldfarb–Idnani on `min ½‖x‖²`, `lo_j − c_j ≤ s_j · x ≤ hi_j − c_j` for the `m` rows `s_j`,
 /// with at most `budget` working-set changes (docs/maths.md, "Control allocation").
-pub(crate) fn solve<T: RealField + Copy>(
-    s: &[[T; 3]; N],
-    c: &[T; N],
-    lo: &Commands<T>,
-    hi: &Commands<T>,
+pub(crate) fn solve<T: RealField + Copy, const R: usize>(
+    s: &[[T; 3]; R],
+    c: &[T; R],
+    lo: &[T],
+    hi: &[T],
     m: usize,
     budget: u32,
 ) -> Dual<T> {
@@ -133,17 +142,17 @@ pub(crate) fn solve<T: RealField + Copy>(
     let tau = T::from_subset(&1e3) * T::default_epsilon();
     let mut w = Rows {
         s,
-        norms: [T::zero(); N],
-        b: [T::zero(); 2 * N],
+        norms: [T::zero(); R],
+        b: [[T::zero(); 2]; R],
         m,
         active: [0; 3],
         lambda: [T::zero(); 3],
         na: 0,
+        held: 0,
     };
     for j in 0..m {
         w.norms[j] = dot3(&s[j], &s[j]);
-        w.b[2 * j] = lo[j] - c[j];
-        w.b[2 * j + 1] = c[j] - hi[j];
+        w.b[j] = [lo[j] - c[j], c[j] - hi[j]];
     }
     let mut x = [T::zero(); 3];
     let mut changes = 0u32;
@@ -154,10 +163,14 @@ pub(crate) fn solve<T: RealField + Copy>(
             if changes == budget {
                 return Dual::Stopped { changes };
             }
+            // a planted slow path (scripts/cortex-m.sh's self-test): one more factorisation
+            // per change must break the worst-case limits
+            #[cfg(feature = "planted-slow-path")]
+            core::hint::black_box(w.split(core::hint::black_box(&np)));
             let (r, z) = w.split(&np);
             let zz = dot3(&z, &z);
             // the full step, when n_p has a part off the working set's span
-            let full = (zz > tau * w.norms[p / 2]).then(|| (w.b[p] - dot3(&np, &x)) / zz);
+            let full = (zz > tau * w.norms[p / 2]).then(|| (w.rhs(p) - dot3(&np, &x)) / zz);
             // the partial step: the first multiplier to reach zero
             let mut partial: Option<(usize, T)> = None;
             for a in 0..w.na {
@@ -189,6 +202,7 @@ pub(crate) fn solve<T: RealField + Copy>(
                 None if w.na == 3 => return Dual::Failed { changes },
                 None => {
                     w.active[w.na] = p;
+                    w.held |= 1 << p;
                     w.lambda[w.na] = lp;
                     w.na += 1;
                     break;

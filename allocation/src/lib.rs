@@ -63,6 +63,7 @@ pub mod presets;
 mod qp;
 mod restoring;
 mod wheels;
+mod zonotope;
 
 pub use allocator::{
     Allocation, Allocator, AllocatorError, Bounds, DEFAULT_BUDGET, Priority, Status,

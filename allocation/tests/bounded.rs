@@ -29,7 +29,8 @@ fn within<const K: usize>(a: &eqtrack_allocation::Allocation<f64, K>, b: &Bounds
 }
 
 /// Along a trajectory of demands that saturate (and with a failed actuator), warm and cold
-/// answers agree to 1e-12 of the largest bound; the warm ones take fewer iterations.
+/// answers agree to 1e-12 of the largest bound; the warm ones take fewer iterations where the
+/// primal method runs.
 fn warm_equals_cold<const K: usize>(
     alloc: &Allocator<f64, K>,
     demand: impl Fn(f64) -> SVector<f64, K>,
@@ -97,20 +98,33 @@ fn warm_starts_reach_the_cold_optimum_in_fewer_iterations() {
             2.5 * (0.4 * t).sin() + 1.0,
         ])
     };
-    for (name, (cold, warm)) in [
-        ("hexarotor", warm_equals_cold(&hexarotor(), hex, None)),
+    // the six-rotor hexarotor's two stages are solved by the dual method from the
+    // unconstrained optimum (docs/maths.md, "Control allocation": stages 1 and 2 of a square
+    // geometry), which takes no start: warm and cold are the same computation there
+    for (name, dual, (cold, warm)) in [
+        ("hexarotor", true, warm_equals_cold(&hexarotor(), hex, None)),
         (
             "hexarotor, rotor 2 failed",
+            true,
             warm_equals_cold(&hexarotor(), hex, Some((2, 3.0))),
         ),
-        ("rov", warm_equals_cold(&rov(), rov_demand, None)),
+        ("rov", false, warm_equals_cold(&rov(), rov_demand, None)),
         (
             "rov, thruster 5 failed",
+            false,
             warm_equals_cold(&rov(), rov_demand, Some((5, 0.0))),
         ),
-        ("spacecraft", warm_equals_cold(&spacecraft(), sc, None)),
+        (
+            "spacecraft",
+            false,
+            warm_equals_cold(&spacecraft(), sc, None),
+        ),
     ] {
-        assert!(warm < cold, "{name}: warm {warm} iterations, cold {cold}");
+        if dual {
+            assert_eq!(warm, cold, "{name}: warm {warm} iterations, cold {cold}");
+        } else {
+            assert!(warm < cold, "{name}: warm {warm} iterations, cold {cold}");
+        }
         println!("{name}: {cold} iterations cold, {warm} warm");
     }
 }

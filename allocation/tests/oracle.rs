@@ -3,7 +3,9 @@
 //! equality-constrained least-squares problem by the SVD, the best feasible one kept. Each
 //! stage's optimum must be met to 1e-9 (docs/maths.md, "Control allocation").
 
-use eqtrack_allocation::{Actuator, Allocator, Geometry, MAX_ACTUATORS, Priority, Status, presets};
+use eqtrack_allocation::{
+    Actuator, Allocator, Bounds, Geometry, MAX_ACTUATORS, Priority, Status, presets,
+};
 use nalgebra::{DMatrix, DVector, SVector};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{Rng, SeedableRng};
@@ -191,9 +193,23 @@ fn check<const K: usize>(
     weights: &[f64],
     preferred: &[f64],
 ) {
+    check_within(actuators, demand, priority, weights, preferred, &|_| ());
+}
+
+/// [`check`] within the actuators' bounds as `narrow` leaves them (failed actuators held).
+fn check_within<const K: usize>(
+    actuators: &[Actuator<f64>],
+    demand: SVector<f64, K>,
+    priority: Priority,
+    weights: &[f64],
+    preferred: &[f64],
+    narrow: &dyn Fn(&mut Bounds<f64>),
+) {
     let geometry = Geometry::<f64, K>::new(actuators).unwrap();
     let alloc = Allocator::new(geometry, weights, preferred, priority).unwrap();
-    let got = alloc.allocate(&demand);
+    let mut bounds = alloc.bounds();
+    narrow(&mut bounds);
+    let got = alloc.allocate_within(&demand, &bounds);
     let m = actuators.len();
     assert!(
         got.status != Status::Stopped,
@@ -202,8 +218,8 @@ fn check<const K: usize>(
     assert!(got.u.iter().all(|x| x.is_finite()));
     let b = DMatrix::from_fn(K, m, |i, j| geometry.effectiveness()[(i, j)]);
     let v = DVector::from_fn(K, |i, _| demand[i]);
-    let lo = DVector::from_fn(m, |j, _| actuators[j].min);
-    let hi = DVector::from_fn(m, |j, _| actuators[j].max);
+    let lo = DVector::from_fn(m, |j, _| bounds.lo[j]);
+    let hi = DVector::from_fn(m, |j, _| bounds.hi[j]);
     let u = DVector::from_fn(m, |j, _| got.u[j]);
     let scale = 1.0 + v.amax() + b.amax() * hi.amax().max(lo.amax());
     let tol = 1e-9 * scale;
@@ -536,5 +552,31 @@ fn failed_actuators_held_at_a_value_meet_each_stage_optimum() {
             &[1.0, 2.0, 1.0, 0.5, 1.0, 1.0, 3.0, 1.0],
             &[],
         );
+    }
+}
+
+#[test]
+fn the_hexarotor_with_any_two_rotors_held_meets_each_stage_optimum() {
+    // the six-rotor hexarotor's stages 1 and 2 by the dual method
+    // (docs/maths.md, "Control allocation": stage 1 of a square geometry): every rotor and every pair held at a value
+    // within its range, a pair of opposite rotors leaving the torques the rest reach flat (a
+    // plane), on demands within reach and far past it
+    let mut rng = ChaCha8Rng::seed_from_u64(45);
+    let mut x = move || (rng.next_u64() as f64 / u64::MAX as f64) * 2.0 - 1.0;
+    let hex = hexarotor();
+    for i in 0..6 {
+        for j in i..6 {
+            for size in [0.5, 3.0, 20.0] {
+                let (a, b) = (4.0 * (x() + 1.0), 4.0 * (x() + 1.0));
+                let mut w = SVector::<f64, 6>::from_fn(|_, _| size * x());
+                w[5] += 30.0;
+                check_within(&hex, w, Priority::Torque, &[], &[], &|bounds| {
+                    bounds.fail(i, a);
+                    if j != i {
+                        bounds.fail(j, b);
+                    }
+                });
+            }
+        }
     }
 }
