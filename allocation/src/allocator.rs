@@ -40,8 +40,10 @@ pub enum Status {
     /// torque) is produced.
     ForceGivenUp = 2,
     /// 3: the budget of iterations ran out before the optimum; the answer is the last
-    /// iterate (within the bounds, finite, no stage's objective above its start; a stage that
-    /// finished keeps its optimum).
+    /// iterate (within the bounds, finite, no stage's objective above its start; a primal
+    /// stage that finished keeps its optimum). The dual stages of a square geometry give no
+    /// command until both finish: a budget spent in them answers the primal stages' start,
+    /// the closed form clamped, or the previous command clamped when one is given.
     Stopped = 3,
     /// 4: the demand was not finite; the answer is the preferred command within the bounds.
     InvalidDemand = 4,
@@ -586,10 +588,16 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
                 for a in 0..3 {
                     torque[a] += x[a];
                 }
+                // a demand near the scalar's largest can overflow the offsets: the primal
+                // stages then answer (the clamps would turn a NaN into a bound unseen)
+                if !torque.iter().all(|t| t.is_finite()) {
+                    return (None, changes);
+                }
                 let mut f = [T::zero(); MAX_EQ];
                 f[..3].copy_from_slice(&wanted[3..6]);
                 let (answer, more, _) =
                     Self::force_by_dual(inv, &torque, &f, order, bounds, m, self.budget - changes);
+                let answer = answer.filter(|u| u.iter().all(|x| x.is_finite()));
                 (answer, changes + more)
             }
             dual::Dual::Stopped { changes } | dual::Dual::Failed { changes } => (None, changes),

@@ -138,6 +138,8 @@ pub(crate) fn solve<T: RealField + Copy, const R: usize>(
         let a = if lo[j].abs() > a { lo[j].abs() } else { a };
         if hi[j].abs() > a { hi[j].abs() } else { a }
     });
+    // the working set's mask has a bit for each of the 2m constraints
+    debug_assert!(m <= R && 2 * m <= 64);
     let tol = T::from_subset(&1e3) * T::default_epsilon() * (T::one() + bound);
     let tau = T::from_subset(&1e3) * T::default_epsilon();
     let mut w = Rows {

@@ -35,6 +35,8 @@ pub(crate) struct Facets<T> {
     norms: [T; M],
     /// The columns `b_k`.
     columns: [[T; 3]; M],
+    /// `|b_i × b_j|² / (|b_i|² |b_j|²)` of each pair: how far apart its columns are.
+    apart: [T; PAIRS],
 }
 
 impl<T: RealField + Copy> Facets<T> {
@@ -44,6 +46,7 @@ impl<T: RealField + Copy> Facets<T> {
         let mut normals = [[T::zero(); 3]; PAIRS];
         let mut dots = [[T::zero(); M]; PAIRS];
         let mut pairs = [[0; 2]; PAIRS];
+        let mut apart = [T::zero(); PAIRS];
         let norms: [T; M] = core::array::from_fn(|k| dot3(&columns[k], &columns[k]));
         let mut f = 0;
         for i in 0..M {
@@ -57,6 +60,7 @@ impl<T: RealField + Copy> Facets<T> {
                 ];
                 let nn = dot3(&n, &n);
                 if nn > tau * norms[i] * norms[j] {
+                    apart[f] = nn / (norms[i] * norms[j]);
                     let scale = T::one() / nn.sqrt();
                     normals[f] = [n[0] * scale, n[1] * scale, n[2] * scale];
                     for k in 0..M {
@@ -75,6 +79,7 @@ impl<T: RealField + Copy> Facets<T> {
             pairs,
             norms,
             columns: *columns,
+            apart,
         }
     }
 
@@ -112,12 +117,11 @@ impl<T: RealField + Copy> Facets<T> {
             high[f] = c + r;
             centre[f] = dot3(&self.normals[f], wanted);
             let [i, j] = self.pairs[f];
-            if !solid
-                && movable[i]
-                && movable[j]
-                && dot3(&self.normals[f], &self.normals[f]) > T::zero()
-            {
-                plane = plane.or(Some(f));
+            if !solid && movable[i] && movable[j] && self.apart[f] > T::zero() {
+                // the plane of the movable pair farthest apart
+                if plane.is_none_or(|p: usize| self.apart[f] > self.apart[p]) {
+                    plane = Some(f);
+                }
                 solid = (0..M).any(|k| movable[k] && d[k] * d[k] > tau * self.norms[k]);
             }
         }

@@ -355,3 +355,54 @@ fn a_weakened_actuator_has_its_column_scaled() {
     c.weaken(99, 0.5);
     assert_eq!(c, before);
 }
+
+/// The six-rotor hexarotor's dual stages (docs/maths.md, "Control allocation": stage 1 of a
+/// square geometry) give no command until both finish: a budget spent in them answers the
+/// primal stages' start, the closed form `B⁻¹w` clamped into the bounds, or the previous
+/// command clamped when one is given, with status 3 and the budget's count.
+#[test]
+fn a_budget_spent_in_the_dual_stages_answers_the_clamped_start() {
+    let mut rng = ChaCha8Rng::seed_from_u64(46);
+    let mut x = move || (rng.next_u64() as f64 / u64::MAX as f64) * 2.0 - 1.0;
+    let hex = hexarotor();
+    let b = hex
+        .geometry()
+        .effectiveness()
+        .fixed_columns::<6>(0)
+        .into_owned();
+    let inverse = b.try_inverse().unwrap();
+    let mut checked = 0;
+    for i in 0..60 {
+        let mut bounds = hex.bounds();
+        if i % 3 == 1 {
+            bounds.fail(i % 6, 4.0 * (x() + 1.0));
+        }
+        let d = SVector::<f64, 6>::from_fn(
+            |r, _| if r < 3 { 2.0 * x() } else { 8.0 * x() } + if r == 5 { 40.0 } else { 0.0 },
+        );
+        let previous = Commands::<f64>::from_fn(|j, _| if j < 6 { 9.0 * x() } else { 0.0 });
+        let full = hex.allocate_within(&d, &bounds);
+        let clamp = |u: &SVector<f64, 6>, j: usize| u[j].max(bounds.lo[j]).min(bounds.hi[j]);
+        let start = inverse * d;
+        for budget in 1..full.iterations {
+            let cold = hex.with_budget(budget).allocate_within(&d, &bounds);
+            let warm = hex
+                .with_budget(budget)
+                .allocate_from(&d, &bounds, Some(&previous));
+            for (a, from) in [
+                (cold, start),
+                (warm, previous.fixed_rows::<6>(0).into_owned()),
+            ] {
+                assert_eq!((a.status, a.iterations), (Status::Stopped, budget), "{a:?}");
+                for j in 0..6 {
+                    assert!(
+                        (a.u[j] - clamp(&from, j)).abs() <= 1e-9,
+                        "demand {i}, budget {budget}: {a:?}"
+                    );
+                }
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 100, "{checked} stopped allocations");
+}
