@@ -751,15 +751,21 @@ mod tests {
         /// (docs/maths.md, "Control allocation": stage 1 of a square geometry) answer what the
         /// primal stages answer, to 1e-9 of the largest bound, and take that path on every
         /// demand past the closed form: no rotor held, one, or two (opposite ones leave the
-        /// torques' reach flat).
+        /// torques' reach flat); with the torque first, or the tilt (stage 1 then the roll and
+        /// pitch torques and the thrust along z).
         #[test]
         fn the_dual_stages_answer_what_the_primal_stages_answer(
             us in proptest::collection::vec(0.0f64..=1.0, 6),
             scale in 0.5f64..4.0,
             held in proptest::option::of((0usize..6, 0.0f64..=1.0)),
             second in proptest::option::of((1usize..6, 0.0f64..=1.0)),
+            tilt in proptest::bool::ANY,
         ) {
-            let dual = hexarotor::<f64>(0.5);
+            let mut dual = hexarotor::<f64>(0.5);
+            if tilt {
+                let priority = Priority::Tilt;
+                dual = Allocator::new(*dual.geometry(), &[], &[], priority).unwrap();
+            }
             let mut primal = dual;
             (primal.fixed, primal.inverse, primal.facets) = (false, None, None);
             let mut u = Commands::<f64>::zeros();
