@@ -2,7 +2,7 @@
 
 use crate::dual;
 use crate::geometry::Geometry;
-use crate::qp::{Factored, MAX_EQ, Objective, Rows, Stage, clamp, solve};
+use crate::qp::{Factored, MAX_EQ, Objective, Rows, Stage, clamp, solve, tolerance};
 use crate::zonotope::Facets;
 use crate::{Commands, MAX_ACTUATORS};
 use core::fmt;
@@ -575,12 +575,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         let order = &row_order(self.priority);
         let wanted: [T; MAX_EQ] = core::array::from_fn(|r| demand[order[r]]);
         let m = self.geometry.count();
-        let bound = (0..m).fold(T::zero(), |a, j| {
-            let (l, h) = (bounds.lo[j].abs(), bounds.hi[j].abs());
-            let a = if l > a { l } else { a };
-            if h > a { h } else { a }
-        });
-        let tol = T::from_subset(&1e3) * T::default_epsilon() * (T::one() + bound);
+        let tol = tolerance(bounds.lo.as_slice(), bounds.hi.as_slice(), m);
         let (lo, hi) = (bounds.lo.as_slice(), bounds.hi.as_slice());
         let mut torque = [wanted[0], wanted[1], wanted[2]];
         match facets.nearest(&torque, lo, hi, tol, self.budget) {

@@ -16,7 +16,7 @@
 
 #![allow(clippy::needless_range_loop)]
 
-use crate::qp::{MAX_EQ, ldl_solve};
+use crate::qp::{MAX_EQ, ldl_solve, tolerance};
 use nalgebra::RealField;
 
 /// What the dual stage returns: `x` (the force's change from `f_d`) and the working-set
@@ -38,7 +38,8 @@ fn normal<T: RealField + Copy, const R: usize>(s: &[[T; 3]; R], k: usize) -> [T;
     }
 }
 
-fn dot3<T: RealField + Copy>(a: &[T; 3], b: &[T; 3]) -> T {
+/// `a · b` in three dimensions.
+pub(crate) fn dot3<T: RealField + Copy>(a: &[T; 3], b: &[T; 3]) -> T {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
@@ -134,13 +135,9 @@ pub(crate) fn solve<T: RealField + Copy, const R: usize>(
     m: usize,
     budget: u32,
 ) -> Dual<T> {
-    let bound = (0..m).fold(T::zero(), |a, j| {
-        let a = if lo[j].abs() > a { lo[j].abs() } else { a };
-        if hi[j].abs() > a { hi[j].abs() } else { a }
-    });
     // the working set's mask has a bit for each of the 2m constraints
     debug_assert!(m <= R && 2 * m <= 64);
-    let tol = T::from_subset(&1e3) * T::default_epsilon() * (T::one() + bound);
+    let tol = tolerance(lo, hi, m);
     let tau = T::from_subset(&1e3) * T::default_epsilon();
     let mut w = Rows {
         s,

@@ -169,6 +169,15 @@ fn larger<T: RealField + Copy>(a: T, b: T) -> T {
     if b > a { b } else { a }
 }
 
+/// The tolerance of a bound or a step, `10³ ε (1 + the largest |bound|)` over the first `m`
+/// actuators: the primal and the dual stages share it.
+pub(crate) fn tolerance<T: RealField + Copy>(lo: &[T], hi: &[T], m: usize) -> T {
+    let bound = (0..m).fold(T::zero(), |a, j| {
+        larger(larger(a, lo[j].abs()), hi[j].abs())
+    });
+    T::from_subset(&1e3) * T::default_epsilon() * (T::one() + bound)
+}
+
 /// The inner product of the first `n` entries, weighted by `metric` when given.
 fn dot<T: RealField + Copy>(a: &[T; N], b: &[T; N], n: usize, metric: Option<&[T; N]>) -> T {
     let mut s = T::zero();
@@ -564,10 +573,7 @@ pub(crate) fn solve<T: RealField + Copy>(
     f: &mut Factored<T>,
 ) -> Solved<T> {
     let (lo, hi, m) = (stage.lo, stage.hi, stage.m);
-    let bound = (0..m).fold(T::zero(), |a, j| {
-        larger(larger(a, lo[j].abs()), hi[j].abs())
-    });
-    let tol = T::from_subset(&1e3) * T::default_epsilon() * (T::one() + bound);
+    let tol = tolerance(lo.as_slice(), hi.as_slice(), m);
     let tau = T::from_subset(&1e3) * T::default_epsilon();
     let mut inv_w = [T::one(); N];
     if let Objective::Nearest { w, .. } = stage.objective {

@@ -15,7 +15,7 @@
 
 #![allow(clippy::needless_range_loop)]
 
-use crate::dual::{self, Dual};
+use crate::dual::{self, Dual, dot3};
 use nalgebra::RealField;
 
 /// The actuators of a square geometry's stage 1 (three torque rows, six columns).
@@ -53,11 +53,7 @@ impl<T: RealField + Copy> Facets<T> {
             for j in i + 1..M {
                 pairs[f] = [i, j];
                 let (a, b) = (&columns[i], &columns[j]);
-                let n = [
-                    a[1] * b[2] - a[2] * b[1],
-                    a[2] * b[0] - a[0] * b[2],
-                    a[0] * b[1] - a[1] * b[0],
-                ];
+                let n = cross(a, b);
                 let nn = dot3(&n, &n);
                 if nn > tau * norms[i] * norms[j] {
                     apart[f] = nn / (norms[i] * norms[j]);
@@ -153,11 +149,7 @@ impl<T: RealField + Copy> Facets<T> {
         let mut count = 1;
         for k in 0..M {
             let b = &self.columns[k];
-            let e = [
-                p[1] * b[2] - p[2] * b[1],
-                p[2] * b[0] - p[0] * b[2],
-                p[0] * b[1] - p[1] * b[0],
-            ];
+            let e = cross(&p, b);
             let ee = dot3(&e, &e);
             if movable[k] && ee > tau * self.norms[k] {
                 let scale = T::one() / ee.sqrt();
@@ -183,6 +175,11 @@ impl<T: RealField + Copy> Facets<T> {
     }
 }
 
-fn dot3<T: RealField + Copy>(a: &[T; 3], b: &[T; 3]) -> T {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+/// `a × b`.
+fn cross<T: RealField + Copy>(a: &[T; 3], b: &[T; 3]) -> [T; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
