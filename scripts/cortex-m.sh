@@ -34,8 +34,9 @@
 #   TOOLCHAIN_CACHE=dir    toolchain cache (default <repo>/.toolchain; CORTEX_M_CACHE also works)
 #   CORTEX_M_TIMEOUT=s     QEMU run timeout in seconds (default 120)
 #   CORTEX_M_ICOUNT_TIMEOUT=s  the same for each counting run (default 900)
-#   CORTEX_M_SLOW_ALLOCATION=1  plants a slow path in the allocation (one more factorisation
-#                          per iteration): the worst-case limits must fail
+#   CORTEX_M_SLOW_ALLOCATION=1  plants slow paths in the allocation (one more factorisation
+#                          per iteration) and the framing (one more CRC pass per frame
+#                          sent): the worst-case and framing limits must fail
 #   CORTEX_M_PERTURB=1     multiply one expected (host) torque by 1.001: the comparison must fail
 #
 # Exit: 0 on PASS or SKIPPED, 1 on any failure.
@@ -66,8 +67,8 @@ step() { printf '[%4ds] %s\n' "$SECONDS" "$*" >&2; }
 # shellcheck source=scripts/lib/cortex-m-toolchain.sh
 source "$REPO/scripts/lib/cortex-m-toolchain.sh"
 
-# CORTEX_M_SLOW_ALLOCATION=1 is the self-test of the worst-case limits: only the opt-level 3
-# count, with the planted slow path, which must fail (steps 2 to 4 are skipped).
+# CORTEX_M_SLOW_ALLOCATION=1 is the self-test of the worst-case and framing limits: only the
+# opt-level 3 count, with the planted slow paths, which must fail (steps 2 to 4 are skipped).
 if [[ ${CORTEX_M_SLOW_ALLOCATION:-} != 1 ]]; then
 
 # --- 2. firmware: build and run under QEMU ---------------------------------------------------
@@ -339,23 +340,22 @@ for i, limit in limits.items():
 # reference) at most 16 800, a tenth of the period. The serial framing around it, which only
 # processor in the loop runs (a board's timer-driven loop reads its sensors instead), is
 # counted and printed beside it.
-if sys.argv[2] == "opt-level-3":
-    count = lambda i: sum(gaps[i].values()) - base
-    cycle = count(32)
+count = lambda i: sum(gaps[i].values()) - base
+if sys.argv[2] in ("opt-level-3", "opt-level-3-slow-allocation"):
+    # the issue's framing limit (6 000, in + out), met and enforced as it is (BENCHMARKS
+    # section 32); the planted slow path (one more CRC pass per frame sent) must break it
     framing = count(30) + count(34)
+    print(f"framing: {framing} instructions (limit 6000)")
+    if framing > 6000:
+        over.append(f"framing {framing} > 6000 ({count(30)} in, {count(34)} out)")
+if sys.argv[2] == "opt-level-3":
+    cycle = count(32)
     print(f"ICOUNT the controller's cycle of pil_hexarotor: {cycle} instructions (estimator {count(36)}, "
           f"law {count(38)}, allocation {count(40)}, the reference's step and the glue "
           f"{cycle - count(36) - count(38) - count(40)}); with the PIL framing "
           f"({count(30)} in, {count(34)} out) {cycle + framing}")
     print(f"ICOUNT the law at the reference against the papers' (world): SE(3) {count(44)} against "
           f"{count(4)}, SO(3) {count(42)} against {count(2)}")
-    # the issue's framing limit (6 000, in + out) is not met yet (BENCHMARKS sections 22, 27
-    # and 28): the line names it, and a ceiling 15 % over the count measured last is
-    # enforced, so that it cannot grow
-    met = "met" if framing <= 6000 else "not met yet"
-    print(f"framing: {framing} instructions (limit 6000: {met}; enforced ceiling 10000)")
-    if framing > 10000:
-        sys.exit(f"ICOUNT the PIL framing: {framing} instructions, over its ceiling of 10000")
     for what, n, limit in [("the generic SE(3) EqT at the reference", count(44), 2000),
                            ("the controller's SE(3) cycle", cycle, 16800)]:
         if n > limit:
@@ -479,7 +479,7 @@ PY
 
 if [[ ${CORTEX_M_SLOW_ALLOCATION:-} == 1 ]]; then
 	icount_run 3 worst-cases,slow-allocation slow-allocation
-	echo "cortex-m: the planted slow path passed the worst-case limits"
+	echo "cortex-m: the planted slow paths passed the worst-case and framing limits"
 	exit 0
 fi
 icount_run s icount

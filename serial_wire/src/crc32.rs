@@ -53,13 +53,12 @@ fn word(crc: u32, w: u32) -> u32 {
 
 /// The register after one more byte.
 #[inline(always)]
-fn byte(crc: u32, b: u8) -> u32 {
+pub(crate) fn byte(crc: u32, b: u8) -> u32 {
     TABLES[0][((crc ^ u32::from(b)) & 0xFF) as usize] ^ (crc >> 8)
 }
 
-/// The CRC-32 of `bytes`.
-pub(crate) fn checksum(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
+/// The register after `bytes` (no final XOR).
+pub(crate) fn update(mut crc: u32, bytes: &[u8]) -> u32 {
     let mut words = bytes.chunks_exact(4);
     for w in &mut words {
         crc = word(crc, u32::from_le_bytes([w[0], w[1], w[2], w[3]]));
@@ -67,7 +66,55 @@ pub(crate) fn checksum(bytes: &[u8]) -> u32 {
     for &b in words.remainder() {
         crc = byte(crc, b);
     }
-    !crc
+    crc
+}
+
+/// The whitening word: [`crate::WHITEN`] in each byte.
+const WHITE: u32 = u32::from_le_bytes([crate::WHITEN; 4]);
+
+/// The register after `bytes` as they are, which are then whitened (each XORed with
+/// [`crate::WHITEN`]), and whether a whitened byte is zero: the sender's one pass.
+pub(crate) fn update_whitening(mut crc: u32, bytes: &mut [u8]) -> (u32, bool) {
+    // the zero-byte test of each word ([`crate::zero_bytes`]) before its mask: the masks of
+    // an OR are the mask of the ORs
+    let mut zeros = 0;
+    let mut words = bytes.chunks_exact_mut(4);
+    for w in &mut words {
+        let x = u32::from_le_bytes([w[0], w[1], w[2], w[3]]);
+        crc = word(crc, x);
+        let white = x ^ WHITE;
+        zeros |= white.wrapping_sub(0x0101_0101) & !white;
+        w.copy_from_slice(&white.to_le_bytes());
+    }
+    let mut zero = zeros & 0x8080_8080 != 0;
+    for b in words.into_remainder() {
+        crc = byte(crc, *b);
+        *b ^= crate::WHITEN;
+        zero |= *b == 0;
+    }
+    (crc, zero)
+}
+
+/// Un-whitens `bytes` (each XORed with [`crate::WHITEN`]) and returns the register after
+/// them: the receiver's one pass.
+pub(crate) fn update_unwhitening(mut crc: u32, bytes: &mut [u8]) -> u32 {
+    let mut words = bytes.chunks_exact_mut(4);
+    for w in &mut words {
+        let x = u32::from_le_bytes([w[0], w[1], w[2], w[3]]) ^ WHITE;
+        crc = word(crc, x);
+        w.copy_from_slice(&x.to_le_bytes());
+    }
+    for b in words.into_remainder() {
+        *b ^= crate::WHITEN;
+        crc = byte(crc, *b);
+    }
+    crc
+}
+
+/// The CRC-32 of `bytes`.
+#[cfg(test)]
+pub(crate) fn checksum(bytes: &[u8]) -> u32 {
+    !update(!0, bytes)
 }
 
 #[cfg(test)]

@@ -5,6 +5,69 @@
 use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
+/// The command's vectors on the wire as byte strings (version 6): postcard's length, then the
+/// numbers' little-endian bytes, written with one copy instead of one call per number. The
+/// board writes commands and reads states, so the command's vectors take the form that is
+/// cheaper to write; the state's stay postcard sequences, cheaper to read. The length counts
+/// bytes, four a number; one that is not a multiple of four, or more numbers than the vector
+/// holds, does not decode.
+mod floats {
+    use heapless::Vec;
+    use serde::de::{Error, Visitor};
+    use serde::{Deserializer, Serializer};
+
+    /// Writes `v`'s numbers into `buf` and serialises them as bytes.
+    fn write<S: Serializer>(v: &[f32], buf: &mut [u8], s: S) -> Result<S::Ok, S::Error> {
+        let Some(out) = buf.get_mut(..4 * v.len()) else {
+            return Err(serde::ser::Error::custom(
+                "a vector longer than its frame's",
+            ));
+        };
+        for (b, x) in out.chunks_exact_mut(4).zip(v) {
+            b.copy_from_slice(&x.to_le_bytes());
+        }
+        s.serialize_bytes(out)
+    }
+
+    /// Serialises a vector of up to 16 numbers (a buffer of six for the wrenches: clearing
+    /// the larger one costs more than the copy saves).
+    pub fn serialize<S: Serializer, const N: usize>(
+        v: &Vec<f32, N>,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
+        if N <= 6 {
+            write(v, &mut [0u8; 24], s)
+        } else {
+            write(v, &mut [0u8; 64], s)
+        }
+    }
+
+    /// Reads a vector of at most `N` numbers.
+    pub fn deserialize<'de, D: Deserializer<'de>, const N: usize>(
+        d: D,
+    ) -> Result<Vec<f32, N>, D::Error> {
+        struct Floats<const N: usize>;
+        impl<const N: usize> Visitor<'_> for Floats<N> {
+            type Value = Vec<f32, N>;
+            fn expecting(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                write!(f, "at most {N} little-endian f32, as bytes")
+            }
+            fn visit_bytes<E: Error>(self, bytes: &[u8]) -> Result<Self::Value, E> {
+                if !bytes.len().is_multiple_of(4) || bytes.len() > 4 * N {
+                    return Err(E::invalid_length(bytes.len(), &self));
+                }
+                let mut v = Vec::new();
+                for b in bytes.chunks_exact(4) {
+                    // within capacity: checked above
+                    let _ = v.push(f32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+                }
+                Ok(v)
+            }
+        }
+        d.deserialize_bytes(Floats::<N>)
+    }
+}
+
 /// Bits of [`Frame::Refused`]'s `mismatch`: what differs between the two sides (the same
 /// bits as the iceoryx2 pair's).
 pub mod mismatch {
@@ -84,8 +147,10 @@ pub struct StateFrame {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Estimate {
     /// `Q̂`, row-major (n² entries).
+    #[serde(with = "floats")]
     pub q: Vec<f32, 16>,
     /// `V̂` (m entries).
+    #[serde(with = "floats")]
     pub v: Vec<f32, 6>,
     /// The gyro bias estimate.
     pub bias: [f32; 3],
@@ -97,12 +162,16 @@ pub struct Allocation {
     /// The allocator's status code.
     pub status: u8,
     /// The actuator commands.
+    #[serde(with = "floats")]
     pub u_cmd: Vec<f32, 12>,
     /// The demand (m entries).
+    #[serde(with = "floats")]
     pub demand: Vec<f32, 6>,
     /// The wrench the commands achieve (m entries).
+    #[serde(with = "floats")]
     pub achieved: Vec<f32, 6>,
     /// `B u_cmd` plus the compensated restoring wrench (m entries).
+    #[serde(with = "floats")]
     pub accounted: Vec<f32, 6>,
 }
 
@@ -134,12 +203,15 @@ pub struct CommandFrame {
     /// 3 asym).
     pub law: u8,
     /// The law's wrench (m entries).
+    #[serde(with = "floats")]
     pub tau: Vec<f32, 6>,
     /// The Lyapunov function at `t_k`.
     pub lyapunov: f32,
     /// The disturbance observer's estimate (m entries; empty without it).
+    #[serde(with = "floats")]
     pub observer: Vec<f32, 6>,
     /// The integral's torque (m entries; empty without it).
+    #[serde(with = "floats")]
     pub integral: Vec<f32, 6>,
     /// The estimate, when the controller ran its estimator.
     pub estimate: Option<Estimate>,

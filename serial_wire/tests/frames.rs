@@ -4,7 +4,7 @@
 
 use eqtrack_serial_wire::{
     Allocation, CommandFrame, Deframer, Detection, Estimate, Frame, FrameError, Hello, MAX_ENCODED,
-    SERIAL_VERSION, Samples, StateFrame, decode, encode, mismatch,
+    SERIAL_VERSION, Samples, StateFrame, WHITEN, decode, encode, mismatch,
 };
 use proptest::prelude::*;
 
@@ -107,7 +107,7 @@ fn every_kind_round_trips_and_the_largest_fits() {
         let got: Vec<_> = bytes.iter().filter_map(|b| d.push(*b)).collect();
         assert_eq!(got, vec![Ok(f)]);
     }
-    // the largest command is well inside the limit
+    // the largest command fits, with room to spare (352 of 387 bytes)
     assert!(encoded(&Frame::Command(command())).len() < MAX_ENCODED - 32);
 }
 
@@ -254,16 +254,26 @@ fn frame_sizes_are_what_the_docs_say() {
     .iter()
     .map(|f| encoded(f).len())
     .collect();
-    assert_eq!(sizes, vec![83, 34, 247, 351]);
+    assert_eq!(sizes, vec![83, 34, 247, 352]);
 }
 
-/// `version | message | crc32` COBS-encoded by the `cobs` crate, with the closing zero: the
-/// reference the frames' own encoder must equal byte for byte.
+/// `version | W(message | crc32)` COBS-encoded by the `cobs` crate, with the closing zero
+/// (`W`: each byte XORed with `WHITEN`; the CRC is the `crc` crate's, of the version and the
+/// message as they are): the reference the frames' own encoder must equal byte for byte.
 fn reference_encoding(version: u8, message: &[u8]) -> Vec<u8> {
+    reference_framing(version, message, WHITEN)
+}
+
+/// The same framing with `white` for the whitening byte (0: none, as versions 5 and
+/// earlier framed).
+fn reference_framing(version: u8, message: &[u8], white: u8) -> Vec<u8> {
     let mut raw = vec![version];
     raw.extend_from_slice(message);
     let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(&raw);
     raw.extend_from_slice(&crc.to_le_bytes());
+    for b in &mut raw[1..] {
+        *b ^= white;
+    }
     let mut out = vec![0u8; cobs::max_encoding_length(raw.len())];
     let n = cobs::encode(&raw, &mut out);
     out.truncate(n);
@@ -285,12 +295,22 @@ fn the_encoding_is_the_reference_cobs_and_crc() {
             "{f:?}"
         );
     }
-    // blocks of exactly 254 non-zero bytes, at the end and inside, and the largest frame
+    // blocks of exactly 254 non-zero bytes, at the end and inside, and the largest frame: a
+    // zero for COBS is a byte of the message that whitens to zero, `WHITEN` (zeros, two of
+    // them in a row, and none; the CRC's bytes vary)
     for len in [252, 253, 254, 255, 379] {
-        for zero_at in [None, Some(0), Some(len / 2), Some(len - 1)] {
+        for zero_at in [
+            None,
+            Some(0),
+            Some(len / 2),
+            Some(len - 1),
+            Some(252),
+            Some(253),
+        ] {
             let mut message = vec![0x5a; len];
-            if let Some(z) = zero_at {
-                message[z] = 0;
+            if let Some(z) = zero_at.filter(|z| *z < len) {
+                message[z] = WHITEN;
+                message[z.saturating_sub(1)] = WHITEN;
             }
             let mut out = [0u8; MAX_ENCODED];
             let n = eqtrack_serial_wire::encode_raw(7, &message, &mut out).unwrap();
@@ -310,13 +330,42 @@ fn the_encoding_is_the_reference_cobs_and_crc() {
     );
 }
 
+/// A peer of an earlier version frames without whitening: its frames, valid in their own
+/// version, are refused as that version, not as line noise; corrupted, they are a CRC error.
+#[test]
+fn an_unwhitened_frame_of_an_earlier_version_is_named_by_its_version() {
+    for f in all_frames() {
+        let message = postcard::to_allocvec(&f).unwrap();
+        for version in [1, 4, 5] {
+            let old = reference_framing(version, &message, 0);
+            assert_eq!(
+                decode(&old[..old.len() - 1]),
+                Err(FrameError::Version(version))
+            );
+            let mut d = Deframer::new();
+            let got: Vec<_> = old.iter().filter_map(|b| d.push(*b)).collect();
+            assert_eq!(got, vec![Err(FrameError::Version(version))]);
+            let mut bad = old.clone();
+            let mid = bad.len() / 2;
+            bad[mid] ^= 0x10;
+            assert!(matches!(
+                decode(&bad[..bad.len() - 1]),
+                Err(FrameError::Crc | FrameError::Cobs)
+            ));
+        }
+        // our own version unwhitened is not a frame
+        let plain = reference_framing(SERIAL_VERSION, &message, 0);
+        assert_eq!(decode(&plain[..plain.len() - 1]), Err(FrameError::Crc));
+    }
+}
+
 proptest! {
     /// Any message up to the largest: the reference encoding byte for byte, and what the
     /// reference encodes the deframer takes back (checked as far as the version byte).
     #[test]
     fn any_message_is_the_reference_encoding(
         message in proptest::collection::vec(
-            prop_oneof![Just(0u8), 1u8..=255, Just(0xff)], 0..=379),
+            prop_oneof![Just(WHITEN), Just(0u8), 1u8..=255, Just(0xff ^ WHITEN)], 0..=379),
     ) {
         let reference = reference_encoding(9, &message);
         let mut out = [0u8; MAX_ENCODED];
@@ -345,4 +394,92 @@ fn a_candidate_past_the_largest_frame_is_dropped() {
     let got: Vec<_> = good.iter().filter_map(|b| d.push(*b)).collect();
     assert_eq!(got, vec![Ok(Frame::Bye)]);
     assert_eq!(d.too_long, 1);
+}
+
+/// The command's vectors go as byte strings (version 6): four bytes a number. A length that is
+/// not a multiple of four, or more numbers than the vector holds, is a message that does not
+/// decode; the numbers' bytes are read back exactly.
+#[test]
+fn a_commands_vector_of_bad_length_does_not_decode() {
+    // a command with every vector empty and no options; its `tau` is the fourth byte (the
+    // variant, k, the law, then the vector's length)
+    let empty = CommandFrame {
+        seq: 0,
+        law: 0,
+        tau: heapless::Vec::new(),
+        lyapunov: 0.5,
+        observer: heapless::Vec::new(),
+        integral: heapless::Vec::new(),
+        estimate: None,
+        allocation: None,
+        detection: None,
+        failsafe: None,
+    };
+    let message = postcard::to_allocvec(&Frame::Command(empty.clone())).unwrap();
+    assert_eq!(message[3], 0, "the empty tau's length");
+    let with_tau = |tau: &[u8]| {
+        let mut m = message[..3].to_vec();
+        m.push(u8::try_from(tau.len()).unwrap());
+        m.extend_from_slice(tau);
+        m.extend_from_slice(&message[4..]);
+        let mut out = [0u8; MAX_ENCODED];
+        let n = eqtrack_serial_wire::encode_raw(SERIAL_VERSION, &m, &mut out).unwrap();
+        decode(&out[..n - 1])
+    };
+    let numbers: Vec<u8> = [1.5f32, -2.0, 3.25, 0.0, f32::MAX, -1e-7]
+        .iter()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    assert_eq!(
+        with_tau(&numbers),
+        Ok(Frame::Command(CommandFrame {
+            tau: vec(&[1.5, -2.0, 3.25, 0.0, f32::MAX, -1e-7]),
+            ..empty
+        }))
+    );
+    for bad in [
+        &numbers[..5],
+        &numbers[..23],
+        &[numbers.clone(), vec![1, 2, 3, 4]].concat()[..],
+    ] {
+        assert_eq!(
+            with_tau(bad),
+            Err(FrameError::Message),
+            "{} bytes",
+            bad.len()
+        );
+    }
+}
+
+/// The encoder's scan for zeros is skipped when its pass found none: the guards that call it
+/// back, a version byte of zero and a CRC byte that whitens to zero, give the reference's
+/// bytes.
+#[test]
+fn a_zero_version_and_a_crc_that_whitens_to_zero_are_the_reference() {
+    let mut out = [0u8; MAX_ENCODED];
+    for message in [vec![], vec![0x5a; 10], vec![0x5a; 300]] {
+        let n = eqtrack_serial_wire::encode_raw(0, &message, &mut out).unwrap();
+        assert_eq!(out[..n].to_vec(), reference_encoding(0, &message));
+        assert_eq!(decode(&out[..n - 1]), Err(FrameError::Version(0)));
+    }
+    // messages of one byte value, searched for one whose CRC holds a 0x63 byte, and, for the
+    // decoder, the same past a full block
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+    for len in [10, 300] {
+        let message = (1u8..=255)
+            .map(|b| vec![b; len])
+            .find(|m| {
+                let mut raw = vec![SERIAL_VERSION];
+                raw.extend_from_slice(m);
+                m[0] != WHITEN && crc.checksum(&raw).to_le_bytes().contains(&WHITEN)
+            })
+            .expect("a message whose CRC holds the whitening byte");
+        let n = eqtrack_serial_wire::encode_raw(SERIAL_VERSION, &message, &mut out).unwrap();
+        assert_eq!(
+            out[..n].to_vec(),
+            reference_encoding(SERIAL_VERSION, &message)
+        );
+        // the frame is not a message, but it passes COBS and the CRC
+        assert_eq!(decode(&out[..n - 1]), Err(FrameError::Message));
+    }
 }
