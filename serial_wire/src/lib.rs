@@ -397,6 +397,18 @@ fn check(raw: &mut [u8]) -> Result<Frame, FrameError> {
 mod tests {
     use super::*;
 
+    /// `data` with its zeros set by `zeros`: 0 none, then about one byte in 2, 16 and 256
+    /// (runs of 254 and more, full blocks, where they are sparse).
+    fn with_zeros(data: &[u8], zeros: u32) -> std::vec::Vec<u8> {
+        data.iter()
+            .map(|b| match zeros {
+                0 => b | 1,
+                z if u32::from(*b) % [2, 16, 256][z as usize - 1] == 0 => 0,
+                _ => b | 1,
+            })
+            .collect()
+    }
+
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(2000))]
         /// Undoing COBS in place gives back what the `cobs` crate encoded: data up to the
@@ -408,15 +420,7 @@ mod tests {
             data in proptest::collection::vec(proptest::prelude::any::<u8>(), 1..=MAX_FRAME),
             zeros in 0u32..4,
         ) {
-            // zeros: 0 none, then about one byte in 2, 16 and 256
-            let data: std::vec::Vec<u8> = data
-                .iter()
-                .map(|b| match zeros {
-                    0 => b | 1,
-                    z if u32::from(*b) % [2, 16, 256][z as usize - 1] == 0 => 0,
-                    _ => b | 1,
-                })
-                .collect();
+            let data = with_zeros(&data, zeros);
             let mut enc = std::vec![0u8; MAX_ENCODED];
             let n = cobs::encode(&data, &mut enc);
             let mut buf = enc[..n].to_vec();
@@ -482,14 +486,7 @@ mod tests {
             data in proptest::collection::vec(proptest::prelude::any::<u8>(), 1..=MAX_FRAME),
             zeros in 0u32..4,
         ) {
-            let data: std::vec::Vec<u8> = data
-                .iter()
-                .map(|b| match zeros {
-                    0 => b | 1,
-                    z if u32::from(*b) % [2, 16, 256][z as usize - 1] == 0 => 0,
-                    _ => b | 1,
-                })
-                .collect();
+            let data = with_zeros(&data, zeros);
             in_place_is_the_reference(&data);
         }
     }

@@ -74,6 +74,22 @@ fn command() -> CommandFrame {
     }
 }
 
+/// A command with nothing but its `k` (0), law 0 and `L` (0): every vector empty, no option.
+fn bare_command() -> CommandFrame {
+    CommandFrame {
+        seq: 0,
+        law: 0,
+        tau: heapless::Vec::new(),
+        lyapunov: 0.0,
+        observer: heapless::Vec::new(),
+        integral: heapless::Vec::new(),
+        estimate: None,
+        allocation: None,
+        detection: None,
+        failsafe: None,
+    }
+}
+
 fn all_frames() -> Vec<Frame> {
     vec![
         Frame::Hello(hello(0xdead_beef_0123_4567)),
@@ -235,15 +251,9 @@ fn frame_sizes_are_what_the_docs_say() {
     });
     let seed_command = Frame::Command(CommandFrame {
         seq: 1999,
-        law: 0,
         tau: vec(&[0.2; 3]),
         lyapunov: 0.01,
-        observer: heapless::Vec::new(),
-        integral: heapless::Vec::new(),
-        estimate: None,
-        allocation: None,
-        detection: None,
-        failsafe: None,
+        ..bare_command()
     });
     let sizes: Vec<usize> = [
         seed_state,
@@ -404,16 +414,8 @@ fn a_commands_vector_of_bad_length_does_not_decode() {
     // a command with every vector empty and no options; its `tau` is the fourth byte (the
     // variant, k, the law, then the vector's length)
     let empty = CommandFrame {
-        seq: 0,
-        law: 0,
-        tau: heapless::Vec::new(),
         lyapunov: 0.5,
-        observer: heapless::Vec::new(),
-        integral: heapless::Vec::new(),
-        estimate: None,
-        allocation: None,
-        detection: None,
-        failsafe: None,
+        ..bare_command()
     };
     let message = postcard::to_allocvec(&Frame::Command(empty.clone())).unwrap();
     assert_eq!(message[3], 0, "the empty tau's length");
