@@ -1,8 +1,9 @@
 //! The prioritised bounded allocation (docs/maths.md, "Control allocation").
 
+use crate::blocks::{self, Blocks, Compact};
 use crate::dual;
 use crate::geometry::Geometry;
-use crate::qp::{Factored, MAX_EQ, Objective, Rows, Stage, clamp, solve, tolerance};
+use crate::qp::{MAX_EQ, clamp, tolerance};
 use crate::zonotope::Facets;
 use crate::{Commands, MAX_ACTUATORS};
 use core::fmt;
@@ -181,6 +182,10 @@ pub struct Allocator<T, const K: usize> {
     /// Stage 1's reach by its facets when `fixed` with a priority: stage 1 is then solved in
     /// the torque (`zonotope.rs`).
     facets: Option<Facets<T>>,
+    /// The blocks of rows and actuators when the geometry falls into more than one (the ROV's
+    /// horizontal and vertical thrusters, the spacecraft's couples): each block is then
+    /// allocated alone, a block of one row in closed form (`blocks.rs`).
+    blocks: Option<Blocks>,
     /// `√ε`, the tolerance of [`Status::Met`].
     sqrt_eps: T,
 }
@@ -262,6 +267,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
                 core::array::from_fn(|r| b[(order[r], k)])
             }))
         });
+        let blocks = Blocks::of(b, geometry.count());
         Allocator {
             geometry,
             weights,
@@ -273,6 +279,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             fixed,
             inverse,
             facets,
+            blocks,
             sqrt_eps: T::default_epsilon().sqrt(),
         }
     }
@@ -430,14 +437,19 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         // stages 1 and 2 of a square geometry in the torque and the force, by the dual method;
         // where rounding defeats it or the budget runs out, the primal stages with what is
         // left of the budget
-        let (square, changes) = if split && through >= 2 {
+        let (square, changes) = if split && through >= 2 && (self.blocks.is_none() || through < 3) {
             self.square_stages(demand, bounds)
         } else {
             (None, 0)
         };
-        let (u, spent, stopped) = match square {
-            Some(u) => (u, changes, false),
-            None => self.active_set(demand, bounds, &up, start, changes, through),
+        let (u, spent, stopped) = match (square, &self.blocks) {
+            (Some(u), _) => (u, changes, false),
+            // a geometry in blocks: each alone (stages 1 and 2 asked alone keep the whole
+            // geometry's active set, whose stage-1 command is one of many optima)
+            (None, Some(blocks)) if through == 3 => {
+                self.by_blocks(blocks, demand, bounds, &up, &start)
+            }
+            (None, _) => self.active_set(demand, bounds, &up, start, changes, through),
         };
         let u = self.clamped(&u, bounds);
         if !u.iter().all(|x| x.is_finite()) {
@@ -460,92 +472,124 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         bounds: &Bounds<T>,
         up: &Commands<T>,
         start: Commands<T>,
-        mut spent: u32,
+        spent: u32,
         through: usize,
     ) -> (Commands<T>, u32, bool) {
         let split = K == 6 && self.priority != Priority::None;
         let m = self.geometry.count();
         let b = self.geometry.effectiveness();
-        let mut all: Rows<T> = [[T::zero(); MAX_ACTUATORS]; MAX_EQ];
-        let mut wanted = [T::zero(); MAX_EQ];
         let order = self.order();
+        let mut p = Compact {
+            all: [[T::zero(); MAX_ACTUATORS]; MAX_EQ],
+            wanted: [T::zero(); MAX_EQ],
+            rows: K,
+            first: if split { 3 } else { K },
+            m,
+            lo: bounds.lo,
+            hi: bounds.hi,
+        };
         for r in 0..K {
             for j in 0..m {
-                all[r][j] = b[(order[r], j)];
+                p.all[r][j] = b[(order[r], j)];
             }
-            wanted[r] = demand[order[r]];
+            p.wanted[r] = demand[order[r]];
         }
         let mut f = [T::zero(); MAX_EQ];
-        f[..3].copy_from_slice(&wanted[3..6]);
-        let mut stopped = false;
-        let mut workspace = Factored::new();
-        let mut run = |objective: Objective<'_, T>,
-                       c: &Rows<T>,
-                       k: usize,
-                       from: Commands<T>,
-                       spent: &mut u32,
-                       stopped: &mut bool| {
-            if *stopped {
-                return from;
-            }
-            let stage = Stage {
-                objective,
-                c,
-                k,
-                m,
-                lo: &bounds.lo,
-                hi: &bounds.hi,
+        f[..3].copy_from_slice(&p.wanted[3..6]);
+        // stage 2: with `B` square and well separated, in the force by the dual method
+        // (dual.rs), the primal method if rounding defeats it
+        let force = |u: &Commands<T>, budget: u32| {
+            let inv = self.inverse.as_ref()?;
+            let torque: [T; 3] =
+                core::array::from_fn(|a| (0..m).fold(T::zero(), |s, j| s + p.all[a][j] * u[j]));
+            Some(Self::force_by_dual(
+                inv, &torque, &f, &order, bounds, m, budget,
+            ))
+        };
+        // stage 3: when the wrench fixes the command (`fixed`: as many actuators as wrench
+        // rows, the columns well apart, as the six-rotor hexarotor's), it has one feasible
+        // point, its start, and is skipped without forming its first working set
+        blocks::primal(
+            &p,
+            &self.weights,
+            up,
+            start,
+            self.budget,
+            spent,
+            through,
+            !self.fixed,
+            force,
+        )
+    }
+
+    /// Every stage of a geometry in blocks, block by block (docs/maths.md, "Control
+    /// allocation": geometries in blocks): a block of one row in closed form, a larger one by
+    /// the primal stages over its own rows and actuators, from `start`, within one budget.
+    fn by_blocks(
+        &self,
+        blocks: &Blocks,
+        demand: &SVector<T, K>,
+        bounds: &Bounds<T>,
+        up: &Commands<T>,
+        start: &Commands<T>,
+    ) -> (Commands<T>, u32, bool) {
+        let m = self.geometry.count();
+        let b = self.geometry.effectiveness();
+        let order = self.order();
+        let first = if K == 6 && self.priority != Priority::None {
+            3
+        } else {
+            K
+        };
+        // an actuator in no block: at u_pref
+        let mut u = *up;
+        let (mut spent, mut stopped) = (0, false);
+        for c in 0..blocks.count() {
+            let mut p = Compact {
+                all: [[T::zero(); MAX_ACTUATORS]; MAX_EQ],
+                wanted: [T::zero(); MAX_EQ],
+                rows: 0,
+                first: 0,
+                m: 0,
+                lo: Commands::zeros(),
+                hi: Commands::zeros(),
             };
-            let s = solve(&stage, from, self.budget - *spent, &mut workspace);
-            *spent += s.iterations;
-            *stopped |= s.stopped;
-            s.u
-        };
-        // stage 1: the torque (or the whole wrench)
-        let first = if split { 3 } else { K };
-        let objective = Objective::LeastSquares {
-            a: &all,
-            b: &wanted,
-            q: first,
-        };
-        let mut u = run(objective, &all, 0, start, &mut spent, &mut stopped);
-        // stage 2: the force, keeping the torque; with `B` square and well separated, in the
-        // force by the dual method (dual.rs), the primal method if rounding defeats it
-        if split && through >= 2 {
-            let mut force: Rows<T> = [[T::zero(); MAX_ACTUATORS]; MAX_EQ];
-            force[..3].copy_from_slice(&all[3..6]);
-            let mut done = false;
-            if let (Some(inv), false) = (&self.inverse, stopped) {
-                let torque: [T; 3] =
-                    core::array::from_fn(|a| (0..m).fold(T::zero(), |s, j| s + all[a][j] * u[j]));
-                let (answer, changes, spent_all) =
-                    Self::force_by_dual(inv, &torque, &f, &order, bounds, m, self.budget - spent);
-                spent += changes;
-                stopped = spent_all;
-                if let Some(answer) = answer {
-                    u = answer;
+            let mut rows = [0; MAX_EQ];
+            for (i, &r) in order.iter().take(K).enumerate() {
+                if blocks.has_row(c, r) {
+                    rows[p.rows] = r;
+                    p.wanted[p.rows] = demand[r];
+                    p.first += usize::from(i < first);
+                    p.rows += 1;
                 }
-                done = answer.is_some() || spent_all;
             }
-            if !done {
-                let objective = Objective::LeastSquares {
-                    a: &force,
-                    b: &f,
-                    q: 3,
-                };
-                u = run(objective, &all, 3, u, &mut spent, &mut stopped);
+            let mut at = [0; MAX_ACTUATORS];
+            let (mut w, mut pref, mut from) =
+                (Commands::zeros(), Commands::zeros(), Commands::zeros());
+            for j in (0..m).filter(|&j| blocks.has_actuator(c, j)) {
+                let i = p.m;
+                at[i] = j;
+                for (x, &r) in rows.iter().take(p.rows).enumerate() {
+                    p.all[x][i] = b[(r, j)];
+                }
+                (p.lo[i], p.hi[i]) = (bounds.lo[j], bounds.hi[j]);
+                (w[i], pref[i], from[i]) = (self.weights[j], up[j], start[j]);
+                p.m += 1;
             }
-        }
-        // stage 3: nearest u_pref, keeping the wrench achieved; when the wrench fixes the
-        // command (`fixed`: as many actuators as wrench rows, the columns well apart, as the
-        // six-rotor hexarotor's), stage 3 has one feasible point, its start, and is skipped
-        // without forming its first working set
-        if through >= 3 && !self.fixed {
-            let objective = Objective::Nearest {
-                w: &self.weights,
-                up,
+            let v = if p.rows == 1 {
+                blocks::one_row(&p, &w, &pref)
+            } else {
+                let (v, s, st) =
+                    blocks::primal(&p, &w, &pref, from, self.budget, spent, 3, true, |_, _| {
+                        None
+                    });
+                spent = s;
+                stopped |= st;
+                v
             };
-            u = run(objective, &all, K, u, &mut spent, &mut stopped);
+            for (i, &j) in at.iter().take(p.m).enumerate() {
+                u[j] = v[i];
+            }
         }
         (u, spent, stopped)
     }
@@ -808,6 +852,109 @@ mod tests {
             prop_assert_eq!(a.u.map(f32::to_bits), b.u.map(f32::to_bits));
             prop_assert_eq!(a.status, b.status);
             prop_assert_eq!(a.iterations, b.iterations);
+        }
+    }
+
+    /// The presets' blocks: the ROV's vertical thrusters move `τx, τy, fz` and its horizontal
+    /// ones `τz, fx, fy`; the spacecraft's couples one body axis each; the hexarotor is one
+    /// block (nothing falls apart, and the blocks are not formed).
+    #[test]
+    fn the_presets_fall_into_their_blocks() {
+        let rov = Geometry::<f64, 6>::new(&presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0)).unwrap();
+        let blocks = Allocator::new(rov, &[], &[], Priority::Torque)
+            .unwrap()
+            .blocks
+            .unwrap();
+        assert_eq!(blocks.count(), 2);
+        let c = |r: usize| (0..2).find(|&c| blocks.has_row(c, r)).unwrap();
+        assert!(c(0) == c(1) && c(1) == c(5) && c(2) == c(3) && c(3) == c(4) && c(0) != c(2));
+        for j in 0..8 {
+            assert!(
+                blocks.has_actuator(if j < 4 { c(2) } else { c(0) }, j),
+                "thruster {j}"
+            );
+        }
+        let sc = Geometry::<f64, 3>::new(&presets::spacecraft_twelve(0.9, 1.5)).unwrap();
+        let blocks = Allocator::new(sc, &[], &[], Priority::Torque)
+            .unwrap()
+            .blocks
+            .unwrap();
+        assert_eq!(blocks.count(), 3);
+        assert!(hexarotor::<f64>(0.5).blocks.is_none());
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(1000))]
+        /// The ROV and the spacecraft allocated block by block (docs/maths.md, "Control
+        /// allocation": geometries in blocks) answer what the whole geometry's active set
+        /// answers, to 1e-9 of the largest bound, with the same status: demands within reach
+        /// and up to four times past it, actuators held, weights and preferred commands, each
+        /// priority, cold and warm.
+        #[test]
+        fn the_blocks_answer_what_the_whole_active_set_answers(
+            us in proptest::collection::vec(-1.0f64..=1.0, 12),
+            scale in 0.5f64..4.0,
+            held in proptest::option::of((0usize..12, 0.0f64..=1.0)),
+            second in proptest::option::of((1usize..12, 0.0f64..=1.0)),
+            weights in proptest::collection::vec(0.3f64..3.0, 12),
+            preferred in proptest::collection::vec(-1.0f64..=1.0, 12),
+            pick in 0usize..3,
+            spacecraft in proptest::bool::ANY,
+        ) {
+            let priority = [Priority::Torque, Priority::None, Priority::Tilt][pick];
+            let weighted = pick != 0;
+            fn compare<const K: usize>(
+                blocks: Allocator<f64, K>,
+                us: &[f64],
+                scale: f64,
+                held: Option<(usize, f64)>,
+                second: Option<(usize, f64)>,
+            ) -> Result<(), TestCaseError> {
+                prop_assert!(blocks.blocks.is_some());
+                let mut whole = blocks;
+                whole.blocks = None;
+                let m = blocks.geometry().count();
+                let mut bounds = blocks.bounds();
+                let (lo, hi) = (bounds.lo, bounds.hi);
+                let mut u = Commands::<f64>::zeros();
+                for j in 0..m {
+                    u[j] = lo[j] + (hi[j] - lo[j]) * (us[j] + 1.0) / 2.0;
+                }
+                let demand = blocks.geometry().wrench(&u) * scale;
+                if let Some((j, at)) = held {
+                    let j = j % m;
+                    bounds.fail(j, lo[j] + (hi[j] - lo[j]) * at);
+                    if let Some((k, at)) = second {
+                        let k = (j + k) % m;
+                        bounds.fail(k, lo[k] + (hi[k] - lo[k]) * at);
+                    }
+                }
+                let top = hi.amax().max(lo.amax());
+                // cold, and warm from another command of the box (then stage 3 has work to do:
+                // the closed form that starts a cold allocation is each block's own)
+                let mut previous = Commands::<f64>::zeros();
+                for j in 0..m {
+                    previous[j] = lo[j] + (hi[j] - lo[j]) * (1.0 - us[j]) / 2.0;
+                }
+                for from in [None, Some(&previous)] {
+                    let a = blocks.allocate_from(&demand, &bounds, from);
+                    let b = whole.allocate_from(&demand, &bounds, from);
+                    prop_assert!((a.u - b.u).amax() <= 1e-9 * (1.0 + top), "{:?} against {:?}", a, b);
+                    prop_assert_eq!(a.status, b.status);
+                }
+                Ok(())
+            }
+            let (w, p) = if weighted { (&weights[..], &preferred[..]) } else { (&[][..], &[][..]) };
+            if spacecraft {
+                let g = Geometry::<f64, 3>::new(&presets::spacecraft_twelve(0.9, 1.5)).unwrap();
+                let p: Vec<f64> = p.iter().map(|x| 0.75 + 0.75 * x).collect();
+                compare(Allocator::new(g, w, &p, priority).unwrap(), &us, scale, held, second)?;
+            } else {
+                let g = Geometry::<f64, 6>::new(&presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0)).unwrap();
+                let p: Vec<f64> = p.iter().map(|x| 20.0 * x).collect();
+                let w = &w[..w.len().min(8)];
+                compare(Allocator::new(g, w, &p[..p.len().min(8)], priority).unwrap(), &us, scale, held, second)?;
+            }
         }
     }
 }

@@ -56,6 +56,7 @@
 pub use nalgebra;
 
 mod allocator;
+mod blocks;
 mod control;
 mod dual;
 mod geometry;

@@ -206,11 +206,24 @@ fn check_within<const K: usize>(
     narrow: &dyn Fn(&mut Bounds<f64>),
 ) {
     let geometry = Geometry::<f64, K>::new(actuators).unwrap();
+    check_on(geometry, demand, priority, weights, preferred, narrow);
+}
+
+/// [`check_within`] on a geometry built by the caller (with wheels, say); returns the
+/// allocation checked.
+fn check_on<const K: usize>(
+    geometry: Geometry<f64, K>,
+    demand: SVector<f64, K>,
+    priority: Priority,
+    weights: &[f64],
+    preferred: &[f64],
+    narrow: &dyn Fn(&mut Bounds<f64>),
+) -> eqtrack_allocation::Allocation<f64, K> {
     let alloc = Allocator::new(geometry, weights, preferred, priority).unwrap();
     let mut bounds = alloc.bounds();
     narrow(&mut bounds);
     let got = alloc.allocate_within(&demand, &bounds);
-    let m = actuators.len();
+    let m = geometry.count();
     assert!(
         got.status != Status::Stopped,
         "the iteration cap stopped it: {got:?}"
@@ -311,6 +324,7 @@ fn check_within<const K: usize>(
     );
     let achieved: SVector<f64, K> = got.achieved;
     assert!((achieved - geometry.wrench(&got.u)).amax() == 0.0);
+    got
 }
 
 fn hexarotor() -> [Actuator<f64>; 6] {
@@ -579,4 +593,201 @@ fn the_hexarotor_with_any_two_rotors_held_meets_each_stage_optimum() {
             }
         }
     }
+}
+
+/// A random decoupled actuator on SO(3): a couple about body axis `row` (`p = L e_{r+1}`,
+/// `a = ±e_{r+2}`, so `p × a = ±L e_r`), one-way or reversible; with `row` 3, one whose
+/// column is zero (it pushes through the centre of mass).
+fn couple(x: &mut impl FnMut() -> f64, row: usize) -> Actuator<f64> {
+    let e = |i: usize| core::array::from_fn::<f64, 3, _>(|k| if k == i % 3 { 1.0 } else { 0.0 });
+    let max = 0.5 + 2.0 * (x() + 1.0);
+    let min = if x() > 0.0 {
+        0.0
+    } else {
+        -max * (x() + 1.5) / 2.5
+    };
+    let sign = if x() > 0.0 { 1.0 } else { -1.0 };
+    let arm = 0.2 + (x() + 1.0);
+    let (position, axis) = if row == 3 {
+        (e(0).map(|v| v * arm), e(0))
+    } else {
+        (e(row + 1).map(|v| v * arm), e(row + 2).map(|v| v * sign))
+    };
+    Actuator {
+        position,
+        axis,
+        torque_per_thrust: 0.0,
+        min,
+        max,
+    }
+}
+
+#[test]
+fn decoupled_geometries_meet_each_stage_optimum_in_closed_form() {
+    // the twelve-thruster spacecraft and random decoupled geometries (each column moves one
+    // row, a few move none): demands within reach and far past it, weights and preferred
+    // commands, actuators held; every stage's optimum, with no active-set iteration
+    let mut rng = ChaCha8Rng::seed_from_u64(61);
+    let mut x = move || (rng.next_u64() as f64 / u64::MAX as f64) * 2.0 - 1.0;
+    let (mut checked, mut saturated) = (0, 0);
+    for i in 0..60 {
+        let acts: Vec<Actuator<f64>> = if i % 3 == 0 {
+            presets::spacecraft_twelve(0.9, 1.5).to_vec()
+        } else {
+            let m = 4 + i % 9;
+            (0..m)
+                .map(|j| {
+                    let row = if j < 3 {
+                        j
+                    } else {
+                        (x().abs() * 3.999) as usize
+                    };
+                    couple(&mut x, if i % 5 == 0 && j == m - 1 { 3 } else { row })
+                })
+                .collect()
+        };
+        let Ok(geometry) = Geometry::<f64, 3>::new(&acts) else {
+            continue;
+        };
+        let m = acts.len();
+        let size = [0.3, 2.0, 12.0][i % 3];
+        let demand = SVector::<f64, 3>::from_fn(|_, _| size * x());
+        let weights: Vec<f64> = if i % 2 == 0 {
+            vec![]
+        } else {
+            (0..m).map(|_| 1.25 + x()).collect()
+        };
+        let preferred: Vec<f64> = if i % 4 < 2 {
+            vec![]
+        } else {
+            (0..m).map(|_| 2.0 * x()).collect()
+        };
+        let (held, at) = ((i * 7) % m, x());
+        let narrow = |b: &mut Bounds<f64>| {
+            if i % 3 != 2 {
+                let v = b.lo[held] + (b.hi[held] - b.lo[held]) * (at + 1.0) / 2.0;
+                b.fail(held, v);
+                if i % 2 == 0 {
+                    b.fail((held + 5) % m, b.lo[(held + 5) % m]);
+                }
+            }
+        };
+        let got = check_on(
+            geometry,
+            demand,
+            Priority::Torque,
+            &weights,
+            &preferred,
+            &narrow,
+        );
+        // past the reach the active set would iterate: none here
+        assert_eq!(
+            got.iterations, 0,
+            "case {i}: the closed form did not answer: {got:?}"
+        );
+        checked += 1;
+        saturated += usize::from(got.status != Status::Met);
+    }
+    assert!(
+        checked >= 50 && saturated >= 15,
+        "{checked} geometries checked, {saturated} saturated"
+    );
+}
+
+#[test]
+fn a_decoupled_geometry_with_wheels_meets_each_stage_optimum_on_se3() {
+    // three thrusters through the centre of mass along the body axes (pure forces, both ways)
+    // and three wheels on the body axes (pure torques): each column moves one row of six
+    let thrusters: Vec<Actuator<f64>> = (0..3)
+        .map(|k| Actuator {
+            position: [0.0; 3],
+            axis: core::array::from_fn(|i| if i == k { 1.0 } else { 0.0 }),
+            torque_per_thrust: 0.0,
+            min: -2.0 - k as f64,
+            max: 4.0,
+        })
+        .collect();
+    let wheels: Vec<eqtrack_allocation::Wheel<f64>> = (0..3)
+        .map(|k| eqtrack_allocation::Wheel {
+            axis: core::array::from_fn(|i| if i == k { 1.0 } else { 0.0 }),
+            inertia: 0.01,
+            max_torque: 0.1 + 0.05 * k as f64,
+            max_speed: 600.0,
+        })
+        .collect();
+    let geometry = Geometry::<f64, 6>::with_wheels(&thrusters, &wheels).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(62);
+    let mut x = move || (rng.next_u64() as f64 / u64::MAX as f64) * 2.0 - 1.0;
+    let mut saturated = 0;
+    for i in 0..24 {
+        let size = [0.05, 0.5, 8.0][i % 3];
+        let demand =
+            SVector::<f64, 6>::from_fn(|r, _| if r < 3 { size } else { 10.0 * size } * x());
+        let priority = [Priority::Torque, Priority::None][i % 2];
+        let weights: Vec<f64> = (0..6).map(|_| 1.25 + x()).collect();
+        let got = check_on(geometry, demand, priority, &weights, &[], &|_| ());
+        assert_eq!(got.iterations, 0, "case {i}: {got:?}");
+        saturated += usize::from(got.status != Status::Met);
+    }
+    assert!(saturated >= 8, "{saturated} of 24 saturated");
+}
+
+/// A random thruster of one of two families that keep an SE(3) wrench in two blocks: one in
+/// the plane z = 0 pushing within it (it moves `τz, fx, fy`), or one pushing along z (`τx, τy,
+/// fz`), as the BlueROV2 Heavy's horizontal and vertical thrusters; one-way or reversible.
+fn in_a_block(x: &mut impl FnMut() -> f64, vertical: bool) -> Actuator<f64> {
+    let max = 5.0 + 20.0 * (x() + 1.0);
+    let min = if x() > -0.3 { -max } else { 0.0 };
+    let angle = std::f64::consts::PI * x();
+    Actuator {
+        position: [0.4 * x(), 0.3 * x(), if vertical { 0.1 * x() } else { 0.0 }],
+        axis: if vertical {
+            [0.0, 0.0, if x() > 0.0 { 1.0 } else { -1.0 }]
+        } else {
+            [angle.cos(), angle.sin(), 0.0]
+        },
+        torque_per_thrust: 0.0,
+        min,
+        max,
+    }
+}
+
+#[test]
+fn geometries_in_two_blocks_meet_each_stage_optimum() {
+    // random ROV-like layouts (three or four thrusters in each block), demands within reach
+    // and far past it, both priorities, weights and preferred commands, thrusters held
+    let mut rng = ChaCha8Rng::seed_from_u64(63);
+    let mut x = move || (rng.next_u64() as f64 / u64::MAX as f64) * 2.0 - 1.0;
+    let mut checked = 0;
+    for i in 0..40 {
+        let (h, v) = (3 + i % 2, 3 + (i / 2) % 2);
+        let acts: Vec<Actuator<f64>> = (0..h + v).map(|j| in_a_block(&mut x, j >= h)).collect();
+        let Ok(geometry) = Geometry::<f64, 6>::new(&acts) else {
+            continue;
+        };
+        let m = acts.len();
+        let size = [3.0, 20.0, 120.0][i % 3];
+        let demand = SVector::<f64, 6>::from_fn(|_, _| size * x());
+        let priority = [Priority::Torque, Priority::None][i % 2];
+        let (weights, preferred): (Vec<f64>, Vec<f64>) = if i % 4 < 2 {
+            (vec![], vec![])
+        } else {
+            (
+                (0..m).map(|_| 1.25 + x()).collect(),
+                (0..m).map(|_| 5.0 * x()).collect(),
+            )
+        };
+        let (held, at) = ((i * 5) % m, x());
+        let narrow = |b: &mut Bounds<f64>| {
+            if i % 3 == 1 {
+                b.fail(
+                    held,
+                    b.lo[held] + (b.hi[held] - b.lo[held]) * (at + 1.0) / 2.0,
+                );
+            }
+        };
+        check_on(geometry, demand, priority, &weights, &preferred, &narrow);
+        checked += 1;
+    }
+    assert!(checked >= 30, "{checked} geometries checked");
 }
