@@ -516,7 +516,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             start,
             self.budget,
             spent,
-            through,
+            (1, through),
             !self.fixed,
             force,
         )
@@ -579,13 +579,48 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             let v = if p.rows == 1 {
                 blocks::one_row(&p, &w, &pref)
             } else {
-                let (v, s, st) =
-                    blocks::primal(&p, &w, &pref, from, self.budget, spent, 3, true, |_, _| {
-                        None
-                    });
-                spent = s;
-                stopped |= st;
-                v
+                // stage 1 of one row in closed form: the command nearest the start with the
+                // row's value clamped into its reach (one of stage 1's optima; stage 2 starts
+                // from it)
+                let first = if p.first == 1 {
+                    from = blocks::one_row(&p, &Commands::from_element(T::one()), &from);
+                    2
+                } else {
+                    1
+                };
+                let none = |_: &Commands<T>, _| None;
+                let (v, s, st) = blocks::primal(
+                    &p,
+                    &w,
+                    &pref,
+                    from,
+                    self.budget,
+                    spent,
+                    (first, 2),
+                    false,
+                    none,
+                );
+                (spent, stopped) = (s, stopped | st);
+                // stage 3 on a line (a one-dimensional null space) in closed form, else by
+                // the primal stage
+                match blocks::on_a_line(&p, &w, &pref, &v) {
+                    Some(v) if !stopped => v,
+                    _ => {
+                        let (v, s, st) = blocks::primal(
+                            &p,
+                            &w,
+                            &pref,
+                            v,
+                            self.budget,
+                            spent,
+                            (3, 3),
+                            true,
+                            none,
+                        );
+                        (spent, stopped) = (s, stopped | st);
+                        v
+                    }
+                }
             };
             for (i, &j) in at.iter().take(p.m).enumerate() {
                 u[j] = v[i];

@@ -43,11 +43,11 @@ pub(crate) struct Compact<T> {
 pub(crate) type Stage2<T> = Option<(Option<Commands<T>>, u32, bool)>;
 
 /// The primal active-set stages of `p` from `start` (docs/maths.md, "Control allocation"),
-/// through stage `through`, within `budget` of which `spent` is spent: stage 1 on the first
-/// `first` rows, stage 2 on the rest keeping them (by `force` when it answers), stage 3
-/// nearest `up` in the `w`-norm keeping them all (unless `last` is false: the wrench fixes
-/// the command). Returns the command, the iterations spent in all and whether the budget
-/// ran out.
+/// from stage `from` through stage `through`, within `budget` of which `spent` is spent:
+/// stage 1 on the first `first` rows, stage 2 on the rest keeping them (by `force` when it
+/// answers), stage 3 nearest `up` in the `w`-norm keeping them all (unless `last` is false:
+/// the wrench fixes the command). Returns the command, the iterations spent in all and
+/// whether the budget ran out.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn primal<T: RealField + Copy>(
     p: &Compact<T>,
@@ -56,7 +56,7 @@ pub(crate) fn primal<T: RealField + Copy>(
     start: Commands<T>,
     budget: u32,
     mut spent: u32,
-    through: usize,
+    (from, through): (usize, usize),
     last: bool,
     mut force: impl FnMut(&Commands<T>, u32) -> Stage2<T>,
 ) -> (Commands<T>, u32, bool) {
@@ -85,7 +85,7 @@ pub(crate) fn primal<T: RealField + Copy>(
     };
     // stage 1: the torque (or the whole wrench)
     let mut u = start;
-    if p.first > 0 {
+    if p.first > 0 && from <= 1 {
         let objective = Objective::LeastSquares {
             a: &p.all,
             b: &p.wanted,
@@ -94,7 +94,7 @@ pub(crate) fn primal<T: RealField + Copy>(
         u = run(objective, 0, u, &mut spent, &mut stopped);
     }
     // stage 2: the force, keeping the torque
-    if p.rows > p.first && through >= 2 {
+    if p.rows > p.first && from <= 2 && through >= 2 {
         let mut done = false;
         if !stopped && let Some((answer, changes, spent_all)) = force(&u, budget - spent) {
             spent += changes;
@@ -277,4 +277,81 @@ pub(crate) fn one_row<T: RealField + Copy>(
         u[j] = at(j, lambda);
     }
     u
+}
+
+/// Stage 3 of a block whose rows leave a line (docs/maths.md, "Control allocation": geometries
+/// in blocks): when the block's rows have rank one less than its actuators, the commands that
+/// keep the wrench `u` produces are `u + α n` (`n` spanning the rows' null space), so stage 3 is
+/// `α = clamp(−Σ w_j n_j (u_j − up_j) / Σ w_j n_j², α_lo, α_hi)`, `[α_lo, α_hi]` where the box
+/// holds. `None` when the null space is not a line (the primal stage then answers).
+pub(crate) fn on_a_line<T: RealField + Copy>(
+    p: &Compact<T>,
+    w: &Commands<T>,
+    up: &Commands<T>,
+    u: &Commands<T>,
+) -> Option<Commands<T>> {
+    let m = p.m;
+    let tau = T::from_subset(&1e3) * T::default_epsilon();
+    // the rows made orthogonal (Gram–Schmidt, as the factorisation does)
+    let mut q: Rows<T> = [[T::zero(); N]; MAX_EQ];
+    let mut d = [T::zero(); MAX_EQ];
+    let mut rank = 0;
+    for r in 0..p.rows {
+        let mut v = p.all[r];
+        let size = (0..m).fold(T::zero(), |s, j| s + v[j] * v[j]);
+        for i in 0..rank {
+            let c = (0..m).fold(T::zero(), |s, j| s + v[j] * q[i][j]) / d[i];
+            for j in 0..m {
+                v[j] -= c * q[i][j];
+            }
+        }
+        let vv = (0..m).fold(T::zero(), |s, j| s + v[j] * v[j]);
+        if vv > tau * size && vv > T::zero() {
+            q[rank] = v;
+            d[rank] = vv;
+            rank += 1;
+        }
+    }
+    if rank + 1 != m {
+        return None;
+    }
+    // n = e_k less its part in the rows' span, for the k that keeps the most of it
+    let keep = |k: usize| T::one() - (0..rank).fold(T::zero(), |s, i| s + q[i][k] * q[i][k] / d[i]);
+    let k = (1..m).fold(0, |best, k| if keep(k) > keep(best) { k } else { best });
+    let mut n = [T::zero(); N];
+    for j in 0..m {
+        let along = (0..rank).fold(T::zero(), |s, i| s + q[i][k] * q[i][j] / d[i]);
+        n[j] = if j == k { T::one() } else { T::zero() } - along;
+    }
+    let top = n
+        .iter()
+        .take(m)
+        .fold(T::zero(), |a, x| if x.abs() > a { x.abs() } else { a });
+    // the box along the line
+    let (mut low, mut high) = (-T::max_value()?, T::max_value()?);
+    let (mut num, mut den) = (T::zero(), T::zero());
+    for j in 0..m {
+        if n[j].abs() <= tau * top {
+            continue;
+        }
+        let (a, b) = ((p.lo[j] - u[j]) / n[j], (p.hi[j] - u[j]) / n[j]);
+        let (a, b) = if a <= b { (a, b) } else { (b, a) };
+        if a > low {
+            low = a;
+        }
+        if b < high {
+            high = b;
+        }
+        num -= w[j] * n[j] * (u[j] - up[j]);
+        den += w[j] * n[j] * n[j];
+    }
+    if !(den > T::zero()) || low > high {
+        return None;
+    }
+    let alpha = clamp(num / den, low, high);
+    let mut v = *u;
+    for j in 0..m {
+        v[j] = clamp(u[j] + alpha * n[j], p.lo[j], p.hi[j]);
+    }
+    Some(v)
 }
