@@ -579,54 +579,57 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             let v = if p.rows == 1 {
                 blocks::one_row(&p, &w, &pref)
             } else {
-                // stage 1 of one row in closed form: the command nearest the start with the
-                // row's value clamped into its reach (one of stage 1's optima; stage 2 starts
-                // from it)
-                let first = if p.first == 1 {
-                    from = blocks::one_row(&p, &Commands::from_element(T::one()), &from);
-                    2
-                } else {
-                    1
-                };
-                let none = |_: &Commands<T>, _| None;
-                let (v, s, st) = blocks::primal(
-                    &p,
-                    &w,
-                    &pref,
-                    from,
-                    self.budget,
-                    spent,
-                    (first, 2),
-                    false,
-                    none,
-                );
+                let (v, s, st) = self.block(&p, &w, &pref, from, spent);
                 (spent, stopped) = (s, stopped | st);
-                // stage 3 on a line (a one-dimensional null space) in closed form, else by
-                // the primal stage
-                match blocks::on_a_line(&p, &w, &pref, &v) {
-                    Some(v) if !stopped => v,
-                    _ => {
-                        let (v, s, st) = blocks::primal(
-                            &p,
-                            &w,
-                            &pref,
-                            v,
-                            self.budget,
-                            spent,
-                            (3, 3),
-                            true,
-                            none,
-                        );
-                        (spent, stopped) = (s, stopped | st);
-                        v
-                    }
-                }
+                v
             };
             for (i, &j) in at.iter().take(p.m).enumerate() {
                 u[j] = v[i];
             }
         }
         (u, spent, stopped)
+    }
+
+    /// A block of several rows (docs/maths.md, "Control allocation": geometries in blocks):
+    /// stage 1 of one row in closed form, the command nearest the start with the row's value
+    /// clamped into its reach (one of stage 1's optima; stage 2 starts from it), else by the
+    /// primal stage; stage 2 by the primal stage; stage 3 on a line (a one-dimensional null
+    /// space) in closed form, else by the primal stage. From `from` with `spent` of the budget
+    /// spent: the command, the iterations spent in all and whether the budget ran out.
+    fn block(
+        &self,
+        p: &Compact<T>,
+        w: &Commands<T>,
+        pref: &Commands<T>,
+        mut from: Commands<T>,
+        spent: u32,
+    ) -> (Commands<T>, u32, bool) {
+        let first = if p.first == 1 {
+            from = blocks::one_row(p, &Commands::from_element(T::one()), &from);
+            2
+        } else {
+            1
+        };
+        let none = |_: &Commands<T>, _| None;
+        let (v, spent, stopped) = blocks::primal(
+            p,
+            w,
+            pref,
+            from,
+            self.budget,
+            spent,
+            (first, 2),
+            false,
+            none,
+        );
+        match blocks::on_a_line(p, w, pref, &v) {
+            Some(v) if !stopped => (v, spent, false),
+            _ => {
+                let (v, spent, last) =
+                    blocks::primal(p, w, pref, v, self.budget, spent, (3, 3), true, none);
+                (v, spent, stopped | last)
+            }
+        }
     }
 
     /// The wrench's rows in the stages' order (the torque's first with three rotations).

@@ -345,7 +345,7 @@ pub(crate) fn on_a_line<T: RealField + Copy>(
         num -= w[j] * n[j] * (u[j] - up[j]);
         den += w[j] * n[j] * n[j];
     }
-    if !(den > T::zero()) || low > high {
+    if !den.is_finite() || den <= T::zero() || low > high {
         return None;
     }
     let alpha = clamp(num / den, low, high);
