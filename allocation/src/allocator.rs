@@ -192,7 +192,7 @@ pub struct Allocator<T, const K: usize> {
 
 /// The default budget of active-set iterations per allocation: over the seeded demands of
 /// every preset and the twelve-thruster spacecraft (docs/vehicles.md, "Bounded time"), none
-/// needs more than 14, well within it.
+/// needs more than 10, well within it.
 pub const DEFAULT_BUDGET: u32 = 3 * MAX_ACTUATORS as u32;
 
 impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
@@ -522,8 +522,8 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         )
     }
 
-    /// Every stage of a geometry in blocks, block by block (docs/maths.md, "Control
-    /// allocation": geometries in blocks): a block of one row in closed form, a larger one by
+    /// Every stage of a geometry in blocks, block by block
+    /// (docs/maths.md, "Control allocation": geometries in blocks): a block of one row in closed form, a larger one by
     /// the primal stages over its own rows and actuators, from `start`, within one budget.
     fn by_blocks(
         &self,
@@ -923,8 +923,8 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(1000))]
-        /// The ROV and the spacecraft allocated block by block (docs/maths.md, "Control
-        /// allocation": geometries in blocks) answer what the whole geometry's active set
+        /// The ROV and the spacecraft allocated block by block
+        /// (docs/maths.md, "Control allocation": geometries in blocks) answer what the whole geometry's active set
         /// answers, to 1e-9 of the largest bound, with the same status: demands within reach
         /// and up to four times past it, actuators held, weights and preferred commands, each
         /// priority, cold and warm.

@@ -1,5 +1,5 @@
-//! The allocation of a geometry whose actuators fall into blocks (docs/maths.md, "Control
-//! allocation": geometries in blocks). A block is a set of wrench rows and the actuators
+//! The allocation of a geometry whose actuators fall into blocks
+//! (docs/maths.md, "Control allocation": geometries in blocks). A block is a set of wrench rows and the actuators
 //! whose columns have their entries that are not exactly zero in those rows only: the
 //! BlueROV2 Heavy layout's horizontal thrusters move `τz, fx, fy` and its vertical ones
 //! `τx, τy, fz`; the twelve-thruster spacecraft's couples on SO(3) move one body axis each.
