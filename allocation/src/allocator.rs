@@ -44,7 +44,9 @@ pub enum Status {
     /// iterate (within the bounds, finite, no stage's objective above its start; a primal
     /// stage that finished keeps its optimum). The dual stages of a square geometry give no
     /// command until both finish: a budget spent in them answers the primal stages' start,
-    /// the closed form clamped, or the previous command clamped when one is given.
+    /// the closed form clamped, or the previous command clamped when one is given. In a
+    /// geometry in blocks, each block that finished keeps its optimum, and the one the budget
+    /// ran out in its last iterate.
     Stopped = 3,
     /// 4: the demand was not finite; the answer is the preferred command within the bounds.
     InvalidDemand = 4,
@@ -923,7 +925,8 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(1000))]
-        /// The ROV and the spacecraft allocated block by block
+        /// The ROV (with and without a surge thruster on its centreline) and the spacecraft
+        /// allocated block by block
         /// (docs/maths.md, "Control allocation": geometries in blocks) answer what the whole geometry's active set
         /// answers, to 1e-9 of the largest bound, with the same status: demands within reach
         /// and up to four times past it, actuators held, weights and preferred commands, each
@@ -937,10 +940,10 @@ mod tests {
             weights in proptest::collection::vec(0.3f64..3.0, 12),
             preferred in proptest::collection::vec(-1.0f64..=1.0, 12),
             pick in 0usize..3,
-            spacecraft in proptest::bool::ANY,
+            weighted in proptest::bool::ANY,
+            vehicle in 0usize..3,
         ) {
             let priority = [Priority::Torque, Priority::None, Priority::Tilt][pick];
-            let weighted = pick != 0;
             fn compare<const K: usize>(
                 blocks: Allocator<f64, K>,
                 us: &[f64],
@@ -983,15 +986,28 @@ mod tests {
                 Ok(())
             }
             let (w, p) = if weighted { (&weights[..], &preferred[..]) } else { (&[][..], &[][..]) };
-            if spacecraft {
+            if vehicle == 0 {
                 let g = Geometry::<f64, 3>::new(&presets::spacecraft_twelve(0.9, 1.5)).unwrap();
                 let p: Vec<f64> = p.iter().map(|x| 0.75 + 0.75 * x).collect();
                 compare(Allocator::new(g, w, &p, priority).unwrap(), &us, scale, held, second)?;
             } else {
-                let g = Geometry::<f64, 6>::new(&presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0)).unwrap();
-                let p: Vec<f64> = p.iter().map(|x| 20.0 * x).collect();
-                let w = &w[..w.len().min(8)];
-                compare(Allocator::new(g, w, &p[..p.len().min(8)], priority).unwrap(), &us, scale, held, second)?;
+                // the ROV, and the ROV with a surge thruster on its centreline (in the
+                // horizontal block by `fx` alone: a zero in the torque row `τz`)
+                let mut thrusters = presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0).to_vec();
+                if vehicle == 2 {
+                    thrusters.push(crate::Actuator {
+                        position: [0.2, 0.0, 0.0],
+                        axis: [1.0, 0.0, 0.0],
+                        torque_per_thrust: 0.0,
+                        min: -30.0,
+                        max: 30.0,
+                    });
+                }
+                let m = thrusters.len();
+                let g = Geometry::<f64, 6>::new(&thrusters).unwrap();
+                let p: Vec<f64> = p.iter().take(m).map(|x| 20.0 * x).collect();
+                let w = &w[..w.len().min(m)];
+                compare(Allocator::new(g, w, &p, priority).unwrap(), &us, scale, held, second)?;
             }
         }
     }

@@ -12,7 +12,12 @@
 //!   `u_j(λ) = clamp(up_j + λ b_j / w_j, lo_j, hi_j)` for one multiplier `λ`, and
 //!   `g(λ) = Σ b_j u_j(λ)` is continuous, nondecreasing and piecewise linear: `λ` is found on
 //!   the segment of the sorted breakpoints where `g` crosses `t`;
-//! * a larger block by the primal active set, over its own actuators and rows only.
+//! * a larger block by the primal active set over its own actuators and rows only, but for
+//!   two closed forms: a stage 1 of one row (the command nearest the start with that row's
+//!   value clamped into its reach, by the same search with unit weights), and a stage 3 whose
+//!   feasible commands lie on a line (the block's rows of rank one less than its actuators:
+//!   one coordinate along the null space, clamped where the box holds) or at one point (rank
+//!   equal to its actuators).
 //!
 //! An actuator in no row (a zero column) is at `up_j` within its bounds.
 
@@ -218,21 +223,22 @@ pub(crate) fn one_row<T: RealField + Copy>(
     let target = clamp(p.wanted[0], floor, ceiling);
     let slope = |j: usize| b[j] / w[j];
     let at = |j: usize, lambda: T| clamp(up[j] + lambda * slope(j), lo[j], hi[j]);
-    // the breakpoints: where each movable actuator meets its bounds
+    // the breakpoints: where each actuator that moves the row meets its bounds (an actuator of
+    // a larger block may have a zero in this row: it stays at `up`, and has none)
     let mut points = [T::zero(); 2 * N];
     let mut np = 0;
     for j in 0..m {
-        if hi[j] > lo[j] {
+        if hi[j] > lo[j] && b[j] != T::zero() {
             let s = slope(j);
             points[np] = (lo[j] - up[j]) / s;
             points[np + 1] = (hi[j] - up[j]) / s;
             np += 2;
         }
     }
-    let mut u = Commands::zeros();
+    let mut u = *up;
     if np == 0 {
-        // every actuator of the row is held: its value is fixed
-        u.as_mut_slice()[..m].copy_from_slice(&lo.as_slice()[..m]);
+        // every actuator that moves the row is held (at `up`, within its bounds): the row's
+        // value is fixed
         return u;
     }
     // insertion sort (at most 2 · 12 numbers)
@@ -274,7 +280,9 @@ pub(crate) fn one_row<T: RealField + Copy>(
         }
     };
     for j in 0..m {
-        u[j] = at(j, lambda);
+        if b[j] != T::zero() {
+            u[j] = at(j, lambda);
+        }
     }
     u
 }
@@ -283,7 +291,8 @@ pub(crate) fn one_row<T: RealField + Copy>(
 /// in blocks): when the block's rows have rank one less than its actuators, the commands that
 /// keep the wrench `u` produces are `u + α n` (`n` spanning the rows' null space), so stage 3 is
 /// `α = clamp(−Σ w_j n_j (u_j − up_j) / Σ w_j n_j², α_lo, α_hi)`, `[α_lo, α_hi]` where the box
-/// holds. `None` when the null space is not a line (the primal stage then answers).
+/// holds. With as many independent rows as actuators, `u` itself (the one feasible command).
+/// `None` when the null space is neither a line nor a point (the primal stage then answers).
 pub(crate) fn on_a_line<T: RealField + Copy>(
     p: &Compact<T>,
     w: &Commands<T>,
@@ -311,6 +320,10 @@ pub(crate) fn on_a_line<T: RealField + Copy>(
             d[rank] = vv;
             rank += 1;
         }
+    }
+    if rank == m {
+        // as many independent rows as actuators: `u` is the only command that keeps them
+        return Some(*u);
     }
     if rank + 1 != m {
         return None;
@@ -354,4 +367,55 @@ pub(crate) fn on_a_line<T: RealField + Copy>(
         v[j] = clamp(u[j] + alpha * n[j], p.lo[j], p.hi[j]);
     }
     Some(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Compact, one_row};
+    use crate::Commands;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+        /// One row in closed form (a block's stage 1 of one row, or a block of one row), where
+        /// some actuators have a zero in the row (they belong to a larger block by another
+        /// row) and start on a bound: they stay where they are, and the others give the row
+        /// the demand clamped into its reach, finite and within their bounds.
+        #[test]
+        fn one_row_meets_its_reach_and_leaves_the_zero_entries(
+            entries in proptest::collection::vec(prop_oneof![Just(0.0f64), -2.0f64..2.0], 2..9),
+            starts in proptest::collection::vec(prop_oneof![Just(-1.0f64), Just(1.0), -1.0f64..1.0], 9),
+            weights in proptest::collection::vec(0.3f64..3.0, 9),
+            wanted in -12.0f64..12.0,
+        ) {
+            let m = entries.len();
+            let mut p = Compact {
+                all: [[0.0f64; crate::MAX_ACTUATORS]; crate::qp::MAX_EQ],
+                wanted: [0.0; crate::qp::MAX_EQ],
+                rows: 1,
+                first: 1,
+                m,
+                lo: Commands::zeros(),
+                hi: Commands::zeros(),
+            };
+            let (mut up, mut w) = (Commands::zeros(), Commands::from_element(1.0));
+            let (mut floor, mut ceiling) = (0.0, 0.0);
+            for j in 0..m {
+                p.all[0][j] = entries[j];
+                (p.lo[j], p.hi[j], up[j], w[j]) = (-1.0, 1.0, starts[j], weights[j]);
+                floor -= entries[j].abs();
+                ceiling += entries[j].abs();
+            }
+            p.wanted[0] = wanted;
+            let u = one_row(&p, &w, &up);
+            let row: f64 = (0..m).map(|j| entries[j] * u[j]).sum();
+            prop_assert!((row - wanted.clamp(floor, ceiling)).abs() < 1e-9, "row {row}, wanted {wanted}: {u}");
+            for j in 0..m {
+                prop_assert!(u[j].is_finite() && (-1.0..=1.0).contains(&u[j]), "{u}");
+                if entries[j] == 0.0 {
+                    prop_assert_eq!(u[j], starts[j]);
+                }
+            }
+        }
+    }
 }

@@ -754,21 +754,35 @@ fn in_a_block(x: &mut impl FnMut() -> f64, vertical: bool) -> Actuator<f64> {
 
 #[test]
 fn geometries_in_two_blocks_meet_each_stage_optimum() {
-    // random ROV-like layouts (three or four thrusters in each block), demands within reach
-    // and far past it, both priorities, weights and preferred commands, thrusters held
+    // random ROV-like layouts (three or four thrusters in each block, and now and then a
+    // surge thruster on the centreline), demands within reach and far past it, both
+    // priorities, weights and preferred commands, thrusters held inside their range or at a
+    // bound
     let mut rng = ChaCha8Rng::seed_from_u64(63);
     let mut x = move || (rng.next_u64() as f64 / u64::MAX as f64) * 2.0 - 1.0;
     let mut checked = 0;
-    for i in 0..40 {
+    for i in 0..48 {
         let (h, v) = (3 + i % 2, 3 + (i / 2) % 2);
-        let acts: Vec<Actuator<f64>> = (0..h + v).map(|j| in_a_block(&mut x, j >= h)).collect();
+        let mut acts: Vec<Actuator<f64>> = (0..h + v).map(|j| in_a_block(&mut x, j >= h)).collect();
+        if i % 4 == 3 {
+            // in the horizontal block by `fx` alone, with a zero in its torque row `τz`
+            // (stage 1 of one row under the torque priority)
+            let sign = if x() > 0.0 { 1.0 } else { -1.0 };
+            acts.push(Actuator {
+                position: [0.2 * x(), 0.0, 0.0],
+                axis: [sign, 0.0, 0.0],
+                torque_per_thrust: 0.0,
+                min: if x() > 0.0 { -30.0 } else { 0.0 },
+                max: 30.0,
+            });
+        }
         let Ok(geometry) = Geometry::<f64, 6>::new(&acts) else {
             continue;
         };
         let m = acts.len();
         let size = [3.0, 20.0, 120.0][i % 3];
         let demand = SVector::<f64, 6>::from_fn(|_, _| size * x());
-        let priority = [Priority::Torque, Priority::None][i % 2];
+        let priority = [Priority::Torque, Priority::None][(i / 4) % 2];
         let (weights, preferred): (Vec<f64>, Vec<f64>) = if i % 4 < 2 {
             (vec![], vec![])
         } else {
@@ -778,16 +792,16 @@ fn geometries_in_two_blocks_meet_each_stage_optimum() {
             )
         };
         let (held, at) = ((i * 5) % m, x());
-        let narrow = |b: &mut Bounds<f64>| {
-            if i % 3 == 1 {
-                b.fail(
-                    held,
-                    b.lo[held] + (b.hi[held] - b.lo[held]) * (at + 1.0) / 2.0,
-                );
-            }
+        let narrow = |b: &mut Bounds<f64>| match i % 3 {
+            1 => b.fail(
+                held,
+                b.lo[held] + (b.hi[held] - b.lo[held]) * (at + 1.0) / 2.0,
+            ),
+            2 => b.fail(held, if at > 0.0 { b.hi[held] } else { b.lo[held] }),
+            _ => {}
         };
         check_on(geometry, demand, priority, &weights, &preferred, &narrow);
         checked += 1;
     }
-    assert!(checked >= 30, "{checked} geometries checked");
+    assert!(checked >= 36, "{checked} geometries checked");
 }
