@@ -347,8 +347,10 @@ PY
 	wait "$plant" || die "reset: the run failed (log: $OUT/reset.log)"
 	stop_qemu
 	grep -q ", 1 firmware resets" "$OUT/reset.log" || die "reset: $(grep 'serial link' "$OUT/reset.log")"
-	python3 - "$OUT/reset/summary.json" "$OUT/reset/trajectory.csv" <<'PY' || die "reset: see $OUT/reset/summary.json; $(host_load)"
+	python3 - "$OUT/reset/summary.json" "$OUT/reset/trajectory.csv" "$REPO/scripts/lib" <<'PY' || die "reset: see $OUT/reset/summary.json; $(host_load)"
 import csv, json, sys
+sys.path.insert(0, sys.argv[3])
+import safe_mode
 s = json.load(open(sys.argv[1]))
 assert s["safe_mode_entries"] >= 1, "no safe mode during the reset"
 status = [int(float(r["command_status"])) for r in csv.DictReader(open(sys.argv[2]))]
@@ -358,13 +360,7 @@ trace = "".join(map(str, status))
 # held commands (status 1), and a short safe mode where three fall in a row: the deadline
 # policy at work, not the reset. (One CI run, whose corrupted-frame step before this one
 # counted 107 misses in 201 cycles, had a safe-mode row 6 cycles before the end.)
-runs, start = [], None
-for i, x in enumerate(status + [0]):
-    if x == 2 and start is None:
-        start = i
-    elif x != 2 and start is not None:
-        runs.append((i - start, start))
-        start = None
+runs = safe_mode.runs(status)
 assert runs, f"no safe-mode row: {trace}"
 length, at = max(runs)
 assert length >= 5, f"the longest safe mode lasted {length} cycles, not the reset's: {trace}"
@@ -393,8 +389,10 @@ PY
 	grep -q "^PIL WATCHDOG no cycle completed for 500 ms" "$q" || die "hang: the watchdog's interrupt did not come: $(cat "$q")"
 	(($(grep -c "^PIL READY .* watchdog 500 ms$" "$q") == 2)) || die "hang: not one reset by the watchdog: $(cat "$q")"
 	grep -q ", 1 firmware resets" "$OUT/hang.log" || die "hang: the plant did not see one reset: $(grep 'serial link' "$OUT/hang.log")"
-	python3 - "$OUT/hang/summary.json" "$OUT/hang/trajectory.csv" <<'PY' || die "hang: see $OUT/hang/summary.json"
+	python3 - "$OUT/hang/summary.json" "$OUT/hang/trajectory.csv" "$REPO/scripts/lib" <<'PY' || die "hang: see $OUT/hang/summary.json"
 import csv, json, sys
+sys.path.insert(0, sys.argv[3])
+import safe_mode
 s = json.load(open(sys.argv[1]))
 assert s["cycles"] == 201, f"the run ended after {s['cycles']} cycles"
 assert s["safe_mode_entries"] >= 1, "no safe mode while the firmware hung"
@@ -403,13 +401,7 @@ status = [int(float(r["command_status"])) for r in csv.DictReader(open(sys.argv[
 # after, and lasts at least the watchdog's 500 ms (25 cycles). The emulator on a busy host may
 # miss a deadline before it, a cycle or two in safe mode (seen once in CI, at cycle 6), which
 # is the deadline policy at work, not the hang.
-runs, start = [], None
-for i, x in enumerate(status + [0]):
-    if x == 2 and start is None:
-        start = i
-    elif x != 2 and start is not None:
-        runs.append((i - start, start))
-        start = None
+runs = safe_mode.runs(status)
 length, hung = max(runs)
 assert hung >= 40 and length >= 25, f"the longest safe mode ({length} cycles) starts at cycle {hung}, not at the hang (40)"
 early = sum(n for n, at in runs if at < 40)
