@@ -4,6 +4,7 @@ use crate::blocks::{self, Blocks, Compact};
 use crate::dual;
 use crate::geometry::Geometry;
 use crate::qp::{MAX_EQ, clamp, tolerance};
+use crate::reach::Reach;
 use crate::zonotope::Facets;
 use crate::{Commands, MAX_ACTUATORS};
 use core::fmt;
@@ -27,6 +28,56 @@ const fn row_order(priority: Priority) -> [usize; 6] {
         Priority::Tilt => [0, 1, 5, 2, 3, 4],
         Priority::Torque | Priority::None => [0, 1, 2, 3, 4, 5],
     }
+}
+
+/// Block `c` of `geometry` as a problem of its own (docs/maths.md, "Control allocation":
+/// geometries in blocks): its rows in the stages' order (`first` of them stage 1's), its
+/// actuators in their order with `bounds`, and `demand`'s rows; with each compact actuator's
+/// index in the geometry.
+fn block_problem<T: RealField + Copy, const K: usize>(
+    geometry: &Geometry<T, K>,
+    blocks: &Blocks,
+    c: usize,
+    priority: Priority,
+    demand: &SVector<T, K>,
+    bounds: &Bounds<T>,
+) -> (Compact<T>, [usize; MAX_ACTUATORS]) {
+    let b = geometry.effectiveness();
+    let order = row_order(if K == 6 { priority } else { Priority::Torque });
+    let first = if K == 6 && priority != Priority::None {
+        3
+    } else {
+        K
+    };
+    let mut p = Compact {
+        all: [[T::zero(); MAX_ACTUATORS]; MAX_EQ],
+        wanted: [T::zero(); MAX_EQ],
+        rows: 0,
+        first: 0,
+        m: 0,
+        lo: Commands::zeros(),
+        hi: Commands::zeros(),
+    };
+    let mut rows = [0; MAX_EQ];
+    for (i, &r) in order.iter().take(K).enumerate() {
+        if blocks.has_row(c, r) {
+            rows[p.rows] = r;
+            p.wanted[p.rows] = demand[r];
+            p.first += usize::from(i < first);
+            p.rows += 1;
+        }
+    }
+    let mut at = [0; MAX_ACTUATORS];
+    for j in (0..geometry.count()).filter(|&j| blocks.has_actuator(c, j)) {
+        let i = p.m;
+        at[i] = j;
+        for (x, &r) in rows.iter().take(p.rows).enumerate() {
+            p.all[x][i] = b[(r, j)];
+        }
+        (p.lo[i], p.hi[i]) = (bounds.lo[j], bounds.hi[j]);
+        p.m += 1;
+    }
+    (p, at)
 }
 
 /// How an allocation went: an integer code in `trajectory.csv` (`alloc_status`).
@@ -188,6 +239,9 @@ pub struct Allocator<T, const K: usize> {
     /// horizontal and vertical thrusters, the spacecraft's couples): each block is then
     /// allocated alone, a block of one row in closed form (`blocks.rs`).
     blocks: Option<Blocks>,
+    /// The blocks of three rows and three or four actuators (the ROV's two), each with its
+    /// reach, formed once: their stages 1 and 2 by it (`reach.rs`).
+    reach: [Option<(usize, Reach<T>)>; 2],
     /// `√ε`, the tolerance of [`Status::Met`].
     sqrt_eps: T,
 }
@@ -270,6 +324,21 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             }))
         });
         let blocks = Blocks::of(b, geometry.count());
+        let mut reach = [None; 2];
+        if let Some(blocks) = &blocks {
+            let bounds = Bounds {
+                lo: Commands::zeros(),
+                hi: Commands::zeros(),
+            };
+            let found = (0..blocks.count()).filter_map(|c| {
+                let (p, _) =
+                    block_problem(&geometry, blocks, c, priority, &SVector::zeros(), &bounds);
+                Reach::of(&p).map(|r| (c, r))
+            });
+            for (slot, r) in reach.iter_mut().zip(found) {
+                *slot = Some(r);
+            }
+        }
         Allocator {
             geometry,
             weights,
@@ -282,6 +351,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             inverse,
             facets,
             blocks,
+            reach,
             sqrt_eps: T::default_epsilon().sqrt(),
         }
     }
@@ -535,53 +605,26 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         up: &Commands<T>,
         start: &Commands<T>,
     ) -> (Commands<T>, u32, bool) {
-        let m = self.geometry.count();
-        let b = self.geometry.effectiveness();
-        let order = self.order();
-        let first = if K == 6 && self.priority != Priority::None {
-            3
-        } else {
-            K
-        };
         // an actuator in no block: at u_pref
         let mut u = *up;
         let (mut spent, mut stopped) = (0, false);
         for c in 0..blocks.count() {
-            let mut p = Compact {
-                all: [[T::zero(); MAX_ACTUATORS]; MAX_EQ],
-                wanted: [T::zero(); MAX_EQ],
-                rows: 0,
-                first: 0,
-                m: 0,
-                lo: Commands::zeros(),
-                hi: Commands::zeros(),
-            };
-            let mut rows = [0; MAX_EQ];
-            for (i, &r) in order.iter().take(K).enumerate() {
-                if blocks.has_row(c, r) {
-                    rows[p.rows] = r;
-                    p.wanted[p.rows] = demand[r];
-                    p.first += usize::from(i < first);
-                    p.rows += 1;
-                }
-            }
-            let mut at = [0; MAX_ACTUATORS];
+            let (p, at) = block_problem(&self.geometry, blocks, c, self.priority, demand, bounds);
             let (mut w, mut pref, mut from) =
                 (Commands::zeros(), Commands::zeros(), Commands::zeros());
-            for j in (0..m).filter(|&j| blocks.has_actuator(c, j)) {
-                let i = p.m;
-                at[i] = j;
-                for (x, &r) in rows.iter().take(p.rows).enumerate() {
-                    p.all[x][i] = b[(r, j)];
-                }
-                (p.lo[i], p.hi[i]) = (bounds.lo[j], bounds.hi[j]);
+            for (i, &j) in at.iter().take(p.m).enumerate() {
                 (w[i], pref[i], from[i]) = (self.weights[j], up[j], start[j]);
-                p.m += 1;
             }
             let v = if p.rows == 1 {
                 blocks::one_row(&p, &w, &pref)
             } else {
-                let (v, s, st) = self.block(&p, &w, &pref, from, spent);
+                let reach = self
+                    .reach
+                    .iter()
+                    .flatten()
+                    .find(|(b, _)| *b == c)
+                    .map(|(_, r)| r);
+                let (v, s, st) = self.block(&p, reach, &w, &pref, from, spent);
                 (spent, stopped) = (s, stopped | st);
                 v
             };
@@ -598,14 +641,36 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     /// primal stage; stage 2 by the primal stage; stage 3 on a line (a one-dimensional null
     /// space) in closed form, else by the primal stage. From `from` with `spent` of the budget
     /// spent: the command, the iterations spent in all and whether the budget ran out.
+    #[allow(clippy::too_many_arguments)]
     fn block(
         &self,
         p: &Compact<T>,
+        reach: Option<&Reach<T>>,
         w: &Commands<T>,
         pref: &Commands<T>,
         mut from: Commands<T>,
-        spent: u32,
+        mut spent: u32,
     ) -> (Commands<T>, u32, bool) {
+        // three rows and three or four actuators: stages 1 and 2 by the block's reach, stage
+        // 3 on the line through the wrench they reach (reach.rs)
+        if let Some(reach) = reach {
+            match reach.stages(p, self.budget - spent) {
+                dual::Dual::Solved { x, changes } => {
+                    spent += changes;
+                    if let Some(v) = reach.last(p, w, pref, &x) {
+                        return (v, spent, false);
+                    }
+                }
+                dual::Dual::Failed { changes } => {
+                    spent += changes;
+                    // two of its actuators move: every stage in closed form
+                    if let Some(v) = reach.two(p, w, pref) {
+                        return (v, spent, false);
+                    }
+                }
+                dual::Dual::Stopped { changes } => spent += changes,
+            }
+        }
         let first = if p.first == 1 {
             from = blocks::one_row(p, &Commands::from_element(T::one()), &from);
             2

@@ -21,7 +21,7 @@
 //!
 //! An actuator in no row (a zero column) is at `up_j` within its bounds.
 
-use crate::qp::{Factored, MAX_EQ, Objective, Rows, Stage, clamp, solve};
+use crate::qp::{Factored, MAX_EQ, Objective, Rows, Stage, clamp, solve, tolerance};
 use crate::{Commands, MAX_ACTUATORS};
 use nalgebra::{RealField, SMatrix};
 
@@ -336,16 +336,35 @@ pub(crate) fn on_a_line<T: RealField + Copy>(
         let along = (0..rank).fold(T::zero(), |s, i| s + q[i][k] * q[i][j] / d[i]);
         n[j] = if j == k { T::one() } else { T::zero() } - along;
     }
+    along(p, w, up, u, &n)
+}
+
+/// Stage 3 on the line `u + α n` (docs/maths.md, "Control allocation": geometries in blocks):
+/// `α = clamp(−Σ w_j n_j (u_j − up_j) / Σ w_j n_j², α_lo, α_hi)`, `[α_lo, α_hi]` where the box
+/// holds; `None` when the box misses the line.
+pub(crate) fn along<T: RealField + Copy>(
+    p: &Compact<T>,
+    w: &Commands<T>,
+    up: &Commands<T>,
+    u: &Commands<T>,
+    n: &[T; N],
+) -> Option<Commands<T>> {
+    let m = p.m;
+    let tau = T::from_subset(&1e3) * T::default_epsilon();
     let top = n
         .iter()
         .take(m)
         .fold(T::zero(), |a, x| if x.abs() > a { x.abs() } else { a });
     // the box along the line
     let (mut low, mut high) = (-T::max_value()?, T::max_value()?);
-    let (mut num, mut den) = (T::zero(), T::zero());
+    let (mut num, mut den, mut slack) = (T::zero(), T::zero(), T::zero());
+    let tol = tolerance(p.lo.as_slice(), p.hi.as_slice(), m);
     for j in 0..m {
         if n[j].abs() <= tau * top {
             continue;
+        }
+        if tol / n[j].abs() > slack {
+            slack = tol / n[j].abs();
         }
         let (a, b) = ((p.lo[j] - u[j]) / n[j], (p.hi[j] - u[j]) / n[j]);
         let (a, b) = if a <= b { (a, b) } else { (b, a) };
@@ -358,10 +377,15 @@ pub(crate) fn on_a_line<T: RealField + Copy>(
         num -= w[j] * n[j] * (u[j] - up[j]);
         den += w[j] * n[j] * n[j];
     }
-    if !den.is_finite() || den <= T::zero() || low > high {
+    if !den.is_finite() || den <= T::zero() || low > high + slack + slack {
         return None;
     }
-    let alpha = clamp(num / den, low, high);
+    // the box holds one point of the line when rounding has crossed its ends: their middle
+    let alpha = if low <= high {
+        clamp(num / den, low, high)
+    } else {
+        (low + high) / T::from_subset(&2.0)
+    };
     let mut v = *u;
     for j in 0..m {
         v[j] = clamp(u[j] + alpha * n[j], p.lo[j], p.hi[j]);

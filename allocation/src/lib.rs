@@ -62,6 +62,7 @@ mod dual;
 mod geometry;
 pub mod presets;
 mod qp;
+mod reach;
 mod restoring;
 mod wheels;
 mod zonotope;

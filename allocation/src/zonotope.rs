@@ -176,7 +176,7 @@ impl<T: RealField + Copy> Facets<T> {
 }
 
 /// `a × b`.
-fn cross<T: RealField + Copy>(a: &[T; 3], b: &[T; 3]) -> [T; 3] {
+pub(crate) fn cross<T: RealField + Copy>(a: &[T; 3], b: &[T; 3]) -> [T; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],

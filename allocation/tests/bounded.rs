@@ -19,6 +19,26 @@ fn rov() -> Allocator<f64, 6> {
     Allocator::new(g, &[], &[], Priority::Torque).unwrap()
 }
 
+/// The ROV with a surge thruster on its centreline: its horizontal block has five thrusters,
+/// past what the blocks' closed forms take, and the primal stages solve it.
+fn rov_with_surge() -> Allocator<f64, 6> {
+    let mut thrusters = presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0).to_vec();
+    thrusters.push(Actuator {
+        position: [0.2, 0.0, 0.0],
+        axis: [1.0, 0.0, 0.0],
+        torque_per_thrust: 0.0,
+        min: -30.0,
+        max: 30.0,
+    });
+    Allocator::new(
+        Geometry::<f64, 6>::new(&thrusters).unwrap(),
+        &[],
+        &[],
+        Priority::Torque,
+    )
+    .unwrap()
+}
+
 fn spacecraft() -> Allocator<f64, 3> {
     let g = Geometry::<f64, 3>::new(&presets::spacecraft_twelve(0.5, 3.0)).unwrap();
     Allocator::new(g, &[], &[], Priority::Torque).unwrap()
@@ -34,10 +54,10 @@ fn within<const K: usize>(a: &eqtrack_allocation::Allocation<f64, K>, b: &Bounds
 fn warm_equals_cold<const K: usize>(
     alloc: &Allocator<f64, K>,
     demand: impl Fn(f64) -> SVector<f64, K>,
-    failed: Option<(usize, f64)>,
+    failed: &[(usize, f64)],
 ) -> (u32, u32) {
     let mut bounds = alloc.bounds();
-    if let Some((j, v)) = failed {
+    for &(j, v) in failed {
         bounds.fail(j, v);
     }
     let scale = 1.0 + bounds.hi.amax().max(bounds.lo.amax());
@@ -101,25 +121,34 @@ fn warm_starts_reach_the_cold_optimum_in_fewer_iterations() {
     // the six-rotor hexarotor's two stages are solved by the dual method from the
     // unconstrained optimum (docs/maths.md, "Control allocation": stages 1 and 2 of a square
     // geometry), which takes no start: warm and cold are the same computation there; the
-    // spacecraft's every stage in closed form ("decoupled geometries"), with no iteration
+    // spacecraft's every stage in closed form ("decoupled geometries"), with no iteration; the
+    // ROV's blocks by their reach (the dual method again, "geometries in blocks", or in closed
+    // form with two thrusters of a block held); a block of five thrusters by the primal
+    // stages, from the start
     for (name, dual, (cold, warm)) in [
-        ("hexarotor", true, warm_equals_cold(&hexarotor(), hex, None)),
+        ("hexarotor", true, warm_equals_cold(&hexarotor(), hex, &[])),
         (
             "hexarotor, rotor 2 failed",
             true,
-            warm_equals_cold(&hexarotor(), hex, Some((2, 3.0))),
+            warm_equals_cold(&hexarotor(), hex, &[(2, 3.0)]),
         ),
-        ("rov", false, warm_equals_cold(&rov(), rov_demand, None)),
+        ("rov", true, warm_equals_cold(&rov(), rov_demand, &[])),
         (
             "rov, thruster 5 failed",
-            false,
-            warm_equals_cold(&rov(), rov_demand, Some((5, 0.0))),
+            true,
+            warm_equals_cold(&rov(), rov_demand, &[(5, 0.0)]),
         ),
         (
-            "spacecraft",
+            "rov, thrusters 4 and 5 failed",
             true,
-            warm_equals_cold(&spacecraft(), sc, None),
+            warm_equals_cold(&rov(), rov_demand, &[(4, 0.0), (5, 10.0)]),
         ),
+        (
+            "rov with a surge thruster",
+            false,
+            warm_equals_cold(&rov_with_surge(), rov_demand, &[]),
+        ),
+        ("spacecraft", true, warm_equals_cold(&spacecraft(), sc, &[])),
     ] {
         if name == "spacecraft" {
             assert_eq!((cold, warm), (0, 0), "{name}: the closed form iterates");

@@ -595,6 +595,40 @@ fn the_hexarotor_with_any_two_rotors_held_meets_each_stage_optimum() {
     }
 }
 
+#[test]
+fn the_rov_with_any_two_thrusters_held_meets_each_stage_optimum() {
+    // the ROV's blocks by their reach (docs/maths.md, "Control allocation": geometries in
+    // blocks): every thruster and every pair held at a value within its range, a pair in one
+    // block leaving two movable thrusters there (a flat reach, every stage in closed form, a
+    // diagonal pair's two columns alike in the roll and pitch rows), with weights and
+    // preferred commands, on demands within reach and far past it
+    let mut rng = ChaCha8Rng::seed_from_u64(46);
+    let mut x = move || (rng.next_u64() as f64 / u64::MAX as f64) * 2.0 - 1.0;
+    let rov = rov();
+    for i in 0..8 {
+        for j in i..8 {
+            for size in [2.0, 20.0, 200.0] {
+                let (a, b) = (40.0 * x(), 40.0 * x());
+                let w = SVector::<f64, 6>::from_fn(|_, _| size * x());
+                let weights: Vec<f64> = (0..8).map(|_| 1.5 + x()).collect();
+                let preferred: Vec<f64> = (0..8).map(|_| 20.0 * x()).collect();
+                for (priority, weights, preferred) in [
+                    (Priority::Torque, &[][..], &[][..]),
+                    (Priority::Torque, &weights[..], &preferred[..]),
+                    (Priority::None, &weights[..], &[][..]),
+                ] {
+                    check_within(&rov, w, priority, weights, preferred, &|bounds| {
+                        bounds.fail(i, a);
+                        if j != i {
+                            bounds.fail(j, b);
+                        }
+                    });
+                }
+            }
+        }
+    }
+}
+
 /// A random decoupled actuator on SO(3): a couple about body axis `row` (`p = L e_{r+1}`,
 /// `a = ±e_{r+2}`, so `p × a = ±L e_r`), one-way or reversible; with `row` 3, one whose
 /// column is zero (it pushes through the centre of mass).
