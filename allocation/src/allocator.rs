@@ -449,7 +449,8 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     /// keeping the wrench achieved. With `previous` (the last cycle's command, which the
     /// caller keeps), stage 1 starts from it, clamped into `bounds`, and its working set from
     /// the actuators it held at a bound (a warm start: the same optimum, usually in fewer
-    /// iterations). Allocation-free; never NaN.
+    /// iterations, where the primal stages run; a square geometry's dual stages and a block
+    /// solved by its reach take no start). Allocation-free; never NaN.
     pub fn allocate_from(
         &self,
         demand: &SVector<T, K>,
@@ -595,8 +596,8 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     }
 
     /// Every stage of a geometry in blocks, block by block
-    /// (docs/maths.md, "Control allocation": geometries in blocks): a block of one row in closed form, a larger one by
-    /// the primal stages over its own rows and actuators, from `start`, within one budget.
+    /// (docs/maths.md, "Control allocation": geometries in blocks): a block of one row in closed
+    /// form, a larger one by [`Allocator::block`], from `start`, within one budget.
     fn by_blocks(
         &self,
         blocks: &Blocks,
@@ -635,7 +636,9 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         (u, spent, stopped)
     }
 
-    /// A block of several rows (docs/maths.md, "Control allocation": geometries in blocks):
+    /// A block of several rows (docs/maths.md, "Control allocation": geometries in blocks): of
+    /// three rows and three or four actuators, by its `reach` (reach.rs) when it answers
+    /// (docs/maths.md, "Control allocation": a block of three rows by its reach); otherwise
     /// stage 1 of one row in closed form, the command nearest the start with the row's value
     /// clamped into its reach (one of stage 1's optima; stage 2 starts from it), else by the
     /// primal stage; stage 2 by the primal stage; stage 3 on a line (a one-dimensional null
@@ -986,6 +989,68 @@ mod tests {
             .unwrap();
         assert_eq!(blocks.count(), 3);
         assert!(hexarotor::<f64>(0.5).blocks.is_none());
+    }
+
+    /// The ROV's two blocks are answered by their reach, not by the primal stages they fall
+    /// back to (docs/maths.md, "Control allocation": a block of three rows by its reach): on
+    /// seeded demands within reach and far past it, with none, one and two thrusters of a
+    /// block held, under both priorities, every block's stages answer (`Reach::stages` then
+    /// `Reach::last`, or `Reach::two` with two of its thrusters held), and the command is the
+    /// primal stages' to 1e-9 of the largest bound.
+    #[test]
+    fn the_rovs_blocks_are_answered_by_their_reach() {
+        use crate::blocks::{Compact, primal};
+        use crate::dual::Dual;
+        use rand_chacha::ChaCha8Rng;
+        use rand_chacha::rand_core::{Rng, SeedableRng};
+        let mut rng = ChaCha8Rng::seed_from_u64(47);
+        let mut x = move || (rng.next_u64() as f64 / u64::MAX as f64) * 2.0 - 1.0;
+        let rov = Geometry::<f64, 6>::new(&presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0)).unwrap();
+        let none = |_: &Commands<f64>, _| None;
+        let mut by_two = 0;
+        for priority in [Priority::Torque, Priority::None] {
+            let alloc = Allocator::new(rov, &[], &[], priority).unwrap();
+            let blocks = alloc.blocks.unwrap();
+            for k in 0..600 {
+                let size = [5.0, 50.0, 500.0][k % 3];
+                let d = nalgebra::SVector::<f64, 6>::from_fn(|_, _| size * x());
+                let mut bounds = alloc.bounds();
+                // none, one or two held, the two in one block (4 and 5, or 1 and 2)
+                match k % 4 {
+                    1 => bounds.fail(k % 8, 40.0 * x()),
+                    2 => {
+                        bounds.fail(4 + k % 2, 40.0 * x());
+                        bounds.fail(5 + k % 2, 40.0 * x());
+                    }
+                    3 => {
+                        bounds.fail(1, 40.0 * x());
+                        bounds.fail(2, 40.0 * x());
+                    }
+                    _ => {}
+                }
+                for c in 0..2 {
+                    let (p, _): (Compact<f64>, _) =
+                        super::block_problem(&alloc.geometry, &blocks, c, priority, &d, &bounds);
+                    let (w, up) = (Commands::from_element(1.0), Commands::zeros());
+                    let reach = alloc.reach.iter().flatten().find(|(b, _)| *b == c).unwrap();
+                    let answer = match reach.1.stages(&p, 36) {
+                        Dual::Solved { x, .. } => reach.1.last(&p, &w, &up, &x),
+                        Dual::Failed { .. } => {
+                            by_two += 1;
+                            reach.1.two(&p, &w, &up)
+                        }
+                        Dual::Stopped { .. } => None,
+                    };
+                    let u = answer.unwrap_or_else(|| panic!("demand {k}, block {c}: no answer"));
+                    let start = Commands::from_fn(|j, _| (p.lo[j] + p.hi[j]) / 2.0);
+                    let (v, _, stopped) = primal(&p, &w, &up, start, 1000, 0, (1, 3), true, none);
+                    assert!(!stopped);
+                    let gap = (0..p.m).fold(0.0f64, |a, j| a.max((u[j] - v[j]).abs()));
+                    assert!(gap <= 1e-9 * 40.0, "demand {k}, block {c}: {u} against {v}");
+                }
+            }
+        }
+        assert!(by_two > 300, "two held in a block: {by_two}");
     }
 
     proptest! {

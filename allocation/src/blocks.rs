@@ -355,29 +355,32 @@ pub(crate) fn along<T: RealField + Copy>(
         .iter()
         .take(m)
         .fold(T::zero(), |a, x| if x.abs() > a { x.abs() } else { a });
-    // the box along the line
+    // the box along the line, and the slack of each end: the tolerance over the `|n_j|` of
+    // the actuator that sets it
     let (mut low, mut high) = (-T::max_value()?, T::max_value()?);
-    let (mut num, mut den, mut slack) = (T::zero(), T::zero(), T::zero());
+    let (mut low_slack, mut high_slack) = (T::zero(), T::zero());
+    let (mut num, mut den) = (T::zero(), T::zero());
     let tol = tolerance(p.lo.as_slice(), p.hi.as_slice(), m);
     for j in 0..m {
         if n[j].abs() <= tau * top {
+            // an actuator the line does not move: where it is, within its bounds
+            if u[j] < p.lo[j] - tol || u[j] > p.hi[j] + tol {
+                return None;
+            }
             continue;
-        }
-        if tol / n[j].abs() > slack {
-            slack = tol / n[j].abs();
         }
         let (a, b) = ((p.lo[j] - u[j]) / n[j], (p.hi[j] - u[j]) / n[j]);
         let (a, b) = if a <= b { (a, b) } else { (b, a) };
         if a > low {
-            low = a;
+            (low, low_slack) = (a, tol / n[j].abs());
         }
         if b < high {
-            high = b;
+            (high, high_slack) = (b, tol / n[j].abs());
         }
         num -= w[j] * n[j] * (u[j] - up[j]);
         den += w[j] * n[j] * n[j];
     }
-    if !den.is_finite() || den <= T::zero() || low > high + slack + slack {
+    if !den.is_finite() || den <= T::zero() || low > high + low_slack + high_slack {
         return None;
     }
     // the box holds one point of the line when rounding has crossed its ends: their middle

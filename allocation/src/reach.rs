@@ -1,6 +1,6 @@
 //! Stages 1 and 2 of a block of three rows and three or four actuators by its reach, and stage
-//! 3 on the line those stages leave (docs/maths.md, "Control allocation": geometries in
-//! blocks). The BlueROV2 Heavy layout's two blocks are such: four thrusters each, moving
+//! 3 on the line those stages leave
+//! (docs/maths.md, "Control allocation": a block of three rows by its reach). The BlueROV2 Heavy layout's two blocks are such: four thrusters each, moving
 //! `τx, τy, fz` and `τz, fx, fy`.
 //!
 //! The wrenches the box produces in the block's rows form a zonotope `Z = {B u : lo ≤ u ≤ hi}`.
@@ -70,7 +70,8 @@ pub(crate) struct Reach<T> {
 }
 
 impl<T: RealField + Copy> Reach<T> {
-    /// The reach of the block `p` (its rows and columns; the bounds are not read), or `None`
+    /// The reach of the block `p` (its rows and columns; the bounds are not read)
+    /// (docs/maths.md, "Control allocation": a block of three rows by its reach), or `None`
     /// when it has not three independent rows and three or four actuators.
     pub(crate) fn of(p: &Compact<T>) -> Option<Self> {
         let m = p.m;
@@ -123,7 +124,8 @@ impl<T: RealField + Copy> Reach<T> {
         Some(reach)
     }
 
-    /// The facets of the reach and the edges of its shadow on rows 0 and 1 (`norms`: `|b_k|²`).
+    /// The facets of the reach and the edges of its shadow on rows 0 and 1 (`norms`: `|b_k|²`)
+    /// (docs/maths.md, "Control allocation": a block of three rows by its reach).
     fn facets_and_edges(&mut self, norms: &[T; REACH]) {
         let (m, g) = (self.m, self.g);
         let tau = T::from_subset(&1e3) * T::default_epsilon();
@@ -198,7 +200,8 @@ impl<T: RealField + Copy> Reach<T> {
         }
     }
 
-    /// One stage of all three rows: the point of `Z` (its facets' `slabs`) nearest `w`.
+    /// One stage of all three rows: the point of `Z` (its facets' `slabs`) nearest `w`
+    /// (docs/maths.md, "Control allocation": a block of three rows by its reach).
     fn nearest(&self, w: &[T; MAX_EQ], slabs: &[[T; 2]; FACETS], budget: u32) -> Dual<T> {
         let normals = &self.normals;
         let centre: [T; FACETS] = core::array::from_fn(|f| dot3(&normals[f], &[w[0], w[1], w[2]]));
@@ -213,7 +216,8 @@ impl<T: RealField + Copy> Reach<T> {
         }
     }
 
-    /// Stage 1 of row 0, an interval; stage 2 of rows 1 and 2, the point nearest their demand
+    /// Stage 1 of row 0, an interval; stage 2 of rows 1 and 2
+    /// (docs/maths.md, "Control allocation": a block of three rows by its reach), the point nearest their demand
     /// of the slabs' slice at row 0's value, a polygon (beyond the row's reach, one vertex).
     fn sliced(
         &self,
@@ -274,7 +278,8 @@ impl<T: RealField + Copy> Reach<T> {
         }
     }
 
-    /// Stage 1 of rows 0 and 1, the point nearest their demand of `Z`'s shadow on them; stage 2
+    /// Stage 1 of rows 0 and 1 (docs/maths.md, "Control allocation": a block of three rows by its reach),
+    /// the point nearest their demand of `Z`'s shadow on them; stage 2
     /// of row 2, its demand clamped into the slabs' slice at those values, an interval.
     fn shadow(
         &self,
@@ -333,7 +338,7 @@ impl<T: RealField + Copy> Reach<T> {
     }
 
     /// Every stage of the block `p` when two of its actuators move and the rest are held (a
-    /// flat reach; docs/maths.md, "Control allocation": geometries in blocks): the wrench is
+    /// flat reach; docs/maths.md, "Control allocation": a block of three rows by its reach): the wrench is
     /// `c + G v` over the two movable commands `v`, `G` their two columns, so each stage is a
     /// least-squares problem in two unknowns over what the stages before left, a rectangle, a
     /// segment or a point ([`Two`]). `None` when not two actuators move, or their columns are
@@ -387,7 +392,7 @@ impl<T: RealField + Copy> Reach<T> {
         u.iter().all(|x| x.is_finite()).then_some(u)
     }
 
-    /// Stage 3 (docs/maths.md, "Control allocation": geometries in blocks): the command of the
+    /// Stage 3 (docs/maths.md, "Control allocation": a block of three rows by its reach): the command of the
     /// block's wrench `x` nearest `up` in the `w`-norm within the box, on the line
     /// `Bᵀ(BBᵀ)⁻¹x + α n` ([`blocks::along`]), or the one command `B⁻¹x` with three
     /// actuators. `None` when the box misses the line.
@@ -403,7 +408,11 @@ impl<T: RealField + Copy> Reach<T> {
             u[j] = dot3(&self.pseudo[j], x);
         }
         if self.m < REACH {
-            return Some(u);
+            // the one command: within the box, or the stages' wrench is not in Z (rounding
+            // defeated them) and the primal stages answer
+            let tol = tolerance(p.lo.as_slice(), p.hi.as_slice(), self.m);
+            let inside = (0..self.m).all(|j| u[j] >= p.lo[j] - tol && u[j] <= p.hi[j] + tol);
+            return inside.then_some(u);
         }
         blocks::along(p, w, up, &u, &self.null)
     }
@@ -442,7 +451,8 @@ impl<T: RealField + Copy> Span<T> {
         self.movable & (1 << k) != 0
     }
 
-    /// The range of `d · u` over the box.
+    /// The range of `d · u` over the box, `Σ_l d_l mid_l ∓ |d_l| width_l`
+    /// (docs/maths.md, "Control allocation": a block of three rows by its reach).
     fn range(&self, d: &[T; REACH]) -> [T; 2] {
         let (mut c, mut r) = (T::zero(), T::zero());
         for l in 0..self.m {
@@ -515,15 +525,22 @@ impl<T: RealField + Copy> Two<T> {
                 if trace <= T::zero() {
                     return Some(self);
                 }
+                // rank 2 beyond rounding's reach; rank 1 within a few ulps of the trace's
+                // square (as `AᵀA` of rows that are multiples of one row comes out); between,
+                // neither is sure, and the primal stages answer
                 if det > tau * trace * trace {
                     return Some(Self::box_least_squares(&h, &y, det, lo, hi, miss));
                 }
-                Self::on_a_row(&h, a, r, lo, hi, tau)
+                if det > T::from_subset(&64.0) * T::default_epsilon() * trace * trace {
+                    return None;
+                }
+                Self::on_a_row(&h, a, r, lo, hi)
             }
         }
     }
 
-    /// Rank 2 on the box: the unconstrained optimum `(AᵀA)⁻¹Aᵀr` (`h = AᵀA`, `y = Aᵀr`, `det`
+    /// Rank 2 on the box (docs/maths.md, "Control allocation": a block of three rows by its reach):
+    /// the unconstrained optimum `(AᵀA)⁻¹Aᵀr` (`h = AᵀA`, `y = Aᵀr`, `det`
     /// its determinant) when within the box, else the best of the four edges' optima, each a
     /// clamped one-dimensional least squares (the miss is convex: its least over the box is
     /// on the boundary then).
@@ -566,17 +583,11 @@ impl<T: RealField + Copy> Two<T> {
         best.map_or(Two::Point(v), |(v, _)| Two::Point(v))
     }
 
-    /// Rank 1 on the box: the rows of `A` are multiples of `q` (of `h = AᵀA`, the row of the
+    /// Rank 1 on the box (docs/maths.md, "Control allocation": a block of three rows by its reach):
+    /// the rows of `A` are multiples of `q` (of `h = AᵀA`, the row of the
     /// larger norm); the miss is least where `q · v = s*`, `s*` the least-squares value clamped
     /// into `q · v`'s range over the box: a segment (one point at a corner).
-    fn on_a_row(
-        h: &[[T; 2]; 2],
-        a: &[[T; 2]],
-        r: &[T],
-        lo: &[T; 2],
-        hi: &[T; 2],
-        tau: T,
-    ) -> Option<Self> {
+    fn on_a_row(h: &[[T; 2]; 2], a: &[[T; 2]], r: &[T], lo: &[T; 2], hi: &[T; 2]) -> Option<Self> {
         let dot = |x: &[T; 2], y: &[T; 2]| x[0] * y[0] + x[1] * y[1];
         let q = if h[0][0] >= h[1][1] {
             [h[0][0], h[0][1]]
@@ -604,7 +615,8 @@ impl<T: RealField + Copy> Two<T> {
         let d = [-q[1], q[0]];
         let (mut t0, mut t1) = (-T::max_value()?, T::max_value()?);
         for i in 0..2 {
-            if d[i] * d[i] > tau * qq {
+            // a side the segment crosses (a tiny `d_i` gives a wide, correct interval)
+            if d[i] != T::zero() {
                 let (x, y) = ((lo[i] - v0[i]) / d[i], (hi[i] - v0[i]) / d[i]);
                 let (x, y) = if x <= y { (x, y) } else { (y, x) };
                 t0 = if x > t0 { x } else { t0 };

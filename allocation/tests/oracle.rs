@@ -629,6 +629,44 @@ fn the_rov_with_any_two_thrusters_held_meets_each_stage_optimum() {
     }
 }
 
+#[test]
+fn a_rov_with_a_block_of_three_thrusters_meets_each_stage_optimum() {
+    // a block of three rows and three actuators by its reach (docs/maths.md, "Control
+    // allocation": a block of three rows by its reach): the ROV without one horizontal or one
+    // vertical thruster, its stages' wrench giving the one command of that block; with each
+    // thruster held in turn (two left to move in the block of three: every stage in closed
+    // form), with weights and preferred commands, under both priorities
+    let mut rng = ChaCha8Rng::seed_from_u64(48);
+    let mut x = move || (rng.next_u64() as f64 / u64::MAX as f64) * 2.0 - 1.0;
+    for dropped in [3, 7] {
+        let seven: Vec<Actuator<f64>> = rov()
+            .into_iter()
+            .enumerate()
+            .filter(|(j, _)| *j != dropped)
+            .map(|(_, a)| a)
+            .collect();
+        for held in 0..8 {
+            for size in [2.0, 20.0, 200.0] {
+                let at = 40.0 * x();
+                let w = SVector::<f64, 6>::from_fn(|_, _| size * x());
+                let weights: Vec<f64> = (0..7).map(|_| 1.5 + x()).collect();
+                let preferred: Vec<f64> = (0..7).map(|_| 20.0 * x()).collect();
+                for (priority, weights, preferred) in [
+                    (Priority::Torque, &[][..], &[][..]),
+                    (Priority::Torque, &weights[..], &preferred[..]),
+                    (Priority::None, &weights[..], &[][..]),
+                ] {
+                    check_within(&seven, w, priority, weights, preferred, &|bounds| {
+                        if held < 7 {
+                            bounds.fail(held, at);
+                        }
+                    });
+                }
+            }
+        }
+    }
+}
+
 /// A random decoupled actuator on SO(3): a couple about body axis `row` (`p = L e_{r+1}`,
 /// `a = ±e_{r+2}`, so `p × a = ±L e_r`), one-way or reversible; with `row` 3, one whose
 /// column is zero (it pushes through the centre of mass).
