@@ -30,6 +30,16 @@ const fn row_order(priority: Priority) -> [usize; 6] {
     }
 }
 
+/// Stage 1's rows: the torque's three on SE(3) with a priority, else the whole wrench (a
+/// wrench split into a torque stage and a force stage when fewer than `K`).
+const fn first_rows<const K: usize>(priority: Priority) -> usize {
+    if K == 6 && !matches!(priority, Priority::None) {
+        3
+    } else {
+        K
+    }
+}
+
 /// Block `c` of `geometry` as a problem of its own (docs/maths.md, "Control allocation":
 /// geometries in blocks): its rows in the stages' order (`first` of them stage 1's), its
 /// actuators in their order with `bounds`, and `demand`'s rows; with each compact actuator's
@@ -44,11 +54,7 @@ fn block_problem<T: RealField + Copy, const K: usize>(
 ) -> (Compact<T>, [usize; MAX_ACTUATORS]) {
     let b = geometry.effectiveness();
     let order = row_order(if K == 6 { priority } else { Priority::Torque });
-    let first = if K == 6 && priority != Priority::None {
-        3
-    } else {
-        K
-    };
+    let first = first_rows::<K>(priority);
     let mut p = Compact {
         all: [[T::zero(); MAX_ACTUATORS]; MAX_EQ],
         wanted: [T::zero(); MAX_EQ],
@@ -496,7 +502,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         if !demand.iter().all(|x| x.is_finite()) {
             return self.answer(up, Status::InvalidDemand, 0);
         }
-        let split = K == 6 && self.priority != Priority::None;
+        let split = first_rows::<K>(self.priority) < K;
         let (start, inside) = self.start(demand, &up, bounds);
         if inside {
             // the command nearest u_pref producing the whole demand lies within the bounds:
@@ -548,7 +554,6 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         spent: u32,
         through: usize,
     ) -> (Commands<T>, u32, bool) {
-        let split = K == 6 && self.priority != Priority::None;
         let m = self.geometry.count();
         let b = self.geometry.effectiveness();
         let order = self.order();
@@ -556,7 +561,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             all: [[T::zero(); MAX_ACTUATORS]; MAX_EQ],
             wanted: [T::zero(); MAX_EQ],
             rows: K,
-            first: if split { 3 } else { K },
+            first: first_rows::<K>(self.priority),
             m,
             lo: bounds.lo,
             hi: bounds.hi,
