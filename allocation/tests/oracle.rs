@@ -631,8 +631,8 @@ fn the_rov_with_any_two_thrusters_held_meets_each_stage_optimum() {
 
 #[test]
 fn a_rov_with_a_block_of_three_thrusters_meets_each_stage_optimum() {
-    // a block of three rows and three actuators by its reach (docs/maths.md, "Control
-    // allocation": a block of three rows by its reach): the ROV without one horizontal or one
+    // a block of three rows and three actuators by its reach
+    // (docs/maths.md, "Control allocation": a block of three rows by its reach): the ROV without one horizontal or one
     // vertical thruster, its stages' wrench giving the one command of that block; with each
     // thruster held in turn (two left to move in the block of three: every stage in closed
     // form), with weights and preferred commands, under both priorities
