@@ -203,6 +203,25 @@ impl Blocks {
     }
 }
 
+/// The interval a row with entries `b(j)` produces over the box of the first `n` actuators,
+/// `[Σ min(b_j lo_j, b_j hi_j), Σ max(b_j lo_j, b_j hi_j)]`
+/// (docs/maths.md, "Control allocation": geometries in blocks).
+pub(crate) fn row_reach<T: RealField + Copy>(
+    b: impl Fn(usize) -> T,
+    lo: &[T],
+    hi: &[T],
+    n: usize,
+) -> (T, T) {
+    let (mut floor, mut ceiling) = (T::zero(), T::zero());
+    for j in 0..n {
+        let (x, y) = (b(j) * lo[j], b(j) * hi[j]);
+        let (low, high) = if x <= y { (x, y) } else { (y, x) };
+        floor += low;
+        ceiling += high;
+    }
+    (floor, ceiling)
+}
+
 /// A block of one row (row 0 of `p`) in closed form: the demand clamped into the row's reach,
 /// then the command nearest `up` in the `w`-norm producing it, `u_j = clamp(up_j + λ s_j,
 /// lo_j, hi_j)` with `s_j = b_j / w_j` (docs/maths.md, "Control allocation": geometries in
@@ -213,13 +232,7 @@ pub(crate) fn one_row<T: RealField + Copy>(
     up: &Commands<T>,
 ) -> Commands<T> {
     let (m, b, lo, hi) = (p.m, &p.all[0], &p.lo, &p.hi);
-    let (mut floor, mut ceiling) = (T::zero(), T::zero());
-    for j in 0..m {
-        let (x, y) = (b[j] * lo[j], b[j] * hi[j]);
-        let (low, high) = if x <= y { (x, y) } else { (y, x) };
-        floor += low;
-        ceiling += high;
-    }
+    let (floor, ceiling) = row_reach(|j| b[j], lo.as_slice(), hi.as_slice(), m);
     let target = clamp(p.wanted[0], floor, ceiling);
     let slope = |j: usize| b[j] / w[j];
     let at = |j: usize, lambda: T| clamp(up[j] + lambda * slope(j), lo[j], hi[j]);

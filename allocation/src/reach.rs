@@ -228,14 +228,7 @@ impl<T: RealField + Copy> Reach<T> {
     ) -> Dual<T> {
         let (m, w, g, lo, hi) = (self.m, &p.wanted, &self.g, &p.lo, &p.hi);
         let tau = T::from_subset(&1e3) * T::default_epsilon();
-        let (floor, ceiling) = (0..m).fold((T::zero(), T::zero()), |(f, c), l| {
-            let (x, y) = (g[l][0] * lo[l], g[l][0] * hi[l]);
-            if x <= y {
-                (f + x, c + y)
-            } else {
-                (f + y, c + x)
-            }
-        });
+        let (floor, ceiling) = blocks::row_reach(|l| g[l][0], lo.as_slice(), hi.as_slice(), m);
         let t = clamp(w[0], floor, ceiling);
         if t != w[0] && (0..m).all(|l| g[l][0] != T::zero() || !b.moves(l)) {
             // beyond the row's reach every actuator that moves the row is at the bound that
@@ -602,14 +595,7 @@ impl<T: RealField + Copy> Two<T> {
             num += alpha * *r;
             den += alpha * alpha;
         }
-        let (floor, ceiling) = (0..2).fold((T::zero(), T::zero()), |(f, c), i| {
-            let (x, y) = (q[i] * lo[i], q[i] * hi[i]);
-            if x <= y {
-                (f + x, c + y)
-            } else {
-                (f + y, c + x)
-            }
-        });
+        let (floor, ceiling) = blocks::row_reach(|i| q[i], lo, hi, 2);
         let s = clamp(num / den, floor, ceiling);
         let v0 = [q[0] * s / qq, q[1] * s / qq];
         let d = [-q[1], q[0]];
