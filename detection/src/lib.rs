@@ -124,9 +124,66 @@ pub struct Detection<T> {
 struct Watch<T, const K: usize> {
     actuator: usize,
     left: usize,
+    /// The older window's mean at the detection (world axes).
     baseline: SVector<T, K>,
-    spread: SVector<T, K>,
+    /// The shortfall's weights in body axes, `(b_j ⊘ s²) / |b̃_j|²`, from the spread of the
+    /// detection.
+    weights: SVector<T, K>,
     kind: Kind<T>,
+}
+
+/// Where a detection stands in the entries after the test named its actuator (docs/maths.md,
+/// "Failure detection", "The kind"): the change point, the shortfalls since it and the kind's
+/// fit follow, one entry each, so that no cycle carries more than one of them; the allocator
+/// is told, and the detection reported, with the fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stage {
+    /// The change point.
+    Change,
+    /// The shortfalls since it taken out.
+    Take,
+    /// The kind fitted and told, and the detection reported.
+    Fit,
+}
+
+/// A detection being completed over the entries after its finding.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Pending<T, const K: usize> {
+    stage: Stage,
+    actuator: usize,
+    /// The older window's mean at the finding (world axes).
+    older: SVector<T, K>,
+    /// The shortfall's weights in body axes ([`Watch::weights`]).
+    weights: SVector<T, K>,
+    /// The finding's statistic, and the entries from the change to the last one seen.
+    statistic: T,
+    since: usize,
+}
+
+/// The two windows' running sums of the residual (docs/maths.md, "Failure detection", "Two
+/// windows"): each new entry is added to the recent one and the entry it pushes on moves to
+/// the older one. Every `W` entries both are set afresh from the sums of the last two blocks
+/// of `W` entries, so that rounding never gathers over more than `3W` additions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Windows<T, const K: usize> {
+    recent: SVector<T, K>,
+    older: SVector<T, K>,
+    /// The block being summed, its entries so far, and the block before it.
+    block: SVector<T, K>,
+    filled: usize,
+    before: SVector<T, K>,
+}
+
+impl<T: Real, const K: usize> Windows<T, K> {
+    fn zero() -> Self {
+        Windows {
+            recent: SVector::zeros(),
+            older: SVector::zeros(),
+            block: SVector::zeros(),
+            filled: 0,
+            before: SVector::zeros(),
+        }
+    }
 }
 
 /// Why a detector's settings are refused.
@@ -292,6 +349,12 @@ pub struct Detector<T, const K: usize> {
     /// mean over it, as weights of the start (0 and 0 without lag).
     decay: T,
     mean: T,
+    /// The floor's square per axis, and the window's length as a number (the counts a cycle
+    /// divides by are kept as numbers: turning an integer into `f32` through `f64` is a
+    /// library call on a single-precision FPU).
+    floor2: SVector<T, K>,
+    window_n: T,
+    calibration_n: T,
     /// The healthy output at the start of the held period, and the held command.
     output: Commands<T>,
     command: Commands<T>,
@@ -303,17 +366,27 @@ pub struct Detector<T, const K: usize> {
     /// the last cycle ended. A failed actuator's thrust jumps to its value, where a command
     /// would ramp through the lag.
     stuck: [Option<T>; MAX_ACTUATORS],
+    /// Each actuator's healthy column in body axes and its entries' squares, formed at the
+    /// first period (`formed` actuators; 0: not yet).
+    columns: [SVector<T, K>; MAX_ACTUATORS],
+    squares: [SVector<T, K>; MAX_ACTUATORS],
+    formed: usize,
     /// What each failed actuator's periods have shown so far.
     sums: [Sums<T>; MAX_ACTUATORS],
     watch: Option<Watch<T, K>>,
+    /// A watch that ended (or that a detection cut short), its kind fitted again in the next
+    /// entry, and a detection being completed over the entries after its finding.
+    ending: Option<Watch<T, K>>,
+    pending: Option<Pending<T, K>>,
     /// Detections not reported yet (a refinement and a detection in the same entry, or one
     /// watch cut short by another detection): the next cycles report them, oldest first.
     queue: [Option<Detection<T>>; 3],
     previous: Option<Previous<T, K>>,
     /// The attitude of the last state: residuals are kept in world axes, where a steady wind
-    /// or current is constant however the body turns, and the columns are turned with it.
+    /// or current is constant however the body turns.
     rotation: Matrix3<T>,
     ring: [Entry<T, K>; CAPACITY],
+    windows: Windows<T, K>,
     /// The periods summed towards the next entry, and how many.
     accumulated: Entry<T, K>,
     periods: usize,
@@ -321,9 +394,9 @@ pub struct Detector<T, const K: usize> {
     len: usize,
     /// Entries of the warm-up passed.
     warmed: usize,
-    /// The learned spread (variance per axis) and the periods it was learned over.
+    /// The learned spread (variance per body axis) and the periods it was learned over.
     variance: SVector<T, K>,
-    learned: usize,
+    learned: T,
     failed: [bool; MAX_ACTUATORS],
     last: Statistic<T>,
     /// The actuator passing every gate and for how many periods in a row.
@@ -337,6 +410,60 @@ pub struct Detector<T, const K: usize> {
 impl<T: Real, const K: usize> Detector<T, K> {
     /// A detector with settings `config`, checked.
     pub fn new(config: Config<T, K>) -> Result<Self, ConfigError> {
+        Self::check(&config)?;
+        let (decay, mean) = if config.time_constant > T::zero() {
+            let d = (-config.period / config.time_constant).exp();
+            (d, config.time_constant / config.period * (T::one() - d))
+        } else {
+            (T::zero(), T::zero())
+        };
+        Ok(Detector {
+            config,
+            decay,
+            mean,
+            floor2: config.floor.component_mul(&config.floor),
+            window_n: eqtrack_controller::real(config.window as f64),
+            calibration_n: eqtrack_controller::real(config.calibration as f64),
+            output: Commands::zeros(),
+            command: Commands::zeros(),
+            held: false,
+            settling: 0,
+            stuck: [None; MAX_ACTUATORS],
+            columns: [SVector::zeros(); MAX_ACTUATORS],
+            squares: [SVector::zeros(); MAX_ACTUATORS],
+            formed: 0,
+            sums: [Sums::zero(); MAX_ACTUATORS],
+            watch: None,
+            ending: None,
+            pending: None,
+            queue: [None; 3],
+            previous: None,
+            rotation: Matrix3::identity(),
+            ring: [Entry::zero(); CAPACITY],
+            windows: Windows::zero(),
+            accumulated: Entry::zero(),
+            periods: 0,
+            head: 0,
+            len: 0,
+            variance: SVector::zeros(),
+            warmed: 0,
+            learned: T::zero(),
+            failed: [false; MAX_ACTUATORS],
+            last: Statistic {
+                actuator: 0,
+                best: T::zero(),
+                second: T::zero(),
+                total: T::zero(),
+                testing: false,
+            },
+            streak: (0, 0),
+            alarms: 0,
+            alarmed: false,
+        })
+    }
+
+    /// Refuses settings out of their ranges ([`ConfigError`]).
+    fn check(config: &Config<T, K>) -> Result<(), ConfigError> {
         let positive = |x: T| x.is_finite() && x > T::zero();
         if config.decimation == 0 {
             return Err(ConfigError::Value("decimation"));
@@ -373,46 +500,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         if !(config.time_constant.is_finite() && config.time_constant >= T::zero()) {
             return Err(ConfigError::Value("time_constant"));
         }
-        let (decay, mean) = if config.time_constant > T::zero() {
-            let d = (-config.period / config.time_constant).exp();
-            (d, config.time_constant / config.period * (T::one() - d))
-        } else {
-            (T::zero(), T::zero())
-        };
-        Ok(Detector {
-            config,
-            decay,
-            mean,
-            output: Commands::zeros(),
-            command: Commands::zeros(),
-            held: false,
-            settling: 0,
-            stuck: [None; MAX_ACTUATORS],
-            sums: [Sums::zero(); MAX_ACTUATORS],
-            watch: None,
-            queue: [None; 3],
-            previous: None,
-            rotation: Matrix3::identity(),
-            ring: [Entry::zero(); CAPACITY],
-            accumulated: Entry::zero(),
-            periods: 0,
-            head: 0,
-            len: 0,
-            variance: SVector::zeros(),
-            warmed: 0,
-            learned: 0,
-            failed: [false; MAX_ACTUATORS],
-            last: Statistic {
-                actuator: 0,
-                best: T::zero(),
-                second: T::zero(),
-                total: T::zero(),
-                testing: false,
-            },
-            streak: (0, 0),
-            alarms: 0,
-            alarmed: false,
-        })
+        Ok(())
     }
 
     /// Starts afresh with the same settings, in place: afterwards it equals
@@ -425,21 +513,27 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.held = false;
         self.settling = 0;
         self.stuck = [None; MAX_ACTUATORS];
+        self.columns = [SVector::zeros(); MAX_ACTUATORS];
+        self.squares = [SVector::zeros(); MAX_ACTUATORS];
+        self.formed = 0;
         self.sums = [Sums::zero(); MAX_ACTUATORS];
         self.watch = None;
+        self.ending = None;
+        self.pending = None;
         self.queue = [None; 3];
         self.previous = None;
         self.rotation = Matrix3::identity();
         for e in &mut self.ring {
             *e = Entry::zero();
         }
+        self.windows = Windows::zero();
         self.accumulated = Entry::zero();
         self.periods = 0;
         self.head = 0;
         self.len = 0;
         self.variance = SVector::zeros();
         self.warmed = 0;
-        self.learned = 0;
+        self.learned = T::zero();
         self.failed = [false; MAX_ACTUATORS];
         self.last = Statistic {
             actuator: 0,
@@ -491,7 +585,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.alarms
     }
 
-    /// The spread learned so far (the standard deviation's square per axis, before the
+    /// The spread learned so far (the standard deviation's square per body axis, before the
     /// floor).
     pub fn variance(&self) -> &SVector<T, K> {
         &self.variance
@@ -542,6 +636,17 @@ impl<T: Real, const K: usize> Detector<T, K> {
         found
     }
 
+    /// The healthy columns in body axes, and their squares, from the told ones.
+    fn form(&mut self, control: &VehicleControl<T, K>) {
+        let geometry = control.allocator().geometry();
+        let b = geometry.effectiveness();
+        for j in 0..geometry.count() {
+            self.columns[j] = b.column(j) / control.factors()[j];
+            self.squares[j] = self.columns[j].component_mul(&self.columns[j]);
+        }
+        self.formed = geometry.count();
+    }
+
     /// [`Detector::observe`] but for what the allocator holds next.
     fn period<G: BuiltinGroup<N, K>, const N: usize>(
         &mut self,
@@ -550,6 +655,10 @@ impl<T: Real, const K: usize> Detector<T, K> {
         speeds: &[T],
         control: &mut VehicleControl<T, K>,
     ) -> Option<Detection<T>> {
+        let count = control.allocator().geometry().count();
+        if self.formed != count {
+            self.form(control);
+        }
         let c = &self.config;
         let mu = c.inertia * v;
         let gyro = G::ad_transpose_mul(v, &with_wheels(mu, v, speeds, control));
@@ -571,62 +680,65 @@ impl<T: Real, const K: usize> Detector<T, K> {
         for j in first..first + control.wheels().wheels().len() {
             self.output[j] = self.command[j];
         }
-        // the held period: the lag's mean output and its output at the end; the thrust
-        // believed, a held value for an actuator held (found or told stuck or dead)
-        let u = self.command + (self.output - self.command) * self.mean;
-        self.output = self.command + (self.output - self.command) * self.decay;
+        // the held period over the vehicle's actuators (the slots past them stay zero): the
+        // lag's mean output and its output at the end
+        let mut entry = Entry::zero();
+        for j in 0..count {
+            let (out, cmd) = (self.output[j], self.command[j]);
+            entry.u[j] = cmd + (out - cmd) * self.mean;
+            self.output[j] = cmd + (out - cmd) * self.decay;
+        }
         if self.settling > 0 {
             self.settling -= 1;
             return self.next_report();
         }
-        let mut believed = u;
-        for (j, v) in self.stuck.iter().enumerate() {
-            if let Some(v) = v {
-                believed[j] = *v;
-            }
+        // the thrust believed, a held value for an actuator held (found or told stuck or
+        // dead), and `B ū`
+        let b = control.allocator().geometry().effectiveness();
+        let factors = control.factors();
+        let mut thrust = SVector::<T, K>::zeros();
+        for j in 0..count {
+            let believed = self.stuck[j].unwrap_or(entry.u[j]);
+            thrust += b.column(j) * believed;
+            entry.p[j] = believed * factors[j];
         }
         let half: T = eqtrack_controller::real(0.5);
-        // `B ū` over the vehicle's actuators (the slots past them are zero columns)
-        let geometry = control.allocator().geometry();
-        let b = geometry.effectiveness();
-        let mut thrust = SVector::<T, K>::zeros();
-        for j in 0..geometry.count() {
-            thrust += b.column(j) * believed[j];
-        }
         let body = (mu - p.mu) / c.period
             - (p.gyro + gyro) * half
             - thrust
             - (p.environment + environment) * half;
-        let w = rotate_blocks(r, &body);
-        let p = believed.component_mul(control.factors());
-        // the entry: the mean of `decimation` periods
-        let a = &mut self.accumulated;
-        a.w += w;
-        a.u += u;
-        a.p += p;
-        self.periods += 1;
-        if self.periods < c.decimation {
-            return self.next_report();
-        }
-        // the mean (one period: the period itself, as x / 1 is x)
-        let mut entry = if self.periods == 1 {
-            *a
-        } else {
+        entry.w = rotate_blocks(r, &body);
+        // the entry: the mean of `decimation` periods (one period: the period itself)
+        if c.decimation > 1 {
+            let a = &mut self.accumulated;
+            a.w += entry.w;
+            a.u += entry.u;
+            a.p += entry.p;
+            self.periods += 1;
+            if self.periods < c.decimation {
+                return self.next_report();
+            }
             let n: T = eqtrack_controller::real(self.periods as f64);
-            Entry {
+            entry = Entry {
                 w: a.w / n,
                 u: a.u / n,
                 p: a.p / n,
-            }
-        };
-        self.accumulated = Entry::zero();
-        self.periods = 0;
-        if let Some(refined) = self.watching(&mut entry, control) {
-            self.report(refined);
+            };
+            self.accumulated = Entry::zero();
+            self.periods = 0;
         }
+        self.watching(&mut entry);
         self.push(entry);
-        if let Some(found) = self.test(control) {
-            self.report(found);
+        // one of: a watch's end, a step of completing a detection, or the test
+        if let Some(watch) = self.ending.take() {
+            self.last.testing = false;
+            if let Some(refined) = self.refine(&watch, control) {
+                self.report(refined);
+            }
+        } else if let Some(pending) = self.pending {
+            self.complete(pending, control);
+        } else {
+            self.test();
         }
         self.next_report()
     }
@@ -651,28 +763,36 @@ impl<T: Real, const K: usize> Detector<T, K> {
         first
     }
 
+    /// The shortfall weights `g = blockdiag(R, R)(b_j ⊘ s²) / |b̃_j|²` in world axes at the
+    /// last attitude, and actuator `j`'s healthy column there: an entry's shortfall along the
+    /// column is `gᵀ(w − baseline)` (docs/maths.md, "Failure detection", "The kind").
+    fn along(&self, j: usize, weights: &SVector<T, K>) -> (SVector<T, K>, SVector<T, K>) {
+        (
+            rotate_blocks(&self.rotation, weights),
+            rotate_blocks(&self.rotation, &self.columns[j]),
+        )
+    }
+
     /// The watched actuator's shortfall in this period, added to its sums and taken out of
     /// the residual; after a window, its kind estimated again from all its sums and, if it
-    /// changed, the allocator told again (a refined detection).
-    fn watching(
-        &mut self,
-        entry: &mut Entry<T, K>,
-        control: &mut VehicleControl<T, K>,
-    ) -> Option<Detection<T>> {
-        let mut watch = self.watch.take()?;
+    /// changed, the allocator told again (a refined detection) in the entry after.
+    fn watching(&mut self, entry: &mut Entry<T, K>) {
+        let Some(mut watch) = self.watch.take() else {
+            return;
+        };
         let j = watch.actuator;
-        let column = self.healthy_column(j, control);
-        let bw = column.component_div(&watch.spread);
-        let short =
-            bw.dot(&(entry.w - watch.baseline).component_div(&watch.spread)) / bw.norm_squared();
+        let (g, column) = self.along(j, &watch.weights);
+        let short = g.dot(&(entry.w - watch.baseline));
         self.sums[j].add(entry.u[j], entry.p[j] + short);
         entry.w -= column * short;
-        watch.left -= 1;
-        if watch.left > 0 {
+        watch.left = watch.left.saturating_sub(1);
+        if watch.left > 0 || self.pending.is_some() {
+            // a detection still being completed has its kind told first
             self.watch = Some(watch);
-            return None;
+        } else {
+            // its end: fitted again in the next entry, in place of the test
+            self.ending = Some(watch);
         }
-        self.refine(&watch, control)
     }
 
     /// The end of a watch: the kind fitted again over everything seen of the actuator and, if
@@ -716,58 +836,66 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.failed[j] = true;
     }
 
+    /// Keeps entry `e`, and moves the windows' sums on with it.
     fn push(&mut self, e: Entry<T, K>) {
+        let wn = self.config.window;
+        let s = &mut self.windows;
+        if self.len >= wn {
+            // the entry that passes from the recent window to the older one
+            let moved = self.ring[(self.head + CAPACITY - wn) % CAPACITY].w;
+            s.recent -= moved;
+            s.older += moved;
+        }
+        if self.len >= 2 * wn {
+            s.older -= self.ring[(self.head + CAPACITY - 2 * wn) % CAPACITY].w;
+        }
+        s.recent += e.w;
+        s.block += e.w;
+        s.filled += 1;
+        if s.filled == wn {
+            // afresh: the recent window is this block, the older one the block before
+            s.recent = s.block;
+            s.older = s.before;
+            s.before = s.block;
+            s.block = SVector::zeros();
+            s.filled = 0;
+        }
         self.ring[self.head] = e;
         self.head = (self.head + 1) % CAPACITY;
         self.len = (self.len + 1).min(CAPACITY);
     }
 
-    /// Entry `i` of the last `n` (0: the oldest of them).
-    fn entry(&self, n: usize, i: usize) -> &Entry<T, K> {
-        &self.ring[(self.head + CAPACITY - n + i) % CAPACITY]
-    }
-
-    /// The mean residual of the older and the recent window.
-    fn means(&self) -> (SVector<T, K>, SVector<T, K>) {
-        let wn = self.config.window;
-        let mut older = SVector::<T, K>::zeros();
-        let mut recent = SVector::<T, K>::zeros();
-        for i in 0..wn {
-            older += self.entry(2 * wn, i).w;
-            recent += self.entry(wn, i).w;
-        }
-        let n: T = eqtrack_controller::real(wn as f64);
-        (older / n, recent / n)
-    }
-
     /// The test on full windows: learn the spread while calibrating or nominal; otherwise
-    /// isolate, estimate the kind and tell the allocator.
-    fn test(&mut self, control: &mut VehicleControl<T, K>) -> Option<Detection<T>> {
+    /// isolate, tell the allocator the actuator's estimated thrust and begin completing the
+    /// detection.
+    fn test(&mut self) {
         let wn = self.config.window;
         self.last.testing = false;
         if self.len < 2 * wn {
-            return None;
+            return;
         }
         if self.warmed < self.config.warmup {
             self.warmed += 1;
-            return None;
+            return;
         }
-        let (older, recent) = self.means();
-        let d = recent - older;
-        let s2 = self
+        // the change of the windows' means, turned into body axes
+        let n = self.window_n;
+        let older = self.windows.older / n;
+        let d = body_blocks(
+            &self.rotation,
+            &((self.windows.recent - self.windows.older) / n),
+        );
+        if self.learned < self.calibration_n {
+            self.learned += T::one();
+            self.variance += (d.component_mul(&d) - self.variance) / self.learned;
+            return;
+        }
+        let inverse = self
             .variance
-            .zip_map(&self.config.floor, |v, f| if v > f * f { v } else { f * f });
-        if self.learned < self.config.calibration {
-            self.learned += 1;
-            let n: T = eqtrack_controller::real(self.learned as f64);
-            self.variance += (d.component_mul(&d) - self.variance) / n;
-            return None;
-        }
-        // the FPU's square root on a Cortex-M4F, the same bits as libm's
-        let s = s2.map(eqtrack_controller::hw_sqrt::sqrt);
-        let dw = d.component_div(&s);
-        let total = dw.norm_squared();
-        let (best, second) = self.bank(&dw, &s, control);
+            .zip_map(&self.floor2, |v, f| T::one() / if v > f { v } else { f });
+        let z = d.component_mul(&inverse);
+        let total = d.dot(&z);
+        let (best, second) = self.bank(&z, &inverse);
         self.last = Statistic {
             actuator: best.0,
             best: best.1,
@@ -779,7 +907,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             self.variance += (d.component_mul(&d) - self.variance) * self.config.memory;
             self.alarmed = false;
             self.streak = (0, 0);
-            return None;
+            return;
         }
         if !self.alarmed {
             self.alarmed = true;
@@ -790,7 +918,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             // a change no single actuator explains (not a failure), or one that two explain
             // about as well (not yet isolated)
             self.streak = (0, 0);
-            return None;
+            return;
         }
         self.streak = if self.streak.1 > 0 && self.streak.0 == best.0 {
             (best.0, self.streak.1 + 1)
@@ -798,61 +926,85 @@ impl<T: Real, const K: usize> Detector<T, K> {
             (best.0, 1)
         };
         if self.streak.1 < self.config.confirm {
-            return None;
+            return;
         }
         self.streak = (0, 0);
         self.alarmed = false;
-        let j = best.0;
-        // a watch still running is cut short: its actuator's kind is fitted on what it saw
-        if let Some(refined) = self.watch.take().and_then(|w| self.refine(&w, control)) {
-            self.report(refined);
-        }
-        // a new failure of this actuator: what it showed before is another story
-        self.sums[j] = Sums::zero();
-        let (kind, since) = self.kind(j, &older, &s2, control);
-        self.tell(j, kind, control);
-        // watch it for a window: the tell itself moves its command, which tells a weak
-        // actuator from a stuck one
-        self.watch = Some(Watch {
-            actuator: j,
-            left: wn,
-            baseline: older,
-            spread: s,
-            kind,
-        });
-        Some(Detection {
-            actuator: j,
-            kind,
-            statistic: best.1,
-            since: since * self.config.decimation,
-            refined: false,
-        })
+        self.found(best.0, best.1, older, &inverse);
     }
 
-    /// Actuator `j`'s healthy column (the told one over its told factor), in world axes at
-    /// the last state's attitude.
-    fn healthy_column(&self, j: usize, control: &VehicleControl<T, K>) -> SVector<T, K> {
-        let b = control.allocator().geometry().effectiveness().column(j) / control.factors()[j];
-        rotate_blocks(&self.rotation, &b)
+    /// Actuator `j` named with statistic `t`: the detection completed over the next entries
+    /// ([`Detector::complete`]), where the allocator is told and the detection reported. A
+    /// watch still running is cut short, its kind fitted again first.
+    fn found(&mut self, j: usize, t: T, older: SVector<T, K>, inverse: &SVector<T, K>) {
+        let weights = self.columns[j].component_mul(inverse) / self.squares[j].dot(inverse);
+        self.ending = self.watch.take();
+        self.pending = Some(Pending {
+            stage: Stage::Change,
+            actuator: j,
+            older,
+            weights,
+            statistic: t,
+            since: 0,
+        });
+    }
+
+    /// One step of completing a detection, one entry after another (docs/maths.md, "Failure
+    /// detection", "The kind"): the change point, with the
+    /// shortfalls since it added to the actuator's sums and taken out of the window, and the
+    /// watch begun; then the kind fitted, the allocator told and the detection reported.
+    fn complete(&mut self, mut pending: Pending<T, K>, control: &mut VehicleControl<T, K>) {
+        self.last.testing = false;
+        let j = pending.actuator;
+        match pending.stage {
+            Stage::Change => {
+                // a new failure of this actuator: what it showed before is another story
+                self.sums[j] = Sums::zero();
+                pending.since = self.change(j, &pending);
+                pending.stage = Stage::Take;
+                self.pending = Some(pending);
+                // watched from the next entry on (its kind is set when it is fitted)
+                self.watch = Some(Watch {
+                    actuator: j,
+                    left: self.config.window,
+                    baseline: pending.older,
+                    weights: pending.weights,
+                    kind: Kind::Dead,
+                });
+            }
+            Stage::Take => {
+                self.take(j, &pending, pending.since);
+                pending.stage = Stage::Fit;
+                self.pending = Some(pending);
+            }
+            Stage::Fit => {
+                self.pending = None;
+                let kind = self.fit(j, &self.sums[j], control);
+                self.tell(j, kind, control);
+                if let Some(w) = self.watch.as_mut() {
+                    w.kind = kind;
+                }
+                self.report(Detection {
+                    actuator: j,
+                    kind,
+                    statistic: pending.statistic,
+                    since: (pending.since + 2) * self.config.decimation,
+                    refined: false,
+                });
+            }
+        }
     }
 
     /// The bank of hypotheses (docs/maths.md, "Failure detection"): for each actuator `j`,
-    /// `T_j = (b̃_jᵀ d̃)² / |b̃_j|²` with `b̃_j` its column whitened by the spread `s`; the best
-    /// `(j, T_j)` and the runner-up's `T`.
-    fn bank(
-        &self,
-        dw: &SVector<T, K>,
-        s: &SVector<T, K>,
-        control: &VehicleControl<T, K>,
-    ) -> ((usize, T), T) {
-        let b = control.allocator().geometry().effectiveness();
-        let count = control.allocator().geometry().count();
+    /// `T_j = (b_jᵀ z)² / (b_j ∘ b_j)ᵀ s⁻²` with `z = d ⊘ s²` the change in body axes over its
+    /// spread squared, which is `(b̃_jᵀ d̃)² / |b̃_j|²` of the whitened column and change;
+    /// the best `(j, T_j)` and the runner-up's `T`.
+    fn bank(&self, z: &SVector<T, K>, inverse: &SVector<T, K>) -> ((usize, T), T) {
         let (mut best, mut second) = ((0, T::zero()), T::zero());
-        for j in 0..count {
-            let bw = rotate_blocks(&self.rotation, &b.column(j).into_owned()).component_div(s);
-            let nb = bw.norm_squared();
+        for j in 0..self.formed {
+            let nb = self.squares[j].dot(inverse);
             if nb > T::zero() {
-                let dot = bw.dot(dw);
+                let dot = self.columns[j].dot(z);
                 let t = dot * dot / nb;
                 if t > best.1 {
                     second = best.1;
@@ -865,49 +1017,56 @@ impl<T: Real, const K: usize> Detector<T, K> {
         (best, second)
     }
 
-    /// Actuator `j`'s kind (docs/maths.md, "Failure detection", "The kind"): the thrust
-    /// short of what was believed in each recent period, along its whitened column; the
-    /// change point where their mean shift is most significant; then, over the periods since
-    /// and any attributed to `j` before, the least penalised (BIC) of dead, stuck and weak.
-    /// The shortfalls since the change are taken out of the window (they are explained now).
-    /// Returns the kind and how many periods ago the change began.
-    fn kind(
-        &mut self,
-        j: usize,
-        older: &SVector<T, K>,
-        s2: &SVector<T, K>,
-        control: &VehicleControl<T, K>,
-    ) -> (Kind<T>, usize) {
-        let wn = self.config.window;
-        let s = s2.map(eqtrack_controller::hw_sqrt::sqrt);
-        let column = self.healthy_column(j, control);
-        let bw = column.component_div(&s);
-        let nb = bw.norm_squared();
-        let shortfall = |e: &Entry<T, K>| bw.dot(&(e.w - older).component_div(&s)) / nb;
-        // the change point: the start whose mean shift is most significant (each period's
-        // shortfall kept for the next loop)
-        let mut shorts = [T::zero(); CAPACITY / 2];
-        let (mut start, mut score, mut sum) = (wn - 1, T::zero(), T::zero());
-        for i in (0..wn).rev() {
-            shorts[i] = shortfall(self.entry(wn, i));
-            sum += shorts[i];
-            let n: T = eqtrack_controller::real((wn - i) as f64);
+    /// Actuator `j`'s change point (docs/maths.md, "Failure detection", "The kind"): the
+    /// thrust short of what was believed in each recent entry, along its whitened column, and
+    /// the start whose mean shift is most significant. Returns how many entries the change
+    /// spans.
+    fn change(&self, j: usize, pending: &Pending<T, K>) -> usize {
+        let (g, _) = self.along(j, &pending.weights);
+        let base = g.dot(&pending.older);
+        let (mut span, mut score, mut sum, mut n) = (1, T::zero(), T::zero(), T::zero());
+        for age in 0..self.config.window {
+            sum += g.dot(&self.ring[self.index(age)].w) - base;
+            n += T::one();
             let t = sum * sum / n;
             if t > score {
                 score = t;
-                start = i;
+                span = age + 1;
             }
         }
-        // the actual thrust since then: the believed one plus the shortfall; each period's
-        // shortfall is then taken out of its residual
+        span
+    }
+
+    /// The shortfalls of actuator `j` over the `span` entries of its change, now one to
+    /// `span` entries before the newest: the actual thrust (the believed one plus the
+    /// shortfall) added to its sums, and each shortfall taken out of its entry's residual and
+    /// of the windows' sums (they are explained now).
+    fn take(&mut self, j: usize, pending: &Pending<T, K>, span: usize) {
+        let (g, column) = self.along(j, &pending.weights);
+        let base = g.dot(&pending.older);
         let mut sums = self.sums[j];
-        for (i, short) in shorts.iter().enumerate().take(wn).skip(start) {
-            let e = &mut self.ring[(self.head + CAPACITY - wn + i) % CAPACITY];
-            sums.add(e.u[j], e.p[j] + *short);
-            e.w -= column * *short;
+        let (mut all, mut block) = (T::zero(), T::zero());
+        for age in 1..=span {
+            let i = self.index(age);
+            let e = &mut self.ring[i];
+            let short = g.dot(&e.w) - base;
+            sums.add(e.u[j], e.p[j] + short);
+            e.w -= column * short;
+            all += short;
+            if age < self.windows.filled {
+                block += short;
+            }
         }
         self.sums[j] = sums;
-        (self.fit(j, &sums, control), wn - start)
+        let w = &mut self.windows;
+        w.recent -= column * all;
+        w.block -= column * block;
+        w.before -= column * (all - block);
+    }
+
+    /// The ring's index of the entry `age` entries before the newest.
+    fn index(&self, age: usize) -> usize {
+        (self.head + CAPACITY - 1 - age) % CAPACITY
     }
 
     /// The least penalised kind for the sums of actuator `j` (BIC: `n ln(RSS/n) + p ln n`,
@@ -961,4 +1120,15 @@ fn with_wheels<T: Real, const K: usize>(
         }
     }
     carried
+}
+
+/// `blockdiag(Rᵀ, Rᵀ) w`: a world-axes wrench in body axes (the inverse of
+/// [`rotate_blocks`]).
+fn body_blocks<T: Real, const K: usize>(r: &Matrix3<T>, w: &SVector<T, K>) -> SVector<T, K> {
+    let mut out = *w;
+    for b in 0..K / 3 {
+        let v = r.tr_mul(&w.fixed_rows::<3>(3 * b));
+        out.fixed_rows_mut::<3>(3 * b).copy_from(&v);
+    }
+    out
 }
