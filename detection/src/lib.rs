@@ -949,10 +949,10 @@ impl<T: Real, const K: usize> Detector<T, K> {
         });
     }
 
-    /// One step of completing a detection, one entry after another (docs/maths.md, "Failure
-    /// detection", "The kind"): the change point, with the
-    /// shortfalls since it added to the actuator's sums and taken out of the window, and the
-    /// watch begun; then the kind fitted, the allocator told and the detection reported.
+    /// One step of completing a detection, one entry after another: the change point, with
+    /// the watch begun; the shortfalls since it added to the actuator's sums and taken out of
+    /// the window; then the kind fitted, the allocator told and the detection reported
+    /// (docs/maths.md, "Failure detection", paragraph "The kind").
     fn complete(&mut self, mut pending: Pending<T, K>, control: &mut VehicleControl<T, K>) {
         self.last.testing = false;
         let j = pending.actuator;
