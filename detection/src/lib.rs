@@ -317,12 +317,12 @@ impl<T: Real> Sums<T> {
     }
 }
 
-/// What the detector kept of the last state.
+/// What the detector kept of the last state: the momentum, and half the gyroscopic and
+/// environment's wrench, `½(ad_Vᵀμ + τ_env)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Previous<T, const K: usize> {
     mu: SVector<T, K>,
-    gyro: SVector<T, K>,
-    environment: SVector<T, K>,
+    half: SVector<T, K>,
 }
 
 /// The last test's figures, for the record.
@@ -354,6 +354,8 @@ pub struct Detector<T, const K: usize> {
     /// library call on a single-precision FPU).
     floor2: SVector<T, K>,
     window_n: T,
+    /// Whether the inertia is diagonal (its momentum then by its diagonal).
+    diagonal: bool,
     calibration_n: T,
     /// The healthy output at the start of the held period, and the held command.
     output: Commands<T>,
@@ -378,6 +380,8 @@ pub struct Detector<T, const K: usize> {
     /// entry, and a detection being completed over the entries after its finding.
     ending: Option<Watch<T, K>>,
     pending: Option<Pending<T, K>>,
+    /// The shortfalls the change point measured, newest first.
+    shorts: [T; CAPACITY / 2],
     /// Detections not reported yet (a refinement and a detection in the same entry, or one
     /// watch cut short by another detection): the next cycles report them, oldest first.
     queue: [Option<Detection<T>>; 3],
@@ -387,8 +391,9 @@ pub struct Detector<T, const K: usize> {
     rotation: Matrix3<T>,
     ring: [Entry<T, K>; CAPACITY],
     windows: Windows<T, K>,
-    /// The periods summed towards the next entry, and how many.
+    /// The periods summed towards the next entry, how many, and the period being summed.
     accumulated: Entry<T, K>,
+    scratch: Entry<T, K>,
     periods: usize,
     head: usize,
     len: usize,
@@ -423,6 +428,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             mean,
             floor2: config.floor.component_mul(&config.floor),
             window_n: eqtrack_controller::real(config.window as f64),
+            diagonal: config.inertia == SMatrix::from_diagonal(&config.inertia.diagonal()),
             calibration_n: eqtrack_controller::real(config.calibration as f64),
             output: Commands::zeros(),
             command: Commands::zeros(),
@@ -436,12 +442,14 @@ impl<T: Real, const K: usize> Detector<T, K> {
             watch: None,
             ending: None,
             pending: None,
+            shorts: [T::zero(); CAPACITY / 2],
             queue: [None; 3],
             previous: None,
             rotation: Matrix3::identity(),
             ring: [Entry::zero(); CAPACITY],
             windows: Windows::zero(),
             accumulated: Entry::zero(),
+            scratch: Entry::zero(),
             periods: 0,
             head: 0,
             len: 0,
@@ -520,6 +528,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.watch = None;
         self.ending = None;
         self.pending = None;
+        self.shorts = [T::zero(); CAPACITY / 2];
         self.queue = [None; 3];
         self.previous = None;
         self.rotation = Matrix3::identity();
@@ -528,6 +537,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         self.windows = Windows::zero();
         self.accumulated = Entry::zero();
+        self.scratch = Entry::zero();
         self.periods = 0;
         self.head = 0;
         self.len = 0;
@@ -660,32 +670,48 @@ impl<T: Real, const K: usize> Detector<T, K> {
             self.form(control);
         }
         let c = &self.config;
-        let mu = c.inertia * v;
+        // `I V` (a diagonal inertia by its diagonal: the same bits)
+        let mu = if self.diagonal {
+            c.inertia.diagonal().component_mul(v)
+        } else {
+            c.inertia * v
+        };
         let gyro = G::ad_transpose_mul(v, &with_wheels(mu, v, speeds, control));
         let drag = -(c.damping_linear.component_mul(v)
             + c.damping_quadratic.component_mul(&v.abs().component_mul(v)));
-        let environment = control.restoring(r) + drag;
+        let half: T = eqtrack_controller::real(0.5);
         let now = Previous {
             mu,
-            gyro,
-            environment,
+            half: (gyro + control.restoring(r) + drag) * half,
         };
-        let previous = self.previous.replace(now);
         self.rotation = *r;
-        let (Some(p), true) = (previous, self.held) else {
+        let seen = self.previous.is_some();
+        let p = self.previous.get_or_insert(now);
+        let (momentum, held_half) = (p.mu, p.half);
+        *p = now;
+        if !(seen && self.held) {
             return self.next_report();
-        };
+        }
         // a wheel's motor has no lag: its torque is the command held over the period
         let first = control.wheels().first();
         for j in first..first + control.wheels().wheels().len() {
             self.output[j] = self.command[j];
         }
-        // the held period over the vehicle's actuators (the slots past them stay zero): the
-        // lag's mean output and its output at the end
-        let mut entry = Entry::zero();
+        // the entry is built in its slot of the ring (one period an entry), or in the
+        // accumulator; the slots past the vehicle's actuators stay zero
+        let decimated = c.decimation > 1;
+        let slot = self.head;
+        let (moved, leaving) = self.outgoing();
+        let e = if decimated {
+            &mut self.scratch
+        } else {
+            &mut self.ring[slot]
+        };
+        // the held period over the vehicle's actuators: the lag's mean output and its output
+        // at the end
         for j in 0..count {
             let (out, cmd) = (self.output[j], self.command[j]);
-            entry.u[j] = cmd + (out - cmd) * self.mean;
+            e.u[j] = cmd + (out - cmd) * self.mean;
             self.output[j] = cmd + (out - cmd) * self.decay;
         }
         if self.settling > 0 {
@@ -698,28 +724,24 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let factors = control.factors();
         let mut thrust = SVector::<T, K>::zeros();
         for j in 0..count {
-            let believed = self.stuck[j].unwrap_or(entry.u[j]);
+            let believed = self.stuck[j].unwrap_or(e.u[j]);
             thrust += b.column(j) * believed;
-            entry.p[j] = believed * factors[j];
+            e.p[j] = believed * factors[j];
         }
-        let half: T = eqtrack_controller::real(0.5);
-        let body = (mu - p.mu) / c.period
-            - (p.gyro + gyro) * half
-            - thrust
-            - (p.environment + environment) * half;
-        entry.w = rotate_blocks(r, &body);
-        // the entry: the mean of `decimation` periods (one period: the period itself)
-        if c.decimation > 1 {
-            let a = &mut self.accumulated;
-            a.w += entry.w;
-            a.u += entry.u;
-            a.p += entry.p;
+        let body = (mu - momentum) / c.period - held_half - now.half - thrust;
+        e.w = rotate_blocks(r, &body);
+        // the entry: the mean of `decimation` periods
+        if decimated {
+            let (a, e) = (&mut self.accumulated, &self.scratch);
+            a.w += e.w;
+            a.u += e.u;
+            a.p += e.p;
             self.periods += 1;
             if self.periods < c.decimation {
                 return self.next_report();
             }
             let n: T = eqtrack_controller::real(self.periods as f64);
-            entry = Entry {
+            self.ring[slot] = Entry {
                 w: a.w / n,
                 u: a.u / n,
                 p: a.p / n,
@@ -727,8 +749,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
             self.accumulated = Entry::zero();
             self.periods = 0;
         }
-        self.watching(&mut entry);
-        self.push(entry);
+        self.watching(slot);
+        self.push(&moved, &leaving);
         // one of: a watch's end, a step of completing a detection, or the test
         if let Some(watch) = self.ending.take() {
             self.last.testing = false;
@@ -776,22 +798,23 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// The watched actuator's shortfall in this period, added to its sums and taken out of
     /// the residual; after a window, its kind estimated again from all its sums and, if it
     /// changed, the allocator told again (a refined detection) in the entry after.
-    fn watching(&mut self, entry: &mut Entry<T, K>) {
-        let Some(mut watch) = self.watch.take() else {
+    fn watching(&mut self, slot: usize) {
+        let Some(watch) = self.watch.as_ref() else {
             return;
         };
         let j = watch.actuator;
         let (g, column) = self.along(j, &watch.weights);
-        let short = g.dot(&(entry.w - watch.baseline));
-        self.sums[j].add(entry.u[j], entry.p[j] + short);
-        entry.w -= column * short;
-        watch.left = watch.left.saturating_sub(1);
-        if watch.left > 0 || self.pending.is_some() {
-            // a detection still being completed has its kind told first
-            self.watch = Some(watch);
-        } else {
-            // its end: fitted again in the next entry, in place of the test
-            self.ending = Some(watch);
+        let e = &mut self.ring[slot];
+        let short = g.dot(&(e.w - watch.baseline));
+        self.sums[j].add(e.u[j], e.p[j] + short);
+        e.w -= column * short;
+        if let Some(watch) = self.watch.as_mut() {
+            watch.left = watch.left.saturating_sub(1);
+            // a detection still being completed has its kind told first; at the end, the
+            // kind is fitted again in the next entry, in place of the test
+            if watch.left == 0 && self.pending.is_none() {
+                self.ending = self.watch.take();
+            }
         }
     }
 
@@ -836,21 +859,35 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.failed[j] = true;
     }
 
-    /// Keeps entry `e`, and moves the windows' sums on with it.
-    fn push(&mut self, e: Entry<T, K>) {
+    /// The residuals of the entries that move on when the next is kept: the one that passes
+    /// from the recent window to the older one, and the one that leaves the older window (zero
+    /// while the windows fill). Read before the next entry is written, since with two windows
+    /// of half the capacity the one that leaves is in its slot.
+    fn outgoing(&self) -> (SVector<T, K>, SVector<T, K>) {
         let wn = self.config.window;
+        let at = |n: usize| self.ring[(self.head + CAPACITY - n) % CAPACITY].w;
+        let moved = if self.len >= wn {
+            at(wn)
+        } else {
+            SVector::zeros()
+        };
+        let leaving = if self.len >= 2 * wn {
+            at(2 * wn)
+        } else {
+            SVector::zeros()
+        };
+        (moved, leaving)
+    }
+
+    /// Keeps the entry written in the slot at `head`, and moves the windows' sums on with it
+    /// (`moved` and `leaving` from [`Detector::outgoing`]).
+    fn push(&mut self, moved: &SVector<T, K>, leaving: &SVector<T, K>) {
+        let wn = self.config.window;
+        let w = self.ring[self.head].w;
         let s = &mut self.windows;
-        if self.len >= wn {
-            // the entry that passes from the recent window to the older one
-            let moved = self.ring[(self.head + CAPACITY - wn) % CAPACITY].w;
-            s.recent -= moved;
-            s.older += moved;
-        }
-        if self.len >= 2 * wn {
-            s.older -= self.ring[(self.head + CAPACITY - 2 * wn) % CAPACITY].w;
-        }
-        s.recent += e.w;
-        s.block += e.w;
+        s.recent += w - moved;
+        s.older += moved - leaving;
+        s.block += w;
         s.filled += 1;
         if s.filled == wn {
             // afresh: the recent window is this block, the older one the block before
@@ -860,7 +897,6 @@ impl<T: Real, const K: usize> Detector<T, K> {
             s.block = SVector::zeros();
             s.filled = 0;
         }
-        self.ring[self.head] = e;
         self.head = (self.head + 1) % CAPACITY;
         self.len = (self.len + 1).min(CAPACITY);
     }
@@ -960,7 +996,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             Stage::Change => {
                 // a new failure of this actuator: what it showed before is another story
                 self.sums[j] = Sums::zero();
-                pending.since = self.change(j, &pending);
+                pending.since = self.change(&pending);
                 pending.stage = Stage::Take;
                 self.pending = Some(pending);
                 // watched from the next entry on (its kind is set when it is fitted)
@@ -973,7 +1009,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
                 });
             }
             Stage::Take => {
-                self.take(j, &pending, pending.since);
+                self.take(j, pending.since);
                 pending.stage = Stage::Fit;
                 self.pending = Some(pending);
             }
@@ -1017,16 +1053,18 @@ impl<T: Real, const K: usize> Detector<T, K> {
         (best, second)
     }
 
-    /// Actuator `j`'s change point (docs/maths.md, "Failure detection", "The kind"): the
+    /// The named actuator's change point (docs/maths.md, "Failure detection", "The kind"): the
     /// thrust short of what was believed in each recent entry, along its whitened column, and
     /// the start whose mean shift is most significant. Returns how many entries the change
     /// spans.
-    fn change(&self, j: usize, pending: &Pending<T, K>) -> usize {
-        let (g, _) = self.along(j, &pending.weights);
+    fn change(&mut self, pending: &Pending<T, K>) -> usize {
+        let g = rotate_blocks(&self.rotation, &pending.weights);
         let base = g.dot(&pending.older);
         let (mut span, mut score, mut sum, mut n) = (1, T::zero(), T::zero(), T::zero());
         for age in 0..self.config.window {
-            sum += g.dot(&self.ring[self.index(age)].w) - base;
+            let short = g.dot(&self.ring[self.index(age)].w) - base;
+            self.shorts[age] = short;
+            sum += short;
             n += T::one();
             let t = sum * sum / n;
             if t > score {
@@ -1037,19 +1075,18 @@ impl<T: Real, const K: usize> Detector<T, K> {
         span
     }
 
-    /// The shortfalls of actuator `j` over the `span` entries of its change, now one to
-    /// `span` entries before the newest: the actual thrust (the believed one plus the
-    /// shortfall) added to its sums, and each shortfall taken out of its entry's residual and
-    /// of the windows' sums (they are explained now).
-    fn take(&mut self, j: usize, pending: &Pending<T, K>, span: usize) {
-        let (g, column) = self.along(j, &pending.weights);
-        let base = g.dot(&pending.older);
+    /// The shortfalls of actuator `j` over the `span` entries of its change (as the change
+    /// point measured them), now one to `span` entries before the newest: the actual thrust
+    /// (the believed one plus the shortfall) added to its sums, and each shortfall taken out
+    /// of its entry's residual and of the windows' sums (they are explained now).
+    fn take(&mut self, j: usize, span: usize) {
+        let column = rotate_blocks(&self.rotation, &self.columns[j]);
         let mut sums = self.sums[j];
         let (mut all, mut block) = (T::zero(), T::zero());
         for age in 1..=span {
             let i = self.index(age);
             let e = &mut self.ring[i];
-            let short = g.dot(&e.w) - base;
+            let short = self.shorts[age - 1];
             sums.add(e.u[j], e.p[j] + short);
             e.w -= column * short;
             all += short;
@@ -1079,10 +1116,15 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let res = self.config.resolution[j];
         let floor = n * res * res;
         let two: T = eqtrack_controller::real(2.0);
-        let bic = |rss: T, params: T| n * ((rss.max(T::zero()) + floor) / n).ln() + params * n.ln();
-        let mut best = (Kind::Dead, bic(sums.yy, T::zero()));
+        // each BIC less dead's, `n ln(RSS'/RSS'_dead) + p ln n` (RSS' the floored RSS): the
+        // same order as the BICs themselves, with a logarithm a model
+        let q = |rss: T| rss.max(T::zero()) + floor;
+        let dead = q(sums.yy);
+        let ln_n = n.ln();
+        let score = |rss: T| n * (q(rss) / dead).ln() + ln_n;
+        let mut best = (Kind::Dead, T::zero());
         let v = (sums.y / n).max(lo[j]).min(hi[j]);
-        let b = bic(sums.yy - two * v * sums.y + n * v * v, T::one());
+        let b = score(sums.yy - two * v * sums.y + n * v * v);
         if b < best.1 {
             best = (Kind::Stuck(v), b);
         }
@@ -1092,7 +1134,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
                 // a weak actuator only on strong evidence (a BIC lower by 6): while its
                 // command has not moved, weak and stuck fit alike, and stuck is reported
                 let strong: T = eqtrack_controller::real(6.0);
-                let b = bic(sums.yy - two * k * sums.uy + k * k * sums.uu, T::one());
+                let b = score(sums.yy - two * k * sums.uy + k * k * sums.uu);
                 if b < best.1 - strong {
                     best = (Kind::Weak(k), b);
                 }
