@@ -160,6 +160,34 @@ struct Pending<T, const K: usize> {
     since: usize,
 }
 
+/// The whitening the test uses: `s⁻²` per body axis and each column's `|b̃_j|²`, renewed
+/// one step a test into `next` and `norms_next` and then taken in whole.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Whitening<T, const K: usize> {
+    inverse: SVector<T, K>,
+    norms: [T; MAX_ACTUATORS],
+    next: SVector<T, K>,
+    norms_next: [T; MAX_ACTUATORS],
+    step: usize,
+    /// Whether a whole pair has been taken, and the steps of one (the actuators and one).
+    ready: bool,
+    steps: T,
+}
+
+impl<T: Real, const K: usize> Whitening<T, K> {
+    fn zero() -> Self {
+        Whitening {
+            inverse: SVector::zeros(),
+            norms: [T::zero(); MAX_ACTUATORS],
+            next: SVector::zeros(),
+            norms_next: [T::zero(); MAX_ACTUATORS],
+            step: 0,
+            ready: false,
+            steps: T::zero(),
+        }
+    }
+}
+
 /// The two windows' running sums of the residual (docs/maths.md, "Failure detection", "Two
 /// windows"): each new entry is added to the recent one and the entry it pushes on moves to
 /// the older one. Every `W` entries both are set afresh from the sums of the last two blocks
@@ -402,6 +430,7 @@ pub struct Detector<T, const K: usize> {
     /// The learned spread (variance per body axis) and the periods it was learned over.
     variance: SVector<T, K>,
     learned: T,
+    whitening: Whitening<T, K>,
     failed: [bool; MAX_ACTUATORS],
     last: Statistic<T>,
     /// The actuator passing every gate and for how many periods in a row.
@@ -456,6 +485,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             variance: SVector::zeros(),
             warmed: 0,
             learned: T::zero(),
+            whitening: Whitening::zero(),
             failed: [false; MAX_ACTUATORS],
             last: Statistic {
                 actuator: 0,
@@ -544,6 +574,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.variance = SVector::zeros();
         self.warmed = 0;
         self.learned = T::zero();
+        self.whitening = Whitening::zero();
         self.failed = [false; MAX_ACTUATORS];
         self.last = Statistic {
             actuator: 0,
@@ -655,6 +686,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             self.squares[j] = self.columns[j].component_mul(&self.columns[j]);
         }
         self.formed = geometry.count();
+        self.whitening.steps = eqtrack_controller::real((self.formed + 1) as f64);
     }
 
     /// [`Detector::observe`] but for what the allocator holds next.
@@ -708,25 +740,23 @@ impl<T: Real, const K: usize> Detector<T, K> {
             &mut self.ring[slot]
         };
         // the held period over the vehicle's actuators: the lag's mean output and its output
-        // at the end
-        for j in 0..count {
-            let (out, cmd) = (self.output[j], self.command[j]);
-            e.u[j] = cmd + (out - cmd) * self.mean;
-            self.output[j] = cmd + (out - cmd) * self.decay;
-        }
-        if self.settling > 0 {
-            self.settling -= 1;
-            return self.next_report();
-        }
-        // the thrust believed, a held value for an actuator held (found or told stuck or
-        // dead), and `B ū`
+        // at the end; the thrust believed, a held value for an actuator held (found or told
+        // stuck or dead), and `B ū`
         let b = control.allocator().geometry().effectiveness();
         let factors = control.factors();
         let mut thrust = SVector::<T, K>::zeros();
         for j in 0..count {
-            let believed = self.stuck[j].unwrap_or(e.u[j]);
+            let (out, cmd) = (self.output[j], self.command[j]);
+            let u = cmd + (out - cmd) * self.mean;
+            self.output[j] = cmd + (out - cmd) * self.decay;
+            let believed = self.stuck[j].unwrap_or(u);
             thrust += b.column(j) * believed;
+            e.u[j] = u;
             e.p[j] = believed * factors[j];
+        }
+        if self.settling > 0 {
+            self.settling -= 1;
+            return self.next_report();
         }
         let body = (mu - momentum) / c.period - held_half - now.half - thrust;
         e.w = rotate_blocks(r, &body);
@@ -924,14 +954,23 @@ impl<T: Real, const K: usize> Detector<T, K> {
         if self.learned < self.calibration_n {
             self.learned += T::one();
             self.variance += (d.component_mul(&d) - self.variance) / self.learned;
+            // the first whitening, one step in each of the calibration's last entries, from
+            // the spread learned by then (the calibration lasts at least two windows, and
+            // [`Detector::check`] holds it longer than the steps)
+            if self.learned + self.whitening.steps > self.calibration_n {
+                self.renew();
+            }
             return;
         }
-        let inverse = self
-            .variance
-            .zip_map(&self.floor2, |v, f| T::one() / if v > f { v } else { f });
+        // a calibration shorter than the steps completes the first whitening here
+        while !self.whitening.ready {
+            self.renew();
+        }
+        let inverse = self.whitening.inverse;
         let z = d.component_mul(&inverse);
         let total = d.dot(&z);
-        let (best, second) = self.bank(&z, &inverse);
+        let (best, second) = self.bank(&z);
+        self.renew();
         self.last = Statistic {
             actuator: best.0,
             best: best.1,
@@ -966,14 +1005,38 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         self.streak = (0, 0);
         self.alarmed = false;
-        self.found(best.0, best.1, older, &inverse);
+        self.found(best.0, best.1, older);
+    }
+
+    /// One step of renewing the whitening the test uses (docs/maths.md, "Failure detection",
+    /// "The spread"): the first takes the learned spread, floored, as the next `s⁻²`; each of
+    /// the next forms one actuator's `|b̃_j|²` with it; after the last the pair is taken in
+    /// whole, so the test always whitens the change and the columns by the same spread.
+    fn renew(&mut self) {
+        let w = &mut self.whitening;
+        if w.step == 0 {
+            w.next = self
+                .variance
+                .zip_map(&self.floor2, |v, f| T::one() / if v > f { v } else { f });
+        } else {
+            let j = w.step - 1;
+            w.norms_next[j] = self.squares[j].dot(&w.next);
+        }
+        w.step += 1;
+        if w.step > self.formed {
+            w.inverse = w.next;
+            w.norms = w.norms_next;
+            w.step = 0;
+            w.ready = true;
+        }
     }
 
     /// Actuator `j` named with statistic `t`: the detection completed over the next entries
     /// ([`Detector::complete`]), where the allocator is told and the detection reported. A
     /// watch still running is cut short, its kind fitted again first.
-    fn found(&mut self, j: usize, t: T, older: SVector<T, K>, inverse: &SVector<T, K>) {
-        let weights = self.columns[j].component_mul(inverse) / self.squares[j].dot(inverse);
+    fn found(&mut self, j: usize, t: T, older: SVector<T, K>) {
+        let w = &self.whitening;
+        let weights = self.columns[j].component_mul(&w.inverse) / w.norms[j];
         self.ending = self.watch.take();
         self.pending = Some(Pending {
             stage: Stage::Change,
@@ -1035,10 +1098,10 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// `T_j = (b_jᵀ z)² / (b_j ∘ b_j)ᵀ s⁻²` with `z = d ⊘ s²` the change in body axes over its
     /// spread squared, which is `(b̃_jᵀ d̃)² / |b̃_j|²` of the whitened column and change;
     /// the best `(j, T_j)` and the runner-up's `T`.
-    fn bank(&self, z: &SVector<T, K>, inverse: &SVector<T, K>) -> ((usize, T), T) {
+    fn bank(&self, z: &SVector<T, K>) -> ((usize, T), T) {
         let (mut best, mut second) = ((0, T::zero()), T::zero());
         for j in 0..self.formed {
-            let nb = self.squares[j].dot(inverse);
+            let nb = self.whitening.norms[j];
             if nb > T::zero() {
                 let dot = self.columns[j].dot(z);
                 let t = dot * dot / nb;
