@@ -57,6 +57,9 @@ pub struct VehicleControl<T, const K: usize> {
     momentum: Option<Momentum<T>>,
     /// The control period (s).
     period: T,
+    /// How many times the bounds have been told ([`VehicleControl::fail`],
+    /// [`VehicleControl::heal`]).
+    told: u32,
 }
 
 impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
@@ -79,6 +82,7 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
             wheels: WheelSet::none(),
             momentum: None,
             period,
+            told: 0,
         }
     }
 
@@ -132,6 +136,13 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         (self.bounds.lo, self.bounds.hi)
     }
 
+    /// A count of the tells that changed the bounds so far ([`VehicleControl::fail`] and
+    /// [`VehicleControl::heal`], wrapping): while it stays the same, so does every
+    /// [`VehicleControl::held`], and a failure detector need not read them again.
+    pub fn told(&self) -> u32 {
+        self.told
+    }
+
     /// The value actuator `j` is held at, when the failures told lock it (its bounds equal).
     #[inline]
     pub fn held(&self, j: usize) -> Option<T> {
@@ -172,6 +183,7 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     pub fn fail(&mut self, j: usize, value: T) {
         if j < self.nominal.geometry().count() {
             self.bounds.fail(j, value);
+            self.told = self.told.wrapping_add(1);
         }
     }
 
@@ -187,6 +199,7 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
             let (lo, hi) = self.nominal.geometry().bounds();
             self.bounds.lo[j] = lo[j];
             self.bounds.hi[j] = hi[j];
+            self.told = self.told.wrapping_add(1);
             self.weaken(j, T::one());
         }
     }

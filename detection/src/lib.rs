@@ -396,6 +396,8 @@ pub struct Detector<T, const K: usize> {
     /// the last cycle ended. A failed actuator's thrust jumps to its value, where a command
     /// would ramp through the lag.
     stuck: [Option<T>; MAX_ACTUATORS],
+    /// The allocator's count of tells when `stuck` was read ([`VehicleControl::told`]).
+    told: Option<u32>,
     /// Each actuator's healthy column in body axes and its entries' squares, formed at the
     /// first period (`formed` actuators; 0: not yet).
     columns: [SVector<T, K>; MAX_ACTUATORS],
@@ -464,6 +466,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             held: false,
             settling: 0,
             stuck: [None; MAX_ACTUATORS],
+            told: None,
             columns: [SVector::zeros(); MAX_ACTUATORS],
             squares: [SVector::zeros(); MAX_ACTUATORS],
             formed: 0,
@@ -551,6 +554,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.held = false;
         self.settling = 0;
         self.stuck = [None; MAX_ACTUATORS];
+        self.told = None;
         self.columns = [SVector::zeros(); MAX_ACTUATORS];
         self.squares = [SVector::zeros(); MAX_ACTUATORS];
         self.formed = 0;
@@ -670,9 +674,14 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let found = self.period::<G, N>(v, r, speeds, control);
         // what the allocator holds over the next period: what this cycle told it, and any
         // failure the scenario told it of at this tick (the plant's actuator stuck from now)
-        let count = control.allocator().geometry().count();
-        for (j, s) in self.stuck.iter_mut().enumerate().take(count) {
-            *s = control.held(j);
+        // (read again only when the bounds were told since: a detector paired with another
+        // `VehicleControl` is restarted first)
+        if self.told != Some(control.told()) {
+            self.told = Some(control.told());
+            let count = control.allocator().geometry().count();
+            for (j, s) in self.stuck.iter_mut().enumerate().take(count) {
+                *s = control.held(j);
+            }
         }
         found
     }
