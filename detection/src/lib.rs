@@ -134,8 +134,8 @@ struct Watch<T, const K: usize> {
 
 /// Where a detection stands in the entries after the test named its actuator (docs/maths.md,
 /// "Failure detection", "The kind"): the change point, the shortfalls since it and the kind's
-/// fit follow, one entry each, so that no cycle carries more than one of them; the allocator
-/// is told, and the detection reported, with the fit.
+/// fit follow, half a window of entries a cycle, so that no cycle carries more than that; the
+/// allocator is told, and the detection reported, with the fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Stage {
     /// The change point.
@@ -149,15 +149,42 @@ enum Stage {
 /// A detection being completed over the entries after its finding.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Pending<T, const K: usize> {
-    stage: Stage,
     actuator: usize,
     /// The older window's mean at the finding (world axes).
     older: SVector<T, K>,
     /// The shortfall's weights in body axes ([`Watch::weights`]).
     weights: SVector<T, K>,
-    /// The finding's statistic, and the entries from the change to the last one seen.
+    /// The finding's statistic.
     statistic: T,
-    since: usize,
+    /// Entries kept since the change point's first step (the ages of the entries it reads
+    /// grow by one each), and the entries the present stage has done.
+    shift: usize,
+    done: usize,
+    /// The change point's search: the shortfalls' running sum, their count, the best score
+    /// and the span it gives; and `gᵀ mean(older)`.
+    sum: T,
+    n: T,
+    score: T,
+    span: usize,
+    base: T,
+}
+
+impl<T: Real, const K: usize> Pending<T, K> {
+    fn zero() -> Self {
+        Pending {
+            actuator: 0,
+            older: SVector::zeros(),
+            weights: SVector::zeros(),
+            statistic: T::zero(),
+            shift: 0,
+            done: 0,
+            sum: T::zero(),
+            n: T::zero(),
+            score: T::zero(),
+            span: 1,
+            base: T::zero(),
+        }
+    }
 }
 
 /// The whitening the test uses: `s⁻²` per body axis and each column's `|b̃_j|²`, renewed
@@ -409,9 +436,12 @@ pub struct Detector<T, const K: usize> {
     /// A watch that ended (or that a detection cut short), its kind fitted again in the next
     /// entry, and a detection being completed over the entries after its finding.
     ending: Option<Watch<T, K>>,
-    pending: Option<Pending<T, K>>,
-    /// The shortfalls the change point measured, newest first.
+    pending: Option<Stage>,
+    job: Pending<T, K>,
+    /// The shortfalls the change point measured, newest first, and the weights `g` and the
+    /// named actuator's column in world axes at its first step.
     shorts: [T; CAPACITY / 2],
+    along: [SVector<T, K>; 2],
     /// Detections not reported yet (a refinement and a detection in the same entry, or one
     /// watch cut short by another detection): the next cycles report them, oldest first.
     queue: [Option<Detection<T>>; 3],
@@ -474,7 +504,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
             watch: None,
             ending: None,
             pending: None,
+            job: Pending::zero(),
             shorts: [T::zero(); CAPACITY / 2],
+            along: [SVector::zeros(); 2],
             queue: [None; 3],
             previous: None,
             rotation: Matrix3::identity(),
@@ -562,7 +594,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.watch = None;
         self.ending = None;
         self.pending = None;
+        self.job = Pending::zero();
         self.shorts = [T::zero(); CAPACITY / 2];
+        self.along = [SVector::zeros(); 2];
         self.queue = [None; 3];
         self.previous = None;
         self.rotation = Matrix3::identity();
@@ -796,8 +830,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
             if let Some(refined) = self.refine(&watch, control) {
                 self.report(refined);
             }
-        } else if let Some(pending) = self.pending {
-            self.complete(pending, control);
+        } else if self.pending.is_some() {
+            self.complete(control);
         } else {
             self.test();
         }
@@ -1047,46 +1081,73 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let w = &self.whitening;
         let weights = self.columns[j].component_mul(&w.inverse) / w.norms[j];
         self.ending = self.watch.take();
-        self.pending = Some(Pending {
-            stage: Stage::Change,
+        self.pending = Some(Stage::Change);
+        self.job = Pending {
             actuator: j,
             older,
             weights,
             statistic: t,
-            since: 0,
-        });
+            shift: 0,
+            done: 0,
+            sum: T::zero(),
+            n: T::zero(),
+            score: T::zero(),
+            span: 1,
+            base: T::zero(),
+        };
     }
 
-    /// One step of completing a detection, one entry after another: the change point, with
-    /// the watch begun; the shortfalls since it added to the actuator's sums and taken out of
-    /// the window; then the kind fitted, the allocator told and the detection reported
-    /// (docs/maths.md, "Failure detection", paragraph "The kind").
-    fn complete(&mut self, mut pending: Pending<T, K>, control: &mut VehicleControl<T, K>) {
+    /// One step of completing a detection, in the entries after its naming: the change point
+    /// (the watch begun with its first step), the shortfalls since it added to the
+    /// actuator's sums and taken out of the window, each half a window of entries a cycle;
+    /// then the kind fitted, the allocator told and the detection reported (docs/maths.md,
+    /// "Failure detection", paragraph "The kind").
+    fn complete(&mut self, control: &mut VehicleControl<T, K>) {
+        let Some(stage) = self.pending else {
+            return;
+        };
         self.last.testing = false;
-        let j = pending.actuator;
-        match pending.stage {
+        let j = self.job.actuator;
+        let chunk = self.config.window.div_ceil(2);
+        match stage {
             Stage::Change => {
-                // a new failure of this actuator: what it showed before is another story
-                self.sums[j] = Sums::zero();
-                pending.since = self.change(&pending);
-                pending.stage = Stage::Take;
-                self.pending = Some(pending);
-                // watched from the next entry on (its kind is set when it is fitted)
-                self.watch = Some(Watch {
-                    actuator: j,
-                    left: self.config.window,
-                    baseline: pending.older,
-                    weights: pending.weights,
-                    kind: Kind::Dead,
-                });
+                if self.job.done == 0 {
+                    // a new failure of this actuator: what it showed before is another story
+                    self.sums[j] = Sums::zero();
+                    self.along = [
+                        rotate_blocks(&self.rotation, &self.job.weights),
+                        rotate_blocks(&self.rotation, &self.columns[j]),
+                    ];
+                    self.job.base = self.along[0].dot(&self.job.older);
+                    // watched from the next entry on (its kind is set when it is fitted)
+                    self.watch = Some(Watch {
+                        actuator: j,
+                        left: self.config.window,
+                        baseline: self.job.older,
+                        weights: self.job.weights,
+                        kind: Kind::Dead,
+                    });
+                } else {
+                    self.job.shift += 1;
+                }
+                self.change(chunk);
+                if self.job.done == self.config.window {
+                    self.job.done = 0;
+                    self.pending = Some(Stage::Take);
+                }
             }
             Stage::Take => {
-                self.take(j, pending.since);
-                pending.stage = Stage::Fit;
-                self.pending = Some(pending);
+                self.job.shift += 1;
+                self.take(chunk);
+                if self.job.done == self.job.span {
+                    self.pending = Some(Stage::Fit);
+                }
             }
             Stage::Fit => {
                 self.pending = None;
+                let p = &self.job;
+                let since = (p.span + p.shift + 1) * self.config.decimation;
+                let statistic = p.statistic;
                 let kind = self.fit(j, &self.sums[j], control);
                 self.tell(j, kind, control);
                 if let Some(w) = self.watch.as_mut() {
@@ -1095,8 +1156,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
                 self.report(Detection {
                     actuator: j,
                     kind,
-                    statistic: pending.statistic,
-                    since: (pending.since + 2) * self.config.decimation,
+                    statistic,
+                    since,
                     refined: false,
                 });
             }
@@ -1125,57 +1186,67 @@ impl<T: Real, const K: usize> Detector<T, K> {
         (best, second)
     }
 
-    /// The named actuator's change point (docs/maths.md, "Failure detection", "The kind"): the
-    /// thrust short of what was believed in each recent entry, along its whitened column, and
-    /// the start whose mean shift is most significant. Returns how many entries the change
-    /// spans.
-    fn change(&mut self, pending: &Pending<T, K>) -> usize {
-        let g = rotate_blocks(&self.rotation, &pending.weights);
-        let base = g.dot(&pending.older);
-        let (mut span, mut score, mut sum, mut n) = (1, T::zero(), T::zero(), T::zero());
-        for age in 0..self.config.window {
-            let short = g.dot(&self.ring[self.index(age)].w) - base;
-            self.shorts[age] = short;
-            sum += short;
-            n += T::one();
-            let t = sum * sum / n;
-            if t > score {
-                score = t;
-                span = age + 1;
+    /// Up to `chunk` more entries of the named actuator's change point (docs/maths.md,
+    /// "Failure detection", "The kind"): the thrust short of what was believed in each of the
+    /// window's entries at the first step, newest first, along its whitened column, and the
+    /// start whose mean shift is most significant (`p.span` entries).
+    fn change(&mut self, chunk: usize) {
+        let p = &mut self.job;
+        let end = (p.done + chunk).min(self.config.window);
+        for i in p.done..end {
+            let at = (self.head + CAPACITY - 1 - i - p.shift) % CAPACITY;
+            let short = self.along[0].dot(&self.ring[at].w) - p.base;
+            self.shorts[i] = short;
+            p.sum += short;
+            p.n += T::one();
+            let t = p.sum * p.sum / p.n;
+            if t > p.score {
+                p.score = t;
+                p.span = i + 1;
             }
         }
-        span
+        p.done = end;
     }
 
-    /// The shortfalls of actuator `j` over the `span` entries of its change (as the change
-    /// point measured them), now one to `span` entries before the newest: the actual thrust
-    /// (the believed one plus the shortfall) added to its sums, and each shortfall taken out
-    /// of its entry's residual and of the windows' sums (they are explained now).
-    fn take(&mut self, j: usize, span: usize) {
-        let column = rotate_blocks(&self.rotation, &self.columns[j]);
+    /// Up to `chunk` more of actuator `j`'s shortfalls over the `p.span` entries of its
+    /// change (as the change point measured them): the actual thrust (the believed one plus
+    /// the shortfall) added to its sums, and each shortfall taken out of its entry's residual
+    /// and of the sums of the window and the block it is in (they are explained now).
+    fn take(&mut self, chunk: usize) {
+        let (wn, filled) = (self.config.window, self.windows.filled);
+        let p = &mut self.job;
+        let j = p.actuator;
+        let column = self.along[1];
         let mut sums = self.sums[j];
-        let (mut all, mut block) = (T::zero(), T::zero());
-        for age in 1..=span {
-            let i = self.index(age);
-            let e = &mut self.ring[i];
-            let short = self.shorts[age - 1];
+        // the shortfalls taken out of the recent window, the older one, the block being
+        // summed and the one before it
+        let (mut recent, mut older, mut block, mut before) =
+            (T::zero(), T::zero(), T::zero(), T::zero());
+        let end = (p.done + chunk).min(p.span);
+        for i in p.done..end {
+            let age = i + p.shift;
+            let e = &mut self.ring[(self.head + CAPACITY - 1 - age) % CAPACITY];
+            let short = self.shorts[i];
             sums.add(e.u[j], e.p[j] + short);
             e.w -= column * short;
-            all += short;
-            if age < self.windows.filled {
+            if age < wn {
+                recent += short;
+            } else if age < 2 * wn {
+                older += short;
+            }
+            if age < filled {
                 block += short;
+            } else if age < filled + wn {
+                before += short;
             }
         }
+        p.done = end;
         self.sums[j] = sums;
         let w = &mut self.windows;
-        w.recent -= column * all;
+        w.recent -= column * recent;
+        w.older -= column * older;
         w.block -= column * block;
-        w.before -= column * (all - block);
-    }
-
-    /// The ring's index of the entry `age` entries before the newest.
-    fn index(&self, age: usize) -> usize {
-        (self.head + CAPACITY - 1 - age) % CAPACITY
+        w.before -= column * before;
     }
 
     /// The least penalised kind for the sums of actuator `j` (BIC: `n ln(RSS/n) + p ln n`,
