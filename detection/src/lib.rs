@@ -445,6 +445,9 @@ pub struct Detector<T, const K: usize> {
     /// Detections not reported yet (a refinement and a detection in the same entry, or one
     /// watch cut short by another detection): the next cycles report them, oldest first.
     queue: [Option<Detection<T>>; 3],
+    /// The queue's oldest slot, and how many wait.
+    first_queued: usize,
+    queued: usize,
     previous: Option<Previous<T, K>>,
     /// The attitude of the last state: residuals are kept in world axes, where a steady wind
     /// or current is constant however the body turns.
@@ -508,6 +511,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
             shorts: [T::zero(); CAPACITY / 2],
             along: [SVector::zeros(); 2],
             queue: [None; 3],
+            first_queued: 0,
+            queued: 0,
             previous: None,
             rotation: Matrix3::identity(),
             ring: [Entry::zero(); CAPACITY],
@@ -598,6 +603,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.shorts = [T::zero(); CAPACITY / 2];
         self.along = [SVector::zeros(); 2];
         self.queue = [None; 3];
+        self.first_queued = 0;
+        self.queued = 0;
         self.previous = None;
         self.rotation = Matrix3::identity();
         for e in &mut self.ring {
@@ -801,7 +808,16 @@ impl<T: Real, const K: usize> Detector<T, K> {
             self.settling -= 1;
             return self.next_report();
         }
-        let body = (mu - momentum) / c.period - held_half - now.half - thrust;
+        let mut body = (mu - momentum) / c.period - held_half - now.half - thrust;
+        if !decimated {
+            // the watch in body axes, before the residual is turned (one turn fewer)
+            self.watching_body(&mut body, slot);
+        }
+        let e = if decimated {
+            &mut self.scratch
+        } else {
+            &mut self.ring[slot]
+        };
         e.w = rotate_blocks(r, &body);
         // the entry: the mean of `decimation` periods
         if decimated {
@@ -810,7 +826,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             a.u += e.u;
             a.p += e.p;
             self.periods += 1;
-            if self.periods < c.decimation {
+            if self.periods < self.config.decimation {
                 return self.next_report();
             }
             let n: T = eqtrack_controller::real(self.periods as f64);
@@ -821,8 +837,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
             };
             self.accumulated = Entry::zero();
             self.periods = 0;
+            self.watching(slot);
         }
-        self.watching(slot);
         self.push(&moved, &leaving);
         // one of: a watch's end, a step of completing a detection, or the test
         if let Some(watch) = self.ending.take() {
@@ -840,21 +856,23 @@ impl<T: Real, const K: usize> Detector<T, K> {
 
     /// Keeps `d` to report (a full queue drops the oldest: never more than three wait).
     fn report(&mut self, d: Detection<T>) {
-        if self.queue.iter().all(Option::is_some) {
-            self.queue.rotate_left(1);
-            self.queue[2] = None;
+        let n = self.queue.len();
+        if self.queued == n {
+            self.first_queued = (self.first_queued + 1) % n;
+            self.queued -= 1;
         }
-        if let Some(slot) = self.queue.iter_mut().find(|x| x.is_none()) {
-            *slot = Some(d);
-        }
+        self.queue[(self.first_queued + self.queued) % n] = Some(d);
+        self.queued += 1;
     }
 
     /// The oldest detection not reported yet.
     fn next_report(&mut self) -> Option<Detection<T>> {
-        // the queue is packed from the front: an empty head is an empty queue
-        self.queue[0]?;
-        let first = self.queue[0].take();
-        self.queue.rotate_left(1);
+        if self.queued == 0 {
+            return None;
+        }
+        let first = self.queue[self.first_queued].take();
+        self.first_queued = (self.first_queued + 1) % self.queue.len();
+        self.queued -= 1;
         first
     }
 
@@ -881,6 +899,28 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let short = g.dot(&(e.w - watch.baseline));
         self.sums[j].add(e.u[j], e.p[j] + short);
         e.w -= column * short;
+        self.watched();
+    }
+
+    /// [`Detector::watching`] of an entry of one period, on its residual `body` before it is
+    /// turned into world axes: the shortfall `(b_j ⊘ s²)ᵀ(w_body − Rᵀ baseline) / |b̃_j|²` is
+    /// the same, and the column taken out is the body's.
+    fn watching_body(&mut self, body: &mut SVector<T, K>, slot: usize) {
+        let Some(watch) = self.watch.as_ref() else {
+            return;
+        };
+        let j = watch.actuator;
+        let short = watch
+            .weights
+            .dot(&(*body - body_blocks(&self.rotation, &watch.baseline)));
+        let e = &self.ring[slot];
+        self.sums[j].add(e.u[j], e.p[j] + short);
+        *body -= self.columns[j] * short;
+        self.watched();
+    }
+
+    /// One more entry of the watch: at its end, the kind is fitted again in the next entry.
+    fn watched(&mut self) {
         if let Some(watch) = self.watch.as_mut() {
             watch.left = watch.left.saturating_sub(1);
             // a detection still being completed has its kind told first; at the end, the
@@ -928,8 +968,14 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// Tells the allocator what actuator `j` is now believed to be, forgetting what it was
     /// told before: held at 0 or at a value, or its column scaled.
     fn tell(&mut self, j: usize, kind: Kind<T>, control: &mut VehicleControl<T, K>) {
+        let read = self.told == Some(control.told());
         kind.tell(j, control);
         self.failed[j] = true;
+        // the holds read still stand but for this one (unless told since they were read)
+        if read {
+            self.stuck[j] = control.held(j);
+            self.told = Some(control.told());
+        }
     }
 
     /// The residuals of the entries that move on when the next is kept: the one that passes
