@@ -783,7 +783,6 @@ impl<T: Real, const K: usize> Detector<T, K> {
         // accumulator; the slots past the vehicle's actuators stay zero
         let decimated = c.decimation > 1;
         let slot = self.head;
-        let (moved, leaving) = self.outgoing();
         let e = if decimated {
             &mut self.scratch
         } else {
@@ -812,6 +811,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         if !decimated {
             // the watch in body axes, before the residual is turned (one turn fewer)
             self.watching_body(&mut body, slot);
+            self.leave();
         }
         let e = if decimated {
             &mut self.scratch
@@ -830,6 +830,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
                 return self.next_report();
             }
             let n: T = eqtrack_controller::real(self.periods as f64);
+            self.leave();
+            let a = &self.accumulated;
             self.ring[slot] = Entry {
                 w: a.w / n,
                 u: a.u / n,
@@ -839,7 +841,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             self.periods = 0;
             self.watching(slot);
         }
-        self.push(&moved, &leaving);
+        self.push();
         // one of: a watch's end, a step of completing a detection, or the test
         if let Some(watch) = self.ending.take() {
             self.last.testing = false;
@@ -978,34 +980,30 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
     }
 
-    /// The residuals of the entries that move on when the next is kept: the one that passes
-    /// from the recent window to the older one, and the one that leaves the older window (zero
-    /// while the windows fill). Read before the next entry is written, since with two windows
-    /// of half the capacity the one that leaves is in its slot.
-    fn outgoing(&self) -> (SVector<T, K>, SVector<T, K>) {
+    /// The entry that leaves the older window when the next is kept, taken off its sum
+    /// (none while the windows fill): before the next entry's residual is written in its
+    /// slot, since with two windows of half the capacity that is the one that leaves.
+    fn leave(&mut self) {
         let wn = self.config.window;
-        let at = |n: usize| self.ring[(self.head + CAPACITY - n) % CAPACITY].w;
-        let moved = if self.len >= wn {
-            at(wn)
-        } else {
-            SVector::zeros()
-        };
-        let leaving = if self.len >= 2 * wn {
-            at(2 * wn)
-        } else {
-            SVector::zeros()
-        };
-        (moved, leaving)
+        if self.len >= 2 * wn {
+            let i = (self.head + CAPACITY - 2 * wn) % CAPACITY;
+            self.windows.older -= &self.ring[i].w;
+        }
     }
 
-    /// Keeps the entry written in the slot at `head`, and moves the windows' sums on with it
-    /// (`moved` and `leaving` from [`Detector::outgoing`]).
-    fn push(&mut self, moved: &SVector<T, K>, leaving: &SVector<T, K>) {
+    /// Keeps the entry written in the slot at `head`, and moves the windows' sums on with it:
+    /// the entry that passes from the recent window to the older one moves between their
+    /// sums ([`Detector::leave`] has taken off the one that left).
+    fn push(&mut self) {
         let wn = self.config.window;
-        let w = self.ring[self.head].w;
         let s = &mut self.windows;
-        s.recent += w - moved;
-        s.older += moved - leaving;
+        if self.len >= wn {
+            let moved = &self.ring[(self.head + CAPACITY - wn) % CAPACITY].w;
+            s.recent -= moved;
+            s.older += moved;
+        }
+        let w = &self.ring[self.head].w;
+        s.recent += w;
         s.block += w;
         s.filled += 1;
         if s.filled == wn {
@@ -1035,7 +1033,6 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         // the change of the windows' means, turned into body axes
         let n = self.window_n;
-        let older = self.windows.older / n;
         let d = body_blocks(
             &self.rotation,
             &((self.windows.recent - self.windows.older) / n),
@@ -1059,7 +1056,6 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let z = d.component_mul(&inverse);
         let total = d.dot(&z);
         let (best, second) = self.bank(&z);
-        self.renew();
         self.last = Statistic {
             actuator: best.0,
             best: best.1,
@@ -1071,6 +1067,11 @@ impl<T: Real, const K: usize> Detector<T, K> {
             self.variance += (d.component_mul(&d) - self.variance) * self.config.memory;
             self.alarmed = false;
             self.streak = (0, 0);
+            // the whitening is renewed in nominal entries, as the spread is learned, but not
+            // while an actuator is watched (the entries that carry the watch)
+            if self.watch.is_none() {
+                self.renew();
+            }
             return;
         }
         if !self.alarmed {
@@ -1094,7 +1095,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         self.streak = (0, 0);
         self.alarmed = false;
-        self.found(best.0, best.1, older);
+        self.found(best.0, best.1, self.windows.older / n);
     }
 
     /// One step of renewing the whitening the test uses (docs/maths.md, "Failure detection",
@@ -1124,14 +1125,14 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// ([`Detector::complete`]), where the allocator is told and the detection reported. A
     /// watch still running is cut short, its kind fitted again first.
     fn found(&mut self, j: usize, t: T, older: SVector<T, K>) {
-        let w = &self.whitening;
-        let weights = self.columns[j].component_mul(&w.inverse) / w.norms[j];
+        // (its weights are formed in the change point's first step: no whitening is renewed
+        // before it)
         self.ending = self.watch.take();
         self.pending = Some(Stage::Change);
         self.job = Pending {
             actuator: j,
             older,
-            weights,
+            weights: SVector::zeros(),
             statistic: t,
             shift: 0,
             done: 0,
@@ -1160,6 +1161,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
                 if self.job.done == 0 {
                     // a new failure of this actuator: what it showed before is another story
                     self.sums[j] = Sums::zero();
+                    let w = &self.whitening;
+                    self.job.weights = self.columns[j].component_mul(&w.inverse) / w.norms[j];
                     self.along = [
                         rotate_blocks(&self.rotation, &self.job.weights),
                         rotate_blocks(&self.rotation, &self.columns[j]),
