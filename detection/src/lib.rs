@@ -370,6 +370,15 @@ impl<T: Real> Sums<T> {
         self.uy += u * y;
         self.uu += u * u;
     }
+
+    /// The sums of both sets of periods.
+    fn merge(&mut self, other: &Self) {
+        self.n += other.n;
+        self.y += other.y;
+        self.yy += other.yy;
+        self.uy += other.uy;
+        self.uu += other.uu;
+    }
 }
 
 /// What the detector kept of the last state: the momentum, and half the gyroscopic and
@@ -441,6 +450,7 @@ pub struct Detector<T, const K: usize> {
     /// The shortfalls the change point measured, newest first, and the weights `g` and the
     /// named actuator's column in world axes at its first step.
     shorts: [T; CAPACITY / 2],
+    cumulative: [Sums<T>; CAPACITY / 2],
     along: [SVector<T, K>; 2],
     /// Detections not reported yet (a refinement and a detection in the same entry, or one
     /// watch cut short by another detection): the next cycles report them, oldest first.
@@ -509,6 +519,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             pending: None,
             job: Pending::zero(),
             shorts: [T::zero(); CAPACITY / 2],
+            cumulative: [Sums::zero(); CAPACITY / 2],
             along: [SVector::zeros(); 2],
             queue: [None; 3],
             first_queued: 0,
@@ -601,6 +612,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.pending = None;
         self.job = Pending::zero();
         self.shorts = [T::zero(); CAPACITY / 2];
+        self.cumulative = [Sums::zero(); CAPACITY / 2];
         self.along = [SVector::zeros(); 2];
         self.queue = [None; 3];
         self.first_queued = 0;
@@ -1238,14 +1250,26 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// Up to `chunk` more entries of the named actuator's change point (docs/maths.md,
     /// "Failure detection", "The kind"): the thrust short of what was believed in each of the
     /// window's entries at the first step, newest first, along its whitened column, and the
-    /// start whose mean shift is most significant (`p.span` entries).
+    /// start whose mean shift is most significant (`p.span` entries). The sums of the actual
+    /// thrust (the believed one plus the shortfall) from the newest entry to each are kept,
+    /// so that the change's are at hand whatever its start.
     fn change(&mut self, chunk: usize) {
         let p = &mut self.job;
+        let j = p.actuator;
         let end = (p.done + chunk).min(self.config.window);
+        let mut running = if p.done == 0 {
+            Sums::zero()
+        } else {
+            self.cumulative[p.done - 1]
+        };
         for i in p.done..end {
             let at = (self.head + CAPACITY - 1 - i - p.shift) % CAPACITY;
-            let short = self.along[0].dot(&self.ring[at].w) - p.base;
+            let e = &self.ring[at];
+            let short = self.along[0].dot(&e.w) - p.base;
             self.shorts[i] = short;
+            // the actual thrust's sums from the newest entry to this one
+            running.add(e.u[j], e.p[j] + short);
+            self.cumulative[i] = running;
             p.sum += short;
             p.n += T::one();
             let t = p.sum * p.sum / p.n;
@@ -1257,16 +1281,18 @@ impl<T: Real, const K: usize> Detector<T, K> {
         p.done = end;
     }
 
-    /// Up to `chunk` more of actuator `j`'s shortfalls over the `p.span` entries of its
-    /// change (as the change point measured them): the actual thrust (the believed one plus
-    /// the shortfall) added to its sums, and each shortfall taken out of its entry's residual
-    /// and of the sums of the window and the block it is in (they are explained now).
+    /// Up to `chunk` more of the named actuator's shortfalls over the `p.span` entries of its
+    /// change (as the change point measured them), each taken out of its entry's residual
+    /// and of the sums of the window and the block it is in (they are explained now); at the
+    /// first step, the change's sums of the actual thrust added to the actuator's.
     fn take(&mut self, chunk: usize) {
         let (wn, filled) = (self.config.window, self.windows.filled);
         let p = &mut self.job;
         let j = p.actuator;
         let column = self.along[1];
-        let mut sums = self.sums[j];
+        if p.done == 0 {
+            self.sums[j].merge(&self.cumulative[p.span - 1]);
+        }
         // the shortfalls taken out of the recent window, the older one, the block being
         // summed and the one before it
         let (mut recent, mut older, mut block, mut before) =
@@ -1276,8 +1302,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
             let age = i + p.shift;
             let e = &mut self.ring[(self.head + CAPACITY - 1 - age) % CAPACITY];
             let short = self.shorts[i];
-            sums.add(e.u[j], e.p[j] + short);
-            e.w -= column * short;
+            for (w, c) in e.w.iter_mut().zip(column.iter()) {
+                *w -= *c * short;
+            }
             if age < wn {
                 recent += short;
             } else if age < 2 * wn {
@@ -1290,7 +1317,6 @@ impl<T: Real, const K: usize> Detector<T, K> {
             }
         }
         p.done = end;
-        self.sums[j] = sums;
         let w = &mut self.windows;
         w.recent -= column * recent;
         w.older -= column * older;
