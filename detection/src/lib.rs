@@ -407,83 +407,104 @@ pub struct Statistic<T> {
 /// The detector between cycles: the actuators' lag model, the last state, the ring of
 /// periods, the learned spread and the actuators found failed. Allocation-free.
 #[derive(Debug, Clone, PartialEq)]
+// in this order, the fields every cycle reads first, within the reach of a load's offset on
+// a Cortex-M4F (1 KiB), and the ring last
+#[repr(C)]
 pub struct Detector<T, const K: usize> {
-    config: Config<T, K>,
     /// `e^{−h/T}` and `(T/h)(1 − e^{−h/T})`: the lag's output at the end of a period and its
     /// mean over it, as weights of the start (0 and 0 without lag).
     decay: T,
     mean: T,
-    /// The floor's square per axis, and the window's length as a number (the counts a cycle
-    /// divides by are kept as numbers: turning an integer into `f32` through `f64` is a
-    /// library call on a single-precision FPU).
-    floor2: SVector<T, K>,
+    /// The window's and the calibration's lengths as numbers (the counts a cycle divides by
+    /// are kept as numbers: turning an integer into `f32` through `f64` is a library call on a
+    /// single-precision FPU).
     window_n: T,
+    calibration_n: T,
     /// Whether the inertia is diagonal (its momentum then by its diagonal).
     diagonal: bool,
-    calibration_n: T,
-    /// The healthy output at the start of the held period, and the held command.
-    output: Commands<T>,
-    command: Commands<T>,
+    /// Whether a command has been held (the lag model has started).
     held: bool,
     /// Periods still to pass without a residual after a gap, while the lag model settles.
     settling: usize,
-    /// The value each actuator the allocator holds (found dead or stuck, or told so by the
-    /// scenario) was held at over the period that runs: the allocator's locked bounds when
-    /// the last cycle ended. A failed actuator's thrust jumps to its value, where a command
-    /// would ramp through the lag.
-    stuck: [Option<T>; MAX_ACTUATORS],
+    /// The actuators whose healthy columns are formed (0: not yet).
+    formed: usize,
     /// The allocator's count of tells when `stuck` was read ([`VehicleControl::told`]).
     told: Option<u32>,
-    /// Each actuator's healthy column in body axes and its entries' squares, formed at the
-    /// first period (`formed` actuators; 0: not yet).
-    columns: [SVector<T, K>; MAX_ACTUATORS],
-    squares: [SVector<T, K>; MAX_ACTUATORS],
-    formed: usize,
-    /// What each failed actuator's periods have shown so far.
-    sums: [Sums<T>; MAX_ACTUATORS],
-    watch: Option<Watch<T, K>>,
-    /// A watch that ended (or that a detection cut short), its kind fitted again in the next
-    /// entry, and a detection being completed over the entries after its finding.
-    ending: Option<Watch<T, K>>,
-    pending: Option<Stage>,
-    job: Pending<T, K>,
-    /// The shortfalls the change point measured, newest first, and the weights `g` and the
-    /// named actuator's column in world axes at its first step.
-    shorts: [T; CAPACITY / 2],
-    cumulative: [Sums<T>; CAPACITY / 2],
-    along: [SVector<T, K>; 2],
-    /// Detections not reported yet (a refinement and a detection in the same entry, or one
-    /// watch cut short by another detection): the next cycles report them, oldest first.
-    queue: [Option<Detection<T>>; 3],
+    /// The ring's next slot and its entries kept, and the periods summed towards the next
+    /// entry.
+    head: usize,
+    len: usize,
+    periods: usize,
+    /// Entries of the warm-up passed.
+    warmed: usize,
+    /// The entries the spread was learned over in the calibration.
+    learned: T,
     /// The queue's oldest slot, and how many wait.
     first_queued: usize,
     queued: usize,
-    previous: Option<Previous<T, K>>,
-    /// The attitude of the last state: residuals are kept in world axes, where a steady wind
-    /// or current is constant however the body turns.
-    rotation: Matrix3<T>,
-    ring: [Entry<T, K>; CAPACITY],
-    windows: Windows<T, K>,
-    /// The periods summed towards the next entry, how many, and the period being summed.
-    accumulated: Entry<T, K>,
-    scratch: Entry<T, K>,
-    periods: usize,
-    head: usize,
-    len: usize,
-    /// Entries of the warm-up passed.
-    warmed: usize,
-    /// The learned spread (variance per body axis) and the periods it was learned over.
-    variance: SVector<T, K>,
-    learned: T,
-    whitening: Whitening<T, K>,
-    failed: [bool; MAX_ACTUATORS],
-    last: Statistic<T>,
+    /// The stage of a detection being completed over the entries after its naming.
+    pending: Option<Stage>,
     /// The actuator passing every gate and for how many periods in a row.
     streak: (usize, usize),
     /// Alarms so far: periods whose best statistic crossed the threshold after one that did
     /// not (isolated or not).
     alarms: u32,
     alarmed: bool,
+    /// The attitude of the last state: residuals are kept in world axes, where a steady wind
+    /// or current is constant however the body turns.
+    rotation: Matrix3<T>,
+    /// What was kept of the last state.
+    previous: Option<Previous<T, K>>,
+    /// The two windows' running sums.
+    windows: Windows<T, K>,
+    /// The whitening the test uses, and the one being renewed.
+    whitening: Whitening<T, K>,
+    /// The learned spread (variance per body axis).
+    variance: SVector<T, K>,
+    /// The floor's square per axis.
+    floor2: SVector<T, K>,
+    /// The healthy output at the start of the held period, and the held command.
+    output: Commands<T>,
+    command: Commands<T>,
+    /// The value each actuator the allocator holds (found dead or stuck, or told so by the
+    /// scenario) was held at over the period that runs: the allocator's locked bounds when
+    /// the last cycle ended. A failed actuator's thrust jumps to its value, where a command
+    /// would ramp through the lag.
+    stuck: [Option<T>; MAX_ACTUATORS],
+    /// The detection being completed.
+    job: Pending<T, K>,
+    /// The weights `g` and the named actuator's column in world axes at the change point's
+    /// first step.
+    along: [SVector<T, K>; 2],
+    /// The last test's figures.
+    last: Statistic<T>,
+    /// The actuator watched after its detection.
+    watch: Option<Watch<T, K>>,
+    /// A watch that ended (or that a detection cut short), its kind fitted again in the next
+    /// entry, and a detection being completed over the entries after its finding.
+    ending: Option<Watch<T, K>>,
+    /// The actuators found failed.
+    failed: [bool; MAX_ACTUATORS],
+    /// Detections not reported yet (a refinement and a detection in the same entry, or one
+    /// watch cut short by another detection): the next cycles report them, oldest first.
+    queue: [Option<Detection<T>>; 3],
+    /// The settings.
+    config: Config<T, K>,
+    /// Each actuator's healthy column in body axes and its entries' squares, formed at the
+    /// first period (`formed` actuators; 0: not yet).
+    columns: [SVector<T, K>; MAX_ACTUATORS],
+    squares: [SVector<T, K>; MAX_ACTUATORS],
+    /// What each failed actuator's periods have shown so far.
+    sums: [Sums<T>; MAX_ACTUATORS],
+    /// The shortfalls the change point measured, newest first, and the sums of the actual
+    /// thrust from the newest entry to each.
+    shorts: [T; CAPACITY / 2],
+    cumulative: [Sums<T>; CAPACITY / 2],
+    /// The periods summed towards the next entry, and the period being summed.
+    accumulated: Entry<T, K>,
+    scratch: Entry<T, K>,
+    /// The entries kept, two windows at most.
+    ring: [Entry<T, K>; CAPACITY],
 }
 
 impl<T: Real, const K: usize> Detector<T, K> {
