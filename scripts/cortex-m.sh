@@ -381,7 +381,7 @@ base_call = sum(gaps[0].values())
 # per iteration or per change of a dual working set, breaks them).
 at, failed = 0, []
 limits_wc = {"hexarotor": 12000, "rov": 12000, "spacecraft": 24000}
-ceilings = {"hexarotor": 12000, "rov": 12000, "spacecraft": 24000, "cycle": 25200, "detector": 2600}
+ceilings = {"hexarotor": 12000, "rov": 12000, "spacecraft": 24000, "cycle": 25200, "detector": 1500}
 met = lambda n, limit: "met" if n <= limit else "not met yet"
 # "(limit N)" where the limit itself is enforced; else the limit, whether it is met, and the ceiling
 limit_text = lambda n, limit, ceiling: (f"(limit {limit})" if ceiling == limit
@@ -401,16 +401,16 @@ for g in groups:
         k = counts.index(worst)
         if os.environ.get("CORTEX_M_DETECTOR_COUNTS"):
             print("DETECTOR COUNTS", counts)
-        print(f"detector: {worst} instructions per cycle (limit 1500: {met(worst, 1500)}; enforced ceiling "
-              f"{ceilings['detector']}; the ROV, the worst of {n} cycles, at cycle {k})")
-        if actuator == 1 and first < found - 3 < n:
-            # the test names the thruster three cycles before the report; the change point,
-            # the shortfalls taken out, and the kind fitted and told follow, one a cycle
+        print(f"detector: {worst} instructions per cycle {limit_text(worst, 1500, ceilings['detector'])}; "
+              f"the ROV, the worst of {n} cycles, at cycle {k}")
+        if actuator == 1 and first < found - 5 < n:
+            # the test names the thruster some cycles before the report: the change point, the
+            # shortfalls taken out (half a window of entries a cycle each), then the kind
+            # fitted and told with the report
             print(f"  by phase: filling its windows {counts[5]}, calibrating {max(counts[first - 10:first])}, "
-                  f"testing {max(counts[first:found - 3])} (from cycle {first}); the test names it "
-                  f"{counts[found - 3]}, the change point {counts[found - 2]}, the shortfalls taken out "
-                  f"{counts[found - 1]}, the kind fitted and told {counts[found]}; after it "
-                  f"{max(counts[found + 1:], default=0)} (its watch, the kind fitted again); mean {sum(counts) / n:.0f}")
+                  f"testing {max(counts[first:found - 5])} (from cycle {first}); from the test naming it to "
+                  f"the report {counts[found - 5:found + 1]}; after it {max(counts[found + 1:], default=0)} "
+                  f"(its watch, the kind fitted again); mean {sum(counts) / n:.0f}")
         kinds = {1: "dead", 2: "stuck", 3: "weak"}
         print(f"  thruster 1 dies at cycle 140: " + (f"found at cycle {found}, actuator {actuator}, "
               f"{kinds.get(kind, 'no kind')} ({value:g})" if actuator < 12 else "not found"))
