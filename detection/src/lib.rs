@@ -1,15 +1,18 @@
 //! Actuator failures found, not announced (docs/maths.md, "Failure detection"): a detector
 //! in the controller's cycle that notices an actuator has failed, finds which one, estimates
-//! how (dead, stuck at a value, or weak by a factor) and tells the allocator in the same
-//! cycle.
+//! how (dead, stuck at a value, or weak by a factor) and tells the allocator in the cycle
+//! it reports the detection. No cycle carries more than a bounded share of the work: the
+//! windows' sums run, the test whitens with a pair renewed a step at a time, and the work
+//! after a naming is spread over the next entries.
 //!
 //! * The residual: each period's momentum balance, `w = Δμ/h − ½(ad*μ terms) − B ū − ½(the
 //!   environment's wrench at both ends)`, with the actuators' lag modelled (`ū` the mean
 //!   output over the period) and the wrench the controller believes it applied. Healthy, `w`
 //!   is what the model does not explain (wind, model error, noise); a failed actuator `j` adds
 //!   `b_j (u_j,actual − ū_j)`.
-//! * The test: the mean of `w` over the last window against the window before it, whitened
-//!   by its spread learned in nominal flight, projected on each actuator's column: a bank of
+//! * The test: the mean of `w` over the last window against the window before it, turned
+//!   into body axes and whitened by its spread learned there in nominal flight, projected on
+//!   each actuator's column: a bank of
 //!   one hypothesis per actuator. An alarm is the best hypothesis above the χ²₁ threshold of
 //!   the stated false-alarm rate ([`threshold`]) with what it leaves unexplained below the
 //!   χ²_{K−1} isolation gate, so that a change no single actuator explains (a gust) is not
@@ -1132,7 +1135,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
     }
 
     /// One step of renewing the whitening the test uses (docs/maths.md, "Failure detection",
-    /// "The spread"): the first takes the learned spread, floored, as the next `s⁻²`; each of
+    /// paragraph "The whitening, renewed a step at a time"): the first takes the learned spread, floored, as the next `s⁻²`; each of
     /// the next forms one actuator's `|b̃_j|²` with it; after the last the pair is taken in
     /// whole, so the test always whitens the change and the columns by the same spread.
     fn renew(&mut self) {
