@@ -775,6 +775,56 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.whitening.steps = eqtrack_controller::real((self.formed + 1) as f64);
     }
 
+    /// What the residual keeps of the state (body velocity `v`, attitude `r`): the momentum
+    /// `I V` (a diagonal inertia by its diagonal: the same bits) and `½(ad_Vᵀμ + τ_env)`.
+    fn momentum<G: BuiltinGroup<N, K>, const N: usize>(
+        &self,
+        v: &SVector<T, K>,
+        r: &Matrix3<T>,
+        speeds: &[T],
+        control: &VehicleControl<T, K>,
+    ) -> Previous<T, K> {
+        let c = &self.config;
+        let mu = if self.diagonal {
+            c.inertia.diagonal().component_mul(v)
+        } else {
+            c.inertia * v
+        };
+        let gyro = G::ad_transpose_mul(v, &with_wheels(mu, v, speeds, control));
+        let drag = -(c.damping_linear.component_mul(v)
+            + c.damping_quadratic.component_mul(&v.abs().component_mul(v)));
+        let half: T = eqtrack_controller::real(0.5);
+        Previous {
+            mu,
+            half: (gyro + control.restoring(r) + drag) * half,
+        }
+    }
+
+    /// The period in `scratch` added to the entry being summed; after `decimation` periods
+    /// their mean is written in `slot`, watched, and the entry is complete (true).
+    fn average(&mut self, slot: usize) -> bool {
+        let (a, e) = (&mut self.accumulated, &self.scratch);
+        a.w += e.w;
+        a.u += e.u;
+        a.p += e.p;
+        self.periods += 1;
+        if self.periods < self.config.decimation {
+            return false;
+        }
+        let n: T = eqtrack_controller::real(self.periods as f64);
+        self.leave();
+        let a = &self.accumulated;
+        self.ring[slot] = Entry {
+            w: a.w / n,
+            u: a.u / n,
+            p: a.p / n,
+        };
+        self.accumulated = Entry::zero();
+        self.periods = 0;
+        self.watching(slot);
+        true
+    }
+
     /// [`Detector::observe`] but for what the allocator holds next.
     fn period<G: BuiltinGroup<N, K>, const N: usize>(
         &mut self,
@@ -787,21 +837,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
         if self.formed != count {
             self.form(control);
         }
+        let now = self.momentum::<G, N>(v, r, speeds, control);
         let c = &self.config;
-        // `I V` (a diagonal inertia by its diagonal: the same bits)
-        let mu = if self.diagonal {
-            c.inertia.diagonal().component_mul(v)
-        } else {
-            c.inertia * v
-        };
-        let gyro = G::ad_transpose_mul(v, &with_wheels(mu, v, speeds, control));
-        let drag = -(c.damping_linear.component_mul(v)
-            + c.damping_quadratic.component_mul(&v.abs().component_mul(v)));
-        let half: T = eqtrack_controller::real(0.5);
-        let now = Previous {
-            mu,
-            half: (gyro + control.restoring(r) + drag) * half,
-        };
         self.rotation = *r;
         let seen = self.previous.is_some();
         let p = self.previous.get_or_insert(now);
@@ -843,7 +880,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             self.settling -= 1;
             return self.next_report();
         }
-        let mut body = (mu - momentum) / c.period - held_half - now.half - thrust;
+        let mut body = (now.mu - momentum) / c.period - held_half - now.half - thrust;
         if !decimated {
             // the watch in body axes, before the residual is turned (one turn fewer)
             self.watching_body(&mut body, slot);
@@ -855,27 +892,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
             &mut self.ring[slot]
         };
         e.w = rotate_blocks(r, &body);
-        // the entry: the mean of `decimation` periods
-        if decimated {
-            let (a, e) = (&mut self.accumulated, &self.scratch);
-            a.w += e.w;
-            a.u += e.u;
-            a.p += e.p;
-            self.periods += 1;
-            if self.periods < self.config.decimation {
-                return self.next_report();
-            }
-            let n: T = eqtrack_controller::real(self.periods as f64);
-            self.leave();
-            let a = &self.accumulated;
-            self.ring[slot] = Entry {
-                w: a.w / n,
-                u: a.u / n,
-                p: a.p / n,
-            };
-            self.accumulated = Entry::zero();
-            self.periods = 0;
-            self.watching(slot);
+        if decimated && !self.average(slot) {
+            return self.next_report();
         }
         self.push();
         // one of: a watch's end, a step of completing a detection, or the test
