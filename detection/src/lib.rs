@@ -135,18 +135,18 @@ struct Watch<T, const K: usize> {
     kind: Kind<T>,
 }
 
-/// Where a detection stands in the entries after the test named its actuator (docs/maths.md,
-/// "Failure detection", "The kind"): the change point, the shortfalls since it and the kind's
-/// fit follow, half a window of entries a cycle, so that no cycle carries more than that; the
-/// allocator is told, and the detection reported, with the fit.
+/// Where a detection stands after the test named its actuator (docs/maths.md, "Failure
+/// detection", "The kind"): the change point and the kind's fit, with which the allocator is
+/// told and the detection reported, run in the naming's cycle; the shortfalls since the change
+/// are then taken out of the window, half a window of entries a cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Stage {
     /// The change point.
     Change,
-    /// The shortfalls since it taken out.
-    Take,
     /// The kind fitted and told, and the detection reported.
     Fit,
+    /// The shortfalls since the change taken out, before the test runs again.
+    Take,
 }
 
 /// A detection being completed over the entries after its finding.
@@ -159,8 +159,9 @@ struct Pending<T, const K: usize> {
     weights: SVector<T, K>,
     /// The finding's statistic.
     statistic: T,
-    /// Entries kept since the change point's first step (the ages of the entries it reads
-    /// grow by one each), and the entries the present stage has done.
+    /// Whether the change point's first step has run, the entries kept since (the ages of the
+    /// entries it reads grow by one each), and the entries the present stage has done.
+    started: bool,
     shift: usize,
     done: usize,
     /// The change point's search: the shortfalls' running sum, their count, the best score
@@ -179,6 +180,7 @@ impl<T: Real, const K: usize> Pending<T, K> {
             older: SVector::zeros(),
             weights: SVector::zeros(),
             statistic: T::zero(),
+            started: false,
             shift: 0,
             done: 0,
             sum: T::zero(),
@@ -893,21 +895,34 @@ impl<T: Real, const K: usize> Detector<T, K> {
         };
         e.w = rotate_blocks(r, &body);
         if decimated && !self.average(slot) {
+            // between entries the work after a naming goes on, one step a period
+            self.work(control);
             return self.next_report();
         }
         self.push();
         // one of: a watch's end, a step of completing a detection, or the test
+        if !self.work(control) {
+            self.test(control);
+        }
+        self.next_report()
+    }
+
+    /// One step of the work after a naming, if there is any: a watch's end (its kind fitted
+    /// again), or a step of completing a detection. True if there was.
+    fn work(&mut self, control: &mut VehicleControl<T, K>) -> bool {
         if let Some(watch) = self.ending.take() {
             self.last.testing = false;
             if let Some(refined) = self.refine(&watch, control) {
                 self.report(refined);
             }
+            true
         } else if self.pending.is_some() {
-            self.complete(control);
+            self.last.testing = false;
+            self.complete(control, self.config.window.div_ceil(2));
+            true
         } else {
-            self.test();
+            false
         }
-        self.next_report()
     }
 
     /// Keeps `d` to report (a full queue drops the oldest: never more than three wait).
@@ -1070,12 +1085,15 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         self.head = (self.head + 1) % CAPACITY;
         self.len = (self.len + 1).min(CAPACITY);
+        if self.job.started {
+            self.job.shift += 1;
+        }
     }
 
     /// The test on full windows: learn the spread while calibrating or nominal; otherwise
     /// isolate, tell the allocator the actuator's estimated thrust and begin completing the
     /// detection.
-    fn test(&mut self) {
+    fn test(&mut self, control: &mut VehicleControl<T, K>) {
         let wn = self.config.window;
         self.last.testing = false;
         if self.len < 2 * wn {
@@ -1149,7 +1167,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         self.streak = (0, 0);
         self.alarmed = false;
-        self.found(best.0, best.1, self.windows.older / n);
+        self.found(best.0, best.1, self.windows.older / n, control);
     }
 
     /// One step of renewing the whitening the test uses (docs/maths.md, "Failure detection",
@@ -1175,12 +1193,12 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
     }
 
-    /// Actuator `j` named with statistic `t`: the detection completed over the next entries
-    /// ([`Detector::complete`]), where the allocator is told and the detection reported. A
-    /// watch still running is cut short, its kind fitted again first.
-    fn found(&mut self, j: usize, t: T, older: SVector<T, K>) {
-        // (its weights are formed in the change point's first step: no whitening is renewed
-        // before it)
+    /// Actuator `j` named with statistic `t`: in the same cycle the change point over the
+    /// window, the kind fitted, the allocator told and the detection reported, so that the
+    /// allocation reconfigures at once; the shortfalls are taken out of the window over the
+    /// next cycles ([`Detector::complete`]). A watch still running is cut short, its kind
+    /// fitted again in the next cycle.
+    fn found(&mut self, j: usize, t: T, older: SVector<T, K>, control: &mut VehicleControl<T, K>) {
         self.ending = self.watch.take();
         self.pending = Some(Stage::Change);
         self.job = Pending {
@@ -1188,6 +1206,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             older,
             weights: SVector::zeros(),
             statistic: t,
+            started: false,
             shift: 0,
             done: 0,
             sum: T::zero(),
@@ -1196,23 +1215,24 @@ impl<T: Real, const K: usize> Detector<T, K> {
             span: 1,
             base: T::zero(),
         };
+        // the change point, whole, then the fit and the tell
+        let wn = self.config.window;
+        self.complete(control, wn);
+        self.complete(control, wn);
     }
 
-    /// One step of completing a detection, in the entries after its naming: the change point
-    /// (the watch begun with its first step), the shortfalls since it added to the
-    /// actuator's sums and taken out of the window, each half a window of entries a cycle;
-    /// then the kind fitted, the allocator told and the detection reported (docs/maths.md,
-    /// "Failure detection", paragraph "The kind").
-    fn complete(&mut self, control: &mut VehicleControl<T, K>) {
+    /// One step of completing a detection: the change point over up to `chunk` more entries
+    /// (the watch begun with its first step); the kind fitted, the allocator told and the
+    /// detection reported; then the shortfalls since the change taken out of the window,
+    /// `chunk` entries a step (docs/maths.md, "Failure detection", paragraph "The kind").
+    fn complete(&mut self, control: &mut VehicleControl<T, K>, chunk: usize) {
         let Some(stage) = self.pending else {
             return;
         };
-        self.last.testing = false;
         let j = self.job.actuator;
-        let chunk = self.config.window.div_ceil(2);
         match stage {
             Stage::Change => {
-                if self.job.done == 0 {
+                if !self.job.started {
                     // a new failure of this actuator: what it showed before is another story
                     self.sums[j] = Sums::zero();
                     let w = &self.whitening;
@@ -1222,6 +1242,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
                         rotate_blocks(&self.rotation, &self.columns[j]),
                     ];
                     self.job.base = self.along[0].dot(&self.job.older);
+                    self.job.started = true;
                     // watched from the next entry on (its kind is set when it is fitted)
                     self.watch = Some(Watch {
                         actuator: j,
@@ -1230,26 +1251,18 @@ impl<T: Real, const K: usize> Detector<T, K> {
                         weights: self.job.weights,
                         kind: Kind::Dead,
                     });
-                } else {
-                    self.job.shift += 1;
                 }
                 self.change(chunk);
                 if self.job.done == self.config.window {
                     self.job.done = 0;
-                    self.pending = Some(Stage::Take);
-                }
-            }
-            Stage::Take => {
-                self.job.shift += 1;
-                self.take(chunk);
-                if self.job.done == self.job.span {
                     self.pending = Some(Stage::Fit);
                 }
             }
             Stage::Fit => {
-                self.pending = None;
+                // the change's sums, with the entries watched since
+                self.sums[j].merge(&self.cumulative[self.job.span - 1]);
                 let p = &self.job;
-                let since = (p.span + p.shift + 1) * self.config.decimation;
+                let since = (p.span + p.shift) * self.config.decimation + self.periods;
                 let statistic = p.statistic;
                 let kind = self.fit(j, &self.sums[j], control);
                 self.tell(j, kind, control);
@@ -1263,6 +1276,13 @@ impl<T: Real, const K: usize> Detector<T, K> {
                     since,
                     refined: false,
                 });
+                self.pending = Some(Stage::Take);
+            }
+            Stage::Take => {
+                self.take(chunk);
+                if self.job.done == self.job.span {
+                    self.pending = None;
+                }
             }
         }
     }
@@ -1325,16 +1345,11 @@ impl<T: Real, const K: usize> Detector<T, K> {
 
     /// Up to `chunk` more of the named actuator's shortfalls over the `p.span` entries of its
     /// change (as the change point measured them), each taken out of its entry's residual
-    /// and of the sums of the window and the block it is in (they are explained now); at the
-    /// first step, the change's sums of the actual thrust added to the actuator's.
+    /// and of the sums of the window and the block it is in (they are explained now).
     fn take(&mut self, chunk: usize) {
         let (wn, filled) = (self.config.window, self.windows.filled);
         let p = &mut self.job;
-        let j = p.actuator;
         let column = self.along[1];
-        if p.done == 0 {
-            self.sums[j].merge(&self.cumulative[p.span - 1]);
-        }
         // the shortfalls taken out of the recent window, the older one, the block being
         // summed and the one before it
         let (mut recent, mut older, mut block, mut before) =
