@@ -135,10 +135,10 @@ struct Watch<T, const K: usize> {
     kind: Kind<T>,
 }
 
-/// Where a detection stands after the test named its actuator (docs/maths.md, "Failure
-/// detection", "The kind"): the change point and the kind's fit, with which the allocator is
-/// told and the detection reported, run in the naming's cycle; the shortfalls since the change
-/// are then taken out of the window, half a window of entries a cycle.
+/// Where a detection stands after the test named its actuator: the change point and the
+/// kind's fit, with which the allocator is told and the detection reported, run in the
+/// naming's cycle; the shortfalls since the change are then taken out of the window, half a
+/// window of entries a cycle (docs/maths.md, "Failure detection", paragraph "The kind").
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Stage {
     /// The change point.
