@@ -1,9 +1,8 @@
 //! Actuator failures found, not announced (docs/maths.md, "Failure detection"): a detector
 //! in the controller's cycle that notices an actuator has failed, finds which one, estimates
-//! how (dead, stuck at a value, or weak by a factor) and tells the allocator in the cycle
-//! it reports the detection. No cycle carries more than a bounded share of the work: the
-//! windows' sums run, the test whitens with a pair renewed a step at a time, and the work
-//! after a naming is spread over the next entries.
+//! how (dead, stuck at a value, or weak by a factor) and tells the allocator in the same
+//! cycle. The windows' sums run, the test whitens with a pair renewed a step at a time, and
+//! taking a failure's shortfalls out of the window waits for the cycles after its naming.
 //!
 //! * The residual: each period's momentum balance, `w = Δμ/h − ½(ad*μ terms) − B ū − ½(the
 //!   environment's wrench at both ends)`, with the actuators' lag modelled (`ū` the mean
