@@ -1203,16 +1203,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.job = Pending {
             actuator: j,
             older,
-            weights: SVector::zeros(),
             statistic: t,
-            started: false,
-            shift: 0,
-            done: 0,
-            sum: T::zero(),
-            n: T::zero(),
-            score: T::zero(),
-            span: 1,
-            base: T::zero(),
+            ..Pending::zero()
         };
         // the change point, whole, then the fit and the tell
         let wn = self.config.window;
