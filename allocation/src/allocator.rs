@@ -298,17 +298,20 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             up,
             priority,
             DEFAULT_BUDGET,
+            T::default_epsilon().sqrt(),
         ))
     }
 
     /// The allocator with its closed form's matrices formed once (weights already scaled to
-    /// a largest of 1).
+    /// a largest of 1), and `sqrt_eps`, `√ε` (the first allocator's, copied into those formed
+    /// from it).
     fn formed(
         geometry: Geometry<T, K>,
         weights: Commands<T>,
         preferred: Commands<T>,
         priority: Priority,
         budget: u32,
+        sqrt_eps: T,
     ) -> Self {
         let b = geometry.effectiveness();
         // B W⁻¹: each column divided by its weight
@@ -358,7 +361,7 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             facets,
             blocks,
             reach,
-            sqrt_eps: T::default_epsilon().sqrt(),
+            sqrt_eps,
         }
     }
 
@@ -386,12 +389,20 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     /// form's matrices are formed again. With every factor 1 it is the allocator itself, bit
     /// for bit.
     pub fn scaled(&self, j: usize, factor: T) -> Self {
+        self.over(self.geometry.scaled(j, factor))
+    }
+
+    /// The same allocator over `geometry`, a geometry of the same actuators with columns
+    /// scaled ([`Allocator::scaled`]): weights, preferred command, priority and budget stay,
+    /// and the closed form's matrices are formed again, once whatever the columns scaled.
+    pub(crate) fn over(&self, geometry: Geometry<T, K>) -> Self {
         Self::formed(
-            self.geometry.scaled(j, factor),
+            geometry,
             self.weights,
             self.preferred,
             self.priority,
             self.budget,
+            self.sqrt_eps,
         )
     }
 

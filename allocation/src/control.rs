@@ -215,13 +215,15 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
             return;
         }
         self.factors[j] = factor;
-        let mut allocator = self.nominal;
+        // the healthy geometry with every told factor, and the allocator formed once over it
+        // (as scaling it one factor at a time would form it, bit for bit)
+        let mut geometry = *self.nominal.geometry();
         for i in 0..count {
             if self.factors[i] != T::one() {
-                allocator = allocator.scaled(i, self.factors[i]);
+                geometry = geometry.scaled(i, self.factors[i]);
             }
         }
-        self.allocator = allocator;
+        self.allocator = self.nominal.over(geometry);
     }
 
     /// The effectiveness of each actuator as told (1: healthy, and past the count).

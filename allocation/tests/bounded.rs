@@ -369,6 +369,12 @@ fn a_weakened_actuator_has_its_column_scaled() {
             "the weakened thruster is asked differently"
         );
     }
+    // two actuators weak: the allocator formed once over both scaled columns is the one
+    // scaled a factor at a time, bit for bit
+    let mut two = VehicleControl::new(alloc, no_restoring, 0.0, 0.01);
+    two.weaken(1, 0.6);
+    two.weaken(6, 0.25);
+    assert_eq!(*two.allocator(), alloc.scaled(1, 0.6).scaled(6, 0.25));
     // healed, an actuator told weak or stuck is the healthy one again
     let mut c = VehicleControl::new(alloc, no_restoring, 0.0, 0.01);
     let fresh = c;

@@ -1,8 +1,10 @@
 //! Actuator failures found, not announced (docs/maths.md, "Failure detection"): a detector
 //! in the controller's cycle that notices an actuator has failed, finds which one, estimates
 //! how (dead, stuck at a value, or weak by a factor) and tells the allocator in the same
-//! cycle. The windows' sums run, the test whitens with a pair renewed a step at a time, and
-//! taking a failure's shortfalls out of the window waits for the cycles after its naming.
+//! cycle. The windows' sums run, the test whitens with a pair renewed a step at a time, the
+//! change point of the actuator about to be named is prepared in the entries that confirm
+//! it, and taking a failure's shortfalls out of the window waits for the cycles after its
+//! naming.
 //!
 //! * The residual: each period's momentum balance, `w = Δμ/h − ½(ad*μ terms) − B ū − ½(the
 //!   environment's wrench at both ends)`, with the actuators' lag modelled (`ū` the mean
@@ -134,59 +136,49 @@ struct Watch<T, const K: usize> {
     kind: Kind<T>,
 }
 
-/// Where a detection stands after the test named its actuator: the change point and the
-/// kind's fit, with which the allocator is told and the detection reported, run in the
-/// naming's cycle; the shortfalls since the change are then taken out of the window, half a
-/// window of entries a cycle (docs/maths.md, "Failure detection", paragraph "The kind").
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Stage {
-    /// The change point.
-    Change,
-    /// The kind fitted and told, and the detection reported.
-    Fit,
-    /// The shortfalls since the change taken out, before the test runs again.
-    Take,
-}
-
-/// A detection being completed over the entries after its finding.
+/// The last detection's change, whose shortfalls are taken out of the window over the
+/// cycles after its naming, half a window of entries a cycle
+/// (docs/maths.md, "Failure detection", paragraph "After the naming").
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Pending<T, const K: usize> {
-    actuator: usize,
-    /// The older window's mean at the finding (world axes).
-    older: SVector<T, K>,
-    /// The shortfall's weights in body axes ([`Watch::weights`]).
-    weights: SVector<T, K>,
-    /// The finding's statistic.
-    statistic: T,
-    /// Whether the change point's first step has run, the entries kept since (the ages of the
-    /// entries it reads grow by one each), and the entries the present stage has done.
-    started: bool,
+struct Pending {
+    /// The entries kept since the naming (the ages of the entries it reads grow by one each),
+    /// the entries whose shortfalls are taken out so far, and the change's entries.
     shift: usize,
     done: usize,
-    /// The change point's search: the shortfalls' running sum, their count, the best score
-    /// and the span it gives; and `gᵀ mean(older)`.
-    sum: T,
-    n: T,
-    score: T,
     span: usize,
-    base: T,
 }
 
-impl<T: Real, const K: usize> Pending<T, K> {
+impl Pending {
     fn zero() -> Self {
         Pending {
-            actuator: 0,
-            older: SVector::zeros(),
-            weights: SVector::zeros(),
-            statistic: T::zero(),
-            started: false,
             shift: 0,
             done: 0,
-            sum: T::zero(),
-            n: T::zero(),
-            score: T::zero(),
-            span: 1,
-            base: T::zero(),
+            span: 0,
+        }
+    }
+}
+
+/// The change point of the actuator leading the tests, prepared over the entries before it
+/// is named (docs/maths.md, "Failure detection", paragraph "The kind, prepared ahead"): its
+/// shortfall's weights and, in [`Detector::along`], its weights and column in world axes at
+/// the attitude of its first lead; each entry of the window the naming will read is projected
+/// on the weights a few at a time, so that the naming's cycle only sums them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Prep<T, const K: usize> {
+    /// The shortfall's weights in body axes ([`Watch::weights`]).
+    weights: SVector<T, K>,
+    /// The slot of the next entry to project, and the tests left to project them in before
+    /// the naming's entry.
+    next: usize,
+    cycles: usize,
+}
+
+impl<T: Real, const K: usize> Prep<T, K> {
+    fn zero() -> Self {
+        Prep {
+            weights: SVector::zeros(),
+            next: 0,
+            cycles: 1,
         }
     }
 }
@@ -349,6 +341,8 @@ impl<T: Real, const K: usize> Entry<T, K> {
 /// and `Σu²` of its actual thrust `y` against its healthy output `u`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Sums<T> {
+    /// The entries, as a count and as a number.
+    count: usize,
     n: T,
     y: T,
     yy: T,
@@ -359,6 +353,7 @@ struct Sums<T> {
 impl<T: Real> Sums<T> {
     fn zero() -> Self {
         Sums {
+            count: 0,
             n: T::zero(),
             y: T::zero(),
             yy: T::zero(),
@@ -368,20 +363,12 @@ impl<T: Real> Sums<T> {
     }
 
     fn add(&mut self, u: T, y: T) {
+        self.count += 1;
         self.n += T::one();
         self.y += y;
         self.yy += y * y;
         self.uy += u * y;
         self.uu += u * u;
-    }
-
-    /// The sums of both sets of periods.
-    fn merge(&mut self, other: &Self) {
-        self.n += other.n;
-        self.y += other.y;
-        self.yy += other.yy;
-        self.uy += other.uy;
-        self.uu += other.uu;
     }
 }
 
@@ -446,10 +433,15 @@ pub struct Detector<T, const K: usize> {
     /// The queue's oldest slot, and how many wait.
     first_queued: usize,
     queued: usize,
-    /// The stage of a detection being completed over the entries after its naming.
-    pending: Option<Stage>,
+    /// Whether a detection's shortfalls are still being taken out of the window.
+    pending: bool,
     /// The actuator passing every gate and for how many periods in a row.
     streak: (usize, usize),
+    /// The actuator the next entry names, and its last test's statistic: it passed the tests
+    /// of `confirm − 1` entries in a row, and the entry after them names it without a test.
+    armed: Option<(usize, T)>,
+    /// The leading actuator's change point, prepared ahead.
+    prep: Prep<T, K>,
     /// Alarms so far: periods whose best statistic crossed the threshold after one that did
     /// not (isolated or not).
     alarms: u32,
@@ -475,10 +467,10 @@ pub struct Detector<T, const K: usize> {
     /// the last cycle ended. A failed actuator's thrust jumps to its value, where a command
     /// would ramp through the lag.
     stuck: [Option<T>; MAX_ACTUATORS],
-    /// The detection being completed.
-    job: Pending<T, K>,
-    /// The weights `g` and the named actuator's column in world axes at the change point's
-    /// first step.
+    /// The last detection's change.
+    job: Pending,
+    /// The weights `g` and the leading (or named) actuator's column in world axes, at the
+    /// attitude of its first lead.
     along: [SVector<T, K>; 2],
     /// The last test's figures.
     last: Statistic<T>,
@@ -494,16 +486,20 @@ pub struct Detector<T, const K: usize> {
     queue: [Option<Detection<T>>; 3],
     /// The settings.
     config: Config<T, K>,
+    /// The BIC's factors for each count of entries ([`Detector::fit`]).
+    penalties: [(T, T); PENALTIES],
     /// Each actuator's healthy column in body axes and its entries' squares, formed at the
     /// first period (`formed` actuators; 0: not yet).
     columns: [SVector<T, K>; MAX_ACTUATORS],
     squares: [SVector<T, K>; MAX_ACTUATORS],
     /// What each failed actuator's periods have shown so far.
     sums: [Sums<T>; MAX_ACTUATORS],
-    /// The shortfalls the change point measured, newest first, and the sums of the actual
-    /// thrust from the newest entry to each.
+    /// The shortfalls the change point measured, newest first (those of the last
+    /// detection's change are taken out of the window after its naming).
     shorts: [T; CAPACITY / 2],
-    cumulative: [Sums<T>; CAPACITY / 2],
+    /// Each entry's residual projected on the leading actuator's weights in world axes,
+    /// `gᵀw`, by slot (those of the window the naming will read).
+    proj: [T; CAPACITY],
     /// The periods summed towards the next entry, and the period being summed.
     accumulated: Entry<T, K>,
     scratch: Entry<T, K>,
@@ -526,6 +522,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             decay,
             mean,
             floor2: config.floor.component_mul(&config.floor),
+            penalties: penalty_table(),
             window_n: eqtrack_controller::real(config.window as f64),
             diagonal: config.inertia == SMatrix::from_diagonal(&config.inertia.diagonal()),
             calibration_n: eqtrack_controller::real(config.calibration as f64),
@@ -541,10 +538,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
             sums: [Sums::zero(); MAX_ACTUATORS],
             watch: None,
             ending: None,
-            pending: None,
+            pending: false,
             job: Pending::zero(),
             shorts: [T::zero(); CAPACITY / 2],
-            cumulative: [Sums::zero(); CAPACITY / 2],
             along: [SVector::zeros(); 2],
             queue: [None; 3],
             first_queued: 0,
@@ -571,6 +567,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
                 testing: false,
             },
             streak: (0, 0),
+            armed: None,
+            prep: Prep::zero(),
+            proj: [T::zero(); CAPACITY],
             alarms: 0,
             alarmed: false,
         })
@@ -634,10 +633,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.sums = [Sums::zero(); MAX_ACTUATORS];
         self.watch = None;
         self.ending = None;
-        self.pending = None;
+        self.pending = false;
         self.job = Pending::zero();
         self.shorts = [T::zero(); CAPACITY / 2];
-        self.cumulative = [Sums::zero(); CAPACITY / 2];
         self.along = [SVector::zeros(); 2];
         self.queue = [None; 3];
         self.first_queued = 0;
@@ -666,6 +664,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
             testing: false,
         };
         self.streak = (0, 0);
+        self.armed = None;
+        self.prep = Prep::zero();
+        self.proj = [T::zero(); CAPACITY];
         self.alarms = 0;
         self.alarmed = false;
     }
@@ -899,8 +900,12 @@ impl<T: Real, const K: usize> Detector<T, K> {
             return self.next_report();
         }
         self.push();
-        // one of: a watch's end, a step of completing a detection, or the test
-        if !self.work(control) {
+        // one of: the naming of the actuator that led the tests before, a watch's end, a step
+        // of completing a detection, or the test
+        if let Some((j, t)) = self.armed.take() {
+            self.last.testing = false;
+            self.found(j, t, self.windows.older / self.window_n, control);
+        } else if !self.work(control) {
             self.test(control);
         }
         self.next_report()
@@ -915,9 +920,10 @@ impl<T: Real, const K: usize> Detector<T, K> {
                 self.report(refined);
             }
             true
-        } else if self.pending.is_some() {
+        } else if self.pending {
             self.last.testing = false;
-            self.complete(control, self.config.window.div_ceil(2));
+            self.take(self.config.window.div_ceil(2));
+            self.pending = self.job.done < self.job.span;
             true
         } else {
             false
@@ -995,7 +1001,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             watch.left = watch.left.saturating_sub(1);
             // a detection still being completed has its kind told first; at the end, the
             // kind is fitted again in the next entry, in place of the test
-            if watch.left == 0 && self.pending.is_none() {
+            if watch.left == 0 && !self.pending {
                 self.ending = self.watch.take();
             }
         }
@@ -1084,7 +1090,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         self.head = (self.head + 1) % CAPACITY;
         self.len = (self.len + 1).min(CAPACITY);
-        if self.job.started {
+        if self.pending {
             self.job.shift += 1;
         }
     }
@@ -1161,12 +1167,57 @@ impl<T: Real, const K: usize> Detector<T, K> {
         } else {
             (best.0, 1)
         };
-        if self.streak.1 < self.config.confirm {
-            return;
+        let confirm = self.config.confirm;
+        if self.streak.1 == 1 {
+            self.prepare(best.0);
+        } else {
+            self.project();
         }
-        self.streak = (0, 0);
-        self.alarmed = false;
-        self.found(best.0, best.1, self.windows.older / n, control);
+        if confirm == 1 {
+            // named in the cycle of its one test
+            self.streak = (0, 0);
+            self.alarmed = false;
+            self.found(best.0, best.1, self.windows.older / n, control);
+        } else if self.streak.1 + 1 == confirm {
+            // named in the next entry, without a test
+            self.streak = (0, 0);
+            self.alarmed = false;
+            self.armed = Some((best.0, best.1));
+        }
+    }
+
+    /// The change point of actuator `j`, which leads the tests from this entry on, prepared
+    /// ahead (docs/maths.md, "Failure detection", paragraph "The kind, prepared ahead"): its
+    /// weights and column in world axes at this attitude, and the entries of the window its
+    /// naming would read (the naming comes `confirm − 1` entries after this one) to project
+    /// over the tests before the naming's entry (which projects its own).
+    fn prepare(&mut self, j: usize) {
+        let w = &self.whitening;
+        let weights = self.columns[j].component_mul(&w.inverse) / w.norms[j];
+        self.along = [
+            rotate_blocks(&self.rotation, &weights),
+            rotate_blocks(&self.rotation, &self.columns[j]),
+        ];
+        let c = self.config.confirm;
+        self.prep = Prep {
+            weights,
+            next: (self.head + CAPACITY - 1 - (self.config.window - c)) % CAPACITY,
+            // the tests before the naming's entry (which projects its own)
+            cycles: c.saturating_sub(2).max(1),
+        };
+    }
+
+    /// Projects this cycle's share of the entries kept since the prepared actuator's last
+    /// projection ([`Detector::prepare`]): all of them in the naming's cycle.
+    fn project(&mut self) {
+        let p = &mut self.prep;
+        let left = (self.head + CAPACITY - p.next) % CAPACITY;
+        let now = left.div_ceil(p.cycles.max(1));
+        p.cycles = p.cycles.saturating_sub(1);
+        for _ in 0..now {
+            self.proj[p.next] = self.along[0].dot(&self.ring[p.next].w);
+            p.next = (p.next + 1) % CAPACITY;
+        }
     }
 
     /// One step of renewing the whitening the test uses (docs/maths.md, "Failure detection",
@@ -1192,90 +1243,50 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
     }
 
-    /// Actuator `j` named with statistic `t`: in the same cycle the change point over the
-    /// window, the kind fitted, the allocator told and the detection reported, so that the
-    /// allocation reconfigures at once; the shortfalls are taken out of the window over the
-    /// next cycles ([`Detector::complete`]). A watch still running is cut short, its kind
-    /// fitted again in the next cycle.
+    /// Actuator `j` named with statistic `t`, and the older window's mean `older`: in the
+    /// same cycle the change point over the window, the kind fitted, the allocator told and
+    /// the detection reported, so that the allocation reconfigures at once; the shortfalls
+    /// are taken out of the window over the next cycles ([`Detector::take`]). A watch still
+    /// running is cut short, its kind fitted again in the next cycle; the named actuator is
+    /// watched from the next entry on
+    /// (docs/maths.md, "Failure detection", paragraph "The kind").
     fn found(&mut self, j: usize, t: T, older: SVector<T, K>, control: &mut VehicleControl<T, K>) {
-        self.ending = self.watch.take();
-        self.pending = Some(Stage::Change);
-        self.job = Pending {
+        if self.watch.is_some() {
+            self.ending = self.watch.take();
+        }
+        // the entries the change point reads not projected yet (the naming's own)
+        self.prep.cycles = 1;
+        self.project();
+        let span = self.change(self.along[0].dot(&older));
+        // a new failure of this actuator: what it showed before is another story; the
+        // actual thrust over the change, newest first
+        let mut sums = Sums::zero();
+        for (i, short) in self.shorts[..span].iter().enumerate() {
+            let e = &self.ring[(self.head + CAPACITY - 1 - i) % CAPACITY];
+            sums.add(e.u[j], e.p[j] + *short);
+        }
+        self.sums[j] = sums;
+        let kind = self.fit(j, &sums, control);
+        self.tell(j, kind, control);
+        self.watch = Some(Watch {
             actuator: j,
-            older,
+            left: self.config.window,
+            baseline: older,
+            weights: self.prep.weights,
+            kind,
+        });
+        self.report(Detection {
+            actuator: j,
+            kind,
             statistic: t,
+            since: span * self.config.decimation + self.periods,
+            refined: false,
+        });
+        self.job = Pending {
+            span,
             ..Pending::zero()
         };
-        // the change point, whole, then the fit and the tell
-        let wn = self.config.window;
-        self.complete(control, wn);
-        self.complete(control, wn);
-    }
-
-    /// One step of completing a detection: the change point over up to `chunk` more entries
-    /// (the watch begun with its first step); the kind fitted, the allocator told and the
-    /// detection reported; then the shortfalls since the change taken out of the window,
-    /// `chunk` entries a step (docs/maths.md, "Failure detection", paragraph "The kind").
-    fn complete(&mut self, control: &mut VehicleControl<T, K>, chunk: usize) {
-        let Some(stage) = self.pending else {
-            return;
-        };
-        let j = self.job.actuator;
-        match stage {
-            Stage::Change => {
-                if !self.job.started {
-                    // a new failure of this actuator: what it showed before is another story
-                    self.sums[j] = Sums::zero();
-                    let w = &self.whitening;
-                    self.job.weights = self.columns[j].component_mul(&w.inverse) / w.norms[j];
-                    self.along = [
-                        rotate_blocks(&self.rotation, &self.job.weights),
-                        rotate_blocks(&self.rotation, &self.columns[j]),
-                    ];
-                    self.job.base = self.along[0].dot(&self.job.older);
-                    self.job.started = true;
-                    // watched from the next entry on (its kind is set when it is fitted)
-                    self.watch = Some(Watch {
-                        actuator: j,
-                        left: self.config.window,
-                        baseline: self.job.older,
-                        weights: self.job.weights,
-                        kind: Kind::Dead,
-                    });
-                }
-                self.change(chunk);
-                if self.job.done == self.config.window {
-                    self.job.done = 0;
-                    self.pending = Some(Stage::Fit);
-                }
-            }
-            Stage::Fit => {
-                // the change's sums, with the entries watched since
-                self.sums[j].merge(&self.cumulative[self.job.span - 1]);
-                let p = &self.job;
-                let since = (p.span + p.shift) * self.config.decimation + self.periods;
-                let statistic = p.statistic;
-                let kind = self.fit(j, &self.sums[j], control);
-                self.tell(j, kind, control);
-                if let Some(w) = self.watch.as_mut() {
-                    w.kind = kind;
-                }
-                self.report(Detection {
-                    actuator: j,
-                    kind,
-                    statistic,
-                    since,
-                    refined: false,
-                });
-                self.pending = Some(Stage::Take);
-            }
-            Stage::Take => {
-                self.take(chunk);
-                if self.job.done == self.job.span {
-                    self.pending = None;
-                }
-            }
-        }
+        self.pending = true;
     }
 
     /// The bank of hypotheses (docs/maths.md, "Failure detection"): for each actuator `j`,
@@ -1300,38 +1311,25 @@ impl<T: Real, const K: usize> Detector<T, K> {
         (best, second)
     }
 
-    /// Up to `chunk` more entries of the named actuator's change point (docs/maths.md,
-    /// "Failure detection", "The kind"): the thrust short of what was believed in each of the
-    /// window's entries at the first step, newest first, along its whitened column, and the
-    /// start whose mean shift is most significant (`p.span` entries). The sums of the actual
-    /// thrust (the believed one plus the shortfall) from the newest entry to each are kept,
-    /// so that the change's are at hand whatever its start.
-    fn change(&mut self, chunk: usize) {
-        let p = &mut self.job;
-        let j = p.actuator;
-        let end = (p.done + chunk).min(self.config.window);
-        let mut running = if p.done == 0 {
-            Sums::zero()
-        } else {
-            self.cumulative[p.done - 1]
-        };
-        for i in p.done..end {
-            let at = (self.head + CAPACITY - 1 - i - p.shift) % CAPACITY;
-            let e = &self.ring[at];
-            let short = self.along[0].dot(&e.w) - p.base;
+    /// The named actuator's change point over the window
+    /// (docs/maths.md, "Failure detection", paragraph "The kind"): the thrust short of what
+    /// was believed in each entry, newest first, along its whitened column (`gᵀw − base`,
+    /// from the projections prepared ahead), kept in `shorts`; and the start whose mean shift
+    /// is most significant, as the number of entries from the newest.
+    fn change(&mut self, base: T) -> usize {
+        let (mut sum, mut n, mut score, mut span) = (T::zero(), T::zero(), T::zero(), 1);
+        for i in 0..self.config.window {
+            let short = self.proj[(self.head + CAPACITY - 1 - i) % CAPACITY] - base;
             self.shorts[i] = short;
-            // the actual thrust's sums from the newest entry to this one
-            running.add(e.u[j], e.p[j] + short);
-            self.cumulative[i] = running;
-            p.sum += short;
-            p.n += T::one();
-            let t = p.sum * p.sum / p.n;
-            if t > p.score {
-                p.score = t;
-                p.span = i + 1;
+            sum += short;
+            n += T::one();
+            let t = sum * sum / n;
+            if t > score {
+                score = t;
+                span = i + 1;
             }
         }
-        p.done = end;
+        span
     }
 
     /// Up to `chunk` more of the named actuator's shortfalls over the `p.span` entries of its
@@ -1375,39 +1373,79 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// The least penalised kind for the sums of actuator `j` (BIC: `n ln(RSS/n) + p ln n`,
     /// the RSS floored at the actuator's resolution): dead (`y = 0`), stuck (`y = v`, `v` the
     /// mean within the bounds) or weak (`y = k u`, `k` in (0, 1) by least squares, and only
-    /// when its BIC is lower than the others' by 6, strong evidence).
+    /// when its BIC is lower than the others' by 6, strong evidence). The BICs are compared
+    /// without a logarithm (docs/maths.md, "Failure detection", paragraph "The kind"): a model
+    /// with a parameter beats dead when its floored RSS is below dead's times `n^(−1/n)`, and
+    /// weak beats the best by 6 when its RSS is below the best's times `e^(−6/n)`.
     fn fit(&self, j: usize, sums: &Sums<T>, control: &VehicleControl<T, K>) -> Kind<T> {
-        let n = sums.n;
         let (lo, hi) = control.nominal_bounds();
-        let res = self.config.resolution[j];
-        let floor = n * res * res;
-        let two: T = eqtrack_controller::real(2.0);
-        // each BIC less dead's, `n ln(RSS'/RSS'_dead) + p ln n` (RSS' the floored RSS): the
-        // same order as the BICs themselves, with a logarithm a model
-        let q = |rss: T| rss.max(T::zero()) + floor;
-        let dead = q(sums.yy);
-        let ln_n = n.ln();
-        let score = |rss: T| n * (q(rss) / dead).ln() + ln_n;
-        let mut best = (Kind::Dead, T::zero());
-        let v = (sums.y / n).max(lo[j]).min(hi[j]);
-        let b = score(sums.yy - two * v * sums.y + n * v * v);
-        if b < best.1 {
-            best = (Kind::Stuck(v), b);
-        }
-        if sums.uu > T::zero() {
-            let k = sums.uy / sums.uu;
-            if k > T::zero() && k < T::one() {
-                // a weak actuator only on strong evidence (a BIC lower by 6): while its
-                // command has not moved, weak and stuck fit alike, and stuck is reported
-                let strong: T = eqtrack_controller::real(6.0);
-                let b = score(sums.yy - two * k * sums.uy + k * k * sums.uu);
-                if b < best.1 - strong {
-                    best = (Kind::Weak(k), b);
-                }
+        choose(
+            sums,
+            (lo[j], hi[j]),
+            self.config.resolution[j],
+            &self.penalties,
+        )
+    }
+}
+
+/// [`Detector::fit`] for an actuator of bounds `(lo, hi)` and resolution `res`.
+fn choose<T: Real>(
+    sums: &Sums<T>,
+    (lo, hi): (T, T),
+    res: T,
+    table: &[(T, T); PENALTIES],
+) -> Kind<T> {
+    let n = sums.n;
+    let floor = n * res * res;
+    let two: T = eqtrack_controller::real(2.0);
+    let q = |rss: T| rss.max(T::zero()) + floor;
+    let (penalty, strong) = penalties(sums.count, table);
+    // dead's floored RSS, as a model with a parameter would need it to tie
+    let mut best = (Kind::Dead, q(sums.yy) * penalty);
+    let v = (sums.y / n).max(lo).min(hi);
+    let stuck = q(sums.yy - two * v * sums.y + n * v * v);
+    if stuck < best.1 {
+        best = (Kind::Stuck(v), stuck);
+    }
+    if sums.uu > T::zero() {
+        let k = sums.uy / sums.uu;
+        if k > T::zero() && k < T::one() {
+            // a weak actuator only on strong evidence: while its command has not moved,
+            // weak and stuck fit alike, and stuck is reported
+            let weak = q(sums.yy - two * k * sums.uy + k * k * sums.uu);
+            if weak < best.1 * strong {
+                best = (Kind::Weak(k), weak);
             }
         }
-        best.0
     }
+    best.0
+}
+
+/// The BIC's factors for `n` entries, `n^(−1/n)` and `e^(−6/n)` ([`Detector::fit`]): from
+/// `table` (formed by [`penalty_table`]) up to its length, computed beyond it.
+fn penalties<T: Real>(n: usize, table: &[(T, T); PENALTIES]) -> (T, T) {
+    match table.get(n) {
+        Some(p) => *p,
+        None => penalty(n),
+    }
+}
+
+/// Entries the BIC's factors are tabled for: a change and a watch are a window each at most.
+const PENALTIES: usize = CAPACITY + 1;
+
+/// `n^(−1/n)` and `e^(−6/n)` ([`Detector::fit`]; 1 and 0 for no entry).
+fn penalty<T: Real>(n: usize) -> (T, T) {
+    if n == 0 {
+        return (T::one(), T::zero());
+    }
+    let x: T = eqtrack_controller::real(n as f64);
+    let six: T = eqtrack_controller::real(6.0);
+    ((-x.ln() / x).exp(), (-six / x).exp())
+}
+
+/// The BIC's factors for 0 to `PENALTIES − 1` entries.
+fn penalty_table<T: Real>() -> [(T, T); PENALTIES] {
+    core::array::from_fn(penalty)
 }
 
 /// The momentum the body's gyroscopic term turns, `μ` plus the wheels' `h_w = Σ J_s (gᵀω + Ω) g`
@@ -1439,4 +1477,90 @@ fn body_blocks<T: Real, const K: usize>(r: &Matrix3<T>, w: &SVector<T, K>) -> SV
         out.fixed_rows_mut::<3>(3 * b).copy_from(&v);
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand_chacha::ChaCha8Rng;
+    use rand_chacha::rand_core::{Rng, SeedableRng};
+
+    /// The BICs themselves, with their logarithms (`n ln(RSS'/RSS'_dead) + p ln n`, the
+    /// margins of the two comparisons beside the kind): the fit as it was written first.
+    fn by_logarithms(sums: &Sums<f64>, (lo, hi): (f64, f64), res: f64) -> (Kind<f64>, f64) {
+        let n = sums.n;
+        let floor = n * res * res;
+        let q = |rss: f64| rss.max(0.0) + floor;
+        let dead = q(sums.yy);
+        let score = |rss: f64| n * (q(rss) / dead).ln() + n.ln();
+        let mut best = (Kind::Dead, 0.0);
+        let v = (sums.y / n).clamp(lo, hi);
+        let b = score(sums.yy - 2.0 * v * sums.y + n * v * v);
+        let mut margin = b.abs();
+        if b < best.1 {
+            best = (Kind::Stuck(v), b);
+        }
+        if sums.uu > 0.0 {
+            let k = sums.uy / sums.uu;
+            if k > 0.0 && k < 1.0 {
+                let b = score(sums.yy - 2.0 * k * sums.uy + k * k * sums.uu);
+                margin = margin.min((b - (best.1 - 6.0)).abs());
+                if b < best.1 - 6.0 {
+                    best = (Kind::Weak(k), b);
+                }
+            }
+        }
+        (best.0, margin)
+    }
+
+    /// The fit without logarithms chooses the kind the BICs choose, wherever no comparison
+    /// is within 1e-9 of a tie: over seeded sums of dead, stuck and weak actuators, noisy or
+    /// not, commanded still or moving, from one entry to beyond the table.
+    #[test]
+    fn the_fit_without_logarithms_chooses_as_the_bics_do() {
+        let table = penalty_table::<f64>();
+        let mut rng = ChaCha8Rng::seed_from_u64(0x0b1c);
+        let mut unit = || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+        let (mut compared, mut kinds) = (0, [0; 3]);
+        for case in 0..20_000 {
+            let count = 1 + (unit() * 80.0) as usize;
+            let (lo, hi) = (-40.0, 40.0);
+            let res = 0.2 * unit();
+            let model = case % 3;
+            let (value, factor) = (-40.0 + 80.0 * unit(), unit());
+            let (still, noise) = (unit() < 0.3, 5.0 * unit() * unit());
+            let mut sums = Sums::zero();
+            let u0 = -40.0 + 80.0 * unit();
+            for _ in 0..count {
+                let u = if still { u0 } else { -40.0 + 80.0 * unit() };
+                let y = match model {
+                    0 => 0.0,
+                    1 => value,
+                    _ => factor * u,
+                } + noise * (unit() - 0.5);
+                sums.add(u, y);
+            }
+            let (want, margin) = by_logarithms(&sums, (lo, hi), res);
+            let got = choose(&sums, (lo, hi), res, &table);
+            if margin > 1e-9 {
+                compared += 1;
+                assert_eq!(got, want, "case {case}: {count} entries, margin {margin}");
+            }
+            kinds[got.code() as usize % 3] += 1;
+        }
+        assert!(compared > 19_000, "only {compared} cases away from a tie");
+        assert!(kinds.iter().all(|k| *k > 1_000), "kinds chosen {kinds:?}");
+    }
+
+    /// The table holds the factors themselves: `n^(−1/n)` and `e^(−6/n)`.
+    #[test]
+    fn the_tabled_factors_are_the_bics() {
+        let table = penalty_table::<f64>();
+        for n in 1..PENALTIES + 10 {
+            let (a, s) = penalties(n, &table);
+            let x = n as f64;
+            assert!((a.ln() * x + x.ln()).abs() < 1e-12, "n^(-1/n) at {n}");
+            assert!((s.ln() * x + 6.0).abs() < 1e-12, "e^(-6/n) at {n}");
+        }
+    }
 }

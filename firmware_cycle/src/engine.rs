@@ -11,6 +11,8 @@ use eqtrack_serial_wire::{Allocation, CommandFrame, Estimate, Samples, StateFram
 use heapless::Vec;
 use nalgebra::{SMatrix, SVector, Vector3};
 
+/// In this order (`repr(C)`): the detector last ([`Engine::watcher`]).
+#[repr(C)]
 pub(crate) struct Engine<G, const N: usize, const M: usize> {
     controller: Controller<f32, G, N, M>,
     start: Reference<f32, G, N, M>,
@@ -38,13 +40,14 @@ pub(crate) struct Engine<G, const N: usize, const M: usize> {
     /// a state must carry one speed per wheel.
     actuators: usize,
     wheels: usize,
-    /// The failure detector, where the configuration has one (and the crate is built with
-    /// it, feature `detector`).
-    watcher: Option<Watcher<M>>,
     /// The failsafe manager and what it flies, where the configuration has one, as at start
     /// and now.
     manager_start: Option<Manager<G, N, M>>,
     manager: Option<Manager<G, N, M>>,
+    /// The failure detector, where the configuration has one (and the crate is built with
+    /// it, feature `detector`). Last: it is kilobytes, and with it last the other fields stay
+    /// within a load's reach of the engine's address on a Cortex-M4F, however it grows.
+    watcher: Option<Watcher<M>>,
 }
 
 /// The failsafe manager on the firmware (docs/failsafe.md, "In the pair and on the firmware"):

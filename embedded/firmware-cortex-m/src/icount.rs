@@ -35,7 +35,8 @@
 //! papers' (world); the PIL cycle (30 → 41) flies `pil_hexarotor`'s, at the reference.
 //!
 //! Then the worst cases (docs/vehicles.md, "Bounded time"), each call between a pair of marks
-//! 46 → 47, in the order the `WORST`, `WARM`, `SATURATED`, `DETECTOR` and `WHEELS` lines name them:
+//! 46 → 47, in the order the `WORST`, `WARM`, `SATURATED`, `DETECTOR`, `WEAKEN` and `WHEELS` lines
+//! name them:
 //!
 //! * every demand of `firmware_cases::demands`, solved cold with the default budget: the
 //!   hexarotor, the ROV, the spacecraft (`WORST <vehicle> <demands> <stopped> <most iterations>`);
@@ -46,6 +47,9 @@
 //!   synthetic flight through the warm-up, the calibration, the tests, a thruster that dies
 //!   and its finding (`DETECTOR rov <cycles> <cycle found> <actuator> <kind code> <value>
 //!   <first cycle that tested>`);
+//! * the tell of a weak thruster on that ROV's healthy allocator (`Kind::tell` of a factor of
+//!   one half, which forms the allocator again with the column scaled), as the cycle that
+//!   names or refines a weak thruster runs it (`WEAKEN rov 1`);
 //! * `wheels_slew`'s whole cycle on four reaction wheels, on the frames of a slew whose
 //!   wheels sweep up to their top speed (`WHEELS <cycles> <saturated allocations> <frames with
 //!   a closed bound>`).
@@ -633,7 +637,17 @@ fn detector_cycles() -> bool {
         value,
         testing.unwrap_or(CYCLES)
     );
-    actuator == 1 && v.iter().all(|x| x.is_finite())
+    // a weak thruster told: the allocator formed again with its column scaled (the detector's
+    // flight above finds its thruster stuck, which narrows two bounds)
+    let Ok(mut healthy) = vehicle.control::<6>(h) else {
+        return false;
+    };
+    let cc = black_box(&mut healthy);
+    icount_mark(46);
+    detection::Kind::Weak(black_box(0.5f32)).tell(3, cc);
+    icount_mark(47);
+    hprintln!("WEAKEN rov 1");
+    actuator == 1 && v.iter().all(|x| x.is_finite()) && healthy.factors()[3] == 0.5
 }
 
 /// `wheels_slew`'s configuration (`plant_sim pil-config --scenario scenarios/wheels_slew.toml`):
