@@ -285,9 +285,10 @@ pub struct Config<T, const K: usize> {
     /// The least lead of the best hypothesis's statistic over the runner-up's (twice their
     /// log-likelihood ratio; a χ²₁ quantile of the chance of isolating the wrong actuator).
     pub margin: T,
-    /// Consecutive periods the same actuator must pass every gate before it is named (at
-    /// least 1): a change that no single actuator explains shows as such only once enough of
-    /// it has entered the window.
+    /// Consecutive entries the same actuator must lead before it is named (at least 1): it
+    /// passes every gate in all but the last, which names it without a test (with 1, its one
+    /// test names it). A change that no single actuator explains shows as such only once
+    /// enough of it has entered the window.
     pub confirm: usize,
     /// Entries at the start in which the detector neither learns nor tests: the estimator's
     /// and the controller's own start, whose transients are not the flight's spread.
@@ -1257,6 +1258,13 @@ impl<T: Real, const K: usize> Detector<T, K> {
         // the entries the change point reads not projected yet (the naming's own)
         self.prep.cycles = 1;
         self.project();
+        debug_assert!(
+            (0..self.config.window).all(|i| {
+                let at = (self.head + CAPACITY - 1 - i) % CAPACITY;
+                self.proj[at] == self.along[0].dot(&self.ring[at].w)
+            }),
+            "the window's entries are projected on the named actuator's weights"
+        );
         let span = self.change(self.along[0].dot(&older));
         // a new failure of this actuator: what it showed before is another story; the
         // actual thrust over the change, newest first

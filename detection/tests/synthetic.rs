@@ -194,14 +194,23 @@ fn fly_with(
     gust: Option<(f64, SVector<f64, 6>)>,
     end: &mut dyn FnMut(&Detector<f64, 6>),
 ) -> Vec<(f64, Detection<f64>)> {
-    fly_swinging(seed, per_hour, seconds, faults, sigma, gust, 1.0, end)
+    fly_swinging(
+        seed,
+        config(per_hour),
+        seconds,
+        faults,
+        sigma,
+        gust,
+        1.0,
+        end,
+    )
 }
 
 /// [`fly_with`], the commands swinging by `swing`.
 #[allow(clippy::too_many_arguments)]
 fn fly_swinging(
     seed: u64,
-    per_hour: f64,
+    config: Config<f64, 6>,
     seconds: f64,
     faults: &[(usize, Fault, f64)],
     sigma: f64,
@@ -214,7 +223,7 @@ fn fly_swinging(
     let mut rov = Rov::new();
     rov.swing = swing;
     let mut control = control();
-    let mut detector = Detector::new(config(per_hour)).unwrap();
+    let mut detector = Detector::new(config).unwrap();
     let r = Matrix3::identity();
     let mut found = Vec::new();
     let steps = (seconds / H).round() as usize;
@@ -285,6 +294,59 @@ fn each_dead_thruster_is_found_on_the_right_one_within_a_fifth_of_a_second() {
     assert!(p95 <= 0.2 + 1e-9, "95 % within {p95:.3} s: {late:?}");
 }
 
+/// However long the confirmation, from one entry (named in the cycle of its one test) to the
+/// whole window (one entry of the window left to project when the lead begins), and with two
+/// (every projection left to the naming), a dead thruster is found on the right one, dead
+/// (or stuck at 0 within the resolution), once, and a confirmation one entry longer names it
+/// one entry later: the entry after the
+/// last test names it (docs/maths.md, "Failure detection", paragraph "The kind, prepared ahead").
+#[test]
+fn the_change_point_is_prepared_ahead_however_long_the_confirmation() {
+    for j in [0, 5] {
+        let mut times = Vec::new();
+        for confirm in [1, 2, 3, 5, 10] {
+            let c = Config {
+                confirm,
+                ..config(1e-3)
+            };
+            let found = fly_swinging(
+                11,
+                c,
+                5.0,
+                &[(j, Fault::Dead, 4.0)],
+                1e-3,
+                None,
+                1.0,
+                &mut |_| (),
+            );
+            assert_eq!(found.len(), 1, "thruster {j}, confirm {confirm}: {found:?}");
+            let (t, d) = found[0];
+            assert_eq!(d.actuator, j, "confirm {confirm}: {d:?}");
+            // dead, or stuck within the resolution (0.4 N) at 0: a confirmation of one
+            // entry can see a change point of one entry, whose mean is its value
+            assert!(
+                match d.kind {
+                    Kind::Dead => true,
+                    Kind::Stuck(v) => v.abs() <= 0.4,
+                    Kind::Weak(_) => false,
+                },
+                "confirm {confirm}: {d:?}"
+            );
+            assert!((4.0..4.2).contains(&t), "confirm {confirm}: found at {t}");
+            times.push(((t - 4.0) / H).round() as i64);
+        }
+        // a dead thruster, whose change leads from its first test on: one entry more of
+        // confirmation, one entry later
+        for (w, k) in times.windows(2).zip([1, 1, 2, 5]) {
+            assert_eq!(
+                w[1] - w[0],
+                k,
+                "thruster {j}: named after {times:?} entries"
+            );
+        }
+    }
+}
+
 #[test]
 fn a_stuck_and_a_weak_thruster_are_told_apart_and_estimated() {
     for j in [1, 5] {
@@ -310,7 +372,7 @@ fn a_stuck_and_a_weak_thruster_are_told_apart_and_estimated() {
     // commands tell it weak
     let found = fly_swinging(
         9,
-        1e-3,
+        config(1e-3),
         6.0,
         &[(5, Fault::Weak(0.3), 4.0)],
         1e-3,

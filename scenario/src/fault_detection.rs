@@ -40,7 +40,8 @@ pub struct FaultDetectionSpec {
     /// `floor`: the least spread per axis, as a fraction of the most any one actuator gives
     /// along it.
     pub floor: f64,
-    /// `confirm` (s): how long one actuator must pass every gate before it is named.
+    /// `confirm` (s): how long one actuator must lead before it is named (it passes every gate
+    /// but in the last period, which names it without a test).
     pub confirm: f64,
     /// `unexplained`: the chance that a failure's unexplained part fails the isolation gate.
     pub unexplained: f64,
