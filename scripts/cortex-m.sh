@@ -434,9 +434,10 @@ for g in groups:
         n = int(g[2])
         weaken = max(c - base_call for c in calls[at:at + n])
         at += n
+        # (alone it is over the cycle's limit of 1 500, so with the rest of that cycle too)
         print(f"  a weak thruster told (the allocator formed again, its column scaled): {weaken} instructions "
               f"more in the cycle that names or refines it (limit 1500 with the rest of that cycle: "
-              f"{met(weaken, 0)}; enforced ceiling {ceilings['weaken']})")
+              f"{met(weaken, 1500)}; enforced ceiling {ceilings['weaken']})")
         if enforce and weaken > ceilings["weaken"]:
             failed.append(f"a weak thruster's tell: {weaken} instructions > its ceiling {ceilings['weaken']}")
         continue

@@ -215,13 +215,17 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
             return;
         }
         self.factors[j] = factor;
-        // the healthy geometry with every told factor, and the allocator formed once over it
-        // (as scaling it one factor at a time would form it, bit for bit)
+        // the healthy allocator when every factor is 1 again; else the healthy geometry with
+        // every told factor, and the allocator formed once over it (as scaling it one factor
+        // at a time would form it, bit for bit)
+        let weak = |i: &usize| self.factors[*i] != T::one();
+        if !(0..count).any(|i| weak(&i)) {
+            self.allocator = self.nominal;
+            return;
+        }
         let mut geometry = *self.nominal.geometry();
-        for i in 0..count {
-            if self.factors[i] != T::one() {
-                geometry = geometry.scaled(i, self.factors[i]);
-            }
+        for i in (0..count).filter(weak) {
+            geometry = geometry.scaled(i, self.factors[i]);
         }
         self.allocator = self.nominal.over(geometry);
     }

@@ -1097,8 +1097,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
     }
 
     /// The test on full windows: learn the spread while calibrating or nominal; otherwise
-    /// isolate, tell the allocator the actuator's estimated thrust and begin completing the
-    /// detection.
+    /// isolate, and prepare the leading actuator's change point; once it has led the tests of
+    /// `confirm − 1` entries, arm its naming in the next entry (with `confirm` 1, name it
+    /// now).
     fn test(&mut self, control: &mut VehicleControl<T, K>) {
         let wn = self.config.window;
         self.last.testing = false;
@@ -1255,7 +1256,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
         if self.watch.is_some() {
             self.ending = self.watch.take();
         }
-        // the entries the change point reads not projected yet (the naming's own)
+        // the entries the change point reads not projected yet (the naming's own, or the
+        // whole window when the confirmation is shorter than three entries)
         self.prep.cycles = 1;
         self.project();
         debug_assert!(
