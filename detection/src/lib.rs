@@ -1196,10 +1196,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
     fn prepare(&mut self, j: usize) {
         let w = &self.whitening;
         let weights = self.columns[j].component_mul(&w.inverse) / w.norms[j];
-        self.along = [
-            rotate_blocks(&self.rotation, &weights),
-            rotate_blocks(&self.rotation, &self.columns[j]),
-        ];
+        let (g, column) = self.along(j, &weights);
+        self.along = [g, column];
         let c = self.config.confirm;
         self.prep = Prep {
             weights,
