@@ -406,6 +406,41 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         )
     }
 
+    /// Poses this allocator, the healthy one (every factor 1), as [`Allocator::scaled`] by
+    /// `factors` in the actuators' thrust (docs/maths.md, "Control allocation", a weak
+    /// actuator's thrust as its variable): over its own geometry, each actuator `j` with
+    /// `factors[j] = k ≠ 1` weighted `w_j / k²` and preferring `k u_pref,j`. Allocated within
+    /// the bounds scaled by `k`, its command `y` divided by `k` is [`Allocator::scaled`]'s (the
+    /// same problem, its variable `y_j = k u_j`). Only `B W⁻¹`'s column `j` and the Cholesky
+    /// factor of `B W⁻¹ Bᵀ` change: the factor by a rank-one update per actuator,
+    /// `(k² − 1)/w_j · b_j b_jᵀ`, and formed again only if an update leaves a diagonal entry
+    /// that is not finite and positive. Factors must be finite and positive.
+    pub(crate) fn pose_in_thrust(&mut self, factors: &Commands<T>) {
+        let b = *self.geometry.effectiveness();
+        let mut chol = self.gram.map(nalgebra::Cholesky::pack_dirty);
+        for j in 0..self.geometry.count() {
+            let k = factors[j];
+            if k == T::one() {
+                continue;
+            }
+            let healthy = self.weights[j];
+            let w = healthy / (k * k);
+            self.weights[j] = w;
+            self.preferred[j] *= k;
+            self.bw.set_column(j, &(b.column(j) / w));
+            if let Some(c) = chol.as_mut() {
+                c.rank_one_update(&b.column(j), (k * k - T::one()) / healthy);
+            }
+        }
+        let l = chol.map(nalgebra::Cholesky::unpack_dirty);
+        let sound =
+            |l: &SMatrix<T, K, K>| (0..K).all(|i| l[(i, i)].is_finite() && l[(i, i)] > T::zero());
+        self.gram = match l {
+            Some(l) if sound(&l) => Some(l),
+            _ => nalgebra::Cholesky::new(self.bw * b.transpose()).map(|c| c.unpack_dirty()),
+        };
+    }
+
     /// The same allocator with at most `budget` active-set iterations per allocation, over
     /// all stages, spent on the torque stage first (default [`DEFAULT_BUDGET`]). An
     /// allocation that spends it answers [`Status::Stopped`] with its last iterate.
@@ -1156,5 +1191,64 @@ mod tests {
                 compare(Allocator::new(g, w, &p, priority).unwrap(), &us, scale, held, second)?;
             }
         }
+    }
+
+    /// A weak actuator's thrust as the variable (`pose_in_thrust`): the rank-one update gives the
+    /// Cholesky factor of `B W⁻¹ Bᵀ` with the new weights (to 1e-12 in f64, 1e-5 in f32 of its
+    /// largest entry), for one and two weak actuators; where the downdate breaks down (a
+    /// hexarotor rotor at 10⁻⁴ in f32, its Gram matrix singular to the precision) the factor is
+    /// the formed one, bit for bit; every factor 1 is the allocator itself.
+    #[test]
+    fn a_weak_actuators_factor_is_updated_or_formed() {
+        fn thrust<T: nalgebra::RealField + Copy>(
+            a: &Allocator<T, 6>,
+            f: &Commands<T>,
+        ) -> Allocator<T, 6> {
+            let mut a = *a;
+            a.pose_in_thrust(f);
+            a
+        }
+        fn gap<T: nalgebra::RealField + Copy>(a: &Allocator<T, 6>) -> T {
+            let l = a.gram.unwrap().lower_triangle();
+            let g = a.bw * a.geometry.effectiveness().transpose();
+            (l * l.transpose() - g).amax() / g.amax()
+        }
+        let rov = {
+            let g = Geometry::<f64, 6>::new(&presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0));
+            Allocator::new(g.unwrap(), &[], &[], Priority::Torque).unwrap()
+        };
+        let ones = Commands::from_element(1.0);
+        assert_eq!(thrust(&rov, &ones), rov);
+        for weak in [&[(0, 0.5)][..], &[(3, 0.01)], &[(1, 0.6), (6, 0.25)]] {
+            let mut f = ones;
+            for &(j, k) in weak {
+                f[j] = k;
+            }
+            let t = thrust(&rov, &f);
+            assert!(gap(&t) < 1e-12, "{weak:?}: {}", gap(&t));
+            for &(j, k) in weak {
+                assert_eq!(t.weights[j], rov.weights[j] / (k * k));
+            }
+        }
+        let hex = hexarotor::<f32>(0.5);
+        let mut f = Commands::from_element(1.0f32);
+        for k in [0.5f32, 1e-2] {
+            f[2] = k;
+            assert!(
+                gap(&thrust(&hex, &f)) < 1e-5,
+                "{k}: {}",
+                gap(&thrust(&hex, &f))
+            );
+        }
+        f[2] = 1e-4;
+        let t = thrust(&hex, &f);
+        let mut chol = nalgebra::Cholesky::pack_dirty(hex.gram.unwrap());
+        chol.rank_one_update(&hex.geometry.effectiveness().column(2), 1e-8 - 1.0);
+        assert!(
+            chol.l_dirty()[(5, 5)].is_nan(),
+            "the downdate breaks down here"
+        );
+        let formed = nalgebra::Cholesky::new(t.bw * hex.geometry.effectiveness().transpose());
+        assert_eq!(t.gram, formed.map(|c| c.unpack_dirty()));
     }
 }

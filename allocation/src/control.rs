@@ -40,10 +40,13 @@ impl<T: RealField + Copy, const K: usize> Actuation<T, K> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VehicleControl<T, const K: usize> {
     allocator: Allocator<T, K>,
-    /// The allocator of the healthy vehicle, which a loss of effectiveness scales.
+    /// The allocator of the healthy vehicle, which a loss of effectiveness reweights.
     nominal: Allocator<T, K>,
     /// The effectiveness of each actuator as told (1: healthy).
     factors: Commands<T>,
+    /// Whether a factor told is not 1: the allocator is then posed in the actuators' thrust
+    /// ([`VehicleControl::weaken`]).
+    weak: bool,
     restoring: Restoring<T>,
     /// The rate limit (per second; 0: none).
     rate_limit: T,
@@ -74,6 +77,7 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
             bounds: allocator.bounds(),
             nominal: allocator,
             factors: Commands::from_element(T::one()),
+            weak: false,
             allocator,
             restoring,
             rate_limit,
@@ -126,7 +130,8 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         self.previous = previous;
     }
 
-    /// The allocator.
+    /// The allocator. Its geometry is the healthy one whatever the failures told: with an
+    /// actuator told weak it is posed in the actuators' thrust ([`VehicleControl::weaken`]).
     pub fn allocator(&self) -> &Allocator<T, K> {
         &self.allocator
     }
@@ -169,7 +174,10 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     pub fn disarm(&mut self, a: &mut Actuation<T, K>) {
         let lo = self.bounds.lo;
         a.allocation.u = lo;
-        a.allocation.achieved = self.allocator.geometry().wrench(&lo);
+        a.allocation.achieved = self
+            .allocator
+            .geometry()
+            .wrench(&lo.component_mul(&self.factors));
         self.previous = Some(lo);
     }
 
@@ -205,29 +213,28 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     }
 
     /// Tells the allocator that actuator `j` produces only `factor` of its command (a loss
-    /// of effectiveness): from now on its column of `B` is scaled by `factor`
-    /// ([`Allocator::scaled`]) and the others make up the rest. Telling the same factor
-    /// again changes nothing (the allocator is formed from the healthy one, never scaled
-    /// twice). A factor that is not finite and positive is ignored.
+    /// of effectiveness): from now on it allocates as if its column of `B` were scaled by
+    /// `factor` ([`Allocator::scaled`]), and the others make up the rest. It does so with
+    /// the actuator's thrust `y = factor · u` as its variable (docs/maths.md, "Control
+    /// allocation", a weak actuator's thrust as its variable): the healthy geometry, the
+    /// bounds scaled by `factor` in each allocation and the command divided by it after,
+    /// and only the last stage's weight and preferred command changed here, at the cost of a
+    /// rank-one update of one Cholesky factor, not a formation of the allocator. Telling the
+    /// same factor again changes nothing (the allocator is reweighted from the healthy one,
+    /// never twice). A factor that is not finite and positive is ignored.
     pub fn weaken(&mut self, j: usize, factor: T) {
         let count = self.nominal.geometry().count();
         if j >= count || !(factor.is_finite() && factor > T::zero()) || self.factors[j] == factor {
             return;
         }
         self.factors[j] = factor;
-        // the healthy allocator when every factor is 1 again; else the healthy geometry with
-        // every told factor, and the allocator formed once over it (as scaling it one factor
-        // at a time would form it, bit for bit)
-        let weak = |i: &usize| self.factors[*i] != T::one();
-        if !(0..count).any(|i| weak(&i)) {
-            self.allocator = self.nominal;
-            return;
+        // the healthy allocator when every factor is 1 again; else the healthy one reweighted
+        // for every told factor, in the actuators' order, whatever the order told
+        self.weak = (0..count).any(|i| self.factors[i] != T::one());
+        self.allocator = self.nominal;
+        if self.weak {
+            self.allocator.pose_in_thrust(&self.factors);
         }
-        let mut geometry = *self.nominal.geometry();
-        for i in (0..count).filter(weak) {
-            geometry = geometry.scaled(i, self.factors[i]);
-        }
-        self.allocator = self.nominal.over(geometry);
     }
 
     /// The effectiveness of each actuator as told (1: healthy, and past the count).
@@ -281,7 +288,8 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         if m.null_gain > T::zero() {
             let mut up = *self.nominal.preferred();
             self.wheels.null_space(m, speeds, &mut up);
-            self.allocator.set_preferred(&up);
+            self.allocator
+                .set_preferred(&up.component_mul(&self.factors));
         }
         let first = self.wheels.first();
         if m.dump_gain <= T::zero() || first == 0 {
@@ -292,7 +300,35 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         for j in first..first + self.wheels.wheels().len() {
             bounds.fail(j, T::zero().max(bounds.lo[j]).min(bounds.hi[j]));
         }
-        Some(self.allocator.allocate_within(&tau, &bounds).u)
+        Some(self.solve(&tau, &bounds, None).u)
+    }
+
+    /// The allocator's answer to `demand` within `bounds`, from `previous`, all of commands:
+    /// with an actuator told weak, posed in its thrust, the bounds and `previous` scaled by
+    /// the factors and the command divided by them after, kept within `bounds`
+    /// (docs/maths.md, "Control allocation", a weak actuator's thrust as its variable).
+    fn solve(
+        &self,
+        demand: &SVector<T, K>,
+        bounds: &Bounds<T>,
+        previous: Option<&Commands<T>>,
+    ) -> Allocation<T, K> {
+        if !self.weak {
+            return self.allocator.allocate_from(demand, bounds, previous);
+        }
+        let k = &self.factors;
+        let thrust = Bounds {
+            lo: bounds.lo.component_mul(k),
+            hi: bounds.hi.component_mul(k),
+        };
+        let previous = previous.map(|p| p.component_mul(k));
+        let mut a = self
+            .allocator
+            .allocate_from(demand, &thrust, previous.as_ref());
+        for j in 0..self.allocator.geometry().count() {
+            a.u[j] = (a.u[j] / k[j]).max(bounds.lo[j]).min(bounds.hi[j]);
+        }
+        a
     }
 
     /// One allocation of `demand` within the bounds, narrowed to the rate limit and, given the
@@ -321,9 +357,7 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
                 bounds.fail(j, thrust[j].max(bounds.lo[j]).min(bounds.hi[j]));
             }
         }
-        let allocation = self
-            .allocator
-            .allocate_from(&demand, &bounds, self.previous.as_ref());
+        let allocation = self.solve(&demand, &bounds, self.previous.as_ref());
         self.previous = Some(allocation.u);
         Actuation { demand, allocation }
     }

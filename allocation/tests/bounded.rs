@@ -369,12 +369,17 @@ fn a_weakened_actuator_has_its_column_scaled() {
             "the weakened thruster is asked differently"
         );
     }
-    // two actuators weak: the allocator formed once over both scaled columns is the one
-    // scaled a factor at a time, bit for bit
+    // two actuators weak: the allocator depends on the factors told, not on their order, bit
+    // for bit, and keeps the healthy geometry (the thrust is its variable)
     let mut two = VehicleControl::new(alloc, no_restoring, 0.0, 0.01);
     two.weaken(1, 0.6);
     two.weaken(6, 0.25);
-    assert_eq!(*two.allocator(), alloc.scaled(1, 0.6).scaled(6, 0.25));
+    let mut owt = VehicleControl::new(alloc, no_restoring, 0.0, 0.01);
+    owt.weaken(6, 0.25);
+    owt.weaken(1, 0.6);
+    assert_eq!(two, owt, "the order told changes no bit");
+    assert_eq!(two.allocator().geometry(), alloc.geometry());
+    assert_ne!(two.allocator(), &alloc);
     // healed, an actuator told weak or stuck is the healthy one again
     let mut c = VehicleControl::new(alloc, no_restoring, 0.0, 0.01);
     let fresh = c;
@@ -403,6 +408,104 @@ fn a_weakened_actuator_has_its_column_scaled() {
 /// square geometry) give no command until both finish: a budget spent in them answers the
 /// primal stages' start, the closed form `B⁻¹w` clamped into the bounds, or the previous
 /// command clamped when one is given, with status 3 and the budget's count.
+/// A weak actuator's thrust as the allocator's variable (docs/maths.md, "Control allocation"):
+/// the vehicle told of one or two weak actuators allocates what the allocator formed over the
+/// scaled columns ([`Allocator::scaled`]) allocates, on the ROV (its blocks by their reach), the
+/// hexarotor (square: the dual stages) and the twelve-thruster spacecraft, within reach and
+/// saturated, cold and from the last command, with a weak actuator also stuck, and with a
+/// factor so small that the rank-one downdate is near its limit. Each answer is within the
+/// bounds, and the status is the scaled allocator's.
+#[test]
+fn a_weak_actuator_allocated_in_its_thrust_is_the_scaled_allocator() {
+    use eqtrack_allocation::{Restoring, VehicleControl};
+    let none = Restoring {
+        weight: 0.0,
+        buoyancy: 0.0,
+        centre: nalgebra::Vector3::zeros(),
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(47);
+    let mut unit = move || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+    fn check<const K: usize>(
+        alloc: &Allocator<f64, K>,
+        weak: &[(usize, f64)],
+        stuck: Option<(usize, f64)>,
+        demands: &[SVector<f64, K>],
+        none: Restoring<f64>,
+    ) -> usize {
+        let mut scaled = *alloc;
+        let mut control = VehicleControl::new(*alloc, none, 0.0, 0.01);
+        for &(j, k) in weak {
+            scaled = scaled.scaled(j, k);
+            control.weaken(j, k);
+        }
+        let mut bounds = scaled.bounds();
+        if let Some((j, v)) = stuck {
+            bounds.fail(j, v);
+            control.fail(j, v);
+        }
+        let top = bounds.hi.amax().max(bounds.lo.amax());
+        let mut previous = None;
+        let mut saturated = 0;
+        for d in demands {
+            let want = scaled.allocate_from(d, &bounds, previous.as_ref());
+            let got = control.actuate_demand(*d).allocation;
+            let gap = (want.u - got.u).amax();
+            assert!(
+                gap < 1e-8 * top,
+                "{weak:?} {stuck:?}: {d:?} allocated {:?}, the scaled allocator {:?}",
+                got.u,
+                want.u
+            );
+            assert_eq!(got.status, want.status, "{weak:?}: {d:?}");
+            assert!(
+                within(&got, &bounds),
+                "{weak:?}: {:?} within the bounds",
+                got.u
+            );
+            let produced = scaled.geometry().wrench(&got.u);
+            assert!(
+                (produced - got.achieved).amax() < 1e-8 * top,
+                "the wrench it reports"
+            );
+            saturated += usize::from(want.status != Status::Met);
+            previous = Some(got.u);
+        }
+        saturated
+    }
+    let mut demands = |scale: [f64; 6], n: usize| -> Vec<SVector<f64, 6>> {
+        (0..n)
+            .map(|i| {
+                let grow = 0.2 + 2.0 * i as f64 / n as f64;
+                SVector::from_fn(|a, _| (2.0 * unit() - 1.0) * scale[a] * grow)
+            })
+            .collect()
+    };
+    let rov = rov();
+    let d = demands([6.0, 6.0, 8.0, 80.0, 80.0, 120.0], 200);
+    let mut saturated = 0;
+    for (weak, stuck) in [
+        (&[(0, 0.5)][..], None),
+        (&[(5, 0.3)][..], None),
+        (&[(1, 0.6), (6, 0.25)][..], None),
+        (&[(2, 0.4)][..], Some((2, 10.0))),
+        (&[(3, 1e-4)][..], None),
+    ] {
+        saturated += check(&rov, weak, stuck, &d, none);
+    }
+    let hex = hexarotor();
+    let d = demands([1.5, 1.5, 0.3, 4.0, 4.0, 60.0], 200);
+    for weak in [&[(0, 0.5)][..], &[(2, 0.7), (5, 0.3)][..]] {
+        saturated += check(&hex, weak, None, &d, none);
+    }
+    let sc = spacecraft();
+    let d3: Vec<SVector<f64, 3>> = d.iter().map(|x| x.fixed_rows::<3>(0) * 3.0).collect();
+    saturated += check(&sc, &[(4, 0.5)], None, &d3, none);
+    assert!(
+        saturated > 300,
+        "{saturated} saturated allocations among them"
+    );
+}
+
 #[test]
 fn a_budget_spent_in_the_dual_stages_answers_the_clamped_start() {
     let mut rng = ChaCha8Rng::seed_from_u64(46);

@@ -766,12 +766,13 @@ impl<T: Real, const K: usize> Detector<T, K> {
         found
     }
 
-    /// The healthy columns in body axes, and their squares, from the told ones.
+    /// The healthy columns in body axes (the allocator's geometry, whatever was told), and
+    /// their squares.
     fn form(&mut self, control: &VehicleControl<T, K>) {
         let geometry = control.allocator().geometry();
         let b = geometry.effectiveness();
         for j in 0..geometry.count() {
-            self.columns[j] = b.column(j) / control.factors()[j];
+            self.columns[j] = b.column(j).into_owned();
             self.squares[j] = self.columns[j].component_mul(&self.columns[j]);
         }
         self.formed = geometry.count();
@@ -875,9 +876,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
             let u = cmd + (out - cmd) * self.mean;
             self.output[j] = cmd + (out - cmd) * self.decay;
             let believed = self.stuck[j].unwrap_or(u);
-            thrust += b.column(j) * believed;
             e.u[j] = u;
             e.p[j] = believed * factors[j];
+            thrust += b.column(j) * e.p[j];
         }
         if self.settling > 0 {
             self.settling -= 1;

@@ -48,7 +48,7 @@
 //!   and its finding (`DETECTOR rov <cycles> <cycle found> <actuator> <kind code> <value>
 //!   <first cycle that tested>`);
 //! * the tell of a weak thruster on that ROV's healthy allocator (`Kind::tell` of a factor of
-//!   one half, which forms the allocator again with the column scaled), as the cycle that
+//!   one half, which reweights the allocator, the thruster's thrust its variable), as the cycle that
 //!   names or refines a weak thruster runs it (`WEAKEN rov 1`);
 //! * `wheels_slew`'s whole cycle on four reaction wheels, on the frames of a slew whose
 //!   wheels sweep up to their top speed (`WHEELS <cycles> <saturated allocations> <frames with
@@ -637,8 +637,8 @@ fn detector_cycles() -> bool {
         value,
         testing.unwrap_or(CYCLES)
     );
-    // a weak thruster told: the allocator formed again with its column scaled (the detector's
-    // flight above finds its thruster stuck, which narrows two bounds)
+    // a weak thruster told: the allocator reweighted, the thruster's thrust its variable (the
+    // detector's flight above finds its thruster stuck, which narrows two bounds)
     let Ok(mut healthy) = vehicle.control::<6>(h) else {
         return false;
     };
