@@ -406,8 +406,9 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         )
     }
 
-    /// Poses this allocator, the healthy one (every factor 1), as [`Allocator::scaled`] by
-    /// `factors` in the actuators' thrust (docs/maths.md, "Control allocation", a weak
+    /// Poses this allocator, of the same geometry as `healthy` and otherwise equal to it but
+    /// for the fields the weights enter, as `healthy`'s [`Allocator::scaled`] by `factors` in
+    /// the actuators' thrust (docs/maths.md, "Control allocation", a weak
     /// actuator's thrust as its variable): over its own geometry, each actuator `j` with
     /// `factors[j] = k ≠ 1` weighted `w_j / k²` and preferring `k u_pref,j`. Allocated within
     /// the bounds scaled by `k`, its command `y` divided by `k` is [`Allocator::scaled`]'s (the
@@ -415,21 +416,24 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     /// factor of `B W⁻¹ Bᵀ` change: the factor by a rank-one update per actuator,
     /// `(k² − 1)/w_j · b_j b_jᵀ`, and formed again only if an update leaves a diagonal entry
     /// that is not finite and positive. Factors must be finite and positive.
-    pub(crate) fn pose_in_thrust(&mut self, factors: &Commands<T>) {
-        let b = *self.geometry.effectiveness();
-        let mut chol = self.gram.map(nalgebra::Cholesky::pack_dirty);
+    pub(crate) fn pose_in_thrust(&mut self, healthy: &Self, factors: &Commands<T>) {
+        // what the weights enter, from the healthy allocator (the rest is its already)
+        self.weights = healthy.weights;
+        self.preferred = healthy.preferred;
+        self.bw = healthy.bw;
+        let b = self.geometry.effectiveness();
+        let mut chol = healthy.gram.map(nalgebra::Cholesky::pack_dirty);
         for j in 0..self.geometry.count() {
             let k = factors[j];
             if k == T::one() {
                 continue;
             }
-            let healthy = self.weights[j];
-            let w = healthy / (k * k);
+            let w = healthy.weights[j] / (k * k);
             self.weights[j] = w;
             self.preferred[j] *= k;
             self.bw.set_column(j, &(b.column(j) / w));
             if let Some(c) = chol.as_mut() {
-                c.rank_one_update(&b.column(j), (k * k - T::one()) / healthy);
+                c.rank_one_update(&b.column(j), (k * k - T::one()) / healthy.weights[j]);
             }
         }
         let l = chol.map(nalgebra::Cholesky::unpack_dirty);
@@ -1204,9 +1208,9 @@ mod tests {
             a: &Allocator<T, 6>,
             f: &Commands<T>,
         ) -> Allocator<T, 6> {
-            let mut a = *a;
-            a.pose_in_thrust(f);
-            a
+            let mut t = *a;
+            t.pose_in_thrust(a, f);
+            t
         }
         fn gap<T: nalgebra::RealField + Copy>(a: &Allocator<T, 6>) -> T {
             let l = a.gram.unwrap().lower_triangle();

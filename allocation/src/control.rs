@@ -231,9 +231,10 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
         // the healthy allocator when every factor is 1 again; else the healthy one reweighted
         // for every told factor, in the actuators' order, whatever the order told
         self.weak = (0..count).any(|i| self.factors[i] != T::one());
-        self.allocator = self.nominal;
         if self.weak {
-            self.allocator.pose_in_thrust(&self.factors);
+            self.allocator.pose_in_thrust(&self.nominal, &self.factors);
+        } else {
+            self.allocator = self.nominal;
         }
     }
 
