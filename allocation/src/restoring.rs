@@ -28,7 +28,8 @@ impl<T: RealField + Copy> Restoring<T> {
     /// The body wrench at rotation `r` (body to world): the force `Rᵀ(0, 0, B − mg)` and the
     /// torque `r_B × Rᵀ(0, 0, B)`, in (torque, force) order; with `K` = 3 the torque alone.
     pub fn wrench<const K: usize>(&self, r: &Matrix3<T>) -> SVector<T, K> {
-        let up = r.transpose() * Vector3::z();
+        // `Rᵀ e_z`: the third row of `R`
+        let up = Vector3::new(r[(2, 0)], r[(2, 1)], r[(2, 2)]);
         let buoyancy = up * self.buoyancy;
         let torque = self.centre.cross(&buoyancy);
         let force = buoyancy - up * self.weight;

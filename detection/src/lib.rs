@@ -1266,14 +1266,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
             }),
             "the window's entries are projected on the named actuator's weights"
         );
-        let span = self.change(self.along[0].dot(&older));
-        // a new failure of this actuator: what it showed before is another story; the
-        // actual thrust over the change, newest first
-        let mut sums = Sums::zero();
-        for (i, short) in self.shorts[..span].iter().enumerate() {
-            let e = &self.ring[(self.head + CAPACITY - 1 - i) % CAPACITY];
-            sums.add(e.u[j], e.p[j] + *short);
-        }
+        // a new failure of this actuator: what it showed before is another story
+        let (span, sums) = self.change(j, self.along[0].dot(&older));
         self.sums[j] = sums;
         let kind = self.fit(j, &sums, control);
         self.tell(j, kind, control);
@@ -1320,25 +1314,32 @@ impl<T: Real, const K: usize> Detector<T, K> {
         (best, second)
     }
 
-    /// The named actuator's change point over the window
+    /// The named actuator `j`'s change point over the window
     /// (docs/maths.md, "Failure detection", paragraph "The kind"): the thrust short of what
     /// was believed in each entry, newest first, along its whitened column (`gᵀw − base`,
-    /// from the projections prepared ahead), kept in `shorts`; and the start whose mean shift
-    /// is most significant, as the number of entries from the newest.
-    fn change(&mut self, base: T) -> usize {
+    /// from the projections prepared ahead), kept in `shorts`; the start whose mean shift
+    /// is most significant, as the number of entries from the newest; and the sums of the
+    /// actual thrust over the change (the believed thrust plus the shortfall), summed in the
+    /// same pass, newest first, and kept as they stand at that start.
+    fn change(&mut self, j: usize, base: T) -> (usize, Sums<T>) {
         let (mut sum, mut n, mut score, mut span) = (T::zero(), T::zero(), T::zero(), 1);
+        let (mut running, mut sums) = (Sums::zero(), Sums::zero());
         for i in 0..self.config.window {
-            let short = self.proj[(self.head + CAPACITY - 1 - i) % CAPACITY] - base;
+            let at = (self.head + CAPACITY - 1 - i) % CAPACITY;
+            let short = self.proj[at] - base;
             self.shorts[i] = short;
+            let e = &self.ring[at];
+            running.add(e.u[j], e.p[j] + short);
             sum += short;
             n += T::one();
             let t = sum * sum / n;
-            if t > score {
+            if t > score || i == 0 {
                 score = t;
                 span = i + 1;
+                sums = running;
             }
         }
-        span
+        (span, sums)
     }
 
     /// Up to `chunk` more of the named actuator's shortfalls over the `p.span` entries of its

@@ -74,6 +74,8 @@ enum Group {
 /// The controller's side of the serial link.
 pub struct Cycle {
     identity: Hello,
+    /// The identity's control period (s) in `f32`, rounded once.
+    period: f32,
     group: Group,
     greeted: bool,
     /// A `Hello` was sent unasked since the last handshake (one is enough).
@@ -92,6 +94,7 @@ impl Cycle {
         };
         Ok(Cycle {
             identity: config.identity.clone(),
+            period: config.identity.period as f32,
             group,
             greeted: false,
             asked: false,
@@ -159,7 +162,7 @@ impl Cycle {
     }
 
     fn answer(&mut self, state: &StateFrame) -> Option<Frame> {
-        let period = self.identity.period as f32;
+        let period = self.period;
         let out = match &mut self.group {
             Group::So3(e) => e.answer(state, period),
             Group::Se3(e) => e.answer(state, period),
