@@ -382,7 +382,7 @@ base_call = sum(gaps[0].values())
 at, failed = 0, []
 limits_wc = {"hexarotor": 12000, "rov": 12000, "spacecraft": 24000}
 ceilings = {"hexarotor": 12000, "rov": 12000, "spacecraft": 24000, "cycle": 25200, "detector": 2000,
-            "weaken": 2300}
+            "weaken": 1850}
 met = lambda n, limit: "met" if n <= limit else "not met yet"
 # "(limit N)" where the limit itself is enforced; else the limit, whether it is met, and the ceiling
 limit_text = lambda n, limit, ceiling: (f"(limit {limit})" if ceiling == limit

@@ -215,8 +215,8 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     /// Tells the allocator that actuator `j` produces only `factor` of its command (a loss
     /// of effectiveness): from now on it allocates as if its column of `B` were scaled by
     /// `factor` ([`Allocator::scaled`]), and the others make up the rest. It does so with
-    /// the actuator's thrust `y = factor · u` as its variable (docs/maths.md, "Control
-    /// allocation", a weak actuator's thrust as its variable): the healthy geometry, the
+    /// the actuator's thrust `y = factor · u` as its variable
+    /// (docs/maths.md, "Control allocation", a weak actuator's thrust as its variable): the healthy geometry, the
     /// bounds scaled by `factor` in each allocation and the command divided by it after,
     /// and only the last stage's weight and preferred command changed here, at the cost of a
     /// rank-one update of one Cholesky factor, not a formation of the allocator. Telling the
