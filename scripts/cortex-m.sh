@@ -382,7 +382,7 @@ base_call = sum(gaps[0].values())
 at, failed = 0, []
 limits_wc = {"hexarotor": 12000, "rov": 12000, "spacecraft": 24000}
 ceilings = {"hexarotor": 12000, "rov": 12000, "spacecraft": 24000, "cycle": 25200, "detector": 2000,
-            "weaken": 1850}
+            "weaken": 2900}
 met = lambda n, limit: "met" if n <= limit else "not met yet"
 # "(limit N)" where the limit itself is enforced; else the limit, whether it is met, and the ceiling
 limit_text = lambda n, limit, ceiling: (f"(limit {limit})" if ceiling == limit
@@ -428,16 +428,19 @@ for g in groups:
         continue
     if g[0] == "WEAKEN":
         # a weak thruster told (issue "Actuator failures found, not announced"): the allocator
-        # reweighted, its thrust the variable (one rank-one update of a Cholesky factor), in
-        # the cycle that names or refines a weak thruster, on top of that cycle's count above
+        # reweighted, its thrust the variable (a rank-one update of a Cholesky factor per weak
+        # thruster), in the cycle that names or refines a weak thruster, on top of that cycle's
+        # count above
         # (BENCHMARKS section 37); a ceiling about 15 % over is enforced
         n = int(g[2])
-        weaken = max(c - base_call for c in calls[at:at + n])
+        each = [c - base_call for c in calls[at:at + n]]
+        weaken = max(each)
         at += n
         # (alone it is over the cycle's limit of 1 500, so with the rest of that cycle too)
-        print(f"  a weak thruster told (the allocator reweighted, its thrust the variable): {weaken} instructions "
+        print(f"  a weak thruster told (the allocator reweighted, its thrust the variable; the worst of a tell, a "
+              f"refinement and a second weak thruster): {weaken} instructions "
               f"more in the cycle that names or refines it (limit 1500 with the rest of that cycle: "
-              f"{met(weaken, 1500)}; enforced ceiling {ceilings['weaken']})")
+              f"{met(weaken, 1500)}; enforced ceiling {ceilings['weaken']}); each: {each}")
         if enforce and weaken > ceilings["weaken"]:
             failed.append(f"a weak thruster's tell: {weaken} instructions > its ceiling {ceilings['weaken']}")
         continue

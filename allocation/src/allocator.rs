@@ -415,13 +415,18 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     /// same problem, its variable `y_j = k u_j`). Only `B W⁻¹`'s column `j` and the Cholesky
     /// factor of `B W⁻¹ Bᵀ` change: the factor by a rank-one update per actuator,
     /// `(k² − 1)/w_j · b_j b_jᵀ`, and formed again only if an update leaves a diagonal entry
-    /// that is not finite and positive. Factors must be finite and positive.
+    /// that is not finite and positive. With every factor 1 it is `healthy` again, bit for
+    /// bit. Factors must be finite and positive, and `w_j / k²` finite.
     pub(crate) fn pose_in_thrust(&mut self, healthy: &Self, factors: &Commands<T>) {
         // what the weights enter, from the healthy allocator (the rest is its already)
         self.weights = healthy.weights;
         self.preferred = healthy.preferred;
         self.bw = healthy.bw;
         let b = self.geometry.effectiveness();
+        if (0..self.geometry.count()).all(|j| factors[j] == T::one()) {
+            self.gram = healthy.gram;
+            return;
+        }
         let mut chol = healthy.gram.map(nalgebra::Cholesky::pack_dirty);
         for j in 0..self.geometry.count() {
             let k = factors[j];
@@ -1199,9 +1204,11 @@ mod tests {
 
     /// A weak actuator's thrust as the variable (`pose_in_thrust`): the rank-one update gives the
     /// Cholesky factor of `B W⁻¹ Bᵀ` with the new weights (to 1e-12 in f64, 1e-5 in f32 of its
-    /// largest entry), for one and two weak actuators; where the downdate breaks down (a
-    /// hexarotor rotor at 10⁻⁴ in f32, its Gram matrix singular to the precision) the factor is
-    /// the formed one, bit for bit; every factor 1 is the allocator itself.
+    /// largest entry), for one and two weak actuators, and it is the update's (not the bits a
+    /// formation gives); where the downdate breaks down (a hexarotor rotor at 10⁻⁴ in f32,
+    /// `k² − 1` rounding to −1, its Gram matrix singular to the precision) the factor is the
+    /// formed one, bit for bit; every factor 1 is the healthy allocator, bit for bit, also
+    /// posed over a weak one.
     #[test]
     fn a_weak_actuators_factor_is_updated_or_formed() {
         fn thrust<T: nalgebra::RealField + Copy>(
@@ -1223,6 +1230,11 @@ mod tests {
         };
         let ones = Commands::from_element(1.0);
         assert_eq!(thrust(&rov, &ones), rov);
+        let mut half = ones;
+        half[2] = 0.5;
+        let mut healed = thrust(&rov, &half);
+        healed.pose_in_thrust(&rov, &ones);
+        assert_eq!(healed, rov);
         for weak in [&[(0, 0.5)][..], &[(3, 0.01)], &[(1, 0.6), (6, 0.25)]] {
             let mut f = ones;
             for &(j, k) in weak {
@@ -1230,6 +1242,9 @@ mod tests {
             }
             let t = thrust(&rov, &f);
             assert!(gap(&t) < 1e-12, "{weak:?}: {}", gap(&t));
+            // updated, not formed again (a formation would give other bits)
+            let formed = nalgebra::Cholesky::new(t.bw * rov.geometry.effectiveness().transpose());
+            assert_ne!(t.gram, formed.map(|c| c.unpack_dirty()), "{weak:?}");
             for &(j, k) in weak {
                 assert_eq!(t.weights[j], rov.weights[j] / (k * k));
             }

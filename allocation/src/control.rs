@@ -156,13 +156,17 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     }
 
     /// The wrench directions the actuators it may still move cannot produce (those the
-    /// failures told hold are left out; none while the rest span every wrench): the control
-    /// authority the failures took (docs/failsafe.md, "Causes").
+    /// failures told hold are left out, and a weak one's column is scaled by its factor;
+    /// none while the rest span every wrench): the control authority the failures took
+    /// (docs/failsafe.md, "Causes").
     pub fn lost_directions(&self) -> crate::geometry::LostDirections<T, K> {
         let mut b = *self.allocator.geometry().effectiveness();
         for j in 0..MAX_ACTUATORS {
             if self.held(j).is_some() {
                 b.column_mut(j).fill(T::zero());
+            } else if self.factors[j] != T::one() {
+                let c = b.column(j) * self.factors[j];
+                b.set_column(j, &c);
             }
         }
         crate::geometry::lost_directions(&b)
@@ -203,12 +207,19 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     /// Forgets what the allocator was told of actuator `j`: its bounds are the geometry's
     /// again and its column the healthy one (a detector's estimate replaced by a better one).
     pub fn heal(&mut self, j: usize) {
+        self.release(j);
+        self.weaken(j, T::one());
+    }
+
+    /// Forgets a failure told that holds actuator `j` ([`VehicleControl::fail`]): its bounds
+    /// are the geometry's again. A loss of effectiveness told stays
+    /// ([`VehicleControl::weaken`]; [`VehicleControl::heal`] forgets both).
+    pub fn release(&mut self, j: usize) {
         if j < self.nominal.geometry().count() {
             let (lo, hi) = self.nominal.geometry().bounds();
             self.bounds.lo[j] = lo[j];
             self.bounds.hi[j] = hi[j];
             self.told = self.told.wrapping_add(1);
-            self.weaken(j, T::one());
         }
     }
 
@@ -221,21 +232,22 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     /// and only the last stage's weight and preferred command changed here, at the cost of a
     /// rank-one update of one Cholesky factor, not a formation of the allocator. Telling the
     /// same factor again changes nothing (the allocator is reweighted from the healthy one,
-    /// never twice). A factor that is not finite and positive is ignored.
+    /// never twice). A factor that is not finite and positive is ignored; one below the
+    /// scalar's `ε` is taken as `ε` (so that the weight `w/k²` stays finite).
     pub fn weaken(&mut self, j: usize, factor: T) {
         let count = self.nominal.geometry().count();
-        if j >= count || !(factor.is_finite() && factor > T::zero()) || self.factors[j] == factor {
+        if j >= count || !(factor.is_finite() && factor > T::zero()) {
+            return;
+        }
+        let factor = factor.max(T::default_epsilon());
+        if self.factors[j] == factor {
             return;
         }
         self.factors[j] = factor;
-        // the healthy allocator when every factor is 1 again; else the healthy one reweighted
-        // for every told factor, in the actuators' order, whatever the order told
+        // the healthy one reweighted for every told factor, in the actuators' order, whatever
+        // the order told (with every factor 1 again, the healthy allocator, bit for bit)
         self.weak = (0..count).any(|i| self.factors[i] != T::one());
-        if self.weak {
-            self.allocator.pose_in_thrust(&self.nominal, &self.factors);
-        } else {
-            self.allocator = self.nominal;
-        }
+        self.allocator.pose_in_thrust(&self.nominal, &self.factors);
     }
 
     /// The effectiveness of each actuator as told (1: healthy, and past the count).
@@ -365,18 +377,20 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
 }
 
 /// The span test of a vehicle's actuators ([`VehicleControl::lost_directions`]) for a caller
-/// that asks every cycle: it runs again only when the bounds or the effectiveness changed
+/// that asks every cycle: it runs again only when the bounds, the geometry or a factor told changed
 /// since the last answer (a failure told or found), since a rank test costs microseconds.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SpanWatch<T, const K: usize> {
     last: Option<SpanAnswer<T, K>>,
 }
 
-/// What [`SpanWatch`] last answered, and the bounds (low, high) and effectiveness it was for.
+/// What [`SpanWatch`] last answered, and the bounds (low, high), effectiveness and factors
+/// it was for.
 type SpanAnswer<T, const K: usize> = (
     Commands<T>,
     Commands<T>,
     nalgebra::SMatrix<T, K, MAX_ACTUATORS>,
+    Commands<T>,
     bool,
 );
 
@@ -392,13 +406,14 @@ impl<T: RealField + Copy, const K: usize> SpanWatch<T, K> {
     pub fn lost(&mut self, control: &VehicleControl<T, K>) -> bool {
         let (lo, hi) = control.bounds();
         let b = *control.allocator().geometry().effectiveness();
-        if let Some((l, h, e, lost)) = &self.last
-            && (*l, *h, *e) == (lo, hi, b)
+        let k = *control.factors();
+        if let Some((l, h, e, f, lost)) = &self.last
+            && (*l, *h, *e, *f) == (lo, hi, b, k)
         {
             return *lost;
         }
         let lost = !control.lost_directions().directions().is_empty();
-        self.last = Some((lo, hi, b, lost));
+        self.last = Some((lo, hi, b, k, lost));
         lost
     }
 }

@@ -404,17 +404,13 @@ fn a_weakened_actuator_has_its_column_scaled() {
     assert_eq!(c, before);
 }
 
-/// The six-rotor hexarotor's dual stages (docs/maths.md, "Control allocation": stage 1 of a
-/// square geometry) give no command until both finish: a budget spent in them answers the
-/// primal stages' start, the closed form `B⁻¹w` clamped into the bounds, or the previous
-/// command clamped when one is given, with status 3 and the budget's count.
 /// A weak actuator's thrust as the allocator's variable (docs/maths.md, "Control allocation"):
 /// the vehicle told of one or two weak actuators allocates what the allocator formed over the
-/// scaled columns ([`Allocator::scaled`]) allocates, on the ROV (its blocks by their reach), the
-/// hexarotor (square: the dual stages) and the twelve-thruster spacecraft, within reach and
-/// saturated, cold and from the last command, with a weak actuator also stuck, and with a
-/// factor so small that the rank-one downdate is near its limit. Each answer is within the
-/// bounds, and the status is the scaled allocator's.
+/// scaled columns ([`Allocator::scaled`]) allocates, on the ROV (its blocks by their reach) with
+/// unequal weights and a preferred command, the hexarotor (square: the dual stages) and the
+/// twelve-thruster spacecraft; within reach and saturated, under a rate limit from the last
+/// command, with a weak actuator also stuck, a weakness refined and one at 10⁻⁴. Each answer is
+/// within the bounds, its status is the scaled allocator's and its wrench the one it reports.
 #[test]
 fn a_weak_actuator_allocated_in_its_thrust_is_the_scaled_allocator() {
     use eqtrack_allocation::{Restoring, VehicleControl};
@@ -425,28 +421,46 @@ fn a_weak_actuator_allocated_in_its_thrust_is_the_scaled_allocator() {
     };
     let mut rng = ChaCha8Rng::seed_from_u64(47);
     let mut unit = move || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+    /// The vehicle told `weak` in turn (a factor told twice for an actuator is a refinement)
+    /// and `stuck`, against `Allocator::scaled` by the last factors, over `demands` with the
+    /// rate limit `rate` (per 0.01 s period); the saturated allocations among them.
     fn check<const K: usize>(
         alloc: &Allocator<f64, K>,
         weak: &[(usize, f64)],
         stuck: Option<(usize, f64)>,
+        rate: f64,
         demands: &[SVector<f64, K>],
         none: Restoring<f64>,
     ) -> usize {
-        let mut scaled = *alloc;
-        let mut control = VehicleControl::new(*alloc, none, 0.0, 0.01);
+        let mut control = VehicleControl::new(*alloc, none, rate, 0.01);
+        let mut factors = [1.0; MAX_ACTUATORS];
         for &(j, k) in weak {
-            scaled = scaled.scaled(j, k);
             control.weaken(j, k);
+            factors[j] = k;
         }
-        let mut bounds = scaled.bounds();
+        let mut scaled = *alloc;
+        for (j, &k) in factors.iter().enumerate() {
+            if k != 1.0 {
+                scaled = scaled.scaled(j, k);
+            }
+        }
+        let mut told = scaled.bounds();
         if let Some((j, v)) = stuck {
-            bounds.fail(j, v);
+            told.fail(j, v);
             control.fail(j, v);
         }
-        let top = bounds.hi.amax().max(bounds.lo.amax());
-        let mut previous = None;
+        let top = told.hi.amax().max(told.lo.amax());
+        let mut previous: Option<Commands<f64>> = None;
         let mut saturated = 0;
         for d in demands {
+            let mut bounds = told;
+            if let (Some(p), true) = (&previous, rate > 0.0) {
+                for j in 0..alloc.geometry().count() {
+                    if bounds.hi[j] > bounds.lo[j] {
+                        bounds.limit_rate(j, p[j], rate * 0.01);
+                    }
+                }
+            }
             let want = scaled.allocate_from(d, &bounds, previous.as_ref());
             let got = control.actuate_demand(*d).allocation;
             let gap = (want.u - got.u).amax();
@@ -480,32 +494,43 @@ fn a_weak_actuator_allocated_in_its_thrust_is_the_scaled_allocator() {
             })
             .collect()
     };
-    let rov = rov();
+    let rov = {
+        let g = Geometry::<f64, 6>::new(&presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0)).unwrap();
+        let weights = [1.0, 0.5, 2.0, 1.0, 0.8, 1.5, 1.0, 3.0];
+        let preferred = [2.0, -1.0, 0.0, 1.0, 3.0, -2.0, 0.5, 0.0];
+        Allocator::new(g, &weights, &preferred, Priority::Torque).unwrap()
+    };
     let d = demands([6.0, 6.0, 8.0, 80.0, 80.0, 120.0], 200);
     let mut saturated = 0;
-    for (weak, stuck) in [
-        (&[(0, 0.5)][..], None),
-        (&[(5, 0.3)][..], None),
-        (&[(1, 0.6), (6, 0.25)][..], None),
-        (&[(2, 0.4)][..], Some((2, 10.0))),
-        (&[(3, 1e-4)][..], None),
+    for (weak, stuck, rate) in [
+        (&[(0, 0.5)][..], None, 0.0),
+        (&[(5, 0.3)][..], None, 0.0),
+        (&[(1, 0.6), (6, 0.25)][..], None, 0.0),
+        (&[(1, 0.6), (6, 0.25)][..], None, 2000.0),
+        (&[(2, 0.4)][..], Some((2, 10.0)), 0.0),
+        (&[(4, 0.5), (4, 0.45), (7, 0.7)][..], None, 0.0),
+        (&[(3, 1e-4)][..], None, 0.0),
     ] {
-        saturated += check(&rov, weak, stuck, &d, none);
+        saturated += check(&rov, weak, stuck, rate, &d, none);
     }
     let hex = hexarotor();
     let d = demands([1.5, 1.5, 0.3, 4.0, 4.0, 60.0], 200);
     for weak in [&[(0, 0.5)][..], &[(2, 0.7), (5, 0.3)][..]] {
-        saturated += check(&hex, weak, None, &d, none);
+        saturated += check(&hex, weak, None, 0.0, &d, none);
     }
     let sc = spacecraft();
     let d3: Vec<SVector<f64, 3>> = d.iter().map(|x| x.fixed_rows::<3>(0) * 3.0).collect();
-    saturated += check(&sc, &[(4, 0.5)], None, &d3, none);
+    saturated += check(&sc, &[(4, 0.5)], None, 0.0, &d3, none);
     assert!(
         saturated > 300,
         "{saturated} saturated allocations among them"
     );
 }
 
+/// The six-rotor hexarotor's dual stages (docs/maths.md, "Control allocation": stage 1 of a
+/// square geometry) give no command until both finish: a budget spent in them answers the
+/// primal stages' start, the closed form `B⁻¹w` clamped into the bounds, or the previous
+/// command clamped when one is given, with status 3 and the budget's count.
 #[test]
 fn a_budget_spent_in_the_dual_stages_answers_the_clamped_start() {
     let mut rng = ChaCha8Rng::seed_from_u64(46);

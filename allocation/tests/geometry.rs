@@ -245,6 +245,19 @@ fn the_directions_lost_are_those_the_actuators_left_free_do_not_span() {
     assert_eq!(control.lost_directions().directions().len(), 1);
     // a weakened one still moves
     control.heal(2);
+    let mut watch = eqtrack_allocation::SpanWatch::default();
     control.weaken(2, 0.3);
     assert!(control.lost_directions().directions().is_empty());
+    assert!(!watch.lost(&control));
+    // one so weak that its column is below the rank test's tolerance: that direction is lost,
+    // as it was when the weak column was the allocator's own; the watch sees the factor change
+    control.weaken(2, 1e-12);
+    assert_eq!(control.lost_directions().directions().len(), 1);
+    assert!(watch.lost(&control));
+    // a factor below ε is taken as ε, and the allocation stays finite
+    control.weaken(2, 1e-300);
+    assert_eq!(control.factors()[2], f64::EPSILON);
+    let demand = SVector::<f64, 6>::from([0.1, 0.1, 0.5, 30.0, 20.0, 10.0]);
+    let a = control.actuate_demand(demand).allocation;
+    assert!(a.u.iter().all(|x| x.is_finite()) && a.achieved.iter().all(|x| x.is_finite()));
 }

@@ -97,11 +97,20 @@ impl<T: Real> Kind<T> {
     /// Tells `control` that actuator `j` is now this, forgetting what it was told of it
     /// before: held at 0 or at the stuck value, or its column scaled by the factor.
     pub fn tell<const K: usize>(&self, j: usize, control: &mut VehicleControl<T, K>) {
-        control.heal(j);
         match *self {
-            Kind::Dead => control.fail(j, T::zero()),
-            Kind::Stuck(v) => control.fail(j, v),
-            Kind::Weak(k) => control.weaken(j, k),
+            Kind::Dead => {
+                control.heal(j);
+                control.fail(j, T::zero())
+            }
+            Kind::Stuck(v) => {
+                control.heal(j);
+                control.fail(j, v)
+            }
+            // its bounds released and its factor told at once: the allocator reweighted once
+            Kind::Weak(k) => {
+                control.release(j);
+                control.weaken(j, k)
+            }
         }
     }
 }

@@ -48,8 +48,9 @@
 //!   and its finding (`DETECTOR rov <cycles> <cycle found> <actuator> <kind code> <value>
 //!   <first cycle that tested>`);
 //! * the tell of a weak thruster on that ROV's healthy allocator (`Kind::tell` of a factor of
-//!   one half, which reweights the allocator, the thruster's thrust its variable), as the cycle that
-//!   names or refines a weak thruster runs it (`WEAKEN rov 1`);
+//!   one half, which reweights the allocator, the thruster's thrust its variable), as the cycle
+//!   that names a weak thruster runs it; then its refinement, and another thruster told weak
+//!   while it is (`WEAKEN rov 3`, the worst of the three counted);
 //! * `wheels_slew`'s whole cycle on four reaction wheels, on the frames of a slew whose
 //!   wheels sweep up to their top speed (`WHEELS <cycles> <saturated allocations> <frames with
 //!   a closed bound>`).
@@ -642,12 +643,16 @@ fn detector_cycles() -> bool {
     let Ok(mut healthy) = vehicle.control::<6>(h) else {
         return false;
     };
-    let cc = black_box(&mut healthy);
-    icount_mark(46);
-    detection::Kind::Weak(black_box(0.5f32)).tell(3, cc);
-    icount_mark(47);
-    hprintln!("WEAKEN rov 1");
-    actuator == 1 && v.iter().all(|x| x.is_finite()) && healthy.factors()[3] == 0.5
+    // told from healthy; refined; and another told while that one is weak
+    for (j, k) in [(3, 0.5f32), (3, 0.45), (5, 0.7)] {
+        let cc = black_box(&mut healthy);
+        icount_mark(46);
+        detection::Kind::Weak(black_box(k)).tell(j, cc);
+        icount_mark(47);
+    }
+    hprintln!("WEAKEN rov 3");
+    let f = healthy.factors();
+    actuator == 1 && v.iter().all(|x| x.is_finite()) && f[3] == 0.45 && f[5] == 0.7
 }
 
 /// `wheels_slew`'s configuration (`plant_sim pil-config --scenario scenarios/wheels_slew.toml`):
