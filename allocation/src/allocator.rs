@@ -389,15 +389,8 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
     /// form's matrices are formed again. With every factor 1 it is the allocator itself, bit
     /// for bit.
     pub fn scaled(&self, j: usize, factor: T) -> Self {
-        self.over(self.geometry.scaled(j, factor))
-    }
-
-    /// The same allocator over `geometry`, a geometry of the same actuators with columns
-    /// scaled ([`Allocator::scaled`]): weights, preferred command, priority and budget stay,
-    /// and the closed form's matrices are formed again, once whatever the columns scaled.
-    pub(crate) fn over(&self, geometry: Geometry<T, K>) -> Self {
         Self::formed(
-            geometry,
+            self.geometry.scaled(j, factor),
             self.weights,
             self.preferred,
             self.priority,

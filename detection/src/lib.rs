@@ -98,18 +98,19 @@ impl<T: Real> Kind<T> {
     /// before: held at 0 or at the stuck value, or its column scaled by the factor.
     pub fn tell<const K: usize>(&self, j: usize, control: &mut VehicleControl<T, K>) {
         match *self {
-            Kind::Dead => {
-                control.heal(j);
-                control.fail(j, T::zero())
-            }
-            Kind::Stuck(v) => {
-                control.heal(j);
-                control.fail(j, v)
-            }
             // its bounds released and its factor told at once: the allocator reweighted once
             Kind::Weak(k) => {
                 control.release(j);
                 control.weaken(j, k)
+            }
+            Kind::Dead | Kind::Stuck(_) => {
+                let held = if let Kind::Stuck(v) = *self {
+                    v
+                } else {
+                    T::zero()
+                };
+                control.heal(j);
+                control.fail(j, held)
             }
         }
     }
