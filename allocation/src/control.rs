@@ -26,12 +26,11 @@ impl<T: RealField + Copy, const K: usize> Actuation<T, K> {
     }
 
     /// The torque the allocation could not give, `|τ_demand − τ_achieved|` (the first three
-    /// rows; on SO(3) the whole demand).
+    /// rows; on SO(3) the whole demand), its square root the FPU's on a Cortex-M4F (the bits
+    /// of nalgebra's `norm`).
     pub fn torque_residual(&self) -> T {
         let rows = K.min(3);
-        (self.demand - self.allocation.achieved)
-            .rows(0, rows)
-            .norm()
+        eqtrack_hw_sqrt::norm(&(self.demand - self.allocation.achieved).rows(0, rows))
     }
 }
 

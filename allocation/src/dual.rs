@@ -139,20 +139,23 @@ pub(crate) fn solve<T: RealField + Copy, const R: usize>(
     debug_assert!(m <= R && 2 * m <= 64);
     let tol = tolerance(lo, hi, m);
     let tau = T::from_subset(&1e3) * T::default_epsilon();
+    // each row written once (no clearing first), those past `m` zero
     let mut w = Rows {
         s,
-        norms: [T::zero(); R],
-        b: [[T::zero(); 2]; R],
+        norms: core::array::from_fn(|j| if j < m { dot3(&s[j], &s[j]) } else { T::zero() }),
+        b: core::array::from_fn(|j| {
+            if j < m {
+                [lo[j] - c[j], c[j] - hi[j]]
+            } else {
+                [T::zero(); 2]
+            }
+        }),
         m,
         active: [0; 3],
         lambda: [T::zero(); 3],
         na: 0,
         held: 0,
     };
-    for j in 0..m {
-        w.norms[j] = dot3(&s[j], &s[j]);
-        w.b[j] = [lo[j] - c[j], c[j] - hi[j]];
-    }
     let mut x = [T::zero(); 3];
     let mut changes = 0u32;
     while let Some(p) = w.most_violated(&x, tol) {

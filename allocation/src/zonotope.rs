@@ -152,7 +152,7 @@ impl<T: RealField + Copy> Facets<T> {
             let e = cross(&p, b);
             let ee = dot3(&e, &e);
             if movable[k] && ee > tau * self.norms[k] {
-                let scale = T::one() / ee.sqrt();
+                let scale = T::one() / eqtrack_hw_sqrt::sqrt(ee);
                 rows[count] = [e[0] * scale, e[1] * scale, e[2] * scale];
                 count += 1;
             }

@@ -168,10 +168,20 @@ impl Pending {
     }
 }
 
+/// A naming whose change point was found in its entry, told in the next period
+/// (docs/maths.md, "Failure detection", paragraph "The naming in two periods"): the actuator,
+/// the statistic it was named with, and the sums of its change.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Naming<T> {
+    actuator: usize,
+    statistic: T,
+    sums: Sums<T>,
+}
+
 /// The change point of the actuator leading the tests, prepared over the entries before it
 /// is named (docs/maths.md, "Failure detection", paragraph "The kind, prepared ahead"): its
-/// shortfall's weights and, in [`Detector::along`], its weights and column in world axes at
-/// the attitude of its first lead; each entry of the window the naming will read is projected
+/// shortfall's weights and, in the detector's `along`, its weights in world axes at the
+/// attitude of its first lead (and, from its naming, its column there); each entry of the window the naming will read is projected
 /// on the weights a few at a time, so that the naming's cycle only sums them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Prep<T, const K: usize> {
@@ -181,6 +191,9 @@ struct Prep<T, const K: usize> {
     /// the naming's entry.
     next: usize,
     cycles: usize,
+    /// The attitude of the first lead, at which the naming turns the column into world axes
+    /// (kept rather than turned ahead: the entry of the first lead is a test's too).
+    rotation: Matrix3<T>,
 }
 
 impl<T: Real, const K: usize> Prep<T, K> {
@@ -189,6 +202,7 @@ impl<T: Real, const K: usize> Prep<T, K> {
             weights: SVector::zeros(),
             next: 0,
             cycles: 1,
+            rotation: Matrix3::identity(),
         }
     }
 }
@@ -453,6 +467,8 @@ pub struct Detector<T, const K: usize> {
     armed: Option<(usize, T)>,
     /// The leading actuator's change point, prepared ahead.
     prep: Prep<T, K>,
+    /// The actuator named in the last entry, its kind fitted and told in this period.
+    naming: Option<Naming<T>>,
     /// Alarms so far: periods whose best statistic crossed the threshold after one that did
     /// not (isolated or not).
     alarms: u32,
@@ -480,8 +496,8 @@ pub struct Detector<T, const K: usize> {
     stuck: [Option<T>; MAX_ACTUATORS],
     /// The last detection's change.
     job: Pending,
-    /// The weights `g` and the leading (or named) actuator's column in world axes, at the
-    /// attitude of its first lead.
+    /// The weights `g` of the leading (or named) actuator in world axes, at the attitude of
+    /// its first lead, and from its naming its column there.
     along: [SVector<T, K>; 2],
     /// The last test's figures.
     last: Statistic<T>,
@@ -580,6 +596,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             streak: (0, 0),
             armed: None,
             prep: Prep::zero(),
+            naming: None,
             proj: [T::zero(); CAPACITY],
             alarms: 0,
             alarmed: false,
@@ -677,6 +694,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.streak = (0, 0);
         self.armed = None;
         self.prep = Prep::zero();
+        self.naming = None;
         self.proj = [T::zero(); CAPACITY];
         self.alarms = 0;
         self.alarmed = false;
@@ -916,17 +934,21 @@ impl<T: Real, const K: usize> Detector<T, K> {
         // of completing a detection, or the test
         if let Some((j, t)) = self.armed.take() {
             self.last.testing = false;
-            self.found(j, t, self.windows.older / self.window_n, control);
+            self.found(j, t, self.windows.older / self.window_n);
         } else if !self.work(control) {
-            self.test(control);
+            self.test();
         }
         self.next_report()
     }
 
-    /// One step of the work after a naming, if there is any: a watch's end (its kind fitted
-    /// again), or a step of completing a detection. True if there was.
+    /// One step of the work after a naming, if there is any: the naming told, a watch's end
+    /// (its kind fitted again), or a step of completing a detection. True if there was.
     fn work(&mut self, control: &mut VehicleControl<T, K>) -> bool {
-        if let Some(watch) = self.ending.take() {
+        if let Some(naming) = self.naming.take() {
+            self.last.testing = false;
+            self.named(naming, control);
+            true
+        } else if let Some(watch) = self.ending.take() {
             self.last.testing = false;
             if let Some(refined) = self.refine(&watch, control) {
                 self.report(refined);
@@ -1111,7 +1133,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// isolate, and prepare the leading actuator's change point; once it has led the tests of
     /// `confirm − 1` entries, arm its naming in the next entry (with `confirm` 1, name it
     /// now).
-    fn test(&mut self, control: &mut VehicleControl<T, K>) {
+    fn test(&mut self) {
         let wn = self.config.window;
         self.last.testing = false;
         if self.len < 2 * wn {
@@ -1190,7 +1212,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             // named in the cycle of its one test
             self.streak = (0, 0);
             self.alarmed = false;
-            self.found(best.0, best.1, self.windows.older / n, control);
+            self.found(best.0, best.1, self.windows.older / n);
         } else if self.streak.1 + 1 == confirm {
             // named in the next entry, without a test
             self.streak = (0, 0);
@@ -1207,14 +1229,15 @@ impl<T: Real, const K: usize> Detector<T, K> {
     fn prepare(&mut self, j: usize) {
         let w = &self.whitening;
         let weights = self.columns[j].component_mul(&w.inverse) / w.norms[j];
-        let (g, column) = self.along(j, &weights);
-        self.along = [g, column];
+        // the column in world axes is turned at the naming, at this attitude
+        self.along[0] = rotate_blocks(&self.rotation, &weights);
         let c = self.config.confirm;
         self.prep = Prep {
             weights,
             next: (self.head + CAPACITY - 1 - (self.config.window - c)) % CAPACITY,
             // the tests before the naming's entry (which projects its own)
             cycles: c.saturating_sub(2).max(1),
+            rotation: self.rotation,
         };
     }
 
@@ -1254,14 +1277,14 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
     }
 
-    /// Actuator `j` named with statistic `t`, and the older window's mean `older`: in the
-    /// same cycle the change point over the window, the kind fitted, the allocator told and
-    /// the detection reported, so that the allocation reconfigures at once; the shortfalls
-    /// are taken out of the window over the next cycles ([`Detector::take`]). A watch still
-    /// running is cut short, its kind fitted again in the next cycle; the named actuator is
-    /// watched from the next entry on
-    /// (docs/maths.md, "Failure detection", paragraph "The kind").
-    fn found(&mut self, j: usize, t: T, older: SVector<T, K>, control: &mut VehicleControl<T, K>) {
+    /// Actuator `j` named with statistic `t`, and the older window's mean `older`: the change
+    /// point over the window, and the named actuator watched from the next entry on; its kind
+    /// is fitted and told, and the detection reported, in the next period
+    /// ([`Detector::named`]; docs/maths.md, "Failure detection", paragraphs "The kind" and
+    /// "The naming in two periods"). The shortfalls are taken out of the window over the
+    /// entries after ([`Detector::take`]). A watch still running is cut short, its kind fitted
+    /// again after the tell.
+    fn found(&mut self, j: usize, t: T, older: SVector<T, K>) {
         if self.watch.is_some() {
             self.ending = self.watch.take();
         }
@@ -1276,30 +1299,48 @@ impl<T: Real, const K: usize> Detector<T, K> {
             }),
             "the window's entries are projected on the named actuator's weights"
         );
+        self.along[1] = rotate_blocks(&self.prep.rotation, &self.columns[j]);
         // a new failure of this actuator: what it showed before is another story
         let (span, sums) = self.change(j, self.along[0].dot(&older));
         self.sums[j] = sums;
-        let kind = self.fit(j, &sums, control);
-        self.tell(j, kind, control);
         self.watch = Some(Watch {
             actuator: j,
             left: self.config.window,
             baseline: older,
             weights: self.prep.weights,
-            kind,
+            // told in the next period
+            kind: Kind::Dead,
         });
-        self.report(Detection {
+        self.naming = Some(Naming {
             actuator: j,
-            kind,
             statistic: t,
-            since: span * self.config.decimation + self.periods,
-            refined: false,
+            sums,
         });
         self.job = Pending {
             span,
             ..Pending::zero()
         };
         self.pending = true;
+    }
+
+    /// The period after a naming ([`Detector::found`]): the kind fitted over the change's
+    /// sums, the allocator told, so that the allocation reconfigures in this cycle, and the
+    /// detection reported, the change's start counted from this period.
+    fn named(&mut self, naming: Naming<T>, control: &mut VehicleControl<T, K>) {
+        let j = naming.actuator;
+        let kind = self.fit(j, &naming.sums, control);
+        self.tell(j, kind, control);
+        if let Some(watch) = self.watch.as_mut().filter(|w| w.actuator == j) {
+            watch.kind = kind;
+        }
+        let p = &self.job;
+        self.report(Detection {
+            actuator: j,
+            kind,
+            statistic: naming.statistic,
+            since: (p.span + p.shift) * self.config.decimation + self.periods,
+            refined: false,
+        });
     }
 
     /// The bank of hypotheses (docs/maths.md, "Failure detection"): for each actuator `j`,
