@@ -127,6 +127,8 @@ impl<T: RealField + Copy, const R: usize> Rows<'_, T, R> {
 
 /// Goldfarb–Idnani on `min ½‖x‖²`, `lo_j − c_j ≤ s_j · x ≤ hi_j − c_j` for the `m` rows `s_j`,
 /// with at most `budget` working-set changes (docs/maths.md, "Control allocation").
+// kept out of the allocator's common path (within reach it is not called)
+#[inline(never)]
 pub(crate) fn solve<T: RealField + Copy, const R: usize>(
     s: &[[T; 3]; R],
     c: &[T; R],

@@ -109,7 +109,11 @@ impl<T: Real> Kind<T> {
                 } else {
                     T::zero()
                 };
-                control.heal(j);
+                // what `heal` then `fail` tell, without their overlap: `fail` sets both bounds,
+                // and a factor is told back to 1 only if it is not
+                if control.factors()[j] != T::one() {
+                    control.weaken(j, T::one());
+                }
                 control.fail(j, held)
             }
         }
@@ -168,20 +172,10 @@ impl Pending {
     }
 }
 
-/// A naming whose change point was found in its entry, told in the next period
-/// (docs/maths.md, "Failure detection", paragraph "The naming in two periods"): the actuator,
-/// the statistic it was named with, and the sums of its change.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Naming<T> {
-    actuator: usize,
-    statistic: T,
-    sums: Sums<T>,
-}
-
 /// The change point of the actuator leading the tests, prepared over the entries before it
 /// is named (docs/maths.md, "Failure detection", paragraph "The kind, prepared ahead"): its
-/// shortfall's weights and, in the detector's `along`, its weights in world axes at the
-/// attitude of its first lead (and, from its naming, its column there); each entry of the window the naming will read is projected
+/// shortfall's weights and, in [`Detector::along`], its weights and column in world axes at
+/// the attitude of its first lead; each entry of the window the naming will read is projected
 /// on the weights a few at a time, so that the naming's cycle only sums them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Prep<T, const K: usize> {
@@ -191,9 +185,13 @@ struct Prep<T, const K: usize> {
     /// the naming's entry.
     next: usize,
     cycles: usize,
-    /// The attitude of the first lead, at which the naming turns the column into world axes
-    /// (kept rather than turned ahead: the entry of the first lead is a test's too).
+    /// The attitude of the first lead, and whether the column has been turned into world
+    /// axes at it yet (in the first entry that projects, or else at the naming: the entry of
+    /// the first lead carries a test, and the naming the change point).
     rotation: Matrix3<T>,
+    turned: bool,
+    /// The actuator.
+    actuator: usize,
 }
 
 impl<T: Real, const K: usize> Prep<T, K> {
@@ -203,6 +201,8 @@ impl<T: Real, const K: usize> Prep<T, K> {
             next: 0,
             cycles: 1,
             rotation: Matrix3::identity(),
+            turned: false,
+            actuator: 0,
         }
     }
 }
@@ -467,8 +467,6 @@ pub struct Detector<T, const K: usize> {
     armed: Option<(usize, T)>,
     /// The leading actuator's change point, prepared ahead.
     prep: Prep<T, K>,
-    /// The actuator named in the last entry, its kind fitted and told in this period.
-    naming: Option<Naming<T>>,
     /// Alarms so far: periods whose best statistic crossed the threshold after one that did
     /// not (isolated or not).
     alarms: u32,
@@ -496,8 +494,8 @@ pub struct Detector<T, const K: usize> {
     stuck: [Option<T>; MAX_ACTUATORS],
     /// The last detection's change.
     job: Pending,
-    /// The weights `g` of the leading (or named) actuator in world axes, at the attitude of
-    /// its first lead, and from its naming its column there.
+    /// The weights `g` and the leading (or named) actuator's column in world axes, at the
+    /// attitude of its first lead.
     along: [SVector<T, K>; 2],
     /// The last test's figures.
     last: Statistic<T>,
@@ -532,6 +530,9 @@ pub struct Detector<T, const K: usize> {
     scratch: Entry<T, K>,
     /// The entries kept, two windows at most.
     ring: [Entry<T, K>; CAPACITY],
+    /// Each actuator's command bounds before any failure, formed with the columns (read only
+    /// when an actuator's kind is fitted).
+    ranges: [(T, T); MAX_ACTUATORS],
 }
 
 impl<T: Real, const K: usize> Detector<T, K> {
@@ -560,6 +561,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             stuck: [None; MAX_ACTUATORS],
             told: None,
             columns: [SVector::zeros(); MAX_ACTUATORS],
+            ranges: [(T::zero(), T::zero()); MAX_ACTUATORS],
             squares: [SVector::zeros(); MAX_ACTUATORS],
             formed: 0,
             sums: [Sums::zero(); MAX_ACTUATORS],
@@ -596,7 +598,6 @@ impl<T: Real, const K: usize> Detector<T, K> {
             streak: (0, 0),
             armed: None,
             prep: Prep::zero(),
-            naming: None,
             proj: [T::zero(); CAPACITY],
             alarms: 0,
             alarmed: false,
@@ -656,6 +657,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.stuck = [None; MAX_ACTUATORS];
         self.told = None;
         self.columns = [SVector::zeros(); MAX_ACTUATORS];
+        self.ranges = [(T::zero(), T::zero()); MAX_ACTUATORS];
         self.squares = [SVector::zeros(); MAX_ACTUATORS];
         self.formed = 0;
         self.sums = [Sums::zero(); MAX_ACTUATORS];
@@ -694,7 +696,6 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.streak = (0, 0);
         self.armed = None;
         self.prep = Prep::zero();
-        self.naming = None;
         self.proj = [T::zero(); CAPACITY];
         self.alarms = 0;
         self.alarmed = false;
@@ -795,11 +796,15 @@ impl<T: Real, const K: usize> Detector<T, K> {
     }
 
     /// The healthy columns in body axes (the allocator's geometry, whatever was told), and
-    /// their squares.
+    /// their squares, and the commands' bounds before any failure.
+    // called once, and kept out of the cycle's code
+    #[inline(never)]
     fn form(&mut self, control: &VehicleControl<T, K>) {
         let geometry = control.allocator().geometry();
         let b = geometry.effectiveness();
+        let (lo, hi) = control.nominal_bounds();
         for j in 0..geometry.count() {
+            self.ranges[j] = (lo[j], hi[j]);
             self.columns[j] = b.column(j).into_owned();
             self.squares[j] = self.columns[j].component_mul(&self.columns[j]);
         }
@@ -934,21 +939,17 @@ impl<T: Real, const K: usize> Detector<T, K> {
         // of completing a detection, or the test
         if let Some((j, t)) = self.armed.take() {
             self.last.testing = false;
-            self.found(j, t, self.windows.older / self.window_n);
+            self.found(j, t, self.windows.older / self.window_n, control);
         } else if !self.work(control) {
-            self.test();
+            self.test(control);
         }
         self.next_report()
     }
 
-    /// One step of the work after a naming, if there is any: the naming told, a watch's end
-    /// (its kind fitted again), or a step of completing a detection. True if there was.
+    /// One step of the work after a naming, if there is any: a watch's end (its kind fitted
+    /// again), or a step of completing a detection. True if there was.
     fn work(&mut self, control: &mut VehicleControl<T, K>) -> bool {
-        if let Some(naming) = self.naming.take() {
-            self.last.testing = false;
-            self.named(naming, control);
-            true
-        } else if let Some(watch) = self.ending.take() {
+        if let Some(watch) = self.ending.take() {
             self.last.testing = false;
             if let Some(refined) = self.refine(&watch, control) {
                 self.report(refined);
@@ -1049,11 +1050,11 @@ impl<T: Real, const K: usize> Detector<T, K> {
         control: &mut VehicleControl<T, K>,
     ) -> Option<Detection<T>> {
         let j = watch.actuator;
-        let kind = self.fit(j, &self.sums[j], control);
+        let kind = self.fit(j, &self.sums[j]);
         // told again only for another kind, or a value or factor that moved by more than
         // the actuator's resolution
-        let (lo, hi) = control.nominal_bounds();
-        let reach = lo[j].abs().max(hi[j].abs());
+        let (lo, hi) = self.ranges[j];
+        let reach = lo.abs().max(hi.abs());
         let res = self.config.resolution[j];
         let same = match (kind, watch.kind) {
             (Kind::Dead, Kind::Dead) => true,
@@ -1089,11 +1090,13 @@ impl<T: Real, const K: usize> Detector<T, K> {
     }
 
     /// The entry that leaves the older window when the next is kept, taken off its sum
-    /// (none while the windows fill): before the next entry's residual is written in its
-    /// slot, since with two windows of half the capacity that is the one that leaves.
+    /// (none while the windows fill), when the two windows fill the ring: before the next
+    /// entry's residual is written in its slot, since that is then the one that leaves.
+    /// Otherwise [`Detector::push`] takes it off, in its pass over the sums.
     fn leave(&mut self) {
         let wn = self.config.window;
-        if self.len >= 2 * wn {
+        // (with a slot between them, `push` takes it off in its own pass instead)
+        if self.len >= 2 * wn && 2 * wn == CAPACITY {
             let i = (self.head + CAPACITY - 2 * wn) % CAPACITY;
             self.windows.older -= &self.ring[i].w;
         }
@@ -1101,18 +1104,37 @@ impl<T: Real, const K: usize> Detector<T, K> {
 
     /// Keeps the entry written in the slot at `head`, and moves the windows' sums on with it:
     /// the entry that passes from the recent window to the older one moves between their
-    /// sums ([`Detector::leave`] has taken off the one that left).
+    /// sums, and the one that leaves the older window is taken off (by [`Detector::leave`]
+    /// already when its slot is this one).
     fn push(&mut self) {
         let wn = self.config.window;
         let s = &mut self.windows;
-        if self.len >= wn {
-            let moved = &self.ring[(self.head + CAPACITY - wn) % CAPACITY].w;
-            s.recent -= moved;
-            s.older += moved;
-        }
         let w = &self.ring[self.head].w;
-        s.recent += w;
-        s.block += w;
+        // one pass over the axes: the recent sum less the entry that moves on to the older
+        // window, plus the new one, and the older sum less the entry that leaves it (unless
+        // `leave` took it off, its slot being this one), plus the one that moves on (each in
+        // that order), and the block's sum
+        if self.len >= 2 * wn && 2 * wn < CAPACITY {
+            let moved = &self.ring[(self.head + CAPACITY - wn) % CAPACITY].w;
+            let leaving = &self.ring[(self.head + CAPACITY - 2 * wn) % CAPACITY].w;
+            for i in 0..K {
+                s.recent[i] = (s.recent[i] - moved[i]) + w[i];
+                s.older[i] = (s.older[i] - leaving[i]) + moved[i];
+                s.block[i] += w[i];
+            }
+        } else if self.len >= wn {
+            let moved = &self.ring[(self.head + CAPACITY - wn) % CAPACITY].w;
+            for i in 0..K {
+                s.recent[i] = (s.recent[i] - moved[i]) + w[i];
+                s.older[i] += moved[i];
+                s.block[i] += w[i];
+            }
+        } else {
+            for i in 0..K {
+                s.recent[i] += w[i];
+                s.block[i] += w[i];
+            }
+        }
         s.filled += 1;
         if s.filled == wn {
             // afresh: the recent window is this block, the older one the block before
@@ -1133,7 +1155,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// isolate, and prepare the leading actuator's change point; once it has led the tests of
     /// `confirm − 1` entries, arm its naming in the next entry (with `confirm` 1, name it
     /// now).
-    fn test(&mut self) {
+    fn test(&mut self, control: &mut VehicleControl<T, K>) {
         let wn = self.config.window;
         self.last.testing = false;
         if self.len < 2 * wn {
@@ -1212,7 +1234,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
             // named in the cycle of its one test
             self.streak = (0, 0);
             self.alarmed = false;
-            self.found(best.0, best.1, self.windows.older / n);
+            self.found(best.0, best.1, self.windows.older / n, control);
         } else if self.streak.1 + 1 == confirm {
             // named in the next entry, without a test
             self.streak = (0, 0);
@@ -1229,7 +1251,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
     fn prepare(&mut self, j: usize) {
         let w = &self.whitening;
         let weights = self.columns[j].component_mul(&w.inverse) / w.norms[j];
-        // the column in world axes is turned at the naming, at this attitude
+        // the column is turned into world axes at this attitude later ([`Detector::turn`])
         self.along[0] = rotate_blocks(&self.rotation, &weights);
         let c = self.config.confirm;
         self.prep = Prep {
@@ -1238,12 +1260,24 @@ impl<T: Real, const K: usize> Detector<T, K> {
             // the tests before the naming's entry (which projects its own)
             cycles: c.saturating_sub(2).max(1),
             rotation: self.rotation,
+            turned: false,
+            actuator: j,
         };
+    }
+
+    /// The prepared actuator's column turned into world axes at the attitude of its first
+    /// lead (`along[1]`), once.
+    fn turn(&mut self) {
+        if !self.prep.turned {
+            self.prep.turned = true;
+            self.along[1] = rotate_blocks(&self.prep.rotation, &self.columns[self.prep.actuator]);
+        }
     }
 
     /// Projects this cycle's share of the entries kept since the prepared actuator's last
     /// projection ([`Detector::prepare`]): all of them in the naming's cycle.
     fn project(&mut self) {
+        self.turn();
         let p = &mut self.prep;
         let left = (self.head + CAPACITY - p.next) % CAPACITY;
         let now = left.div_ceil(p.cycles.max(1));
@@ -1277,21 +1311,25 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
     }
 
-    /// Actuator `j` named with statistic `t`, and the older window's mean `older`: the change
-    /// point over the window, and the named actuator watched from the next entry on; its kind
-    /// is fitted and told, and the detection reported, in the next period
-    /// ([`Detector::named`]; docs/maths.md, "Failure detection", paragraphs "The kind" and
-    /// "The naming in two periods"). The shortfalls are taken out of the window over the
-    /// entries after ([`Detector::take`]). A watch still running is cut short, its kind fitted
-    /// again after the tell.
-    fn found(&mut self, j: usize, t: T, older: SVector<T, K>) {
+    /// Actuator `j` named with statistic `t`, and the older window's mean `older`: in the
+    /// same cycle the change point over the window, the kind fitted, the allocator told and
+    /// the detection reported, so that the allocation reconfigures at once; the shortfalls
+    /// are taken out of the window over the next cycles ([`Detector::take`]). A watch still
+    /// running is cut short, its kind fitted again in the next cycle; the named actuator is
+    /// watched from the next entry on
+    /// (docs/maths.md, "Failure detection", paragraph "The kind").
+    fn found(&mut self, j: usize, t: T, older: SVector<T, K>, control: &mut VehicleControl<T, K>) {
         if self.watch.is_some() {
             self.ending = self.watch.take();
         }
         // the entries the change point reads not projected yet (the naming's own, or the
         // whole window when the confirmation is shorter than three entries)
-        self.prep.cycles = 1;
-        self.project();
+        self.turn();
+        while self.prep.next != self.head {
+            let at = self.prep.next;
+            self.proj[at] = self.along[0].dot(&self.ring[at].w);
+            self.prep.next = (at + 1) % CAPACITY;
+        }
         debug_assert!(
             (0..self.config.window).all(|i| {
                 let at = (self.head + CAPACITY - 1 - i) % CAPACITY;
@@ -1299,48 +1337,30 @@ impl<T: Real, const K: usize> Detector<T, K> {
             }),
             "the window's entries are projected on the named actuator's weights"
         );
-        self.along[1] = rotate_blocks(&self.prep.rotation, &self.columns[j]);
         // a new failure of this actuator: what it showed before is another story
         let (span, sums) = self.change(j, self.along[0].dot(&older));
         self.sums[j] = sums;
+        let kind = self.fit(j, &sums);
+        self.tell(j, kind, control);
         self.watch = Some(Watch {
             actuator: j,
             left: self.config.window,
             baseline: older,
             weights: self.prep.weights,
-            // told in the next period
-            kind: Kind::Dead,
+            kind,
         });
-        self.naming = Some(Naming {
+        self.report(Detection {
             actuator: j,
+            kind,
             statistic: t,
-            sums,
+            since: span * self.config.decimation + self.periods,
+            refined: false,
         });
         self.job = Pending {
             span,
             ..Pending::zero()
         };
         self.pending = true;
-    }
-
-    /// The period after a naming ([`Detector::found`]): the kind fitted over the change's
-    /// sums, the allocator told, so that the allocation reconfigures in this cycle, and the
-    /// detection reported, the change's start counted from this period.
-    fn named(&mut self, naming: Naming<T>, control: &mut VehicleControl<T, K>) {
-        let j = naming.actuator;
-        let kind = self.fit(j, &naming.sums, control);
-        self.tell(j, kind, control);
-        if let Some(watch) = self.watch.as_mut().filter(|w| w.actuator == j) {
-            watch.kind = kind;
-        }
-        let p = &self.job;
-        self.report(Detection {
-            actuator: j,
-            kind,
-            statistic: naming.statistic,
-            since: (p.span + p.shift) * self.config.decimation + self.periods,
-            refined: false,
-        });
     }
 
     /// The bank of hypotheses (docs/maths.md, "Failure detection"): for each actuator `j`,
@@ -1370,25 +1390,28 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// was believed in each entry, newest first, along its whitened column (`gᵀw − base`,
     /// from the projections prepared ahead), kept in `shorts`; the start whose mean shift
     /// is most significant, as the number of entries from the newest; and the sums of the
-    /// actual thrust over the change (the believed thrust plus the shortfall), summed in the
-    /// same pass, newest first, and kept as they stand at that start.
+    /// actual thrust over the change (the believed thrust plus the shortfall), newest first,
+    /// summed over the change alone once its start is known.
     fn change(&mut self, j: usize, base: T) -> (usize, Sums<T>) {
         let (mut sum, mut n, mut score, mut span) = (T::zero(), T::zero(), T::zero(), 1);
-        let (mut running, mut sums) = (Sums::zero(), Sums::zero());
         for i in 0..self.config.window {
             let at = (self.head + CAPACITY - 1 - i) % CAPACITY;
             let short = self.proj[at] - base;
             self.shorts[i] = short;
-            let e = &self.ring[at];
-            running.add(e.u[j], e.p[j] + short);
             sum += short;
             n += T::one();
             let t = sum * sum / n;
             if t > score || i == 0 {
                 score = t;
                 span = i + 1;
-                sums = running;
             }
+        }
+        // the sums over the change alone, newest first: the same operations in the same
+        // order as a running sum over the whole window, stopped at its start
+        let mut sums = Sums::zero();
+        for i in 0..span {
+            let e = &self.ring[(self.head + CAPACITY - 1 - i) % CAPACITY];
+            sums.add(e.u[j], e.p[j] + self.shorts[i]);
         }
         (span, sums)
     }
@@ -1438,11 +1461,10 @@ impl<T: Real, const K: usize> Detector<T, K> {
     /// without a logarithm (docs/maths.md, "Failure detection", paragraph "The kind"): a model
     /// with a parameter beats dead when its floored RSS is below dead's times `n^(−1/n)`, and
     /// weak beats the best by 6 when its RSS is below the best's times `e^(−6/n)`.
-    fn fit(&self, j: usize, sums: &Sums<T>, control: &VehicleControl<T, K>) -> Kind<T> {
-        let (lo, hi) = control.nominal_bounds();
+    fn fit(&self, j: usize, sums: &Sums<T>) -> Kind<T> {
         choose(
             sums,
-            (lo[j], hi[j]),
+            self.ranges[j],
             self.config.resolution[j],
             &self.penalties,
         )
@@ -1459,11 +1481,15 @@ fn choose<T: Real>(
     let n = sums.n;
     let floor = n * res * res;
     let two: T = eqtrack_controller::real(2.0);
-    let q = |rss: T| rss.max(T::zero()) + floor;
+    // (comparisons rather than `max` and `min`: the same values, a NaN among them taken as
+    // the bound, in a few instructions where a microcontroller's `maxnum` takes about twenty)
+    let q = |rss: T| if rss > T::zero() { rss } else { T::zero() } + floor;
     let (penalty, strong) = penalties(sums.count, table);
     // dead's floored RSS, as a model with a parameter would need it to tie
     let mut best = (Kind::Dead, q(sums.yy) * penalty);
-    let v = (sums.y / n).max(lo).min(hi);
+    let v = sums.y / n;
+    let v = if v > lo { v } else { lo };
+    let v = if v < hi { v } else { hi };
     let stuck = q(sums.yy - two * v * sums.y + n * v * v);
     if stuck < best.1 {
         best = (Kind::Stuck(v), stuck);
