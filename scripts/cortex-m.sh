@@ -245,7 +245,7 @@ icount_run() { # opt-level features [label suffix]
 	set -e
 	rm -f "$fifo"
 	((rc == 0)) && grep -q '^ICOUNT done true' "$OUT/icount-$label.out" ||
-		{ tail -5 "$OUT/icount-$label.out" "$OUT/icount-run-$label.log" >&2; die "the icount firmware ($label) failed (exit $rc)"; }
+		{ tail -n 5 "$OUT/icount-$label.out" "$OUT/icount-run-$label.log" >&2; die "the icount firmware ($label) failed (exit $rc)"; }
 	echo "instruction counts, firmware built at $label:"
 	cat "$OUT/icount-$label.txt"
 	((counted == 0)) || die "instruction counting failed (or a count is over its limit)"
