@@ -110,8 +110,9 @@ impl<T: Real> Kind<T> {
                     T::zero()
                 };
                 // what `heal` then `fail` tell, without their overlap: `fail` sets both bounds,
-                // and a factor is told back to 1 only if it is not
-                if control.factors()[j] != T::one() {
+                // and a factor is told back to 1 only if it is not (an actuator past the
+                // vehicle's is ignored, as `weaken` and `fail` ignore it)
+                if control.factors().get(j).is_some_and(|f| *f != T::one()) {
                     control.weaken(j, T::one());
                 }
                 control.fail(j, held)
@@ -494,8 +495,9 @@ pub struct Detector<T, const K: usize> {
     stuck: [Option<T>; MAX_ACTUATORS],
     /// The last detection's change.
     job: Pending,
-    /// The weights `g` and the leading (or named) actuator's column in world axes, at the
-    /// attitude of its first lead.
+    /// The weights `g` of the leading (or named) actuator in world axes, at the attitude of
+    /// its first lead, and its column there once turned ([`Detector::turn`]; until then, the
+    /// last actuator's).
     along: [SVector<T, K>; 2],
     /// The last test's figures.
     last: Statistic<T>,
@@ -1245,7 +1247,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
 
     /// The change point of actuator `j`, which leads the tests from this entry on, prepared
     /// ahead (docs/maths.md, "Failure detection", paragraph "The kind, prepared ahead"): its
-    /// weights and column in world axes at this attitude, and the entries of the window its
+    /// weights in world axes at this attitude (its column is turned there later,
+    /// [`Detector::turn`]), and the entries of the window its
     /// naming would read (the naming comes `confirm − 1` entries after this one) to project
     /// over the tests before the naming's entry (which projects its own).
     fn prepare(&mut self, j: usize) {
@@ -1482,7 +1485,8 @@ fn choose<T: Real>(
     let floor = n * res * res;
     let two: T = eqtrack_controller::real(2.0);
     // (comparisons rather than `max` and `min`: the same values, a NaN among them taken as
-    // the bound, in a few instructions where a microcontroller's `maxnum` takes about twenty)
+    // the bound, but for the sign of a zero that ties a bound, in a few instructions where a
+    // microcontroller's `maxnum` takes about twenty)
     let q = |rss: T| if rss > T::zero() { rss } else { T::zero() } + floor;
     let (penalty, strong) = penalties(sums.count, table);
     // dead's floored RSS, as a model with a parameter would need it to tie

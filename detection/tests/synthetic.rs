@@ -640,3 +640,30 @@ fn a_restart_in_place_is_a_new_detector() {
     d.restart();
     assert_eq!(d, fresh);
 }
+
+/// `Kind::tell` of an actuator past the vehicle's (a corrupt recorded detection that replay
+/// follows) changes nothing and does not panic, whatever the kind; of a weak actuator told dead,
+/// it sets the factor back to 1 and holds it at 0, as `heal` then `fail` did.
+#[test]
+fn a_tell_past_the_actuators_changes_nothing_and_a_dead_tell_heals_the_factor() {
+    let fresh = control();
+    for j in [8, 11, 12, 1000, usize::MAX] {
+        for kind in [Kind::Dead, Kind::Stuck(3.0), Kind::Weak(0.5)] {
+            let mut c = control();
+            kind.tell(j, &mut c);
+            assert_eq!(c.bounds(), fresh.bounds(), "{kind:?} of {j}");
+            assert_eq!(c.factors(), fresh.factors(), "{kind:?} of {j}");
+        }
+    }
+    let mut c = control();
+    Kind::Weak(0.5).tell(2, &mut c);
+    assert_eq!(c.factors()[2], 0.5);
+    Kind::Dead.tell(2, &mut c);
+    let mut told = control();
+    told.heal(2);
+    told.fail(2, 0.0);
+    assert_eq!(c.factors(), told.factors());
+    assert_eq!(c.bounds(), told.bounds());
+    assert_eq!(c.allocator(), told.allocator());
+    assert_eq!(c.held(2), Some(0.0));
+}
