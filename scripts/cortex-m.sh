@@ -366,14 +366,15 @@ if sys.argv[2] == "opt-level-3":
 # docs/vehicles.md, "Bounded time"): every seeded demand of each vehicle solved cold with the default budget, none stopped;
 # the warm-started mean along a saturating trajectory beside it; pil_hexarotor's whole cycle on
 # frames that saturate its rotors. totals[i] lies between mark 46 + i and 47 + i: the calls
-# are the even ones, in the order of the firmware's WORST, WARM, SATURATED, DETECTOR, WEAKEN and
-# WHEELS lines.
+# are the even ones, in the order of the firmware's WORST, WARM, SATURATED, DETECTOR,
+# DETECTOR_WEAK, WEAKEN and WHEELS lines.
 groups = [l.split() for l in open(sys.argv[3], errors="replace")
-          if l.split()[:1] in (["WORST"], ["WARM"], ["SATURATED"], ["DETECTOR"], ["WEAKEN"], ["WHEELS"])]
+          if l.split()[:1] in (["WORST"], ["WARM"], ["SATURATED"], ["DETECTOR"], ["DETECTOR_WEAK"], ["WEAKEN"],
+                               ["WHEELS"])]
 calls = totals[0::2]
 need = sum(int(g[1] if g[0] in ("SATURATED", "WHEELS") else g[2]) for g in groups)
-if sys.argv[2].startswith("opt-level-3") and (len(groups) != 10 or len(calls) != need):
-    sys.exit(f"the worst-case sets: {len(groups)} groups and {len(calls)} calls, expected 10 groups and {need} calls")
+if sys.argv[2].startswith("opt-level-3") and (len(groups) != 11 or len(calls) != need):
+    sys.exit(f"the worst-case sets: {len(groups)} groups and {len(calls)} calls, expected 11 groups and {need} calls")
 base_call = sum(gaps[0].values())
 # The issue's limits (12 000, 12 000, 24 000; the saturated cycle 25 200): each line names its
 # limit and whether it is met (docs/vehicles.md, "Bounded time"). All four are met and enforced
@@ -382,13 +383,14 @@ base_call = sum(gaps[0].values())
 at, failed = 0, []
 limits_wc = {"hexarotor": 12000, "rov": 12000, "spacecraft": 24000}
 ceilings = {"hexarotor": 12000, "rov": 12000, "spacecraft": 24000, "cycle": 25200, "detector": 1500,
-            "weaken": 2100}
+            "weaken": 2100, "detector_weak": 3100}
 met = lambda n, limit: "met" if n <= limit else "not met yet"
 # "(limit N)" where the limit itself is enforced; else the limit, whether it is met, and the ceiling
 limit_text = lambda n, limit, ceiling: (f"(limit {limit})" if ceiling == limit
                                         else f"(limit {limit}: {met(n, limit)}; enforced ceiling {ceiling})")
 enforce = sys.argv[2].startswith("opt-level-3")
 cycle_worst = None
+kind_names = {1: "dead", 2: "stuck", 3: "weak"}
 for g in groups:
     if g[0] == "DETECTOR":
         # the failure detector (issue "Actuator failures found, not announced"): each cycle's
@@ -414,9 +416,8 @@ for g in groups:
                   f"tells the allocator {counts[found]}; after it "
                   f"{max(counts[found + 1:], default=0)} (the shortfalls taken out, its watch, the kind fitted "
                   f"again); mean {sum(counts) / n:.0f}")
-        kinds = {1: "dead", 2: "stuck", 3: "weak"}
         print(f"  thruster 1 dies at cycle 140: " + (f"found at cycle {found}, actuator {actuator}, "
-              f"{kinds.get(kind, 'no kind')} ({value:g})" if actuator < 12 else "not found"))
+              f"{kind_names.get(kind, 'no kind')} ({value:g})" if actuator < 12 else "not found"))
         if cycle_worst is not None:
             print(f"  beside the controller cycle's worst case: {cycle_worst} + {worst} = {cycle_worst + worst} "
                   f"(limit 25200: {met(cycle_worst + worst, 25200)})")
@@ -425,21 +426,46 @@ for g in groups:
         if enforce and worst > ceilings["detector"]:
             failed.append(f"detector: {worst} instructions per cycle > its ceiling {ceilings['detector']}")
         continue
+    if g[0] == "DETECTOR_WEAK":
+        # the same ROV's detector on a flight in which thruster 1 loses half its thrust: named
+        # weak and refined, the allocator reweighted in each of those cycles (its thrust the
+        # variable); the limit of 1 500 is not met there yet, and a ceiling about 10 % over
+        # is enforced (BENCHMARKS section 39)
+        n, first, fa, fk, fv = int(g[2]), int(g[3]), int(g[4]), int(g[5]), float(g[6])
+        last, la, lk, lv = int(g[7]), int(g[8]), int(g[9]), float(g[10])
+        counts = [c - base_call for c in calls[at:at + n]]
+        at += n
+        worst = max(counts)
+        if os.environ.get("CORTEX_M_DETECTOR_COUNTS"):
+            print("DETECTOR_WEAK COUNTS", counts)
+        print(f"  thruster 1 at half its thrust from cycle 140: reported {kind_names.get(fk, 'no kind')} ({fv:g}) "
+              f"at cycle {first}, {kind_names.get(lk, 'no kind')} ({lv:g}) at cycle {last}; every cycle of that "
+              f"flight, the weak tells included: worst {worst} at cycle {counts.index(worst)} "
+              f"{limit_text(worst, 1500, ceilings['detector_weak'])}; the cycles around the tells: "
+              f"{counts[first - 2:first + 2]} and {counts[last - 2:last + 2]}")
+        if cycle_worst is not None:
+            print(f"  beside the controller cycle's worst case: {cycle_worst} + {worst} = {cycle_worst + worst} "
+                  f"(limit 25200: {met(cycle_worst + worst, 25200)})")
+        if (fa, fk, la, lk) != (1, 3, 1, 3) or not first < last:
+            failed.append(f"the detector's weak flight: reported actuator {fa} kind {fk}, then {la} kind {lk}, "
+                          f"not thruster 1 weak, named and refined")
+        if enforce and worst > ceilings["detector_weak"]:
+            failed.append(f"detector, weak flight: {worst} instructions per cycle > its ceiling "
+                          f"{ceilings['detector_weak']}")
+        continue
     if g[0] == "WEAKEN":
-        # a weak thruster told (issue "Actuator failures found, not announced"): the allocator
-        # reweighted, its thrust the variable (a rank-one update of a Cholesky factor per weak
-        # thruster), in the cycle that names or refines a weak thruster, on top of that cycle's
-        # count above
-        # (BENCHMARKS section 37); a ceiling about 15 % over is enforced
+        # a weak thruster told at once (issue "Actuator failures found, not announced"), as
+        # the detector's cycle that names or refines it tells it (the flight above), an
+        # announced failure, or replay's record: the allocator reweighted, its thrust the
+        # variable (a rank-one update of a Cholesky factor per weak thruster); a ceiling about
+        # 15 % over is enforced (BENCHMARKS section 37)
         n = int(g[2])
         each = [c - base_call for c in calls[at:at + n]]
         weaken = max(each)
         at += n
-        # (alone it is over the cycle's limit of 1 500, so with the rest of that cycle too)
         print(f"  a weak thruster told (the allocator reweighted, its thrust the variable; the worst of a tell, a "
-              f"refinement and a second weak thruster): {weaken} instructions "
-              f"more in the cycle that names or refines it (limit 1500 with the rest of that cycle: "
-              f"{met(weaken, 1500)}; enforced ceiling {ceilings['weaken']}); each: {each}")
+              f"refinement and a second weak thruster, on a healthy allocator): {weaken} instructions "
+              f"(enforced ceiling {ceilings['weaken']}); each: {each}")
         if enforce and weaken > ceilings["weaken"]:
             failed.append(f"a weak thruster's tell: {weaken} instructions > its ceiling {ceilings['weaken']}")
         continue

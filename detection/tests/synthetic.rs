@@ -236,9 +236,19 @@ fn fly_swinging(
         }
         let v = rov.velocity()
             + SVector::from_fn(|_, _| noise.sample(&mut rng) * (sigma > 0.0) as u8 as f64);
-        if let Some(d) = detector.observe::<Se3, 4>(&v, &r, &mut control) {
+        let mut announced = control;
+        let d = detector.observe::<Se3, 4>(&v, &r, &mut control);
+        if let Some(d) = d {
             found.push((t, d));
+            // told as the detection says, at the cycle it is reported
+            d.kind.tell(d.actuator, &mut announced);
         }
+        // the allocator changes only in a cycle that reports a detection, as the detection
+        // tells it (replay tells the allocator from the record so, bit for bit)
+        assert!(
+            announced == control,
+            "at {t} s the allocator is not what the reports told it ({d:?})"
+        );
         // the allocator holds a failed thruster at its value: the command respects the bounds
         let (lo, hi) = control.bounds();
         let u = rov

@@ -35,8 +35,8 @@
 //! papers' (world); the PIL cycle (30 → 41) flies `pil_hexarotor`'s, at the reference.
 //!
 //! Then the worst cases (docs/vehicles.md, "Bounded time"), each call between a pair of marks
-//! 46 → 47, in the order the `WORST`, `WARM`, `SATURATED`, `DETECTOR`, `WEAKEN` and `WHEELS` lines
-//! name them:
+//! 46 → 47, in the order the `WORST`, `WARM`, `SATURATED`, `DETECTOR`, `DETECTOR_WEAK`, `WEAKEN`
+//! and `WHEELS` lines name them:
 //!
 //! * every demand of `firmware_cases::demands`, solved cold with the default budget: the
 //!   hexarotor, the ROV, the spacecraft (`WORST <vehicle> <demands> <stopped> <most iterations>`);
@@ -46,11 +46,14 @@
 //! * the failure detector's cycle on `pil_rov_detect`'s ROV, with its settings, over a
 //!   synthetic flight through the warm-up, the calibration, the tests, a thruster that dies
 //!   and its finding (`DETECTOR rov <cycles> <cycle found> <actuator> <kind code> <value>
-//!   <first cycle that tested>`);
-//! * the tell of a weak thruster on that ROV's healthy allocator (`Kind::tell` of a factor of
-//!   one half, which reweights the allocator, the thruster's thrust its variable), as the cycle
-//!   that names a weak thruster runs it; then its refinement, and another thruster told weak
-//!   while it is (`WEAKEN rov 3`, the worst of the three counted);
+//!   <first cycle that tested>`); then over a flight in which that thruster loses half its
+//!   thrust and is named weak and refined, the allocator reweighted in those cycles
+//!   (`DETECTOR_WEAK rov <cycles> <cycle of the first report> <actuator> <kind code> <value>
+//!   <cycle of the last report> <actuator> <kind code> <value>`);
+//! * the tell of a weak thruster at once on that ROV's healthy allocator (`Kind::tell` of a
+//!   factor of one half, which reweights the allocator, the thruster's thrust its variable),
+//!   as the cycle that names a weak thruster, an announced failure or replay's record tells
+//!   it; then its refinement, and another thruster told weak while it is (`WEAKEN rov 3`, the worst of the three counted);
 //! * `wheels_slew`'s whole cycle on four reaction wheels, on the frames of a slew whose
 //!   wheels sweep up to their top speed (`WHEELS <cycles> <saturated allocations> <frames with
 //!   a closed bound>`).
@@ -544,24 +547,43 @@ fn saturated_cycles() -> bool {
 #[cfg(feature = "worst-cases")]
 static ROV_CONFIG: &[u8] = include_bytes!("../pil_rov_detect.config");
 
-/// The failure detector's cycle on `pil_rov_detect`'s ROV (marks 46 → 47 around each: the
-/// command of the cycle before taken, `Detector::commanded`, and the period that ended
-/// observed, `Detector::observe`, which tests and on a finding tells the allocator). The
-/// flight is synthetic: the ROV's momentum stepped by Euler over each period from the
-/// thrust its lagged actuators gave, its drag, its restoring wrench, a steady current and
-/// seeded noise, the commands the allocation of a varying wrench; thruster 1 dies at
-/// cycle 140. True when it is found (of its kind, the synthetic flight's cruder model leaves
-/// the detector a bias: it is printed, not judged).
+/// The cycles of each of the detector's flights.
 #[cfg(feature = "worst-cases")]
-fn detector_cycles() -> bool {
+const ROV_CYCLES: usize = 200;
+
+/// What a flight of [`rov_flight`] found: its first and last reports (cycle, actuator, kind
+/// code, value), and the first cycle that tested.
+#[cfg(feature = "worst-cases")]
+struct Flight {
+    first: Option<(usize, usize, u32, f32)>,
+    last: Option<(usize, usize, u32, f32)>,
+    testing: Option<usize>,
+}
+
+/// `pil_rov_detect`'s vehicle and control period (`None`: it does not decode, printed).
+#[cfg(feature = "worst-cases")]
+fn rov_vehicle() -> Option<(firmware_cycle::Vehicle, f32)> {
+    let Ok(config) = firmware_cycle::Config::from_bytes(ROV_CONFIG) else {
+        hprintln!("ERR icount - the ROV's configuration does not decode");
+        return None;
+    };
+    let h = config.identity.period as f32;
+    config.vehicle.map(|v| (v, h))
+}
+
+/// One synthetic flight of `pil_rov_detect`'s ROV and its detector ([`detector_cycles`]):
+/// thruster 1 gives `factor` of its thrust from cycle 140 (0: dead), the wrench asked swaying
+/// `sway` times the first flight's. `None`: the configuration does not build, or the flight
+/// diverged (printed).
+#[cfg(feature = "worst-cases")]
+fn rov_flight(factor: f32, sway: f32) -> Option<Flight> {
     use eqtrack_controller::group::{MatrixLieGroup, Se3};
     use firmware_cases::demands::Seeded;
     use nalgebra::{Matrix3, SMatrix, SVector};
-    const CYCLES: usize = 200;
-    const DIES: usize = 140;
+    const FAILS: usize = 140;
     let Ok(config) = firmware_cycle::Config::from_bytes(ROV_CONFIG) else {
         hprintln!("ERR icount - the ROV's configuration does not decode");
-        return false;
+        return None;
     };
     let h = config.identity.period as f32;
     let inertia = SMatrix::<f32, 6, 6>::from_row_slice(&config.inertia);
@@ -569,15 +591,15 @@ fn detector_cycles() -> bool {
         (config.vehicle.as_ref(), config.detector.as_ref(), inertia.try_inverse())
     else {
         hprintln!("ERR icount - the ROV's configuration has no vehicle or detector");
-        return false;
+        return None;
     };
     let (Ok(mut control), Ok(d)) = (vehicle.control::<6>(h), settings.config::<6>(inertia, h)) else {
         hprintln!("ERR icount - the ROV's vehicle or detector does not build");
-        return false;
+        return None;
     };
     let Ok(mut detector) = detection::Detector::new(d) else {
         hprintln!("ERR icount - the ROV's detector refuses its settings");
-        return false;
+        return None;
     };
     let b = *control.allocator().geometry().effectiveness();
     let decay = libm::expf(-h / d.time_constant);
@@ -586,8 +608,12 @@ fn detector_cycles() -> bool {
     let r = Matrix3::<f32>::identity();
     let mut rng = Seeded::new(0x0de7_ec70);
     let (mut v, mut output, mut command) = (SVector::<f32, 6>::zeros(), None, None);
-    let (mut found, mut testing) = (None, None);
-    for k in 0..CYCLES {
+    let mut flight = Flight {
+        first: None,
+        last: None,
+        testing: None,
+    };
+    for k in 0..ROV_CYCLES {
         let (dd, rr, vv) = (black_box(&mut detector), black_box(&r), black_box(&v));
         icount_mark(46);
         if let Some(u) = &command {
@@ -595,11 +621,13 @@ fn detector_cycles() -> bool {
         }
         let finding = dd.observe::<Se3, 4>(vv, rr, &mut control);
         icount_mark(47);
-        if let (None, Some(f)) = (found, black_box(finding)) {
-            found = Some((k, f.actuator, f.kind.code(), f.kind.value()));
+        if let Some(f) = black_box(finding) {
+            let seen = Some((k, f.actuator, f.kind.code(), f.kind.value()));
+            flight.first = flight.first.or(seen);
+            flight.last = seen;
         }
-        if testing.is_none() && detector.statistic().testing {
-            testing = Some(k);
+        if flight.testing.is_none() && detector.statistic().testing {
+            flight.testing = Some(k);
         }
         // the wrench asked for: a swaying, yawing flight held near rest against the current
         let t = k as f32 * h;
@@ -607,18 +635,18 @@ fn detector_cycles() -> bool {
             0.0,
             0.0,
             0.3 * libm::cosf(2.0 * t),
-            8.0 * libm::cosf(3.0 * t),
-            6.0 * libm::cosf(2.5 * t + 1.0),
+            8.0 * sway * libm::cosf(3.0 * t),
+            6.0 * sway * libm::cosf(2.5 * t + 1.0),
             0.0,
         ]);
         let u = control.actuate(&(ff - v * 20.0 - current), &r).allocation.u;
         // the plant over the period: the lagged thrust (the first command at once), thruster
-        // 1 giving none from cycle DIES, Euler on the momentum
+        // 1 giving `factor` of its thrust from cycle FAILS, Euler on the momentum
         let start = output.unwrap_or(u);
         let mut thrust = u + (start - u) * mean;
         output = Some(u + (start - u) * decay);
-        if k >= DIES {
-            thrust[1] = 0.0;
+        if k >= FAILS {
+            thrust[1] *= factor;
         }
         let mu = inertia * v;
         let drag = -(d.damping_linear.component_mul(&v)
@@ -628,18 +656,60 @@ fn detector_cycles() -> bool {
         v = inverse * (mu + wrench * h);
         command = Some(u);
     }
-    let (k, actuator, kind, value) = found.unwrap_or((0, usize::MAX, 0, 0.0));
+    if !v.iter().all(|x| x.is_finite()) {
+        hprintln!("ERR icount - the ROV's synthetic flight diverged");
+        return None;
+    }
+    Some(flight)
+}
+
+/// The failure detector's cycle on `pil_rov_detect`'s ROV (marks 46 → 47 around each: the
+/// command of the cycle before taken, `Detector::commanded`, and the period that ended
+/// observed, `Detector::observe`, which tests and on a finding tells the allocator), over two
+/// synthetic flights ([`rov_flight`]). In the first thruster 1 dies at cycle 140
+/// (`DETECTOR rov …`); in the second, which sways three times as hard, it gives half its thrust
+/// from cycle 140, is named weak and then refined, the allocator reweighted in each of those
+/// cycles (`DETECTOR_WEAK rov …`). True when the first finds thruster 1 (of its kind, the synthetic
+/// flight's cruder model leaves the detector a bias: it is printed, not judged) and the
+/// second reports thruster 1 weak, named and refined.
+#[cfg(feature = "worst-cases")]
+fn detector_cycles() -> bool {
+    let Some(dead) = rov_flight(0.0, 1.0) else {
+        return false;
+    };
+    let (k, actuator, kind, value) = dead.first.unwrap_or((0, usize::MAX, 0, 0.0));
     hprintln!(
         "DETECTOR rov {} {} {} {} {} {}",
-        CYCLES,
+        ROV_CYCLES,
         k,
         actuator,
         kind,
         value,
-        testing.unwrap_or(CYCLES)
+        dead.testing.unwrap_or(ROV_CYCLES)
     );
-    // a weak thruster told: the allocator reweighted, the thruster's thrust its variable (the
-    // detector's flight above finds its thruster stuck, which narrows two bounds)
+    let Some(weak) = rov_flight(0.5, 3.0) else {
+        return false;
+    };
+    let (k, wa, wk, wv) = weak.first.unwrap_or((0, usize::MAX, 0, 0.0));
+    let (r, ra, rk, rv) = weak.last.unwrap_or((0, usize::MAX, 0, 0.0));
+    hprintln!(
+        "DETECTOR_WEAK rov {} {} {} {} {} {} {} {} {}",
+        ROV_CYCLES,
+        k,
+        wa,
+        wk,
+        wv,
+        r,
+        ra,
+        rk,
+        rv
+    );
+    let Some((vehicle, h)) = rov_vehicle() else {
+        return false;
+    };
+    // a weak thruster told at once on a healthy allocator, as the detector's cycle that names
+    // it (the weak flight above), an announced failure, or replay following a record, tells
+    // it: the allocator reweighted, the thruster's thrust its variable
     let Ok(mut healthy) = vehicle.control::<6>(h) else {
         return false;
     };
@@ -652,7 +722,7 @@ fn detector_cycles() -> bool {
     }
     hprintln!("WEAKEN rov 3");
     let f = healthy.factors();
-    actuator == 1 && v.iter().all(|x| x.is_finite()) && f[3] == 0.45 && f[5] == 0.7
+    actuator == 1 && (wa, wk, ra, rk) == (1, 3, 1, 3) && r > k && f[3] == 0.45 && f[5] == 0.7
 }
 
 /// `wheels_slew`'s configuration (`plant_sim pil-config --scenario scenarios/wheels_slew.toml`):
