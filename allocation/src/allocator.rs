@@ -426,10 +426,13 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             if k == T::one() {
                 continue;
             }
-            let w = healthy.weights[j] / (k * k);
-            self.weights[j] = w;
-            self.preferred[j] *= k;
-            self.bw.set_column(j, &(b.column(j) / w));
+            weigh(
+                b,
+                healthy.weights[j],
+                j,
+                k,
+                (&mut self.weights, &mut self.preferred, &mut self.bw),
+            );
             if let Some(l) = chol.as_mut() {
                 rank_one_update(
                     l,
@@ -438,13 +441,142 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
                 );
             }
         }
-        let l = chol;
-        let sound =
-            |l: &SMatrix<T, K, K>| (0..K).all(|i| l[(i, i)].is_finite() && l[(i, i)] > T::zero());
-        self.gram = match l {
-            Some(l) if sound(&l) => Some(l),
-            _ => nalgebra::Cholesky::new(self.bw * b.transpose()).map(|c| c.unpack_dirty()),
+        self.put_gram(&chol);
+    }
+
+    /// The factor of `B W⁻¹ Bᵀ` its updates gave, in force, or that matrix's factor formed
+    /// again where an update left a diagonal entry that is not finite and positive (or none
+    /// was formed).
+    #[inline(always)]
+    fn put_gram(&mut self, l: &Option<SMatrix<T, K, K>>) {
+        // (read in place: a copy of the factor to test it costs a Cortex-M4F more than the test)
+        let mut sound = l.is_some();
+        if let Some(l) = l {
+            for i in 0..K {
+                let d = l[(i, i)];
+                if !(d.is_finite() && d > T::zero()) {
+                    sound = false;
+                    break;
+                }
+            }
+        }
+        if sound {
+            self.gram = *l;
+        } else {
+            let b = self.geometry.effectiveness();
+            self.gram = nalgebra::Cholesky::new(self.bw * b.transpose()).map(|c| c.unpack_dirty());
+        }
+    }
+
+    /// [`Allocator::pose_in_thrust`] of this healthy allocator for `factors` begun, to be
+    /// made over a few cycles (docs/maths.md, "Failure detection", *A weak actuator told over
+    /// cycles*): the fields the weights enter copied, their updates to come
+    /// ([`Allocator::advance`]); `actuator` the one whose tell asked for it.
+    pub(crate) fn reweighting(&self, factors: &Commands<T>, actuator: usize) -> Reweighting<T, K> {
+        let mut r = Reweighting {
+            factors: *factors,
+            actuator,
+            weak: (0..self.geometry.count()).any(|j| factors[j] != T::one()),
+            weights: self.weights,
+            preferred: self.preferred,
+            column: self.bw.column(actuator).into_owned(),
+            gram: self.gram,
+            weighed: false,
+            next: 0,
+            update: 0,
+            x: SVector::zeros(),
+            beta: T::one(),
+            sigma: T::zero(),
         };
+        self.seek(&mut r, 0);
+        r
+    }
+
+    /// `r`'s next rank-one update: that of the first weak actuator from `from` on (`next`
+    /// the count where there is none, or no factor to update).
+    fn seek(&self, r: &mut Reweighting<T, K>, from: usize) {
+        let count = self.geometry.count();
+        let mut next = count;
+        if r.gram.is_some() {
+            for j in from..count {
+                if r.factors[j] != T::one() {
+                    next = j;
+                    break;
+                }
+            }
+        }
+        r.next = next;
+        if next < count {
+            let k = r.factors[next];
+            r.update = 0;
+            r.x = self.geometry.effectiveness().column(next).into_owned();
+            r.beta = T::one();
+            r.sigma = (k * k - T::one()) / self.weights[next];
+        }
+    }
+
+    /// One step of `r` (of this healthy allocator): up to `columns` more columns of its
+    /// rank-one updates ([`rank_one_column`]), one weak actuator after another in the
+    /// actuators' order, as [`Allocator::pose_in_thrust`] makes them; once they are all
+    /// made, the weights, preferred command and `B W⁻¹` of its weak actuators, in a step of
+    /// their own. True when nothing is left.
+    pub(crate) fn advance(&self, r: &mut Reweighting<T, K>, columns: usize) -> bool {
+        let count = self.geometry.count();
+        if r.done(count) {
+            return true;
+        }
+        if r.next < count {
+            let mut left = columns;
+            while r.next < count && left > 0 {
+                let Some(l) = r.gram.as_mut() else {
+                    break;
+                };
+                rank_one_column(l, &mut r.x, &mut r.beta, r.sigma, r.update);
+                r.update += 1;
+                left -= 1;
+                if r.update == K {
+                    self.seek(r, r.next + 1);
+                }
+            }
+            return false;
+        }
+        if !r.weighed {
+            r.weighed = true;
+            let b = self.geometry.effectiveness();
+            let mut bw = self.bw;
+            for j in 0..count {
+                let k = r.factors[j];
+                if k != T::one() {
+                    weigh(
+                        b,
+                        self.weights[j],
+                        j,
+                        k,
+                        (&mut r.weights, &mut r.preferred, &mut bw),
+                    );
+                }
+            }
+            r.column = bw.column(r.actuator).into_owned();
+        }
+        false
+    }
+
+    /// This allocator, of `healthy`'s geometry, posed as `r` says, its steps made (those left
+    /// are made first): what [`Allocator::pose_in_thrust`] of `r`'s factors gives, bit for
+    /// bit, where this allocator is posed for `r`'s factors but its actuator's (its other
+    /// columns of `B W⁻¹` are then those already).
+    pub(crate) fn put(&mut self, healthy: &Self, r: &mut Reweighting<T, K>) {
+        while !r.done(healthy.geometry.count()) {
+            healthy.advance(r, usize::MAX);
+        }
+        self.weights = r.weights;
+        self.preferred = r.preferred;
+        self.bw.set_column(r.actuator, &r.column);
+        if r.weak {
+            self.put_gram(&r.gram);
+        } else {
+            self.gram = r.gram;
+        }
     }
 
     /// The same allocator with at most `budget` active-set iterations per allocation, over
@@ -927,34 +1059,125 @@ fn rank_one_update<T: RealField + Copy + 'static, const K: usize>(
     x: &SVector<T, K>,
     sigma: T,
 ) {
-    let mut x = *x;
-    let mut beta = T::one();
+    let (mut x, mut beta) = (*x, T::one());
     for j in 0..K {
-        let diag = l[(j, j)];
-        let diag2 = diag * diag;
-        let xj = x[j];
-        let sigma_xj2 = sigma * (xj * xj);
-        let gamma = diag2 * beta + sigma_xj2;
-        let new_diag = eqtrack_hw_sqrt::sqrt(diag2 + sigma_xj2 / beta);
-        l[(j, j)] = new_diag;
-        beta += sigma_xj2 / diag2;
-        // x below j less (x_j / l_jj) times the column; then the column, as nalgebra's axpy
-        // forms it (`a x + b y`, or `a x` alone when `b` is zero)
-        let a = -xj / diag;
+        rank_one_column(l, &mut x, &mut beta, sigma, j);
+    }
+}
+
+/// Actuator `j`'s weight, preferred command and column of `B W⁻¹` when it gives `k` of its
+/// command, its thrust the variable (docs/maths.md, "Control allocation", *A weak actuator's
+/// thrust as its variable*): `w_j / k²`, `k u_pref,j` and `b_j / (w_j / k²)`, from its healthy
+/// weight `w` and the healthy preferred command already in `fields`.
+#[inline(always)]
+fn weigh<T: RealField + Copy, const K: usize>(
+    b: &SMatrix<T, K, MAX_ACTUATORS>,
+    w: T,
+    j: usize,
+    k: T,
+    fields: (
+        &mut Commands<T>,
+        &mut Commands<T>,
+        &mut SMatrix<T, K, MAX_ACTUATORS>,
+    ),
+) {
+    let (weights, preferred, bw) = fields;
+    let w = w / (k * k);
+    weights[j] = w;
+    preferred[j] *= k;
+    bw.set_column(j, &(b.column(j) / w));
+}
+
+/// Column `j` of [`rank_one_update`], its running `x` and `β` (1 at the start) carried from
+/// column to column: a weak actuator's update made a few columns a cycle
+/// ([`Allocator::advance`]), the same operations in the same order.
+#[inline(always)]
+fn rank_one_column<T: RealField + Copy + 'static, const K: usize>(
+    l: &mut SMatrix<T, K, K>,
+    x: &mut SVector<T, K>,
+    beta: &mut T,
+    sigma: T,
+    j: usize,
+) {
+    let diag = l[(j, j)];
+    let diag2 = diag * diag;
+    let xj = x[j];
+    let sigma_xj2 = sigma * (xj * xj);
+    let gamma = diag2 * *beta + sigma_xj2;
+    let new_diag = eqtrack_hw_sqrt::sqrt(diag2 + sigma_xj2 / *beta);
+    l[(j, j)] = new_diag;
+    *beta += sigma_xj2 / diag2;
+    // x below j less (x_j / l_jj) times the column; then the column, as nalgebra's axpy
+    // forms it (`a x + b y`, or `a x` alone when `b` is zero)
+    let a = -xj / diag;
+    for i in j + 1..K {
+        x[i] = a * l[(i, j)] + x[i];
+    }
+    if gamma != T::zero() {
+        let a = new_diag * sigma / gamma * xj;
+        let b = new_diag / diag;
         for i in j + 1..K {
-            x[i] = a * l[(i, j)] + x[i];
+            l[(i, j)] = if b != T::zero() {
+                a * x[i] + b * l[(i, j)]
+            } else {
+                a * x[i]
+            };
         }
-        if gamma != T::zero() {
-            let a = new_diag * sigma / gamma * xj;
-            let b = new_diag / diag;
-            for i in j + 1..K {
-                l[(i, j)] = if b != T::zero() {
-                    a * x[i] + b * l[(i, j)]
-                } else {
-                    a * x[i]
-                };
-            }
-        }
+    }
+}
+
+/// A reweighting of an allocator for a loss of effectiveness, made a few steps at a time
+/// (docs/maths.md, "Failure detection", *A weak actuator told over cycles*): what
+/// [`crate::VehicleControl::weaken`] does at once, for a cycle that must stay short (a failure
+/// detector's). Begun by [`crate::VehicleControl::reweighting`], stepped by
+/// [`crate::VehicleControl::advance`] and put in force by [`crate::VehicleControl::reweight`],
+/// which leaves the vehicle as `weaken` would, bit for bit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reweighting<T, const K: usize> {
+    /// The factors it poses the allocator for, whether any is not 1, and the actuator whose
+    /// tell began it.
+    factors: Commands<T>,
+    weak: bool,
+    actuator: usize,
+    /// The fields the weights enter, the healthy allocator's until `weighed`: the weights, the
+    /// preferred command and the actuator's column of `B W⁻¹` (the others do not change);
+    /// and the factor of `B W⁻¹ Bᵀ` as far as its updates are made.
+    weights: Commands<T>,
+    preferred: Commands<T>,
+    column: SVector<T, K>,
+    gram: Option<SMatrix<T, K, K>>,
+    weighed: bool,
+    /// The weak actuator whose update runs (the count once all are made), the update's next
+    /// column, and its running vector, `β` and `σ` ([`rank_one_column`]).
+    next: usize,
+    update: usize,
+    x: SVector<T, K>,
+    beta: T,
+    sigma: T,
+}
+
+impl<T: RealField + Copy, const K: usize> Reweighting<T, K> {
+    /// The factors it poses the allocator for.
+    pub fn factors(&self) -> &Commands<T> {
+        &self.factors
+    }
+
+    /// Whether nothing is left to make of it, for a geometry of `count` actuators: its
+    /// updates and its weights.
+    #[inline(always)]
+    fn done(&self, count: usize) -> bool {
+        self.next >= count && self.weighed
+    }
+
+    /// Whether a factor it poses the allocator for is not 1.
+    pub fn weak(&self) -> bool {
+        self.weak
+    }
+
+    /// The actuator whose tell began it, and the factor told.
+    pub fn tell(&self) -> (usize, T) {
+        // (begun only for an actuator of the vehicle: `VehicleControl::reweighting`)
+        (self.actuator, self.factors[self.actuator])
     }
 }
 

@@ -3,7 +3,7 @@
 //! wrench allocated to the actuators within their bounds, a rate limit and the failures it
 //! has been told of.
 
-use crate::allocator::{Allocation, Allocator, Bounds};
+use crate::allocator::{Allocation, Allocator, Bounds, Reweighting};
 use crate::restoring::Restoring;
 use crate::wheels::{Momentum, Wheel, WheelSet};
 use crate::{Commands, MAX_ACTUATORS};
@@ -234,19 +234,68 @@ impl<T: RealField + Copy, const K: usize> VehicleControl<T, K> {
     /// never twice). A factor that is not finite and positive is ignored; one below the
     /// scalar's `ε` is taken as `ε` (so that the weight `w/k²` stays finite).
     pub fn weaken(&mut self, j: usize, factor: T) {
+        let Some(factor) = self.weakening(j, factor) else {
+            return;
+        };
         let count = self.nominal.geometry().count();
-        if j >= count || !(factor.is_finite() && factor > T::zero()) {
-            return;
-        }
-        let factor = factor.max(T::default_epsilon());
-        if self.factors[j] == factor {
-            return;
-        }
         self.factors[j] = factor;
         // the healthy one reweighted for every told factor, in the actuators' order, whatever
         // the order told (with every factor 1 again, the healthy allocator, bit for bit)
         self.weak = (0..count).any(|i| self.factors[i] != T::one());
         self.allocator.pose_in_thrust(&self.nominal, &self.factors);
+    }
+
+    /// [`VehicleControl::weaken`] of actuator `j` by `factor` in steps, for a cycle that must
+    /// stay short (a failure detector's; docs/maths.md, "Failure detection", *A weak actuator
+    /// told over cycles*): the reweighting for the factors told now with `j`'s `factor`,
+    /// begun. `None` where `weaken` would change nothing (the same factor, or one it
+    /// ignores). Nothing is in force until [`VehicleControl::reweight`].
+    pub fn reweighting(&self, j: usize, factor: T) -> Option<Reweighting<T, K>> {
+        let factor = self.weakening(j, factor)?;
+        let mut factors = self.factors;
+        factors[j] = factor;
+        Some(self.nominal.reweighting(&factors, j))
+    }
+
+    /// The factor [`VehicleControl::weaken`] would tell actuator `j` for `factor` (at least
+    /// the scalar's `ε`), or `None` where it changes nothing: an actuator past the count, a
+    /// factor that is not finite and positive, or the factor told already.
+    fn weakening(&self, j: usize, factor: T) -> Option<T> {
+        let count = self.nominal.geometry().count();
+        if j >= count || !(factor.is_finite() && factor > T::zero()) {
+            return None;
+        }
+        let factor = factor.max(T::default_epsilon());
+        (self.factors[j] != factor).then_some(factor)
+    }
+
+    /// One step of `r`: up to `columns` more columns of its rank-one updates (`K` columns an
+    /// update, an update for each weak actuator), or, once they are made, the weak actuators'
+    /// weights in a step of their own; true when nothing is left, and
+    /// [`VehicleControl::reweight`] only copies it in.
+    pub fn advance(&self, r: &mut Reweighting<T, K>, columns: usize) -> bool {
+        self.nominal.advance(r, columns)
+    }
+
+    /// Puts `r` in force, its steps left made first: from here on the vehicle is as if
+    /// [`VehicleControl::weaken`] had been told now the actuator and factor that began it,
+    /// bit for bit. If another factor was told since it began, it no longer fits, and `weaken`
+    /// is told that actuator and factor at once instead.
+    pub fn reweight(&mut self, r: &mut Reweighting<T, K>) {
+        // (its factor was checked as `weaken` checks it when it began)
+        let (j, factor) = r.tell();
+        if self.factors[j] == factor {
+            return;
+        }
+        let mut now = self.factors;
+        now[j] = factor;
+        if now != *r.factors() {
+            self.weaken(j, factor);
+            return;
+        }
+        self.factors = now;
+        self.weak = r.weak();
+        self.allocator.put(&self.nominal, r);
     }
 
     /// The effectiveness of each actuator as told (1: healthy, and past the count).

@@ -68,7 +68,7 @@ mod wheels;
 mod zonotope;
 
 pub use allocator::{
-    Allocation, Allocator, AllocatorError, Bounds, DEFAULT_BUDGET, Priority, Status,
+    Allocation, Allocator, AllocatorError, Bounds, DEFAULT_BUDGET, Priority, Reweighting, Status,
 };
 pub use control::{Actuation, SpanWatch, VehicleControl};
 pub use geometry::{Actuator, Geometry, GeometryError, LostDirections};

@@ -404,6 +404,93 @@ fn a_weakened_actuator_has_its_column_scaled() {
     assert_eq!(c, before);
 }
 
+/// A weakness told over cycles (docs/maths.md, "Failure detection", *A weak actuator told over
+/// cycles*): a reweighting begun, formed a few columns at a time and put in force leaves the
+/// vehicle as `weaken` at once does, bit for bit, in `f64` and `f32`, on the ROV and the
+/// hexarotor: from healthy, a refinement, a second actuator, one healed back to 1, in steps of
+/// 1 to 7 columns and put in force before its updates are all made. Where another factor was
+/// told while it was formed, it is `weaken` of its own tell at once; where the factor is the
+/// one told, there is nothing to begin.
+#[test]
+fn a_reweighting_formed_over_cycles_is_weaken() {
+    use eqtrack_allocation::{Restoring, VehicleControl};
+    fn check<T: nalgebra::RealField + Copy>(alloc: Allocator<T, 6>, count: usize, seed: u64) {
+        let none = Restoring {
+            weight: T::zero(),
+            buoyancy: T::zero(),
+            centre: nalgebra::Vector3::zeros(),
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        for _ in 0..200 {
+            let mut at_once = VehicleControl::new(alloc, none, T::zero(), nalgebra::convert(0.01));
+            let mut staged = at_once;
+            for _ in 0..4 {
+                let j = (rng.next_u64() % count as u64) as usize;
+                let k = match rng.next_u64() % 4 {
+                    0 => 1.0,
+                    _ => 0.05 + 0.9 * (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64,
+                };
+                let k: T = nalgebra::convert(k);
+                let columns = 1 + (rng.next_u64() % 7) as usize;
+                let early = rng.next_u64() % 5 == 0;
+                let Some(mut r) = staged.reweighting(j, k) else {
+                    assert_eq!(
+                        staged.factors()[j],
+                        k,
+                        "nothing begun only for the factor told"
+                    );
+                    at_once.weaken(j, k);
+                    assert_eq!(at_once, staged, "weaken of the factor told changes nothing");
+                    continue;
+                };
+                assert_eq!(r.tell(), (j, k));
+                let before = staged;
+                let mut steps = 0;
+                while !early && !staged.advance(&mut r, columns) {
+                    steps += 1;
+                    assert!(steps <= 8 * 6 + 1, "the steps end");
+                }
+                assert_eq!(staged, before, "nothing is in force before it is put");
+                staged.reweight(&mut r);
+                at_once.weaken(j, k);
+                assert_eq!(
+                    staged, at_once,
+                    "actuator {j} at {k:?} in steps of {columns}"
+                );
+            }
+            // another factor told while one was formed: its own tell at once
+            let (j, i) = (0, count - 1);
+            let mut r = staged
+                .reweighting(j, nalgebra::convert(0.3))
+                .unwrap_or_else(|| {
+                    staged
+                        .reweighting(j, nalgebra::convert(0.4))
+                        .expect("a new factor")
+                });
+            let k = r.tell().1;
+            staged.weaken(i, nalgebra::convert(0.7));
+            at_once.weaken(i, nalgebra::convert(0.7));
+            staged.advance(&mut r, 3);
+            staged.reweight(&mut r);
+            at_once.weaken(j, k);
+            assert_eq!(
+                staged, at_once,
+                "a reweighting overtaken is weaken of its tell"
+            );
+        }
+    }
+    check(rov(), 8, 1);
+    check(hexarotor(), 6, 2);
+    let rov32 = Allocator::<f32, 6>::new(
+        eqtrack_allocation::Geometry::new(&presets::rov_heavy(0.4, 0.3, 0.12, 0.22, 40.0)).unwrap(),
+        &[],
+        &[],
+        Priority::Torque,
+    )
+    .unwrap();
+    check(rov32, 8, 3);
+}
+
 /// A weak actuator's thrust as the allocator's variable (docs/maths.md, "Control allocation"):
 /// the vehicle told of one or two weak actuators allocates what the allocator formed over the
 /// scaled columns ([`Allocator::scaled`]) allocates, on the ROV (its blocks by their reach) with

@@ -31,7 +31,7 @@
 
 pub mod threshold;
 
-use eqtrack_allocation::{Commands, MAX_ACTUATORS, VehicleControl};
+use eqtrack_allocation::{Commands, MAX_ACTUATORS, Reweighting, VehicleControl};
 use eqtrack_controller::Real;
 use eqtrack_controller::disturbance::rotate_blocks;
 use eqtrack_controller::group::BuiltinGroup;
@@ -121,6 +121,56 @@ impl<T: Real> Kind<T> {
     }
 }
 
+impl<T: Real> Kind<T> {
+    /// The factor the allocator is told for actuator `j` when it is this: the estimate when
+    /// weak, 1 otherwise (held, its column healthy again).
+    fn factor(&self) -> T {
+        match *self {
+            Kind::Weak(k) => k,
+            Kind::Dead | Kind::Stuck(_) => T::one(),
+        }
+    }
+
+    /// [`Kind::tell`] with the factor's reweighting `r` (begun for this tell and formed over
+    /// the cycles before) put in force in place of `weaken`: the same vehicle, bit for bit.
+    fn tell_reweighted<const K: usize>(
+        &self,
+        j: usize,
+        control: &mut VehicleControl<T, K>,
+        r: &mut Reweighting<T, K>,
+    ) {
+        match *self {
+            Kind::Weak(_) => {
+                control.release(j);
+                control.reweight(r);
+            }
+            Kind::Dead => {
+                control.reweight(r);
+                control.fail(j, T::zero());
+            }
+            Kind::Stuck(v) => {
+                control.reweight(r);
+                control.fail(j, v);
+            }
+        }
+    }
+}
+
+/// A detection whose tell moves the allocator's factor of its actuator, told over the
+/// cycles after its finding (docs/maths.md, "Failure detection", *A weak actuator told over
+/// cycles*): the reweighting begun in the first, a few columns of its updates in each, and
+/// in force, the detection told and reported, in the cycle after the last.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Telling<T, const K: usize> {
+    detection: Detection<T>,
+    /// The control periods since its finding.
+    waited: usize,
+    reweighting: Option<Reweighting<T, K>>,
+}
+
+/// The columns of a reweighting's rank-one updates formed in one cycle ([`Detector::step`]).
+const COLUMNS: usize = 2;
+
 /// One detection: the actuator, its kind, the test's statistic and when the change began.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Detection<T> {
@@ -130,7 +180,9 @@ pub struct Detection<T> {
     pub kind: Kind<T>,
     /// The best hypothesis's statistic (χ²₁ under no failure).
     pub statistic: T,
-    /// How many control periods before this one the change is estimated to have begun.
+    /// How many control periods before this one the change is estimated to have begun (a
+    /// refined detection: the periods since its kind was fitted again, which a weak kind's
+    /// tell over cycles makes more than 0).
     pub since: usize,
     /// Whether this refines an earlier detection of the same actuator: the kind estimated
     /// again after watching it for a window once the allocator was told.
@@ -461,6 +513,8 @@ pub struct Detector<T, const K: usize> {
     queued: usize,
     /// Whether a detection's shortfalls are still being taken out of the window.
     pending: bool,
+    /// Whether a detection is being told over cycles (`staged`).
+    telling: bool,
     /// The actuator passing every gate and for how many periods in a row.
     streak: (usize, usize),
     /// The actuator the next entry names, and its last test's statistic: it passed the tests
@@ -535,6 +589,8 @@ pub struct Detector<T, const K: usize> {
     /// Each actuator's command bounds before any failure, formed with the columns (read only
     /// when an actuator's kind is fitted).
     ranges: [(T, T); MAX_ACTUATORS],
+    /// The detection being told over cycles, while `telling`.
+    staged: Option<Telling<T, K>>,
 }
 
 impl<T: Real, const K: usize> Detector<T, K> {
@@ -570,6 +626,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
             watch: None,
             ending: None,
             pending: false,
+            telling: false,
+            staged: None,
             job: Pending::zero(),
             shorts: [T::zero(); CAPACITY / 2],
             along: [SVector::zeros(); 2],
@@ -666,6 +724,8 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.watch = None;
         self.ending = None;
         self.pending = false;
+        self.telling = false;
+        self.staged = None;
         self.job = Pending::zero();
         self.shorts = [T::zero(); CAPACITY / 2];
         self.along = [SVector::zeros(); 2];
@@ -760,8 +820,11 @@ impl<T: Real, const K: usize> Detector<T, K> {
 
     /// One cycle before the allocation (docs/maths.md, "Failure detection"): the residual of
     /// the period that ended at this state (body velocity `v`, attitude `r`), the test, and on
-    /// a detection the allocator told: a dead or stuck actuator held at its value, a weak one
-    /// scaled ([`VehicleControl::fail`], [`VehicleControl::weaken`]). Allocation-free.
+    /// a detection the allocator told: a dead or stuck actuator held at its value at once
+    /// ([`VehicleControl::fail`]), a weak one scaled over the cycles after, a step a cycle in
+    /// place of the test ([`VehicleControl::reweighting`]; docs/maths.md, "Failure detection",
+    /// *A weak actuator told over cycles*). A detection is returned in the cycle the allocator
+    /// is told it (or the next ones, behind others). Allocation-free.
     pub fn observe<G: BuiltinGroup<N, K>, const N: usize>(
         &mut self,
         v: &SVector<T, K>,
@@ -948,14 +1011,17 @@ impl<T: Real, const K: usize> Detector<T, K> {
         self.next_report()
     }
 
-    /// One step of the work after a naming, if there is any: a watch's end (its kind fitted
-    /// again), or a step of completing a detection. True if there was.
+    /// One step of the work after a naming, if there is any: a step of telling a detection
+    /// over cycles, a watch's end (its kind fitted again), or a step of completing a
+    /// detection. True if there was.
     fn work(&mut self, control: &mut VehicleControl<T, K>) -> bool {
-        if let Some(watch) = self.ending.take() {
+        if self.telling {
             self.last.testing = false;
-            if let Some(refined) = self.refine(&watch, control) {
-                self.report(refined);
-            }
+            self.step(control);
+            true
+        } else if let Some(watch) = self.ending.take() {
+            self.last.testing = false;
+            self.refine(&watch, control);
             true
         } else if self.pending {
             self.last.testing = false;
@@ -1046,11 +1112,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
 
     /// The end of a watch: the kind fitted again over everything seen of the actuator and, if
     /// it changed, the allocator told again (a refined detection).
-    fn refine(
-        &mut self,
-        watch: &Watch<T, K>,
-        control: &mut VehicleControl<T, K>,
-    ) -> Option<Detection<T>> {
+    fn refine(&mut self, watch: &Watch<T, K>, control: &mut VehicleControl<T, K>) {
         let j = watch.actuator;
         let kind = self.fit(j, &self.sums[j]);
         // told again only for another kind, or a value or factor that moved by more than
@@ -1066,23 +1128,108 @@ impl<T: Real, const K: usize> Detector<T, K> {
             _ => false,
         };
         if same {
-            return None;
+            return;
         }
-        self.tell(j, kind, control);
-        Some(Detection {
+        let d = Detection {
             actuator: j,
             kind,
             statistic: self.last.best,
             since: 0,
             refined: true,
-        })
+        };
+        self.conclude(d, control);
+    }
+
+    /// Tells the allocator of detection `d` and reports it, at once, or over the cycles that
+    /// follow when the tell moves the actuator's factor (a weak one's, or one told weak
+    /// before found dead or stuck): its reweighting is then formed a few columns a cycle, in
+    /// place of the test, and `d` told and reported once it is in force, its `since` counting
+    /// the wait (docs/maths.md, "Failure detection", *A weak actuator told over cycles*).
+    #[inline(always)]
+    fn conclude(&mut self, d: Detection<T>, control: &mut VehicleControl<T, K>) {
+        let j = d.actuator;
+        // a weak kind always (one whose factor is the one told is told at the first step),
+        // a dead or stuck one whose factor was told before (`Kind::tell` sets it back to 1)
+        let later = match d.kind {
+            Kind::Weak(_) => true,
+            Kind::Dead | Kind::Stuck(_) => control.factors().get(j).is_some_and(|f| *f != T::one()),
+        };
+        if later {
+            self.stage(d, control);
+        } else {
+            self.tell(j, d.kind, control);
+            self.report(d);
+        }
+    }
+
+    /// Keeps `d` to tell over the cycles that follow ([`Detector::conclude`]).
+    #[cold]
+    #[inline(never)]
+    fn stage(&mut self, d: Detection<T>, control: &mut VehicleControl<T, K>) {
+        // (one at a time: the test, which finds the next, does not run while one is told)
+        if let Some(t) = self.staged.take() {
+            let (j, kind) = (t.detection.actuator, t.detection.kind);
+            self.tell(j, kind, control);
+            self.report(t.detection);
+        }
+        self.telling = true;
+        self.staged = Some(Telling {
+            detection: d,
+            waited: 0,
+            reweighting: None,
+        });
+    }
+
+    /// One cycle's step of the detection told over cycles ([`Detector::conclude`]): its
+    /// reweighting begun, or stepped on ([`COLUMNS`] more columns of its updates, or its
+    /// weights), or, once nothing is left, put in force with the rest of the kind, the
+    /// detection reported.
+    #[inline(never)]
+    fn step(&mut self, control: &mut VehicleControl<T, K>) {
+        let read = self.told == Some(control.told());
+        let Some(t) = self.staged.as_mut() else {
+            self.telling = false;
+            return;
+        };
+        t.waited += 1;
+        let (j, kind) = (t.detection.actuator, t.detection.kind);
+        match t.reweighting.as_mut() {
+            None => {
+                t.reweighting = control.reweighting(j, kind.factor());
+                if t.reweighting.is_some() {
+                    return;
+                }
+                // nothing to reweight (the factor was told meanwhile): told at once
+                kind.tell(j, control);
+            }
+            Some(r) => {
+                if !control.advance(r, COLUMNS) {
+                    return;
+                }
+                kind.tell_reweighted(j, control, r);
+            }
+        }
+        let mut d = t.detection;
+        d.since += t.waited;
+        self.staged = None;
+        self.telling = false;
+        self.told_now(j, read, control);
+        self.report(d);
     }
 
     /// Tells the allocator what actuator `j` is now believed to be, forgetting what it was
     /// told before: held at 0 or at a value, or its column scaled.
+    #[inline(always)]
     fn tell(&mut self, j: usize, kind: Kind<T>, control: &mut VehicleControl<T, K>) {
         let read = self.told == Some(control.told());
         kind.tell(j, control);
+        self.told_now(j, read, control);
+    }
+
+    /// What the detector keeps of a tell of actuator `j`: found failed, and the holds as the
+    /// allocator now has them (`read`: they were read since the last tell before it).
+    #[inline(always)]
+    fn told_now(&mut self, j: usize, read: bool, control: &VehicleControl<T, K>) {
         self.failed[j] = true;
         // the holds read still stand but for this one (unless told since they were read)
         if read {
@@ -1344,7 +1491,6 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let (span, sums) = self.change(j, self.along[0].dot(&older));
         self.sums[j] = sums;
         let kind = self.fit(j, &sums);
-        self.tell(j, kind, control);
         self.watch = Some(Watch {
             actuator: j,
             left: self.config.window,
@@ -1352,13 +1498,14 @@ impl<T: Real, const K: usize> Detector<T, K> {
             weights: self.prep.weights,
             kind,
         });
-        self.report(Detection {
+        let d = Detection {
             actuator: j,
             kind,
             statistic: t,
             since: span * self.config.decimation + self.periods,
             refined: false,
-        });
+        };
+        self.conclude(d, control);
         self.job = Pending {
             span,
             ..Pending::zero()

@@ -47,13 +47,13 @@
 //!   synthetic flight through the warm-up, the calibration, the tests, a thruster that dies
 //!   and its finding (`DETECTOR rov <cycles> <cycle found> <actuator> <kind code> <value>
 //!   <first cycle that tested>`); then over a flight in which that thruster loses half its
-//!   thrust and is named weak and refined, the allocator reweighted in those cycles
+//!   thrust and is named weak and refined, each told over the cycles after its finding
 //!   (`DETECTOR_WEAK rov <cycles> <cycle of the first report> <actuator> <kind code> <value>
 //!   <cycle of the last report> <actuator> <kind code> <value>`);
 //! * the tell of a weak thruster at once on that ROV's healthy allocator (`Kind::tell` of a
 //!   factor of one half, which reweights the allocator, the thruster's thrust its variable),
-//!   as the cycle that names a weak thruster, an announced failure or replay's record tells
-//!   it; then its refinement, and another thruster told weak while it is (`WEAKEN rov 3`, the worst of the three counted);
+//!   as an announced failure or replay's record tells it; then its refinement, and another
+//!   thruster told weak while it is (`WEAKEN rov 3`, the worst of the three counted);
 //! * `wheels_slew`'s whole cycle on four reaction wheels, on the frames of a slew whose
 //!   wheels sweep up to their top speed (`WHEELS <cycles> <saturated allocations> <frames with
 //!   a closed bound>`).
@@ -668,8 +668,8 @@ fn rov_flight(factor: f32, sway: f32) -> Option<Flight> {
 /// observed, `Detector::observe`, which tests and on a finding tells the allocator), over two
 /// synthetic flights ([`rov_flight`]). In the first thruster 1 dies at cycle 140
 /// (`DETECTOR rov …`); in the second, which sways three times as hard, it gives half its thrust
-/// from cycle 140, is named weak and then refined, the allocator reweighted in each of those
-/// cycles (`DETECTOR_WEAK rov …`). True when the first finds thruster 1 (of its kind, the synthetic
+/// from cycle 140, is named weak and then refined, each told over the cycles after
+/// (`DETECTOR_WEAK rov …`). True when the first finds thruster 1 (of its kind, the synthetic
 /// flight's cruder model leaves the detector a bias: it is printed, not judged) and the
 /// second reports thruster 1 weak, named and refined.
 #[cfg(feature = "worst-cases")]
@@ -707,9 +707,9 @@ fn detector_cycles() -> bool {
     let Some((vehicle, h)) = rov_vehicle() else {
         return false;
     };
-    // a weak thruster told at once on a healthy allocator, as the detector's cycle that names
-    // it (the weak flight above), an announced failure, or replay following a record, tells
-    // it: the allocator reweighted, the thruster's thrust its variable
+    // a weak thruster told at once on a healthy allocator, as an announced failure, or replay
+    // following a record, tells it: the allocator reweighted, the thruster's thrust its
+    // variable (the detector tells it over the cycles after its finding, counted above)
     let Ok(mut healthy) = vehicle.control::<6>(h) else {
         return false;
     };
