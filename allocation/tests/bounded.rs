@@ -426,8 +426,11 @@ fn a_reweighting_formed_over_cycles_is_weaken() {
             let mut staged = at_once;
             for _ in 0..4 {
                 let j = (rng.next_u64() % count as u64) as usize;
-                let k = match rng.next_u64() % 4 {
-                    0 => 1.0,
+                let k = match rng.next_u64() % 8 {
+                    0 | 1 => 1.0,
+                    // near and below the scalar's ε, where a downdate may break down and the
+                    // factor is formed again
+                    2 => [1e-4, 1e-7, 1e-12][(rng.next_u64() % 3) as usize],
                     _ => 0.05 + 0.9 * (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64,
                 };
                 let k: T = nalgebra::convert(k);
@@ -436,14 +439,14 @@ fn a_reweighting_formed_over_cycles_is_weaken() {
                 let Some(mut r) = staged.reweighting(j, k) else {
                     assert_eq!(
                         staged.factors()[j],
-                        k,
+                        k.max(T::default_epsilon()),
                         "nothing begun only for the factor told"
                     );
                     at_once.weaken(j, k);
                     assert_eq!(at_once, staged, "weaken of the factor told changes nothing");
                     continue;
                 };
-                assert_eq!(r.tell(), (j, k));
+                assert_eq!(r.tell(), (j, k.max(T::default_epsilon())));
                 let before = staged;
                 let mut steps = 0;
                 while !early && !staged.advance(&mut r, columns) {
@@ -458,25 +461,24 @@ fn a_reweighting_formed_over_cycles_is_weaken() {
                     "actuator {j} at {k:?} in steps of {columns}"
                 );
             }
-            // another factor told while one was formed: its own tell at once
-            let (j, i) = (0, count - 1);
-            let mut r = staged
-                .reweighting(j, nalgebra::convert(0.3))
-                .unwrap_or_else(|| {
-                    staged
-                        .reweighting(j, nalgebra::convert(0.4))
-                        .expect("a new factor")
-                });
-            let k = r.tell().1;
-            staged.weaken(i, nalgebra::convert(0.7));
-            at_once.weaken(i, nalgebra::convert(0.7));
-            staged.advance(&mut r, 3);
-            staged.reweight(&mut r);
-            at_once.weaken(j, k);
-            assert_eq!(
-                staged, at_once,
-                "a reweighting overtaken is weaken of its tell"
-            );
+            // a factor told while one was formed: over its own actuator, put in force over
+            // it; over another, `weaken` of its own tell at once
+            for (j, i, columns) in [(2, 2, 5), (0, count - 1, 3)] {
+                let mut r = staged
+                    .reweighting(j, nalgebra::convert(0.3))
+                    .unwrap_or_else(|| {
+                        staged
+                            .reweighting(j, nalgebra::convert(0.4))
+                            .expect("a new factor")
+                    });
+                let k = r.tell().1;
+                staged.weaken(i, nalgebra::convert(0.7));
+                at_once.weaken(i, nalgebra::convert(0.7));
+                staged.advance(&mut r, columns);
+                staged.reweight(&mut r);
+                at_once.weaken(j, k);
+                assert_eq!(staged, at_once, "actuator {i} told while {j}'s was formed");
+            }
         }
     }
     check(rov(), 8, 1);
@@ -489,6 +491,14 @@ fn a_reweighting_formed_over_cycles_is_weaken() {
     )
     .unwrap();
     check(rov32, 8, 3);
+    let hexarotor32 = Allocator::<f32, 6>::new(
+        eqtrack_allocation::Geometry::new(&presets::hexarotor(0.25, 0.5, 0.016, 8.0)).unwrap(),
+        &[],
+        &[],
+        Priority::Torque,
+    )
+    .unwrap();
+    check(hexarotor32, 6, 4);
 }
 
 /// A weak actuator's thrust as the allocator's variable (docs/maths.md, "Control allocation"):

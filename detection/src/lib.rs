@@ -1,7 +1,8 @@
 //! Actuator failures found, not announced (docs/maths.md, "Failure detection"): a detector
 //! in the controller's cycle that notices an actuator has failed, finds which one, estimates
-//! how (dead, stuck at a value, or weak by a factor) and tells the allocator in the same
-//! cycle. The windows' sums run, the test whitens with a pair renewed a step at a time, the
+//! how (dead, stuck at a value, or weak by a factor) and tells the allocator: in the same
+//! cycle, or over the cycles after where the tell reweights it (a weak actuator). The
+//! windows' sums run, the test whitens with a pair renewed a step at a time, the
 //! change point of the actuator about to be named is prepared in the entries that confirm
 //! it, and taking a failure's shortfalls out of the window waits for the cycles after its
 //! naming.
@@ -163,7 +164,7 @@ impl<T: Real> Kind<T> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Telling<T, const K: usize> {
     detection: Detection<T>,
-    /// The control periods since its finding.
+    /// The control periods since its finding (those of a gap included).
     waited: usize,
     reweighting: Option<Reweighting<T, K>>,
 }
@@ -947,6 +948,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let (momentum, held_half) = (p.mu, p.half);
         *p = now;
         if !(seen && self.held) {
+            self.idle();
             return self.next_report();
         }
         // a wheel's motor has no lag: its torque is the command held over the period
@@ -980,6 +982,7 @@ impl<T: Real, const K: usize> Detector<T, K> {
         }
         if self.settling > 0 {
             self.settling -= 1;
+            self.idle();
             return self.next_report();
         }
         let mut body = (now.mu - momentum) / c.period - held_half - now.half - thrust;
@@ -1138,6 +1141,15 @@ impl<T: Real, const K: usize> Detector<T, K> {
             refined: true,
         };
         self.conclude(d, control);
+        if self.telling {
+            // told over the cycles after: until it is in force the allocator believes the old
+            // kind, and the watch goes on taking the actuator's shortfall out of each entry
+            // (without an end), as it did before
+            self.watch = Some(Watch {
+                left: usize::MAX,
+                ..*watch
+            });
+        }
     }
 
     /// Tells the allocator of detection `d` and reports it, at once, or over the cycles that
@@ -1159,6 +1171,15 @@ impl<T: Real, const K: usize> Detector<T, K> {
         } else {
             self.tell(j, d.kind, control);
             self.report(d);
+        }
+    }
+
+    /// A period without a step of the detection being told (a gap, or the settling after
+    /// it): counted in its wait all the same.
+    #[cold]
+    fn idle(&mut self) {
+        if let Some(t) = self.staged.as_mut() {
+            t.waited += 1;
         }
     }
 
@@ -1213,6 +1234,10 @@ impl<T: Real, const K: usize> Detector<T, K> {
         d.since += t.waited;
         self.staged = None;
         self.telling = false;
+        if d.refined {
+            // the watch kept over a refinement's tell ends with it
+            self.watch = None;
+        }
         self.told_now(j, read, control);
         self.report(d);
     }
@@ -1462,11 +1487,12 @@ impl<T: Real, const K: usize> Detector<T, K> {
     }
 
     /// Actuator `j` named with statistic `t`, and the older window's mean `older`: in the
-    /// same cycle the change point over the window, the kind fitted, the allocator told and
-    /// the detection reported, so that the allocation reconfigures at once; the shortfalls
-    /// are taken out of the window over the next cycles ([`Detector::take`]). A watch still
-    /// running is cut short, its kind fitted again in the next cycle; the named actuator is
-    /// watched from the next entry on
+    /// same cycle the change point over the window, the kind fitted, and the allocator told
+    /// and the detection reported, so that the allocation reconfigures at once, or, where the
+    /// tell reweights the allocator, both over the cycles after ([`Detector::conclude`]); the
+    /// shortfalls are taken out of the window over the next cycles ([`Detector::take`]),
+    /// after that. A watch still running is cut short, its kind fitted again in a cycle
+    /// after; the named actuator is watched from the next entry on
     /// (docs/maths.md, "Failure detection", paragraph "The kind").
     fn found(&mut self, j: usize, t: T, older: SVector<T, K>, control: &mut VehicleControl<T, K>) {
         if self.watch.is_some() {
@@ -1578,7 +1604,9 @@ impl<T: Real, const K: usize> Detector<T, K> {
         let (mut recent, mut older, mut block, mut before) =
             (T::zero(), T::zero(), T::zero(), T::zero());
         let end = (p.done + chunk).min(p.span);
-        for i in p.done..end {
+        // (an entry older than the ring, after a long wait behind a weak actuator's tell, is
+        // gone from both windows: nothing to take out)
+        for i in p.done..end.min(CAPACITY.saturating_sub(p.shift)) {
             let age = i + p.shift;
             let e = &mut self.ring[(self.head + CAPACITY - 1 - age) % CAPACITY];
             let short = self.shorts[i];
