@@ -426,13 +426,14 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
             if k == T::one() {
                 continue;
             }
-            weigh(
-                b,
+            let w = weigh(
                 healthy.weights[j],
                 j,
                 k,
-                (&mut self.weights, &mut self.preferred, &mut self.bw),
+                &mut self.weights,
+                &mut self.preferred,
             );
+            self.bw.set_column(j, &(b.column(j) / w));
             if let Some(l) = chol.as_mut() {
                 rank_one_update(
                     l,
@@ -542,21 +543,17 @@ impl<T: RealField + Copy, const K: usize> Allocator<T, K> {
         }
         if !r.weighed {
             r.weighed = true;
-            let b = self.geometry.effectiveness();
-            let mut bw = self.bw;
             for j in 0..count {
                 let k = r.factors[j];
                 if k != T::one() {
-                    weigh(
-                        b,
-                        self.weights[j],
-                        j,
-                        k,
-                        (&mut r.weights, &mut r.preferred, &mut bw),
-                    );
+                    let w = weigh(self.weights[j], j, k, &mut r.weights, &mut r.preferred);
+                    // (the actuator's column of `B W⁻¹` only: the others are in force already;
+                    // at factor 1 it stays the healthy one, copied when it began)
+                    if j == r.actuator {
+                        r.column = self.geometry.effectiveness().column(j) / w;
+                    }
                 }
             }
-            r.column = bw.column(r.actuator).into_owned();
         }
         false
     }
@@ -1065,27 +1062,23 @@ fn rank_one_update<T: RealField + Copy + 'static, const K: usize>(
     }
 }
 
-/// Actuator `j`'s weight, preferred command and column of `B W⁻¹` when it gives `k` of its
-/// command, its thrust the variable (docs/maths.md, "Control allocation", *A weak actuator's
-/// thrust as its variable*): `w_j / k²`, `k u_pref,j` and `b_j / (w_j / k²)`, from its healthy
-/// weight `w` and the healthy preferred command already in `fields`.
+/// Actuator `j`'s weight and preferred command when it gives `k` of its command, its thrust
+/// the variable (docs/maths.md, "Control allocation", *A weak actuator's thrust as its
+/// variable*): `w_j / k²` and `k u_pref,j`, from its healthy weight `w` and the healthy
+/// preferred command already in `preferred`; the weight, whose column of `B W⁻¹` is
+/// `b_j / (w_j / k²)`.
 #[inline(always)]
-fn weigh<T: RealField + Copy, const K: usize>(
-    b: &SMatrix<T, K, MAX_ACTUATORS>,
+fn weigh<T: RealField + Copy>(
     w: T,
     j: usize,
     k: T,
-    fields: (
-        &mut Commands<T>,
-        &mut Commands<T>,
-        &mut SMatrix<T, K, MAX_ACTUATORS>,
-    ),
-) {
-    let (weights, preferred, bw) = fields;
+    weights: &mut Commands<T>,
+    preferred: &mut Commands<T>,
+) -> T {
     let w = w / (k * k);
     weights[j] = w;
     preferred[j] *= k;
-    bw.set_column(j, &(b.column(j) / w));
+    w
 }
 
 /// Column `j` of [`rank_one_update`], its running `x` and `β` (1 at the start) carried from
@@ -1158,7 +1151,7 @@ pub struct Reweighting<T, const K: usize> {
 
 impl<T: RealField + Copy, const K: usize> Reweighting<T, K> {
     /// The factors it poses the allocator for.
-    pub fn factors(&self) -> &Commands<T> {
+    pub(crate) fn factors(&self) -> &Commands<T> {
         &self.factors
     }
 
@@ -1169,8 +1162,9 @@ impl<T: RealField + Copy, const K: usize> Reweighting<T, K> {
         self.next >= count && self.weighed
     }
 
-    /// Whether a factor it poses the allocator for is not 1.
-    pub fn weak(&self) -> bool {
+    /// Whether a factor it poses the allocator for is not 1 (formed when it begins, so
+    /// that putting it in force does not look through the factors again).
+    pub(crate) fn weak(&self) -> bool {
         self.weak
     }
 

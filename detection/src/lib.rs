@@ -514,7 +514,8 @@ pub struct Detector<T, const K: usize> {
     queued: usize,
     /// Whether a detection's shortfalls are still being taken out of the window.
     pending: bool,
-    /// Whether a detection is being told over cycles (`staged`).
+    /// Whether a detection is being told over cycles: `staged` is some (kept here too, among
+    /// the fields every cycle reads, where `staged` lies past the first KiB).
     telling: bool,
     /// The actuator passing every gate and for how many periods in a row.
     streak: (usize, usize),
